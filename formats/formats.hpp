@@ -1,0 +1,34 @@
+#pragma once
+// Per-format entry points. Readers take the file path; writers write to the path given (the
+// registry hands them a temporary name and renames it when they return).
+
+#include <string>
+
+#include "formats/registry.hpp"
+
+namespace linebake::formats {
+
+LineSet read_obj(const std::string& path, const ReadOptions& options);
+void write_obj(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+LineSet read_binlines(const std::string& path, const ReadOptions& options);
+void write_binlines(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options);
+void write_vtk_legacy(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+LineSet read_vtp(const std::string& path, const ReadOptions& options);
+void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+LineSet read_netcdf(const std::string& path, const ReadOptions& options);
+
+LineSet read_hdf5(const std::string& path, const ReadOptions& options);
+void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+LineSet read_trk(const std::string& path, const ReadOptions& options);
+LineSet read_tck(const std::string& path, const ReadOptions& options);
+
+LineSet read_csv(const std::string& path, const ReadOptions& options);
+void write_csv(const LineSet& lines, const std::string& path, const WriteOptions& options);
+
+}  // namespace linebake::formats

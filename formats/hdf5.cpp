@@ -1,0 +1,183 @@
+// HDF5, linebake's plain layout (docs/formats.md):
+//   /points            N x 3 float32 or float64
+//   /line_offsets      L + 1 uint64 (or /line_lengths: L integers)
+//   /attributes/<name> N floats (vertex attributes)
+//   /line_attributes/<name> L floats
+//   root string attributes: linebake_version and the line set's metadata.
+
+#include <hdf5.h>
+
+#include <functional>
+
+#include "core/error.hpp"
+#include "formats/formats.hpp"
+
+namespace linebake::formats {
+
+namespace {
+
+// Owns an HDF5 id and closes it with the matching function.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  operator hid_t() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+struct SilenceErrors {
+  SilenceErrors() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+};
+
+std::vector<hsize_t> shape_of(hid_t dataset) {
+  Handle space(H5Dget_space(dataset), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  std::vector<hsize_t> dims(rank > 0 ? static_cast<size_t>(rank) : 0);
+  if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  return dims;
+}
+
+template <typename T>
+std::vector<T> read_dataset(const std::string& path, hid_t file, const std::string& name,
+                            hid_t memory_type, size_t expected_elements) {
+  Handle dataset(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!dataset.valid()) throw InputError(path, "dataset " + name, "missing");
+  hsize_t total = 1;
+  for (hsize_t d : shape_of(dataset)) total *= d;
+  if (expected_elements != SIZE_MAX && total != expected_elements)
+    throw InputError(path, "dataset " + name, std::to_string(total) + " values, expected " +
+                                                  std::to_string(expected_elements));
+  std::vector<T> values(total);
+  if (total > 0 && H5Dread(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+    throw InputError(path, "dataset " + name, "cannot read (wrong type or corrupt data)");
+  return values;
+}
+
+std::vector<std::string> group_members(hid_t file, const char* group) {
+  std::vector<std::string> names;
+  if (H5Lexists(file, group, H5P_DEFAULT) <= 0) return names;
+  Handle g(H5Gopen2(file, group, H5P_DEFAULT), H5Gclose);
+  if (!g.valid()) return names;
+  auto collect = [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    static_cast<std::vector<std::string>*>(data)->push_back(name);
+    return 0;
+  };
+  // Creation order where the file tracks it (linebake's files do), else name order.
+  if (H5Literate(g, H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect, &names) < 0) {
+    names.clear();
+    H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, nullptr, collect, &names);
+  }
+  return names;
+}
+
+void write_string_attribute(const std::string& path, hid_t object, const std::string& name,
+                            const std::string& value) {
+  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(type, value.empty() ? 1 : value.size());
+  H5Tset_strpad(type, H5T_STR_NULLTERM);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attribute(H5Acreate2(object, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attribute.valid() || H5Awrite(attribute, type, value.c_str()) < 0)
+    throw OutputError(path, "cannot write attribute " + name);
+}
+
+void write_dataset(const std::string& path, hid_t location, const std::string& name,
+                   hid_t file_type, hid_t memory_type, const void* data,
+                   std::vector<hsize_t> dims) {
+  Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
+  Handle dataset(H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                 H5Dclose);
+  if (!dataset.valid()) throw OutputError(path, "cannot create dataset " + name);
+  hsize_t total = 1;
+  for (hsize_t d : dims) total *= d;
+  if (total > 0 && H5Dwrite(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    throw OutputError(path, "cannot write dataset " + name);
+}
+
+}  // namespace
+
+LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
+  static SilenceErrors silence;
+  if (H5Fis_hdf5(path.c_str()) <= 0) throw InputError(path, "", "not an HDF5 file (or unreadable)");
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.valid()) throw InputError(path, "", "cannot open HDF5 file");
+
+  LineSet lines;
+  {
+    Handle dataset(H5Dopen2(file, "/points", H5P_DEFAULT), H5Dclose);
+    if (!dataset.valid()) throw InputError(path, "dataset /points", "missing");
+    const std::vector<hsize_t> dims = shape_of(dataset);
+    if (dims.size() != 2 || dims[1] != 3)
+      throw InputError(path, "dataset /points", "expected shape N x 3");
+  }
+  lines.positions = read_dataset<float>(path, file, "/points", H5T_NATIVE_FLOAT, SIZE_MAX);
+  const size_t n = lines.point_count();
+  if (options.progress) options.progress(1, 3);
+  if (H5Lexists(file, "/line_offsets", H5P_DEFAULT) > 0) {
+    lines.line_offsets = read_dataset<uint64_t>(path, file, "/line_offsets", H5T_NATIVE_UINT64, SIZE_MAX);
+    if (lines.line_offsets.empty() || lines.line_offsets.front() != 0 ||
+        lines.line_offsets.back() != n)
+      throw InputError(path, "dataset /line_offsets", "must start at 0 and end at the point count " +
+                                                          std::to_string(n));
+    for (size_t i = 1; i < lines.line_offsets.size(); ++i)
+      if (lines.line_offsets[i] < lines.line_offsets[i - 1])
+        throw InputError(path, "dataset /line_offsets", "decreases at index " + std::to_string(i));
+  } else if (H5Lexists(file, "/line_lengths", H5P_DEFAULT) > 0) {
+    const auto lengths = read_dataset<uint64_t>(path, file, "/line_lengths", H5T_NATIVE_UINT64, SIZE_MAX);
+    lines.line_offsets.assign(1, 0);
+    for (uint64_t length : lengths) lines.line_offsets.push_back(lines.line_offsets.back() + length);
+    if (lines.line_offsets.back() != n)
+      throw InputError(path, "dataset /line_lengths", "lengths sum to " +
+                                                          std::to_string(lines.line_offsets.back()) +
+                                                          ", not the point count " + std::to_string(n));
+  } else {
+    throw InputError(path, "dataset /line_offsets", "missing (and no /line_lengths)");
+  }
+  for (const std::string& name : group_members(file, "/attributes"))
+    lines.attributes.push_back(
+        {name, read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
+  for (const std::string& name : group_members(file, "/line_attributes"))
+    lines.line_attributes.push_back({name, read_dataset<float>(path, file, "/line_attributes/" + name,
+                                                              H5T_NATIVE_FLOAT, lines.line_count())});
+  if (options.progress) options.progress(3, 3);
+  return lines;
+}
+
+void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  static SilenceErrors silence;
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, H5P_DEFAULT), H5Fclose);
+  if (!file.valid()) throw OutputError(path, "cannot create HDF5 file");
+  write_string_attribute(path, file, "linebake_version", LINEBAKE_VERSION);
+  for (const auto& [key, value] : lines.metadata) write_string_attribute(path, file, key, value);
+  write_dataset(path, file, "points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, lines.positions.data(),
+                {lines.point_count(), 3});
+  write_dataset(path, file, "line_offsets", H5T_STD_U64LE, H5T_NATIVE_UINT64,
+                lines.line_offsets.data(), {lines.line_offsets.size()});
+  if (options.progress) options.progress(1, 3);
+  auto write_group = [&](const char* group, const std::vector<Attribute>& list) {
+    if (list.empty()) return;
+    // Creation order is tracked so attributes read back in the order written.
+    Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+    H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
+    Handle g(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
+    if (!g.valid()) throw OutputError(path, std::string("cannot create group ") + group);
+    for (const Attribute& a : list)
+      write_dataset(path, g, a.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, a.values.data(),
+                    {a.values.size()});
+  };
+  write_group("attributes", lines.attributes);
+  write_group("line_attributes", lines.line_attributes);
+  if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0) throw OutputError(path, "flush failed");
+  if (options.progress) options.progress(3, 3);
+}
+
+}  // namespace linebake::formats

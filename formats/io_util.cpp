@@ -1,0 +1,187 @@
+#include "formats/io_util.hpp"
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+
+namespace linebake::io {
+
+File::File(const std::string& path, const char* mode) : path_(path) {
+  f_ = std::fopen(path.c_str(), mode);
+  if (!f_) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
+  if (std::fseek(f_, 0, SEEK_END) == 0) {
+    const long end = std::ftell(f_);
+    size_ = end > 0 ? static_cast<uint64_t>(end) : 0;
+    std::fseek(f_, 0, SEEK_SET);
+  }
+}
+
+File::~File() {
+  if (f_) std::fclose(f_);
+}
+
+TextReader::TextReader(const std::string& path, ProgressFn progress)
+    : file_(path), progress_(std::move(progress)), buffer_(1 << 20) {}
+
+bool TextReader::refill() {
+  if (eof_) return false;
+  if (begin_ > 0) {
+    std::memmove(buffer_.data(), buffer_.data() + begin_, end_ - begin_);
+    end_ -= begin_;
+    begin_ = 0;
+  }
+  if (end_ == buffer_.size()) buffer_.resize(buffer_.size() * 2);
+  const size_t got = std::fread(buffer_.data() + end_, 1, buffer_.size() - end_, file_.get());
+  if (got == 0) eof_ = true;
+  end_ += got;
+  if (progress_) progress_(consumed_, file_.size());
+  return got > 0;
+}
+
+bool TextReader::next(std::string_view& line) {
+  for (;;) {
+    const char* start = buffer_.data() + begin_;
+    const void* nl = std::memchr(start, '\n', end_ - begin_);
+    if (nl || (eof_ && begin_ < end_)) {
+      const char* stop = nl ? static_cast<const char*>(nl) : buffer_.data() + end_;
+      size_t length = static_cast<size_t>(stop - start);
+      const size_t advance = length + (nl ? 1 : 0);
+      if (length > 0 && start[length - 1] == '\r') --length;
+      line = std::string_view(start, length);
+      begin_ += advance;
+      consumed_ += advance;
+      ++line_number_;
+      return true;
+    }
+    if (eof_) return false;
+    refill();
+  }
+}
+
+void TextReader::fail(const std::string& message) const {
+  throw InputError(file_.path(), at_line(line_number_), message);
+}
+
+BinaryReader::BinaryReader(const std::string& path, ProgressFn progress)
+    : file_(path), progress_(std::move(progress)) {}
+
+void BinaryReader::read(void* out, size_t bytes, const char* what) {
+  if (bytes == 0) return;
+  if (offset_ + bytes > file_.size() || std::fread(out, 1, bytes, file_.get()) != bytes) {
+    fail(std::string("file truncated while reading ") + what + " (needs " +
+         std::to_string(bytes) + " bytes, " +
+         std::to_string(file_.size() > offset_ ? file_.size() - offset_ : 0) + " left)");
+  }
+  offset_ += bytes;
+  if (progress_ && offset_ - last_report_ > (8u << 20)) {
+    last_report_ = offset_;
+    progress_(offset_, file_.size());
+  }
+}
+
+void BinaryReader::seek(uint64_t offset) {
+  if (offset > file_.size() || std::fseek(file_.get(), static_cast<long>(offset), SEEK_SET) != 0)
+    fail("cannot seek to byte offset " + std::to_string(offset) + " (file has " +
+         std::to_string(file_.size()) + " bytes)");
+  offset_ = offset;
+}
+
+void BinaryReader::fail(const std::string& message) const { fail_at(offset_, message); }
+
+void BinaryReader::fail_at(uint64_t offset, const std::string& message) const {
+  throw InputError(file_.path(), at_byte(offset), message);
+}
+
+void byteswap_array(void* data, size_t count, size_t element_size) {
+  auto* b = static_cast<unsigned char*>(data);
+  for (size_t i = 0; i < count; ++i, b += element_size)
+    for (size_t k = 0; k < element_size / 2; ++k) std::swap(b[k], b[element_size - 1 - k]);
+}
+
+std::string_view trim(std::string_view s) {
+  const auto space = [](char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; };
+  while (!s.empty() && space(s.front())) s.remove_prefix(1);
+  while (!s.empty() && space(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string_view> split_whitespace(std::string_view line) {
+  std::vector<std::string_view> tokens;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    const size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t' && line[i] != '\r') ++i;
+    if (i > start) tokens.push_back(line.substr(start, i - start));
+  }
+  return tokens;
+}
+
+namespace {
+template <typename T>
+bool parse_number(std::string_view token, T& out) {
+  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+  const char* end = token.data() + token.size();
+  auto r = std::from_chars(token.data(), end, out);
+  return r.ec == std::errc() && r.ptr == end;
+}
+// from_chars rejects "nan"/"inf" spellings some writers use; accept them explicitly.
+template <typename T>
+bool parse_real(std::string_view token, T& out) {
+  if (parse_number(token, out)) return true;
+  std::string lower(token);
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower == "nan" || lower == "-nan" || lower == "+nan") {
+    out = std::numeric_limits<T>::quiet_NaN();
+    return true;
+  }
+  if (lower == "inf" || lower == "+inf" || lower == "infinity") {
+    out = std::numeric_limits<T>::infinity();
+    return true;
+  }
+  if (lower == "-inf" || lower == "-infinity") {
+    out = -std::numeric_limits<T>::infinity();
+    return true;
+  }
+  return false;
+}
+}  // namespace
+
+bool parse_float(std::string_view token, float& out) { return parse_real(token, out); }
+bool parse_double(std::string_view token, double& out) { return parse_real(token, out); }
+bool parse_int64(std::string_view token, int64_t& out) { return parse_number(token, out); }
+bool parse_uint64(std::string_view token, uint64_t& out) { return parse_number(token, out); }
+
+void append_float(std::string& out, float v) {
+  if (std::isnan(v)) {
+    out += "nan";
+    return;
+  }
+  char buffer[32];
+  auto r = std::to_chars(buffer, buffer + sizeof(buffer), v);
+  out.append(buffer, r.ptr);
+}
+
+Writer::Writer(const std::string& path) : path_(path) {
+  f_ = std::fopen(path.c_str(), "wb");
+  if (!f_) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+  std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
+}
+
+Writer::~Writer() {
+  if (f_) std::fclose(f_);
+}
+
+void Writer::write(const void* data, size_t bytes) {
+  if (bytes && std::fwrite(data, 1, bytes, f_) != bytes)
+    throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+}
+
+void Writer::close() {
+  const bool ok = std::fflush(f_) == 0 && !std::ferror(f_);
+  std::fclose(f_);
+  f_ = nullptr;
+  if (!ok) throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+}
+
+}  // namespace linebake::io

@@ -1,0 +1,131 @@
+#pragma once
+// Small I/O pieces the readers and writers share: buffered line reading with line numbers,
+// checked binary reads with byte offsets, byte order, and exact float formatting.
+
+#include <bit>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/progress.hpp"
+
+namespace linebake::io {
+
+// A read-only file with its size; closes on destruction. Throws InputError when it cannot open.
+class File {
+ public:
+  File(const std::string& path, const char* mode = "rb");
+  ~File();
+  File(const File&) = delete;
+  File& operator=(const File&) = delete;
+  std::FILE* get() const { return f_; }
+  uint64_t size() const { return size_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  uint64_t size_ = 0;
+};
+
+// Streams a text file line by line (LF or CRLF) without holding it whole.
+class TextReader {
+ public:
+  explicit TextReader(const std::string& path, ProgressFn progress = {});
+  // Next line without its terminator; false at end of file.
+  bool next(std::string_view& line);
+  uint64_t line_number() const { return line_number_; }
+  uint64_t offset() const { return consumed_; }  // bytes before the next unread line
+  const std::string& path() const { return file_.path(); }
+  [[noreturn]] void fail(const std::string& message) const;
+
+ private:
+  bool refill();
+  File file_;
+  ProgressFn progress_;
+  std::vector<char> buffer_;
+  size_t begin_ = 0, end_ = 0;
+  bool eof_ = false;
+  uint64_t line_number_ = 0;
+  uint64_t consumed_ = 0;
+  std::string long_line_;
+};
+
+// Checked binary reads that report the byte offset of a truncation.
+class BinaryReader {
+ public:
+  explicit BinaryReader(const std::string& path, ProgressFn progress = {});
+  void read(void* out, size_t bytes, const char* what);
+  template <typename T>
+  T read_value(const char* what, bool swap = false);
+  void seek(uint64_t offset);
+  bool at_end() const { return offset_ >= file_.size(); }
+  uint64_t offset() const { return offset_; }
+  uint64_t size() const { return file_.size(); }
+  const std::string& path() const { return file_.path(); }
+  [[noreturn]] void fail(const std::string& message) const;
+  [[noreturn]] void fail_at(uint64_t offset, const std::string& message) const;
+
+ private:
+  File file_;
+  ProgressFn progress_;
+  uint64_t offset_ = 0;
+  uint64_t last_report_ = 0;
+};
+
+template <typename T>
+T byteswap_value(T v) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  for (size_t i = 0; i < sizeof(T) / 2; ++i) std::swap(b[i], b[sizeof(T) - 1 - i]);
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+// Swaps every element of an array of `element_size`-byte values in place.
+void byteswap_array(void* data, size_t count, size_t element_size);
+
+template <typename T>
+T BinaryReader::read_value(const char* what, bool swap) {
+  T v;
+  read(&v, sizeof(T), what);
+  return swap ? byteswap_value(v) : v;
+}
+
+// Whitespace tokenizer over one line.
+std::vector<std::string_view> split_whitespace(std::string_view line);
+std::string_view trim(std::string_view s);
+
+// Parse helpers: throw nothing; return false on failure (the caller names the place).
+bool parse_float(std::string_view token, float& out);
+bool parse_double(std::string_view token, double& out);
+bool parse_int64(std::string_view token, int64_t& out);
+bool parse_uint64(std::string_view token, uint64_t& out);
+
+// Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
+void append_float(std::string& out, float v);
+
+// Buffered binary/text writer over an AtomicFile's temporary path.
+class Writer {
+ public:
+  explicit Writer(const std::string& path);
+  ~Writer();
+  void write(const void* data, size_t bytes);
+  void write(std::string_view text) { write(text.data(), text.size()); }
+  template <typename T>
+  void write_value(T v, bool swap = false) {
+    if (swap) v = byteswap_value(v);
+    write(&v, sizeof(T));
+  }
+  void close();  // flushes; throws OutputError on failure
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+};
+
+}  // namespace linebake::io

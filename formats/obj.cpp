@@ -1,0 +1,144 @@
+// Wavefront OBJ polylines: v (positions), vt (one per v: the vertex attributes), l (polylines,
+// 1-based or negative relative indices), an optional `a name0 name1 ...` line naming the
+// attributes. Faces, normals, groups and materials are ignored.
+
+#include <numeric>
+
+#include "formats/formats.hpp"
+#include "formats/io_util.hpp"
+
+namespace linebake::formats {
+
+LineSet read_obj(const std::string& path, const ReadOptions& options) {
+  io::TextReader in(path, options.progress);
+  std::vector<float> positions;
+  std::vector<float> vt;  // row-major: point x attribute
+  size_t vt_rows = 0;
+  size_t attribute_count = SIZE_MAX;
+  std::vector<std::string> names;
+  std::vector<uint64_t> indices;
+  std::vector<uint64_t> offsets{0};
+  std::string_view line;
+  while (in.next(line)) {
+    line = io::trim(line);
+    if (line.empty() || line[0] == '#') continue;
+    const auto tokens = io::split_whitespace(line);
+    const std::string_view key = tokens[0];
+    if (key == "v") {
+      if (tokens.size() < 4) in.fail("vertex needs 3 coordinates");
+      for (int k = 1; k <= 3; ++k) {
+        float value;
+        if (!io::parse_float(tokens[k], value))
+          in.fail("bad coordinate '" + std::string(tokens[k]) + "'");
+        positions.push_back(value);
+      }
+    } else if (key == "vt") {
+      const size_t n = tokens.size() - 1;
+      if (attribute_count == SIZE_MAX) attribute_count = n;
+      if (n != attribute_count)
+        in.fail("vt has " + std::to_string(n) + " values, earlier vt lines had " +
+                std::to_string(attribute_count));
+      for (size_t k = 1; k < tokens.size(); ++k) {
+        float value;
+        if (!io::parse_float(tokens[k], value))
+          in.fail("bad attribute value '" + std::string(tokens[k]) + "'");
+        vt.push_back(value);
+      }
+      ++vt_rows;
+    } else if (key == "l") {
+      if (tokens.size() < 2) in.fail("polyline without indices");
+      const int64_t count = static_cast<int64_t>(positions.size() / 3);
+      for (size_t k = 1; k < tokens.size(); ++k) {
+        // "l 1/1 2/2" (vertex/texture) is legal OBJ: the vertex index comes first.
+        std::string_view token = tokens[k].substr(0, tokens[k].find('/'));
+        int64_t index;
+        if (!io::parse_int64(token, index) || index == 0)
+          in.fail("bad vertex index '" + std::string(tokens[k]) + "'");
+        const int64_t zero_based = index > 0 ? index - 1 : count + index;
+        if (zero_based < 0 || zero_based >= count)
+          in.fail("vertex index " + std::to_string(index) + " out of range (" +
+                  std::to_string(count) + " vertices so far)");
+        indices.push_back(static_cast<uint64_t>(zero_based));
+      }
+      offsets.push_back(indices.size());
+    } else if (key == "a") {
+      names.assign(tokens.begin() + 1, tokens.end());
+    }
+  }
+  const size_t point_count = positions.size() / 3;
+  if (attribute_count == SIZE_MAX) attribute_count = 0;
+  if (vt_rows != 0 && vt_rows != point_count)
+    throw InputError(path, "", std::to_string(vt_rows) + " vt lines for " +
+                                   std::to_string(point_count) + " vertices (need one per v)");
+  if (!names.empty() && names.size() != attribute_count)
+    throw InputError(path, "", "the `a` line names " + std::to_string(names.size()) +
+                                   " attributes, vt lines have " +
+                                   std::to_string(attribute_count));
+
+  LineSet lines;
+  lines.line_offsets = std::move(offsets);
+  // Lines that walk the vertices in file order (what most writers produce) keep the arrays
+  // as they are; anything else is gathered.
+  bool identity = indices.size() == point_count;
+  for (size_t i = 0; identity && i < indices.size(); ++i) identity = indices[i] == i;
+  if (identity) {
+    lines.positions = std::move(positions);
+  } else {
+    lines.positions.resize(indices.size() * 3);
+    for (size_t i = 0; i < indices.size(); ++i)
+      for (int k = 0; k < 3; ++k) lines.positions[3 * i + k] = positions[3 * indices[i] + k];
+  }
+  for (size_t a = 0; a < attribute_count; ++a) {
+    Attribute attribute{names.empty() ? "attribute" + std::to_string(a) : names[a], {}};
+    attribute.values.resize(indices.size());
+    for (size_t i = 0; i < indices.size(); ++i)
+      attribute.values[i] = vt[indices[i] * attribute_count + a];
+    lines.attributes.push_back(std::move(attribute));
+  }
+  return lines;
+}
+
+void write_obj(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  io::Writer out(path);
+  std::string text;
+  text.reserve(1 << 20);
+  auto flush = [&] {
+    out.write(text);
+    text.clear();
+  };
+  text += "# linebake " LINEBAKE_VERSION " polylines\n";
+  if (!lines.attributes.empty()) {
+    text += "a";
+    for (const Attribute& a : lines.attributes) text += " " + a.name;
+    text += "\n";
+  }
+  for (size_t i = 0; i < lines.point_count(); ++i) {
+    text += "v";
+    for (int k = 0; k < 3; ++k) {
+      text += ' ';
+      io::append_float(text, lines.positions[3 * i + k]);
+    }
+    text += '\n';
+    if (!lines.attributes.empty()) {
+      text += "vt";
+      for (const Attribute& a : lines.attributes) {
+        text += ' ';
+        io::append_float(text, a.values[i]);
+      }
+      text += '\n';
+    }
+    if (text.size() > (1 << 20) - 256) flush();
+  }
+  for (size_t line = 0; line < lines.line_count(); ++line) {
+    text += "l";
+    for (uint64_t i = lines.line_offsets[line]; i < lines.line_offsets[line + 1]; ++i)
+      text += " " + std::to_string(i + 1);
+    text += '\n';
+    if (text.size() > (1 << 20) - 256) flush();
+    if (options.progress && line % 4096 == 0) options.progress(line, lines.line_count());
+  }
+  flush();
+  out.close();
+}
+
+}  // namespace linebake::formats

@@ -1,0 +1,105 @@
+#include "formats/registry.hpp"
+
+#include <algorithm>
+#include <cctype>
+
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "formats/formats.hpp"
+#include "synth/synth.hpp"
+
+namespace linebake {
+
+const std::vector<FormatInfo>& format_table() {
+  static const std::vector<FormatInfo> list{
+      {Format::obj, "obj", {".obj"}, true, true},
+      {Format::binlines, "binlines", {".binlines"}, true, true},
+      {Format::vtk, "vtk", {".vtk"}, true, true},
+      {Format::vtp, "vtp", {".vtp"}, true, true},
+      {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false},
+      {Format::hdf5, "hdf5", {".h5", ".hdf5", ".hdf"}, true, true},
+      {Format::trk, "trk", {".trk"}, true, false},
+      {Format::tck, "tck", {".tck"}, true, false},
+      {Format::csv, "csv", {".csv"}, true, true},
+  };
+  return list;
+}
+
+const FormatInfo& format_info(Format format) {
+  for (const FormatInfo& f : format_table())
+    if (f.format == format) return f;
+  throw Error("unknown format");
+}
+
+Format parse_format(const std::string& name) {
+  for (const FormatInfo& f : format_table())
+    if (name == f.name) return f.format;
+  std::string known;
+  for (const FormatInfo& f : format_table()) known += std::string(known.empty() ? "" : ", ") + f.name;
+  throw Error("unknown format '" + name + "' (known: " + known + ")");
+}
+
+std::optional<Format> format_from_extension(const std::string& path) {
+  std::string lower = path;
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  for (const FormatInfo& f : format_table())
+    for (const char* ext : f.extensions) {
+      const std::string e(ext);
+      if (lower.size() > e.size() && lower.compare(lower.size() - e.size(), e.size(), e) == 0)
+        return f.format;
+    }
+  return std::nullopt;
+}
+
+namespace {
+Format choose(const std::string& path, const std::optional<Format>& forced) {
+  if (forced) return *forced;
+  if (auto f = format_from_extension(path)) return *f;
+  throw Error(path + ": cannot tell the format from the extension; name it with --from/--to");
+}
+}  // namespace
+
+std::string source_format_name(const std::string& source, const ReadOptions& options) {
+  if (synth::is_synth_source(source)) return "synth";
+  return format_info(choose(source, options.format)).name;
+}
+
+LineSet read_line_set(const std::string& source, const ReadOptions& options) {
+  if (synth::is_synth_source(source))
+    return synth::generate(synth::parse_synth_source(source), options.progress);
+  const Format format = choose(source, options.format);
+  LineSet lines;
+  switch (format) {
+    case Format::obj: lines = formats::read_obj(source, options); break;
+    case Format::binlines: lines = formats::read_binlines(source, options); break;
+    case Format::vtk: lines = formats::read_vtk_legacy(source, options); break;
+    case Format::vtp: lines = formats::read_vtp(source, options); break;
+    case Format::netcdf: lines = formats::read_netcdf(source, options); break;
+    case Format::hdf5: lines = formats::read_hdf5(source, options); break;
+    case Format::trk: lines = formats::read_trk(source, options); break;
+    case Format::tck: lines = formats::read_tck(source, options); break;
+    case Format::csv: lines = formats::read_csv(source, options); break;
+  }
+  lines.metadata.emplace("source", source);
+  return lines;
+}
+
+void write_line_set(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  const Format format = choose(path, options.format);
+  if (!format_info(format).writable)
+    throw Error(std::string("writing ") + format_info(format).name + " is not supported");
+  AtomicFile file(path);
+  switch (format) {
+    case Format::obj: formats::write_obj(lines, file.temp_path(), options); break;
+    case Format::binlines: formats::write_binlines(lines, file.temp_path(), options); break;
+    case Format::vtk: formats::write_vtk_legacy(lines, file.temp_path(), options); break;
+    case Format::vtp: formats::write_vtp(lines, file.temp_path(), options); break;
+    case Format::hdf5: formats::write_hdf5(lines, file.temp_path(), options); break;
+    case Format::csv: formats::write_csv(lines, file.temp_path(), options); break;
+    default: throw Error("unsupported output format");
+  }
+  file.commit();
+}
+
+}  // namespace linebake

@@ -1,0 +1,54 @@
+#pragma once
+// Reading and writing line sets by file name: the format comes from the extension unless the
+// caller names it. "synth:<name>?scale=..&seed=.." sources are readable wherever a file is.
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/progress.hpp"
+#include "lines/line_set.hpp"
+
+namespace linebake {
+
+enum class Format { obj, binlines, vtk, vtp, netcdf, hdf5, trk, tck, csv };
+
+struct FormatInfo {
+  Format format;
+  const char* name;
+  std::vector<const char*> extensions;
+  bool readable;
+  bool writable;
+};
+const std::vector<FormatInfo>& format_table();
+const FormatInfo& format_info(Format format);
+Format parse_format(const std::string& name);  // throws Error
+std::optional<Format> format_from_extension(const std::string& path);
+
+struct ReadOptions {
+  std::optional<Format> format;  // overrides the extension
+  ProgressFn progress;
+};
+
+struct WriteOptions {
+  std::optional<Format> format;   // overrides the extension
+  bool ascii = false;             // vtk / vtp: text instead of binary
+  uint32_t binlines_version = 2;  // 1 drops attribute names (what the public LineVis reads)
+  bool vtp_compress = true;       // vtp: zlib-compressed blocks (ParaView's default)
+  // vtp data layout: "appended" raw bytes (ParaView's default), "appended-base64", "base64"
+  // (inline binary) or "ascii".
+  std::string vtp_encoding = "appended";
+  bool vtp_header_uint64 = true;  // header_type UInt64 (VTK 9 default) or UInt32
+  ProgressFn progress;
+};
+
+// Throws InputError (with file and place) on malformed input, Error on unsupported requests.
+LineSet read_line_set(const std::string& source, const ReadOptions& options = {});
+// Format name of a source, as read_line_set would choose it ("synth" for synthetic sources).
+std::string source_format_name(const std::string& source, const ReadOptions& options = {});
+
+// Writes through a temporary file renamed at the end: a failed write leaves nothing behind.
+void write_line_set(const LineSet& lines, const std::string& path,
+                    const WriteOptions& options = {});
+
+}  // namespace linebake

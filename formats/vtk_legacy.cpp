@@ -1,0 +1,527 @@
+// VTK legacy PolyData (.vtk), ASCII and BINARY (big endian). Lines in the classic layout
+// (`LINES cells size`, count then indices per cell) or the 5.1 layout (`LINES offsets conn`,
+// `OFFSETS type`, `CONNECTIVITY type`). POINT_DATA becomes vertex attributes and the CELL_DATA of
+// the line cells becomes line attributes: SCALARS (any component count), VECTORS, NORMALS,
+// TEXTURE_COORDINATES, TENSORS and FIELD arrays; multi-component arrays are split into
+// name_x/_y/_z (3 components) or name_0.._k.
+
+#include <cctype>
+#include <cmath>
+
+#include "formats/formats.hpp"
+#include "formats/io_util.hpp"
+
+namespace linebake::formats {
+
+namespace {
+
+size_t type_size(const std::string& type) {
+  if (type == "unsigned_char" || type == "char") return 1;
+  if (type == "short" || type == "unsigned_short") return 2;
+  if (type == "int" || type == "unsigned_int" || type == "float") return 4;
+  if (type == "long" || type == "unsigned_long" || type == "double" || type == "vtktypeint64" ||
+      type == "vtktypeuint64" || type == "vtkIdType")
+    return 8;
+  return 0;
+}
+
+// Names in legacy files encode spaces and other special characters as %xx.
+std::string decode_name(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
+      out += static_cast<char>(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+std::string encode_name(const std::string& s) {
+  std::string out;
+  for (unsigned char c : s) {
+    if (c <= ' ' || c == '%' || c >= 127) {
+      char hex[4];
+      std::snprintf(hex, sizeof(hex), "%%%02X", c);
+      out += hex;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out.empty() ? "unnamed" : out;
+}
+
+// Token-and-bytes reader: ASCII parts are read as whitespace-separated tokens, binary blocks
+// as raw bytes starting after the line that announced them.
+class LegacyStream {
+ public:
+  LegacyStream(const std::string& path, ProgressFn progress)
+      : file_(path), progress_(std::move(progress)), buffer_(1 << 20) {}
+
+  bool fill() {
+    if (pos_ < end_) return true;
+    if (progress_) progress_(offset(), file_.size());
+    base_ += end_;
+    pos_ = 0;
+    end_ = std::fread(buffer_.data(), 1, buffer_.size(), file_.get());
+    return end_ > 0;
+  }
+  uint64_t offset() const { return base_ + pos_; }
+
+  std::string line() {
+    std::string s;
+    while (fill()) {
+      const char c = buffer_[pos_++];
+      if (c == '\n') break;
+      s += c;
+    }
+    if (!s.empty() && s.back() == '\r') s.pop_back();
+    ++line_;
+    return s;
+  }
+
+  // Next whitespace-separated token, or empty at end of file.
+  std::string token() {
+    std::string t;
+    while (fill()) {
+      const char c = buffer_[pos_];
+      if (c == '\n') ++line_;
+      if (!std::isspace(static_cast<unsigned char>(c))) break;
+      ++pos_;
+    }
+    while (fill()) {
+      const char c = buffer_[pos_];
+      if (std::isspace(static_cast<unsigned char>(c))) break;
+      t += c;
+      ++pos_;
+    }
+    return t;
+  }
+
+  // Skips the rest of the current line (binary data follows the newline).
+  void skip_line() {
+    while (fill()) {
+      if (buffer_[pos_++] == '\n') {
+        ++line_;
+        return;
+      }
+    }
+  }
+
+  void bytes(void* out, size_t n) {
+    auto* dst = static_cast<char*>(out);
+    while (n > 0) {
+      if (!fill()) fail("file truncated inside binary data");
+      const size_t take = std::min(n, end_ - pos_);
+      std::memcpy(dst, buffer_.data() + pos_, take);
+      pos_ += take;
+      dst += take;
+      n -= take;
+    }
+  }
+
+  [[noreturn]] void fail(const std::string& message) const {
+    throw InputError(file_.path(), at_line(line_) + " (" + at_byte(offset()) + ")", message);
+  }
+  const std::string& path() const { return file_.path(); }
+
+ private:
+  io::File file_;
+  ProgressFn progress_;
+  std::vector<char> buffer_;
+  size_t pos_ = 0, end_ = 0;
+  uint64_t base_ = 0;
+  uint64_t line_ = 1;
+};
+
+template <typename Out>
+void read_values(LegacyStream& in, bool binary, const std::string& type, size_t count, Out* out) {
+  const size_t size = type_size(type);
+  if (size == 0) in.fail("unsupported data type '" + type + "'");
+  if (!binary) {
+    for (size_t i = 0; i < count; ++i) {
+      const std::string t = in.token();
+      double v;
+      if (t.empty()) in.fail("file ends after " + std::to_string(i) + " of " +
+                             std::to_string(count) + " values");
+      if (!io::parse_double(t, v)) in.fail("bad number '" + t + "'");
+      out[i] = static_cast<Out>(v);
+    }
+    return;
+  }
+  unsigned char raw[8];
+  for (size_t i = 0; i < count; ++i) {
+    in.bytes(raw, size);
+    if constexpr (std::endian::native == std::endian::little)
+      for (size_t k = 0; k < size / 2; ++k) std::swap(raw[k], raw[size - 1 - k]);
+    double v = 0;
+    if (type == "float") { float f; std::memcpy(&f, raw, 4); v = f; }
+    else if (type == "double") { std::memcpy(&v, raw, 8); }
+    else if (type == "char") { v = static_cast<signed char>(raw[0]); }
+    else if (type == "unsigned_char") { v = raw[0]; }
+    else if (type == "short") { int16_t x; std::memcpy(&x, raw, 2); v = x; }
+    else if (type == "unsigned_short") { uint16_t x; std::memcpy(&x, raw, 2); v = x; }
+    else if (type == "int") { int32_t x; std::memcpy(&x, raw, 4); v = x; }
+    else if (type == "unsigned_int") { uint32_t x; std::memcpy(&x, raw, 4); v = x; }
+    else if (type == "vtktypeuint64" || type == "unsigned_long") { uint64_t x; std::memcpy(&x, raw, 8); v = static_cast<double>(x); }
+    else { int64_t x; std::memcpy(&x, raw, 8); v = static_cast<double>(x); }
+    out[i] = static_cast<Out>(v);
+  }
+}
+
+struct Cells {
+  std::vector<int64_t> offsets{0};  // n + 1
+  std::vector<int64_t> connectivity;
+  size_t count() const { return offsets.size() - 1; }
+};
+
+Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
+  Cells cells;
+  if (a == 0 && b == 0) return cells;
+  // The 5.1 layout announces OFFSETS next; the classic one starts with the first cell's count.
+  std::string keyword;
+  if (binary) {
+    // Peek is impossible in binary without a token: 5.1 binary files always put OFFSETS on the
+    // next line, classic ones raw integers. Read 7 bytes and compare.
+    in.skip_line();
+    char head[7];
+    in.bytes(head, 7);
+    if (std::string(head, 7) == "OFFSETS") {
+      keyword = "OFFSETS";
+    } else {
+      // Classic: a is the cell count, b the total size; we already consumed 7 bytes.
+      std::vector<unsigned char> raw(b * 4);
+      if (raw.size() < 7) in.fail("LINES block too small");
+      std::memcpy(raw.data(), head, 7);
+      in.bytes(raw.data() + 7, raw.size() - 7);
+      size_t at = 0;
+      auto next = [&] {
+        if (at + 4 > raw.size()) in.fail("LINES size too small for its cells");
+        int32_t v;
+        unsigned char r[4] = {raw[at + 3], raw[at + 2], raw[at + 1], raw[at]};
+        std::memcpy(&v, r, 4);
+        at += 4;
+        return static_cast<int64_t>(v);
+      };
+      for (uint64_t c = 0; c < a; ++c) {
+        const int64_t n = next();
+        if (n < 0) in.fail("negative cell size");
+        for (int64_t k = 0; k < n; ++k) cells.connectivity.push_back(next());
+        cells.offsets.push_back(static_cast<int64_t>(cells.connectivity.size()));
+      }
+      if (at != raw.size()) in.fail("LINES size does not match its cells");
+      return cells;
+    }
+  } else {
+    keyword = in.token();
+  }
+  if (keyword == "OFFSETS") {
+    const std::string offset_type = in.token();
+    if (binary) in.skip_line();
+    cells.offsets.resize(a);
+    if (a == 0) in.fail("OFFSETS needs at least one value");
+    read_values(in, binary, offset_type, a, cells.offsets.data());
+    if (in.token() != "CONNECTIVITY") in.fail("expected CONNECTIVITY after OFFSETS");
+    const std::string conn_type = in.token();
+    if (binary) in.skip_line();
+    cells.connectivity.resize(b);
+    read_values(in, binary, conn_type, b, cells.connectivity.data());
+    for (size_t i = 1; i < cells.offsets.size(); ++i)
+      if (cells.offsets[i] < cells.offsets[i - 1] ||
+          cells.offsets[i] > static_cast<int64_t>(b))
+        in.fail("OFFSETS not increasing or past the connectivity");
+    if (cells.offsets.front() != 0 || cells.offsets.back() != static_cast<int64_t>(b))
+      in.fail("OFFSETS must start at 0 and end at the connectivity size");
+    return cells;
+  }
+  // Classic ASCII: the token we read is the first cell's size.
+  std::string t = keyword;
+  uint64_t consumed = 0;
+  for (uint64_t c = 0; c < a; ++c) {
+    if (c > 0) t = in.token();
+    int64_t n;
+    if (!io::parse_int64(t, n) || n < 0) in.fail("bad cell size '" + t + "'");
+    ++consumed;
+    for (int64_t k = 0; k < n; ++k) {
+      const std::string s = in.token();
+      int64_t index;
+      if (!io::parse_int64(s, index)) in.fail("bad point index '" + s + "'");
+      cells.connectivity.push_back(index);
+    }
+    consumed += static_cast<uint64_t>(n);
+    cells.offsets.push_back(static_cast<int64_t>(cells.connectivity.size()));
+  }
+  if (consumed != b)
+    in.fail("cell list size " + std::to_string(b) + " does not match its cells (" +
+            std::to_string(consumed) + ")");
+  return cells;
+}
+
+void add_components(std::vector<Attribute>& target, const std::string& name,
+                    const std::vector<float>& values, size_t components, size_t tuples,
+                    size_t first, size_t count) {
+  for (size_t c = 0; c < components; ++c) {
+    Attribute a;
+    a.name = components == 1   ? name
+             : components == 3 ? name + "_" + "xyz"[c]
+                               : name + "_" + std::to_string(c);
+    a.values.resize(count);
+    for (size_t i = 0; i < count && first + i < tuples; ++i)
+      a.values[i] = values[(first + i) * components + c];
+    target.push_back(std::move(a));
+  }
+}
+
+}  // namespace
+
+LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
+  LegacyStream in(path, options.progress);
+  const std::string header = in.line();
+  if (header.rfind("# vtk DataFile Version", 0) != 0)
+    throw InputError(path, at_line(1), "not a VTK legacy file (header '" + header.substr(0, 40) + "')");
+  in.line();  // title
+  const std::string encoding = io::trim(in.line()).data();
+  const bool binary = encoding.rfind("BINARY", 0) == 0;
+  if (!binary && encoding.rfind("ASCII", 0) != 0)
+    throw InputError(path, at_line(3), "expected ASCII or BINARY, got '" + encoding + "'");
+  if (in.token() != "DATASET" || in.token() != "POLYDATA")
+    in.fail("expected DATASET POLYDATA (only PolyData holds lines)");
+
+  std::vector<float> points;
+  Cells lines_cells;
+  bool have_lines = false;
+  uint64_t vertex_cells = 0;
+  enum class Target { none, point, cell } target = Target::none;
+  size_t target_tuples = 0;
+  std::vector<Attribute> point_attributes, cell_attributes;
+
+  auto read_array = [&](const std::string& name, size_t components, const std::string& type) {
+    if (target == Target::none) in.fail("attribute data before POINT_DATA or CELL_DATA");
+    if (binary) in.skip_line();
+    std::vector<float> values(components * target_tuples);
+    read_values(in, binary, type, values.size(), values.data());
+    if (target == Target::point)
+      add_components(point_attributes, name, values, components, target_tuples, 0, target_tuples);
+    else if (have_lines)
+      add_components(cell_attributes, name, values, components, target_tuples, vertex_cells,
+                     lines_cells.count());
+  };
+
+  for (std::string key = in.token(); !key.empty(); key = in.token()) {
+    if (key == "POINTS") {
+      uint64_t n;
+      if (!io::parse_uint64(in.token(), n)) in.fail("bad POINTS count");
+      const std::string type = in.token();
+      if (binary) in.skip_line();
+      points.resize(3 * n);
+      read_values(in, binary, type, 3 * n, points.data());
+    } else if (key == "LINES" || key == "VERTICES" || key == "POLYGONS" ||
+               key == "TRIANGLE_STRIPS") {
+      uint64_t a, b;
+      if (!io::parse_uint64(in.token(), a) || !io::parse_uint64(in.token(), b))
+        in.fail("bad " + key + " header");
+      Cells cells = read_cells(in, binary, a, b);
+      if (key == "LINES") {
+        lines_cells = std::move(cells);
+        have_lines = true;
+      } else if (key == "VERTICES") {
+        vertex_cells = cells.count();
+      }
+    } else if (key == "POINT_DATA" || key == "CELL_DATA") {
+      uint64_t n;
+      if (!io::parse_uint64(in.token(), n)) in.fail("bad " + key + " count");
+      target = key == "POINT_DATA" ? Target::point : Target::cell;
+      target_tuples = n;
+    } else if (key == "SCALARS") {
+      const std::string name = decode_name(in.token());
+      const std::string type = in.token();
+      // Optional component count, then LOOKUP_TABLE on the next line.
+      std::string t = in.token();
+      size_t components = 1;
+      int64_t parsed;
+      if (io::parse_int64(t, parsed)) {
+        if (parsed < 1 || parsed > 4) in.fail("SCALARS component count must be 1..4");
+        components = static_cast<size_t>(parsed);
+        t = in.token();
+      }
+      if (t != "LOOKUP_TABLE") in.fail("expected LOOKUP_TABLE after SCALARS " + name);
+      in.token();  // table name
+      read_array(name, components, type);
+    } else if (key == "VECTORS" || key == "NORMALS") {
+      const std::string name = decode_name(in.token());
+      read_array(name, 3, in.token());
+    } else if (key == "TENSORS") {
+      const std::string name = decode_name(in.token());
+      read_array(name, 9, in.token());
+    } else if (key == "TEXTURE_COORDINATES") {
+      const std::string name = decode_name(in.token());
+      int64_t dim;
+      if (!io::parse_int64(in.token(), dim) || dim < 1 || dim > 3) in.fail("bad texture dimension");
+      read_array(name, static_cast<size_t>(dim), in.token());
+    } else if (key == "FIELD") {
+      in.token();  // field name
+      int64_t arrays;
+      if (!io::parse_int64(in.token(), arrays) || arrays < 0) in.fail("bad FIELD array count");
+      for (int64_t k = 0; k < arrays; ++k) {
+        const std::string name = decode_name(in.token());
+        if (name == "NULL_ARRAY") continue;
+        int64_t components, tuples;
+        if (!io::parse_int64(in.token(), components) || !io::parse_int64(in.token(), tuples) ||
+            components < 1 || tuples < 0)
+          in.fail("bad FIELD array header for " + name);
+        const std::string type = in.token();
+        if (binary) in.skip_line();
+        std::vector<float> values(static_cast<size_t>(components * tuples));
+        read_values(in, binary, type, values.size(), values.data());
+        if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
+          add_components(point_attributes, name, values, static_cast<size_t>(components),
+                         target_tuples, 0, target_tuples);
+        else if (static_cast<size_t>(tuples) == target_tuples && target == Target::cell && have_lines)
+          add_components(cell_attributes, name, values, static_cast<size_t>(components),
+                         target_tuples, vertex_cells, lines_cells.count());
+      }
+    } else if (key == "LOOKUP_TABLE") {
+      in.token();
+      int64_t size;
+      if (!io::parse_int64(in.token(), size) || size < 0) in.fail("bad LOOKUP_TABLE size");
+      if (binary) in.skip_line();
+      std::vector<float> table(static_cast<size_t>(4 * size));
+      read_values(in, binary, binary ? "unsigned_char" : "float", table.size(), table.data());
+    } else if (key == "METADATA") {
+      // VTK 9 writes METADATA blocks that end at an empty line.
+      in.skip_line();
+      for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {}
+    } else {
+      in.fail("unexpected keyword '" + key + "'");
+    }
+  }
+
+  const size_t point_count = points.size() / 3;
+  if (!have_lines) throw InputError(path, "", "no LINES in the file");
+  for (int64_t index : lines_cells.connectivity)
+    if (index < 0 || static_cast<size_t>(index) >= point_count)
+      throw InputError(path, "LINES", "point index " + std::to_string(index) + " out of range (" +
+                                          std::to_string(point_count) + " points)");
+  for (const Attribute& a : point_attributes)
+    if (a.values.size() != point_count)
+      throw InputError(path, "POINT_DATA", "array '" + a.name + "' has " +
+                                               std::to_string(a.values.size()) + " values for " +
+                                               std::to_string(point_count) + " points");
+
+  LineSet lines;
+  lines.line_offsets.assign(lines_cells.offsets.begin(), lines_cells.offsets.end());
+  const auto& conn = lines_cells.connectivity;
+  bool identity = conn.size() == point_count;
+  for (size_t i = 0; identity && i < conn.size(); ++i) identity = conn[i] == static_cast<int64_t>(i);
+  if (identity) {
+    lines.positions = std::move(points);
+    lines.attributes = std::move(point_attributes);
+  } else {
+    lines.positions.resize(3 * conn.size());
+    for (size_t i = 0; i < conn.size(); ++i)
+      for (int k = 0; k < 3; ++k) lines.positions[3 * i + k] = points[3 * conn[i] + k];
+    for (Attribute& a : point_attributes) {
+      Attribute g{a.name, std::vector<float>(conn.size())};
+      for (size_t i = 0; i < conn.size(); ++i) g.values[i] = a.values[conn[i]];
+      lines.attributes.push_back(std::move(g));
+    }
+  }
+  lines.line_attributes = std::move(cell_attributes);
+  return lines;
+}
+
+void write_vtk_legacy(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  io::Writer out(path);
+  const bool binary = !options.ascii;
+  const uint64_t n = lines.point_count(), l = lines.line_count();
+  // The classic layout stores 32-bit indices; larger sets use the 5.1 offsets layout.
+  const bool modern = n + l > static_cast<uint64_t>(INT32_MAX);
+  std::string text = modern ? "# vtk DataFile Version 5.1\n" : "# vtk DataFile Version 3.0\n";
+  text += "linebake " LINEBAKE_VERSION " line set\n";
+  text += binary ? "BINARY\n" : "ASCII\n";
+  text += "DATASET POLYDATA\nPOINTS " + std::to_string(n) + " float\n";
+  out.write(text);
+
+  auto write_floats = [&](const float* values, size_t count, size_t per_row) {
+    std::string chunk;
+    for (size_t i = 0; i < count; ++i) {
+      if (binary) {
+        const float v = io::byteswap_value(values[i]);
+        chunk.append(reinterpret_cast<const char*>(&v), 4);
+      } else {
+        io::append_float(chunk, values[i]);
+        chunk += (i + 1) % per_row == 0 ? '\n' : ' ';
+      }
+      if (chunk.size() > (1 << 20)) {
+        out.write(chunk);
+        chunk.clear();
+      }
+    }
+    if (!binary && count % per_row != 0) chunk += '\n';
+    if (binary) chunk += '\n';
+    out.write(chunk);
+  };
+  auto write_ints = [&](const std::vector<int64_t>& values, bool wide, size_t per_row) {
+    std::string chunk;
+    for (size_t i = 0; i < values.size(); ++i) {
+      if (binary && wide) {
+        const int64_t v = io::byteswap_value(values[i]);
+        chunk.append(reinterpret_cast<const char*>(&v), 8);
+      } else if (binary) {
+        const int32_t v = io::byteswap_value(static_cast<int32_t>(values[i]));
+        chunk.append(reinterpret_cast<const char*>(&v), 4);
+      } else {
+        chunk += std::to_string(values[i]);
+        chunk += (i + 1) % per_row == 0 ? '\n' : ' ';
+      }
+      if (chunk.size() > (1 << 20)) {
+        out.write(chunk);
+        chunk.clear();
+      }
+    }
+    if (!binary && values.size() % per_row != 0) chunk += '\n';
+    if (binary) chunk += '\n';
+    out.write(chunk);
+  };
+
+  write_floats(lines.positions.data(), lines.positions.size(), 3);
+  if (options.progress) options.progress(1, 3);
+  if (modern) {
+    out.write("LINES " + std::to_string(l + 1) + " " + std::to_string(n) + "\n");
+    out.write("OFFSETS vtktypeint64\n");
+    std::vector<int64_t> offsets(lines.line_offsets.begin(), lines.line_offsets.end());
+    write_ints(offsets, true, 9);
+    out.write("CONNECTIVITY vtktypeint64\n");
+    std::vector<int64_t> conn(n);
+    for (uint64_t i = 0; i < n; ++i) conn[i] = static_cast<int64_t>(i);
+    write_ints(conn, true, 9);
+  } else {
+    out.write("LINES " + std::to_string(l) + " " + std::to_string(n + l) + "\n");
+    std::vector<int64_t> cells;
+    cells.reserve(n + l);
+    for (uint64_t line = 0; line < l; ++line) {
+      cells.push_back(static_cast<int64_t>(lines.line_size(line)));
+      for (uint64_t i = lines.line_offsets[line]; i < lines.line_offsets[line + 1]; ++i)
+        cells.push_back(static_cast<int64_t>(i));
+    }
+    write_ints(cells, false, SIZE_MAX);
+  }
+  if (options.progress) options.progress(2, 3);
+  auto write_attributes = [&](const std::vector<Attribute>& list, const char* section,
+                              uint64_t count) {
+    if (list.empty()) return;
+    out.write(std::string(section) + " " + std::to_string(count) + "\n");
+    for (const Attribute& a : list) {
+      out.write("SCALARS " + encode_name(a.name) + " float 1\nLOOKUP_TABLE default\n");
+      write_floats(a.values.data(), a.values.size(), 9);
+    }
+  };
+  write_attributes(lines.attributes, "POINT_DATA", n);
+  write_attributes(lines.line_attributes, "CELL_DATA", l);
+  out.close();
+}
+
+}  // namespace linebake::formats

@@ -1,0 +1,534 @@
+// VTK XML PolyData (.vtp). Reads DataArrays stored inline as ascii or base64, or appended as raw
+// bytes or base64, with header_type UInt32/UInt64, either byte order, optionally compressed by
+// vtkZLibDataCompressor in blocks. ParaView's default (appended, raw, zlib) is the writer's too.
+// The XML part is parsed by pugixml; appended binary data is read from a memory map of the file,
+// so it is never copied whole.
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <pugixml.hpp>
+
+#include "formats/formats.hpp"
+#include "formats/io_util.hpp"
+
+namespace linebake::formats {
+
+namespace {
+
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path) : path_(path) {
+    fd_ = ::open(path.c_str(), O_RDONLY);
+    if (fd_ < 0) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
+    struct stat st {};
+    ::fstat(fd_, &st);
+    size_ = static_cast<size_t>(st.st_size);
+    if (size_ == 0) throw InputError(path, "", "empty file");
+    data_ = static_cast<const char*>(::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0));
+    if (data_ == MAP_FAILED) throw InputError(path, "", "cannot map the file");
+  }
+  ~MappedFile() {
+    if (data_ && data_ != MAP_FAILED) ::munmap(const_cast<char*>(data_), size_);
+    if (fd_ >= 0) ::close(fd_);
+  }
+  std::string_view view() const { return {data_, size_}; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+  const char* data_ = nullptr;
+  size_t size_ = 0;
+};
+
+int base64_value(char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
+}
+
+const char kBase64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+std::string base64_encode(const unsigned char* data, size_t n) {
+  std::string out;
+  out.reserve((n + 2) / 3 * 4);
+  for (size_t i = 0; i < n; i += 3) {
+    const uint32_t b0 = data[i], b1 = i + 1 < n ? data[i + 1] : 0, b2 = i + 2 < n ? data[i + 2] : 0;
+    const uint32_t v = b0 << 16 | b1 << 8 | b2;
+    out += kBase64[v >> 18 & 63];
+    out += kBase64[v >> 12 & 63];
+    out += i + 1 < n ? kBase64[v >> 6 & 63] : '=';
+    out += i + 2 < n ? kBase64[v & 63] : '=';
+  }
+  return out;
+}
+
+size_t base64_chars(size_t bytes) { return (bytes + 2) / 3 * 4; }
+
+struct Context {
+  std::string path;
+  bool swap = false;       // file byte order differs from ours
+  size_t header_size = 4;  // UInt32 or UInt64
+  bool compressed = false;
+  std::string_view appended;  // bytes after the '_' of <AppendedData>
+  bool appended_base64 = false;
+
+  [[noreturn]] void fail(const std::string& where, const std::string& message) const {
+    throw InputError(path, where, message);
+  }
+};
+
+std::vector<unsigned char> base64_decode(const Context& ctx, const std::string& where,
+                                         std::string_view text) {
+  std::vector<unsigned char> out;
+  out.reserve(text.size() / 4 * 3);
+  uint32_t acc = 0;
+  int bits = 0;
+  for (char c : text) {
+    if (c == '=' || c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
+    const int v = base64_value(c);
+    if (v < 0) ctx.fail(where, "invalid base64 character");
+    acc = acc << 6 | static_cast<uint32_t>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out.push_back(static_cast<unsigned char>(acc >> bits & 0xFF));
+    }
+  }
+  return out;
+}
+
+// base64 text with whitespace removed.
+std::string compact(std::string_view text) {
+  std::string s;
+  s.reserve(text.size());
+  for (char c : text)
+    if (c != ' ' && c != '\n' && c != '\r' && c != '\t') s += c;
+  return s;
+}
+
+uint64_t header_word(const Context& ctx, const unsigned char* p) {
+  if (ctx.header_size == 4) {
+    uint32_t v;
+    std::memcpy(&v, p, 4);
+    return ctx.swap ? io::byteswap_value(v) : v;
+  }
+  uint64_t v;
+  std::memcpy(&v, p, 8);
+  return ctx.swap ? io::byteswap_value(v) : v;
+}
+
+std::vector<unsigned char> inflate_blocks(const Context& ctx, const std::string& where,
+                                          const std::vector<uint64_t>& header,
+                                          const unsigned char* data, size_t available) {
+  const uint64_t blocks = header[0], block_size = header[1], last_size = header[2];
+  uint64_t total = 0;
+  for (uint64_t b = 0; b < blocks; ++b)
+    total += (b + 1 == blocks && last_size != 0) ? last_size : block_size;
+  std::vector<unsigned char> out(total);
+  size_t in_at = 0, out_at = 0;
+  for (uint64_t b = 0; b < blocks; ++b) {
+    const uint64_t compressed = header[3 + b];
+    const uint64_t expected = (b + 1 == blocks && last_size != 0) ? last_size : block_size;
+    if (in_at + compressed > available) ctx.fail(where, "compressed block past the end of data");
+    uLongf got = static_cast<uLongf>(expected);
+    if (uncompress(out.data() + out_at, &got, data + in_at, static_cast<uLong>(compressed)) != Z_OK ||
+        got != expected)
+      ctx.fail(where, "zlib block " + std::to_string(b) + " does not decompress");
+    in_at += compressed;
+    out_at += expected;
+  }
+  return out;
+}
+
+// Raw (decoded) bytes of a binary data array: header words then data.
+std::vector<unsigned char> decode_binary(const Context& ctx, const std::string& where,
+                                         std::string_view stored, bool base64) {
+  const size_t hs = ctx.header_size;
+  if (!base64) {
+    const auto* p = reinterpret_cast<const unsigned char*>(stored.data());
+    if (stored.size() < hs) ctx.fail(where, "data header truncated");
+    if (!ctx.compressed) {
+      const uint64_t n = header_word(ctx, p);
+      if (n > stored.size() - hs) ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
+      return {p + hs, p + hs + n};
+    }
+    if (stored.size() < 3 * hs) ctx.fail(where, "compression header truncated");
+    const uint64_t blocks = header_word(ctx, p);
+    if (blocks > stored.size() / hs) ctx.fail(where, "implausible block count");
+    std::vector<uint64_t> header(3 + blocks);
+    if ((3 + blocks) * hs > stored.size()) ctx.fail(where, "compression header truncated");
+    for (size_t i = 0; i < header.size(); ++i) header[i] = header_word(ctx, p + i * hs);
+    const size_t used = (3 + blocks) * hs;
+    return inflate_blocks(ctx, where, header, p + used, stored.size() - used);
+  }
+  const std::string text = compact(stored);
+  if (!ctx.compressed) {
+    // Header and data are one base64 stream.
+    std::vector<unsigned char> all = base64_decode(ctx, where, text);
+    if (all.size() < hs) ctx.fail(where, "data header truncated");
+    const uint64_t n = header_word(ctx, all.data());
+    if (n > all.size() - hs) ctx.fail(where, "data shorter than its header says");
+    return {all.begin() + static_cast<ptrdiff_t>(hs), all.begin() + static_cast<ptrdiff_t>(hs + n)};
+  }
+  // The compression header is encoded on its own, then the blocks as one stream.
+  std::vector<unsigned char> first = base64_decode(ctx, where, std::string_view(text).substr(0, base64_chars(hs)));
+  if (first.size() < hs) ctx.fail(where, "compression header truncated");
+  const uint64_t blocks = header_word(ctx, first.data());
+  if (blocks > text.size()) ctx.fail(where, "implausible block count");
+  const size_t header_chars = base64_chars((3 + blocks) * hs);
+  if (header_chars > text.size()) ctx.fail(where, "compression header truncated");
+  std::vector<unsigned char> head = base64_decode(ctx, where, std::string_view(text).substr(0, header_chars));
+  std::vector<uint64_t> header(3 + blocks);
+  for (size_t i = 0; i < header.size(); ++i) header[i] = header_word(ctx, head.data() + i * hs);
+  std::vector<unsigned char> data = base64_decode(ctx, where, std::string_view(text).substr(header_chars));
+  return inflate_blocks(ctx, where, header, data.data(), data.size());
+}
+
+size_t vtk_type_size(const std::string& type) {
+  if (type == "Int8" || type == "UInt8") return 1;
+  if (type == "Int16" || type == "UInt16") return 2;
+  if (type == "Int32" || type == "UInt32" || type == "Float32") return 4;
+  if (type == "Int64" || type == "UInt64" || type == "Float64") return 8;
+  return 0;
+}
+
+template <typename Out>
+Out convert(const std::string& type, const unsigned char* p, bool swap) {
+  unsigned char b[8];
+  const size_t n = vtk_type_size(type);
+  std::memcpy(b, p, n);
+  if (swap) std::reverse(b, b + n);
+  auto as = [&]<typename T>(T) {
+    T v;
+    std::memcpy(&v, b, sizeof(T));
+    return static_cast<Out>(v);
+  };
+  if (type == "Float32") return as(float{});
+  if (type == "Float64") return as(double{});
+  if (type == "Int8") return as(int8_t{});
+  if (type == "UInt8") return as(uint8_t{});
+  if (type == "Int16") return as(int16_t{});
+  if (type == "UInt16") return as(uint16_t{});
+  if (type == "Int32") return as(int32_t{});
+  if (type == "UInt32") return as(uint32_t{});
+  if (type == "Int64") return as(int64_t{});
+  return as(uint64_t{});
+}
+
+// Reads a DataArray into `count` values of Out, checking its size.
+template <typename Out>
+std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size_t count) {
+  const std::string name = node.attribute("Name").as_string();
+  const std::string where = "DataArray '" + name + "'";
+  const std::string type = node.attribute("type").as_string();
+  const size_t size = vtk_type_size(type);
+  if (size == 0) ctx.fail(where, "unsupported type '" + type + "'");
+  const std::string format = node.attribute("format").as_string("ascii");
+  std::vector<Out> out(count);
+  if (format == "ascii") {
+    const auto tokens = io::split_whitespace(node.child_value());
+    if (tokens.size() != count)
+      ctx.fail(where, std::to_string(tokens.size()) + " values, expected " + std::to_string(count));
+    for (size_t i = 0; i < count; ++i) {
+      double v;
+      if (!io::parse_double(tokens[i], v)) ctx.fail(where, "bad number '" + std::string(tokens[i]) + "'");
+      out[i] = static_cast<Out>(v);
+    }
+    return out;
+  }
+  std::vector<unsigned char> bytes;
+  if (format == "binary") {
+    bytes = decode_binary(ctx, where, node.child_value(), true);
+  } else if (format == "appended") {
+    const uint64_t offset = node.attribute("offset").as_ullong(UINT64_MAX);
+    if (offset >= ctx.appended.size()) ctx.fail(where, "appended offset out of range");
+    bytes = decode_binary(ctx, where, ctx.appended.substr(offset), ctx.appended_base64);
+  } else {
+    ctx.fail(where, "unknown format '" + format + "'");
+  }
+  if (bytes.size() != count * size)
+    ctx.fail(where, std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
+  for (size_t i = 0; i < count; ++i) out[i] = convert<Out>(type, bytes.data() + i * size, ctx.swap);
+  return out;
+}
+
+void read_attributes(const Context& ctx, const pugi::xml_node& data, size_t tuples, size_t first,
+                     size_t count, std::vector<Attribute>& target) {
+  for (pugi::xml_node a : data.children("DataArray")) {
+    const std::string name = a.attribute("Name").as_string("unnamed");
+    const size_t components = a.attribute("NumberOfComponents").as_ullong(1);
+    if (components == 0 || components > 16) ctx.fail("DataArray '" + name + "'", "bad NumberOfComponents");
+    const std::vector<float> values = read_array<float>(ctx, a, tuples * components);
+    for (size_t c = 0; c < components; ++c) {
+      Attribute attribute;
+      attribute.name = components == 1 ? name
+                       : components == 3 ? name + "_" + "xyz"[c]
+                                         : name + "_" + std::to_string(c);
+      attribute.values.resize(count);
+      for (size_t i = 0; i < count; ++i) attribute.values[i] = values[(first + i) * components + c];
+      target.push_back(std::move(attribute));
+    }
+  }
+}
+
+}  // namespace
+
+LineSet read_vtp(const std::string& path, const ReadOptions& options) {
+  MappedFile file(path);
+  const std::string_view content = file.view();
+  Context ctx;
+  ctx.path = path;
+
+  // The appended section is raw bytes, not XML: parse the part before it, closed by hand.
+  std::string xml;
+  const size_t appended_tag = content.find("<AppendedData");
+  if (appended_tag != std::string_view::npos) {
+    const size_t close = content.find('>', appended_tag);
+    const size_t underscore = close == std::string_view::npos ? close : content.find('_', close);
+    if (underscore == std::string_view::npos)
+      throw InputError(path, at_byte(appended_tag), "AppendedData without its '_' marker");
+    ctx.appended = content.substr(underscore + 1);
+    const std::string tag(content.substr(appended_tag, close - appended_tag));
+    ctx.appended_base64 = tag.find("\"base64\"") != std::string::npos;
+    xml.assign(content.substr(0, appended_tag));
+    xml += "</VTKFile>";
+  } else {
+    xml.assign(content);
+  }
+  pugi::xml_document doc;
+  const pugi::xml_parse_result parsed = doc.load_buffer(xml.data(), xml.size());
+  if (!parsed)
+    throw InputError(path, at_byte(static_cast<uint64_t>(parsed.offset)),
+                     std::string("XML error: ") + parsed.description());
+  const pugi::xml_node root = doc.child("VTKFile");
+  if (!root || std::string(root.attribute("type").as_string()) != "PolyData")
+    throw InputError(path, "VTKFile", "not a VTK XML PolyData file");
+  const std::string byte_order = root.attribute("byte_order").as_string("LittleEndian");
+  ctx.swap = (byte_order == "BigEndian") != (std::endian::native == std::endian::big);
+  const std::string header_type = root.attribute("header_type").as_string("UInt32");
+  if (header_type != "UInt32" && header_type != "UInt64")
+    throw InputError(path, "VTKFile", "unsupported header_type " + header_type);
+  ctx.header_size = header_type == "UInt64" ? 8 : 4;
+  const std::string compressor = root.attribute("compressor").as_string("");
+  if (!compressor.empty() && compressor != "vtkZLibDataCompressor")
+    throw InputError(path, "VTKFile", "unsupported compressor " + compressor + " (zlib only)");
+  ctx.compressed = !compressor.empty();
+
+  const pugi::xml_node piece = root.child("PolyData").child("Piece");
+  if (!piece) throw InputError(path, "PolyData", "no Piece");
+  if (piece.next_sibling("Piece"))
+    throw InputError(path, "PolyData", "several Pieces are not supported");
+  const uint64_t point_count = piece.attribute("NumberOfPoints").as_ullong(0);
+  const uint64_t line_count = piece.attribute("NumberOfLines").as_ullong(0);
+  const uint64_t vert_count = piece.attribute("NumberOfVerts").as_ullong(0);
+  const uint64_t poly_count = piece.attribute("NumberOfPolys").as_ullong(0);
+  const uint64_t strip_count = piece.attribute("NumberOfStrips").as_ullong(0);
+  if (options.progress) options.progress(0, 3);
+
+  LineSet lines;
+  const pugi::xml_node points = piece.child("Points").child("DataArray");
+  if (!points && point_count > 0) throw InputError(path, "Points", "no DataArray");
+  if (points) {
+    if (points.attribute("NumberOfComponents").as_ullong(1) != 3)
+      throw InputError(path, "Points", "points need 3 components");
+    lines.positions = read_array<float>(ctx, points, 3 * point_count);
+  }
+  std::vector<int64_t> connectivity, offsets;
+  for (pugi::xml_node a : piece.child("Lines").children("DataArray")) {
+    const std::string name = a.attribute("Name").as_string();
+    if (name == "offsets") offsets = read_array<int64_t>(ctx, a, line_count);
+  }
+  const uint64_t connectivity_size = offsets.empty() ? 0 : static_cast<uint64_t>(offsets.back());
+  for (pugi::xml_node a : piece.child("Lines").children("DataArray")) {
+    if (std::string(a.attribute("Name").as_string()) == "connectivity")
+      connectivity = read_array<int64_t>(ctx, a, connectivity_size);
+  }
+  if (line_count == 0) throw InputError(path, "Piece", "no lines (NumberOfLines is 0)");
+  if (offsets.size() != line_count) throw InputError(path, "Lines", "missing offsets array");
+  int64_t previous = 0;
+  for (int64_t o : offsets) {
+    if (o < previous) throw InputError(path, "Lines", "offsets decrease");
+    previous = o;
+  }
+  for (int64_t i : connectivity)
+    if (i < 0 || static_cast<uint64_t>(i) >= point_count)
+      throw InputError(path, "Lines", "point index " + std::to_string(i) + " out of range");
+  if (options.progress) options.progress(1, 3);
+
+  std::vector<Attribute> point_attributes;
+  read_attributes(ctx, piece.child("PointData"), point_count, 0, point_count, point_attributes);
+  const uint64_t cells = vert_count + line_count + poly_count + strip_count;
+  read_attributes(ctx, piece.child("CellData"), cells, vert_count, line_count,
+                  lines.line_attributes);
+
+  lines.line_offsets.assign(1, 0);
+  for (int64_t o : offsets) lines.line_offsets.push_back(static_cast<uint64_t>(o));
+  bool identity = connectivity.size() == point_count;
+  for (size_t i = 0; identity && i < connectivity.size(); ++i)
+    identity = connectivity[i] == static_cast<int64_t>(i);
+  if (identity) {
+    lines.attributes = std::move(point_attributes);
+  } else {
+    std::vector<float> gathered(3 * connectivity.size());
+    for (size_t i = 0; i < connectivity.size(); ++i)
+      for (int k = 0; k < 3; ++k) gathered[3 * i + k] = lines.positions[3 * connectivity[i] + k];
+    lines.positions = std::move(gathered);
+    for (Attribute& a : point_attributes) {
+      Attribute g{a.name, std::vector<float>(connectivity.size())};
+      for (size_t i = 0; i < connectivity.size(); ++i) g.values[i] = a.values[connectivity[i]];
+      lines.attributes.push_back(std::move(g));
+    }
+  }
+  if (options.progress) options.progress(3, 3);
+  return lines;
+}
+
+namespace {
+
+class VtpWriter {
+ public:
+  VtpWriter(const WriteOptions& o) : options_(o) {
+    if (o.vtp_encoding != "appended" && o.vtp_encoding != "appended-base64" &&
+        o.vtp_encoding != "base64" && o.vtp_encoding != "ascii")
+      throw Error("vtp encoding must be appended, appended-base64, base64 or ascii");
+  }
+
+  // Returns the <DataArray .../> element text, adding appended bytes where needed.
+  template <typename T>
+  std::string array(const std::string& name, const char* type, size_t components,
+                    const T* values, size_t count) {
+    std::string head = "<DataArray type=\"" + std::string(type) + "\" Name=\"" + escape(name) +
+                       "\" NumberOfComponents=\"" + std::to_string(components) + "\"";
+    if (options_.vtp_encoding == "ascii") {
+      std::string text = head + " format=\"ascii\">\n";
+      for (size_t i = 0; i < count; ++i) {
+        if constexpr (std::is_floating_point_v<T>) io::append_float(text, static_cast<float>(values[i]));
+        else text += std::to_string(values[i]);
+        text += (i + 1) % 9 == 0 || i + 1 == count ? '\n' : ' ';
+      }
+      return text + "</DataArray>\n";
+    }
+    const auto* bytes = reinterpret_cast<const unsigned char*>(values);
+    const size_t n = count * sizeof(T);
+    const bool base64 = options_.vtp_encoding != "appended";
+    std::string encoded = encode(bytes, n, base64);
+    if (options_.vtp_encoding == "base64")
+      return head + " format=\"binary\">\n" + encoded + "\n</DataArray>\n";
+    const size_t offset = appended_.size();
+    appended_ += encoded;
+    return head + " format=\"appended\" offset=\"" + std::to_string(offset) + "\"/>\n";
+  }
+
+  std::string header_attributes() const {
+    std::string s = " header_type=\"";
+    s += options_.vtp_header_uint64 ? "UInt64\"" : "UInt32\"";
+    if (options_.vtp_compress && options_.vtp_encoding != "ascii")
+      s += " compressor=\"vtkZLibDataCompressor\"";
+    return s;
+  }
+  const std::string& appended() const { return appended_; }
+
+ private:
+  static std::string escape(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+      if (c == '&') out += "&amp;";
+      else if (c == '<') out += "&lt;";
+      else if (c == '>') out += "&gt;";
+      else if (c == '"') out += "&quot;";
+      else out += c;
+    }
+    return out;
+  }
+
+  void put_word(std::string& out, uint64_t v) const {
+    if (options_.vtp_header_uint64) {
+      out.append(reinterpret_cast<const char*>(&v), 8);
+    } else {
+      if (v > UINT32_MAX) throw Error("vtp: array too large for a UInt32 header; use UInt64");
+      const auto w = static_cast<uint32_t>(v);
+      out.append(reinterpret_cast<const char*>(&w), 4);
+    }
+  }
+
+  std::string encode(const unsigned char* bytes, size_t n, bool base64) const {
+    auto to_text = [&](const std::string& raw) {
+      return base64 ? base64_encode(reinterpret_cast<const unsigned char*>(raw.data()), raw.size())
+                    : raw;
+    };
+    if (!options_.vtp_compress) {
+      std::string raw;
+      put_word(raw, n);
+      raw.append(reinterpret_cast<const char*>(bytes), n);
+      return to_text(raw);
+    }
+    constexpr size_t kBlock = 1 << 15;
+    const size_t blocks = (n + kBlock - 1) / kBlock;
+    std::string header, data;
+    put_word(header, blocks);
+    put_word(header, kBlock);
+    put_word(header, n % kBlock);
+    for (size_t b = 0; b < blocks; ++b) {
+      const size_t size = std::min(kBlock, n - b * kBlock);
+      uLongf bound = compressBound(static_cast<uLong>(size));
+      std::string block(bound, '\0');
+      if (compress2(reinterpret_cast<Bytef*>(block.data()), &bound, bytes + b * kBlock,
+                    static_cast<uLong>(size), Z_DEFAULT_COMPRESSION) != Z_OK)
+        throw Error("zlib compression failed");
+      block.resize(bound);
+      put_word(header, bound);
+      data += block;
+    }
+    // The compression header is encoded separately from the blocks, as VTK does.
+    return to_text(header) + to_text(data);
+  }
+
+  const WriteOptions& options_;
+  std::string appended_;
+};
+
+}  // namespace
+
+void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  static_assert(std::endian::native == std::endian::little, "writer assumes little endian");
+  VtpWriter w(options);
+  const uint64_t n = lines.point_count(), l = lines.line_count();
+  std::string body = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
+                     "byte_order=\"LittleEndian\"" + w.header_attributes() + ">\n<PolyData>\n";
+  body += "<Piece NumberOfPoints=\"" + std::to_string(n) + "\" NumberOfVerts=\"0\" NumberOfLines=\"" +
+          std::to_string(l) + "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
+  body += "<Points>\n" + w.array("Points", "Float32", 3, lines.positions.data(), 3 * n) + "</Points>\n";
+  std::vector<int64_t> connectivity(n), offsets(l);
+  for (uint64_t i = 0; i < n; ++i) connectivity[i] = static_cast<int64_t>(i);
+  for (uint64_t i = 0; i < l; ++i) offsets[i] = static_cast<int64_t>(lines.line_offsets[i + 1]);
+  body += "<Lines>\n" + w.array("connectivity", "Int64", 1, connectivity.data(), n) +
+          w.array("offsets", "Int64", 1, offsets.data(), l) + "</Lines>\n";
+  if (options.progress) options.progress(1, 3);
+  body += "<PointData>\n";
+  for (const Attribute& a : lines.attributes)
+    body += w.array(a.name, "Float32", 1, a.values.data(), a.values.size());
+  body += "</PointData>\n<CellData>\n";
+  for (const Attribute& a : lines.line_attributes)
+    body += w.array(a.name, "Float32", 1, a.values.data(), a.values.size());
+  body += "</CellData>\n</Piece>\n</PolyData>\n";
+  io::Writer out(path);
+  out.write(body);
+  if (options.vtp_encoding == "appended" || options.vtp_encoding == "appended-base64") {
+    out.write(options.vtp_encoding == "appended" ? "<AppendedData encoding=\"raw\">\n_"
+                                                 : "<AppendedData encoding=\"base64\">\n_");
+    out.write(w.appended());
+    out.write("\n</AppendedData>\n");
+  }
+  out.write("</VTKFile>\n");
+  out.close();
+  if (options.progress) options.progress(3, 3);
+}
+
+}  // namespace linebake::formats

@@ -1,0 +1,42 @@
+#pragma once
+// Errors are values with context: which file, and where in it.
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+namespace linebake {
+
+// Any failure linebake reports to the user.
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Bad or unreadable input. `where` names the place: "line 12", "byte offset 4096",
+// "dataset /points", "variable lon".
+class InputError : public Error {
+ public:
+  InputError(const std::string& file, const std::string& where, const std::string& message)
+      : Error(file + (where.empty() ? "" : ": " + where) + ": " + message),
+        file_(file),
+        where_(where) {}
+  const std::string& file() const { return file_; }
+  const std::string& where() const { return where_; }
+
+ private:
+  std::string file_;
+  std::string where_;
+};
+
+// An output that could not be written.
+class OutputError : public Error {
+ public:
+  OutputError(const std::string& file, const std::string& message)
+      : Error(file + ": " + message) {}
+};
+
+inline std::string at_line(uint64_t line) { return "line " + std::to_string(line); }
+inline std::string at_byte(uint64_t offset) { return "byte offset " + std::to_string(offset); }
+
+}  // namespace linebake

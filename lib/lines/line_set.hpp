@@ -1,0 +1,77 @@
+#pragma once
+// The line set: every stage of linebake takes one in. Structure of arrays, so a renderer or a
+// writer can hand each array to its consumer without reshuffling.
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace linebake {
+
+// A named float32 array with one value per point (vertex attribute) or per line.
+struct Attribute {
+  std::string name;
+  std::vector<float> values;
+};
+
+struct Bounds {
+  std::array<float, 3> min{0, 0, 0};
+  std::array<float, 3> max{0, 0, 0};
+  bool empty = true;
+  float diagonal() const;
+};
+
+struct LineSet {
+  std::vector<float> positions;            // x0 y0 z0 x1 y1 z1 ...: 3 floats per point
+  std::vector<uint64_t> line_offsets{0};   // line i spans points [offsets[i], offsets[i+1])
+  std::vector<Attribute> attributes;       // one value per point
+  std::vector<Attribute> line_attributes;  // one value per line
+  std::map<std::string, std::string> metadata;  // provenance, units, source notes
+
+  size_t point_count() const { return positions.size() / 3; }
+  size_t line_count() const { return line_offsets.empty() ? 0 : line_offsets.size() - 1; }
+  // Segments: consecutive point pairs within a line.
+  uint64_t segment_count() const;
+  uint64_t line_size(size_t line) const { return line_offsets[line + 1] - line_offsets[line]; }
+
+  void append_point(float x, float y, float z) { positions.insert(positions.end(), {x, y, z}); }
+  // Closes the current line at the current point count.
+  void end_line() { line_offsets.push_back(point_count()); }
+
+  const Attribute* find_attribute(const std::string& name) const;
+  const Attribute* find_line_attribute(const std::string& name) const;
+
+  // Exact equality of every array and name (metadata excluded). Used by round-trip tests.
+  bool same_data(const LineSet& other) const;
+};
+
+// Bounds of all finite points.
+Bounds compute_bounds(const LineSet& lines);
+
+struct ValueRange {
+  float min = 0;
+  float max = 0;
+  uint64_t nonfinite = 0;  // NaN or Inf values, excluded from min/max
+};
+ValueRange compute_range(std::span<const float> values);
+
+// Sizes and counts: the "LS" (segments) and "LM" (line model bytes) columns of the paper's
+// Table 1.
+struct LineSetStats {
+  uint64_t lines = 0;
+  uint64_t points = 0;
+  uint64_t segments = 0;
+  Bounds bounds;
+  std::vector<std::pair<std::string, ValueRange>> attribute_ranges;
+  std::vector<std::pair<std::string, ValueRange>> line_attribute_ranges;
+  uint64_t position_bytes = 0;
+  uint64_t offset_bytes = 0;
+  uint64_t attribute_bytes = 0;  // vertex and line attributes
+  uint64_t total_bytes() const { return position_bytes + offset_bytes + attribute_bytes; }
+};
+LineSetStats compute_stats(const LineSet& lines);
+
+}  // namespace linebake

@@ -1,0 +1,50 @@
+#pragma once
+// Validation of a line set: every problem is counted and reported, never silently dropped.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lines/line_set.hpp"
+
+namespace linebake {
+
+enum class InvalidPolicy {
+  reject,  // any problem is an error
+  repair,  // drop bad points (splitting lines there), repeated points, short lines; report it
+};
+
+// Points with a NaN/Inf coordinate, or any |coordinate| above this, are invalid (the public
+// LineVis viewer drops such points too).
+inline constexpr float kMaxCoordinate = 1e10f;
+
+struct ValidationReport {
+  uint64_t invalid_points = 0;       // NaN/Inf or |c| > kMaxCoordinate
+  uint64_t repeated_points = 0;      // equal to the previous point of the same line
+  uint64_t short_lines = 0;          // fewer than 2 points (after the repairs above)
+  uint64_t bad_offsets = 0;          // offsets not starting at 0, decreasing, or past the end
+  std::vector<std::string> attribute_length_mismatches;  // names; vertex and line attributes
+  uint64_t nonfinite_attribute_values = 0;  // reported only: a transfer function may map them
+
+  // What repair changed.
+  uint64_t lines_split = 0;
+  uint64_t lines_dropped = 0;
+  uint64_t points_dropped = 0;
+  uint64_t attributes_dropped = 0;
+  bool repaired = false;
+
+  // True when nothing needs repair (nonfinite attribute values do not count).
+  bool clean() const;
+  std::string summary() const;  // one line, counts of every non-zero category
+};
+
+// Counts problems, changes nothing.
+ValidationReport inspect(const LineSet& lines);
+
+// Applies the policy. reject: throws Error(source + summary) unless clean. repair: fixes `lines`
+// in place and returns what was done.
+ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::string& source);
+
+InvalidPolicy parse_invalid_policy(const std::string& name);
+
+}  // namespace linebake

@@ -1,0 +1,89 @@
+// linebake info <input> [--json]: counts, bounds, attributes, sizes and validation of a line set.
+
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "core/progress.hpp"
+#include "formats/registry.hpp"
+#include "lines/validate.hpp"
+
+namespace linebake::cli {
+
+namespace {
+nlohmann::json range_json(const std::string& name, const ValueRange& r) {
+  return {{"name", name}, {"min", r.min}, {"max", r.max}, {"nonfinite", r.nonfinite}};
+}
+}  // namespace
+
+Command add_info(CLI::App& app) {
+  auto* sub = app.add_subcommand("info", "Print statistics of a line set (file or synth: source)");
+  struct Args {
+    std::string input, from;
+    bool json = false;
+  };
+  auto args = std::make_shared<Args>();
+  sub->add_option("input", args->input, "Input file, or synth:<name>?scale=..&seed=..")->required();
+  sub->add_option("--from", args->from, "Input format, overriding the extension");
+  sub->add_flag("--json", args->json, "Machine-readable output (schema in docs/cli.md)");
+  return [args] {
+    ReadOptions read;
+    if (!args->from.empty()) read.format = parse_format(args->from);
+    LineSet lines;
+    {
+      TerminalProgress progress("reading");
+      read.progress = progress.callback();
+      lines = read_line_set(args->input, read);
+    }
+    const LineSetStats s = compute_stats(lines);
+    const ValidationReport v = inspect(lines);
+    if (args->json) {
+      nlohmann::json j;
+      j["linebake_version"] = LINEBAKE_VERSION;
+      j["source"] = args->input;
+      j["format"] = source_format_name(args->input, read);
+      j["lines"] = s.lines;
+      j["points"] = s.points;
+      j["segments"] = s.segments;
+      j["bounds"] = s.bounds.empty ? nlohmann::json(nullptr)
+                                   : nlohmann::json{{"min", s.bounds.min}, {"max", s.bounds.max}};
+      j["attributes"] = nlohmann::json::array();
+      for (const auto& [name, r] : s.attribute_ranges) j["attributes"].push_back(range_json(name, r));
+      j["line_attributes"] = nlohmann::json::array();
+      for (const auto& [name, r] : s.line_attribute_ranges)
+        j["line_attributes"].push_back(range_json(name, r));
+      j["bytes"] = {{"positions", s.position_bytes},
+                    {"line_offsets", s.offset_bytes},
+                    {"attributes", s.attribute_bytes},
+                    {"total", s.total_bytes()}};
+      j["validation"] = {{"clean", v.clean()},
+                         {"invalid_points", v.invalid_points},
+                         {"repeated_points", v.repeated_points},
+                         {"short_lines", v.short_lines},
+                         {"attribute_length_mismatches", v.attribute_length_mismatches},
+                         {"nonfinite_attribute_values", v.nonfinite_attribute_values}};
+      j["metadata"] = lines.metadata;
+      std::cout << j.dump(2) << "\n";
+      return;
+    }
+    std::printf("source      %s (%s)\n", args->input.c_str(), source_format_name(args->input, read).c_str());
+    std::printf("lines       %llu\n", static_cast<unsigned long long>(s.lines));
+    std::printf("points      %llu\n", static_cast<unsigned long long>(s.points));
+    std::printf("segments    %llu (LS, Table 1)\n", static_cast<unsigned long long>(s.segments));
+    std::printf("line model  %.2f MiB (LM: positions %.2f, offsets %.2f, attributes %.2f)\n",
+                static_cast<double>(s.total_bytes()) / (1 << 20), static_cast<double>(s.position_bytes) / (1 << 20),
+                static_cast<double>(s.offset_bytes) / (1 << 20), static_cast<double>(s.attribute_bytes) / (1 << 20));
+    if (!s.bounds.empty)
+      std::printf("bounds      [%g %g %g] - [%g %g %g]\n", s.bounds.min[0], s.bounds.min[1],
+                  s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2]);
+    for (const auto& [name, r] : s.attribute_ranges)
+      std::printf("attribute   %s [%g, %g]%s\n", name.c_str(), r.min, r.max,
+                  r.nonfinite ? (" " + std::to_string(r.nonfinite) + " non-finite").c_str() : "");
+    for (const auto& [name, r] : s.line_attribute_ranges)
+      std::printf("line attr.  %s [%g, %g]\n", name.c_str(), r.min, r.max);
+    std::printf("validation  %s\n", v.summary().c_str());
+  };
+}
+
+}  // namespace linebake::cli

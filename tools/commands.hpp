@@ -1,0 +1,23 @@
+#pragma once
+// The linebake subcommands. Each registers itself on the app and returns the function to run.
+
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace linebake::cli {
+
+// Exit codes (documented in the README).
+enum ExitCode : int {
+  kOk = 0,
+  kUsage = 1,   // bad command line
+  kInput = 2,   // unreadable, malformed or (under --on-invalid reject) invalid input
+  kOutput = 3,  // an output could not be written
+  kFailure = 4  // anything else
+};
+
+using Command = std::function<void()>;
+Command add_info(CLI::App& app);
+Command add_convert(CLI::App& app);
+Command add_synth(CLI::App& app);
+
+}  // namespace linebake::cli

@@ -1,0 +1,41 @@
+// linebake: converters, exports and renders for large 3D line sets.
+
+#include <cstdio>
+#include <iostream>
+
+#include "commands.hpp"
+#include "core/error.hpp"
+
+int main(int argc, char** argv) {
+  using namespace linebake::cli;
+  CLI::App app{"linebake " LINEBAKE_VERSION ": assets, exports and renders for large 3D line sets",
+               "linebake"};
+  app.set_version_flag("--version", LINEBAKE_VERSION);
+  app.require_subcommand(1);
+  std::vector<std::pair<CLI::App*, Command>> commands;
+  for (auto add : {add_info, add_convert, add_synth}) {
+    const size_t before = app.get_subcommands({}).size();
+    Command run = add(app);
+    commands.emplace_back(app.get_subcommands({})[before], std::move(run));
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kOk : kUsage;
+  }
+  try {
+    for (auto& [sub, run] : commands)
+      if (sub->parsed()) run();
+    return kOk;
+  } catch (const linebake::InputError& e) {
+    std::cerr << "linebake: error: " << e.what() << "\n";
+    return kInput;
+  } catch (const linebake::OutputError& e) {
+    std::cerr << "linebake: error: " << e.what() << "\n";
+    return kOutput;
+  } catch (const std::exception& e) {
+    std::cerr << "linebake: error: " << e.what() << "\n";
+    return kFailure;
+  }
+}
