@@ -2,6 +2,7 @@
 
 #include <cerrno>
 #include <charconv>
+#include <cctype>
 #include <cmath>
 
 namespace linebake::io {
@@ -105,13 +106,17 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
+namespace {
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+}  // namespace
+
 std::vector<std::string_view> split_whitespace(std::string_view line) {
   std::vector<std::string_view> tokens;
   size_t i = 0;
   while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    while (i < line.size() && is_space(line[i])) ++i;
     const size_t start = i;
-    while (i < line.size() && line[i] != ' ' && line[i] != '\t' && line[i] != '\r') ++i;
+    while (i < line.size() && !is_space(line[i])) ++i;
     if (i > start) tokens.push_back(line.substr(start, i - start));
   }
   return tokens;
@@ -151,6 +156,34 @@ bool parse_float(std::string_view token, float& out) { return parse_real(token, 
 bool parse_double(std::string_view token, double& out) { return parse_real(token, out); }
 bool parse_int64(std::string_view token, int64_t& out) { return parse_number(token, out); }
 bool parse_uint64(std::string_view token, uint64_t& out) { return parse_number(token, out); }
+
+std::string encode_name(const std::string& name) {
+  std::string out;
+  for (unsigned char c : name) {
+    if (c <= ' ' || c == '%' || c >= 127) {
+      char hex[4];
+      std::snprintf(hex, sizeof(hex), "%%%02X", c);
+      out += hex;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out.empty() ? "unnamed" : out;
+}
+
+std::string decode_name(std::string_view s) {
+  auto hex = [](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; };
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && hex(s[i + 1]) && hex(s[i + 2])) {
+      out += static_cast<char>(std::stoi(std::string(s.substr(i + 1, 2)), nullptr, 16));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
 
 void append_float(std::string& out, float v) {
   if (std::isnan(v)) {

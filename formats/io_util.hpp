@@ -106,6 +106,11 @@ bool parse_double(std::string_view token, double& out);
 bool parse_int64(std::string_view token, int64_t& out);
 bool parse_uint64(std::string_view token, uint64_t& out);
 
+// Attribute names in whitespace-separated formats (VTK legacy, OBJ `a` lines): spaces and
+// other special bytes as %xx, as VTK writes them.
+std::string encode_name(const std::string& name);
+std::string decode_name(std::string_view encoded);
+
 // Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
 void append_float(std::string& out, float v);
 

@@ -1,6 +1,6 @@
 // Wavefront OBJ polylines: v (positions), vt (one per v: the vertex attributes), l (polylines,
 // 1-based or negative relative indices), an optional `a name0 name1 ...` line naming the
-// attributes. Faces, normals, groups and materials are ignored.
+// attributes (spaces in names as %20). Faces, normals, groups and materials are ignored.
 
 #include <numeric>
 
@@ -62,7 +62,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
       }
       offsets.push_back(indices.size());
     } else if (key == "a") {
-      names.assign(tokens.begin() + 1, tokens.end());
+      names.clear();
+      for (size_t k = 1; k < tokens.size(); ++k) names.push_back(io::decode_name(tokens[k]));
     }
   }
   const size_t point_count = positions.size() / 3;
@@ -109,7 +110,7 @@ void write_obj(const LineSet& lines, const std::string& path, const WriteOptions
   text += "# linebake " LINEBAKE_VERSION " polylines\n";
   if (!lines.attributes.empty()) {
     text += "a";
-    for (const Attribute& a : lines.attributes) text += " " + a.name;
+    for (const Attribute& a : lines.attributes) text += " " + io::encode_name(a.name);
     text += "\n";
   }
   for (size_t i = 0; i < lines.point_count(); ++i) {

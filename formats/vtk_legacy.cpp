@@ -25,35 +25,6 @@ size_t type_size(const std::string& type) {
   return 0;
 }
 
-// Names in legacy files encode spaces and other special characters as %xx.
-std::string decode_name(const std::string& s) {
-  std::string out;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
-      out += static_cast<char>(std::stoi(s.substr(i + 1, 2), nullptr, 16));
-      i += 2;
-    } else {
-      out += s[i];
-    }
-  }
-  return out;
-}
-
-std::string encode_name(const std::string& s) {
-  std::string out;
-  for (unsigned char c : s) {
-    if (c <= ' ' || c == '%' || c >= 127) {
-      char hex[4];
-      std::snprintf(hex, sizeof(hex), "%%%02X", c);
-      out += hex;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  return out.empty() ? "unnamed" : out;
-}
-
 // Token-and-bytes reader: ASCII parts are read as whitespace-separated tokens, binary blocks
 // as raw bytes starting after the line that announced them.
 class LegacyStream {
@@ -336,7 +307,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       target = key == "POINT_DATA" ? Target::point : Target::cell;
       target_tuples = n;
     } else if (key == "SCALARS") {
-      const std::string name = decode_name(in.token());
+      const std::string name = io::decode_name(in.token());
       const std::string type = in.token();
       // Optional component count, then LOOKUP_TABLE on the next line.
       std::string t = in.token();
@@ -351,13 +322,13 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       in.token();  // table name
       read_array(name, components, type);
     } else if (key == "VECTORS" || key == "NORMALS") {
-      const std::string name = decode_name(in.token());
+      const std::string name = io::decode_name(in.token());
       read_array(name, 3, in.token());
     } else if (key == "TENSORS") {
-      const std::string name = decode_name(in.token());
+      const std::string name = io::decode_name(in.token());
       read_array(name, 9, in.token());
     } else if (key == "TEXTURE_COORDINATES") {
-      const std::string name = decode_name(in.token());
+      const std::string name = io::decode_name(in.token());
       int64_t dim;
       if (!io::parse_int64(in.token(), dim) || dim < 1 || dim > 3) in.fail("bad texture dimension");
       read_array(name, static_cast<size_t>(dim), in.token());
@@ -366,7 +337,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       int64_t arrays;
       if (!io::parse_int64(in.token(), arrays) || arrays < 0) in.fail("bad FIELD array count");
       for (int64_t k = 0; k < arrays; ++k) {
-        const std::string name = decode_name(in.token());
+        const std::string name = io::decode_name(in.token());
         if (name == "NULL_ARRAY") continue;
         int64_t components, tuples;
         if (!io::parse_int64(in.token(), components) || !io::parse_int64(in.token(), tuples) ||
@@ -515,7 +486,7 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
     if (list.empty()) return;
     out.write(std::string(section) + " " + std::to_string(count) + "\n");
     for (const Attribute& a : list) {
-      out.write("SCALARS " + encode_name(a.name) + " float 1\nLOOKUP_TABLE default\n");
+      out.write("SCALARS " + io::encode_name(a.name) + " float 1\nLOOKUP_TABLE default\n");
       write_floats(a.values.data(), a.values.size(), 9);
     }
   };

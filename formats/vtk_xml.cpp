@@ -104,15 +104,6 @@ std::vector<unsigned char> base64_decode(const Context& ctx, const std::string& 
   return out;
 }
 
-// base64 text with whitespace removed.
-std::string compact(std::string_view text) {
-  std::string s;
-  s.reserve(text.size());
-  for (char c : text)
-    if (c != ' ' && c != '\n' && c != '\r' && c != '\t') s += c;
-  return s;
-}
-
 uint64_t header_word(const Context& ctx, const unsigned char* p) {
   if (ctx.header_size == 4) {
     uint32_t v;
@@ -168,26 +159,34 @@ std::vector<unsigned char> decode_binary(const Context& ctx, const std::string& 
     const size_t used = (3 + blocks) * hs;
     return inflate_blocks(ctx, where, header, p + used, stored.size() - used);
   }
-  const std::string text = compact(stored);
+  // base64: the header tells how many characters the array takes, so only those are decoded
+  // (appended data holds every array back to back).
+  const std::string_view text = io::trim(stored);
+  auto decode = [&](size_t from, size_t chars) {
+    if (from + chars > text.size()) ctx.fail(where, "base64 data shorter than its header says");
+    return base64_decode(ctx, where, text.substr(from, chars));
+  };
+  const std::vector<unsigned char> first = decode(0, base64_chars(hs));
   if (!ctx.compressed) {
     // Header and data are one base64 stream.
-    std::vector<unsigned char> all = base64_decode(ctx, where, text);
-    if (all.size() < hs) ctx.fail(where, "data header truncated");
-    const uint64_t n = header_word(ctx, all.data());
-    if (n > all.size() - hs) ctx.fail(where, "data shorter than its header says");
+    const uint64_t n = header_word(ctx, first.data());
+    if (n > text.size()) ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
+    std::vector<unsigned char> all = decode(0, base64_chars(hs + n));
     return {all.begin() + static_cast<ptrdiff_t>(hs), all.begin() + static_cast<ptrdiff_t>(hs + n)};
   }
   // The compression header is encoded on its own, then the blocks as one stream.
-  std::vector<unsigned char> first = base64_decode(ctx, where, std::string_view(text).substr(0, base64_chars(hs)));
-  if (first.size() < hs) ctx.fail(where, "compression header truncated");
   const uint64_t blocks = header_word(ctx, first.data());
   if (blocks > text.size()) ctx.fail(where, "implausible block count");
   const size_t header_chars = base64_chars((3 + blocks) * hs);
-  if (header_chars > text.size()) ctx.fail(where, "compression header truncated");
-  std::vector<unsigned char> head = base64_decode(ctx, where, std::string_view(text).substr(0, header_chars));
+  const std::vector<unsigned char> head = decode(0, header_chars);
   std::vector<uint64_t> header(3 + blocks);
-  for (size_t i = 0; i < header.size(); ++i) header[i] = header_word(ctx, head.data() + i * hs);
-  std::vector<unsigned char> data = base64_decode(ctx, where, std::string_view(text).substr(header_chars));
+  uint64_t compressed_bytes = 0;
+  for (size_t i = 0; i < header.size(); ++i) {
+    header[i] = header_word(ctx, head.data() + i * hs);
+    if (i >= 3) compressed_bytes += header[i];
+  }
+  if (compressed_bytes > text.size()) ctx.fail(where, "compressed sizes past the end of the file");
+  const std::vector<unsigned char> data = decode(header_chars, base64_chars(compressed_bytes));
   return inflate_blocks(ctx, where, header, data.data(), data.size());
 }
 

@@ -1,0 +1,282 @@
+// Hand-built files in the layouts other tools write, checked against hand-written expectations.
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <bit>
+#include <cstring>
+
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "test_util.hpp"
+
+using namespace linebake;
+using linebake::test::TempDir;
+using linebake::test::write_bytes;
+using linebake::test::write_text;
+
+namespace {
+
+// Appends values in the requested byte order.
+class Bytes {
+ public:
+  explicit Bytes(bool big_endian) : big_(big_endian) {}
+  template <typename T>
+  Bytes& put(T v) {
+    unsigned char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    if (big_ != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+    data.insert(data.end(), b, b + sizeof(T));
+    return *this;
+  }
+  Bytes& text(const std::string& s, size_t width) {
+    std::vector<unsigned char> field(width, 0);
+    std::memcpy(field.data(), s.data(), std::min(width, s.size()));
+    data.insert(data.end(), field.begin(), field.end());
+    return *this;
+  }
+  std::vector<unsigned char> data;
+
+ private:
+  bool big_;
+};
+
+std::vector<unsigned char> trk_file(bool big) {
+  Bytes b(big);
+  b.text("TRACK", 6);
+  b.put<int16_t>(10).put<int16_t>(20).put<int16_t>(30);
+  b.put<float>(1.5f).put<float>(1.5f).put<float>(2.0f);
+  b.put<float>(0).put<float>(0).put<float>(0);
+  b.put<int16_t>(1);  // n_scalars
+  b.text("fa", 20);
+  for (int i = 1; i < 10; ++i) b.text("", 20);
+  b.put<int16_t>(1);  // n_properties
+  b.text("length", 20);
+  for (int i = 1; i < 10; ++i) b.text("", 20);
+  for (int i = 0; i < 16; ++i) b.put<float>(i % 5 == 0 ? 1.0f : 0.0f);  // identity vox_to_ras
+  b.text("", 444).text("LPS", 4).text("", 4);
+  for (int i = 0; i < 6; ++i) b.put<float>(0);
+  b.text("", 2).text("", 6);
+  b.put<int32_t>(2).put<int32_t>(2).put<int32_t>(1000);
+  EXPECT_EQ(b.data.size(), 1000u);
+  // Streamline 0: 2 points; streamline 1: 3 points.
+  b.put<int32_t>(2);
+  b.put<float>(1).put<float>(2).put<float>(3).put<float>(0.5f);
+  b.put<float>(4).put<float>(5).put<float>(6).put<float>(0.25f);
+  b.put<float>(7.5f);
+  b.put<int32_t>(3);
+  for (float i : {0.0f, 1.0f, 2.0f}) b.put<float>(-i).put<float>(0).put<float>(1).put<float>(0.1f * i);
+  b.put<float>(9.0f);
+  return b.data;
+}
+
+std::vector<unsigned char> tck_file(bool big, bool doubles, bool finished = true) {
+  const std::string type = std::string(doubles ? "Float64" : "Float32") + (big ? "BE" : "LE");
+  std::string header = "mrtrix tracks\ndatatype: " + type + "\ncount: 2\nfile: . 64\nEND\n";
+  header.resize(64, ' ');
+  Bytes b(big);
+  b.data.assign(header.begin(), header.end());
+  auto put = [&](double x, double y, double z) {
+    for (double v : {x, y, z}) doubles ? (void)b.put<double>(v) : (void)b.put<float>(static_cast<float>(v));
+  };
+  put(0, 0, 0);
+  put(1, 0.5, -2);
+  put(NAN, NAN, NAN);
+  put(3, 3, 3);
+  put(4, 4, 4);
+  put(5, 5, 5);
+  put(NAN, NAN, NAN);
+  if (finished) put(INFINITY, INFINITY, INFINITY);
+  return b.data;
+}
+
+}  // namespace
+
+TEST(Trk, BothByteOrders) {
+  TempDir dir;
+  for (bool big : {false, true}) {
+    const std::string path = dir.file(big ? "big.trk" : "little.trk");
+    write_bytes(path, trk_file(big));
+    const LineSet l = read_line_set(path);
+    EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 2, 5}));
+    EXPECT_EQ(l.positions, (std::vector<float>{1, 2, 3, 4, 5, 6, 0, 0, 1, -1, 0, 1, -2, 0, 1}));
+    ASSERT_EQ(l.attributes.size(), 1u);
+    EXPECT_EQ(l.attributes[0].name, "fa");
+    EXPECT_EQ(l.attributes[0].values, (std::vector<float>{0.5f, 0.25f, 0.0f, 0.1f, 0.2f}));
+    ASSERT_EQ(l.line_attributes.size(), 1u);
+    EXPECT_EQ(l.line_attributes[0].name, "length");
+    EXPECT_EQ(l.line_attributes[0].values, (std::vector<float>{7.5f, 9.0f}));
+    EXPECT_EQ(l.metadata.at("trk.voxel_order"), "LPS");
+  }
+}
+
+TEST(Trk, Malformed) {
+  TempDir dir;
+  auto bytes = trk_file(false);
+  bytes[996] = 7;  // hdr_size no longer 1000 in either order
+  write_bytes(dir.file("a.trk"), bytes);
+  EXPECT_THROW(
+      {
+        try {
+          read_line_set(dir.file("a.trk"));
+        } catch (const InputError& e) {
+          EXPECT_NE(std::string(e.what()).find("byte offset 996"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      InputError);
+  bytes = trk_file(false);
+  bytes.resize(bytes.size() - 6);
+  write_bytes(dir.file("b.trk"), bytes);
+  EXPECT_THROW(read_line_set(dir.file("b.trk")), InputError);
+  write_bytes(dir.file("c.trk"), std::vector<unsigned char>(100, 0));
+  EXPECT_THROW(read_line_set(dir.file("c.trk")), InputError);
+}
+
+TEST(Tck, AllDatatypes) {
+  TempDir dir;
+  for (bool big : {false, true})
+    for (bool doubles : {false, true}) {
+      const std::string path = dir.file(std::to_string(big) + std::to_string(doubles) + ".tck");
+      write_bytes(path, tck_file(big, doubles));
+      const LineSet l = read_line_set(path);
+      EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 2, 5}));
+      EXPECT_EQ(l.positions, (std::vector<float>{0, 0, 0, 1, 0.5f, -2, 3, 3, 3, 4, 4, 4, 5, 5, 5}));
+      EXPECT_EQ(l.metadata.at("tck.count"), "2");
+    }
+}
+
+TEST(Tck, Malformed) {
+  TempDir dir;
+  write_bytes(dir.file("a.tck"), tck_file(false, false, /*finished=*/false));
+  EXPECT_THROW(read_line_set(dir.file("a.tck")), InputError);
+  write_text(dir.file("b.tck"), "mrtrix tracks\ndatatype: Int16LE\nfile: . 40\nEND\n");
+  EXPECT_THROW(read_line_set(dir.file("b.tck")), InputError);
+  write_text(dir.file("c.tck"), "mrtrix image\n");
+  EXPECT_THROW(read_line_set(dir.file("c.tck")), InputError);
+  auto bytes = tck_file(false, false);
+  const std::string count = "count: 2";
+  const auto at = std::search(bytes.begin(), bytes.end(), count.begin(), count.end());
+  ASSERT_NE(at, bytes.end());
+  *(at + 7) = '7';  // the header now disagrees with the data
+  write_bytes(dir.file("d.tck"), bytes);
+  EXPECT_THROW(read_line_set(dir.file("d.tck")), InputError);
+}
+
+TEST(VtkLegacy, Ascii51LayoutFieldVectorsAndCellData) {
+  TempDir dir;
+  // Lines index shared points out of order; one VERTICES cell shifts the cell data.
+  write_text(dir.file("a.vtk"),
+             "# vtk DataFile Version 5.1\nstreamlines\nASCII\nDATASET POLYDATA\n"
+             "POINTS 4 double\n0 0 0  1 0 0  2 0 0  3 1 0\n"
+             "VERTICES 2 1\nOFFSETS vtktypeint64\n0 1\nCONNECTIVITY vtktypeint64\n0\n"
+             "LINES 3 5\nOFFSETS vtktypeint64\n0 3 5\nCONNECTIVITY vtktypeint64\n3 2 1 0 1\n"
+             "POINT_DATA 4\nSCALARS speed%20m/s float 1\nLOOKUP_TABLE default\n0.5 1.5 2.5 3.5\n"
+             "VECTORS v float\n1 2 3 4 5 6 7 8 9 10 11 12\n"
+             "FIELD FieldData 1\nid 1 4 int\n10 11 12 13\n"
+             "CELL_DATA 3\nSCALARS group int 1\nLOOKUP_TABLE default\n99 7 8\n");
+  const LineSet l = read_line_set(dir.file("a.vtk"));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 5}));
+  EXPECT_EQ(l.positions, (std::vector<float>{3, 1, 0, 2, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0}));
+  ASSERT_EQ(l.attributes.size(), 5u);
+  EXPECT_EQ(l.attributes[0].name, "speed m/s");
+  EXPECT_EQ(l.attributes[0].values, (std::vector<float>{3.5f, 2.5f, 1.5f, 0.5f, 1.5f}));
+  EXPECT_EQ(l.attributes[1].name, "v_x");
+  EXPECT_EQ(l.attributes[3].values, (std::vector<float>{12, 9, 6, 3, 6}));
+  EXPECT_EQ(l.attributes[4].name, "id");
+  EXPECT_EQ(l.attributes[4].values, (std::vector<float>{13, 12, 11, 10, 11}));
+  ASSERT_EQ(l.line_attributes.size(), 1u);
+  EXPECT_EQ(l.line_attributes[0].values, (std::vector<float>{7, 8}));
+}
+
+TEST(VtkLegacy, BigEndianBinaryClassic) {
+  TempDir dir;
+  Bytes b(/*big=*/true);
+  const std::string head =
+      "# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n";
+  b.data.assign(head.begin(), head.end());
+  for (float v : {0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f, 8.f}) b.put(v);
+  const std::string lines = "\nLINES 1 4\n";
+  b.data.insert(b.data.end(), lines.begin(), lines.end());
+  for (int32_t v : {3, 0, 1, 2}) b.put(v);
+  const std::string pd = "\nPOINT_DATA 3\nSCALARS s double\nLOOKUP_TABLE default\n";
+  b.data.insert(b.data.end(), pd.begin(), pd.end());
+  for (double v : {0.25, -1.0, 1e30}) b.put(v);
+  b.data.push_back('\n');
+  write_bytes(dir.file("a.vtk"), b.data);
+  const LineSet l = read_line_set(dir.file("a.vtk"));
+  EXPECT_EQ(l.positions, (std::vector<float>{0, 1, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3}));
+  EXPECT_EQ(l.attributes[0].values, (std::vector<float>{0.25f, -1.0f, 1e30f}));
+}
+
+TEST(Vtp, AsciiAsParaViewWritesIt) {
+  TempDir dir;
+  write_text(dir.file("a.vtp"), R"(<?xml version="1.0"?>
+<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">
+  <PolyData>
+    <Piece NumberOfPoints="3" NumberOfVerts="0" NumberOfLines="1" NumberOfStrips="0" NumberOfPolys="0">
+      <PointData Scalars="temp">
+        <DataArray type="Float64" Name="temp" format="ascii" RangeMin="1" RangeMax="3">1 2 3</DataArray>
+      </PointData>
+      <CellData>
+        <DataArray type="Int32" Name="SeedIds" format="ascii">4</DataArray>
+      </CellData>
+      <Points>
+        <DataArray type="Float32" Name="Points" NumberOfComponents="3" format="ascii">
+          0 0 0 1 0 0 1 1 0
+        </DataArray>
+      </Points>
+      <Lines>
+        <DataArray type="Int64" Name="connectivity" format="ascii">2 1 0</DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii">3</DataArray>
+      </Lines>
+    </Piece>
+  </PolyData>
+</VTKFile>
+)");
+  const LineSet l = read_line_set(dir.file("a.vtp"));
+  EXPECT_EQ(l.positions, (std::vector<float>{1, 1, 0, 1, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(l.attributes[0].values, (std::vector<float>{3, 2, 1}));
+  EXPECT_EQ(l.line_attributes[0].name, "SeedIds");
+  EXPECT_EQ(l.line_attributes[0].values, (std::vector<float>{4}));
+}
+
+TEST(Hdf5, DoublePointsAndLineLengthsAsH5pyWrites) {
+  TempDir dir;
+  const std::string path = dir.file("a.h5");
+  {
+    hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const double points[] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3.5, 0, 0};
+    hsize_t dims[2] = {4, 3};
+    hid_t s = H5Screate_simple(2, dims, nullptr);
+    hid_t d = H5Dcreate2(f, "points", H5T_IEEE_F64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, points);
+    H5Dclose(d);
+    H5Sclose(s);
+    const int32_t lengths[] = {3, 1};
+    hsize_t n = 2;
+    s = H5Screate_simple(1, &n, nullptr);
+    d = H5Dcreate2(f, "line_lengths", H5T_STD_I32LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Dwrite(d, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, lengths);
+    H5Dclose(d);
+    H5Sclose(s);
+    H5Fclose(f);
+  }
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4}));
+  EXPECT_EQ(l.positions[9], 3.5f);
+}
+
+TEST(Hdf5, BadOffsetsNameTheDataset) {
+  TempDir dir;
+  LineSet l = linebake::test::awkward_lines(false);
+  l.line_offsets.back() += 1;  // points past the end
+  write_line_set(l, dir.file("a.h5"));
+  try {
+    read_line_set(dir.file("a.h5"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dataset /line_offsets"), std::string::npos) << e.what();
+  }
+}

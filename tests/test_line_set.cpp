@@ -1,0 +1,58 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lines/line_set.hpp"
+
+using namespace linebake;
+
+TEST(LineSet, CountsBoundsAndBytes) {
+  LineSet lines;
+  lines.append_point(0, 0, 0);
+  lines.append_point(1, 2, 3);
+  lines.append_point(-1, 5, 0);
+  lines.end_line();
+  lines.append_point(4, -2, 1);
+  lines.append_point(4, -2, 2);
+  lines.end_line();
+  lines.attributes.push_back({"a", {1, 2, NAN, -4, 8}});
+  EXPECT_EQ(lines.line_count(), 2u);
+  EXPECT_EQ(lines.point_count(), 5u);
+  EXPECT_EQ(lines.segment_count(), 3u);  // 2 + 1
+  const LineSetStats s = compute_stats(lines);
+  EXPECT_EQ(s.bounds.min, (std::array<float, 3>{-1, -2, 0}));
+  EXPECT_EQ(s.bounds.max, (std::array<float, 3>{4, 5, 3}));
+  EXPECT_EQ(s.position_bytes, 5u * 12);
+  EXPECT_EQ(s.offset_bytes, 3u * 8);
+  EXPECT_EQ(s.attribute_bytes, 5u * 4);
+  ASSERT_EQ(s.attribute_ranges.size(), 1u);
+  EXPECT_EQ(s.attribute_ranges[0].second.min, -4);
+  EXPECT_EQ(s.attribute_ranges[0].second.max, 8);
+  EXPECT_EQ(s.attribute_ranges[0].second.nonfinite, 1u);
+}
+
+TEST(LineSet, BoundsSkipNonFinitePoints) {
+  LineSet lines;
+  lines.append_point(NAN, 100, 100);
+  lines.append_point(1, 1, 1);
+  lines.append_point(2, INFINITY, 0);
+  lines.end_line();
+  const Bounds b = compute_bounds(lines);
+  EXPECT_FALSE(b.empty);
+  EXPECT_EQ(b.min, (std::array<float, 3>{1, 1, 1}));
+  EXPECT_EQ(b.max, (std::array<float, 3>{1, 1, 1}));
+}
+
+TEST(LineSet, SameDataIsBitExact) {
+  LineSet a;
+  a.append_point(0.0f, 1, 2);
+  a.append_point(1, 1, 2);
+  a.end_line();
+  LineSet b = a;
+  EXPECT_TRUE(a.same_data(b));
+  b.positions[0] = -0.0f;  // equal as a float, different bits
+  EXPECT_FALSE(a.same_data(b));
+  b = a;
+  b.attributes.push_back({"x", {1, 2}});
+  EXPECT_FALSE(a.same_data(b));
+}

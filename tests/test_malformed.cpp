@@ -1,0 +1,161 @@
+// Bad input: a clear error naming the file and the place, never a crash.
+
+#include <gtest/gtest.h>
+
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "test_util.hpp"
+
+using namespace linebake;
+using linebake::test::TempDir;
+using linebake::test::write_bytes;
+using linebake::test::write_text;
+
+namespace {
+
+// Reads `path` expecting an InputError whose message names the file and contains `place`.
+void expect_error(const std::string& path, const std::string& place) {
+  try {
+    read_line_set(path);
+    ADD_FAILURE() << path << ": expected an error mentioning '" << place << "'";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path), std::string::npos) << what;
+    EXPECT_NE(what.find(place), std::string::npos) << "expected '" << place << "' in: " << what;
+  }
+}
+
+std::vector<unsigned char> file_bytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), {}};
+}
+
+// Writes a valid file in `extension`, then truncated copies at several lengths: each must fail
+// cleanly (or, where a prefix happens to be valid, read without crashing).
+void truncations_fail(const std::string& extension, const WriteOptions& options = {}) {
+  TempDir dir;
+  const std::string good = dir.file("good" + extension);
+  write_line_set(linebake::test::awkward_lines(false), good, options);
+  const auto bytes = file_bytes(good);
+  int failures = 0;
+  for (size_t keep : {size_t{0}, size_t{3}, bytes.size() / 3, bytes.size() / 2, bytes.size() - 3}) {
+    const std::string cut = dir.file("cut" + std::to_string(keep) + extension);
+    write_bytes(cut, std::vector<unsigned char>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
+    try {
+      read_line_set(cut);
+    } catch (const InputError& e) {
+      ++failures;
+      EXPECT_NE(std::string(e.what()).find(cut), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_GE(failures, 4) << extension;
+}
+
+}  // namespace
+
+TEST(Malformed, MissingFile) { expect_error("/nonexistent/lines.obj", "cannot open"); }
+
+TEST(Malformed, Truncated) {
+  truncations_fail(".binlines");
+  truncations_fail(".vtk");
+  truncations_fail(".h5");
+  truncations_fail(".vtp");
+  WriteOptions base64;
+  base64.vtp_encoding = "base64";
+  truncations_fail(".vtp", base64);
+}
+
+TEST(Malformed, Obj) {
+  TempDir dir;
+  write_text(dir.file("a.obj"), "v 0 0 0\nv 1 1 1\nl 1 3\n");
+  expect_error(dir.file("a.obj"), "line 3: vertex index 3 out of range");
+  write_text(dir.file("b.obj"), "v 0 0\n");
+  expect_error(dir.file("b.obj"), "line 1: vertex needs 3 coordinates");
+  write_text(dir.file("c.obj"), "v 0 0 zero\n");
+  expect_error(dir.file("c.obj"), "line 1: bad coordinate 'zero'");
+  write_text(dir.file("d.obj"), "v 0 0 0\nvt 1 2\nv 1 0 0\nvt 1\nl 1 2\n");
+  expect_error(dir.file("d.obj"), "line 4: vt has 1 values");
+  write_text(dir.file("e.obj"), "v 0 0 0\nvt 1\nv 1 0 0\nl 1 2\n");
+  expect_error(dir.file("e.obj"), "1 vt lines for 2 vertices");
+  write_text(dir.file("f.obj"), "v 0 0 0\nv 1 0 0\nl 1 0\n");
+  expect_error(dir.file("f.obj"), "line 3: bad vertex index '0'");
+}
+
+TEST(Malformed, ObjNegativeIndicesAndNaNReadThenValidate) {
+  TempDir dir;
+  write_text(dir.file("a.obj"), "v 0 0 0\nv 1 0 0\nv nan 0 0\nl -3 -2 -1\n");
+  const LineSet l = read_line_set(dir.file("a.obj"));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3}));
+  EXPECT_TRUE(std::isnan(l.positions[6]));
+}
+
+TEST(Malformed, Binlines) {
+  TempDir dir;
+  write_bytes(dir.file("a.binlines"), {});
+  expect_error(dir.file("a.binlines"), "empty file");
+  write_bytes(dir.file("b.binlines"), {7, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0});
+  expect_error(dir.file("b.binlines"), "byte offset 0: unsupported .binlines version 7");
+  // One line claiming 1000 points in a 20-byte file.
+  write_bytes(dir.file("c.binlines"), {1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0xE8, 3, 0, 0, 0, 0, 0, 0});
+  expect_error(dir.file("c.binlines"), "byte offset 12: line 0 claims 1000 points");
+  // Two lines announced, one present.
+  write_bytes(dir.file("d.binlines"), {1, 0, 0, 0, 200, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
+  expect_error(dir.file("d.binlines"), "line count 200 does not fit");
+}
+
+TEST(Malformed, VtkLegacy) {
+  TempDir dir;
+  write_text(dir.file("a.vtk"), "not vtk\n");
+  expect_error(dir.file("a.vtk"), "line 1: not a VTK legacy file");
+  write_text(dir.file("b.vtk"),
+             "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\n"
+             "LINES 1 3\n2 0 5\n");
+  expect_error(dir.file("b.vtk"), "point index 5 out of range");
+  write_text(dir.file("c.vtk"),
+             "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1\n");
+  expect_error(dir.file("c.vtk"), "file ends after 5 of 6 values");
+  write_text(dir.file("d.vtk"),
+             "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\n"
+             "LINES 1 4\n2 0 1\n");
+  expect_error(dir.file("d.vtk"), "cell list size 4 does not match");
+  write_text(dir.file("e.vtk"),
+             "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\n");
+  expect_error(dir.file("e.vtk"), "expected DATASET POLYDATA");
+}
+
+TEST(Malformed, Vtp) {
+  TempDir dir;
+  write_text(dir.file("a.vtp"), "<VTKFile type=\"PolyData\"><PolyData><Piece");
+  expect_error(dir.file("a.vtp"), "XML error");
+  write_text(dir.file("b.vtp"), "<VTKFile type=\"ImageData\"></VTKFile>");
+  expect_error(dir.file("b.vtp"), "not a VTK XML PolyData file");
+  write_text(dir.file("c.vtp"),
+             "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"2\" NumberOfLines=\"1\">"
+             "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1"
+             "</DataArray></Points></Piece></PolyData></VTKFile>");
+  expect_error(dir.file("c.vtp"), "DataArray '': 5 values, expected 6");
+}
+
+TEST(Malformed, Hdf5) {
+  TempDir dir;
+  write_text(dir.file("a.h5"), "plain text");
+  expect_error(dir.file("a.h5"), "not an HDF5 file");
+}
+
+TEST(Malformed, Csv) {
+  TempDir dir;
+  write_text(dir.file("a.csv"), "");
+  expect_error(dir.file("a.csv"), "line 1: empty file");
+  write_text(dir.file("b.csv"), "id,x,y,z\n");
+  expect_error(dir.file("b.csv"), "line 1: header column 1 is 'id'");
+  write_text(dir.file("c.csv"), "line_id,x,y,z,a\n0,0,0,0,1\n0,1,1\n");
+  expect_error(dir.file("c.csv"), "line 3: 3 columns");
+  write_text(dir.file("d.csv"), "line_id,x,y,z\n0,0,0,0\n1,0,0,0\n0,1,1,1\n");
+  expect_error(dir.file("d.csv"), "line 4: rows of line 0 are not consecutive");
+  write_text(dir.file("e.csv"), "line_id,x,y,z\n0,0,0,abc\n");
+  expect_error(dir.file("e.csv"), "line 2: bad coordinate 'abc'");
+}
+
+TEST(Malformed, UnknownExtension) {
+  EXPECT_THROW(read_line_set("/tmp/lines.xyz"), Error);
+}

@@ -1,0 +1,104 @@
+// Every writable format, written and read back, gives the same bits.
+
+#include <gtest/gtest.h>
+
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "test_util.hpp"
+
+using namespace linebake;
+using linebake::test::awkward_lines;
+using linebake::test::TempDir;
+
+namespace {
+
+struct Case {
+  const char* name;
+  const char* extension;
+  bool keeps_line_attributes;
+  WriteOptions options;
+  friend void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+};
+
+WriteOptions vtp(const char* encoding, bool compress, bool uint64_header) {
+  WriteOptions o;
+  o.vtp_encoding = encoding;
+  o.vtp_compress = compress;
+  o.vtp_header_uint64 = uint64_header;
+  return o;
+}
+WriteOptions ascii() {
+  WriteOptions o;
+  o.ascii = true;
+  return o;
+}
+
+std::vector<Case> cases() {
+  return {
+      {"obj", ".obj", false, {}},
+      {"binlines", ".binlines", false, {}},
+      {"vtk_binary", ".vtk", true, {}},
+      {"vtk_ascii", ".vtk", true, ascii()},
+      {"hdf5", ".h5", true, {}},
+      {"csv", ".csv", false, {}},
+      {"vtp_appended_zlib", ".vtp", true, vtp("appended", true, true)},
+      {"vtp_appended_raw_u32", ".vtp", true, vtp("appended", false, false)},
+      {"vtp_appended_base64_zlib_u32", ".vtp", true, vtp("appended-base64", true, false)},
+      {"vtp_appended_base64", ".vtp", true, vtp("appended-base64", false, true)},
+      {"vtp_inline_base64_zlib", ".vtp", true, vtp("base64", true, true)},
+      {"vtp_inline_base64_u32", ".vtp", true, vtp("base64", false, false)},
+      {"vtp_ascii", ".vtp", true, vtp("ascii", false, true)},
+  };
+}
+
+class RoundTrip : public ::testing::TestWithParam<Case> {};
+
+}  // namespace
+
+TEST_P(RoundTrip, PreservesDataExactly) {
+  const Case& c = GetParam();
+  TempDir dir;
+  const LineSet original = awkward_lines(c.keeps_line_attributes);
+  const std::string path = dir.file(std::string("lines") + c.extension);
+  write_line_set(original, path, c.options);
+  const LineSet back = read_line_set(path);
+  EXPECT_TRUE(back.same_data(original)) << c.name;
+  ASSERT_EQ(back.attributes.size(), 2u);
+  EXPECT_EQ(back.attributes[1].name, "second attr");
+  EXPECT_EQ(dir.entries(), std::vector<std::string>{std::string("lines") + c.extension})
+      << "temporary files left behind";
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, RoundTrip, ::testing::ValuesIn(cases()),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+TEST(RoundTripBinlines, Version1DropsNamesOnly) {
+  TempDir dir;
+  const LineSet original = awkward_lines(false);
+  WriteOptions o;
+  o.binlines_version = 1;
+  write_line_set(original, dir.file("a.binlines"), o);
+  LineSet back = read_line_set(dir.file("a.binlines"));
+  EXPECT_EQ(back.attributes[0].name, "attribute0");
+  back.attributes[0].name = original.attributes[0].name;
+  back.attributes[1].name = original.attributes[1].name;
+  EXPECT_TRUE(back.same_data(original));
+}
+
+TEST(RoundTripFormat, ExtensionOverride) {
+  TempDir dir;
+  const LineSet original = awkward_lines(true);
+  WriteOptions w;
+  w.format = Format::hdf5;
+  write_line_set(original, dir.file("data.bin"), w);
+  ReadOptions r;
+  r.format = Format::hdf5;
+  EXPECT_TRUE(read_line_set(dir.file("data.bin"), r).same_data(original));
+  EXPECT_THROW(read_line_set(dir.file("data.bin")), Error);  // no extension to go by
+}
+
+TEST(RoundTripFormat, NotWritableFormatsAreRefused) {
+  TempDir dir;
+  EXPECT_THROW(write_line_set(awkward_lines(false), dir.file("x.trk")), Error);
+  EXPECT_TRUE(dir.entries().empty());
+}

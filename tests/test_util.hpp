@@ -1,0 +1,73 @@
+#pragma once
+// Helpers shared by the tests: temporary directories and a line set with awkward values.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+
+#include "lines/line_set.hpp"
+
+namespace linebake::test {
+
+// A fresh directory per test, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = std::filesystem::temp_directory_path() /
+            ("linebake-" + std::string(info->test_suite_name()) + "-" + info->name() + "-" +
+             std::to_string(::getpid()));
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() { std::filesystem::remove_all(path_); }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  // Names of everything in the directory (to check that nothing is left behind).
+  std::vector<std::string> entries() const {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(path_))
+      names.push_back(e.path().filename().string());
+    return names;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+inline void write_text(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+inline void write_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                              static_cast<std::streamsize>(bytes.size()));
+}
+
+// Three lines with values that text formats get wrong when they round: 1/3, 0.1, denormals,
+// large and negative values, and an attribute name with a space.
+inline LineSet awkward_lines(bool with_line_attributes) {
+  LineSet lines;
+  const float values[] = {1.0f / 3.0f, 0.1f, -2.5e-38f, 1.0e-42f, 3.4e37f, -7.0f, 123456.789f,
+                          0.0f,        -0.0f, 1e-7f,     65504.0f, 2.0f / 3.0f};
+  size_t v = 0;
+  const size_t sizes[] = {2, 5, 3};
+  for (size_t line = 0; line < 3; ++line) {
+    for (size_t i = 0; i < sizes[line]; ++i, ++v)
+      lines.append_point(values[v % 12] + static_cast<float>(i), values[(v + 1) % 12],
+                         values[(v + 5) % 12] * static_cast<float>(line + 1));
+    lines.end_line();
+  }
+  Attribute a{"vorticity", {}}, b{"second attr", {}};
+  for (size_t i = 0; i < lines.point_count(); ++i) {
+    a.values.push_back(values[(i + 3) % 12]);
+    b.values.push_back(static_cast<float>(i) / 7.0f);
+  }
+  lines.attributes = {a, b};
+  if (with_line_attributes) lines.line_attributes = {{"line_id", {10.0f, 11.5f, 1.0f / 9.0f}}};
+  return lines;
+}
+
+}  // namespace linebake::test
