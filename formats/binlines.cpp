@@ -15,10 +15,12 @@ LineSet read_binlines(const std::string& path, const ReadOptions& options) {
   if (in.size() == 0) in.fail("empty file");
   const auto version = in.read_value<uint32_t>("version");
   if (version != 1 && version != 2)
-    in.fail_at(0, "unsupported .binlines version " + std::to_string(version) + " (expected 1 or 2)");
+    in.fail_at(0,
+               "unsupported .binlines version " + std::to_string(version) + " (expected 1 or 2)");
   const auto line_count = in.read_value<uint32_t>("line count");
   const auto attribute_count = in.read_value<uint32_t>("attribute count");
-  if (attribute_count > 4096) in.fail_at(8, "implausible attribute count " + std::to_string(attribute_count));
+  if (attribute_count > 4096)
+    in.fail_at(8, "implausible attribute count " + std::to_string(attribute_count));
 
   LineSet lines;
   lines.attributes.resize(attribute_count);
@@ -27,7 +29,8 @@ LineSet read_binlines(const std::string& path, const ReadOptions& options) {
     if (version == 2) {
       const uint64_t at = in.offset();
       const auto length = in.read_value<uint32_t>("attribute name length");
-      if (length > 4096) in.fail_at(at, "implausible attribute name length " + std::to_string(length));
+      if (length > 4096)
+        in.fail_at(at, "implausible attribute name length " + std::to_string(length));
       std::string name(length, '\0');
       in.read(name.data(), length, "attribute name");
       lines.attributes[a].name = name;

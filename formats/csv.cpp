@@ -34,7 +34,8 @@ LineSet read_csv(const std::string& path, const ReadOptions& options) {
       in.fail("header column " + std::to_string(k + 1) + " is '" + std::string(header[k]) +
               "', expected '" + required[k] + "'");
   LineSet lines;
-  for (size_t k = 4; k < header.size(); ++k) lines.attributes.push_back({std::string(header[k]), {}});
+  for (size_t k = 4; k < header.size(); ++k)
+    lines.attributes.push_back({std::string(header[k]), {}});
 
   std::unordered_set<int64_t> finished;
   int64_t current = 0;
@@ -43,7 +44,8 @@ LineSet read_csv(const std::string& path, const ReadOptions& options) {
     if (io::trim(row).empty()) continue;
     const auto fields = split_commas(row);
     if (fields.size() != header.size())
-      in.fail(std::to_string(fields.size()) + " columns, the header has " + std::to_string(header.size()));
+      in.fail(std::to_string(fields.size()) + " columns, the header has " +
+              std::to_string(header.size()));
     int64_t id;
     if (!io::parse_int64(fields[0], id)) in.fail("bad line_id '" + std::string(fields[0]) + "'");
     if (!open || id != current) {
@@ -51,7 +53,8 @@ LineSet read_csv(const std::string& path, const ReadOptions& options) {
         lines.end_line();
         finished.insert(current);
       }
-      if (finished.count(id)) in.fail("rows of line " + std::to_string(id) + " are not consecutive");
+      if (finished.count(id))
+        in.fail("rows of line " + std::to_string(id) + " are not consecutive");
       current = id;
       open = true;
     }

@@ -53,8 +53,9 @@ std::vector<T> read_dataset(const std::string& path, hid_t file, const std::stri
   hsize_t total = 1;
   for (hsize_t d : shape_of(dataset)) total *= d;
   if (expected_elements != SIZE_MAX && total != expected_elements)
-    throw InputError(path, "dataset " + name, std::to_string(total) + " values, expected " +
-                                                  std::to_string(expected_elements));
+    throw InputError(
+        path, "dataset " + name,
+        std::to_string(total) + " values, expected " + std::to_string(expected_elements));
   std::vector<T> values(total);
   if (total > 0 && H5Dread(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
     throw InputError(path, "dataset " + name, "cannot read (wrong type or corrupt data)");
@@ -84,7 +85,8 @@ void write_string_attribute(const std::string& path, hid_t object, const std::st
   H5Tset_size(type, value.empty() ? 1 : value.size());
   H5Tset_strpad(type, H5T_STR_NULLTERM);
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  Handle attribute(H5Acreate2(object, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT),
+                   H5Aclose);
   if (!attribute.valid() || H5Awrite(attribute, type, value.c_str()) < 0)
     throw OutputError(path, "cannot write attribute " + name);
 }
@@ -93,8 +95,9 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
                    hid_t file_type, hid_t memory_type, const void* data,
                    std::vector<hsize_t> dims) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
-  Handle dataset(H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                 H5Dclose);
+  Handle dataset(
+      H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+      H5Dclose);
   if (!dataset.valid()) throw OutputError(path, "cannot create dataset " + name);
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
@@ -122,22 +125,25 @@ LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
   const size_t n = lines.point_count();
   if (options.progress) options.progress(1, 3);
   if (H5Lexists(file, "/line_offsets", H5P_DEFAULT) > 0) {
-    lines.line_offsets = read_dataset<uint64_t>(path, file, "/line_offsets", H5T_NATIVE_UINT64, SIZE_MAX);
+    lines.line_offsets =
+        read_dataset<uint64_t>(path, file, "/line_offsets", H5T_NATIVE_UINT64, SIZE_MAX);
     if (lines.line_offsets.empty() || lines.line_offsets.front() != 0 ||
         lines.line_offsets.back() != n)
-      throw InputError(path, "dataset /line_offsets", "must start at 0 and end at the point count " +
-                                                          std::to_string(n));
+      throw InputError(path, "dataset /line_offsets",
+                       "must start at 0 and end at the point count " + std::to_string(n));
     for (size_t i = 1; i < lines.line_offsets.size(); ++i)
       if (lines.line_offsets[i] < lines.line_offsets[i - 1])
         throw InputError(path, "dataset /line_offsets", "decreases at index " + std::to_string(i));
   } else if (H5Lexists(file, "/line_lengths", H5P_DEFAULT) > 0) {
-    const auto lengths = read_dataset<uint64_t>(path, file, "/line_lengths", H5T_NATIVE_UINT64, SIZE_MAX);
+    const auto lengths =
+        read_dataset<uint64_t>(path, file, "/line_lengths", H5T_NATIVE_UINT64, SIZE_MAX);
     lines.line_offsets.assign(1, 0);
-    for (uint64_t length : lengths) lines.line_offsets.push_back(lines.line_offsets.back() + length);
+    for (uint64_t length : lengths)
+      lines.line_offsets.push_back(lines.line_offsets.back() + length);
     if (lines.line_offsets.back() != n)
-      throw InputError(path, "dataset /line_lengths", "lengths sum to " +
-                                                          std::to_string(lines.line_offsets.back()) +
-                                                          ", not the point count " + std::to_string(n));
+      throw InputError(path, "dataset /line_lengths",
+                       "lengths sum to " + std::to_string(lines.line_offsets.back()) +
+                           ", not the point count " + std::to_string(n));
   } else {
     throw InputError(path, "dataset /line_offsets", "missing (and no /line_lengths)");
   }
@@ -145,8 +151,9 @@ LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
     lines.attributes.push_back(
         {name, read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
   for (const std::string& name : group_members(file, "/line_attributes"))
-    lines.line_attributes.push_back({name, read_dataset<float>(path, file, "/line_attributes/" + name,
-                                                              H5T_NATIVE_FLOAT, lines.line_count())});
+    lines.line_attributes.push_back(
+        {name, read_dataset<float>(path, file, "/line_attributes/" + name, H5T_NATIVE_FLOAT,
+                                   lines.line_count())});
   if (options.progress) options.progress(3, 3);
   return lines;
 }

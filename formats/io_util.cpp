@@ -1,8 +1,8 @@
 #include "formats/io_util.hpp"
 
+#include <cctype>
 #include <cerrno>
 #include <charconv>
-#include <cctype>
 #include <cmath>
 
 namespace linebake::io {
@@ -69,9 +69,9 @@ BinaryReader::BinaryReader(const std::string& path, ProgressFn progress)
 void BinaryReader::read(void* out, size_t bytes, const char* what) {
   if (bytes == 0) return;
   if (offset_ + bytes > file_.size() || std::fread(out, 1, bytes, file_.get()) != bytes) {
-    fail(std::string("file truncated while reading ") + what + " (needs " +
-         std::to_string(bytes) + " bytes, " +
-         std::to_string(file_.size() > offset_ ? file_.size() - offset_ : 0) + " left)");
+    fail(std::string("file truncated while reading ") + what + " (needs " + std::to_string(bytes) +
+         " bytes, " + std::to_string(file_.size() > offset_ ? file_.size() - offset_ : 0) +
+         " left)");
   }
   offset_ += bytes;
   if (progress_ && offset_ - last_report_ > (8u << 20)) {
@@ -87,7 +87,9 @@ void BinaryReader::seek(uint64_t offset) {
   offset_ = offset;
 }
 
-void BinaryReader::fail(const std::string& message) const { fail_at(offset_, message); }
+void BinaryReader::fail(const std::string& message) const {
+  fail_at(offset_, message);
+}
 
 void BinaryReader::fail_at(uint64_t offset, const std::string& message) const {
   throw InputError(file_.path(), at_byte(offset), message);
@@ -107,7 +109,9 @@ std::string_view trim(std::string_view s) {
 }
 
 namespace {
-bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\n';
+}
 }  // namespace
 
 std::vector<std::string_view> split_whitespace(std::string_view line) {
@@ -152,10 +156,18 @@ bool parse_real(std::string_view token, T& out) {
 }
 }  // namespace
 
-bool parse_float(std::string_view token, float& out) { return parse_real(token, out); }
-bool parse_double(std::string_view token, double& out) { return parse_real(token, out); }
-bool parse_int64(std::string_view token, int64_t& out) { return parse_number(token, out); }
-bool parse_uint64(std::string_view token, uint64_t& out) { return parse_number(token, out); }
+bool parse_float(std::string_view token, float& out) {
+  return parse_real(token, out);
+}
+bool parse_double(std::string_view token, double& out) {
+  return parse_real(token, out);
+}
+bool parse_int64(std::string_view token, int64_t& out) {
+  return parse_number(token, out);
+}
+bool parse_uint64(std::string_view token, uint64_t& out) {
+  return parse_number(token, out);
+}
 
 std::string encode_name(const std::string& name) {
   std::string out;
@@ -183,6 +195,22 @@ std::string decode_name(std::string_view s) {
     }
   }
   return out;
+}
+
+bool append_components(std::vector<Attribute>& target, const std::string& name,
+                       const std::vector<float>& values, size_t components, size_t first,
+                       size_t count) {
+  if (values.size() < (first + count) * components) return false;
+  for (size_t c = 0; c < components; ++c) {
+    Attribute a;
+    a.name = components == 1   ? name
+             : components == 3 ? name + "_" + "xyz"[c]
+                               : name + "_" + std::to_string(c);
+    a.values.resize(count);
+    for (size_t i = 0; i < count; ++i) a.values[i] = values[(first + i) * components + c];
+    target.push_back(std::move(a));
+  }
+  return true;
 }
 
 void append_float(std::string& out, float v) {

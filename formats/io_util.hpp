@@ -12,6 +12,7 @@
 
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "lines/line_set.hpp"
 
 namespace linebake::io {
 
@@ -110,6 +111,13 @@ bool parse_uint64(std::string_view token, uint64_t& out);
 // other special bytes as %xx, as VTK writes them.
 std::string encode_name(const std::string& name);
 std::string decode_name(std::string_view encoded);
+
+// Splits an array of `components`-tuples into one attribute per component (name, or name_x/_y/_z
+// for 3 components, name_0.._k otherwise), taking tuples [first, first + count). False when the
+// array holds fewer tuples.
+bool append_components(std::vector<Attribute>& target, const std::string& name,
+                       const std::vector<float>& values, size_t components, size_t first,
+                       size_t count);
 
 // Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
 void append_float(std::string& out, float v);

@@ -29,7 +29,8 @@ struct Nc {
   int id = -1;
   explicit Nc(const std::string& p) : path(p) {
     const int status = nc_open(p.c_str(), NC_NOWRITE, &id);
-    if (status != NC_NOERR) throw InputError(p, "", std::string("cannot open as NetCDF: ") + nc_strerror(status));
+    if (status != NC_NOERR)
+      throw InputError(p, "", std::string("cannot open as NetCDF: ") + nc_strerror(status));
   }
   ~Nc() {
     if (id >= 0) nc_close(id);
@@ -71,7 +72,8 @@ std::vector<Variable> variables(const Nc& nc) {
     nc_type type;
     int ndims, natts;
     int dims[NC_MAX_VAR_DIMS];
-    nc.check(nc_inq_var(nc.id, v, name, &type, &ndims, dims, &natts), "variable " + std::to_string(v));
+    nc.check(nc_inq_var(nc.id, v, name, &type, &ndims, dims, &natts),
+             "variable " + std::to_string(v));
     if (type == NC_CHAR || type == NC_STRING) continue;
     Variable var{v, name, std::vector<int>(dims, dims + ndims), {}, std::nullopt};
     for (int d : var.dims) {
@@ -80,8 +82,10 @@ std::vector<Variable> variables(const Nc& nc) {
       var.shape.push_back(length);
     }
     double fill;
-    if (nc_get_att_double(nc.id, v, "_FillValue", &fill) == NC_NOERR) var.fill = fill;
-    else if (nc_get_att_double(nc.id, v, "missing_value", &fill) == NC_NOERR) var.fill = fill;
+    if (nc_get_att_double(nc.id, v, "_FillValue", &fill) == NC_NOERR)
+      var.fill = fill;
+    else if (nc_get_att_double(nc.id, v, "missing_value", &fill) == NC_NOERR)
+      var.fill = fill;
     list.push_back(std::move(var));
   }
   return list;
@@ -95,7 +99,8 @@ const Variable* find_axis(const Nc& nc, const std::vector<const Variable*>& cand
       {"latitude", "projection_y_coordinate"},
       {"altitude", "height", "air_pressure", "depth", "projection_z_coordinate"}};
   static const std::vector<std::vector<std::string>> names = {
-      {"x", "lon", "longitude"}, {"y", "lat", "latitude"},
+      {"x", "lon", "longitude"},
+      {"y", "lat", "latitude"},
       {"z", "p", "pressure", "pres", "alt", "altitude", "height", "level", "depth"}};
   for (const Variable* v : candidates)
     if (text_attribute(nc, v->id, "axis") == axis_names[axis]) return v;
@@ -135,7 +140,8 @@ LineSet read_netcdf(const std::string& path, const ReadOptions& options) {
     if (sample.empty()) continue;
     counts = &v;
     if (nc_inq_dimid(nc.id, sample.c_str(), &sample_dim) != NC_NOERR)
-      throw InputError(path, "variable " + v.name, "sample_dimension '" + sample + "' does not exist");
+      throw InputError(path, "variable " + v.name,
+                       "sample_dimension '" + sample + "' does not exist");
   }
 
   // Candidate position/attribute variables and the line layout.
@@ -154,9 +160,10 @@ LineSet read_netcdf(const std::string& path, const ReadOptions& options) {
       if (s.size() == 2 && s[0] * s[1] > (best.empty() ? 0 : best[0] * best[1])) best = s;
     }
     if (best.empty())
-      throw InputError(path, "", std::string("no trajectory variables (expected ") +
-                                     (cf ? "x(trajectory, obs)" : "(1 x) trajectory x time arrays") +
-                                     " or a ragged count variable with sample_dimension)");
+      throw InputError(path, "",
+                       std::string("no trajectory variables (expected ") +
+                           (cf ? "x(trajectory, obs)" : "(1 x) trajectory x time arrays") +
+                           " or a ragged count variable with sample_dimension)");
     line_count = best[0];
     max_points = best[1];
     for (const Variable& v : vars) {
@@ -194,12 +201,14 @@ LineSet read_netcdf(const std::string& path, const ReadOptions& options) {
       at += static_cast<size_t>(n[i]);
     }
   } else {
-    for (size_t i = 0; i < line_count; ++i) ranges.emplace_back(i * max_points, (i + 1) * max_points);
+    for (size_t i = 0; i < line_count; ++i)
+      ranges.emplace_back(i * max_points, (i + 1) * max_points);
   }
 
   LineSet lines;
   lines.attributes.resize(attribute_vars.size());
-  for (size_t a = 0; a < attribute_vars.size(); ++a) lines.attributes[a].name = attribute_vars[a]->name;
+  for (size_t a = 0; a < attribute_vars.size(); ++a)
+    lines.attributes[a].name = attribute_vars[a]->name;
   for (const auto& [begin, end] : ranges) {
     const size_t first = lines.point_count();
     for (size_t i = begin; i < end; ++i) {
@@ -218,9 +227,12 @@ LineSet read_netcdf(const std::string& path, const ReadOptions& options) {
     }
     if (lines.point_count() > first) lines.end_line();
   }
-  lines.metadata["netcdf.layout"] = counts ? "cf-contiguous-ragged" : cf ? "cf-multidimensional" : "lagranto";
+  lines.metadata["netcdf.layout"] = counts ? "cf-contiguous-ragged"
+                                    : cf   ? "cf-multidimensional"
+                                           : "lagranto";
   for (int axis = 0; axis < 3; ++axis)
-    lines.metadata[std::string("netcdf.") + "xyz"[axis]] = axes[axis] ? axes[axis]->name : "(none: 0)";
+    lines.metadata[std::string("netcdf.") + "xyz"[axis]] =
+        axes[axis] ? axes[axis]->name : "(none: 0)";
   if (options.progress) options.progress(2, 2);
   return lines;
 }

@@ -69,12 +69,13 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   const size_t point_count = positions.size() / 3;
   if (attribute_count == SIZE_MAX) attribute_count = 0;
   if (vt_rows != 0 && vt_rows != point_count)
-    throw InputError(path, "", std::to_string(vt_rows) + " vt lines for " +
-                                   std::to_string(point_count) + " vertices (need one per v)");
+    throw InputError(path, "",
+                     std::to_string(vt_rows) + " vt lines for " + std::to_string(point_count) +
+                         " vertices (need one per v)");
   if (!names.empty() && names.size() != attribute_count)
-    throw InputError(path, "", "the `a` line names " + std::to_string(names.size()) +
-                                   " attributes, vt lines have " +
-                                   std::to_string(attribute_count));
+    throw InputError(path, "",
+                     "the `a` line names " + std::to_string(names.size()) +
+                         " attributes, vt lines have " + std::to_string(attribute_count));
 
   LineSet lines;
   lines.line_offsets = std::move(offsets);

@@ -35,7 +35,8 @@ Format parse_format(const std::string& name) {
   for (const FormatInfo& f : format_table())
     if (name == f.name) return f.format;
   std::string known;
-  for (const FormatInfo& f : format_table()) known += std::string(known.empty() ? "" : ", ") + f.name;
+  for (const FormatInfo& f : format_table())
+    known += std::string(known.empty() ? "" : ", ") + f.name;
   throw Error("unknown format '" + name + "' (known: " + known + ")");
 }
 
@@ -71,15 +72,33 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
   const Format format = choose(source, options.format);
   LineSet lines;
   switch (format) {
-    case Format::obj: lines = formats::read_obj(source, options); break;
-    case Format::binlines: lines = formats::read_binlines(source, options); break;
-    case Format::vtk: lines = formats::read_vtk_legacy(source, options); break;
-    case Format::vtp: lines = formats::read_vtp(source, options); break;
-    case Format::netcdf: lines = formats::read_netcdf(source, options); break;
-    case Format::hdf5: lines = formats::read_hdf5(source, options); break;
-    case Format::trk: lines = formats::read_trk(source, options); break;
-    case Format::tck: lines = formats::read_tck(source, options); break;
-    case Format::csv: lines = formats::read_csv(source, options); break;
+    case Format::obj:
+      lines = formats::read_obj(source, options);
+      break;
+    case Format::binlines:
+      lines = formats::read_binlines(source, options);
+      break;
+    case Format::vtk:
+      lines = formats::read_vtk_legacy(source, options);
+      break;
+    case Format::vtp:
+      lines = formats::read_vtp(source, options);
+      break;
+    case Format::netcdf:
+      lines = formats::read_netcdf(source, options);
+      break;
+    case Format::hdf5:
+      lines = formats::read_hdf5(source, options);
+      break;
+    case Format::trk:
+      lines = formats::read_trk(source, options);
+      break;
+    case Format::tck:
+      lines = formats::read_tck(source, options);
+      break;
+    case Format::csv:
+      lines = formats::read_csv(source, options);
+      break;
   }
   lines.metadata.emplace("source", source);
   return lines;
@@ -91,13 +110,26 @@ void write_line_set(const LineSet& lines, const std::string& path, const WriteOp
     throw Error(std::string("writing ") + format_info(format).name + " is not supported");
   AtomicFile file(path);
   switch (format) {
-    case Format::obj: formats::write_obj(lines, file.temp_path(), options); break;
-    case Format::binlines: formats::write_binlines(lines, file.temp_path(), options); break;
-    case Format::vtk: formats::write_vtk_legacy(lines, file.temp_path(), options); break;
-    case Format::vtp: formats::write_vtp(lines, file.temp_path(), options); break;
-    case Format::hdf5: formats::write_hdf5(lines, file.temp_path(), options); break;
-    case Format::csv: formats::write_csv(lines, file.temp_path(), options); break;
-    default: throw Error("unsupported output format");
+    case Format::obj:
+      formats::write_obj(lines, file.temp_path(), options);
+      break;
+    case Format::binlines:
+      formats::write_binlines(lines, file.temp_path(), options);
+      break;
+    case Format::vtk:
+      formats::write_vtk_legacy(lines, file.temp_path(), options);
+      break;
+    case Format::vtp:
+      formats::write_vtp(lines, file.temp_path(), options);
+      break;
+    case Format::hdf5:
+      formats::write_hdf5(lines, file.temp_path(), options);
+      break;
+    case Format::csv:
+      formats::write_csv(lines, file.temp_path(), options);
+      break;
+    default:
+      throw Error("unsupported output format");
   }
   file.commit();
 }

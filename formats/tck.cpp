@@ -47,11 +47,16 @@ LineSet read_tck(const std::string& path, const ReadOptions& options) {
   }
   size_t size = 0;
   bool big = false;
-  if (datatype == "Float32LE") size = 4;
-  else if (datatype == "Float32BE") size = 4, big = true;
-  else if (datatype == "Float64LE") size = 8;
-  else if (datatype == "Float64BE") size = 8, big = true;
-  else throw InputError(path, "header", "unsupported datatype '" + datatype + "'");
+  if (datatype == "Float32LE")
+    size = 4;
+  else if (datatype == "Float32BE")
+    size = 4, big = true;
+  else if (datatype == "Float64LE")
+    size = 8;
+  else if (datatype == "Float64BE")
+    size = 8, big = true;
+  else
+    throw InputError(path, "header", "unsupported datatype '" + datatype + "'");
   if (data_offset == 0) throw InputError(path, "header", "no 'file: . OFFSET' entry");
 
   io::BinaryReader in(path, options.progress);
@@ -77,15 +82,16 @@ LineSet read_tck(const std::string& path, const ReadOptions& options) {
       open_points = 0;
       continue;
     }
-    lines.append_point(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2]));
+    lines.append_point(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                       static_cast<float>(xyz[2]));
     ++open_points;
   }
   if (!finished) in.fail("file ends without the Inf end-of-file triplet (truncated?)");
   if (open_points > 0) in.fail("the last streamline is not closed by a NaN triplet");
   if (declared_count >= 0 && static_cast<uint64_t>(declared_count) != lines.line_count())
-    throw InputError(path, "header", "count says " + std::to_string(declared_count) +
-                                         " streamlines, the data holds " +
-                                         std::to_string(lines.line_count()));
+    throw InputError(path, "header",
+                     "count says " + std::to_string(declared_count) +
+                         " streamlines, the data holds " + std::to_string(lines.line_count()));
   return lines;
 }
 

@@ -28,7 +28,8 @@ LineSet read_trk(const std::string& path, const ReadOptions& options) {
   bool swap = false;
   if (hdr_size != 1000) {
     if (io::byteswap_value(hdr_size) != 1000)
-      in.fail_at(996, "hdr_size is " + std::to_string(hdr_size) + " in either byte order, not 1000");
+      in.fail_at(996,
+                 "hdr_size is " + std::to_string(hdr_size) + " in either byte order, not 1000");
     swap = true;
   }
   auto i16 = [&](size_t at) {
@@ -50,7 +51,8 @@ LineSet read_trk(const std::string& path, const ReadOptions& options) {
   // property_name 240, vox_to_ras 440, reserved 504, voxel_order 948, pad2 952,
   // image_orientation_patient 956, pad1 980, invert/swap 982..987, n_count 988, version 992.
   const int n_scalars = i16(36), n_properties = i16(238);
-  if (n_scalars < 0 || n_scalars > 10) in.fail_at(36, "n_scalars must be 0..10, got " + std::to_string(n_scalars));
+  if (n_scalars < 0 || n_scalars > 10)
+    in.fail_at(36, "n_scalars must be 0..10, got " + std::to_string(n_scalars));
   if (n_properties < 0 || n_properties > 10)
     in.fail_at(238, "n_properties must be 0..10, got " + std::to_string(n_properties));
   const int32_t n_count = i32(988);
@@ -66,8 +68,10 @@ LineSet read_trk(const std::string& path, const ReadOptions& options) {
     lines.line_attributes.push_back({name.empty() ? "property_" + std::to_string(p) : name, {}});
   }
   lines.metadata["trk.space"] = "voxmm";
-  lines.metadata["trk.dim"] = std::to_string(i16(6)) + " " + std::to_string(i16(8)) + " " + std::to_string(i16(10));
-  lines.metadata["trk.voxel_size"] = std::to_string(f32(12)) + " " + std::to_string(f32(16)) + " " + std::to_string(f32(20));
+  lines.metadata["trk.dim"] =
+      std::to_string(i16(6)) + " " + std::to_string(i16(8)) + " " + std::to_string(i16(10));
+  lines.metadata["trk.voxel_size"] =
+      std::to_string(f32(12)) + " " + std::to_string(f32(16)) + " " + std::to_string(f32(20));
   std::string ras;
   for (int i = 0; i < 16; ++i) ras += (i ? " " : "") + std::to_string(f32(440 + 4 * i));
   lines.metadata["trk.vox_to_ras"] = ras;
@@ -79,7 +83,8 @@ LineSet read_trk(const std::string& path, const ReadOptions& options) {
     const uint64_t at = in.offset();
     const auto m = in.read_value<int32_t>("streamline point count", swap);
     if (m < 0) in.fail_at(at, "negative point count in streamline " + std::to_string(line));
-    const uint64_t bytes = (static_cast<uint64_t>(m) * stride + static_cast<uint64_t>(n_properties)) * 4;
+    const uint64_t bytes =
+        (static_cast<uint64_t>(m) * stride + static_cast<uint64_t>(n_properties)) * 4;
     if (bytes > in.size() - in.offset())
       in.fail_at(at, "streamline " + std::to_string(line) + " claims " + std::to_string(m) +
                          " points, more than the file holds");

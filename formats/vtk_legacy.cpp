@@ -116,8 +116,9 @@ void read_values(LegacyStream& in, bool binary, const std::string& type, size_t 
     for (size_t i = 0; i < count; ++i) {
       const std::string t = in.token();
       double v;
-      if (t.empty()) in.fail("file ends after " + std::to_string(i) + " of " +
-                             std::to_string(count) + " values");
+      if (t.empty())
+        in.fail("file ends after " + std::to_string(i) + " of " + std::to_string(count) +
+                " values");
       if (!io::parse_double(t, v)) in.fail("bad number '" + t + "'");
       out[i] = static_cast<Out>(v);
     }
@@ -129,16 +130,41 @@ void read_values(LegacyStream& in, bool binary, const std::string& type, size_t 
     if constexpr (std::endian::native == std::endian::little)
       for (size_t k = 0; k < size / 2; ++k) std::swap(raw[k], raw[size - 1 - k]);
     double v = 0;
-    if (type == "float") { float f; std::memcpy(&f, raw, 4); v = f; }
-    else if (type == "double") { std::memcpy(&v, raw, 8); }
-    else if (type == "char") { v = static_cast<signed char>(raw[0]); }
-    else if (type == "unsigned_char") { v = raw[0]; }
-    else if (type == "short") { int16_t x; std::memcpy(&x, raw, 2); v = x; }
-    else if (type == "unsigned_short") { uint16_t x; std::memcpy(&x, raw, 2); v = x; }
-    else if (type == "int") { int32_t x; std::memcpy(&x, raw, 4); v = x; }
-    else if (type == "unsigned_int") { uint32_t x; std::memcpy(&x, raw, 4); v = x; }
-    else if (type == "vtktypeuint64" || type == "unsigned_long") { uint64_t x; std::memcpy(&x, raw, 8); v = static_cast<double>(x); }
-    else { int64_t x; std::memcpy(&x, raw, 8); v = static_cast<double>(x); }
+    if (type == "float") {
+      float f;
+      std::memcpy(&f, raw, 4);
+      v = f;
+    } else if (type == "double") {
+      std::memcpy(&v, raw, 8);
+    } else if (type == "char") {
+      v = static_cast<signed char>(raw[0]);
+    } else if (type == "unsigned_char") {
+      v = raw[0];
+    } else if (type == "short") {
+      int16_t x;
+      std::memcpy(&x, raw, 2);
+      v = x;
+    } else if (type == "unsigned_short") {
+      uint16_t x;
+      std::memcpy(&x, raw, 2);
+      v = x;
+    } else if (type == "int") {
+      int32_t x;
+      std::memcpy(&x, raw, 4);
+      v = x;
+    } else if (type == "unsigned_int") {
+      uint32_t x;
+      std::memcpy(&x, raw, 4);
+      v = x;
+    } else if (type == "vtktypeuint64" || type == "unsigned_long") {
+      uint64_t x;
+      std::memcpy(&x, raw, 8);
+      v = static_cast<double>(x);
+    } else {
+      int64_t x;
+      std::memcpy(&x, raw, 8);
+      v = static_cast<double>(x);
+    }
     out[i] = static_cast<Out>(v);
   }
 }
@@ -201,8 +227,7 @@ Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
     cells.connectivity.resize(b);
     read_values(in, binary, conn_type, b, cells.connectivity.data());
     for (size_t i = 1; i < cells.offsets.size(); ++i)
-      if (cells.offsets[i] < cells.offsets[i - 1] ||
-          cells.offsets[i] > static_cast<int64_t>(b))
+      if (cells.offsets[i] < cells.offsets[i - 1] || cells.offsets[i] > static_cast<int64_t>(b))
         in.fail("OFFSETS not increasing or past the connectivity");
     if (cells.offsets.front() != 0 || cells.offsets.back() != static_cast<int64_t>(b))
       in.fail("OFFSETS must start at 0 and end at the connectivity size");
@@ -231,19 +256,12 @@ Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
   return cells;
 }
 
-void add_components(std::vector<Attribute>& target, const std::string& name,
-                    const std::vector<float>& values, size_t components, size_t tuples,
-                    size_t first, size_t count) {
-  for (size_t c = 0; c < components; ++c) {
-    Attribute a;
-    a.name = components == 1   ? name
-             : components == 3 ? name + "_" + "xyz"[c]
-                               : name + "_" + std::to_string(c);
-    a.values.resize(count);
-    for (size_t i = 0; i < count && first + i < tuples; ++i)
-      a.values[i] = values[(first + i) * components + c];
-    target.push_back(std::move(a));
-  }
+// Adds the attributes of one array, or fails naming the section.
+void add_components(LegacyStream& in, std::vector<Attribute>& target, const std::string& name,
+                    const std::vector<float>& values, size_t components, size_t first,
+                    size_t count) {
+  if (!io::append_components(target, name, values, components, first, count))
+    in.fail("array '" + name + "' has fewer tuples than its points or line cells");
 }
 
 }  // namespace
@@ -252,7 +270,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   LegacyStream in(path, options.progress);
   const std::string header = in.line();
   if (header.rfind("# vtk DataFile Version", 0) != 0)
-    throw InputError(path, at_line(1), "not a VTK legacy file (header '" + header.substr(0, 40) + "')");
+    throw InputError(path, at_line(1),
+                     "not a VTK legacy file (header '" + header.substr(0, 40) + "')");
   in.line();  // title
   const std::string encoding = io::trim(in.line()).data();
   const bool binary = encoding.rfind("BINARY", 0) == 0;
@@ -275,9 +294,9 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     std::vector<float> values(components * target_tuples);
     read_values(in, binary, type, values.size(), values.data());
     if (target == Target::point)
-      add_components(point_attributes, name, values, components, target_tuples, 0, target_tuples);
+      add_components(in, point_attributes, name, values, components, 0, target_tuples);
     else if (have_lines)
-      add_components(cell_attributes, name, values, components, target_tuples, vertex_cells,
+      add_components(in, cell_attributes, name, values, components, vertex_cells,
                      lines_cells.count());
   };
 
@@ -348,11 +367,12 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
         std::vector<float> values(static_cast<size_t>(components * tuples));
         read_values(in, binary, type, values.size(), values.data());
         if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
-          add_components(point_attributes, name, values, static_cast<size_t>(components),
-                         target_tuples, 0, target_tuples);
-        else if (static_cast<size_t>(tuples) == target_tuples && target == Target::cell && have_lines)
-          add_components(cell_attributes, name, values, static_cast<size_t>(components),
-                         target_tuples, vertex_cells, lines_cells.count());
+          add_components(in, point_attributes, name, values, static_cast<size_t>(components), 0,
+                         target_tuples);
+        else if (static_cast<size_t>(tuples) == target_tuples && target == Target::cell &&
+                 have_lines)
+          add_components(in, cell_attributes, name, values, static_cast<size_t>(components),
+                         vertex_cells, lines_cells.count());
       }
     } else if (key == "LOOKUP_TABLE") {
       in.token();
@@ -364,7 +384,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     } else if (key == "METADATA") {
       // VTK 9 writes METADATA blocks that end at an empty line.
       in.skip_line();
-      for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {}
+      for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {
+      }
     } else {
       in.fail("unexpected keyword '" + key + "'");
     }
@@ -374,19 +395,21 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   if (!have_lines) throw InputError(path, "", "no LINES in the file");
   for (int64_t index : lines_cells.connectivity)
     if (index < 0 || static_cast<size_t>(index) >= point_count)
-      throw InputError(path, "LINES", "point index " + std::to_string(index) + " out of range (" +
-                                          std::to_string(point_count) + " points)");
+      throw InputError(path, "LINES",
+                       "point index " + std::to_string(index) + " out of range (" +
+                           std::to_string(point_count) + " points)");
   for (const Attribute& a : point_attributes)
     if (a.values.size() != point_count)
-      throw InputError(path, "POINT_DATA", "array '" + a.name + "' has " +
-                                               std::to_string(a.values.size()) + " values for " +
-                                               std::to_string(point_count) + " points");
+      throw InputError(path, "POINT_DATA",
+                       "array '" + a.name + "' has " + std::to_string(a.values.size()) +
+                           " values for " + std::to_string(point_count) + " points");
 
   LineSet lines;
   lines.line_offsets.assign(lines_cells.offsets.begin(), lines_cells.offsets.end());
   const auto& conn = lines_cells.connectivity;
   bool identity = conn.size() == point_count;
-  for (size_t i = 0; identity && i < conn.size(); ++i) identity = conn[i] == static_cast<int64_t>(i);
+  for (size_t i = 0; identity && i < conn.size(); ++i)
+    identity = conn[i] == static_cast<int64_t>(i);
   if (identity) {
     lines.positions = std::move(points);
     lines.attributes = std::move(point_attributes);

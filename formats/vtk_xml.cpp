@@ -69,7 +69,9 @@ std::string base64_encode(const unsigned char* data, size_t n) {
   return out;
 }
 
-size_t base64_chars(size_t bytes) { return (bytes + 2) / 3 * 4; }
+size_t base64_chars(size_t bytes) {
+  return (bytes + 2) / 3 * 4;
+}
 
 struct Context {
   std::string path;
@@ -129,7 +131,8 @@ std::vector<unsigned char> inflate_blocks(const Context& ctx, const std::string&
     const uint64_t expected = (b + 1 == blocks && last_size != 0) ? last_size : block_size;
     if (in_at + compressed > available) ctx.fail(where, "compressed block past the end of data");
     uLongf got = static_cast<uLongf>(expected);
-    if (uncompress(out.data() + out_at, &got, data + in_at, static_cast<uLong>(compressed)) != Z_OK ||
+    if (uncompress(out.data() + out_at, &got, data + in_at, static_cast<uLong>(compressed)) !=
+            Z_OK ||
         got != expected)
       ctx.fail(where, "zlib block " + std::to_string(b) + " does not decompress");
     in_at += compressed;
@@ -147,7 +150,8 @@ std::vector<unsigned char> decode_binary(const Context& ctx, const std::string& 
     if (stored.size() < hs) ctx.fail(where, "data header truncated");
     if (!ctx.compressed) {
       const uint64_t n = header_word(ctx, p);
-      if (n > stored.size() - hs) ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
+      if (n > stored.size() - hs)
+        ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
       return {p + hs, p + hs + n};
     }
     if (stored.size() < 3 * hs) ctx.fail(where, "compression header truncated");
@@ -170,7 +174,8 @@ std::vector<unsigned char> decode_binary(const Context& ctx, const std::string& 
   if (!ctx.compressed) {
     // Header and data are one base64 stream.
     const uint64_t n = header_word(ctx, first.data());
-    if (n > text.size()) ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
+    if (n > text.size())
+      ctx.fail(where, "data size " + std::to_string(n) + " past the end of the file");
     std::vector<unsigned char> all = decode(0, base64_chars(hs + n));
     return {all.begin() + static_cast<ptrdiff_t>(hs), all.begin() + static_cast<ptrdiff_t>(hs + n)};
   }
@@ -237,7 +242,8 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
       ctx.fail(where, std::to_string(tokens.size()) + " values, expected " + std::to_string(count));
     for (size_t i = 0; i < count; ++i) {
       double v;
-      if (!io::parse_double(tokens[i], v)) ctx.fail(where, "bad number '" + std::string(tokens[i]) + "'");
+      if (!io::parse_double(tokens[i], v))
+        ctx.fail(where, "bad number '" + std::string(tokens[i]) + "'");
       out[i] = static_cast<Out>(v);
     }
     return out;
@@ -253,7 +259,8 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
     ctx.fail(where, "unknown format '" + format + "'");
   }
   if (bytes.size() != count * size)
-    ctx.fail(where, std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
+    ctx.fail(where,
+             std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
   for (size_t i = 0; i < count; ++i) out[i] = convert<Out>(type, bytes.data() + i * size, ctx.swap);
   return out;
 }
@@ -263,17 +270,11 @@ void read_attributes(const Context& ctx, const pugi::xml_node& data, size_t tupl
   for (pugi::xml_node a : data.children("DataArray")) {
     const std::string name = a.attribute("Name").as_string("unnamed");
     const size_t components = a.attribute("NumberOfComponents").as_ullong(1);
-    if (components == 0 || components > 16) ctx.fail("DataArray '" + name + "'", "bad NumberOfComponents");
+    if (components == 0 || components > 16)
+      ctx.fail("DataArray '" + name + "'", "bad NumberOfComponents");
     const std::vector<float> values = read_array<float>(ctx, a, tuples * components);
-    for (size_t c = 0; c < components; ++c) {
-      Attribute attribute;
-      attribute.name = components == 1 ? name
-                       : components == 3 ? name + "_" + "xyz"[c]
-                                         : name + "_" + std::to_string(c);
-      attribute.values.resize(count);
-      for (size_t i = 0; i < count; ++i) attribute.values[i] = values[(first + i) * components + c];
-      target.push_back(std::move(attribute));
-    }
+    if (!io::append_components(target, name, values, components, first, count))
+      ctx.fail("DataArray '" + name + "'", "fewer tuples than its points or cells");
   }
 }
 
@@ -401,15 +402,17 @@ class VtpWriter {
 
   // Returns the <DataArray .../> element text, adding appended bytes where needed.
   template <typename T>
-  std::string array(const std::string& name, const char* type, size_t components,
-                    const T* values, size_t count) {
+  std::string array(const std::string& name, const char* type, size_t components, const T* values,
+                    size_t count) {
     std::string head = "<DataArray type=\"" + std::string(type) + "\" Name=\"" + escape(name) +
                        "\" NumberOfComponents=\"" + std::to_string(components) + "\"";
     if (options_.vtp_encoding == "ascii") {
       std::string text = head + " format=\"ascii\">\n";
       for (size_t i = 0; i < count; ++i) {
-        if constexpr (std::is_floating_point_v<T>) io::append_float(text, static_cast<float>(values[i]));
-        else text += std::to_string(values[i]);
+        if constexpr (std::is_floating_point_v<T>)
+          io::append_float(text, static_cast<float>(values[i]));
+        else
+          text += std::to_string(values[i]);
         text += (i + 1) % 9 == 0 || i + 1 == count ? '\n' : ' ';
       }
       return text + "</DataArray>\n";
@@ -438,11 +441,16 @@ class VtpWriter {
   static std::string escape(const std::string& s) {
     std::string out;
     for (char c : s) {
-      if (c == '&') out += "&amp;";
-      else if (c == '<') out += "&lt;";
-      else if (c == '>') out += "&gt;";
-      else if (c == '"') out += "&quot;";
-      else out += c;
+      if (c == '&')
+        out += "&amp;";
+      else if (c == '<')
+        out += "&lt;";
+      else if (c == '>')
+        out += "&gt;";
+      else if (c == '"')
+        out += "&quot;";
+      else
+        out += c;
     }
     return out;
   }
@@ -499,11 +507,15 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
   static_assert(std::endian::native == std::endian::little, "writer assumes little endian");
   VtpWriter w(options);
   const uint64_t n = lines.point_count(), l = lines.line_count();
-  std::string body = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
-                     "byte_order=\"LittleEndian\"" + w.header_attributes() + ">\n<PolyData>\n";
-  body += "<Piece NumberOfPoints=\"" + std::to_string(n) + "\" NumberOfVerts=\"0\" NumberOfLines=\"" +
-          std::to_string(l) + "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
-  body += "<Points>\n" + w.array("Points", "Float32", 3, lines.positions.data(), 3 * n) + "</Points>\n";
+  std::string body =
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
+      "byte_order=\"LittleEndian\"" +
+      w.header_attributes() + ">\n<PolyData>\n";
+  body += "<Piece NumberOfPoints=\"" + std::to_string(n) +
+          "\" NumberOfVerts=\"0\" NumberOfLines=\"" + std::to_string(l) +
+          "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
+  body +=
+      "<Points>\n" + w.array("Points", "Float32", 3, lines.positions.data(), 3 * n) + "</Points>\n";
   std::vector<int64_t> connectivity(n), offsets(l);
   for (uint64_t i = 0; i < n; ++i) connectivity[i] = static_cast<int64_t>(i);
   for (uint64_t i = 0; i < l; ++i) offsets[i] = static_cast<int64_t>(lines.line_offsets[i + 1]);

@@ -65,7 +65,8 @@ std::vector<unsigned char> trk_file(bool big) {
   b.put<float>(4).put<float>(5).put<float>(6).put<float>(0.25f);
   b.put<float>(7.5f);
   b.put<int32_t>(3);
-  for (float i : {0.0f, 1.0f, 2.0f}) b.put<float>(-i).put<float>(0).put<float>(1).put<float>(0.1f * i);
+  for (float i : {0.0f, 1.0f, 2.0f})
+    b.put<float>(-i).put<float>(0).put<float>(1).put<float>(0.1f * i);
   b.put<float>(9.0f);
   return b.data;
 }
@@ -77,7 +78,8 @@ std::vector<unsigned char> tck_file(bool big, bool doubles, bool finished = true
   Bytes b(big);
   b.data.assign(header.begin(), header.end());
   auto put = [&](double x, double y, double z) {
-    for (double v : {x, y, z}) doubles ? (void)b.put<double>(v) : (void)b.put<float>(static_cast<float>(v));
+    for (double v : {x, y, z})
+      doubles ? (void)b.put<double>(v) : (void)b.put<float>(static_cast<float>(v));
   };
   put(0, 0, 0);
   put(1, 0.5, -2);

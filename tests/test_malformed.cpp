@@ -40,7 +40,8 @@ void truncations_fail(const std::string& extension, const WriteOptions& options 
   int failures = 0;
   for (size_t keep : {size_t{0}, size_t{3}, bytes.size() / 3, bytes.size() / 2, bytes.size() - 3}) {
     const std::string cut = dir.file("cut" + std::to_string(keep) + extension);
-    write_bytes(cut, std::vector<unsigned char>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
+    write_bytes(cut,
+                std::vector<unsigned char>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
     try {
       read_line_set(cut);
     } catch (const InputError& e) {
@@ -53,7 +54,9 @@ void truncations_fail(const std::string& extension, const WriteOptions& options 
 
 }  // namespace
 
-TEST(Malformed, MissingFile) { expect_error("/nonexistent/lines.obj", "cannot open"); }
+TEST(Malformed, MissingFile) {
+  expect_error("/nonexistent/lines.obj", "cannot open");
+}
 
 TEST(Malformed, Truncated) {
   truncations_fail(".binlines");
@@ -96,7 +99,8 @@ TEST(Malformed, Binlines) {
   write_bytes(dir.file("b.binlines"), {7, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0});
   expect_error(dir.file("b.binlines"), "byte offset 0: unsupported .binlines version 7");
   // One line claiming 1000 points in a 20-byte file.
-  write_bytes(dir.file("c.binlines"), {1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0xE8, 3, 0, 0, 0, 0, 0, 0});
+  write_bytes(dir.file("c.binlines"),
+              {1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0xE8, 3, 0, 0, 0, 0, 0, 0});
   expect_error(dir.file("c.binlines"), "byte offset 12: line 0 claims 1000 points");
   // Two lines announced, one present.
   write_bytes(dir.file("d.binlines"), {1, 0, 0, 0, 200, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
@@ -129,10 +133,11 @@ TEST(Malformed, Vtp) {
   expect_error(dir.file("a.vtp"), "XML error");
   write_text(dir.file("b.vtp"), "<VTKFile type=\"ImageData\"></VTKFile>");
   expect_error(dir.file("b.vtp"), "not a VTK XML PolyData file");
-  write_text(dir.file("c.vtp"),
-             "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"2\" NumberOfLines=\"1\">"
-             "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1"
-             "</DataArray></Points></Piece></PolyData></VTKFile>");
+  write_text(
+      dir.file("c.vtp"),
+      "<VTKFile type=\"PolyData\"><PolyData><Piece NumberOfPoints=\"2\" NumberOfLines=\"1\">"
+      "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 1"
+      "</DataArray></Points></Piece></PolyData></VTKFile>");
   expect_error(dir.file("c.vtp"), "DataArray '': 5 values, expected 6");
 }
 

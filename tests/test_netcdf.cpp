@@ -11,7 +11,9 @@ using namespace linebake;
 using linebake::test::TempDir;
 
 namespace {
-void ok(int status) { ASSERT_EQ(status, NC_NOERR) << nc_strerror(status); }
+void ok(int status) {
+  ASSERT_EQ(status, NC_NOERR) << nc_strerror(status);
+}
 }  // namespace
 
 TEST(NetCdf, LagrantoStyleInvalidValuesEndLines) {

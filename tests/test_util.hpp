@@ -42,16 +42,17 @@ inline void write_text(const std::string& path, const std::string& text) {
   std::ofstream(path, std::ios::binary) << text;
 }
 inline void write_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                              static_cast<std::streamsize>(bytes.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
 }
 
 // Three lines with values that text formats get wrong when they round: 1/3, 0.1, denormals,
 // large and negative values, and an attribute name with a space.
 inline LineSet awkward_lines(bool with_line_attributes) {
   LineSet lines;
-  const float values[] = {1.0f / 3.0f, 0.1f, -2.5e-38f, 1.0e-42f, 3.4e37f, -7.0f, 123456.789f,
-                          0.0f,        -0.0f, 1e-7f,     65504.0f, 2.0f / 3.0f};
+  const float values[] = {1.0f / 3.0f, 0.1f, -2.5e-38f, 1.0e-42f, 3.4e37f,  -7.0f,
+                          123456.789f, 0.0f, -0.0f,     1e-7f,    65504.0f, 2.0f / 3.0f};
   size_t v = 0;
   const size_t sizes[] = {2, 5, 3};
   for (size_t line = 0; line < 3; ++line) {

@@ -16,11 +16,21 @@ LineSet messy() {
   // line 2: a single point (dropped)
   // line 3: two equal points: after dropping the repeat, 1 point: dropped
   LineSet l;
-  l.append_point(0, 0, 0); l.append_point(1, 0, 0); l.append_point(NAN, 0, 0);
-  l.append_point(3, 0, 0); l.append_point(4, 0, 0); l.end_line();
-  l.append_point(0, 1, 0); l.append_point(0, 1, 0); l.append_point(0, 2, 0); l.end_line();
-  l.append_point(9, 9, 9); l.end_line();
-  l.append_point(5, 5, 5); l.append_point(5, 5, 5); l.end_line();
+  l.append_point(0, 0, 0);
+  l.append_point(1, 0, 0);
+  l.append_point(NAN, 0, 0);
+  l.append_point(3, 0, 0);
+  l.append_point(4, 0, 0);
+  l.end_line();
+  l.append_point(0, 1, 0);
+  l.append_point(0, 1, 0);
+  l.append_point(0, 2, 0);
+  l.end_line();
+  l.append_point(9, 9, 9);
+  l.end_line();
+  l.append_point(5, 5, 5);
+  l.append_point(5, 5, 5);
+  l.end_line();
   l.attributes.push_back({"id", {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10}});
   l.line_attributes.push_back({"line", {100, 101, 102, 103}});
   return l;
@@ -63,7 +73,9 @@ TEST(Validate, RepairSplitsDropsAndKeepsAttributesAligned) {
 
 TEST(Validate, AttributeLengthMismatchRejectedOrDropped) {
   LineSet l;
-  l.append_point(0, 0, 0); l.append_point(1, 0, 0); l.end_line();
+  l.append_point(0, 0, 0);
+  l.append_point(1, 0, 0);
+  l.end_line();
   l.attributes.push_back({"short", {1}});
   EXPECT_EQ(inspect(l).attribute_length_mismatches, std::vector<std::string>{"short"});
   LineSet copy = l;
@@ -75,7 +87,10 @@ TEST(Validate, AttributeLengthMismatchRejectedOrDropped) {
 
 TEST(Validate, HugeCoordinatesAreInvalid) {
   LineSet l;
-  l.append_point(0, 0, 0); l.append_point(2e10f, 0, 0); l.append_point(1, 0, 0); l.end_line();
+  l.append_point(0, 0, 0);
+  l.append_point(2e10f, 0, 0);
+  l.append_point(1, 0, 0);
+  l.end_line();
   EXPECT_EQ(inspect(l).invalid_points, 1u);
 }
 
@@ -93,8 +108,13 @@ TEST(Derived, CurvatureOfCircleIsInverseRadius) {
 
 TEST(Derived, LengthsAndIndices) {
   LineSet l;
-  l.append_point(0, 0, 0); l.append_point(3, 4, 0); l.append_point(3, 4, 2); l.end_line();
-  l.append_point(1, 1, 1); l.append_point(1, 1, 2); l.end_line();
+  l.append_point(0, 0, 0);
+  l.append_point(3, 4, 0);
+  l.append_point(3, 4, 2);
+  l.end_line();
+  l.append_point(1, 1, 1);
+  l.append_point(1, 1, 2);
+  l.end_line();
   EXPECT_EQ(derive_attribute(l, "segment_length").values, (std::vector<float>{5, 2, 2, 1, 1}));
   EXPECT_EQ(derive_attribute(l, "arc_length").values, (std::vector<float>{0, 5, 7, 0, 1}));
   EXPECT_EQ(derive_attribute(l, "index_along_line").values, (std::vector<float>{0, 1, 2, 0, 1}));

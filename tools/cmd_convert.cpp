@@ -36,7 +36,8 @@ Command add_convert(CLI::App& app) {
   sub->add_option("--binlines-version", args->binlines_version,
                   "1 (what LineVis reads, no names) or 2 (with attribute names, default)")
       ->check(CLI::Range(1, 2));
-  sub->add_option("--vtp-encoding", args->vtp_encoding, "appended | appended-base64 | base64 | ascii")
+  sub->add_option("--vtp-encoding", args->vtp_encoding,
+                  "appended | appended-base64 | base64 | ascii")
       ->check(CLI::IsMember({"appended", "appended-base64", "base64", "ascii"}));
   sub->add_flag("--no-compress", args->no_compress, "vtp: no zlib compression");
   return [args] {
@@ -63,7 +64,8 @@ Command add_convert(CLI::App& app) {
     }
     const ValidationReport report =
         validate(lines, parse_invalid_policy(args->on_invalid), args->input);
-    if (!report.clean()) std::cerr << "linebake: " << args->input << ": " << report.summary() << "\n";
+    if (!report.clean())
+      std::cerr << "linebake: " << args->input << ": " << report.summary() << "\n";
     for (const std::string& name : args->derive) {
       Attribute a = derive_attribute(lines, name);
       (is_line_attribute(name) ? lines.line_attributes : lines.attributes).push_back(std::move(a));

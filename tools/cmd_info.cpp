@@ -49,7 +49,8 @@ Command add_info(CLI::App& app) {
       j["bounds"] = s.bounds.empty ? nlohmann::json(nullptr)
                                    : nlohmann::json{{"min", s.bounds.min}, {"max", s.bounds.max}};
       j["attributes"] = nlohmann::json::array();
-      for (const auto& [name, r] : s.attribute_ranges) j["attributes"].push_back(range_json(name, r));
+      for (const auto& [name, r] : s.attribute_ranges)
+        j["attributes"].push_back(range_json(name, r));
       j["line_attributes"] = nlohmann::json::array();
       for (const auto& [name, r] : s.line_attribute_ranges)
         j["line_attributes"].push_back(range_json(name, r));
@@ -67,13 +68,16 @@ Command add_info(CLI::App& app) {
       std::cout << j.dump(2) << "\n";
       return;
     }
-    std::printf("source      %s (%s)\n", args->input.c_str(), source_format_name(args->input, read).c_str());
+    std::printf("source      %s (%s)\n", args->input.c_str(),
+                source_format_name(args->input, read).c_str());
     std::printf("lines       %llu\n", static_cast<unsigned long long>(s.lines));
     std::printf("points      %llu\n", static_cast<unsigned long long>(s.points));
     std::printf("segments    %llu (LS, Table 1)\n", static_cast<unsigned long long>(s.segments));
     std::printf("line model  %.2f MiB (LM: positions %.2f, offsets %.2f, attributes %.2f)\n",
-                static_cast<double>(s.total_bytes()) / (1 << 20), static_cast<double>(s.position_bytes) / (1 << 20),
-                static_cast<double>(s.offset_bytes) / (1 << 20), static_cast<double>(s.attribute_bytes) / (1 << 20));
+                static_cast<double>(s.total_bytes()) / (1 << 20),
+                static_cast<double>(s.position_bytes) / (1 << 20),
+                static_cast<double>(s.offset_bytes) / (1 << 20),
+                static_cast<double>(s.attribute_bytes) / (1 << 20));
     if (!s.bounds.empty)
       std::printf("bounds      [%g %g %g] - [%g %g %g]\n", s.bounds.min[0], s.bounds.min[1],
                   s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2]);

@@ -11,8 +11,9 @@
 namespace linebake::cli {
 
 Command add_synth(CLI::App& app) {
-  auto* sub = app.add_subcommand("synth", "Generate a synthetic data set (aneurysm, convection, "
-                                          "turbulence, clouds)");
+  auto* sub = app.add_subcommand("synth",
+                                 "Generate a synthetic data set (aneurysm, convection, "
+                                 "turbulence, clouds)");
   struct Args {
     synth::SynthParams params;
     std::string output, to;

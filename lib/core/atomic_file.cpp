@@ -27,8 +27,8 @@ AtomicFile::~AtomicFile() {
 
 void AtomicFile::commit() {
   if (std::rename(temp_path_.c_str(), final_path_.c_str()) != 0) {
-    throw OutputError(final_path_, std::string("cannot rename temporary file: ") +
-                                       std::strerror(errno));
+    throw OutputError(final_path_,
+                      std::string("cannot rename temporary file: ") + std::strerror(errno));
   }
   committed_ = true;
 }

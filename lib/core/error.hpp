@@ -32,11 +32,14 @@ class InputError : public Error {
 // An output that could not be written.
 class OutputError : public Error {
  public:
-  OutputError(const std::string& file, const std::string& message)
-      : Error(file + ": " + message) {}
+  OutputError(const std::string& file, const std::string& message) : Error(file + ": " + message) {}
 };
 
-inline std::string at_line(uint64_t line) { return "line " + std::to_string(line); }
-inline std::string at_byte(uint64_t offset) { return "byte offset " + std::to_string(offset); }
+inline std::string at_line(uint64_t line) {
+  return "line " + std::to_string(line);
+}
+inline std::string at_byte(uint64_t offset) {
+  return "byte offset " + std::to_string(offset);
+}
 
 }  // namespace linebake

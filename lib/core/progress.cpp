@@ -13,7 +13,9 @@ TerminalProgress::~TerminalProgress() {
   if (drawn_) std::fprintf(stderr, "\r\033[K");
 }
 
-bool TerminalProgress::enabled() { return ::isatty(STDERR_FILENO) == 1; }
+bool TerminalProgress::enabled() {
+  return ::isatty(STDERR_FILENO) == 1;
+}
 
 void TerminalProgress::update(uint64_t done, uint64_t total) {
   if (!active_) return;

@@ -14,8 +14,12 @@ struct P3 {
 P3 point(const LineSet& lines, uint64_t i) {
   return {lines.positions[3 * i], lines.positions[3 * i + 1], lines.positions[3 * i + 2]};
 }
-P3 sub(P3 a, P3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-double length(P3 v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
+P3 sub(P3 a, P3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+double length(P3 v) {
+  return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+}
 P3 cross(P3 a, P3 b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
@@ -43,7 +47,9 @@ const std::vector<std::string>& derived_attribute_names() {
   return names;
 }
 
-bool is_line_attribute(const std::string& derived_name) { return derived_name == "line_length"; }
+bool is_line_attribute(const std::string& derived_name) {
+  return derived_name == "line_length";
+}
 
 Attribute derive_attribute(const LineSet& lines, const std::string& name) {
   Attribute a{name, {}};

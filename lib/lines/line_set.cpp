@@ -30,7 +30,8 @@ const Attribute* find_named(const std::vector<Attribute>& list, const std::strin
 
 template <typename T>
 bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
-  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
 }
 
 bool same_attributes(const std::vector<Attribute>& a, const std::vector<Attribute>& b) {

@@ -25,10 +25,10 @@ struct Bounds {
 };
 
 struct LineSet {
-  std::vector<float> positions;            // x0 y0 z0 x1 y1 z1 ...: 3 floats per point
-  std::vector<uint64_t> line_offsets{0};   // line i spans points [offsets[i], offsets[i+1])
-  std::vector<Attribute> attributes;       // one value per point
-  std::vector<Attribute> line_attributes;  // one value per line
+  std::vector<float> positions;                 // x0 y0 z0 x1 y1 z1 ...: 3 floats per point
+  std::vector<uint64_t> line_offsets{0};        // line i spans points [offsets[i], offsets[i+1])
+  std::vector<Attribute> attributes;            // one value per point
+  std::vector<Attribute> line_attributes;       // one value per line
   std::map<std::string, std::string> metadata;  // provenance, units, source notes
 
   size_t point_count() const { return positions.size() / 3; }

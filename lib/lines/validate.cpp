@@ -77,7 +77,8 @@ void walk(const LineSet& lines, ValidationReport& report, RepairPlan* plan) {
 
 void check_attribute_lengths(const LineSet& lines, ValidationReport& report) {
   for (const Attribute& a : lines.attributes) {
-    if (a.values.size() != lines.point_count()) report.attribute_length_mismatches.push_back(a.name);
+    if (a.values.size() != lines.point_count())
+      report.attribute_length_mismatches.push_back(a.name);
     for (float v : a.values) report.nonfinite_attribute_values += !std::isfinite(v);
   }
   for (const Attribute& a : lines.line_attributes) {
@@ -102,33 +103,32 @@ bool ValidationReport::clean() const {
          attribute_length_mismatches.empty();
 }
 
+namespace {
+// Appends "n what" to a comma-separated list when n is not zero.
+void append_count(std::string& list, uint64_t n, const std::string& what) {
+  if (n == 0) return;
+  if (!list.empty()) list += ", ";
+  list += std::to_string(n) + " " + what;
+}
+}  // namespace
+
 std::string ValidationReport::summary() const {
   std::string s;
-  auto add = [&s](uint64_t n, const char* what) {
-    if (n == 0) return;
-    if (!s.empty()) s += ", ";
-    s += std::to_string(n) + " " + what;
-  };
-  add(bad_offsets, "inconsistent line offsets");
-  add(invalid_points, "invalid points (NaN/Inf or |coordinate| > 1e10)");
-  add(repeated_points, "repeated consecutive points");
-  add(short_lines, "lines with fewer than 2 points");
+  append_count(s, bad_offsets, "inconsistent line offsets");
+  append_count(s, invalid_points, "invalid points (NaN/Inf or |coordinate| > 1e10)");
+  append_count(s, repeated_points, "repeated consecutive points");
+  append_count(s, short_lines, "lines with fewer than 2 points");
   for (const std::string& name : attribute_length_mismatches) {
     if (!s.empty()) s += ", ";
     s += "attribute '" + name + "' has the wrong length";
   }
-  add(nonfinite_attribute_values, "non-finite attribute values (kept)");
+  append_count(s, nonfinite_attribute_values, "non-finite attribute values (kept)");
   if (repaired) {
     std::string r;
-    auto add_r = [&r](uint64_t n, const char* what) {
-      if (n == 0) return;
-      if (!r.empty()) r += ", ";
-      r += std::to_string(n) + " " + what;
-    };
-    add_r(points_dropped, "points dropped");
-    add_r(lines_split, "extra lines from splits");
-    add_r(lines_dropped, "lines dropped");
-    add_r(attributes_dropped, "attributes dropped");
+    append_count(r, points_dropped, "points dropped");
+    append_count(r, lines_split, "extra lines from splits");
+    append_count(r, lines_dropped, "lines dropped");
+    append_count(r, attributes_dropped, "attributes dropped");
     if (!r.empty()) s += "; repaired: " + r;
   }
   return s.empty() ? "no problems" : s;

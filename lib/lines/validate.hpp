@@ -19,10 +19,10 @@ enum class InvalidPolicy {
 inline constexpr float kMaxCoordinate = 1e10f;
 
 struct ValidationReport {
-  uint64_t invalid_points = 0;       // NaN/Inf or |c| > kMaxCoordinate
-  uint64_t repeated_points = 0;      // equal to the previous point of the same line
-  uint64_t short_lines = 0;          // fewer than 2 points (after the repairs above)
-  uint64_t bad_offsets = 0;          // offsets not starting at 0, decreasing, or past the end
+  uint64_t invalid_points = 0;   // NaN/Inf or |c| > kMaxCoordinate
+  uint64_t repeated_points = 0;  // equal to the previous point of the same line
+  uint64_t short_lines = 0;      // fewer than 2 points (after the repairs above)
+  uint64_t bad_offsets = 0;      // offsets not starting at 0, decreasing, or past the end
   std::vector<std::string> attribute_length_mismatches;  // names; vertex and line attributes
   uint64_t nonfinite_attribute_values = 0;  // reported only: a transfer function may map them
 

@@ -16,7 +16,9 @@ uint64_t Rng::next() {
   return z ^ (z >> 31);
 }
 
-double Rng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+double Rng::uniform() {
+  return static_cast<double>(next() >> 11) * 0x1.0p-53;
+}
 
 dvec3 FlowField::seed(Rng& rng) const {
   const dvec3 lo = domain_min(), hi = domain_max();
@@ -169,8 +171,8 @@ class Clouds final : public FlowField {
         const double e = std::exp(-r2 / s2);
         v.z += taper * pl.strength * e * std::sin(pi * zn);
         if (r > 1e-9) {
-          const double ur = -taper * pl.strength * 0.5 * s2 * (1 - e) / r * (pi / kHeight) *
-                            std::cos(pi * zn);
+          const double ur =
+              -taper * pl.strength * 0.5 * s2 * (1 - e) / r * (pi / kHeight) * std::cos(pi * zn);
           v.x += ur * dx / r;
           v.y += ur * dy / r;
         }

@@ -11,8 +11,7 @@ namespace linebake::synth {
 namespace {
 
 // Unit direction of the flow, or nothing at stagnation.
-bool direction(const FlowField& field, const dvec3& p, double sign, double min_speed,
-               dvec3& out) {
+bool direction(const FlowField& field, const dvec3& p, double sign, double min_speed, dvec3& out) {
   const dvec3 v = field.velocity(p);
   const double speed = glm::length(v);
   if (!(speed > min_speed)) return false;
@@ -32,8 +31,8 @@ bool rk4_step(const FlowField& field, const dvec3& p, double h, double sign, dou
 }
 
 // Points after the seed in one direction.
-std::vector<dvec3> trace(const FlowField& field, const dvec3& seed,
-                         const IntegrationOptions& o, double sign, uint32_t max_points) {
+std::vector<dvec3> trace(const FlowField& field, const dvec3& seed, const IntegrationOptions& o,
+                         double sign, uint32_t max_points) {
   std::vector<dvec3> points;
   dvec3 p = seed;
   double h = o.step;

@@ -10,13 +10,13 @@
 namespace linebake::synth {
 
 struct IntegrationOptions {
-  double step = 0.05;         // arc-length step (fixed), or initial step (adaptive)
-  bool adaptive = false;      // RK4 with step doubling and error control
-  double tolerance = 1e-5;    // adaptive: max position error per step
-  double min_step = 1e-4;     // adaptive bounds
+  double step = 0.05;       // arc-length step (fixed), or initial step (adaptive)
+  bool adaptive = false;    // RK4 with step doubling and error control
+  double tolerance = 1e-5;  // adaptive: max position error per step
+  double min_step = 1e-4;   // adaptive bounds
   double max_step = 0.5;
-  uint32_t max_points = 256;  // stop at this many points (max length)
-  double min_speed = 1e-6;    // stop at stagnation: |v| below this
+  uint32_t max_points = 256;    // stop at this many points (max length)
+  double min_speed = 1e-6;      // stop at stagnation: |v| below this
   bool both_directions = true;  // integrate backward and forward from the seed
 };
 

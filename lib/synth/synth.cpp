@@ -34,7 +34,9 @@ const DataSetSpec& find_data_set(const std::string& name) {
               "' (expected aneurysm, convection, turbulence or clouds)");
 }
 
-bool is_synth_source(const std::string& source) { return source.rfind("synth:", 0) == 0; }
+bool is_synth_source(const std::string& source) {
+  return source.rfind("synth:", 0) == 0;
+}
 
 SynthParams parse_synth_source(const std::string& source) {
   if (!is_synth_source(source)) throw Error("not a synthetic source: " + source);
@@ -77,8 +79,8 @@ namespace {
 struct Recipe {
   std::unique_ptr<FlowField> field;
   IntegrationOptions integration;
-  uint32_t mean_points;   // the paper's mean points per line
-  double gradient_step;   // finite-difference step for flow measures
+  uint32_t mean_points;  // the paper's mean points per line
+  double gradient_step;  // finite-difference step for flow measures
 };
 
 Recipe make_recipe(const DataSetSpec& spec, uint64_t seed) {
@@ -129,8 +131,8 @@ GeneratedLine generate_line(const Recipe& recipe, const DataSetSpec& spec, uint6
   } else if (spec.attribute == "lambda2_max") {
     double strongest = 0;
     for (const dvec3& p : points)
-      strongest = std::max(strongest,
-                           -lambda2(velocity_gradient(*recipe.field, p, recipe.gradient_step)));
+      strongest =
+          std::max(strongest, -lambda2(velocity_gradient(*recipe.field, p, recipe.gradient_step)));
     line.attribute.assign(points.size(), static_cast<float>(strongest));
   }
   return line;
