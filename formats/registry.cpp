@@ -100,6 +100,8 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
       lines = formats::read_csv(source, options);
       break;
   }
+  // An empty file, or one whose lines were all filtered out, is almost always a mistake.
+  if (lines.line_count() == 0) throw InputError(source, "", "no lines in the file");
   lines.metadata.emplace("source", source);
   return lines;
 }

@@ -161,6 +161,17 @@ TEST(Malformed, Csv) {
   expect_error(dir.file("e.csv"), "line 2: bad coordinate 'abc'");
 }
 
+TEST(Malformed, EmptyFileOfEveryFormat) {
+  TempDir dir;
+  for (const FormatInfo& f : format_table()) {
+    const std::string path = dir.file(std::string("empty") + f.extensions[0]);
+    write_text(path, "");
+    EXPECT_THROW(read_line_set(path), InputError) << f.name;
+  }
+  write_text(dir.file("comments.obj"), "# only a comment\nv 1 2 3\n");
+  expect_error(dir.file("comments.obj"), "no lines in the file");
+}
+
 TEST(Malformed, UnknownExtension) {
   EXPECT_THROW(read_line_set("/tmp/lines.xyz"), Error);
 }
