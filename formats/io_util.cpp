@@ -95,6 +95,23 @@ void BinaryReader::fail_at(uint64_t offset, const std::string& message) const {
   throw InputError(file_.path(), at_byte(offset), message);
 }
 
+size_t scalar_size(Scalar type) {
+  switch (type) {
+    case Scalar::int8:
+    case Scalar::uint8:
+      return 1;
+    case Scalar::int16:
+    case Scalar::uint16:
+      return 2;
+    case Scalar::int32:
+    case Scalar::uint32:
+    case Scalar::float32:
+      return 4;
+    default:
+      return 8;
+  }
+}
+
 void byteswap_array(void* data, size_t count, size_t element_size) {
   auto* b = static_cast<unsigned char*>(data);
   for (size_t i = 0; i < count; ++i, b += element_size)

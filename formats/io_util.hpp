@@ -97,6 +97,44 @@ T BinaryReader::read_value(const char* what, bool swap) {
   return swap ? byteswap_value(v) : v;
 }
 
+// Binary scalar types of the formats we read, decoded with one dispatch per array.
+enum class Scalar { int8, uint8, int16, uint16, int32, uint32, int64, uint64, float32, float64 };
+size_t scalar_size(Scalar type);
+
+// Converts `count` packed values of `type` at `src` (byte-swapped when `swap`) to Out.
+template <typename Out>
+void decode_scalars(Scalar type, const unsigned char* src, size_t count, bool swap, Out* out) {
+  auto run = [&]<typename T>(T) {
+    for (size_t i = 0; i < count; ++i) {
+      T v;
+      std::memcpy(&v, src + i * sizeof(T), sizeof(T));
+      out[i] = static_cast<Out>(swap ? byteswap_value(v) : v);
+    }
+  };
+  switch (type) {
+    case Scalar::int8:
+      return run(int8_t{});
+    case Scalar::uint8:
+      return run(uint8_t{});
+    case Scalar::int16:
+      return run(int16_t{});
+    case Scalar::uint16:
+      return run(uint16_t{});
+    case Scalar::int32:
+      return run(int32_t{});
+    case Scalar::uint32:
+      return run(uint32_t{});
+    case Scalar::int64:
+      return run(int64_t{});
+    case Scalar::uint64:
+      return run(uint64_t{});
+    case Scalar::float32:
+      return run(float{});
+    case Scalar::float64:
+      return run(double{});
+  }
+}
+
 // Whitespace tokenizer over one line.
 std::vector<std::string_view> split_whitespace(std::string_view line);
 std::string_view trim(std::string_view s);

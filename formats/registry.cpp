@@ -53,23 +53,28 @@ std::optional<Format> format_from_extension(const std::string& path) {
   return std::nullopt;
 }
 
-namespace {
-Format choose(const std::string& path, const std::optional<Format>& forced) {
+Format resolve_format(const std::string& path, const std::optional<Format>& forced) {
   if (forced) return *forced;
   if (auto f = format_from_extension(path)) return *f;
   throw Error(path + ": cannot tell the format from the extension; name it with --from/--to");
 }
-}  // namespace
+
+Format resolve_output_format(const std::string& path, const std::optional<Format>& forced) {
+  const Format format = resolve_format(path, forced);
+  if (!format_info(format).writable)
+    throw Error(std::string("writing ") + format_info(format).name + " is not supported");
+  return format;
+}
 
 std::string source_format_name(const std::string& source, const ReadOptions& options) {
   if (synth::is_synth_source(source)) return "synth";
-  return format_info(choose(source, options.format)).name;
+  return format_info(resolve_format(source, options.format)).name;
 }
 
 LineSet read_line_set(const std::string& source, const ReadOptions& options) {
   if (synth::is_synth_source(source))
     return synth::generate(synth::parse_synth_source(source), options.progress);
-  const Format format = choose(source, options.format);
+  const Format format = resolve_format(source, options.format);
   LineSet lines;
   switch (format) {
     case Format::obj:
@@ -107,9 +112,7 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
 }
 
 void write_line_set(const LineSet& lines, const std::string& path, const WriteOptions& options) {
-  const Format format = choose(path, options.format);
-  if (!format_info(format).writable)
-    throw Error(std::string("writing ") + format_info(format).name + " is not supported");
+  const Format format = resolve_output_format(path, options.format);
   AtomicFile file(path);
   switch (format) {
     case Format::obj:

@@ -24,6 +24,10 @@ const std::vector<FormatInfo>& format_table();
 const FormatInfo& format_info(Format format);
 Format parse_format(const std::string& name);  // throws Error
 std::optional<Format> format_from_extension(const std::string& path);
+// The forced format, else the one the extension names; throws Error when neither says.
+Format resolve_format(const std::string& path, const std::optional<Format>& forced);
+// As resolve_format, and throws Error when linebake cannot write that format.
+Format resolve_output_format(const std::string& path, const std::optional<Format>& forced);
 
 struct ReadOptions {
   std::optional<Format> format;  // overrides the extension

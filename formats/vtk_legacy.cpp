@@ -7,6 +7,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <optional>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -15,14 +16,20 @@ namespace linebake::formats {
 
 namespace {
 
-size_t type_size(const std::string& type) {
-  if (type == "unsigned_char" || type == "char") return 1;
-  if (type == "short" || type == "unsigned_short") return 2;
-  if (type == "int" || type == "unsigned_int" || type == "float") return 4;
-  if (type == "long" || type == "unsigned_long" || type == "double" || type == "vtktypeint64" ||
-      type == "vtktypeuint64" || type == "vtkIdType")
-    return 8;
-  return 0;
+// Legacy type names; "long" is 8 bytes as written on LP64 systems.
+std::optional<io::Scalar> legacy_type(const std::string& type) {
+  using io::Scalar;
+  if (type == "char") return Scalar::int8;
+  if (type == "unsigned_char") return Scalar::uint8;
+  if (type == "short") return Scalar::int16;
+  if (type == "unsigned_short") return Scalar::uint16;
+  if (type == "int") return Scalar::int32;
+  if (type == "unsigned_int") return Scalar::uint32;
+  if (type == "long" || type == "vtktypeint64" || type == "vtkIdType") return Scalar::int64;
+  if (type == "unsigned_long" || type == "vtktypeuint64") return Scalar::uint64;
+  if (type == "float") return Scalar::float32;
+  if (type == "double") return Scalar::float64;
+  return std::nullopt;
 }
 
 // Token-and-bytes reader: ASCII parts are read as whitespace-separated tokens, binary blocks
@@ -109,9 +116,10 @@ class LegacyStream {
 };
 
 template <typename Out>
-void read_values(LegacyStream& in, bool binary, const std::string& type, size_t count, Out* out) {
-  const size_t size = type_size(type);
-  if (size == 0) in.fail("unsupported data type '" + type + "'");
+void read_values(LegacyStream& in, bool binary, const std::string& type_name, size_t count,
+                 Out* out) {
+  const std::optional<io::Scalar> type = legacy_type(type_name);
+  if (!type) in.fail("unsupported data type '" + type_name + "'");
   if (!binary) {
     for (size_t i = 0; i < count; ++i) {
       const std::string t = in.token();
@@ -124,48 +132,15 @@ void read_values(LegacyStream& in, bool binary, const std::string& type, size_t 
     }
     return;
   }
-  unsigned char raw[8];
-  for (size_t i = 0; i < count; ++i) {
-    in.bytes(raw, size);
-    if constexpr (std::endian::native == std::endian::little)
-      for (size_t k = 0; k < size / 2; ++k) std::swap(raw[k], raw[size - 1 - k]);
-    double v = 0;
-    if (type == "float") {
-      float f;
-      std::memcpy(&f, raw, 4);
-      v = f;
-    } else if (type == "double") {
-      std::memcpy(&v, raw, 8);
-    } else if (type == "char") {
-      v = static_cast<signed char>(raw[0]);
-    } else if (type == "unsigned_char") {
-      v = raw[0];
-    } else if (type == "short") {
-      int16_t x;
-      std::memcpy(&x, raw, 2);
-      v = x;
-    } else if (type == "unsigned_short") {
-      uint16_t x;
-      std::memcpy(&x, raw, 2);
-      v = x;
-    } else if (type == "int") {
-      int32_t x;
-      std::memcpy(&x, raw, 4);
-      v = x;
-    } else if (type == "unsigned_int") {
-      uint32_t x;
-      std::memcpy(&x, raw, 4);
-      v = x;
-    } else if (type == "vtktypeuint64" || type == "unsigned_long") {
-      uint64_t x;
-      std::memcpy(&x, raw, 8);
-      v = static_cast<double>(x);
-    } else {
-      int64_t x;
-      std::memcpy(&x, raw, 8);
-      v = static_cast<double>(x);
-    }
-    out[i] = static_cast<Out>(v);
+  // Legacy binary is big endian; decode in chunks so a large array is not held twice.
+  const bool swap = std::endian::native == std::endian::little;
+  const size_t size = io::scalar_size(*type);
+  constexpr size_t kChunk = 1 << 16;
+  std::vector<unsigned char> raw(std::min(count, kChunk) * size);
+  for (size_t done = 0; done < count; done += kChunk) {
+    const size_t n = std::min(kChunk, count - done);
+    in.bytes(raw.data(), n * size);
+    io::decode_scalars(*type, raw.data(), n, swap, out + done);
   }
 }
 
@@ -175,84 +150,85 @@ struct Cells {
   size_t count() const { return offsets.size() - 1; }
 };
 
-Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
+// Splits the classic layout, a count followed by that many indices per cell, into cells.
+Cells split_classic(LegacyStream& in, const std::vector<int64_t>& list, uint64_t cell_count) {
   Cells cells;
-  if (a == 0 && b == 0) return cells;
-  // The 5.1 layout announces OFFSETS next; the classic one starts with the first cell's count.
-  std::string keyword;
-  if (binary) {
-    // Peek is impossible in binary without a token: 5.1 binary files always put OFFSETS on the
-    // next line, classic ones raw integers. Read 7 bytes and compare.
-    in.skip_line();
-    char head[7];
-    in.bytes(head, 7);
-    if (std::string(head, 7) == "OFFSETS") {
-      keyword = "OFFSETS";
-    } else {
-      // Classic: a is the cell count, b the total size; we already consumed 7 bytes.
-      std::vector<unsigned char> raw(b * 4);
-      if (raw.size() < 7) in.fail("LINES block too small");
-      std::memcpy(raw.data(), head, 7);
-      in.bytes(raw.data() + 7, raw.size() - 7);
-      size_t at = 0;
-      auto next = [&] {
-        if (at + 4 > raw.size()) in.fail("LINES size too small for its cells");
-        int32_t v;
-        unsigned char r[4] = {raw[at + 3], raw[at + 2], raw[at + 1], raw[at]};
-        std::memcpy(&v, r, 4);
-        at += 4;
-        return static_cast<int64_t>(v);
-      };
-      for (uint64_t c = 0; c < a; ++c) {
-        const int64_t n = next();
-        if (n < 0) in.fail("negative cell size");
-        for (int64_t k = 0; k < n; ++k) cells.connectivity.push_back(next());
-        cells.offsets.push_back(static_cast<int64_t>(cells.connectivity.size()));
-      }
-      if (at != raw.size()) in.fail("LINES size does not match its cells");
-      return cells;
-    }
-  } else {
-    keyword = in.token();
-  }
-  if (keyword == "OFFSETS") {
-    const std::string offset_type = in.token();
-    if (binary) in.skip_line();
-    cells.offsets.resize(a);
-    if (a == 0) in.fail("OFFSETS needs at least one value");
-    read_values(in, binary, offset_type, a, cells.offsets.data());
-    if (in.token() != "CONNECTIVITY") in.fail("expected CONNECTIVITY after OFFSETS");
-    const std::string conn_type = in.token();
-    if (binary) in.skip_line();
-    cells.connectivity.resize(b);
-    read_values(in, binary, conn_type, b, cells.connectivity.data());
-    for (size_t i = 1; i < cells.offsets.size(); ++i)
-      if (cells.offsets[i] < cells.offsets[i - 1] || cells.offsets[i] > static_cast<int64_t>(b))
-        in.fail("OFFSETS not increasing or past the connectivity");
-    if (cells.offsets.front() != 0 || cells.offsets.back() != static_cast<int64_t>(b))
-      in.fail("OFFSETS must start at 0 and end at the connectivity size");
-    return cells;
-  }
-  // Classic ASCII: the token we read is the first cell's size.
-  std::string t = keyword;
-  uint64_t consumed = 0;
-  for (uint64_t c = 0; c < a; ++c) {
-    if (c > 0) t = in.token();
-    int64_t n;
-    if (!io::parse_int64(t, n) || n < 0) in.fail("bad cell size '" + t + "'");
-    ++consumed;
-    for (int64_t k = 0; k < n; ++k) {
-      const std::string s = in.token();
-      int64_t index;
-      if (!io::parse_int64(s, index)) in.fail("bad point index '" + s + "'");
-      cells.connectivity.push_back(index);
-    }
-    consumed += static_cast<uint64_t>(n);
+  size_t at = 0;
+  for (uint64_t c = 0; c < cell_count; ++c) {
+    if (at >= list.size())
+      in.fail("cell list size too small for its " + std::to_string(cell_count) + " cells");
+    const int64_t n = list[at++];
+    if (n < 0 || static_cast<uint64_t>(n) > list.size() - at)
+      in.fail("bad cell size " + std::to_string(n));
+    cells.connectivity.insert(cells.connectivity.end(), list.begin() + static_cast<ptrdiff_t>(at),
+                              list.begin() + static_cast<ptrdiff_t>(at + static_cast<size_t>(n)));
+    at += static_cast<size_t>(n);
     cells.offsets.push_back(static_cast<int64_t>(cells.connectivity.size()));
   }
-  if (consumed != b)
-    in.fail("cell list size " + std::to_string(b) + " does not match its cells (" +
-            std::to_string(consumed) + ")");
+  if (at != list.size())
+    in.fail("cell list size " + std::to_string(list.size()) + " does not match its cells (" +
+            std::to_string(at) + ")");
+  return cells;
+}
+
+Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
+  if (a == 0 && b == 0) return {};
+  // The 5.1 layout announces OFFSETS next; the classic one starts with the first cell's count.
+  std::vector<int64_t> classic(b);
+  if (binary) {
+    // Binary classic data starts on the next line with raw integers, 5.1 with "OFFSETS".
+    in.skip_line();
+    char head[7];
+    if (b * 4 < 7) {
+      read_values(in, true, "int", b, classic.data());
+      return split_classic(in, classic, a);
+    }
+    in.bytes(head, 7);
+    if (std::string(head, 7) != "OFFSETS") {
+      std::vector<unsigned char> raw(b * 4);
+      std::memcpy(raw.data(), head, 7);
+      in.bytes(raw.data() + 7, raw.size() - 7);
+      io::decode_scalars(io::Scalar::int32, raw.data(), b,
+                         std::endian::native == std::endian::little, classic.data());
+      return split_classic(in, classic, a);
+    }
+  } else {
+    std::string t = in.token();
+    if (t != "OFFSETS") {
+      // Cell by cell, so a wrong size is reported as such rather than as a bad next keyword.
+      classic.clear();
+      for (uint64_t c = 0; c < a; ++c) {
+        if (c > 0) t = in.token();
+        int64_t n;
+        if (!io::parse_int64(t, n) || n < 0) in.fail("bad cell size '" + t + "'");
+        classic.push_back(n);
+        const size_t at = classic.size();
+        classic.resize(at + static_cast<size_t>(n));
+        read_values(in, false, "int", static_cast<size_t>(n), classic.data() + at);
+      }
+      if (classic.size() != b)
+        in.fail("cell list size " + std::to_string(b) + " does not match its cells (" +
+                std::to_string(classic.size()) + ")");
+      return split_classic(in, classic, a);
+    }
+  }
+  // 5.1 layout: OFFSETS then CONNECTIVITY arrays.
+  Cells cells;
+  const std::string offset_type = in.token();
+  if (binary) in.skip_line();
+  cells.offsets.resize(a);
+  if (a == 0) in.fail("OFFSETS needs at least one value");
+  read_values(in, binary, offset_type, a, cells.offsets.data());
+  if (in.token() != "CONNECTIVITY") in.fail("expected CONNECTIVITY after OFFSETS");
+  const std::string conn_type = in.token();
+  if (binary) in.skip_line();
+  cells.connectivity.resize(b);
+  read_values(in, binary, conn_type, b, cells.connectivity.data());
+  for (size_t i = 1; i < cells.offsets.size(); ++i)
+    if (cells.offsets[i] < cells.offsets[i - 1] || cells.offsets[i] > static_cast<int64_t>(b))
+      in.fail("OFFSETS not increasing or past the connectivity");
+  if (cells.offsets.front() != 0 || cells.offsets.back() != static_cast<int64_t>(b))
+    in.fail("OFFSETS must start at 0 and end at the connectivity size");
   return cells;
 }
 

@@ -10,6 +10,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <optional>
 #include <pugixml.hpp>
 
 #include "formats/formats.hpp"
@@ -195,35 +196,16 @@ std::vector<unsigned char> decode_binary(const Context& ctx, const std::string& 
   return inflate_blocks(ctx, where, header, data.data(), data.size());
 }
 
-size_t vtk_type_size(const std::string& type) {
-  if (type == "Int8" || type == "UInt8") return 1;
-  if (type == "Int16" || type == "UInt16") return 2;
-  if (type == "Int32" || type == "UInt32" || type == "Float32") return 4;
-  if (type == "Int64" || type == "UInt64" || type == "Float64") return 8;
-  return 0;
-}
-
-template <typename Out>
-Out convert(const std::string& type, const unsigned char* p, bool swap) {
-  unsigned char b[8];
-  const size_t n = vtk_type_size(type);
-  std::memcpy(b, p, n);
-  if (swap) std::reverse(b, b + n);
-  auto as = [&]<typename T>(T) {
-    T v;
-    std::memcpy(&v, b, sizeof(T));
-    return static_cast<Out>(v);
-  };
-  if (type == "Float32") return as(float{});
-  if (type == "Float64") return as(double{});
-  if (type == "Int8") return as(int8_t{});
-  if (type == "UInt8") return as(uint8_t{});
-  if (type == "Int16") return as(int16_t{});
-  if (type == "UInt16") return as(uint16_t{});
-  if (type == "Int32") return as(int32_t{});
-  if (type == "UInt32") return as(uint32_t{});
-  if (type == "Int64") return as(int64_t{});
-  return as(uint64_t{});
+std::optional<io::Scalar> xml_type(const std::string& type) {
+  using io::Scalar;
+  static const std::pair<const char*, Scalar> names[] = {
+      {"Int8", Scalar::int8},      {"UInt8", Scalar::uint8},   {"Int16", Scalar::int16},
+      {"UInt16", Scalar::uint16},  {"Int32", Scalar::int32},   {"UInt32", Scalar::uint32},
+      {"Int64", Scalar::int64},    {"UInt64", Scalar::uint64}, {"Float32", Scalar::float32},
+      {"Float64", Scalar::float64}};
+  for (const auto& [name, scalar] : names)
+    if (type == name) return scalar;
+  return std::nullopt;
 }
 
 // Reads a DataArray into `count` values of Out, checking its size.
@@ -231,9 +213,10 @@ template <typename Out>
 std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size_t count) {
   const std::string name = node.attribute("Name").as_string();
   const std::string where = "DataArray '" + name + "'";
-  const std::string type = node.attribute("type").as_string();
-  const size_t size = vtk_type_size(type);
-  if (size == 0) ctx.fail(where, "unsupported type '" + type + "'");
+  const std::string type_name = node.attribute("type").as_string();
+  const std::optional<io::Scalar> type = xml_type(type_name);
+  if (!type) ctx.fail(where, "unsupported type '" + type_name + "'");
+  const size_t size = io::scalar_size(*type);
   const std::string format = node.attribute("format").as_string("ascii");
   std::vector<Out> out(count);
   if (format == "ascii") {
@@ -261,7 +244,7 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
   if (bytes.size() != count * size)
     ctx.fail(where,
              std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
-  for (size_t i = 0; i < count; ++i) out[i] = convert<Out>(type, bytes.data() + i * size, ctx.swap);
+  io::decode_scalars(*type, bytes.data(), count, ctx.swap, out.data());
   return out;
 }
 

@@ -4,7 +4,6 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "core/error.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "lines/derived.hpp"
@@ -49,12 +48,8 @@ Command add_convert(CLI::App& app) {
     write.binlines_version = args->binlines_version;
     write.vtp_encoding = args->ascii ? "ascii" : args->vtp_encoding;
     write.vtp_compress = !args->no_compress;
-    // Fail on an unknown output format before reading a large input.
-    if (!write.format && !format_from_extension(args->output))
-      throw Error(args->output + ": cannot tell the format from the extension; name it with --to");
-    const Format out_format = write.format ? *write.format : *format_from_extension(args->output);
-    if (!format_info(out_format).writable)
-      throw Error(std::string("writing ") + format_info(out_format).name + " is not supported");
+    // Fail on an unknown or read-only output format before reading a large input.
+    resolve_output_format(args->output, write.format);
 
     LineSet lines;
     {
