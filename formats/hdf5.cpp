@@ -1,49 +1,21 @@
 // HDF5, linebake's plain layout (docs/formats.md):
 //   /points            N x 3 float32 or float64
 //   /line_offsets      L + 1 uint64 (or /line_lengths: L integers)
-//   /attributes/<name> N floats (vertex attributes)
+//   /attributes/<name> N floats (vertex attributes; '/', '%' and a leading '.' as %XX)
 //   /line_attributes/<name> L floats
 //   root string attributes: linebake_version and the line set's metadata.
-
-#include <hdf5.h>
 
 #include <functional>
 
 #include "core/error.hpp"
+#include "core/h5.hpp"
 #include "formats/formats.hpp"
 
 namespace linebake::formats {
 
 namespace {
 
-// Owns an HDF5 id and closes it with the matching function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  operator hid_t() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-struct SilenceErrors {
-  SilenceErrors() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
-};
-
-std::vector<hsize_t> shape_of(hid_t dataset) {
-  Handle space(H5Dget_space(dataset), H5Sclose);
-  const int rank = H5Sget_simple_extent_ndims(space);
-  std::vector<hsize_t> dims(rank > 0 ? static_cast<size_t>(rank) : 0);
-  if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
-  return dims;
-}
+using h5::Handle;
 
 template <typename T>
 std::vector<T> read_dataset(const std::string& path, hid_t file, const std::string& name,
@@ -51,7 +23,7 @@ std::vector<T> read_dataset(const std::string& path, hid_t file, const std::stri
   Handle dataset(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
   if (!dataset.valid()) throw InputError(path, "dataset " + name, "missing");
   hsize_t total = 1;
-  for (hsize_t d : shape_of(dataset)) total *= d;
+  for (hsize_t d : h5::shape_of(dataset)) total *= d;
   if (expected_elements != SIZE_MAX && total != expected_elements)
     throw InputError(
         path, "dataset " + name,
@@ -62,32 +34,9 @@ std::vector<T> read_dataset(const std::string& path, hid_t file, const std::stri
   return values;
 }
 
-std::vector<std::string> group_members(hid_t file, const char* group) {
-  std::vector<std::string> names;
-  if (H5Lexists(file, group, H5P_DEFAULT) <= 0) return names;
-  Handle g(H5Gopen2(file, group, H5P_DEFAULT), H5Gclose);
-  if (!g.valid()) return names;
-  auto collect = [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
-    static_cast<std::vector<std::string>*>(data)->push_back(name);
-    return 0;
-  };
-  // Creation order where the file tracks it (linebake's files do), else name order.
-  if (H5Literate(g, H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect, &names) < 0) {
-    names.clear();
-    H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, nullptr, collect, &names);
-  }
-  return names;
-}
-
 void write_string_attribute(const std::string& path, hid_t object, const std::string& name,
                             const std::string& value) {
-  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  H5Tset_size(type, value.empty() ? 1 : value.size());
-  H5Tset_strpad(type, H5T_STR_NULLTERM);
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT),
-                   H5Aclose);
-  if (!attribute.valid() || H5Awrite(attribute, type, value.c_str()) < 0)
+  if (!h5::write_string_attribute(object, name, value))
     throw OutputError(path, "cannot write attribute " + name);
 }
 
@@ -108,7 +57,7 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
 }  // namespace
 
 LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
-  static SilenceErrors silence;
+  h5::init();
   if (H5Fis_hdf5(path.c_str()) <= 0) throw InputError(path, "", "not an HDF5 file (or unreadable)");
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.valid()) throw InputError(path, "", "cannot open HDF5 file");
@@ -117,7 +66,7 @@ LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
   {
     Handle dataset(H5Dopen2(file, "/points", H5P_DEFAULT), H5Dclose);
     if (!dataset.valid()) throw InputError(path, "dataset /points", "missing");
-    const std::vector<hsize_t> dims = shape_of(dataset);
+    const std::vector<hsize_t> dims = h5::shape_of(dataset);
     if (dims.size() != 2 || dims[1] != 3)
       throw InputError(path, "dataset /points", "expected shape N x 3");
   }
@@ -147,19 +96,21 @@ LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
   } else {
     throw InputError(path, "dataset /line_offsets", "missing (and no /line_lengths)");
   }
-  for (const std::string& name : group_members(file, "/attributes"))
+  for (const std::string& name : h5::group_members(file, "/attributes"))
     lines.attributes.push_back(
-        {name, read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
-  for (const std::string& name : group_members(file, "/line_attributes"))
+        {h5::decode_link_name(name),
+         read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
+  for (const std::string& name : h5::group_members(file, "/line_attributes"))
     lines.line_attributes.push_back(
-        {name, read_dataset<float>(path, file, "/line_attributes/" + name, H5T_NATIVE_FLOAT,
-                                   lines.line_count())});
+        {h5::decode_link_name(name),
+         read_dataset<float>(path, file, "/line_attributes/" + name, H5T_NATIVE_FLOAT,
+                             lines.line_count())});
   if (options.progress) options.progress(3, 3);
   return lines;
 }
 
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options) {
-  static SilenceErrors silence;
+  h5::init();
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, H5P_DEFAULT), H5Fclose);
   if (!file.valid()) throw OutputError(path, "cannot create HDF5 file");
@@ -178,7 +129,7 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
     Handle g(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
     if (!g.valid()) throw OutputError(path, std::string("cannot create group ") + group);
     for (const Attribute& a : list)
-      write_dataset(path, g, a.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, a.values.data(),
+      write_dataset(path, g, h5::encode_link_name(a.name), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, a.values.data(),
                     {a.values.size()});
   };
   write_group("attributes", lines.attributes);

@@ -19,5 +19,8 @@ using Command = std::function<void()>;
 Command add_info(CLI::App& app);
 Command add_convert(CLI::App& app);
 Command add_synth(CLI::App& app);
+Command add_bench(CLI::App& app);
+Command add_bake(CLI::App& app);
+Command add_report(CLI::App& app);
 
 }  // namespace linebake::cli

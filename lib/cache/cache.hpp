@@ -1,0 +1,119 @@
+#pragma once
+// The asset cache: one HDF5 file per data set holding the line set and every asset built from
+// it, each in its own group with its provenance (docs/cache.md). Datasets carry an XXH3-128
+// hash of their bytes, checked on load; compressed ones also carry HDF5's Fletcher32 checksum.
+// Uncompressed datasets are contiguous and 4 KiB aligned, and load as views of a read-only
+// mapping of the file (no copy).
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/array.hpp"
+#include "core/atomic_file.hpp"
+#include "core/h5.hpp"
+#include "core/measure.hpp"
+#include "core/progress.hpp"
+
+namespace linebake {
+
+enum class Compression { None, Deflate, Lz4, BloscZstd };
+Compression parse_compression(const std::string& name);  // none | deflate | lz4 | blosc-zstd
+const char* to_string(Compression compression);
+
+// What a cached step was built from, with what, and what it cost.
+struct Provenance {
+  std::string step;        // "lines", "tubes", ...
+  std::string key;         // hash of input_hash, parameters and the step's storage version
+  std::string input_hash;  // content hash of the input (file bytes, or the line set's arrays)
+  nlohmann::json parameters = nlohmann::json::object();
+  nlohmann::json stats = nlohmann::json::object();  // step-specific counts
+  std::string linebake_version = LINEBAKE_VERSION;
+  std::string created;     // UTC, ISO 8601
+  StepFigures build;
+  uint64_t threads = 0;
+  uint64_t memory_bytes = 0;  // the representation in memory
+  uint64_t disk_bytes = 0;    // its datasets as stored
+  std::string compression;
+};
+nlohmann::json to_json(const Provenance& provenance);
+Provenance provenance_from_json(const nlohmann::json& json);
+std::string utc_now_iso8601();
+
+using h5::decode_link_name;
+using h5::encode_link_name;
+
+class CacheWriter {
+ public:
+  // Creates the file under a temporary name beside `path`; commit() renames it.
+  CacheWriter(const std::string& path, Compression compression, int level = -1);
+  ~CacheWriter();
+  CacheWriter(const CacheWriter&) = delete;
+  CacheWriter& operator=(const CacheWriter&) = delete;
+
+  const std::string& path() const { return file_.final_path(); }
+  Compression compression() const { return compression_; }
+  // Total bytes the caller is going to write, for progress; 0: unknown.
+  void set_progress(ProgressFn progress, uint64_t total_bytes);
+
+  void create_group(const std::string& group);
+  // Copies a group, as stored, from another cache file (an asset that did not change).
+  void copy_group(const std::string& source_path, const std::string& group);
+  // A 1-D (columns = 0) or 2-D dataset of `rows` x `columns`. Returns the bytes it takes on disk.
+  template <class T>
+  uint64_t write(const std::string& dataset, const T* data, uint64_t rows, uint64_t columns = 0);
+  void write_attribute(const std::string& object, const std::string& name,
+                       const std::string& value);
+  void write_provenance(const std::string& group, const Provenance& provenance);
+  void commit();
+
+ private:
+  uint64_t write_raw(const std::string& dataset, hid_t type, const void* data, size_t element,
+                     uint64_t rows, uint64_t columns);
+  AtomicFile file_;
+  h5::Handle h5_;
+  Compression compression_;
+  int level_;
+  ProgressFn progress_;
+  uint64_t progress_total_ = 0, progress_done_ = 0;
+};
+
+class CacheReader {
+ public:
+  // Opens a cache; InputError if it is missing, not HDF5, truncated or not a linebake cache.
+  // With verify, every dataset read is checked against its stored hash.
+  explicit CacheReader(const std::string& path, bool verify = true);
+  ~CacheReader();
+
+  const std::string& path() const { return path_; }
+  bool exists(const std::string& object) const;
+  std::vector<std::string> members(const std::string& group) const;
+  std::optional<std::string> attribute(const std::string& object, const std::string& name) const;
+  std::optional<Provenance> provenance(const std::string& group) const;
+  // Names of the assets stored under /assets.
+  std::vector<std::string> assets() const { return members("/assets"); }
+
+  // Reads a dataset of T with the expected element count (SIZE_MAX: any). Zero-copy where the
+  // dataset is stored contiguous and uncompressed. InputError naming the dataset on a missing
+  // dataset, a wrong size, a failed checksum or a read error.
+  template <class T>
+  Array<T> read(const std::string& dataset, size_t expected = SIZE_MAX) const;
+  // Elements stored in the dataset (rows x columns).
+  uint64_t stored_bytes(const std::string& dataset) const;
+
+ private:
+  Array<unsigned char> read_raw(const std::string& dataset, hid_t type, size_t element,
+                                size_t expected) const;
+  std::string path_;
+  bool verify_;
+  h5::Handle h5_;
+  std::shared_ptr<const void> mapping_;
+  uint64_t file_size_ = 0;
+};
+
+}  // namespace linebake

@@ -1,0 +1,119 @@
+#include "core/h5.hpp"
+
+#include <H5PLpublic.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <mutex>
+
+namespace linebake::h5 {
+
+void init() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    // Debian installs filter plugins here (hdf5-filter-plugin, hdf5-filter-plugin-blosc-serial);
+    // HDF5's compiled-in default (/usr/local/hdf5/lib/plugin) is not it. HDF5_PLUGIN_PATH, when
+    // set, still comes first.
+    for (const char* dir : {LINEBAKE_HDF5_PLUGIN_DIR, "/usr/lib/x86_64-linux-gnu/hdf5/serial/plugins",
+                            "/usr/lib/aarch64-linux-gnu/hdf5/serial/plugins"}) {
+      std::error_code ec;
+      if (dir[0] && std::filesystem::is_directory(dir, ec)) H5PLappend(dir);
+    }
+  });
+}
+
+std::string last_error() {
+  std::string message;
+  auto walk = [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
+    if (e->desc && *e->desc) *static_cast<std::string*>(data) = e->desc;
+    return 0;
+  };
+  // Walk upward: the last one visited is the outermost; we want the innermost (first).
+  std::string innermost;
+  auto first = [](unsigned n, const H5E_error2_t* e, void* data) -> herr_t {
+    if (n == 0 && e->desc) *static_cast<std::string*>(data) = e->desc;
+    return 0;
+  };
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, first, &innermost);
+  if (innermost.empty()) H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, walk, &message);
+  return innermost.empty() ? message : innermost;
+}
+
+std::string encode_link_name(const std::string& name) {
+  std::string out;
+  for (size_t i = 0; i < name.size(); ++i) {
+    const char c = name[i];
+    if (c == '/' || c == '%' || (i == 0 && c == '.')) {
+      char hex[4];
+      std::snprintf(hex, sizeof hex, "%%%02X", static_cast<unsigned char>(c));
+      out += hex;
+    } else {
+      out += c;
+    }
+  }
+  return out.empty() ? "%" : out;  // "%" alone: the empty name
+}
+
+std::string decode_link_name(const std::string& name) {
+  if (name == "%") return "";
+  std::string out;
+  for (size_t i = 0; i < name.size(); ++i) {
+    if (name[i] == '%' && i + 2 < name.size()) {
+      out += static_cast<char>(std::stoi(name.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += name[i];
+    }
+  }
+  return out;
+}
+
+std::vector<hsize_t> shape_of(hid_t dataset) {
+  Handle space(H5Dget_space(dataset), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space);
+  std::vector<hsize_t> dims(rank > 0 ? static_cast<size_t>(rank) : 0);
+  if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+  return dims;
+}
+
+std::vector<std::string> group_members(hid_t location, const std::string& group) {
+  std::vector<std::string> names;
+  if (H5Lexists(location, group.c_str(), H5P_DEFAULT) <= 0) return names;
+  Handle g(H5Gopen2(location, group.c_str(), H5P_DEFAULT), H5Gclose);
+  if (!g.valid()) return names;
+  auto collect = [](hid_t, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    static_cast<std::vector<std::string>*>(data)->push_back(name);
+    return 0;
+  };
+  if (H5Literate(g, H5_INDEX_CRT_ORDER, H5_ITER_INC, nullptr, collect, &names) < 0) {
+    names.clear();
+    H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, nullptr, collect, &names);
+  }
+  return names;
+}
+
+bool write_string_attribute(hid_t object, const std::string& name, const std::string& value) {
+  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(type, value.empty() ? 1 : value.size());
+  H5Tset_strpad(type, H5T_STR_NULLPAD);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attribute(H5Acreate2(object, name.c_str(), type, space, H5P_DEFAULT, H5P_DEFAULT),
+                   H5Aclose);
+  return attribute.valid() && H5Awrite(attribute, type, value.c_str()) >= 0;
+}
+
+bool read_string_attribute(hid_t object, const std::string& name, std::string& value) {
+  if (H5Aexists(object, name.c_str()) <= 0) return false;
+  Handle attribute(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose);
+  Handle type(H5Aget_type(attribute), H5Tclose);
+  if (!type.valid() || H5Tget_class(type) != H5T_STRING || H5Tis_variable_str(type) > 0)
+    return false;
+  const size_t size = H5Tget_size(type);
+  std::string buffer(size, '\0');
+  if (H5Aread(attribute, type, buffer.data()) < 0) return false;
+  value = buffer.substr(0, buffer.find('\0'));
+  return true;
+}
+
+}  // namespace linebake::h5

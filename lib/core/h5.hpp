@@ -1,0 +1,64 @@
+#pragma once
+// Small RAII and error helpers over the HDF5 C API, shared by the HDF5 line-set format and the
+// asset cache.
+
+#include <hdf5.h>
+
+#include <string>
+#include <vector>
+
+namespace linebake::h5 {
+
+// Owns an HDF5 id and closes it with the matching function.
+class Handle {
+ public:
+  Handle() = default;
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() { reset(); }
+  Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
+  Handle& operator=(Handle&& other) noexcept {
+    if (this != &other) {
+      reset();
+      id_ = other.id_;
+      close_ = other.close_;
+      other.id_ = -1;
+    }
+    return *this;
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  operator hid_t() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+  void reset() {
+    if (id_ >= 0 && close_) close_(id_);
+    id_ = -1;
+  }
+
+ private:
+  hid_t id_ = -1;
+  herr_t (*close_)(hid_t) = nullptr;
+};
+
+// Turns off HDF5's own printing of error stacks (linebake reports errors itself) and registers
+// the directories of Debian's HDF5 filter plugins, so LZ4 and Blosc work without the user
+// setting HDF5_PLUGIN_PATH. Idempotent; call before any HDF5 use.
+void init();
+
+// The innermost message of the current HDF5 error stack ("" if none).
+std::string last_error();
+
+std::vector<hsize_t> shape_of(hid_t dataset);
+
+// Maps any attribute name to an HDF5 link name: '/' and '%' (and a leading '.') become %XX;
+// the empty name becomes "%".
+std::string encode_link_name(const std::string& name);
+std::string decode_link_name(const std::string& name);
+
+// Member names of a group in creation order where tracked, else name order; empty if missing.
+std::vector<std::string> group_members(hid_t location, const std::string& group);
+
+// Variable-length-free fixed string attributes (readable by h5py as bytes/str).
+bool write_string_attribute(hid_t object, const std::string& name, const std::string& value);
+bool read_string_attribute(hid_t object, const std::string& name, std::string& value);
+
+}  // namespace linebake::h5

@@ -1,0 +1,36 @@
+#pragma once
+// Build figures as the paper's Table 1 reports them: wall time, CPU time and peak memory of one
+// step. Peak memory is the process's resident high-water mark (VmHWM), reset at the start of the
+// step where the kernel allows it (/proc/self/clear_refs), so it is the step's own peak plus
+// whatever the process already held.
+
+#include <chrono>
+#include <cstdint>
+
+namespace linebake {
+
+struct StepFigures {
+  double wall_s = 0;
+  double cpu_s = 0;               // user + system, all threads
+  uint64_t rss_before = 0;        // resident bytes when the step started
+  uint64_t peak_rss = 0;          // resident high-water mark during the step
+  bool peak_is_step_local = false;  // false: the kernel refused the reset, peak is since start
+};
+
+class StepMeter {
+ public:
+  StepMeter();  // starts measuring
+  StepFigures stop() const;
+
+ private:
+  std::chrono::steady_clock::time_point wall_start_;
+  double cpu_start_ = 0;
+  uint64_t rss_before_ = 0;
+  bool reset_ok_ = false;
+};
+
+uint64_t current_rss_bytes();
+uint64_t peak_rss_bytes();
+double process_cpu_seconds();
+
+}  // namespace linebake

@@ -1,0 +1,243 @@
+#include "pipeline/bake.hpp"
+
+#include <tbb/info.h>
+
+#include <filesystem>
+
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "synth/synth.hpp"
+
+namespace linebake {
+namespace {
+
+// Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
+constexpr uint64_t kLinesVersion = 1;
+constexpr uint64_t kTubesVersion = 1;
+
+uint64_t threads() { return static_cast<uint64_t>(tbb::info::default_concurrency()); }
+
+// The input's identity: its bytes, or for a synth: source its parameters and the generator
+// version (the generator is part of linebake).
+std::string source_hash(const std::string& input) {
+  if (synth::is_synth_source(input)) {
+    const synth::SynthParams p = synth::parse_synth_source(input);
+    Hasher h;
+    h.update(std::string_view("synth"))
+        .update(std::string_view(p.name))
+        .update(std::string_view(std::to_string(p.scale)))
+        .update(p.seed)
+        .update(uint64_t{p.adaptive})
+        .update(std::string_view(LINEBAKE_VERSION));
+    return h.hex();
+  }
+  return hash_file(input);
+}
+
+std::string key_of(std::initializer_list<std::string_view> parts) {
+  Hasher h;
+  for (std::string_view part : parts) h.update(part);
+  return h.hex();
+}
+
+}  // namespace
+
+const std::vector<std::string>& bakeable_assets() {
+  static const std::vector<std::string> assets{"tubes"};
+  return assets;
+}
+
+std::string default_cache_path(const std::string& input) {
+  if (synth::is_synth_source(input)) {
+    const synth::SynthParams p = synth::parse_synth_source(input);
+    return p.name + ".lbc.h5";
+  }
+  return std::filesystem::path(input).stem().string() + ".lbc.h5";
+}
+
+nlohmann::json to_json(const TubeOptions& t) {
+  nlohmann::json j = {{"sides", t.sides},
+                      {"radius", t.radius},
+                      {"radius_absolute", t.radius_absolute},
+                      {"radius_attribute", t.radius_attribute},
+                      {"caps", t.caps},
+                      {"normals", to_string(t.normals)},
+                      {"attribute", t.attribute},
+                      {"max_chunk_bytes", t.max_chunk_bytes},
+                      {"max_chunk_indices", t.max_chunk_indices},
+                      {"min_point_distance", t.min_point_distance}};
+  j["attribute_range"] = t.attribute_range ? nlohmann::json(*t.attribute_range) : nullptr;
+  return j;
+}
+
+std::string tubes_key(const std::string& lines_hash, const TubeOptions& tubes,
+                      Compression compression, int level) {
+  return key_of({"tubes", std::to_string(kTubesVersion), lines_hash, to_json(tubes).dump(),
+                 to_string(compression), std::to_string(level)});
+}
+
+BakeResult bake(const BakeOptions& options) {
+  for (const std::string& asset : options.assets)
+    if (std::find(bakeable_assets().begin(), bakeable_assets().end(), asset) ==
+        bakeable_assets().end())
+      throw Error("unknown asset '" + asset + "' (bake builds: tubes)");
+  BakeResult result;
+  result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
+
+  const std::string source = source_hash(options.input);
+  const std::string format = options.format ? format_info(*options.format).name : "auto";
+  const std::string policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
+  const std::string lines_key =
+      key_of({"lines", std::to_string(kLinesVersion), source, format, policy});
+
+  // What the existing cache already holds.
+  std::unique_ptr<CacheReader> old;
+  if (std::filesystem::exists(result.cache)) {
+    try {
+      old = std::make_unique<CacheReader>(result.cache);
+    } catch (const InputError& e) {
+      // A damaged or foreign file at the output path is replaced, not trusted.
+      result.notes.push_back(std::string("existing cache not usable, rebuilding: ") + e.what());
+    }
+  }
+  const auto old_provenance = [&](const std::string& group) -> std::optional<Provenance> {
+    return old ? old->provenance(group) : std::nullopt;
+  };
+
+  // Lines: reuse when the same input was read the same way.
+  LineSet lines;
+  bool lines_loaded = false;
+  BakeStep lines_step{"lines", false, {}};
+  const auto old_lines = old_provenance("/lines");
+  const bool reuse_lines = !options.force && old_lines && old_lines->key == lines_key;
+  const auto load_or_read = [&] {
+    if (lines_loaded) return;
+    lines_loaded = true;
+    if (reuse_lines) {
+      lines = load_lines(*old);
+      return;
+    }
+    StepMeter meter;
+    {
+      TerminalProgress progress("reading " + options.input);
+      ReadOptions read;
+      read.format = options.format;
+      if (options.progress) read.progress = progress.callback();
+      lines = read_line_set(options.input, read);
+    }
+    const ValidationReport report = validate(lines, options.on_invalid, options.input);
+    if (!report.clean()) result.notes.push_back(options.input + ": " + report.summary());
+    Provenance& p = lines_step.provenance;
+    p.build = meter.stop();
+    p.step = "lines";
+    p.key = lines_key;
+    p.input_hash = source;
+    p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
+    const LineSetStats stats = compute_stats(lines);
+    p.stats = {{"content_hash", content_hash(lines)},
+               {"lines", stats.lines},
+               {"points", stats.points},
+               {"segments", stats.segments}};
+    p.created = utc_now_iso8601();
+    p.threads = threads();
+    p.compression = to_string(options.compression);
+    lines_step.built = true;
+  };
+  if (!reuse_lines) load_or_read();
+  const std::string lines_hash = reuse_lines ? old_lines->stats.value("content_hash", "")
+                                             : lines_step.provenance.stats["content_hash"].get<std::string>();
+  lines_step.provenance = reuse_lines ? *old_lines : lines_step.provenance;
+
+  // Assets: reuse on an equal key, else build.
+  std::vector<BakeStep> asset_steps;
+  TubeMesh tubes;
+  for (const std::string& asset : options.assets) {
+    BakeStep step{asset, false, {}};
+    const std::string key =
+        tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
+    const auto previous = old_provenance(kTubesGroup);
+    if (!options.force && previous && previous->key == key) {
+      step.provenance = *previous;
+    } else {
+      load_or_read();
+      StepMeter meter;
+      {
+        TerminalProgress progress("building tubes");
+        tubes = build_tubes(lines, options.tubes,
+                            options.progress ? progress.callback() : ProgressFn{});
+      }
+      Provenance& p = step.provenance;
+      p.build = meter.stop();
+      p.step = asset;
+      p.key = key;
+      p.input_hash = lines_hash;
+      p.parameters = to_json(options.tubes);
+      p.stats = {{"chunks", tubes.chunks.size()},
+                 {"vertices", tubes.vertex_count()},
+                 {"triangles", tubes.triangle_count()},
+                 {"radius_world", tubes.radius},
+                 {"attribute", tubes.attribute},
+                 {"attribute_range", tubes.attribute_range},
+                 {"lines_dropped", tubes.lines_dropped},
+                 {"points_skipped", tubes.points_skipped}};
+      p.created = utc_now_iso8601();
+      p.threads = threads();
+      p.compression = to_string(options.compression);
+      p.memory_bytes = tubes.bytes();
+      step.built = true;
+      if (tubes.lines_dropped)
+        result.notes.push_back("tubes: " + std::to_string(tubes.lines_dropped) +
+                               " lines with fewer than two distinct points have no tube");
+    }
+    asset_steps.push_back(std::move(step));
+  }
+
+  bool anything_built = lines_step.built;
+  for (const BakeStep& s : asset_steps) anything_built |= s.built;
+  // Assets in the old cache that were not asked for this time are kept if still valid for
+  // these lines.
+  std::vector<std::string> kept;
+  if (old) {
+    for (const std::string& name : old->assets()) {
+      if (std::find(options.assets.begin(), options.assets.end(), name) != options.assets.end())
+        continue;
+      const auto p = old->provenance("/assets/" + name);
+      if (p && p->input_hash == lines_hash) kept.push_back(name);
+    }
+  }
+  if (anything_built) {
+    CacheWriter writer(result.cache, options.compression, options.compression_level);
+    TerminalProgress progress("writing " + result.cache);
+    uint64_t total = lines_step.built ? line_set_bytes(lines) : 0;
+    for (const BakeStep& s : asset_steps)
+      if (s.built) total += s.provenance.memory_bytes;
+    if (options.progress) writer.set_progress(progress.callback(), total);
+    if (lines_step.built) {
+      store_lines(writer, lines, lines_step.provenance);
+    } else {
+      writer.copy_group(result.cache, "/lines");
+    }
+    for (const BakeStep& s : asset_steps) {
+      if (s.built)
+        store_tubes(writer, tubes, s.provenance);
+      else
+        writer.copy_group(result.cache, "/assets/" + s.step);
+    }
+    for (const std::string& name : kept) writer.copy_group(result.cache, "/assets/" + name);
+    old.reset();
+    writer.commit();
+    result.written = true;
+    // Read back what was stored, so the report shows the stored figures (disk bytes).
+    CacheReader stored(result.cache, false);
+    if (auto p = stored.provenance("/lines")) lines_step.provenance = *p;
+    for (BakeStep& s : asset_steps)
+      if (auto p = stored.provenance("/assets/" + s.step)) s.provenance = *p;
+  }
+  result.steps.push_back(std::move(lines_step));
+  for (BakeStep& s : asset_steps) result.steps.push_back(std::move(s));
+  return result;
+}
+
+}  // namespace linebake

@@ -1,0 +1,53 @@
+#pragma once
+// bake: input -> line set -> assets, into one cache file. A step whose input and parameters
+// are unchanged (same provenance key) is reused from the existing cache, not rebuilt.
+
+#include <string>
+#include <vector>
+
+#include "cache/cache.hpp"
+#include "formats/registry.hpp"
+#include "lines/validate.hpp"
+#include "tubes/tube_builder.hpp"
+
+namespace linebake {
+
+// Assets bake knows how to build, in build order.
+const std::vector<std::string>& bakeable_assets();
+
+struct BakeOptions {
+  std::string input;             // file or synth: source
+  std::optional<Format> format;  // overrides the input's extension
+  InvalidPolicy on_invalid = InvalidPolicy::repair;
+  std::string cache;                        // output; default <input stem>.lbc.h5
+  std::vector<std::string> assets{"tubes"};
+  TubeOptions tubes;
+  Compression compression = Compression::Lz4;
+  int compression_level = -1;  // codec default
+  bool force = false;          // rebuild every step
+  bool progress = true;        // terminal progress bars (drawn only on a TTY)
+};
+
+struct BakeStep {
+  std::string step;  // "lines", "tubes"
+  bool built = false;
+  Provenance provenance;
+};
+
+struct BakeResult {
+  std::string cache;
+  bool written = false;  // false: everything was up to date, the file was not touched
+  std::vector<BakeStep> steps;
+  std::vector<std::string> notes;  // validation repairs, dropped lines
+};
+
+std::string default_cache_path(const std::string& input);
+// Throws InputError (bad input), OutputError (cache not writable) or Error (bad options).
+BakeResult bake(const BakeOptions& options);
+
+// Provenance key of the tube step for a line set with this content hash.
+std::string tubes_key(const std::string& lines_hash, const TubeOptions& tubes,
+                      Compression compression, int level);
+nlohmann::json to_json(const TubeOptions& tubes);
+
+}  // namespace linebake

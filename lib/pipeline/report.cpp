@@ -1,0 +1,163 @@
+#include "pipeline/report.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace linebake {
+
+std::string format_bytes(uint64_t bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double value = double(bytes);
+  int unit = 0;
+  while (value >= 1024 && unit < 4) value /= 1024, ++unit;
+  char text[32];
+  std::snprintf(text, sizeof text, unit == 0 ? "%.0f %s" : "%.2f %s", value, units[unit]);
+  return text;
+}
+
+CacheSummary summarize_cache(const CacheReader& cache) {
+  CacheSummary s;
+  s.path = cache.path();
+  s.name = std::filesystem::path(cache.path()).filename().string();
+  for (const char* suffix : {".lbc.h5", ".h5"}) {
+    const std::string x = suffix;
+    if (s.name.size() > x.size() && s.name.compare(s.name.size() - x.size(), x.size(), x) == 0) {
+      s.name.resize(s.name.size() - x.size());
+      break;
+    }
+  }
+  const auto lines = cache.provenance("/lines");
+  if (!lines) throw InputError(cache.path(), "group /lines", "no line set provenance");
+  s.lines = *lines;
+  for (const std::string& name : cache.assets()) {
+    if (auto p = cache.provenance("/assets/" + name)) s.assets.push_back(*p);
+  }
+  return s;
+}
+
+// Asset columns in a stable order: the paper's (tubes = RAS) first, then any others by name.
+static std::vector<std::string> asset_columns(const std::vector<CacheSummary>& caches) {
+  std::vector<std::string> order{"tubes"};
+  for (const CacheSummary& c : caches)
+    for (const Provenance& p : c.assets)
+      if (std::find(order.begin(), order.end(), p.step) == order.end()) order.push_back(p.step);
+  std::vector<std::string> present;
+  for (const std::string& name : order)
+    for (const CacheSummary& c : caches)
+      for (const Provenance& p : c.assets)
+        if (p.step == name && std::find(present.begin(), present.end(), name) == present.end())
+          present.push_back(name);
+  return present;
+}
+
+static const Provenance* find_asset(const CacheSummary& c, const std::string& step) {
+  for (const Provenance& p : c.assets)
+    if (p.step == step) return &p;
+  return nullptr;
+}
+
+static std::string seconds(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, s < 10 ? "%.2f" : "%.1f", s);
+  return text;
+}
+
+static std::string count(uint64_t n) {
+  std::string digits = std::to_string(n), out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheSummary>& caches,
+                                                        std::vector<std::string>& header) {
+  const auto columns = asset_columns(caches);
+  header = {"data set", "lines", "LS (segments)", "LM"};
+  for (const std::string& a : columns) {
+    header.push_back(a + " size");
+    header.push_back(a + " build (s)");
+    header.push_back(a + " build peak RSS");
+    header.push_back(a + " on disk");
+  }
+  std::vector<std::vector<std::string>> rows;
+  for (const CacheSummary& c : caches) {
+    std::vector<std::string> row{c.name, count(c.lines.stats.value("lines", uint64_t{0})),
+                                 count(c.lines.stats.value("segments", uint64_t{0})),
+                                 format_bytes(c.lines.memory_bytes)};
+    for (const std::string& a : columns) {
+      const Provenance* p = find_asset(c, a);
+      if (!p) {
+        row.insert(row.end(), 4, "-");
+        continue;
+      }
+      row.push_back(format_bytes(p->memory_bytes));
+      row.push_back(seconds(p->build.wall_s));
+      row.push_back(format_bytes(p->build.peak_rss));
+      row.push_back(format_bytes(p->disk_bytes) + " (" + p->compression + ")");
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+std::string report_markdown(const std::vector<CacheSummary>& caches) {
+  std::vector<std::string> header;
+  const auto rows = table_rows(caches, header);
+  std::ostringstream out;
+  out << "|";
+  for (const auto& h : header) out << " " << h << " |";
+  out << "\n|";
+  for (size_t i = 0; i < header.size(); ++i) out << (i ? " ---: |" : " --- |");
+  out << "\n";
+  for (const auto& row : rows) {
+    out << "|";
+    for (const auto& cell : row) out << " " << cell << " |";
+    out << "\n";
+  }
+  return out.str();
+}
+
+std::string report_text(const std::vector<CacheSummary>& caches) {
+  std::ostringstream out;
+  for (const CacheSummary& c : caches) {
+    out << c.name << " (" << c.path << ")\n";
+    out << "  lines           " << count(c.lines.stats.value("lines", uint64_t{0})) << "\n"
+        << "  LS (segments)   " << count(c.lines.stats.value("segments", uint64_t{0})) << "\n"
+        << "  LM (line model) " << format_bytes(c.lines.memory_bytes) << " in memory, "
+        << format_bytes(c.lines.disk_bytes) << " on disk (" << c.lines.compression << ")\n";
+    for (const Provenance& p : c.assets) {
+      out << "  " << p.step << "\n"
+          << "    size          " << format_bytes(p.memory_bytes) << " in memory, "
+          << format_bytes(p.disk_bytes) << " on disk (" << p.compression << ")\n"
+          << "    build         " << seconds(p.build.wall_s) << " s wall, "
+          << seconds(p.build.cpu_s) << " s CPU, " << p.threads << " threads\n"
+          << "    peak RSS      " << format_bytes(p.build.peak_rss) << " (process held "
+          << format_bytes(p.build.rss_before) << " before"
+          << (p.build.peak_is_step_local ? "" : "; peak since process start") << ")\n";
+      for (const auto& [key, value] : p.stats.items())
+        out << "    " << key << std::string(key.size() < 14 ? 14 - key.size() : 1, ' ')
+            << value.dump() << "\n";
+      out << "    built         " << p.created << " by linebake " << p.linebake_version << "\n";
+    }
+  }
+  return out.str();
+}
+
+nlohmann::json report_json(const std::vector<CacheSummary>& caches) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const CacheSummary& c : caches) {
+    nlohmann::json assets = nlohmann::json::object();
+    for (const Provenance& p : c.assets) assets[p.step] = to_json(p);
+    out.push_back({{"name", c.name}, {"path", c.path}, {"lines", to_json(c.lines)},
+                   {"assets", assets}});
+  }
+  return out;
+}
+
+}  // namespace linebake

@@ -1,0 +1,29 @@
+#pragma once
+// The build report: the paper's Table 1 for one or more caches (segments, line model size,
+// each representation's size and build time), plus build memory peaks and on-disk sizes.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "cache/cache.hpp"
+
+namespace linebake {
+
+struct CacheSummary {
+  std::string path;
+  std::string name;  // the data set: cache file name without .lbc.h5
+  Provenance lines;
+  std::vector<Provenance> assets;
+};
+
+CacheSummary summarize_cache(const CacheReader& cache);
+
+nlohmann::json report_json(const std::vector<CacheSummary>& caches);
+std::string report_markdown(const std::vector<CacheSummary>& caches);
+std::string report_text(const std::vector<CacheSummary>& caches);
+
+// "1.23 GiB", "35.3 MiB", "512 KiB", "12 B".
+std::string format_bytes(uint64_t bytes);
+
+}  // namespace linebake

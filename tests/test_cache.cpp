@@ -1,0 +1,308 @@
+// Asset cache: bit-exact round trips for every compression, zero-copy loads, integrity checks,
+// and bake's reuse of unchanged steps.
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "pipeline/bake.hpp"
+#include "test_util.hpp"
+
+namespace linebake {
+namespace {
+
+using test::TempDir;
+
+LineSet curly_lines(int count) {
+  LineSet lines;
+  lines.attributes.push_back({"speed", {}});
+  lines.line_attributes.push_back({"seed/id %", {}});
+  for (int l = 0; l < count; ++l) {
+    const int points = 2 + (l * 31) % 17;
+    for (int i = 0; i < points; ++i) {
+      const double t = 0.4 * i + 0.01 * l;
+      lines.append_point(float(std::cos(t) + l % 10), float(std::sin(t) + l / 10), float(0.3 * t));
+      lines.attributes[0].values.push_back(float(t * t));
+    }
+    lines.line_attributes[0].values.push_back(float(l));
+    lines.end_line();
+  }
+  lines.metadata["units"] = "m";
+  return lines;
+}
+
+template <class A>
+bool same_array(const A& a, const A& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.bytes()) == 0;
+}
+
+void expect_same_mesh(const TubeMesh& a, const TubeMesh& b) {
+  EXPECT_EQ(a.sides, b.sides);
+  EXPECT_EQ(a.radius, b.radius);
+  EXPECT_EQ(a.normals, b.normals);
+  EXPECT_EQ(a.attribute, b.attribute);
+  EXPECT_EQ(a.attribute_range, b.attribute_range);
+  ASSERT_EQ(a.chunks.size(), b.chunks.size());
+  for (size_t c = 0; c < a.chunks.size(); ++c) {
+    EXPECT_EQ(a.chunks[c].first_line, b.chunks[c].first_line);
+    EXPECT_EQ(a.chunks[c].line_count, b.chunks[c].line_count);
+    EXPECT_TRUE(same_array(a.chunks[c].positions, b.chunks[c].positions));
+    EXPECT_TRUE(same_array(a.chunks[c].normals, b.chunks[c].normals));
+    EXPECT_TRUE(same_array(a.chunks[c].normals_oct, b.chunks[c].normals_oct));
+    EXPECT_TRUE(same_array(a.chunks[c].attribute, b.chunks[c].attribute));
+    EXPECT_TRUE(same_array(a.chunks[c].indices, b.chunks[c].indices));
+  }
+}
+
+Provenance provenance_for(const std::string& step) {
+  Provenance p;
+  p.step = step;
+  p.key = "k";
+  p.input_hash = "h";
+  return p;
+}
+
+void write_cache(const std::string& path, const LineSet& lines, const TubeMesh& mesh,
+                 Compression compression) {
+  CacheWriter writer(path, compression);
+  store_lines(writer, lines, provenance_for("lines"));
+  store_tubes(writer, mesh, provenance_for("tubes"));
+  writer.commit();
+}
+
+class CacheRoundTrip : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CacheRoundTrip, BitExact) {
+  TempDir dir;
+  const Compression compression = parse_compression(GetParam());
+  const LineSet lines = curly_lines(300);
+  for (NormalEncoding normals : {NormalEncoding::Float32, NormalEncoding::Oct16}) {
+    TubeOptions o;
+    o.normals = normals;
+    o.max_chunk_bytes = 64 * 1024;  // several chunks
+    const TubeMesh mesh = build_tubes(lines, o);
+    ASSERT_GT(mesh.chunks.size(), 2u);
+    const std::string path = dir.file("c.lbc.h5");
+    write_cache(path, lines, mesh, compression);
+    const CacheReader cache(path);
+    const LineSet back = load_lines(cache);
+    EXPECT_TRUE(back.same_data(lines));
+    EXPECT_EQ(back.metadata, lines.metadata);
+    EXPECT_EQ(content_hash(back), content_hash(lines));
+    const TubeMesh loaded = load_tubes(cache);
+    expect_same_mesh(mesh, loaded);
+    const auto p = cache.provenance(kTubesGroup);
+    ASSERT_TRUE(p);
+    EXPECT_EQ(p->memory_bytes, mesh.bytes());
+    if (compression == Compression::None) {
+      // Zero-copy: the arrays are views of one mapping of the file.
+      EXPECT_EQ(loaded.chunks[0].positions.owner(), loaded.chunks[1].indices.owner());
+      EXPECT_GE(p->disk_bytes, mesh.bytes());
+    } else {
+      EXPECT_NE(loaded.chunks[0].positions.owner(), loaded.chunks[1].indices.owner());
+      EXPECT_LT(p->disk_bytes, mesh.bytes());  // curly lines compress
+    }
+  }
+  EXPECT_EQ(dir.entries().size(), 1u);  // no temporary left behind
+}
+
+INSTANTIATE_TEST_SUITE_P(Compressions, CacheRoundTrip,
+                         ::testing::Values("none", "deflate", "lz4", "blosc-zstd"));
+
+// File offset of a dataset's first stored byte (its first chunk where chunked).
+uint64_t data_offset(const std::string& path, const std::string& dataset) {
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
+  haddr_t offset = H5Dget_offset(d);
+  if (offset == HADDR_UNDEF) {
+    hsize_t coords[2];
+    unsigned mask;
+    hsize_t size = 0;
+    const hid_t space = H5Dget_space(d);
+    H5Dget_chunk_info(d, space, 0, coords, &mask, &offset, &size);
+    H5Sclose(space);
+    offset += size / 2;  // inside the compressed bytes
+  } else {
+    offset += 100;
+  }
+  H5Dclose(d);
+  H5Fclose(f);
+  return offset;
+}
+
+void flip_byte(const std::string& path, uint64_t offset) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(std::streamoff(offset));
+  char c = 0;
+  f.read(&c, 1);
+  c = static_cast<char>(c ^ 0x5A);
+  f.seekp(std::streamoff(offset));
+  f.write(&c, 1);
+}
+
+void expect_input_error(const std::function<void()>& f, const std::string& part1,
+                        const std::string& part2) {
+  try {
+    f();
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(part1), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(part2), std::string::npos) << e.what();
+  }
+}
+
+class CacheCorruption : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(CacheCorruption, FlippedByteIsDetectedAndNamed) {
+  TempDir dir;
+  const LineSet lines = curly_lines(50);
+  const TubeMesh mesh = build_tubes(lines, {});
+  const std::string path = dir.file("c.lbc.h5");
+  write_cache(path, lines, mesh, parse_compression(GetParam()));
+  const std::string dataset = "/assets/tubes/chunk_000000/positions";
+  flip_byte(path, data_offset(path, dataset));
+  const CacheReader cache(path);
+  EXPECT_NO_THROW(load_lines(cache));  // other datasets are fine
+  expect_input_error([&] { load_tubes(cache); }, path, "dataset " + dataset);
+}
+
+INSTANTIATE_TEST_SUITE_P(Compressions, CacheCorruption,
+                         ::testing::Values("none", "deflate", "lz4", "blosc-zstd"));
+
+TEST(Cache, TruncatedFileIsAnError) {
+  TempDir dir;
+  const LineSet lines = curly_lines(200);
+  const TubeMesh mesh = build_tubes(lines, {});
+  for (const char* compression : {"none", "lz4"}) {
+    const std::string path = dir.file(std::string("c-") + compression + ".lbc.h5");
+    write_cache(path, lines, mesh, parse_compression(compression));
+    const auto size = std::filesystem::file_size(path);
+    std::filesystem::resize_file(path, size / 2);
+    try {
+      const CacheReader cache(path);
+      load_lines(cache);
+      load_tubes(cache);
+      ADD_FAILURE() << "truncated cache loaded";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos);
+    }
+  }
+}
+
+TEST(Cache, ForeignFilesAreRefused) {
+  TempDir dir;
+  test::write_text(dir.file("text.lbc.h5"), "not hdf5 at all");
+  expect_input_error([&] { CacheReader(dir.file("text.lbc.h5")); }, "text.lbc.h5", "not an HDF5");
+  write_line_set(curly_lines(3), dir.file("lines.h5"));  // HDF5, but a line set
+  expect_input_error([&] { CacheReader(dir.file("lines.h5")); }, "lines.h5", "not a linebake cache");
+  expect_input_error([&] { CacheReader(dir.file("missing.lbc.h5")); }, "missing", "no such");
+  CacheWriter writer(dir.file("empty.lbc.h5"), Compression::None);
+  writer.commit();
+  const CacheReader empty(dir.file("empty.lbc.h5"));
+  expect_input_error([&] { load_tubes(empty); }, "empty.lbc.h5", "no tube mesh");
+}
+
+TEST(Cache, LinkNamesRoundTrip) {
+  for (const std::string name : {"plain", "a/b", "100%", ".hidden", "", "x%2Fy"}) {
+    const std::string encoded = encode_link_name(name);
+    EXPECT_EQ(encoded.find('/'), std::string::npos);
+    EXPECT_NE(encoded, ".");
+    EXPECT_EQ(decode_link_name(encoded), name);
+  }
+}
+
+// --- bake ---
+
+BakeOptions small_bake(const TempDir& dir) {
+  write_line_set(curly_lines(120), dir.file("in.obj"));
+  BakeOptions o;
+  o.input = dir.file("in.obj");
+  o.cache = dir.file("in.lbc.h5");
+  o.progress = false;
+  return o;
+}
+
+TEST(Bake, UnchangedStepsAreNotRebuilt) {
+  TempDir dir;
+  BakeOptions o = small_bake(dir);
+  BakeResult first = bake(o);
+  ASSERT_EQ(first.steps.size(), 2u);
+  EXPECT_TRUE(first.written);
+  EXPECT_TRUE(first.steps[0].built && first.steps[1].built);
+  const auto stamp = std::filesystem::last_write_time(o.cache);
+
+  BakeResult again = bake(o);
+  EXPECT_FALSE(again.written);
+  EXPECT_FALSE(again.steps[0].built || again.steps[1].built);
+  EXPECT_EQ(std::filesystem::last_write_time(o.cache), stamp);
+  EXPECT_EQ(again.steps[1].provenance.key, first.steps[1].provenance.key);
+
+  o.tubes.sides = 5;  // new parameters: tubes rebuilt from the cached lines
+  BakeResult changed = bake(o);
+  EXPECT_TRUE(changed.written);
+  EXPECT_FALSE(changed.steps[0].built);
+  EXPECT_TRUE(changed.steps[1].built);
+  EXPECT_EQ(load_tubes(CacheReader(o.cache)).sides, 5);
+
+  o.force = true;
+  BakeResult forced = bake(o);
+  EXPECT_TRUE(forced.steps[0].built && forced.steps[1].built);
+
+  o.force = false;
+  LineSet other = curly_lines(121);  // new input bytes: everything rebuilt
+  write_line_set(other, o.input);
+  BakeResult fresh = bake(o);
+  EXPECT_TRUE(fresh.steps[0].built && fresh.steps[1].built);
+  EXPECT_TRUE(load_lines(CacheReader(o.cache)).same_data(read_line_set(o.input)));
+  EXPECT_EQ(dir.entries().size(), 2u);  // input and cache, no temporaries
+}
+
+TEST(Bake, ProvenanceRecordsTheBuild) {
+  TempDir dir;
+  BakeOptions o = small_bake(dir);
+  o.compression = Compression::Deflate;
+  bake(o);
+  const CacheReader cache(o.cache);
+  const auto lines = cache.provenance("/lines");
+  const auto tubes = cache.provenance(kTubesGroup);
+  ASSERT_TRUE(lines && tubes);
+  const LineSet stored = load_lines(cache);
+  EXPECT_EQ(tubes->input_hash, content_hash(stored));
+  EXPECT_EQ(lines->stats["segments"].get<uint64_t>(), stored.segment_count());
+  EXPECT_EQ(tubes->parameters["sides"], 3);
+  EXPECT_EQ(tubes->linebake_version, LINEBAKE_VERSION);
+  EXPECT_EQ(tubes->compression, "deflate");
+  const TubeMesh mesh = load_tubes(cache);
+  EXPECT_EQ(tubes->memory_bytes, mesh.bytes());
+  uint64_t disk = 0;
+  for (size_t c = 0; c < mesh.chunks.size(); ++c)
+    for (const char* d : {"positions", "normals", "attribute", "indices"})
+      disk += cache.stored_bytes("/assets/tubes/chunk_00000" + std::to_string(c) + "/" + d);
+  EXPECT_EQ(tubes->disk_bytes, disk);
+  EXPECT_GT(tubes->build.wall_s, 0);
+  EXPECT_GE(tubes->build.peak_rss, tubes->build.rss_before);
+  EXPECT_GT(tubes->build.peak_rss, 0u);
+  EXPECT_EQ(tubes->stats["triangles"].get<uint64_t>(), mesh.triangle_count());
+}
+
+TEST(Bake, BadInputLeavesTheOldCacheAlone) {
+  TempDir dir;
+  BakeOptions o = small_bake(dir);
+  bake(o);
+  const auto size = std::filesystem::file_size(o.cache);
+  test::write_text(o.input, "v 1 2 3\nl 1 9\n");  // index out of range
+  o.on_invalid = InvalidPolicy::reject;
+  EXPECT_THROW(bake(o), InputError);
+  EXPECT_EQ(std::filesystem::file_size(o.cache), size);
+  EXPECT_EQ(dir.entries().size(), 2u);
+}
+
+}  // namespace
+}  // namespace linebake

@@ -1,0 +1,105 @@
+// linebake bake <input> -o <cache>: build assets into the cache and print the build report.
+// linebake report <cache>...: the paper's Table 1 for the cached data.
+
+#include <iostream>
+
+#include "cache/cache.hpp"
+#include "commands.hpp"
+#include "core/error.hpp"
+#include "pipeline/bake.hpp"
+#include "pipeline/report.hpp"
+
+namespace linebake::cli {
+
+Command add_bake(CLI::App& app) {
+  auto* sub = app.add_subcommand("bake", "Build renderable assets (tubes) into an asset cache");
+  struct Args {
+    BakeOptions options;
+    std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";
+    std::vector<float> attribute_range;
+    bool json = false;
+  };
+  auto args = std::make_shared<Args>();
+  BakeOptions& o = args->options;
+  sub->add_option("input", o.input, "Input file, or synth:<name>?scale=..&seed=..")->required();
+  sub->add_option("-o,--output", o.cache, "Cache file (default: <input name>.lbc.h5)");
+  sub->add_option("--from", args->from, "Input format, overriding the extension");
+  sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
+      ->check(CLI::IsMember({"reject", "repair"}));
+  sub->add_option("--assets", o.assets, "Assets to build (default: tubes)")->delimiter(',');
+  sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
+      ->check(CLI::Range(3, 32));
+  sub->add_option("--radius", o.tubes.radius,
+                  "Tube radius as a fraction of the bounding-box diagonal (default 0.001)")
+      ->check(CLI::PositiveNumber);
+  sub->add_flag("--radius-absolute", o.tubes.radius_absolute,
+                "--radius is in world units, not a fraction of the diagonal");
+  sub->add_option("--radius-attribute", o.tubes.radius_attribute,
+                  "Per-point radius: radius * value / max(value) of this vertex attribute");
+  sub->add_flag("--caps", o.tubes.caps, "Close the tube ends");
+  sub->add_option("--normals", args->normals, "float32 (default) | oct16")
+      ->check(CLI::IsMember({"float32", "oct16"}));
+  sub->add_option("--attribute", o.tubes.attribute,
+                  "Attribute stored per vertex (default: the first vertex attribute; none)");
+  sub->add_option("--attribute-range", args->attribute_range,
+                  "lo,hi mapped to unorm16 0..65535 (default: the attribute's range)")
+      ->delimiter(',')
+      ->expected(2);
+  sub->add_option("--chunk-bytes", o.tubes.max_chunk_bytes,
+                  "Byte budget per tube chunk (default 4 GiB)")
+      ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 40));
+  sub->add_option("--compression", args->compression, "none | deflate | lz4 (default) | blosc-zstd")
+      ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
+  sub->add_option("--compression-level", o.compression_level,
+                  "Codec level: deflate 1-9 (default 4), blosc-zstd 1-9 (default 5)")
+      ->check(CLI::Range(1, 9));
+  sub->add_flag("--force", o.force, "Rebuild every step even if the cache is up to date");
+  sub->add_flag("--json", args->json, "Print the report as JSON");
+  return [args] {
+    BakeOptions options = args->options;
+    if (!args->from.empty()) options.format = parse_format(args->from);
+    options.on_invalid = parse_invalid_policy(args->on_invalid);
+    options.compression = parse_compression(args->compression);
+    options.tubes.normals = parse_normal_encoding(args->normals);
+    if (args->attribute_range.size() == 2)
+      options.tubes.attribute_range =
+          std::array<float, 2>{args->attribute_range[0], args->attribute_range[1]};
+    const BakeResult result = bake(options);
+    for (const std::string& note : result.notes) std::cerr << "linebake: " << note << "\n";
+    for (const BakeStep& step : result.steps)
+      std::cerr << "linebake: " << step.step << ": "
+                << (step.built ? "built" : "up to date, reused") << "\n";
+    if (!result.written) std::cerr << "linebake: " << result.cache << " is up to date\n";
+    const CacheReader cache(result.cache, false);
+    const std::vector<CacheSummary> summary{summarize_cache(cache)};
+    if (args->json)
+      std::cout << report_json(summary).dump(2) << "\n";
+    else
+      std::cout << report_text(summary);
+  };
+}
+
+Command add_report(CLI::App& app) {
+  auto* sub = app.add_subcommand("report", "Table 1 for one or more caches: sizes, build times");
+  struct Args {
+    std::vector<std::string> caches;
+    bool json = false, markdown = false;
+  };
+  auto args = std::make_shared<Args>();
+  sub->add_option("caches", args->caches, "Cache files (.lbc.h5)")->required();
+  auto* json = sub->add_flag("--json", args->json, "All figures as JSON");
+  sub->add_flag("--markdown", args->markdown, "One Markdown table row per cache")->excludes(json);
+  return [args] {
+    std::vector<CacheSummary> summaries;
+    for (const std::string& path : args->caches)
+      summaries.push_back(summarize_cache(CacheReader(path, false)));
+    if (args->json)
+      std::cout << report_json(summaries).dump(2) << "\n";
+    else if (args->markdown)
+      std::cout << report_markdown(summaries);
+    else
+      std::cout << report_text(summaries);
+  };
+}
+
+}  // namespace linebake::cli
