@@ -168,8 +168,10 @@ void Builder::resolve_attributes() {
 
 // Tangents bisect the unit directions of the two segments at a point (one-sided at the ends;
 // the incoming direction where the line turns back on itself). Normals are rotation-minimising
-// by double reflection (Wang et al. 2008), re-orthogonalised each step so float rounding cannot
-// tilt the frame off the tangent. One reciprocal per normalisation: divisions dominate here.
+// by double reflection (Wang et al. 2008). Reflections preserve length and orthogonality, so
+// the serial chain from point to point carries only the two reflections (renormalised every 32
+// steps against float drift); projecting onto the tangent's plane and normalising happen off
+// the chain, where they overlap across points instead of adding to its latency.
 void Builder::compute_frames(Scratch& s) const {
   const size_t m = s.p.size();
   s.t.resize(m);
@@ -186,21 +188,27 @@ void Builder::compute_frames(Scratch& s) const {
     s.t[i] = unit_or(incoming + outgoing, incoming);
     previous = outgoing;
   }
-  s.n[0] = perpendicular(s.t[0]);
+  vec3 r = perpendicular(s.t[0]);
+  s.n[0] = r;
   for (size_t i = 0; i + 1 < m; ++i) {
+    // First reflection in the plane bisecting p[i], p[i+1]; second in the plane that maps the
+    // reflected tangent onto t[i+1]. A zero-length step (min_point_distance 0) skips the first.
     const vec3 v1 = s.p[i + 1] - s.p[i];
     const float c1 = glm::dot(v1, v1);
-    // A zero-length step (only with min_point_distance 0) keeps the frame.
     const float k1 = c1 > 1e-30f ? 2 / c1 : 0.0f;
-    const vec3 r_l = s.n[i] - (k1 * glm::dot(v1, s.n[i])) * v1;
     const vec3 t_l = s.t[i] - (k1 * glm::dot(v1, s.t[i])) * v1;
     const vec3 v2 = s.t[i + 1] - t_l;
     const float c2 = glm::dot(v2, v2);
-    vec3 r = c2 > 1e-20f ? r_l - ((2 / c2) * glm::dot(v2, r_l)) * v2 : r_l;
-    const vec3 t = s.t[i + 1];
-    r -= glm::dot(r, t) * t;
-    const float len2 = glm::dot(r, r);
-    s.n[i + 1] = len2 > 1e-30f ? r * (1 / std::sqrt(len2)) : perpendicular(t);
+    const float k2 = c2 > 1e-20f ? 2 / c2 : 0.0f;
+    const vec3 r_l = r - (k1 * glm::dot(v1, r)) * v1;
+    r = r_l - (k2 * glm::dot(v2, r_l)) * v2;
+    if ((i & 31) == 31) r = unit_or(r - glm::dot(r, s.t[i + 1]) * s.t[i + 1], r);
+    s.n[i + 1] = r;
+  }
+  for (size_t i = 1; i < m; ++i) {
+    const vec3 t = s.t[i], q = s.n[i] - glm::dot(s.n[i], t) * t;
+    const float len2 = glm::dot(q, q);
+    s.n[i] = len2 > 1e-30f ? q * (1 / std::sqrt(len2)) : perpendicular(t);
   }
 }
 
@@ -241,20 +249,37 @@ void Builder::write_line(size_t line, Scratch& s) const {
   std::array<float, 32> cos_j, sin_j;
   std::copy(cos_.begin(), cos_.end(), cos_j.begin());
   std::copy(sin_.begin(), sin_.end(), sin_j.begin());
+  // Scalar components, not vec3 copies: GCC spills 12-byte structs through the stack here and
+  // the partial reloads stall store forwarding (measured: ~15% of the build).
   for (size_t i = 0; i < m; ++i) {
-    const vec3 p = s.p[i], t = s.t[i], nn = s.n[i];
-    const vec3 b = glm::cross(t, nn);
+    const float px = s.p[i].x, py = s.p[i].y, pz = s.p[i].z;
+    const float tx = s.t[i].x, ty = s.t[i].y, tz = s.t[i].z;
+    const float nx = s.n[i].x, ny = s.n[i].y, nz = s.n[i].z;
+    const float bx = ty * nz - tz * ny, by = tz * nx - tx * nz, bz = tx * ny - ty * nx;
     float r = radius;
     if (radius_values_) {
       const float v = (*radius_values_)[s.source[i]];
       r *= v > 0 && std::isfinite(v) ? v / radius_max : 0.01f;
     }
-    const uint16_t a = !attribute_          ? 0
-                       : attribute_per_line_ ? line_value
-                                             : to_unorm16((*attribute_)[s.source[i]], range);
     for (uint64_t j = 0; j < n; ++j) {
-      const vec3 normal = cos_j[j] * nn + sin_j[j] * b;
-      emit(p + r * normal, normal, a);
+      const float c = cos_j[j], sn = sin_j[j];
+      const float ox = c * nx + sn * bx, oy = c * ny + sn * by, oz = c * nz + sn * bz;
+      pos[0] = px + r * ox, pos[1] = py + r * oy, pos[2] = pz + r * oz;
+      pos += 3;
+      if (nrm) {
+        nrm[0] = ox, nrm[1] = oy, nrm[2] = oz;
+        nrm += 3;
+      } else {
+        const auto e = encode_octahedral(ox, oy, oz);
+        oct[0] = e[0], oct[1] = e[1];
+        oct += 2;
+      }
+    }
+    if (attr) {
+      const uint16_t a = attribute_per_line_
+                             ? line_value
+                             : to_unorm16((*attribute_)[s.source[i]], range);
+      for (uint64_t j = 0; j < n; ++j) *attr++ = a;
     }
   }
   if (layout_.caps) {
