@@ -68,5 +68,28 @@ check "unwritable output exits 3" exit_code 3 "$bin" convert "$tmp/c.binlines" "
 check "unknown output format" exit_code 4 "$bin" convert "$tmp/c.binlines" "$tmp/x.unknown"
 check "unknown synth set is a usage error" exit_code 1 "$bin" synth galaxy -o "$tmp/g.obj"
 
+# bake / report / export / bench
+check "bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' > '$tmp/bake.txt'"
+check "bake prints the report" grep -q "LS (segments)   495,000" "$tmp/bake.txt"
+check "second bake reuses" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' 2>&1 >/dev/null | grep -q 'tubes: up to date, reused'"
+check "--force rebuilds" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --force 2>&1 >/dev/null | grep -q 'tubes: built'"
+check "new sides rebuild tubes only" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: up to date, reused linebake: tubes: built'"
+check "report markdown" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep -q '^| c | 5,153 | 495,000 |'"
+check "report json" bash -c "'$bin' report '$tmp/c.lbc.h5' --json | grep -q '\"triangles\": 3960000'"
+check "report names h5dump-readable layout" bash -c "h5dump -H '$tmp/c.lbc.h5' | grep -q 'DATASET \"positions\"'"
+check "export glb" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/c.glb" --lines
+check "export draco" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/cd.glb" --draco --draco-bits 12
+check "draco is smaller" bash -c "[ \$(stat -c %s '$tmp/cd.glb') -lt \$(stat -c %s '$tmp/c.glb') ]"
+check "bake of a bad input exits 2" exit_code 2 "$bin" bake "$tmp/bad.obj" -o "$tmp/bad.lbc.h5" --on-invalid reject
+check "no cache after bad input" test ! -e "$tmp/bad.lbc.h5"
+head -c 3000 "$tmp/c.lbc.h5" > "$tmp/trunc.lbc.h5"
+check "truncated cache exits 2" exit_code 2 "$bin" export "$tmp/trunc.lbc.h5" --glb "$tmp/t.glb"
+check "truncated cache error names the file" bash -c "'$bin' report '$tmp/trunc.lbc.h5' 2>&1 | grep -q 'trunc.lbc.h5'"
+check "no glb after a bad cache" test ! -e "$tmp/t.glb"
+check "report of a non-cache exits 2" exit_code 2 "$bin" report "$tmp/c.h5"
+check "unknown asset" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/u.lbc.h5" --assets voxels2
+check "bench tubes" bash -c "'$bin' bench tubes --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"segments\": 495000'"
+check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
+
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -22,5 +22,6 @@ Command add_synth(CLI::App& app);
 Command add_bench(CLI::App& app);
 Command add_bake(CLI::App& app);
 Command add_report(CLI::App& app);
+Command add_export(CLI::App& app);
 
 }  // namespace linebake::cli

@@ -1,0 +1,199 @@
+// glb export: the file parsed independently (GLB chunks + JSON), every array compared with the
+// mesh it came from; Draco primitives decoded with libdraco.
+
+#include <draco/compression/decode.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "formats/gltf.hpp"
+#include "test_util.hpp"
+#include "tubes/tube_builder.hpp"
+
+namespace linebake {
+namespace {
+
+using nlohmann::json;
+
+struct Glb {
+  json doc;
+  std::vector<unsigned char> bin;
+};
+
+uint32_t u32(const std::vector<unsigned char>& b, size_t at) {
+  uint32_t v;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+
+Glb read_glb(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<unsigned char> b((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_GE(b.size(), 20u);
+  EXPECT_EQ(std::memcmp(b.data(), "glTF", 4), 0);
+  EXPECT_EQ(u32(b, 4), 2u);
+  EXPECT_EQ(u32(b, 8), b.size());
+  const uint32_t json_length = u32(b, 12);
+  EXPECT_EQ(u32(b, 16), 0x4E4F534Au);  // "JSON"
+  EXPECT_EQ(json_length % 4, 0u);
+  Glb glb;
+  glb.doc = json::parse(b.begin() + 20, b.begin() + 20 + json_length);
+  const size_t bin_at = 20 + json_length;
+  if (bin_at < b.size()) {
+    EXPECT_EQ(u32(b, bin_at + 4), 0x004E4942u);  // "BIN\0"
+    glb.bin.assign(b.begin() + bin_at + 8, b.begin() + bin_at + 8 + u32(b, bin_at));
+  }
+  return glb;
+}
+
+// Bytes of an accessor's elements, de-strided.
+template <class T>
+std::vector<T> accessor_values(const Glb& glb, int index, int components) {
+  const json& a = glb.doc["accessors"][index];
+  const json& v = glb.doc["bufferViews"][a["bufferView"].get<int>()];
+  const size_t stride = v.value("byteStride", size_t(sizeof(T) * components));
+  const size_t base = v.value("byteOffset", size_t{0}) + a.value("byteOffset", size_t{0});
+  const size_t count = a["count"];
+  std::vector<T> out(count * components);
+  for (size_t i = 0; i < count; ++i)
+    std::memcpy(&out[i * components], glb.bin.data() + base + i * stride, sizeof(T) * components);
+  return out;
+}
+
+LineSet spiral_lines(int count) {
+  LineSet lines;
+  lines.attributes.push_back({"temperature", {}});
+  for (int l = 0; l < count; ++l) {
+    for (int i = 0; i < 20 + l % 7; ++i) {
+      const double t = 0.3 * i;
+      lines.append_point(float(std::cos(t) + 3 * l), float(std::sin(t)), float(0.1 * t * l));
+      lines.attributes[0].values.push_back(float(l * 100 + i));
+    }
+    lines.end_line();
+  }
+  return lines;
+}
+
+TEST(Gltf, PlainExportHoldsTheMeshExactly) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(40);
+  TubeOptions o;
+  o.max_chunk_bytes = 40000;  // several chunks -> several primitives
+  const TubeMesh mesh = build_tubes(lines, o);
+  ASSERT_GT(mesh.chunks.size(), 2u);
+  write_glb(dir.file("t.glb"), &mesh, &lines);
+  const Glb glb = read_glb(dir.file("t.glb"));
+  EXPECT_EQ(glb.doc["asset"]["version"], "2.0");
+  const json& tubes = glb.doc["meshes"][0];
+  EXPECT_EQ(tubes["extras"]["linebake_attribute"], "temperature");
+  EXPECT_FLOAT_EQ(tubes["extras"]["linebake_attribute_range"][1].get<float>(),
+                  mesh.attribute_range[1]);
+  ASSERT_EQ(tubes["primitives"].size(), mesh.chunks.size());
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) {
+    const json& p = tubes["primitives"][c];
+    const TubeChunk& chunk = mesh.chunks[c];
+    EXPECT_EQ(p["mode"], 4);
+    const auto pos = accessor_values<float>(glb, p["attributes"]["POSITION"], 3);
+    EXPECT_EQ(std::memcmp(pos.data(), chunk.positions.data(), chunk.positions.bytes()), 0);
+    const auto nrm = accessor_values<float>(glb, p["attributes"]["NORMAL"], 3);
+    EXPECT_EQ(std::memcmp(nrm.data(), chunk.normals.data(), chunk.normals.bytes()), 0);
+    const auto attr = accessor_values<uint16_t>(glb, p["attributes"]["_ATTRIBUTE"], 1);
+    EXPECT_EQ(std::memcmp(attr.data(), chunk.attribute.data(), chunk.attribute.bytes()), 0);
+    EXPECT_TRUE(glb.doc["accessors"][p["attributes"]["_ATTRIBUTE"].get<int>()]["normalized"]);
+    const auto idx = accessor_values<uint32_t>(glb, p["indices"], 1);
+    EXPECT_EQ(std::memcmp(idx.data(), chunk.indices.data(), chunk.indices.bytes()), 0);
+    // POSITION min/max are required and must bound the data.
+    const json& a = glb.doc["accessors"][p["attributes"]["POSITION"].get<int>()];
+    for (size_t v = 0; v < chunk.vertex_count(); ++v)
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_GE(chunk.positions[3 * v + k], a["min"][k].get<float>());
+        EXPECT_LE(chunk.positions[3 * v + k], a["max"][k].get<float>());
+      }
+  }
+  // Raw lines: one LINE_STRIP per polyline over a shared, strided view.
+  const json& strips = glb.doc["meshes"][1]["primitives"];
+  ASSERT_EQ(strips.size(), lines.line_count());
+  for (size_t l = 0; l < lines.line_count(); ++l) {
+    EXPECT_EQ(strips[l]["mode"], 3);
+    const auto pos = accessor_values<float>(glb, strips[l]["attributes"]["POSITION"], 3);
+    EXPECT_EQ(std::memcmp(pos.data(), lines.positions.data() + 3 * lines.line_offsets[l],
+                          pos.size() * 4),
+              0);
+  }
+}
+
+double surface_area(const float* p, const uint32_t* idx, size_t triangles) {
+  double area = 0;
+  for (size_t t = 0; t < triangles; ++t) {
+    const float* a = p + 3 * idx[3 * t];
+    const float* b = p + 3 * idx[3 * t + 1];
+    const float* c = p + 3 * idx[3 * t + 2];
+    const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                         u[0] * v[1] - u[1] * v[0]};
+    area += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  }
+  return area;
+}
+
+TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(30);
+  TubeOptions o;
+  o.sides = 6;
+  o.caps = true;
+  o.max_chunk_bytes = 60000;
+  const TubeMesh mesh = build_tubes(lines, o);
+  GltfOptions g;
+  g.draco = true;
+  write_glb(dir.file("d.glb"), &mesh, nullptr, g);
+  const Glb glb = read_glb(dir.file("d.glb"));
+  EXPECT_EQ(glb.doc["extensionsRequired"][0], "KHR_draco_mesh_compression");
+  const json& prims = glb.doc["meshes"][0]["primitives"];
+  ASSERT_EQ(prims.size(), mesh.chunks.size());
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) {
+    const TubeChunk& chunk = mesh.chunks[c];
+    const json& ext = prims[c]["extensions"]["KHR_draco_mesh_compression"];
+    const json& view = glb.doc["bufferViews"][ext["bufferView"].get<int>()];
+    draco::DecoderBuffer buffer;
+    buffer.Init(reinterpret_cast<const char*>(glb.bin.data()) + view.value("byteOffset", 0),
+                view["byteLength"].get<size_t>());
+    draco::Decoder decoder;
+    auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+    ASSERT_TRUE(decoded.ok());
+    const draco::Mesh& d = *decoded.value();
+    EXPECT_EQ(d.num_faces(), chunk.triangle_count());
+    EXPECT_EQ(glb.doc["accessors"][prims[c]["indices"].get<int>()]["count"].get<size_t>(),
+              3 * d.num_faces());
+    EXPECT_EQ(glb.doc["accessors"][prims[c]["attributes"]["POSITION"].get<int>()]["count"],
+              d.num_points());
+    // Same surface (order-free comparison), within 14-bit position quantisation.
+    const draco::PointAttribute* pa =
+        d.GetAttributeByUniqueId(ext["attributes"]["POSITION"].get<uint32_t>());
+    ASSERT_NE(pa, nullptr);
+    std::vector<float> pos(3 * d.num_points());
+    for (uint32_t v = 0; v < d.num_points(); ++v)
+      pa->GetMappedValue(draco::PointIndex(v), &pos[3 * v]);
+    std::vector<uint32_t> idx;
+    for (uint32_t f = 0; f < d.num_faces(); ++f)
+      for (int k = 0; k < 3; ++k) idx.push_back(d.face(draco::FaceIndex(f))[k].value());
+    const double expected =
+        surface_area(chunk.positions.data(), chunk.indices.data(), chunk.triangle_count());
+    EXPECT_NEAR(surface_area(pos.data(), idx.data(), d.num_faces()), expected, 1e-3 * expected);
+    EXPECT_NE(d.GetAttributeByUniqueId(ext["attributes"]["_ATTRIBUTE"].get<uint32_t>()), nullptr);
+  }
+}
+
+TEST(Gltf, NothingToExportIsAnError) {
+  test::TempDir dir;
+  EXPECT_THROW(write_glb(dir.file("x.glb"), nullptr, nullptr), Error);
+  EXPECT_TRUE(dir.entries().empty());
+}
+
+}  // namespace
+}  // namespace linebake

@@ -1,0 +1,48 @@
+// linebake export <cache> --glb out.glb: assets from the cache in formats other tools read.
+
+#include <iostream>
+
+#include "cache/cache.hpp"
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "commands.hpp"
+#include "core/error.hpp"
+#include "formats/gltf.hpp"
+
+namespace linebake::cli {
+
+Command add_export(CLI::App& app) {
+  auto* sub = app.add_subcommand("export", "Export cached assets (glTF binary with tubes, lines)");
+  struct Args {
+    std::string cache, glb;
+    GltfOptions gltf;
+    bool lines = false, no_tubes = false;
+  };
+  auto args = std::make_shared<Args>();
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")->required()->check(CLI::ExistingFile);
+  sub->add_option("--glb", args->glb, "glTF 2.0 binary output")->required();
+  sub->add_flag("--draco", args->gltf.draco, "Compress the tube mesh (KHR_draco_mesh_compression)");
+  sub->add_option("--draco-bits", args->gltf.draco_position_bits,
+                  "Position quantisation bits (default 14)")
+      ->check(CLI::Range(1, 30));
+  sub->add_option("--draco-normal-bits", args->gltf.draco_normal_bits,
+                  "Normal quantisation bits (default 10)")
+      ->check(CLI::Range(1, 30));
+  sub->add_option("--draco-speed", args->gltf.draco_speed,
+                  "0 (smallest) .. 10 (fastest), default 5")
+      ->check(CLI::Range(0, 10));
+  sub->add_flag("--lines", args->lines, "Add the raw lines as LINE_STRIP primitives");
+  sub->add_flag("--no-tubes", args->no_tubes, "Leave the tube mesh out (with --lines)");
+  return [args] {
+    if (args->no_tubes && !args->lines) throw Error("--no-tubes needs --lines: nothing to export");
+    const CacheReader cache(args->cache);
+    TubeMesh tubes;
+    LineSet lines;
+    if (!args->no_tubes) tubes = load_tubes(cache);
+    if (args->lines) lines = load_lines(cache);
+    write_glb(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
+              args->gltf);
+  };
+}
+
+}  // namespace linebake::cli
