@@ -124,8 +124,8 @@ DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& normal
   const uint64_t v = chunk.vertex_count();
   mesh.set_num_points(uint32_t(v));
   DracoChunk out;
-  out.position = add_draco_attribute(mesh, draco::GeometryAttribute::POSITION, 3,
-                                     draco::DT_FLOAT32, false, chunk.positions.data(), v);
+  out.position = add_draco_attribute(mesh, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32,
+                                     false, chunk.positions.data(), v);
   out.normal = add_draco_attribute(mesh, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32,
                                    false, normals.data(), v);
   if (!chunk.attribute.empty())
@@ -137,8 +137,7 @@ DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& normal
                                                  draco::PointIndex(chunk.indices[3 * t + 1]),
                                                  draco::PointIndex(chunk.indices[3 * t + 2])});
   draco::Encoder encoder;
-  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION,
-                                   options.draco_position_bits);
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.draco_position_bits);
   encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.draco_normal_bits);
   encoder.SetSpeedOptions(options.draco_speed, options.draco_speed);
   draco::EncoderBuffer buffer;
@@ -173,11 +172,10 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tu
     if (options.draco) {
       const DracoChunk d = encode_draco(chunk, normals, options);
       const int view = builder.add_view(d.bytes.data(), d.bytes.size(), 0);
-      primitive.attributes["POSITION"] =
-          builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points,
-                               false, min, max);
-      primitive.attributes["NORMAL"] = builder.add_accessor(
-          -1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points);
+      primitive.attributes["POSITION"] = builder.add_accessor(
+          -1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points, false, min, max);
+      primitive.attributes["NORMAL"] =
+          builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points);
       tinygltf::Value::Object attributes{{"POSITION", tinygltf::Value(d.position)},
                                          {"NORMAL", tinygltf::Value(d.normal)}};
       if (has_attribute) {
@@ -187,9 +185,9 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tu
       }
       primitive.indices = builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
                                                TINYGLTF_TYPE_SCALAR, 3 * d.faces);
-      primitive.extensions[kDraco] = tinygltf::Value(tinygltf::Value::Object{
-          {"bufferView", tinygltf::Value(view)},
-          {"attributes", tinygltf::Value(std::move(attributes))}});
+      primitive.extensions[kDraco] = tinygltf::Value(
+          tinygltf::Value::Object{{"bufferView", tinygltf::Value(view)},
+                                  {"attributes", tinygltf::Value(std::move(attributes))}});
     } else {
       const uint64_t v = chunk.vertex_count();
       primitive.attributes["POSITION"] = builder.add_accessor(
@@ -231,10 +229,10 @@ void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lin
       builder.add_view(lines.positions.data(), lines.positions.size() * sizeof(float), kArrayBuffer,
                        12);  // shared by many accessors: glTF then requires an explicit stride
   const Attribute* attribute = lines.attributes.empty() ? nullptr : &lines.attributes[0];
-  const int values = attribute ? builder.add_view(attribute->values.data(),
-                                                  attribute->values.size() * sizeof(float),
-                                                  kArrayBuffer, 4)
-                               : -1;
+  const int values =
+      attribute ? builder.add_view(attribute->values.data(),
+                                   attribute->values.size() * sizeof(float), kArrayBuffer, 4)
+                : -1;
   for (size_t l = 0; l < lines.line_count(); ++l) {
     const uint64_t first = lines.line_offsets[l], count = lines.line_size(l);
     if (count < 2) continue;

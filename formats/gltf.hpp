@@ -15,7 +15,7 @@ struct GltfOptions {
   bool draco = false;
   int draco_position_bits = 14;  // quantisation of positions (Draco's default is 11)
   int draco_normal_bits = 10;
-  int draco_speed = 5;           // 0 (best compression) .. 10 (fastest)
+  int draco_speed = 5;  // 0 (best compression) .. 10 (fastest)
 };
 
 // Either may be null (but not both). Throws OutputError when the file cannot be written or the

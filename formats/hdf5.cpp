@@ -102,9 +102,8 @@ LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
          read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
   for (const std::string& name : h5::group_members(file, "/line_attributes"))
     lines.line_attributes.push_back(
-        {h5::decode_link_name(name),
-         read_dataset<float>(path, file, "/line_attributes/" + name, H5T_NATIVE_FLOAT,
-                             lines.line_count())});
+        {h5::decode_link_name(name), read_dataset<float>(path, file, "/line_attributes/" + name,
+                                                         H5T_NATIVE_FLOAT, lines.line_count())});
   if (options.progress) options.progress(3, 3);
   return lines;
 }
@@ -129,8 +128,8 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
     Handle g(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
     if (!g.valid()) throw OutputError(path, std::string("cannot create group ") + group);
     for (const Attribute& a : list)
-      write_dataset(path, g, h5::encode_link_name(a.name), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, a.values.data(),
-                    {a.values.size()});
+      write_dataset(path, g, h5::encode_link_name(a.name), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT,
+                    a.values.data(), {a.values.size()});
   };
   write_group("attributes", lines.attributes);
   write_group("line_attributes", lines.line_attributes);

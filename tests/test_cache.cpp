@@ -201,7 +201,8 @@ TEST(Cache, ForeignFilesAreRefused) {
   test::write_text(dir.file("text.lbc.h5"), "not hdf5 at all");
   expect_input_error([&] { CacheReader(dir.file("text.lbc.h5")); }, "text.lbc.h5", "not an HDF5");
   write_line_set(curly_lines(3), dir.file("lines.h5"));  // HDF5, but a line set
-  expect_input_error([&] { CacheReader(dir.file("lines.h5")); }, "lines.h5", "not a linebake cache");
+  expect_input_error([&] { CacheReader(dir.file("lines.h5")); }, "lines.h5",
+                     "not a linebake cache");
   expect_input_error([&] { CacheReader(dir.file("missing.lbc.h5")); }, "missing", "no such");
   CacheWriter writer(dir.file("empty.lbc.h5"), Compression::None);
   writer.commit();

@@ -120,9 +120,9 @@ TEST(Gltf, PlainExportHoldsTheMeshExactly) {
   for (size_t l = 0; l < lines.line_count(); ++l) {
     EXPECT_EQ(strips[l]["mode"], 3);
     const auto pos = accessor_values<float>(glb, strips[l]["attributes"]["POSITION"], 3);
-    EXPECT_EQ(std::memcmp(pos.data(), lines.positions.data() + 3 * lines.line_offsets[l],
-                          pos.size() * 4),
-              0);
+    EXPECT_EQ(
+        std::memcmp(pos.data(), lines.positions.data() + 3 * lines.line_offsets[l], pos.size() * 4),
+        0);
   }
 }
 

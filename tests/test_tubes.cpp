@@ -17,14 +17,22 @@ namespace {
 struct V {
   double x, y, z;
 };
-V sub(V a, V b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-double dot(V a, V b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-double norm(V a) { return std::sqrt(dot(a, a)); }
+V sub(V a, V b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+double dot(V a, V b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+double norm(V a) {
+  return std::sqrt(dot(a, a));
+}
 V unit(V a) {
   const double l = norm(a);
   return {a.x / l, a.y / l, a.z / l};
 }
-V cross(V a, V b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+V cross(V a, V b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
 
 V vertex(const TubeChunk& c, uint64_t v) {
   return {c.positions[3 * v], c.positions[3 * v + 1], c.positions[3 * v + 2]};
@@ -107,8 +115,8 @@ TEST(Tubes, CapsMakeAClosedManifold) {
     for (const auto& [edge, count] : e.undirected) EXPECT_EQ(count, 2);
     for (const auto& [edge, count] : e.directed) EXPECT_EQ(count, 1);
     // Euler characteristic of a sphere: V - E + F = 2.
-    const int64_t chi = int64_t(c.vertex_count()) - int64_t(e.undirected.size()) +
-                        int64_t(c.triangle_count());
+    const int64_t chi =
+        int64_t(c.vertex_count()) - int64_t(e.undirected.size()) + int64_t(c.triangle_count());
     EXPECT_EQ(chi, 2) << "sides " << n;
   }
 }
@@ -121,8 +129,8 @@ TEST(Tubes, TrianglesFaceOutwards) {
   const TubeChunk& c = mesh.chunks[0];
   for (uint64_t t = 0; t < c.triangle_count(); ++t) {
     const uint32_t* i = &c.indices[3 * t];
-    const V geometric = cross(sub(vertex(c, i[1]), vertex(c, i[0])),
-                              sub(vertex(c, i[2]), vertex(c, i[0])));
+    const V geometric =
+        cross(sub(vertex(c, i[1]), vertex(c, i[0])), sub(vertex(c, i[2]), vertex(c, i[0])));
     V shading{0, 0, 0};
     for (int k = 0; k < 3; ++k) {
       const V nk = normal(c, i[k]);
@@ -155,7 +163,8 @@ TEST(Tubes, RingGeometryOnAHelix) {
       EXPECT_NEAR(dot(unit(offset), nv), 1.0, 1e-5);  // normal = (vertex - p) / r
     }
     // Consecutive ring vertices are 2*pi/n apart.
-    const double angle = std::acos(std::clamp(dot(normal(c, i * n), normal(c, i * n + 1)), -1.0, 1.0));
+    const double angle =
+        std::acos(std::clamp(dot(normal(c, i * n), normal(c, i * n + 1)), -1.0, 1.0));
     EXPECT_NEAR(angle, 2 * std::numbers::pi / n, 1e-4);
   }
 }
@@ -208,14 +217,8 @@ TEST(Tubes, PlanarCurveKeepsItsPlaneNormal) {
 
 TEST(Tubes, SharpBendsAndRepeatedPointsStayFinite) {
   // A full U-turn, a right angle and repeated points.
-  const LineSet lines = polyline({{0, 0, 0},
-                                  {1, 0, 0},
-                                  {1, 0, 0},
-                                  {1, 0, 0},
-                                  {0, 0, 0},
-                                  {0, 1, 0},
-                                  {0, 1, 0},
-                                  {0, 1, 1}});
+  const LineSet lines = polyline(
+      {{0, 0, 0}, {1, 0, 0}, {1, 0, 0}, {1, 0, 0}, {0, 0, 0}, {0, 1, 0}, {0, 1, 0}, {0, 1, 1}});
   const float radius = 0.05f;
   const TubeMesh mesh = build_tubes(lines, absolute(radius, 4));
   EXPECT_EQ(mesh.points_skipped, 3u);
@@ -401,10 +404,12 @@ TEST(Tubes, ChunksSplitAtLineBoundariesUnderTheLimits) {
       EXPECT_LE(c.indices.size(), small.max_chunk_indices);
       EXPECT_LE(c.bytes(), small.max_chunk_bytes);
       for (uint64_t i = 0; i < c.indices.size(); ++i)
-        ASSERT_EQ(uint64_t(c.indices[i]) + vertex_offset, whole.chunks[0].indices[index_offset + i]);
-      EXPECT_EQ(std::memcmp(c.positions.data(), whole.chunks[0].positions.data() + 3 * vertex_offset,
-                            c.positions.bytes()),
-                0);
+        ASSERT_EQ(uint64_t(c.indices[i]) + vertex_offset,
+                  whole.chunks[0].indices[index_offset + i]);
+      EXPECT_EQ(
+          std::memcmp(c.positions.data(), whole.chunks[0].positions.data() + 3 * vertex_offset,
+                      c.positions.bytes()),
+          0);
       vertex_offset += c.vertex_count();
       index_offset += c.indices.size();
     }

@@ -79,7 +79,8 @@ void bench_tubes(const BenchArgs& args) {
   const double best = times.front(), median = times[times.size() / 2];
   const double written = double(bytes) / best;
   const uint64_t segments = lines.segment_count();
-  const size_t threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  const size_t threads =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   nlohmann::json out = {{"step", "tubes"},
                         {"input", args.input},
                         {"threads", threads},
@@ -108,10 +109,9 @@ void bench_tubes(const BenchArgs& args) {
             << " M\n"
             << "  written:         " << std::setprecision(2) << double(bytes) / 1e9 << " GB at "
             << written / 1e9 << " GB/s\n"
-            << "  memcpy:          " << bandwidth / 1e9 << " GB/s (same run, "
-            << threads << " threads)\n"
-            << "  of memcpy:       " << std::setprecision(0) << 100 * written / bandwidth
-            << " %\n"
+            << "  memcpy:          " << bandwidth / 1e9 << " GB/s (same run, " << threads
+            << " threads)\n"
+            << "  of memcpy:       " << std::setprecision(0) << 100 * written / bandwidth << " %\n"
             << "  peak RSS:        " << std::setprecision(2) << double(peak) / (1 << 30)
             << " GiB\n";
 }
@@ -125,7 +125,8 @@ Command add_bench(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"tubes"}));
   sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
-  sub->add_option("--tube-sides", args->sides, "Ring vertices (default 3)")->check(CLI::Range(3, 32));
+  sub->add_option("--tube-sides", args->sides, "Ring vertices (default 3)")
+      ->check(CLI::Range(3, 32));
   sub->add_option("--repeat", args->repeat, "Runs; the best is reported (default 3)")
       ->check(CLI::Range(1, 100));
   sub->add_option("--threads", args->threads, "Worker threads (default: all cores)")

@@ -19,7 +19,9 @@ Command add_export(CLI::App& app) {
     bool lines = false, no_tubes = false;
   };
   auto args = std::make_shared<Args>();
-  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")->required()->check(CLI::ExistingFile);
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")
+      ->required()
+      ->check(CLI::ExistingFile);
   sub->add_option("--glb", args->glb, "glTF 2.0 binary output")->required();
   sub->add_flag("--draco", args->gltf.draco, "Compress the tube mesh (KHR_draco_mesh_compression)");
   sub->add_option("--draco-bits", args->gltf.draco_position_bits,

@@ -29,21 +29,37 @@ constexpr const char* kFormatVersion = "1";
 template <class T>
 hid_t native_type();
 template <>
-hid_t native_type<float>() { return H5T_NATIVE_FLOAT; }
+hid_t native_type<float>() {
+  return H5T_NATIVE_FLOAT;
+}
 template <>
-hid_t native_type<double>() { return H5T_NATIVE_DOUBLE; }
+hid_t native_type<double>() {
+  return H5T_NATIVE_DOUBLE;
+}
 template <>
-hid_t native_type<uint8_t>() { return H5T_NATIVE_UINT8; }
+hid_t native_type<uint8_t>() {
+  return H5T_NATIVE_UINT8;
+}
 template <>
-hid_t native_type<int16_t>() { return H5T_NATIVE_INT16; }
+hid_t native_type<int16_t>() {
+  return H5T_NATIVE_INT16;
+}
 template <>
-hid_t native_type<uint16_t>() { return H5T_NATIVE_UINT16; }
+hid_t native_type<uint16_t>() {
+  return H5T_NATIVE_UINT16;
+}
 template <>
-hid_t native_type<int32_t>() { return H5T_NATIVE_INT32; }
+hid_t native_type<int32_t>() {
+  return H5T_NATIVE_INT32;
+}
 template <>
-hid_t native_type<uint32_t>() { return H5T_NATIVE_UINT32; }
+hid_t native_type<uint32_t>() {
+  return H5T_NATIVE_UINT32;
+}
 template <>
-hid_t native_type<uint64_t>() { return H5T_NATIVE_UINT64; }
+hid_t native_type<uint64_t>() {
+  return H5T_NATIVE_UINT64;
+}
 
 // Little-endian file types, whatever the writing machine.
 hid_t file_type(hid_t native) {
@@ -75,10 +91,14 @@ Compression parse_compression(const std::string& name) {
 
 const char* to_string(Compression compression) {
   switch (compression) {
-    case Compression::None: return "none";
-    case Compression::Deflate: return "deflate";
-    case Compression::Lz4: return "lz4";
-    case Compression::BloscZstd: return "blosc-zstd";
+    case Compression::None:
+      return "none";
+    case Compression::Deflate:
+      return "deflate";
+    case Compression::Lz4:
+      return "lz4";
+    case Compression::BloscZstd:
+      return "blosc-zstd";
   }
   return "none";
 }
@@ -153,7 +173,9 @@ CacheWriter::CacheWriter(const std::string& path, Compression compression, int l
   write_attribute("/", "linebake_version", LINEBAKE_VERSION);
 }
 
-CacheWriter::~CacheWriter() { h5_.reset(); }
+CacheWriter::~CacheWriter() {
+  h5_.reset();
+}
 
 void CacheWriter::set_progress(ProgressFn progress, uint64_t total_bytes) {
   progress_ = std::move(progress);
@@ -177,8 +199,8 @@ void CacheWriter::copy_group(const std::string& source_path, const std::string& 
   const size_t slash = group.find_last_of('/');
   if (slash > 0) create_group(group.substr(0, slash));
   if (H5Ocopy(source, group.c_str(), h5_, group.c_str(), H5P_DEFAULT, H5P_DEFAULT) < 0)
-    throw OutputError(path(), "cannot copy " + group + " from " + source_path + " (" +
-                                  h5::last_error() + ")");
+    throw OutputError(
+        path(), "cannot copy " + group + " from " + source_path + " (" + h5::last_error() + ")");
 }
 
 void CacheWriter::write_attribute(const std::string& object, const std::string& name,
@@ -228,8 +250,7 @@ uint64_t CacheWriter::write_raw(const std::string& dataset, hid_t type, const vo
     H5Pset_layout(dcpl, H5D_CONTIGUOUS);
     H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY);
   }
-  Handle d(H5Dcreate2(h5_, dataset.c_str(), file_type(type), space, H5P_DEFAULT, dcpl,
-                      H5P_DEFAULT),
+  Handle d(H5Dcreate2(h5_, dataset.c_str(), file_type(type), space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
            H5Dclose);
   if (!d.valid())
     throw OutputError(path(), "cannot create dataset " + dataset + " (" + h5::last_error() + ")");
@@ -278,24 +299,25 @@ CacheReader::CacheReader(const std::string& path, bool verify) : path_(path), ve
     throw InputError(path, "", "not an HDF5 file (or its superblock is damaged)");
   h5_ = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!h5_.valid())
-    throw InputError(path, "", "cannot open the cache: " + h5::last_error() +
-                                   " (truncated or damaged file?)");
+    throw InputError(
+        path, "", "cannot open the cache: " + h5::last_error() + " (truncated or damaged file?)");
   std::string format;
   if (!h5::read_string_attribute(h5_, kFormatAttribute, format))
-    throw InputError(path, "", "an HDF5 file but not a linebake cache (no " +
-                                   std::string(kFormatAttribute) + " attribute)");
+    throw InputError(path, "",
+                     "an HDF5 file but not a linebake cache (no " + std::string(kFormatAttribute) +
+                         " attribute)");
   if (format != kFormatVersion)
-    throw InputError(path, "", "cache format " + format + " is not supported (this linebake reads " +
-                                   kFormatVersion + ")");
+    throw InputError(path, "",
+                     "cache format " + format + " is not supported (this linebake reads " +
+                         kFormatVersion + ")");
   // The whole file, read-only: uncompressed datasets are handed out as views into it.
   const int fd = ::open(path.c_str(), O_RDONLY);
   if (fd >= 0 && file_size_ > 0) {
     void* p = mmap(nullptr, file_size_, PROT_READ, MAP_SHARED, fd, 0);
     if (p != MAP_FAILED) {
       const uint64_t size = file_size_;
-      mapping_ = std::shared_ptr<const void>(p, [size](const void* q) {
-        munmap(const_cast<void*>(q), size);
-      });
+      mapping_ = std::shared_ptr<const void>(
+          p, [size](const void* q) { munmap(const_cast<void*>(q), size); });
     }
   }
   if (fd >= 0) ::close(fd);
@@ -367,14 +389,15 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
   Handle dcpl(H5Dget_create_plist(d), H5Pclose);
   const haddr_t offset = H5Dget_offset(d);
   const bool viewable = mapping_ && H5Pget_layout(dcpl) == H5D_CONTIGUOUS &&
-                        H5Pget_nfilters(dcpl) == 0 && offset != HADDR_UNDEF &&
-                        offset % 64 == 0 && H5Tequal(stored_type, file_type(type)) > 0 &&
+                        H5Pget_nfilters(dcpl) == 0 && offset != HADDR_UNDEF && offset % 64 == 0 &&
+                        H5Tequal(stored_type, file_type(type)) > 0 &&
                         H5Tequal(file_type(type), type) > 0;  // little-endian host
   if (viewable) {
     if (offset + bytes > file_size_)
-      throw InputError(path_, where, "the file is truncated (data ends at byte " +
-                                         std::to_string(offset + bytes) + ", file has " +
-                                         std::to_string(file_size_) + ")");
+      throw InputError(path_, where,
+                       "the file is truncated (data ends at byte " +
+                           std::to_string(offset + bytes) + ", file has " +
+                           std::to_string(file_size_) + ")");
     out = Array<unsigned char>(mapping_, static_cast<const unsigned char*>(mapping_.get()) + offset,
                                bytes);
   } else {

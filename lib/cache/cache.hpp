@@ -34,7 +34,7 @@ struct Provenance {
   nlohmann::json parameters = nlohmann::json::object();
   nlohmann::json stats = nlohmann::json::object();  // step-specific counts
   std::string linebake_version = LINEBAKE_VERSION;
-  std::string created;     // UTC, ISO 8601
+  std::string created;  // UTC, ISO 8601
   StepFigures build;
   uint64_t threads = 0;
   uint64_t memory_bytes = 0;  // the representation in memory

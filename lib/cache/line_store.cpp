@@ -22,7 +22,9 @@ std::string content_hash(const LineSet& lines) {
   return h.hex();
 }
 
-uint64_t line_set_bytes(const LineSet& lines) { return compute_stats(lines).total_bytes(); }
+uint64_t line_set_bytes(const LineSet& lines) {
+  return compute_stats(lines).total_bytes();
+}
 
 void store_lines(CacheWriter& cache, const LineSet& lines, Provenance provenance) {
   cache.create_group("/lines");
@@ -59,8 +61,8 @@ LineSet load_lines(const CacheReader& cache) {
   const uint64_t points = lines.line_offsets.back();
   lines.positions = to_vector(cache.read<float>("/lines/points", 3 * points));
   for (const std::string& name : cache.members("/lines/attributes"))
-    lines.attributes.push_back(
-        {decode_link_name(name), to_vector(cache.read<float>("/lines/attributes/" + name, points))});
+    lines.attributes.push_back({decode_link_name(name),
+                                to_vector(cache.read<float>("/lines/attributes/" + name, points))});
   for (const std::string& name : cache.members("/lines/line_attributes"))
     lines.line_attributes.push_back(
         {decode_link_name(name),

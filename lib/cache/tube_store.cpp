@@ -27,8 +27,7 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
       disk += cache.write(g + "/normals_oct", chunk.normals_oct.data(), v, 2);
     if (!chunk.attribute.empty()) disk += cache.write(g + "/attribute", chunk.attribute.data(), v);
     disk += cache.write(g + "/indices", chunk.indices.data(), chunk.triangle_count(), 3);
-    cache.write_attribute(g, "lines",
-                          nlohmann::json{chunk.first_line, chunk.line_count}.dump());
+    cache.write_attribute(g, "lines", nlohmann::json{chunk.first_line, chunk.line_count}.dump());
   }
   const nlohmann::json description = {{"sides", mesh.sides},
                                       {"radius", mesh.radius},

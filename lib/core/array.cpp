@@ -9,8 +9,8 @@ namespace linebake {
 std::shared_ptr<void> allocate_bytes(size_t bytes) {
   constexpr size_t kHugePage = size_t{2} << 20;
   if (bytes < kHugePage) {
-    void* p = ::operator new(bytes, std::align_val_t{64});
-    return {p, [](void* q) { ::operator delete(q, std::align_val_t{64}); }};
+    void* p = ::operator new (bytes, std::align_val_t{64});
+    return {p, [](void* q) { ::operator delete (q, std::align_val_t{64}); }};
   }
   // mmap gives page-aligned, lazily committed memory; advise huge pages over it.
   const size_t mapped = (bytes + kHugePage - 1) / kHugePage * kHugePage;

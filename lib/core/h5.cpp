@@ -15,8 +15,9 @@ void init() {
     // Debian installs filter plugins here (hdf5-filter-plugin, hdf5-filter-plugin-blosc-serial);
     // HDF5's compiled-in default (/usr/local/hdf5/lib/plugin) is not it. HDF5_PLUGIN_PATH, when
     // set, still comes first.
-    for (const char* dir : {LINEBAKE_HDF5_PLUGIN_DIR, "/usr/lib/x86_64-linux-gnu/hdf5/serial/plugins",
-                            "/usr/lib/aarch64-linux-gnu/hdf5/serial/plugins"}) {
+    for (const char* dir :
+         {LINEBAKE_HDF5_PLUGIN_DIR, "/usr/lib/x86_64-linux-gnu/hdf5/serial/plugins",
+          "/usr/lib/aarch64-linux-gnu/hdf5/serial/plugins"}) {
       std::error_code ec;
       if (dir[0] && std::filesystem::is_directory(dir, ec)) H5PLappend(dir);
     }

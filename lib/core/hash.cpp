@@ -15,7 +15,9 @@ struct Hasher::State {
   ~State() { XXH3_freeState(state); }
 };
 
-Hasher::Hasher() : state_(std::make_unique<State>()) { XXH3_128bits_reset(state_->state); }
+Hasher::Hasher() : state_(std::make_unique<State>()) {
+  XXH3_128bits_reset(state_->state);
+}
 Hasher::~Hasher() = default;
 
 Hasher& Hasher::update(const void* data, size_t bytes) {
@@ -28,7 +30,9 @@ Hasher& Hasher::update(std::string_view text) {
   return update(text.data(), text.size());
 }
 
-Hasher& Hasher::update(uint64_t value) { return update(&value, sizeof value); }
+Hasher& Hasher::update(uint64_t value) {
+  return update(&value, sizeof value);
+}
 
 static std::string to_hex(XXH128_hash_t h) {
   char text[33];
@@ -37,7 +41,9 @@ static std::string to_hex(XXH128_hash_t h) {
   return text;
 }
 
-std::string Hasher::hex() const { return to_hex(XXH3_128bits_digest(state_->state)); }
+std::string Hasher::hex() const {
+  return to_hex(XXH3_128bits_digest(state_->state));
+}
 
 std::string hash_bytes(const void* data, size_t bytes) {
   return to_hex(XXH3_128bits(data, bytes));

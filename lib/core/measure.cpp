@@ -14,15 +14,20 @@ uint64_t status_field(const char* name) {
   std::string line;
   const std::string prefix = std::string(name) + ":";
   while (std::getline(in, line)) {
-    if (line.compare(0, prefix.size(), prefix) == 0) return std::stoull(line.substr(prefix.size())) * 1024;
+    if (line.compare(0, prefix.size(), prefix) == 0)
+      return std::stoull(line.substr(prefix.size())) * 1024;
   }
   return 0;
 }
 
 }  // namespace
 
-uint64_t current_rss_bytes() { return status_field("VmRSS"); }
-uint64_t peak_rss_bytes() { return status_field("VmHWM"); }
+uint64_t current_rss_bytes() {
+  return status_field("VmRSS");
+}
+uint64_t peak_rss_bytes() {
+  return status_field("VmHWM");
+}
 
 double process_cpu_seconds() {
   rusage usage{};

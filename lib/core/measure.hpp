@@ -11,9 +11,9 @@ namespace linebake {
 
 struct StepFigures {
   double wall_s = 0;
-  double cpu_s = 0;               // user + system, all threads
-  uint64_t rss_before = 0;        // resident bytes when the step started
-  uint64_t peak_rss = 0;          // resident high-water mark during the step
+  double cpu_s = 0;                 // user + system, all threads
+  uint64_t rss_before = 0;          // resident bytes when the step started
+  uint64_t peak_rss = 0;            // resident high-water mark during the step
   bool peak_is_step_local = false;  // false: the kernel refused the reset, peak is since start
 };
 

@@ -17,7 +17,9 @@ namespace {
 constexpr uint64_t kLinesVersion = 1;
 constexpr uint64_t kTubesVersion = 1;
 
-uint64_t threads() { return static_cast<uint64_t>(tbb::info::default_concurrency()); }
+uint64_t threads() {
+  return static_cast<uint64_t>(tbb::info::default_concurrency());
+}
 
 // The input's identity: its bytes, or for a synth: source its parameters and the generator
 // version (the generator is part of linebake).
@@ -146,8 +148,9 @@ BakeResult bake(const BakeOptions& options) {
     lines_step.built = true;
   };
   if (!reuse_lines) load_or_read();
-  const std::string lines_hash = reuse_lines ? old_lines->stats.value("content_hash", "")
-                                             : lines_step.provenance.stats["content_hash"].get<std::string>();
+  const std::string lines_hash =
+      reuse_lines ? old_lines->stats.value("content_hash", "")
+                  : lines_step.provenance.stats["content_hash"].get<std::string>();
   lines_step.provenance = reuse_lines ? *old_lines : lines_step.provenance;
 
   // Assets: reuse on an equal key, else build.
@@ -174,14 +177,10 @@ BakeResult bake(const BakeOptions& options) {
       p.key = key;
       p.input_hash = lines_hash;
       p.parameters = to_json(options.tubes);
-      p.stats = {{"chunks", tubes.chunks.size()},
-                 {"vertices", tubes.vertex_count()},
-                 {"triangles", tubes.triangle_count()},
-                 {"radius_world", tubes.radius},
-                 {"attribute", tubes.attribute},
-                 {"attribute_range", tubes.attribute_range},
-                 {"lines_dropped", tubes.lines_dropped},
-                 {"points_skipped", tubes.points_skipped}};
+      p.stats = {{"chunks", tubes.chunks.size()},        {"vertices", tubes.vertex_count()},
+                 {"triangles", tubes.triangle_count()},  {"radius_world", tubes.radius},
+                 {"attribute", tubes.attribute},         {"attribute_range", tubes.attribute_range},
+                 {"lines_dropped", tubes.lines_dropped}, {"points_skipped", tubes.points_skipped}};
       p.created = utc_now_iso8601();
       p.threads = threads();
       p.compression = to_string(options.compression);

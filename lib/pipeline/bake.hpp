@@ -19,7 +19,7 @@ struct BakeOptions {
   std::string input;             // file or synth: source
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
-  std::string cache;                        // output; default <input stem>.lbc.h5
+  std::string cache;  // output; default <input stem>.lbc.h5
   std::vector<std::string> assets{"tubes"};
   TubeOptions tubes;
   Compression compression = Compression::Lz4;

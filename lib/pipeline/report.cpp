@@ -154,8 +154,8 @@ nlohmann::json report_json(const std::vector<CacheSummary>& caches) {
   for (const CacheSummary& c : caches) {
     nlohmann::json assets = nlohmann::json::object();
     for (const Provenance& p : c.assets) assets[p.step] = to_json(p);
-    out.push_back({{"name", c.name}, {"path", c.path}, {"lines", to_json(c.lines)},
-                   {"assets", assets}});
+    out.push_back(
+        {{"name", c.name}, {"path", c.path}, {"lines", to_json(c.lines)}, {"assets", assets}});
   }
   return out;
 }

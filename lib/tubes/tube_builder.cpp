@@ -139,8 +139,9 @@ class Builder {
 void Builder::resolve_attributes() {
   const std::string& name = options_.attribute;
   if (name != "none") {
-    const Attribute* a = name.empty() ? (lines_.attributes.empty() ? nullptr : &lines_.attributes[0])
-                                      : lines_.find_attribute(name);
+    const Attribute* a = name.empty()
+                             ? (lines_.attributes.empty() ? nullptr : &lines_.attributes[0])
+                             : lines_.find_attribute(name);
     const Attribute* la = a || name.empty() ? nullptr : lines_.find_line_attribute(name);
     if (!name.empty() && !a && !la) throw Error("tubes: no attribute named '" + name + "'");
     if (a || la) {
@@ -240,9 +241,9 @@ void Builder::write_line(size_t line, Scratch& s) const {
     }
     if (attr) *attr++ = a;
   };
-  const uint16_t line_value =
-      attribute_ && attribute_per_line_ ? to_unorm16((*attribute_)[line], mesh_.attribute_range)
-                                        : 0;
+  const uint16_t line_value = attribute_ && attribute_per_line_
+                                  ? to_unorm16((*attribute_)[line], mesh_.attribute_range)
+                                  : 0;
   // Locals, not members: the float stores below could alias them and force reloads.
   const float radius = mesh_.radius, radius_max = radius_max_;
   const std::array<float, 2> range = mesh_.attribute_range;
@@ -276,9 +277,8 @@ void Builder::write_line(size_t line, Scratch& s) const {
       }
     }
     if (attr) {
-      const uint16_t a = attribute_per_line_
-                             ? line_value
-                             : to_unorm16((*attribute_)[s.source[i]], range);
+      const uint16_t a =
+          attribute_per_line_ ? line_value : to_unorm16((*attribute_)[s.source[i]], range);
       for (uint64_t j = 0; j < n; ++j) *attr++ = a;
     }
   }
@@ -350,8 +350,7 @@ void Builder::build(const ProgressFn& progress) {
   uint64_t kept_total = 0;
   for (const Placement& p : placement_) kept_total += p.kept_points;
   const std::vector<ChunkPlan> plans = plan_chunks(placement_, layout_, options_);
-  if (mesh_.lines_dropped == line_count)
-    throw Error("tubes: no line has two distinct points");
+  if (mesh_.lines_dropped == line_count) throw Error("tubes: no line has two distinct points");
   mesh_.points_skipped = lines_.point_count() - kept_total;  // includes points of dropped lines
 
   mesh_.chunks.resize(plans.size());
@@ -383,8 +382,7 @@ void Builder::build(const ProgressFn& progress) {
 
 }  // namespace
 
-TubeMesh build_tubes(const LineSet& lines, const TubeOptions& options,
-                     const ProgressFn& progress) {
+TubeMesh build_tubes(const LineSet& lines, const TubeOptions& options, const ProgressFn& progress) {
   TubeMesh mesh;
   Builder(lines, options, mesh).build(progress);
   return mesh;

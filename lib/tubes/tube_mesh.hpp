@@ -20,11 +20,11 @@ NormalEncoding parse_normal_encoding(const std::string& name);  // "float32" | "
 struct TubeChunk {
   uint64_t first_line = 0;  // source lines [first_line, first_line + line_count)
   uint64_t line_count = 0;
-  Array<float> positions;     // x y z per vertex
-  Array<float> normals;       // x y z per vertex (NormalEncoding::Float32)
-  Array<int16_t> normals_oct; // octahedral snorm16 pair per vertex (NormalEncoding::Oct16)
-  Array<uint16_t> attribute;  // unorm16 over TubeMesh::attribute_range; empty without attribute
-  Array<uint32_t> indices;    // 3 per triangle, counter-clockwise seen from outside
+  Array<float> positions;      // x y z per vertex
+  Array<float> normals;        // x y z per vertex (NormalEncoding::Float32)
+  Array<int16_t> normals_oct;  // octahedral snorm16 pair per vertex (NormalEncoding::Oct16)
+  Array<uint16_t> attribute;   // unorm16 over TubeMesh::attribute_range; empty without attribute
+  Array<uint32_t> indices;     // 3 per triangle, counter-clockwise seen from outside
 
   uint64_t vertex_count() const { return positions.size() / 3; }
   uint64_t triangle_count() const { return indices.size() / 3; }
@@ -39,9 +39,9 @@ struct TubeMesh {
   float radius = 0;  // world units (per-point radii are scaled from it)
   bool caps = false;
   NormalEncoding normals = NormalEncoding::Float32;
-  std::string attribute;                  // name of the stored attribute, "" if none
-  std::array<float, 2> attribute_range{}; // value mapped to unorm 0 and 65535
-  uint64_t lines_dropped = 0;   // lines with fewer than two distinct points
+  std::string attribute;                   // name of the stored attribute, "" if none
+  std::array<float, 2> attribute_range{};  // value mapped to unorm 0 and 65535
+  uint64_t lines_dropped = 0;              // lines with fewer than two distinct points
   uint64_t points_skipped = 0;  // points closer than min_point_distance to the previous one
   std::vector<TubeChunk> chunks;
 
