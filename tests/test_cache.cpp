@@ -40,7 +40,7 @@ LineSet curly_lines(int count) {
 
 template <class A>
 bool same_array(const A& a, const A& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.bytes()) == 0;
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.bytes()) == 0);
 }
 
 void expect_same_mesh(const TubeMesh& a, const TubeMesh& b) {

@@ -351,7 +351,7 @@ LineSet many_lines() {
 bool same_bytes(const TubeMesh& a, const TubeMesh& b) {
   if (a.chunks.size() != b.chunks.size()) return false;
   const auto eq = [](const auto& x, const auto& y) {
-    return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.bytes()) == 0;
+    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.bytes()) == 0);
   };
   for (size_t i = 0; i < a.chunks.size(); ++i) {
     const TubeChunk &x = a.chunks[i], &y = b.chunks[i];
