@@ -1,0 +1,89 @@
+#include "voxels/voxel_grid.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+
+namespace linebake {
+
+uint32_t interior_levels(uint32_t quantization) {
+  return std::min<uint32_t>(quantization, 32);
+}
+
+static uint32_t bits_of(uint32_t quantization) {
+  return uint32_t(std::countr_zero(quantization));
+}
+
+std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, uint32_t line,
+                                   uint8_t attribute_start, uint8_t attribute_end,
+                                   uint32_t quantization) {
+  const uint32_t b = bits_of(quantization);
+  uint32_t w0 = start.face | end.face << 3;
+  w0 |= start.u << 6 | start.v << (6 + b) | end.u << (6 + 2 * b) | end.v << (6 + 3 * b);
+  uint32_t w1 = (line & 31) | uint32_t(attribute_start) << 5 | uint32_t(attribute_end) << 13;
+  w1 |= start.w << 21 | end.w << 26;
+  return {w0, w1};
+}
+
+static std::array<float, 3> decode_end(uint32_t face, uint32_t u, uint32_t v, uint32_t w,
+                                       uint32_t quantization) {
+  const float inv_q = 1.0f / float(quantization);  // powers of two: exact
+  if (face == kInteriorFace)
+    return {(float(u) + 0.5f) * inv_q, (float(v) + 0.5f) * inv_q,
+            (float(w) + 0.5f) / float(interior_levels(quantization))};
+  const uint32_t axis = face / 2;
+  std::array<float, 3> p{};
+  p[axis] = float(face & 1);
+  p[axis == 0 ? 1 : 0] = (float(u) + 0.5f) * inv_q;
+  p[axis == 2 ? 1 : 2] = (float(v) + 0.5f) * inv_q;
+  return p;
+}
+
+DecodedChord unpack_chord(uint32_t w0, uint32_t w1, uint32_t quantization) {
+  const uint32_t b = bits_of(quantization), mask = quantization - 1;
+  DecodedChord c;
+  const uint32_t start_face = w0 & 7, end_face = (w0 >> 3) & 7;
+  c.start = decode_end(start_face, (w0 >> 6) & mask, (w0 >> (6 + b)) & mask, (w1 >> 21) & 31,
+                       quantization);
+  c.end = decode_end(end_face, (w0 >> (6 + 2 * b)) & mask, (w0 >> (6 + 3 * b)) & mask,
+                     (w1 >> 26) & 31, quantization);
+  c.line_bits = w1 & 31;
+  c.attribute_start = uint8_t((w1 >> 5) & 255);
+  c.attribute_end = uint8_t((w1 >> 13) & 255);
+  return c;
+}
+
+static uint32_t cell(float x, uint32_t levels) {
+  const float scaled = std::floor(x * float(levels));
+  return uint32_t(std::clamp(scaled, 0.0f, float(levels - 1)));
+}
+
+ChordEnd quantise_end(const std::array<float, 3>& local, uint32_t face, uint32_t quantization) {
+  ChordEnd e;
+  e.face = face;
+  if (face == kInteriorFace) {
+    e.u = cell(local[0], quantization);
+    e.v = cell(local[1], quantization);
+    e.w = cell(local[2], interior_levels(quantization));
+    return e;
+  }
+  const uint32_t axis = face / 2;
+  e.u = cell(local[axis == 0 ? 1 : 0], quantization);
+  e.v = cell(local[axis == 2 ? 1 : 2], quantization);
+  return e;
+}
+
+std::array<uint32_t, 3> VoxelGrid::level_resolution(size_t level) const {
+  std::array<uint32_t, 3> r = resolution;
+  for (size_t l = 0; l < level; ++l)
+    for (uint32_t& n : r) n = (n + 1) / 2;
+  return r;
+}
+
+uint64_t VoxelGrid::bytes() const {
+  uint64_t n = representation_bytes() + line_counts.bytes();
+  for (const Array<float>& d : density) n += d.bytes();
+  return n;
+}
+
+}  // namespace linebake
