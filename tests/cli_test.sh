@@ -88,6 +88,15 @@ check "truncated cache error names the file" bash -c "'$bin' report '$tmp/trunc.
 check "no glb after a bad cache" test ! -e "$tmp/t.glb"
 check "report of a non-cache exits 2" exit_code 2 "$bin" report "$tmp/c.h5"
 check "unknown asset" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/u.lbc.h5" --assets voxels2
+check "bake voxels next to tubes" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate --assets tubes,voxels --grid 96 --quantization 16 2>&1 >/dev/null | tr '\\n' ' ' | grep -q 'tubes: up to date, reused linebake: voxels: built'"
+check "report has the VRC column" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep -q '96x6x96 Q16'"
+check "voxels kept when only tubes are asked for" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 5 --compression deflate >/dev/null 2>&1 && '$bin' report '$tmp/c.lbc.h5' --json | grep -q '\"quantization\": 16'"
+check "export vdb" "$bin" export "$tmp/c.lbc.h5" --vdb "$tmp/c.vdb"
+check "vdb starts with the OpenVDB magic" bash -c "[ \"\$(head -c 4 '$tmp/c.vdb' | od -An -tx1 | tr -d ' ')\" = '20424456' ]"
+check "tubes-only bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' > /dev/null"
+check "export vdb without voxels exits 2" exit_code 2 "$bin" export "$tmp/t.lbc.h5" --vdb "$tmp/none.vdb"
+check "export with no target is an error" exit_code 4 "$bin" export "$tmp/c.lbc.h5"
+check "bad grid is an error" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/g.lbc.h5" --assets voxels --grid 12x3
 check "bench tubes" bash -c "'$bin' bench tubes --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"segments\": 495000'"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 

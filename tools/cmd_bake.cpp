@@ -17,6 +17,7 @@ Command add_bake(CLI::App& app) {
     BakeOptions options;
     std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";
     std::vector<float> attribute_range;
+    std::string grid = "auto";
     bool json = false;
   };
   auto args = std::make_shared<Args>();
@@ -26,7 +27,8 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(CLI::IsMember({"reject", "repair"}));
-  sub->add_option("--assets", o.assets, "Assets to build (default: tubes)")->delimiter(',');
+  sub->add_option("--assets", o.assets, "Assets to build: tubes, voxels (default: tubes)")
+      ->delimiter(',');
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
   sub->add_option("--radius", o.tubes.radius,
@@ -48,6 +50,17 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--chunk-bytes", o.tubes.max_chunk_bytes,
                   "Byte budget per tube chunk (default 4 GiB)")
       ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 40));
+  sub->add_option("--grid", args->grid,
+                  "Voxels: auto (default), N along the longest axis, or NxNxN");
+  sub->add_option("--quantization", o.voxels.quantization,
+                  "Voxels: cells per face axis for chord ends, 16 | 32 (default) | 64")
+      ->check(CLI::IsMember({16, 32, 64}));
+  sub->add_option("--max-chords", o.voxels.max_chords_per_voxel,
+                  "Voxels: chords kept per voxel (default 32); the rest are counted and dropped")
+      ->check(CLI::Range(1, 65535));
+  sub->add_option("--voxel-attribute", o.voxels.attribute,
+                  "Voxels: vertex attribute stored as unorm8 at chord ends (default: the first; "
+                  "none)");
   sub->add_option("--compression", args->compression, "none | deflate | lz4 (default) | blosc-zstd")
       ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
   sub->add_option("--compression-level", o.compression_level,
@@ -61,6 +74,7 @@ Command add_bake(CLI::App& app) {
     options.on_invalid = parse_invalid_policy(args->on_invalid);
     options.compression = parse_compression(args->compression);
     options.tubes.normals = parse_normal_encoding(args->normals);
+    parse_grid(args->grid, options.voxels);
     if (args->attribute_range.size() == 2)
       options.tubes.attribute_range =
           std::array<float, 2>{args->attribute_range[0], args->attribute_range[1]};

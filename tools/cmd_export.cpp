@@ -5,16 +5,19 @@
 #include "cache/cache.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
 #include "formats/gltf.hpp"
+#include "formats/vdb.hpp"
 
 namespace linebake::cli {
 
 Command add_export(CLI::App& app) {
-  auto* sub = app.add_subcommand("export", "Export cached assets (glTF binary with tubes, lines)");
+  auto* sub = app.add_subcommand(
+      "export", "Export cached assets: glTF binary (tubes, lines), OpenVDB (voxel grid)");
   struct Args {
-    std::string cache, glb;
+    std::string cache, glb, vdb;
     GltfOptions gltf;
     bool lines = false, no_tubes = false;
   };
@@ -22,7 +25,9 @@ Command add_export(CLI::App& app) {
   sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")
       ->required()
       ->check(CLI::ExistingFile);
-  sub->add_option("--glb", args->glb, "glTF 2.0 binary output")->required();
+  sub->add_option("--glb", args->glb, "glTF 2.0 binary output: the tube mesh (and lines)");
+  sub->add_option("--vdb", args->vdb,
+                  "OpenVDB output: density, line_count, attribute_max from the voxel grid");
   sub->add_flag("--draco", args->gltf.draco, "Compress the tube mesh (KHR_draco_mesh_compression)");
   sub->add_option("--draco-bits", args->gltf.draco_position_bits,
                   "Position quantisation bits (default 14)")
@@ -36,8 +41,12 @@ Command add_export(CLI::App& app) {
   sub->add_flag("--lines", args->lines, "Add the raw lines as LINE_STRIP primitives");
   sub->add_flag("--no-tubes", args->no_tubes, "Leave the tube mesh out (with --lines)");
   return [args] {
-    if (args->no_tubes && !args->lines) throw Error("--no-tubes needs --lines: nothing to export");
+    if (args->glb.empty() && args->vdb.empty())
+      throw Error("nothing to export: give --glb or --vdb");
     const CacheReader cache(args->cache);
+    if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
+    if (args->glb.empty()) return;
+    if (args->no_tubes && !args->lines) throw Error("--no-tubes needs --lines: nothing to export");
     TubeMesh tubes;
     LineSet lines;
     if (!args->no_tubes) tubes = load_tubes(cache);

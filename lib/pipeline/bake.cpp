@@ -6,6 +6,7 @@
 
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "synth/synth.hpp"
@@ -16,6 +17,7 @@ namespace {
 // Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
 constexpr uint64_t kLinesVersion = 1;
 constexpr uint64_t kTubesVersion = 1;
+constexpr uint64_t kVoxelsVersion = 1;
 
 uint64_t threads() {
   return static_cast<uint64_t>(tbb::info::default_concurrency());
@@ -47,7 +49,7 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 }  // namespace
 
 const std::vector<std::string>& bakeable_assets() {
-  static const std::vector<std::string> assets{"tubes"};
+  static const std::vector<std::string> assets{"tubes", "voxels"};
   return assets;
 }
 
@@ -80,11 +82,27 @@ std::string tubes_key(const std::string& lines_hash, const TubeOptions& tubes,
                  to_string(compression), std::to_string(level)});
 }
 
+nlohmann::json to_json(const VoxelOptions& v) {
+  nlohmann::json j = {{"grid", v.grid},
+                      {"quantization", v.quantization},
+                      {"max_chords_per_voxel", v.max_chords_per_voxel},
+                      {"attribute", v.attribute}};
+  j["resolution"] = v.resolution ? nlohmann::json(*v.resolution) : nullptr;
+  j["attribute_range"] = v.attribute_range ? nlohmann::json(*v.attribute_range) : nullptr;
+  return j;
+}
+
+std::string voxels_key(const std::string& lines_hash, const VoxelOptions& voxels,
+                       Compression compression, int level) {
+  return key_of({"voxels", std::to_string(kVoxelsVersion), lines_hash, to_json(voxels).dump(),
+                 to_string(compression), std::to_string(level)});
+}
+
 BakeResult bake(const BakeOptions& options) {
   for (const std::string& asset : options.assets)
     if (std::find(bakeable_assets().begin(), bakeable_assets().end(), asset) ==
         bakeable_assets().end())
-      throw Error("unknown asset '" + asset + "' (bake builds: tubes)");
+      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels)");
   BakeResult result;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
 
@@ -156,40 +174,67 @@ BakeResult bake(const BakeOptions& options) {
   // Assets: reuse on an equal key, else build.
   std::vector<BakeStep> asset_steps;
   TubeMesh tubes;
+  VoxelGrid voxels;
   for (const std::string& asset : options.assets) {
     BakeStep step{asset, false, {}};
-    const std::string key =
-        tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
-    const auto previous = old_provenance(kTubesGroup);
+    const bool is_tubes = asset == "tubes";
+    const std::string key = is_tubes ? tubes_key(lines_hash, options.tubes, options.compression,
+                                                 options.compression_level)
+                                     : voxels_key(lines_hash, options.voxels, options.compression,
+                                                  options.compression_level);
+    const auto previous = old_provenance("/assets/" + asset);
     if (!options.force && previous && previous->key == key) {
       step.provenance = *previous;
-    } else {
-      load_or_read();
-      StepMeter meter;
-      {
-        TerminalProgress progress("building tubes");
-        tubes = build_tubes(lines, options.tubes,
-                            options.progress ? progress.callback() : ProgressFn{});
-      }
-      Provenance& p = step.provenance;
-      p.build = meter.stop();
-      p.step = asset;
-      p.key = key;
-      p.input_hash = lines_hash;
+      asset_steps.push_back(std::move(step));
+      continue;
+    }
+    load_or_read();
+    Provenance& p = step.provenance;
+    StepMeter meter;
+    {
+      TerminalProgress progress("building " + asset);
+      const ProgressFn callback = options.progress ? progress.callback() : ProgressFn{};
+      if (is_tubes)
+        tubes = build_tubes(lines, options.tubes, callback);
+      else
+        voxels = voxelize(lines, options.voxels, callback);
+    }
+    p.build = meter.stop();
+    if (is_tubes) {
       p.parameters = to_json(options.tubes);
       p.stats = {{"chunks", tubes.chunks.size()},        {"vertices", tubes.vertex_count()},
                  {"triangles", tubes.triangle_count()},  {"radius_world", tubes.radius},
                  {"attribute", tubes.attribute},         {"attribute_range", tubes.attribute_range},
                  {"lines_dropped", tubes.lines_dropped}, {"points_skipped", tubes.points_skipped}};
-      p.created = utc_now_iso8601();
-      p.threads = threads();
-      p.compression = to_string(options.compression);
       p.memory_bytes = tubes.bytes();
-      step.built = true;
       if (tubes.lines_dropped)
         result.notes.push_back("tubes: " + std::to_string(tubes.lines_dropped) +
                                " lines with fewer than two distinct points have no tube");
+    } else {
+      p.parameters = to_json(options.voxels);
+      p.stats = {{"resolution", voxels.resolution},
+                 {"quantization", voxels.quantization},
+                 {"chords", voxels.chord_count()},
+                 {"voxels_occupied", voxels.voxels_occupied},
+                 {"chords_dropped", voxels.chords_dropped},
+                 {"voxels_overflowed", voxels.voxels_overflowed},
+                 {"max_error_voxels", voxels.max_error},
+                 {"mean_error_voxels", voxels.mean_error},
+                 {"bytes_with_density", voxels.bytes()}};
+      p.memory_bytes = voxels.representation_bytes();
+      if (voxels.chords_dropped)
+        result.notes.push_back("voxels: " + std::to_string(voxels.chords_dropped) +
+                               " chords dropped in " + std::to_string(voxels.voxels_overflowed) +
+                               " voxels over the cap of " +
+                               std::to_string(voxels.max_chords_per_voxel) + " per voxel");
     }
+    p.step = asset;
+    p.key = key;
+    p.input_hash = lines_hash;
+    p.created = utc_now_iso8601();
+    p.threads = threads();
+    p.compression = to_string(options.compression);
+    step.built = true;
     asset_steps.push_back(std::move(step));
   }
 
@@ -219,10 +264,12 @@ BakeResult bake(const BakeOptions& options) {
       writer.copy_group(result.cache, "/lines");
     }
     for (const BakeStep& s : asset_steps) {
-      if (s.built)
+      if (!s.built)
+        writer.copy_group(result.cache, "/assets/" + s.step);
+      else if (s.step == "tubes")
         store_tubes(writer, tubes, s.provenance);
       else
-        writer.copy_group(result.cache, "/assets/" + s.step);
+        store_voxels(writer, voxels, s.provenance);
     }
     for (const std::string& name : kept) writer.copy_group(result.cache, "/assets/" + name);
     old.reset();

@@ -9,6 +9,7 @@
 #include "formats/registry.hpp"
 #include "lines/validate.hpp"
 #include "tubes/tube_builder.hpp"
+#include "voxels/voxelizer.hpp"
 
 namespace linebake {
 
@@ -19,9 +20,10 @@ struct BakeOptions {
   std::string input;             // file or synth: source
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
-  std::string cache;  // output; default <input stem>.lbc.h5
-  std::vector<std::string> assets{"tubes"};
+  std::string cache;                         // output; default <input stem>.lbc.h5
+  std::vector<std::string> assets{"tubes"};  // and/or "voxels"
   TubeOptions tubes;
+  VoxelOptions voxels;
   Compression compression = Compression::Lz4;
   int compression_level = -1;  // codec default
   bool force = false;          // rebuild every step
@@ -49,5 +51,8 @@ BakeResult bake(const BakeOptions& options);
 std::string tubes_key(const std::string& lines_hash, const TubeOptions& tubes,
                       Compression compression, int level);
 nlohmann::json to_json(const TubeOptions& tubes);
+std::string voxels_key(const std::string& lines_hash, const VoxelOptions& voxels,
+                       Compression compression, int level);
+nlohmann::json to_json(const VoxelOptions& voxels);
 
 }  // namespace linebake

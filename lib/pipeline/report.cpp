@@ -80,10 +80,12 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
   const auto columns = asset_columns(caches);
   header = {"data set", "lines", "LS (segments)", "LM"};
   for (const std::string& a : columns) {
-    header.push_back(a + " size");
+    const std::string label = a == "tubes" ? "tubes (RAS)" : a == "voxels" ? "voxels (VRC)" : a;
+    header.push_back(label + " size");
     header.push_back(a + " build (s)");
     header.push_back(a + " build peak RSS");
     header.push_back(a + " on disk");
+    if (a == "voxels") header.push_back("voxel grid, chords, error max/mean (voxels)");
   }
   std::vector<std::vector<std::string>> rows;
   for (const CacheSummary& c : caches) {
@@ -93,13 +95,23 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
     for (const std::string& a : columns) {
       const Provenance* p = find_asset(c, a);
       if (!p) {
-        row.insert(row.end(), 4, "-");
+        row.insert(row.end(), a == "voxels" ? 5 : 4, "-");
         continue;
       }
       row.push_back(format_bytes(p->memory_bytes));
       row.push_back(seconds(p->build.wall_s));
       row.push_back(format_bytes(p->build.peak_rss));
       row.push_back(format_bytes(p->disk_bytes) + " (" + p->compression + ")");
+      if (a == "voxels") {
+        const auto r = p->stats.value("resolution", std::array<uint32_t, 3>{});
+        char text[128];
+        std::snprintf(text, sizeof text, "%ux%ux%u Q%u, %s, %.3f / %.4f", r[0], r[1], r[2],
+                      p->stats.value("quantization", 0u),
+                      count(p->stats.value("chords", uint64_t{0})).c_str(),
+                      p->stats.value("max_error_voxels", 0.0),
+                      p->stats.value("mean_error_voxels", 0.0));
+        row.push_back(text);
+      }
     }
     rows.push_back(std::move(row));
   }

@@ -1,0 +1,111 @@
+// Voxel grid through the cache (bit-exact) and through OpenVDB (read back with OpenVDB).
+
+#include <gtest/gtest.h>
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+
+#include <cstring>
+
+#include "cache/voxel_store.hpp"
+#include "formats/vdb.hpp"
+#include "test_util.hpp"
+#include "voxels/voxelizer.hpp"
+
+namespace linebake {
+namespace {
+
+LineSet wavy_lines() {
+  LineSet lines;
+  lines.attributes.push_back({"speed", {}});
+  for (int l = 0; l < 200; ++l) {
+    for (int i = 0; i < 40; ++i) {
+      const double t = 0.15 * i;
+      lines.append_point(float(t + 0.05 * l), float(std::sin(t + l) * 2),
+                         float(std::cos(0.7 * t) + 0.01 * l));
+      lines.attributes[0].values.push_back(float(i % 9));
+    }
+    lines.end_line();
+  }
+  return lines;
+}
+
+template <class A>
+bool same(const A& a, const A& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.bytes()) == 0);
+}
+
+TEST(VoxelStore, CacheRoundTripIsBitExact) {
+  test::TempDir dir;
+  VoxelOptions o;
+  o.grid = 40;
+  o.max_chords_per_voxel = 6;
+  const VoxelGrid g = voxelize(wavy_lines(), o);
+  ASSERT_GT(g.chords_dropped, 0u);
+  for (const char* c : {"none", "lz4"}) {
+    const std::string path = dir.file(std::string(c) + ".lbc.h5");
+    {
+      CacheWriter writer(path, parse_compression(c));
+      Provenance p;
+      p.step = "voxels";
+      store_voxels(writer, g, p);
+      writer.commit();
+    }
+    const VoxelGrid back = load_voxels(CacheReader(path));
+    EXPECT_EQ(back.resolution, g.resolution);
+    EXPECT_EQ(back.origin, g.origin);
+    EXPECT_EQ(back.voxel_size, g.voxel_size);
+    EXPECT_EQ(back.attribute_range, g.attribute_range);
+    EXPECT_EQ(back.chords_dropped, g.chords_dropped);
+    EXPECT_EQ(back.max_error, g.max_error);
+    EXPECT_TRUE(same(back.offsets, g.offsets));
+    EXPECT_TRUE(same(back.chords, g.chords));
+    EXPECT_TRUE(same(back.line_counts, g.line_counts));
+    ASSERT_EQ(back.density.size(), g.density.size());
+    for (size_t l = 0; l < g.density.size(); ++l) EXPECT_TRUE(same(back.density[l], g.density[l]));
+    EXPECT_EQ(CacheReader(path).provenance(kVoxelsGroup)->memory_bytes, g.representation_bytes());
+  }
+}
+
+TEST(VoxelStore, VdbRoundTrip) {
+  test::TempDir dir;
+  VoxelOptions o;
+  o.grid = 32;
+  const VoxelGrid g = voxelize(wavy_lines(), o);
+  write_vdb(dir.file("g.vdb"), g);
+  openvdb::initialize();
+  openvdb::io::File file(dir.file("g.vdb"));
+  file.open();
+  auto density = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid("density"));
+  auto count = openvdb::gridPtrCast<openvdb::Int32Grid>(file.readGrid("line_count"));
+  auto attribute = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid("attribute_max"));
+  file.close();
+  ASSERT_TRUE(density && count && attribute);
+  EXPECT_EQ(density->activeVoxelCount(), g.voxels_occupied);
+  EXPECT_EQ(count->activeVoxelCount(), g.voxels_occupied);
+  uint64_t checked = 0;
+  auto d = density->getConstAccessor();
+  auto n = count->getConstAccessor();
+  auto a = attribute->getConstAccessor();
+  for (uint32_t z = 0; z < g.resolution[2]; ++z)
+    for (uint32_t y = 0; y < g.resolution[1]; ++y)
+      for (uint32_t x = 0; x < g.resolution[0]; ++x) {
+        const uint64_t v = g.index(x, y, z);
+        const openvdb::Coord ijk{int(x), int(y), int(z)};
+        ASSERT_EQ(n.isValueOn(ijk), g.line_counts[v] > 0);
+        if (!g.line_counts[v]) continue;
+        EXPECT_EQ(d.getValue(ijk), g.density[0][v]);
+        EXPECT_EQ(n.getValue(ijk), g.line_counts[v]);
+        EXPECT_GE(a.getValue(ijk), g.attribute_range[0]);
+        EXPECT_LE(a.getValue(ijk), g.attribute_range[1] + 1e-5f);
+        ++checked;
+      }
+  EXPECT_EQ(checked, g.voxels_occupied);
+  // Index (i, j, k) is the centre of our voxel (i, j, k) in world space.
+  const openvdb::Vec3d centre = density->transform().indexToWorld(openvdb::Coord(3, 5, 7));
+  EXPECT_NEAR(centre[0], g.origin[0] + 3.5 * g.voxel_size, 1e-5);
+  EXPECT_NEAR(centre[1], g.origin[1] + 5.5 * g.voxel_size, 1e-5);
+  EXPECT_NEAR(centre[2], g.origin[2] + 7.5 * g.voxel_size, 1e-5);
+}
+
+}  // namespace
+}  // namespace linebake
