@@ -98,6 +98,7 @@ check "export vdb without voxels exits 2" exit_code 2 "$bin" export "$tmp/t.lbc.
 check "export with no target is an error" exit_code 4 "$bin" export "$tmp/c.lbc.h5"
 check "bad grid is an error" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/g.lbc.h5" --assets voxels --grid 12x3
 check "bench tubes" bash -c "'$bin' bench tubes --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"segments\": 495000'"
+check "bench voxels" bash -c "'$bin' bench voxels --input '$tmp/c.binlines' --grid 64 --repeat 1 --json | grep -q '\"resolution\": \\['"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"

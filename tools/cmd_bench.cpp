@@ -18,6 +18,7 @@
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "tubes/tube_builder.hpp"
+#include "voxels/voxelizer.hpp"
 
 namespace linebake::cli {
 namespace {
@@ -47,19 +48,78 @@ double memcpy_bandwidth(int repeats) {
 }
 
 struct BenchArgs {
-  std::string step, input = "synth:clouds";
+  std::string step, input = "synth:clouds", grid = "512";
   int sides = 3, repeat = 3, threads = 0;
+  uint32_t quantization = 32;
   bool json = false;
 };
 
-void bench_tubes(const BenchArgs& args) {
-  LineSet lines;
-  {
-    TerminalProgress progress("loading " + args.input);
-    ReadOptions read;
-    read.progress = progress.callback();
-    lines = read_line_set(args.input, read);
+LineSet load(const BenchArgs& args) {
+  TerminalProgress progress("loading " + args.input);
+  ReadOptions read;
+  read.progress = progress.callback();
+  return read_line_set(args.input, read);
+}
+
+// The voxel grid build: every run, best and median, chords/s, the representation's memory.
+void bench_voxels(const BenchArgs& args) {
+  const LineSet lines = load(args);
+  VoxelOptions options;
+  parse_grid(args.grid, options);
+  options.quantization = args.quantization;
+  std::vector<double> times;
+  VoxelGrid grid;
+  uint64_t peak = 0;
+  for (int r = 0; r < args.repeat; ++r) {
+    grid = VoxelGrid();
+    StepMeter meter;
+    grid = voxelize(lines, options);
+    const StepFigures f = meter.stop();
+    times.push_back(f.wall_s);
+    peak = std::max(peak, f.peak_rss);
   }
+  std::sort(times.begin(), times.end());
+  const double best = times.front(), median = times[times.size() / 2];
+  const size_t threads =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  const nlohmann::json out = {{"step", "voxels"},
+                              {"input", args.input},
+                              {"threads", threads},
+                              {"segments", lines.segment_count()},
+                              {"resolution", grid.resolution},
+                              {"quantization", grid.quantization},
+                              {"chords", grid.chord_count()},
+                              {"runs_s", times},
+                              {"best_s", best},
+                              {"median_s", median},
+                              {"segments_per_s", double(lines.segment_count()) / best},
+                              {"representation_bytes", grid.representation_bytes()},
+                              {"bytes_with_density", grid.bytes()},
+                              {"max_error_voxels", grid.max_error},
+                              {"mean_error_voxels", grid.mean_error},
+                              {"peak_rss_bytes", peak}};
+  if (args.json) {
+    std::cout << out.dump(2) << "\n";
+    return;
+  }
+  std::cout << std::fixed << std::setprecision(3) << "voxels: " << args.input << ", "
+            << lines.segment_count() << " segments, grid " << grid.resolution[0] << "x"
+            << grid.resolution[1] << "x" << grid.resolution[2] << " Q" << grid.quantization << ", "
+            << threads << " threads\n  runs (s):        ";
+  for (double t : times) std::cout << t << " ";
+  std::cout << "\n  best:            " << best << " s, median " << median << " s\n"
+            << "  chords:          " << grid.chord_count() << "\n"
+            << "  representation:  " << std::setprecision(1)
+            << double(grid.representation_bytes()) / (1 << 20) << " MiB (offsets + chords), "
+            << double(grid.bytes()) / (1 << 20) << " MiB with density mips and line counts\n"
+            << "  error (voxels):  max " << std::setprecision(4) << grid.max_error << ", mean "
+            << grid.mean_error << "\n"
+            << "  peak RSS:        " << std::setprecision(2) << double(peak) / (1 << 30)
+            << " GiB\n";
+}
+
+void bench_tubes(const BenchArgs& args) {
+  const LineSet lines = load(args);
   TubeOptions options;
   options.sides = args.sides;
   const double bandwidth = memcpy_bandwidth(5);
@@ -119,12 +179,15 @@ void bench_tubes(const BenchArgs& args) {
 }  // namespace
 
 Command add_bench(CLI::App& app) {
-  auto* sub = app.add_subcommand("bench", "Benchmark a build step (tubes)");
+  auto* sub = app.add_subcommand("bench", "Benchmark a build step (tubes, voxels)");
   auto args = std::make_shared<BenchArgs>();
   sub->add_option("step", args->step, "Step to measure")
       ->required()
-      ->check(CLI::IsMember({"tubes"}));
+      ->check(CLI::IsMember({"tubes", "voxels"}));
   sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
+  sub->add_option("--grid", args->grid, "voxels: auto, N or NxNxN (default 512)");
+  sub->add_option("--quantization", args->quantization, "voxels: 16 | 32 (default) | 64")
+      ->check(CLI::IsMember({16, 32, 64}));
   sub->add_option("--tube-sides", args->sides, "Ring vertices (default 3)")
       ->check(CLI::Range(3, 32));
   sub->add_option("--repeat", args->repeat, "Runs; the best is reported (default 3)")
@@ -137,7 +200,10 @@ Command add_bench(CLI::App& app) {
     if (args->threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     size_t(args->threads));
-    bench_tubes(*args);
+    if (args->step == "voxels")
+      bench_voxels(*args);
+    else
+      bench_tubes(*args);
   };
 }
 
