@@ -25,20 +25,15 @@ void init() {
 }
 
 std::string last_error() {
+  // Upward starts at the innermost (most specific) entry: keep the first description.
   std::string message;
-  auto walk = [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
-    if (e->desc && *e->desc) *static_cast<std::string*>(data) = e->desc;
+  auto innermost = [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
+    auto& out = *static_cast<std::string*>(data);
+    if (out.empty() && e->desc && *e->desc) out = e->desc;
     return 0;
   };
-  // Walk upward: the last one visited is the outermost; we want the innermost (first).
-  std::string innermost;
-  auto first = [](unsigned n, const H5E_error2_t* e, void* data) -> herr_t {
-    if (n == 0 && e->desc) *static_cast<std::string*>(data) = e->desc;
-    return 0;
-  };
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, first, &innermost);
-  if (innermost.empty()) H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, walk, &message);
-  return innermost.empty() ? message : innermost;
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, innermost, &message);
+  return message;
 }
 
 std::string encode_link_name(const std::string& name) {

@@ -41,16 +41,15 @@ CacheSummary summarize_cache(const CacheReader& cache) {
 
 // Asset columns in a stable order: the paper's (tubes = RAS) first, then any others by name.
 static std::vector<std::string> asset_columns(const std::vector<CacheSummary>& caches) {
-  std::vector<std::string> order{"tubes"};
+  std::vector<std::string> present;
   for (const CacheSummary& c : caches)
     for (const Provenance& p : c.assets)
-      if (std::find(order.begin(), order.end(), p.step) == order.end()) order.push_back(p.step);
-  std::vector<std::string> present;
-  for (const std::string& name : order)
-    for (const CacheSummary& c : caches)
-      for (const Provenance& p : c.assets)
-        if (p.step == name && std::find(present.begin(), present.end(), name) == present.end())
-          present.push_back(name);
+      if (std::find(present.begin(), present.end(), p.step) == present.end())
+        present.push_back(p.step);
+  // The paper's order: tubes (RAS) first, then the rest by name.
+  std::sort(present.begin(), present.end(), [](const std::string& a, const std::string& b) {
+    return std::make_pair(a != "tubes", a) < std::make_pair(b != "tubes", b);
+  });
   return present;
 }
 

@@ -344,11 +344,11 @@ void Builder::build(const ProgressFn& progress) {
       placement_[l].kept_points = kept >= 2 ? kept : 0;
     }
   });
-  for (const Placement& p : placement_) {
-    if (!p.kept_points) mesh_.lines_dropped += 1;
-  }
   uint64_t kept_total = 0;
-  for (const Placement& p : placement_) kept_total += p.kept_points;
+  for (const Placement& p : placement_) {
+    kept_total += p.kept_points;
+    mesh_.lines_dropped += p.kept_points == 0;
+  }
   const std::vector<ChunkPlan> plans = plan_chunks(placement_, layout_, options_);
   if (mesh_.lines_dropped == line_count) throw Error("tubes: no line has two distinct points");
   mesh_.points_skipped = lines_.point_count() - kept_total;  // includes points of dropped lines
