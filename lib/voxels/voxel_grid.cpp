@@ -6,10 +6,6 @@
 
 namespace linebake {
 
-uint32_t interior_levels(uint32_t quantization) {
-  return std::min<uint32_t>(quantization, 32);
-}
-
 static uint32_t bits_of(uint32_t quantization) {
   return uint32_t(std::countr_zero(quantization));
 }
@@ -25,28 +21,15 @@ std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, u
   return {w0, w1};
 }
 
-static std::array<float, 3> decode_end(uint32_t face, uint32_t u, uint32_t v, uint32_t w,
-                                       uint32_t quantization) {
-  const float inv_q = 1.0f / float(quantization);  // powers of two: exact
-  if (face == kInteriorFace)
-    return {(float(u) + 0.5f) * inv_q, (float(v) + 0.5f) * inv_q,
-            (float(w) + 0.5f) / float(interior_levels(quantization))};
-  const uint32_t axis = face / 2;
-  std::array<float, 3> p{};
-  p[axis] = float(face & 1);
-  p[axis == 0 ? 1 : 0] = (float(u) + 0.5f) * inv_q;
-  p[axis == 2 ? 1 : 2] = (float(v) + 0.5f) * inv_q;
-  return p;
-}
-
 DecodedChord unpack_chord(uint32_t w0, uint32_t w1, uint32_t quantization) {
   const uint32_t b = bits_of(quantization), mask = quantization - 1;
   DecodedChord c;
   const uint32_t start_face = w0 & 7, end_face = (w0 >> 3) & 7;
-  c.start = decode_end(start_face, (w0 >> 6) & mask, (w0 >> (6 + b)) & mask, (w1 >> 21) & 31,
+  c.start = decode_end({start_face, (w0 >> 6) & mask, (w0 >> (6 + b)) & mask, (w1 >> 21) & 31},
                        quantization);
-  c.end = decode_end(end_face, (w0 >> (6 + 2 * b)) & mask, (w0 >> (6 + 3 * b)) & mask,
-                     (w1 >> 26) & 31, quantization);
+  c.end = decode_end(
+      {end_face, (w0 >> (6 + 2 * b)) & mask, (w0 >> (6 + 3 * b)) & mask, (w1 >> 26) & 31},
+      quantization);
   c.line_bits = w1 & 31;
   c.attribute_start = uint8_t((w1 >> 5) & 255);
   c.attribute_end = uint8_t((w1 >> 13) & 255);

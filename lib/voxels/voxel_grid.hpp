@@ -36,12 +36,27 @@ struct DecodedChord {
   uint8_t attribute_start = 0, attribute_end = 0;
 };
 
-uint32_t interior_levels(uint32_t quantization);  // min(Q, 32)
+inline uint32_t interior_levels(uint32_t quantization) {
+  return quantization < 32 ? quantization : 32;
+}
 std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, uint32_t line,
                                    uint8_t attribute_start, uint8_t attribute_end,
                                    uint32_t quantization);
 // Decodes at cell centres ((q + 0.5) / Q), which halves the quantisation bias.
 DecodedChord unpack_chord(uint32_t word0, uint32_t word1, uint32_t quantization);
+// One end, decoded the same way (voxel-local coordinates in [0, 1]).
+inline std::array<float, 3> decode_end(const ChordEnd& e, uint32_t quantization) {
+  const float inv_q = 1.0f / float(quantization);  // powers of two: exact
+  if (e.face == kInteriorFace)
+    return {(float(e.u) + 0.5f) * inv_q, (float(e.v) + 0.5f) * inv_q,
+            (float(e.w) + 0.5f) / float(interior_levels(quantization))};
+  const uint32_t axis = e.face / 2;
+  std::array<float, 3> p{};
+  p[axis] = float(e.face & 1);
+  p[axis == 0 ? 1 : 0] = (float(e.u) + 0.5f) * inv_q;
+  p[axis == 2 ? 1 : 2] = (float(e.v) + 0.5f) * inv_q;
+  return p;
+}
 // Voxel-local point -> quantised end on the given face (or kInteriorFace).
 ChordEnd quantise_end(const std::array<float, 3>& local, uint32_t face, uint32_t quantization);
 

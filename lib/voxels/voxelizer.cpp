@@ -1,6 +1,7 @@
 #include "voxels/voxelizer.hpp"
 
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -16,26 +17,30 @@ namespace {
 
 using Vec = std::array<double, 3>;
 
-double distance_to_path(const Vec& p, const std::vector<Vec>& path) {
-  double best = 1e300;
-  for (size_t i = 0; i + 1 < path.size(); ++i) {
-    Vec d{}, w{};
-    double dd = 0, wd = 0;
-    for (int k = 0; k < 3; ++k) {
-      d[k] = path[i + 1][k] - path[i][k];
-      w[k] = p[k] - path[i][k];
-      dd += d[k] * d[k];
-      wd += w[k] * d[k];
+// Distances from n points to a polyline. Loops over the polyline's segments outside, so each
+// segment's setup is paid once, and leaves the square roots independent of each other.
+template <size_t n>
+std::array<double, n> distances_to_path(const std::array<Vec, n>& points,
+                                        const std::vector<Vec>& path) {
+  std::array<double, n> best;
+  best.fill(1e300);
+  const auto consider = [&](const Vec& a, const Vec& d, double inv_dd) {
+    for (size_t s = 0; s < n; ++s) {
+      const Vec w{points[s][0] - a[0], points[s][1] - a[1], points[s][2] - a[2]};
+      const double t = std::clamp((w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) * inv_dd, 0.0, 1.0);
+      const double ex = w[0] - t * d[0], ey = w[1] - t * d[1], ez = w[2] - t * d[2];
+      best[s] = std::min(best[s], ex * ex + ey * ey + ez * ez);
     }
-    const double t = dd > 0 ? std::clamp(wd / dd, 0.0, 1.0) : 0.0;
-    double e = 0;
-    for (int k = 0; k < 3; ++k) e += (w[k] - t * d[k]) * (w[k] - t * d[k]);
-    best = std::min(best, e);
+  };
+  if (path.size() == 1) consider(path[0], Vec{}, 0.0);
+  for (size_t i = 0; i + 1 < path.size(); ++i) {
+    const Vec d{path[i + 1][0] - path[i][0], path[i + 1][1] - path[i][1],
+                path[i + 1][2] - path[i][2]};
+    const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    consider(path[i], d, dd > 0 ? 1.0 / dd : 0.0);
   }
-  if (path.size() == 1)
-    best = (p[0] - path[0][0]) * (p[0] - path[0][0]) + (p[1] - path[0][1]) * (p[1] - path[0][1]) +
-           (p[2] - path[0][2]) * (p[2] - path[0][2]);
-  return std::sqrt(best);
+  for (double& b : best) b = std::sqrt(b);
+  return best;
 }
 
 // One chord as the walker finds it, in grid coordinates (voxel units from the grid origin).
@@ -49,10 +54,22 @@ struct Piece {
   const std::vector<Vec>* path = nullptr;  // entry, the line's points inside, exit
 };
 
+// A chord on its way to its voxel. Records are made in line order and along each line, and
+// every later step moves them stably, so a voxel's chords end up in the canonical order (line
+// id, then along the line) without a sort.
 struct Record {
-  uint64_t key;  // line << 32 | chord number along the line
+  uint32_t voxel, line;
   uint32_t word0, word1;
   float weight;
+};
+
+// A fixed run of lines walked by one task. Fixed by the data, not the thread count, so sums
+// over a block (error, and the order of records) are the same for any number of threads.
+struct Block {
+  size_t first_line = 0, end_line = 0;
+  std::vector<Record> records;
+  double error_max = 0, error_sum = 0;
+  uint64_t error_samples = 0;
 };
 
 class Voxelizer {
@@ -65,6 +82,7 @@ class Voxelizer {
   void place_grid();
   template <class Emit>
   void walk(size_t line, std::vector<Vec>& path, Emit&& emit) const;
+  void emit(const Piece& piece, uint32_t line, Block& block) const;
   Vec to_grid(uint64_t point) const {
     Vec g{};
     for (int k = 0; k < 3; ++k)
@@ -187,6 +205,37 @@ void Voxelizer::walk(size_t line, std::vector<Vec>& path, Emit&& emit) const {
   finish(a, kInteriorFace, attribute_at(last - 1));
 }
 
+// Quantises and packs one chord, and measures it: the decoded chord sampled at five points
+// against the polyline inside the voxel (quantisation and straightening error together).
+void Voxelizer::emit(const Piece& p, uint32_t line, Block& block) const {
+  const uint32_t q = grid_.quantization;
+  std::array<float, 3> entry{}, exit{};
+  for (int k = 0; k < 3; ++k) {
+    entry[k] = float(std::clamp(p.entry[k] - double(p.cell[k]), 0.0, 1.0));
+    exit[k] = float(std::clamp(p.exit[k] - double(p.cell[k]), 0.0, 1.0));
+  }
+  const ChordEnd start = quantise_end(entry, p.entry_face, q);
+  const ChordEnd end = quantise_end(exit, p.exit_face, q);
+  const uint8_t a0 = to_unorm8(p.entry_attribute), a1 = to_unorm8(p.exit_attribute);
+  const auto words = pack_chord(start, end, line, a0, a1, q);
+  const float weight = float(p.length) * (attribute_ ? (float(a0) + float(a1)) / 510.0f : 1.0f);
+  block.records.push_back({uint32_t(p.voxel), line, words[0], words[1], weight});
+
+  const std::array<float, 3> s = decode_end(start, q), e = decode_end(end, q);
+  std::array<Vec, 5> samples;
+  for (size_t i = 0; i < samples.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      samples[i][k] = double(p.cell[k]) + s[k] + (e[k] - s[k]) * (double(i) / 4.0);
+  double error_max = block.error_max, error_sum = block.error_sum;
+  for (const double d : distances_to_path(samples, *p.path)) {
+    error_max = std::max(error_max, d);
+    error_sum += d;
+  }
+  block.error_max = error_max;
+  block.error_sum = error_sum;
+  block.error_samples += samples.size();
+}
+
 void Voxelizer::build(const ProgressFn& progress) {
   const uint32_t q = options_.quantization;
   if (q != 16 && q != 32 && q != 64) throw Error("voxels: quantisation must be 16, 32 or 64");
@@ -215,119 +264,139 @@ void Voxelizer::build(const ProgressFn& progress) {
   place_grid();
   const uint64_t voxels = grid_.voxel_count();
   const size_t line_count = lines_.line_count();
-  const size_t batches = std::clamp<size_t>(line_count / 4096, 1, 32);
-  const auto in_batches = [&](auto&& body, uint64_t progress_base) {
-    for (size_t b = 0; b < batches; ++b) {
-      const size_t begin = line_count * b / batches, end = line_count * (b + 1) / batches;
-      tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 16), [&](auto range) {
-        std::vector<Vec> path;
-        for (size_t l = range.begin(); l != range.end(); ++l) body(l, path);
-      });
-      if (progress) progress(progress_base + end, 2 * line_count);
-    }
-  };
+  if (voxels >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 voxels; use a coarser grid");
+  if (line_count >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 lines");
 
-  // Count chords per voxel.
-  Array<uint32_t> counts(voxels);
-  std::fill(counts.begin(), counts.end(), 0u);
-  in_batches(
-      [&](size_t l, std::vector<Vec>& path) {
-        walk(l, path, [&](const Piece& p) {
-          std::atomic_ref<uint32_t>(counts[p.voxel]).fetch_add(1, std::memory_order_relaxed);
-        });
-      },
-      0);
-  // Prefix sum -> where each voxel's records start.
-  Array<uint64_t> starts(voxels + 1);
-  starts[0] = 0;
-  for (uint64_t v = 0; v < voxels; ++v) starts[v + 1] = starts[v] + counts[v];
-  const uint64_t total = starts[voxels];
-  if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
-
-  // Fill: slots come from per-voxel cursors, so records land in any order within a voxel;
-  // the sort below makes the order canonical.
-  std::vector<Record> records(total);
-  std::fill(counts.begin(), counts.end(), 0u);
-  std::vector<double> line_error_max(line_count, 0), line_error_sum(line_count, 0);
-  std::vector<uint64_t> line_samples(line_count, 0);
-  in_batches(
-      [&](size_t l, std::vector<Vec>& path) {
-        uint32_t sequence = 0;
-        walk(l, path, [&](const Piece& p) {
-          std::array<float, 3> entry{}, exit{};
-          for (int k = 0; k < 3; ++k) {
-            entry[k] = float(std::clamp(p.entry[k] - double(p.cell[k]), 0.0, 1.0));
-            exit[k] = float(std::clamp(p.exit[k] - double(p.cell[k]), 0.0, 1.0));
-          }
-          const uint8_t a0 = to_unorm8(p.entry_attribute), a1 = to_unorm8(p.exit_attribute);
-          const auto words = pack_chord(quantise_end(entry, p.entry_face, q),
-                                        quantise_end(exit, p.exit_face, q), uint32_t(l), a0, a1, q);
-          const float weight =
-              float(p.length) * (attribute_ ? (float(a0) + float(a1)) / 510.0f : 1.0f);
-          const uint32_t slot =
-              std::atomic_ref<uint32_t>(counts[p.voxel]).fetch_add(1, std::memory_order_relaxed);
-          records[starts[p.voxel] + slot] = {uint64_t(l) << 32 | sequence++, words[0], words[1],
-                                             weight};
-          // Quantisation + chord error: the decoded chord sampled at five points against the
-          // polyline inside the voxel.
-          const DecodedChord c = unpack_chord(words[0], words[1], q);
-          for (int s = 0; s <= 4; ++s) {
-            Vec x{};
-            for (int k = 0; k < 3; ++k)
-              x[k] = double(p.cell[k]) + c.start[k] + (c.end[k] - c.start[k]) * (s / 4.0);
-            const double e = distance_to_path(x, *p.path);
-            line_error_max[l] = std::max(line_error_max[l], e);
-            line_error_sum[l] += e;
-          }
-          line_samples[l] += 5;
-        });
-      },
-      line_count);
-
-  // Per voxel: canonical order, density, distinct lines, the cap.
-  grid_.density.emplace_back(voxels);
-  grid_.line_counts = Array<uint8_t>(voxels);
-  Array<uint32_t> kept(voxels);
-  const uint32_t cap = options_.max_chords_per_voxel;
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, voxels, 4096), [&](auto range) {
-    for (uint64_t v = range.begin(); v != range.end(); ++v) {
-      Record* begin = records.data() + starts[v];
-      Record* end = records.data() + starts[v + 1];
-      std::sort(begin, end, [](const Record& x, const Record& y) { return x.key < y.key; });
-      float density = 0;
-      uint32_t distinct = 0;
-      for (Record* r = begin; r != end; ++r) {
-        density += r->weight;
-        distinct += r == begin || (r->key >> 32) != (r[-1].key >> 32);
-      }
-      grid_.density[0][v] = density;
-      grid_.line_counts[v] = uint8_t(std::min<uint32_t>(distinct, 255));
-      kept[v] = std::min<uint32_t>(uint32_t(end - begin), cap);
-    }
-  });
-  grid_.offsets = Array<uint32_t>(voxels + 1);
-  grid_.offsets[0] = 0;
-  for (uint64_t v = 0; v < voxels; ++v) {
-    grid_.offsets[v + 1] = grid_.offsets[v] + kept[v];
-    const uint64_t n = starts[v + 1] - starts[v];
-    grid_.voxels_occupied += n > 0;
-    if (n > cap) {
-      grid_.voxels_overflowed += 1;
-      grid_.chords_dropped += n - cap;
+  // 1. Walk every line once; each block of lines collects its chords and its error figures.
+  std::vector<Block> blocks;
+  {
+    constexpr uint64_t kSegmentsPerBlock = 1 << 16;
+    size_t first = 0;
+    while (first < line_count) {
+      size_t end = first;
+      const uint64_t begin_point = lines_.line_offsets[first];
+      while (end < line_count &&
+             (end == first || lines_.line_offsets[end] - begin_point < kSegmentsPerBlock))
+        ++end;
+      blocks.push_back({first, end, {}, 0, 0, 0});
+      first = end;
     }
   }
-  grid_.chords = Array<uint32_t>(2 * uint64_t(grid_.offsets[voxels]));
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, voxels, 4096), [&](auto range) {
-    for (uint64_t v = range.begin(); v != range.end(); ++v) {
-      uint32_t* out = grid_.chords.data() + 2 * uint64_t(grid_.offsets[v]);
-      for (uint32_t i = 0; i < kept[v]; ++i) {
-        const Record& r = records[starts[v] + i];
-        out[2 * i] = r.word0;
-        out[2 * i + 1] = r.word1;
-      }
+  std::atomic<size_t> blocks_done{0};
+  const size_t progress_groups = std::clamp<size_t>(blocks.size() / 8, 1, 32);
+  for (size_t g = 0; g < progress_groups; ++g) {
+    const size_t begin = blocks.size() * g / progress_groups;
+    const size_t end = blocks.size() * (g + 1) / progress_groups;
+    tbb::parallel_for(size_t{begin}, end, [&](size_t b) {
+      Block& block = blocks[b];
+      block.records.reserve(
+          2 * (lines_.line_offsets[block.end_line] - lines_.line_offsets[block.first_line]));
+      std::vector<Vec> path;
+      for (size_t l = block.first_line; l != block.end_line; ++l)
+        walk(l, path, [&](const Piece& p) { emit(p, uint32_t(l), block); });
+      blocks_done.fetch_add(1, std::memory_order_relaxed);
+    });
+    if (progress) progress(blocks_done.load(), 2 * blocks.size());
+  }
+
+  // 2. Each block sorts its records stably into buckets of consecutive voxels, small enough
+  // that a bucket's per-voxel counters stay in cache. In place (through a per-thread scratch
+  // buffer), so no second copy of all records is ever allocated.
+  const uint32_t bucket_shift =
+      uint32_t(std::max(0, int(std::bit_width(voxels)) - 10));  // at most 1024 buckets
+  const uint64_t bucket_count = ((voxels - 1) >> bucket_shift) + 1;
+  // bucket_ranges[b * (bucket_count + 1) + k]: where bucket k starts in block b's records.
+  std::vector<uint32_t> bucket_ranges(blocks.size() * (bucket_count + 1), 0);
+  tbb::enumerable_thread_specific<std::vector<Record>> scratch;
+  tbb::parallel_for(size_t{0}, blocks.size(), [&](size_t b) {
+    std::vector<Record>& records = blocks[b].records;
+    if (records.size() > 0xFFFFFFFFull)
+      throw Error("voxels: more than 2^32 chords; use a coarser grid");
+    uint32_t* start = bucket_ranges.data() + b * (bucket_count + 1);
+    for (const Record& r : records) ++start[(r.voxel >> bucket_shift) + 1];
+    for (uint64_t k = 0; k < bucket_count; ++k) start[k + 1] += start[k];
+    std::vector<Record>& sorted = scratch.local();
+    sorted.resize(records.size());
+    std::vector<uint32_t> cursor(start, start + bucket_count);
+    for (const Record& r : records) sorted[cursor[r.voxel >> bucket_shift]++] = r;
+    std::copy(sorted.begin(), sorted.end(), records.begin());
+  });
+  scratch.clear();
+  const auto for_each_record = [&](uint64_t k, auto&& body) {
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      const uint32_t* start = bucket_ranges.data() + b * (bucket_count + 1);
+      const Record* records = blocks[b].records.data();
+      for (uint32_t i = start[k]; i != start[k + 1]; ++i) body(records[i]);
+    }
+  };
+  uint64_t total = 0;
+  for (const Block& block : blocks) total += block.records.size();
+  if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
+
+  // 3. Per bucket: chords per voxel, density, distinct lines and the cap; then, once every
+  // bucket knows how many chords it keeps, the offsets and the chords themselves.
+  const uint32_t cap = options_.max_chords_per_voxel;
+  const uint64_t bucket_span = uint64_t(1) << bucket_shift;
+  grid_.density.emplace_back(voxels);
+  grid_.line_counts = Array<uint8_t>(voxels);
+  grid_.offsets = Array<uint32_t>(voxels + 1);
+  struct BucketStats {
+    uint64_t kept = 0, occupied = 0, overflowed = 0, dropped = 0;
+  };
+  std::vector<BucketStats> bucket_stats(bucket_count);
+  tbb::parallel_for(uint64_t{0}, bucket_count, [&](uint64_t k) {
+    const uint64_t base = k << bucket_shift;
+    const uint64_t span = std::min(bucket_span, voxels - base);
+    std::vector<uint32_t> n(span, 0), distinct(span, 0), last_line(span, 0xFFFFFFFFu);
+    std::vector<float> density(span, 0.0f);
+    for_each_record(k, [&](const Record& r) {
+      const uint64_t v = r.voxel - base;
+      ++n[v];
+      density[v] += r.weight;
+      if (last_line[v] != r.line) ++distinct[v], last_line[v] = r.line;
+    });
+    BucketStats& s = bucket_stats[k];
+    for (uint64_t v = 0; v < span; ++v) {
+      grid_.density[0][base + v] = density[v];
+      grid_.line_counts[base + v] = uint8_t(std::min<uint32_t>(distinct[v], 255));
+      const uint32_t kept = std::min(n[v], cap);
+      grid_.offsets[base + v] = kept;  // a count for now; the start once every bucket is done
+      s.kept += kept;
+      s.occupied += n[v] > 0;
+      s.overflowed += n[v] > cap;
+      s.dropped += n[v] - kept;
     }
   });
-
+  std::vector<uint64_t> kept_start(bucket_count + 1, 0);
+  for (uint64_t k = 0; k < bucket_count; ++k) {
+    kept_start[k + 1] = kept_start[k] + bucket_stats[k].kept;
+    grid_.voxels_occupied += bucket_stats[k].occupied;
+    grid_.voxels_overflowed += bucket_stats[k].overflowed;
+    grid_.chords_dropped += bucket_stats[k].dropped;
+  }
+  grid_.offsets[voxels] = uint32_t(kept_start[bucket_count]);
+  grid_.chords = Array<uint32_t>(2 * kept_start[bucket_count]);
+  tbb::parallel_for(uint64_t{0}, bucket_count, [&](uint64_t k) {
+    const uint64_t base = k << bucket_shift;
+    const uint64_t span = std::min(bucket_span, voxels - base);
+    // Per voxel: where its next kept chord goes and how many more it keeps.
+    std::vector<uint32_t> cursor(span), room(span);
+    uint32_t running = uint32_t(kept_start[k]);
+    for (uint64_t v = 0; v < span; ++v) {
+      room[v] = grid_.offsets[base + v];
+      cursor[v] = grid_.offsets[base + v] = running;
+      running += room[v];
+    }
+    for_each_record(k, [&](const Record& r) {
+      const uint64_t v = r.voxel - base;
+      if (room[v] == 0) return;  // over the cap: the first chords in canonical order stay
+      --room[v];
+      const uint64_t at = 2 * uint64_t(cursor[v]++);
+      grid_.chords[at] = r.word0;
+      grid_.chords[at + 1] = r.word1;
+    });
+  });
+  for (Block& block : blocks) std::vector<Record>().swap(block.records);
   // Density mip levels: 2x2x2 means (missing children count as empty) down to one voxel.
   while (true) {
     const size_t level = grid_.density.size() - 1;
@@ -354,10 +423,10 @@ void Voxelizer::build(const ProgressFn& progress) {
 
   double sum = 0;
   uint64_t samples = 0;
-  for (size_t l = 0; l < line_count; ++l) {
-    grid_.max_error = std::max(grid_.max_error, line_error_max[l]);
-    sum += line_error_sum[l];
-    samples += line_samples[l];
+  for (const Block& block : blocks) {
+    grid_.max_error = std::max(grid_.max_error, block.error_max);
+    sum += block.error_sum;
+    samples += block.error_samples;
   }
   grid_.mean_error = samples ? sum / double(samples) : 0.0;
 }
