@@ -23,5 +23,7 @@ Command add_bench(CLI::App& app);
 Command add_bake(CLI::App& app);
 Command add_report(CLI::App& app);
 Command add_export(CLI::App& app);
+Command add_render(CLI::App& app);
+Command add_compare(CLI::App& app);
 
 }  // namespace linebake::cli

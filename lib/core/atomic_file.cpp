@@ -33,4 +33,14 @@ void AtomicFile::commit() {
   committed_ = true;
 }
 
+void write_file_atomically(const std::string& path, const std::string& bytes) {
+  AtomicFile file(path);
+  std::FILE* f = std::fopen(file.temp_path().c_str(), "wb");
+  if (!f) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  if (std::fclose(f) != 0 || !written)
+    throw OutputError(path, std::string("cannot write: ") + std::strerror(errno));
+  file.commit();
+}
+
 }  // namespace linebake

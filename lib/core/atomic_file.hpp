@@ -26,4 +26,7 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// Writes `bytes` to `path` through an AtomicFile. Throws OutputError.
+void write_file_atomically(const std::string& path, const std::string& bytes);
+
 }  // namespace linebake

@@ -1,0 +1,402 @@
+#include "accel/embree_scene.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstring>
+
+#include "core/error.hpp"
+
+namespace linebake {
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Embree reads the last element of vertex and index buffers with 16-byte loads. A buffer can
+// be shared as is when it sits in page-granular memory (linebake's large allocations and cache
+// mappings) and its end leaves room in the page; otherwise it is copied with padding.
+bool shareable(const void* data, size_t bytes) {
+  constexpr size_t kPage = 4096;
+  const auto end = reinterpret_cast<uintptr_t>(data) + bytes;
+  return bytes >= (size_t{2} << 20) && (end % kPage) != 0 && kPage - end % kPage >= 16;
+}
+
+template <class T>
+Array<T> padded_copy(const Array<T>& source) {
+  const size_t pad = (16 + sizeof(T) - 1) / sizeof(T);
+  Array<T> copy(source.size() + pad);
+  std::copy(source.begin(), source.end(), copy.begin());
+  std::fill(copy.begin() + source.size(), copy.end(), T{});
+  return copy;
+}
+
+struct Part {
+  uint64_t primitives = 0;
+  // Curves: the part covers lines [first_line, end_line), points from first_point.
+  uint64_t first_point = 0;
+  Array<float> vertices;          // FLOAT4 (x, y, z, r), padded
+  Array<uint32_t> indices;        // first vertex of each segment
+  Array<uint8_t> flags;           // neighbour flags (linear curves)
+  Array<uint32_t> segment_point;  // part-local first point of each segment
+  // Triangles: the chunk, and the buffers Embree reads (the chunk's own, or padded copies).
+  size_t chunk = 0;
+  Array<float> positions;
+  Array<uint32_t> triangle_indices;
+};
+
+void throw_on_device_error(RTCDevice device, const char* what) {
+  const RTCError e = rtcGetDeviceError(device);
+  if (e != RTC_ERROR_NONE)
+    throw Error(std::string("Embree: ") + what + " failed (error " + std::to_string(int(e)) + ")");
+}
+
+}  // namespace
+
+struct EmbreeScene::State {
+  RTCDevice device = nullptr;
+  RTCScene top = nullptr;
+  std::vector<RTCScene> sub_scenes;
+  std::atomic<int64_t> current{0}, peak{0};
+  BvhStats stats;
+  EmbreeGeometry geometry = EmbreeGeometry::LinearCurve;
+  std::vector<Part> parts;
+  Array<float> attribute;  // curves: per point (empty without attribute)
+  TubeMesh mesh;           // triangles: shares the caller's arrays
+  std::array<double, 2> range{0, 0};
+
+  ~State() {
+    for (RTCScene s : sub_scenes) rtcReleaseScene(s);
+    if (top) rtcReleaseScene(top);
+    if (device) rtcReleaseDevice(device);
+  }
+
+  static bool monitor(void* user, ssize_t bytes, bool /*post*/) {
+    auto* self = static_cast<State*>(user);
+    const int64_t now = self->current.fetch_add(bytes) + bytes;
+    int64_t peak = self->peak.load();
+    while (now > peak && !self->peak.compare_exchange_weak(peak, now)) {
+    }
+    return true;
+  }
+
+  void create_device() {
+    device = rtcNewDevice(nullptr);
+    if (!device) throw Error("Embree: cannot create a device");
+    rtcSetDeviceMemoryMonitorFunction(device, &State::monitor, this);
+  }
+
+  RTCScene new_scene(const EmbreeOptions& o) {
+    RTCScene scene = rtcNewScene(device);
+    int flags = RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION;
+    if (o.compact) flags |= RTC_SCENE_FLAG_COMPACT;
+    if (o.robust) flags |= RTC_SCENE_FLAG_ROBUST;
+    rtcSetSceneFlags(scene, RTCSceneFlags(flags));
+    rtcSetSceneBuildQuality(scene, o.quality == BuildQuality::Low    ? RTC_BUILD_QUALITY_LOW
+                                   : o.quality == BuildQuality::High ? RTC_BUILD_QUALITY_HIGH
+                                                                     : RTC_BUILD_QUALITY_MEDIUM);
+    return scene;
+  }
+
+  RTCGeometry new_geometry(const Part& part) {
+    RTCGeometry g = nullptr;
+    if (geometry == EmbreeGeometry::Triangles) {
+      g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                 part.positions.data(), 0, 12,
+                                 mesh.chunks[part.chunk].vertex_count());
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                 part.triangle_indices.data(), 0, 12, part.primitives);
+    } else {
+      const bool linear = geometry == EmbreeGeometry::LinearCurve;
+      g = rtcNewGeometry(device, linear ? RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE
+                                        : RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE);
+      const uint64_t vertices = (part.vertices.size() - 4) / 4;  // less the padding
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                 part.vertices.data(), 0, 16, vertices);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, part.indices.data(),
+                                 0, 4, part.primitives);
+      if (linear)
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_FLAGS, 0, RTC_FORMAT_UCHAR, part.flags.data(),
+                                   0, 1, part.primitives);
+    }
+    throw_on_device_error(device, "setting up a geometry");
+    rtcCommitGeometry(g);
+    return g;
+  }
+
+  // Parts into scenes: one scene when everything fits, else consecutive parts grouped into
+  // sub-scenes of at most max_primitives_per_scene, instanced with the identity transform.
+  void commit(const EmbreeOptions& o) {
+    const auto start = std::chrono::steady_clock::now();
+    top = new_scene(o);
+    const bool instanced = stats.primitives > o.max_primitives_per_scene && parts.size() > 1;
+    RTCScene current_scene = instanced ? nullptr : top;
+    uint64_t in_scene = 0;
+    for (size_t i = 0; i < parts.size(); ++i) {
+      if (instanced &&
+          (!current_scene || in_scene + parts[i].primitives > o.max_primitives_per_scene)) {
+        current_scene = new_scene(o);
+        sub_scenes.push_back(current_scene);
+        in_scene = 0;
+      }
+      RTCGeometry g = new_geometry(parts[i]);
+      rtcAttachGeometryByID(current_scene, g, instanced ? unsigned(i) : unsigned(i));
+      rtcReleaseGeometry(g);
+      in_scene += parts[i].primitives;
+    }
+    for (size_t s = 0; s < sub_scenes.size(); ++s) {
+      rtcCommitScene(sub_scenes[s]);
+      RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+      rtcSetGeometryInstancedScene(inst, sub_scenes[s]);
+      const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+      rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+      rtcCommitGeometry(inst);
+      rtcAttachGeometryByID(top, inst, unsigned(s));
+      rtcReleaseGeometry(inst);
+    }
+    rtcCommitScene(top);
+    throw_on_device_error(device, "the BVH build");
+    stats.commit_s = seconds_since(start);
+    stats.instanced = instanced;
+    stats.parts = parts.size();
+    stats.bvh_bytes = uint64_t(std::max<int64_t>(current.load(), 0));
+    stats.bvh_peak_bytes = uint64_t(std::max<int64_t>(peak.load(), 0));
+  }
+};
+
+EmbreeGeometry parse_embree_geometry(const std::string& name) {
+  if (name == "linear") return EmbreeGeometry::LinearCurve;
+  if (name == "bezier") return EmbreeGeometry::BezierCurve;
+  if (name == "triangles") return EmbreeGeometry::Triangles;
+  throw Error("unknown Embree geometry '" + name + "' (linear, bezier, triangles)");
+}
+
+const char* to_string(EmbreeGeometry g) {
+  switch (g) {
+    case EmbreeGeometry::LinearCurve:
+      return "linear";
+    case EmbreeGeometry::BezierCurve:
+      return "bezier";
+    case EmbreeGeometry::Triangles:
+      return "triangles";
+  }
+  return "?";
+}
+
+BuildQuality parse_build_quality(const std::string& name) {
+  if (name == "low") return BuildQuality::Low;
+  if (name == "medium") return BuildQuality::Medium;
+  if (name == "high") return BuildQuality::High;
+  throw Error("unknown build quality '" + name + "' (low, medium, high)");
+}
+
+const char* to_string(BuildQuality q) {
+  switch (q) {
+    case BuildQuality::Low:
+      return "low";
+    case BuildQuality::Medium:
+      return "medium";
+    case BuildQuality::High:
+      return "high";
+  }
+  return "?";
+}
+
+EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
+                                    const std::string& attribute, const EmbreeOptions& options) {
+  if (options.geometry == EmbreeGeometry::Triangles)
+    throw Error("Embree: triangles are built from a tube mesh, not from lines");
+  if (!(radius > 0)) throw Error("Embree: the curve radius must be positive");
+  if (options.max_primitives_per_scene == 0) throw Error("Embree: max primitives per scene is 0");
+  auto state = std::make_unique<State>();
+  state->geometry = options.geometry;
+  state->stats.geometry = options.geometry;
+  const auto start = std::chrono::steady_clock::now();
+  if (!attribute.empty()) {
+    const Attribute* a = lines.find_attribute(attribute);
+    if (!a) throw Error("Embree: no vertex attribute named '" + attribute + "'");
+    state->attribute = Array<float>(a->values.size());
+    std::copy(a->values.begin(), a->values.end(), state->attribute.begin());
+    const ValueRange r = compute_range(a->values);
+    state->range = {r.min, r.max};
+  }
+  const bool linear = options.geometry == EmbreeGeometry::LinearCurve;
+  const uint64_t limit = std::min<uint64_t>(options.max_primitives_per_scene, 0xFFFFFFFFull / 4);
+  // Lines into parts of at most `limit` segments.
+  size_t line = 0;
+  while (line < lines.line_count()) {
+    Part part;
+    const size_t first_line = line;
+    part.first_point = lines.line_offsets[line];
+    while (line < lines.line_count()) {
+      const uint64_t segments = lines.line_size(line) > 1 ? lines.line_size(line) - 1 : 0;
+      if (segments > limit)
+        throw Error("Embree: line " + std::to_string(line) + " has more segments than fit a scene");
+      if (part.primitives + segments > limit) break;
+      part.primitives += segments;
+      ++line;
+    }
+    const uint64_t points = lines.line_offsets[line] - part.first_point;
+    const uint64_t vertex_count = linear ? points : 4 * part.primitives;
+    part.vertices = Array<float>(4 * (vertex_count + 1));  // + one padding vertex
+    part.indices = Array<uint32_t>(part.primitives);
+    part.segment_point = Array<uint32_t>(part.primitives);
+    if (linear) part.flags = Array<uint8_t>(part.primitives);
+    const auto point = [&](uint64_t p) {
+      return glm::vec3(lines.positions[3 * p], lines.positions[3 * p + 1],
+                       lines.positions[3 * p + 2]);
+    };
+    const auto put = [&](uint64_t v, glm::vec3 x) {
+      float* out = part.vertices.data() + 4 * v;
+      out[0] = x.x, out[1] = x.y, out[2] = x.z, out[3] = radius;
+    };
+    if (linear)
+      for (uint64_t p = 0; p < points; ++p) put(p, point(part.first_point + p));
+    uint64_t s = 0;
+    for (size_t l = first_line; l < line; ++l) {
+      const uint64_t begin = lines.line_offsets[l], end = lines.line_offsets[l + 1];
+      for (uint64_t p = begin; p + 1 < end; ++p, ++s) {
+        const uint32_t local = uint32_t(p - part.first_point);
+        part.segment_point[s] = local;
+        if (linear) {
+          part.indices[s] = local;
+          part.flags[s] = uint8_t((p > begin ? RTC_CURVE_FLAG_NEIGHBOR_LEFT : 0) |
+                                  (p + 2 < end ? RTC_CURVE_FLAG_NEIGHBOR_RIGHT : 0));
+        } else {
+          // Catmull-Rom through p0 p1 p2 p3 as the Bezier b0 b1 b2 b3 of the span p1 -> p2;
+          // at a line's ends the missing neighbour is the end point itself.
+          const glm::vec3 p1 = point(p), p2 = point(p + 1);
+          const glm::vec3 p0 = p > begin ? point(p - 1) : p1;
+          const glm::vec3 p3 = p + 2 < end ? point(p + 2) : p2;
+          part.indices[s] = uint32_t(4 * s);
+          put(4 * s, p1);
+          put(4 * s + 1, p1 + (p2 - p0) / 6.0f);
+          put(4 * s + 2, p2 - (p3 - p1) / 6.0f);
+          put(4 * s + 3, p2);
+        }
+      }
+    }
+    std::memset(part.vertices.data() + 4 * vertex_count, 0, 16);
+    state->stats.primitives += part.primitives;
+    state->stats.buffer_bytes += part.vertices.bytes() + part.indices.bytes() + part.flags.bytes();
+    if (part.primitives > 0) state->parts.push_back(std::move(part));
+  }
+  state->stats.prepare_s = seconds_since(start);
+  state->create_device();
+  state->commit(options);
+  return EmbreeScene(std::move(state));
+}
+
+EmbreeScene EmbreeScene::from_tubes(const TubeMesh& mesh, const EmbreeOptions& options) {
+  auto state = std::make_unique<State>();
+  state->geometry = EmbreeGeometry::Triangles;
+  state->stats.geometry = EmbreeGeometry::Triangles;
+  state->mesh = mesh;
+  state->range = {mesh.attribute_range[0], mesh.attribute_range[1]};
+  const auto start = std::chrono::steady_clock::now();
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) {
+    const TubeChunk& chunk = mesh.chunks[c];
+    if (chunk.triangle_count() == 0) continue;
+    Part part;
+    part.chunk = c;
+    part.primitives = chunk.triangle_count();
+    part.positions = shareable(chunk.positions.data(), chunk.positions.bytes())
+                         ? chunk.positions
+                         : padded_copy(chunk.positions);
+    part.triangle_indices = shareable(chunk.indices.data(), chunk.indices.bytes())
+                                ? chunk.indices
+                                : padded_copy(chunk.indices);
+    if (part.positions.data() != chunk.positions.data())
+      state->stats.buffer_bytes += part.positions.bytes();
+    if (part.triangle_indices.data() != chunk.indices.data())
+      state->stats.buffer_bytes += part.triangle_indices.bytes();
+    state->stats.primitives += part.primitives;
+    state->parts.push_back(std::move(part));
+  }
+  state->stats.prepare_s = seconds_since(start);
+  state->create_device();
+  state->commit(options);
+  return EmbreeScene(std::move(state));
+}
+
+EmbreeScene::EmbreeScene(std::unique_ptr<State> state) : state_(std::move(state)) {}
+EmbreeScene::EmbreeScene(EmbreeScene&&) noexcept = default;
+EmbreeScene& EmbreeScene::operator=(EmbreeScene&&) noexcept = default;
+EmbreeScene::~EmbreeScene() = default;
+
+RTCScene EmbreeScene::handle() const {
+  return state_->top;
+}
+const BvhStats& EmbreeScene::stats() const {
+  return state_->stats;
+}
+std::array<double, 2> EmbreeScene::attribute_range() const {
+  return state_->range;
+}
+
+Bounds EmbreeScene::bounds() const {
+  RTCBounds b;
+  rtcGetSceneBounds(state_->top, &b);
+  Bounds out;
+  out.empty = !(b.lower_x <= b.upper_x);
+  out.min = {b.lower_x, b.lower_y, b.lower_z};
+  out.max = {b.upper_x, b.upper_y, b.upper_z};
+  return out;
+}
+
+bool EmbreeScene::adjacent(unsigned geometry, unsigned a, unsigned b) const {
+  const State& s = *state_;
+  const Part& part = s.parts[geometry];
+  if (a > b) std::swap(a, b);
+  if (s.geometry == EmbreeGeometry::Triangles) {
+    const uint32_t* ta = s.mesh.chunks[part.chunk].indices.data() + 3 * uint64_t(a);
+    const uint32_t* tb = s.mesh.chunks[part.chunk].indices.data() + 3 * uint64_t(b);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (ta[i] == tb[j]) return true;
+    return false;
+  }
+  // Consecutive segments of one line share a point.
+  return b == a + 1 && part.segment_point[b] == part.segment_point[a] + 1;
+}
+
+SurfacePoint EmbreeScene::surface(const RTCHit& hit) const {
+  const State& s = *state_;
+  // Instanced: the instance id is the sub-scene, the geometry id is still the part index.
+  const Part& part = s.parts[hit.geomID];
+  SurfacePoint out;
+  if (s.geometry == EmbreeGeometry::Triangles) {
+    const TubeChunk& chunk = s.mesh.chunks[part.chunk];
+    const uint32_t* tri = chunk.indices.data() + 3 * uint64_t(hit.primID);
+    const double w[3] = {1.0 - hit.u - hit.v, hit.u, hit.v};
+    glm::dvec3 n(0);
+    double a = 0;
+    for (int k = 0; k < 3; ++k) {
+      const uint64_t v = tri[k];
+      if (!chunk.normals.empty()) {
+        n += w[k] *
+             glm::dvec3(chunk.normals[3 * v], chunk.normals[3 * v + 1], chunk.normals[3 * v + 2]);
+      } else if (!chunk.normals_oct.empty()) {
+        const auto d = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
+        n += w[k] * glm::dvec3(d[0], d[1], d[2]);
+      }
+      if (!chunk.attribute.empty())
+        a += w[k] * decode_unorm16(chunk.attribute[v], s.mesh.attribute_range);
+    }
+    const double len = glm::length(n);
+    out.normal = len > 0 ? n / len : glm::normalize(glm::dvec3(hit.Ng_x, hit.Ng_y, hit.Ng_z));
+    out.attribute = a;
+    return out;
+  }
+  out.normal = glm::normalize(glm::dvec3(hit.Ng_x, hit.Ng_y, hit.Ng_z));
+  if (!s.attribute.empty()) {
+    const uint64_t p = part.first_point + part.segment_point[hit.primID];
+    const double u = std::clamp(double(hit.u), 0.0, 1.0);
+    out.attribute = s.attribute[p] + u * (double(s.attribute[p + 1]) - s.attribute[p]);
+  }
+  return out;
+}
+
+}  // namespace linebake

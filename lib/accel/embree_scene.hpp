@@ -1,0 +1,93 @@
+#pragma once
+// Embree 3 scenes over a line set: the paper's OSP column. The builders prepare Embree's input
+// buffers (kept by the cache; Embree BVHs cannot be serialised), commit the scene, and measure
+// both steps: preparation and commit time, and the BVH memory Embree reports through its memory
+// monitor. The scene views the data it was built from: keep the LineSet / TubeMesh alive.
+
+#include <embree3/rtcore.h>
+
+#include <glm/glm.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/array.hpp"
+#include "lines/line_set.hpp"
+#include "tubes/tube_mesh.hpp"
+
+namespace linebake {
+
+enum class EmbreeGeometry {
+  LinearCurve,  // RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE with neighbour flags (joints merged)
+  BezierCurve,  // RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE, Catmull-Rom through the points
+  Triangles     // the cached tube mesh, its buffers shared with Embree
+};
+EmbreeGeometry parse_embree_geometry(const std::string& name);  // linear | bezier | triangles
+const char* to_string(EmbreeGeometry geometry);
+
+enum class BuildQuality { Low, Medium, High };
+BuildQuality parse_build_quality(const std::string& name);
+const char* to_string(BuildQuality quality);
+
+struct EmbreeOptions {
+  EmbreeGeometry geometry = EmbreeGeometry::LinearCurve;
+  BuildQuality quality = BuildQuality::Medium;
+  bool compact = false;  // RTC_SCENE_FLAG_COMPACT: less memory, slower traversal
+  bool robust = false;   // RTC_SCENE_FLAG_ROBUST: watertight, slower traversal
+  // Primitives per Embree scene. Past it the geometry is split at line (chunk) boundaries into
+  // sub-scenes, instanced into one top-level scene: Embree's primitive ids are 32-bit.
+  uint64_t max_primitives_per_scene = 0xFFFFFFFFull;
+};
+
+struct BvhStats {
+  EmbreeGeometry geometry = EmbreeGeometry::LinearCurve;
+  uint64_t primitives = 0;      // curve segments or triangles
+  uint64_t parts = 0;           // Embree geometries
+  bool instanced = false;       // parts live in instanced sub-scenes
+  double prepare_s = 0;         // building Embree's input buffers from the data
+  double commit_s = 0;          // rtcCommitScene (the BVH build) over all scenes
+  uint64_t buffer_bytes = 0;    // prepared input buffers owned by linebake (0 when shared)
+  uint64_t bvh_bytes = 0;       // Embree's memory after the build (memory monitor)
+  uint64_t bvh_peak_bytes = 0;  // Embree's high-water mark during the build
+};
+
+// What a ray hit, for shading: the unit outward surface normal (interpolated vertex normals on
+// triangles, the exact normal on curves) and the data attribute there (0 without one).
+struct SurfacePoint {
+  glm::dvec3 normal{0, 0, 1};
+  double attribute = 0;
+};
+
+class EmbreeScene {
+ public:
+  // Curves over the line set with one world-space radius; `attribute` names the vertex
+  // attribute hits report ("" for none).
+  static EmbreeScene from_lines(const LineSet& lines, float radius, const std::string& attribute,
+                                const EmbreeOptions& options);
+  // Triangles over the tube mesh (options.geometry is ignored).
+  static EmbreeScene from_tubes(const TubeMesh& mesh, const EmbreeOptions& options);
+
+  EmbreeScene(EmbreeScene&&) noexcept;
+  EmbreeScene& operator=(EmbreeScene&&) noexcept;
+  ~EmbreeScene();
+
+  RTCScene handle() const;
+  const BvhStats& stats() const;
+  // The attribute range the data reports in (the tube mesh's, or the line set's).
+  std::array<double, 2> attribute_range() const;
+  SurfacePoint surface(const RTCHit& hit) const;
+  // Whether two primitives of one geometry meet (consecutive segments of a line; triangles
+  // sharing a vertex). A ray through the seam reports both at the same distance, where
+  // rasterisation makes one fragment: the tracer counts such a pair once.
+  bool adjacent(unsigned geometry, unsigned a, unsigned b) const;
+  // Scene bounds (for cameras).
+  Bounds bounds() const;
+
+  struct State;  // Embree handles and prepared buffers
+
+ private:
+  explicit EmbreeScene(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace linebake

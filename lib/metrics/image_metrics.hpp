@@ -1,0 +1,25 @@
+#pragma once
+// Image-quality metrics as the paper reports them (techniques.md section 11). Both run on the
+// values as given in [0, 1]: compare display-encoded images with display-encoded ones.
+
+#include "render/image.hpp"
+
+namespace linebake {
+
+constexpr double kPsnrCap = 60.0;  // dB; the paper's value for identical images
+
+// -10 log10(MSE) over all pixels and channels, capped at 60 dB.
+double psnr(const Image& a, const Image& b);
+
+// SSIM (Wang et al. 2004): 11x11 Gaussian window (sigma 1.5), K1 = 0.01, K2 = 0.03, data range
+// 1, population (co)variances, averaged over the windows that lie fully inside the image and then
+// over the channels (per-channel SSIM, not luminance). Matches scikit-image's
+// structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
+// data_range=1, channel_axis=-1). Images must be at least 11x11.
+double ssim(const Image& a, const Image& b);
+
+// 1 - |a - b| (mean over channels) x scale, clamped: white where equal, as in the paper's
+// figures.
+Image error_image(const Image& a, const Image& b, double scale = 1.0);
+
+}  // namespace linebake

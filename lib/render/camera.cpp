@@ -1,0 +1,164 @@
+#include "render/camera.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+
+#include "core/error.hpp"
+
+namespace linebake {
+namespace {
+
+double radians(double degrees) {
+  return degrees * std::numbers::pi / 180.0;
+}
+
+struct Sphere {
+  glm::dvec3 centre{0};
+  double radius = 1;
+};
+
+Sphere bounding_sphere(const Bounds& b) {
+  if (b.empty) return {};
+  const glm::dvec3 lo(b.min[0], b.min[1], b.min[2]), hi(b.max[0], b.max[1], b.max[2]);
+  const double r = 0.5 * glm::length(hi - lo);
+  return {0.5 * (lo + hi), r > 0 ? r : 1.0};
+}
+
+// Near and far that hold the whole bounding sphere (near never zero: depth precision).
+void fit_clip_planes(Camera& c, const Sphere& s) {
+  const double d = glm::length(s.centre - c.eye);
+  c.near = std::max(d - s.radius, s.radius * 1e-4);
+  c.far = d + s.radius;
+}
+
+glm::dvec3 read_vec3(const nlohmann::json& j, const char* key, const std::string& file, size_t i) {
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3)
+    throw InputError(file, "keyframe " + std::to_string(i),
+                     std::string("'") + key + "' must be an array of 3 numbers");
+  glm::dvec3 v;
+  for (int k = 0; k < 3; ++k) {
+    if (!j[key][k].is_number())
+      throw InputError(file, "keyframe " + std::to_string(i),
+                       std::string("'") + key + "' must be an array of 3 numbers");
+    v[k] = j[key][k].get<double>();
+  }
+  return v;
+}
+
+std::vector<Camera> read_keyframes(const std::string& file) {
+  std::ifstream in(file);
+  if (!in) throw InputError(file, "", "cannot open the keyframe file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(file, "byte offset " + std::to_string(e.byte), "not valid JSON");
+  }
+  if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() ||
+      j["keyframes"].empty())
+    throw InputError(file, "", "expected {\"keyframes\": [ ... ]} with at least one keyframe");
+  std::vector<Camera> keys;
+  for (size_t i = 0; i < j["keyframes"].size(); ++i) {
+    const auto& k = j["keyframes"][i];
+    Camera c;
+    c.eye = read_vec3(k, "eye", file, i);
+    c.target = read_vec3(k, "target", file, i);
+    c.up = k.contains("up") ? read_vec3(k, "up", file, i) : glm::dvec3(0, 1, 0);
+    c.fov_y_degrees = k.value("fov", 40.0);
+    if (glm::length(c.target - c.eye) == 0 || !(c.fov_y_degrees > 0 && c.fov_y_degrees < 180))
+      throw InputError(file, "keyframe " + std::to_string(i),
+                       "eye equals target, or fov is outside (0, 180)");
+    keys.push_back(c);
+  }
+  return keys;
+}
+
+}  // namespace
+
+glm::dvec3 Camera::ray_direction(double x, double y, int width, int height) const {
+  const glm::dvec3 f = forward();
+  const glm::dvec3 r = glm::normalize(glm::cross(f, up));
+  const glm::dvec3 u = glm::cross(r, f);
+  const double half_h = std::tan(radians(fov_y_degrees) / 2);
+  const double half_w = half_h * double(width) / double(height);
+  const double sx = (2 * (x + 0.5) / width - 1) * half_w;
+  const double sy = (1 - 2 * (y + 0.5) / height) * half_h;
+  return glm::normalize(f + sx * r + sy * u);
+}
+
+Camera frame_bounds(const Bounds& bounds, double aspect, double azimuth_degrees,
+                    double elevation_degrees, double distance_scale, double fov_y_degrees) {
+  const Sphere s = bounding_sphere(bounds);
+  const double fov_y = radians(fov_y_degrees);
+  const double fov_x = 2 * std::atan(std::tan(fov_y / 2) * aspect);
+  const double distance = s.radius / std::sin(std::min(fov_x, fov_y) / 2) * distance_scale;
+  const double az = radians(azimuth_degrees), el = radians(elevation_degrees);
+  const glm::dvec3 direction(std::cos(el) * std::sin(az), std::sin(el),
+                             std::cos(el) * std::cos(az));
+  Camera c;
+  c.target = s.centre;
+  c.eye = s.centre + distance * direction;
+  c.up = {0, 1, 0};
+  c.fov_y_degrees = fov_y_degrees;
+  fit_clip_planes(c, s);
+  return c;
+}
+
+FlightKind parse_flight_kind(const std::string& name) {
+  if (name == "orbit-zoom") return FlightKind::OrbitZoom;
+  if (name == "orbit") return FlightKind::Orbit;
+  return FlightKind::Keyframes;
+}
+
+const char* to_string(FlightKind kind) {
+  switch (kind) {
+    case FlightKind::OrbitZoom:
+      return "orbit-zoom";
+    case FlightKind::Orbit:
+      return "orbit";
+    case FlightKind::Keyframes:
+      return "keyframes";
+  }
+  return "?";
+}
+
+std::vector<Camera> make_flight(const Bounds& bounds, double aspect, const FlightOptions& o) {
+  if (o.frames < 1) throw Error("flight: at least one frame");
+  std::vector<Camera> cameras;
+  if (o.kind == FlightKind::Keyframes) {
+    const std::vector<Camera> keys = read_keyframes(o.keyframes_file);
+    const Sphere s = bounding_sphere(bounds);
+    for (int i = 0; i < o.frames; ++i) {
+      const double at = o.frames > 1 ? double(i) / (o.frames - 1) * double(keys.size() - 1) : 0;
+      const size_t k = std::min(size_t(at), keys.size() - 1);
+      const size_t k1 = std::min(k + 1, keys.size() - 1);
+      const double t = at - double(k);
+      Camera c;
+      c.eye = glm::mix(keys[k].eye, keys[k1].eye, t);
+      c.target = glm::mix(keys[k].target, keys[k1].target, t);
+      c.up = glm::mix(keys[k].up, keys[k1].up, t);
+      c.fov_y_degrees =
+          keys[k].fov_y_degrees + t * (keys[k1].fov_y_degrees - keys[k].fov_y_degrees);
+      fit_clip_planes(c, s);
+      cameras.push_back(c);
+    }
+    return cameras;
+  }
+  for (int i = 0; i < o.frames; ++i) {
+    const double s = double(i) / o.frames;
+    double zoom = 0;
+    if (o.kind == FlightKind::OrbitZoom)
+      for (const double centre : {0.3, 0.7}) {
+        const double x = std::abs(s - centre) / 0.12;  // each zoom-in spans 24% of the flight
+        if (x < 1) zoom = std::max(zoom, 0.5 * (1 + std::cos(std::numbers::pi * x)));
+      }
+    cameras.push_back(frame_bounds(bounds, aspect, 360.0 * s, o.elevation_degrees,
+                                   1.0 - 0.65 * zoom, o.fov_y_degrees));
+  }
+  return cameras;
+}
+
+}  // namespace linebake

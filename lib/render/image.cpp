@@ -1,0 +1,204 @@
+#include "render/image.hpp"
+
+#include <png.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "render/transfer_function.hpp"
+
+namespace linebake {
+namespace {
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  std::string tail = s.substr(s.size() - suffix.size());
+  std::transform(tail.begin(), tail.end(), tail.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return tail == suffix;
+}
+
+using FilePtr = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
+
+FilePtr open_file(const std::string& path, const char* mode) {
+  return FilePtr(std::fopen(path.c_str(), mode), &std::fclose);
+}
+
+[[noreturn]] void png_fail(png_structp png, png_const_charp message) {
+  *static_cast<std::string*>(png_get_error_ptr(png)) = message;
+  png_longjmp(png, 1);
+}
+void png_warn(png_structp, png_const_charp) {}
+
+// Rows of big-endian samples, the form libpng writes.
+void write_png_rows(const std::string& path, int width, int height, int channels, int bits,
+                    bool srgb, const std::vector<unsigned char>& data) {
+  AtomicFile file(path);
+  FilePtr f = open_file(file.temp_path(), "wb");
+  if (!f) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+  std::string error;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &error, png_fail, png_warn);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!png || !info) {
+    png_destroy_write_struct(&png, &info);
+    throw OutputError(path, "out of memory in libpng");
+  }
+  const size_t row_bytes = size_t(width) * channels * (bits / 8);
+  std::vector<png_bytep> rows(height);
+  for (int y = 0; y < height; ++y) rows[y] = const_cast<png_bytep>(data.data() + y * row_bytes);
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    throw OutputError(path, "PNG write failed: " + error);
+  }
+  png_init_io(png, f.get());
+  png_set_IHDR(png, info, png_uint_32(width), png_uint_32(height), bits,
+               channels == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  if (srgb) png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+  png_write_info(png, info);
+  png_write_image(png, rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  if (std::fflush(f.get()) != 0)
+    throw OutputError(path, std::string("cannot write: ") + std::strerror(errno));
+  f.reset();
+  file.commit();
+}
+
+}  // namespace
+
+Image display_encoded(const Image& image) {
+  Image out = image;
+  if (!image.srgb_encoded)
+    for (float& v : out.pixels) v = float(linear_to_srgb(v));
+  out.srgb_encoded = true;
+  return out;
+}
+
+void write_png(const Image& image, const std::string& path, int bits) {
+  if (bits != 8 && bits != 16) throw OutputError(path, "PNG bit depth must be 8 or 16");
+  const Image encoded = display_encoded(image);
+  const double scale = bits == 8 ? 255.0 : 65535.0;
+  std::vector<unsigned char> data(encoded.pixels.size() * (bits / 8));
+  for (size_t i = 0; i < encoded.pixels.size(); ++i) {
+    const auto v = uint32_t(std::lround(std::clamp(double(encoded.pixels[i]), 0.0, 1.0) * scale));
+    if (bits == 8) {
+      data[i] = uint8_t(v);
+    } else {
+      data[2 * i] = uint8_t(v >> 8);
+      data[2 * i + 1] = uint8_t(v);
+    }
+  }
+  write_png_rows(path, image.width, image.height, image.channels, bits, true, data);
+}
+
+void write_png_counts(const std::vector<uint32_t>& counts, int width, int height,
+                      const std::string& path) {
+  std::vector<unsigned char> data(counts.size() * 2);
+  for (size_t i = 0; i < counts.size(); ++i) {
+    const uint32_t v = std::min<uint32_t>(counts[i], 65535);
+    data[2 * i] = uint8_t(v >> 8);
+    data[2 * i + 1] = uint8_t(v);
+  }
+  write_png_rows(path, width, height, 1, 16, false, data);
+}
+
+Image read_png(const std::string& path) {
+  FilePtr f = open_file(path, "rb");
+  if (!f) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
+  unsigned char signature[8] = {};
+  if (std::fread(signature, 1, 8, f.get()) != 8 || png_sig_cmp(signature, 0, 8) != 0)
+    throw InputError(path, "byte offset 0", "not a PNG file");
+  std::string error;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &error, png_fail, png_warn);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!png || !info) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    throw InputError(path, "", "out of memory in libpng");
+  }
+  Image image;
+  std::vector<unsigned char> data;
+  std::vector<png_bytep> rows;
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get())),
+                     "corrupt PNG: " + error);
+  }
+  png_init_io(png, f.get());
+  png_set_sig_bytes(png, 8);
+  png_read_info(png, info);
+  png_set_expand(png);  // palette -> RGB, low-bit grey -> 8 bits, tRNS -> alpha
+  png_set_strip_alpha(png);
+  png_read_update_info(png, info);
+  const int width = int(png_get_image_width(png, info)),
+            height = int(png_get_image_height(png, info));
+  const int bits = png_get_bit_depth(png, info);
+  const int channels = png_get_channels(png, info);
+  const size_t row_bytes = png_get_rowbytes(png, info);
+  data.resize(row_bytes * height);
+  rows.resize(height);
+  for (int y = 0; y < height; ++y) rows[y] = data.data() + y * row_bytes;
+  png_read_image(png, rows.data());
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  if (channels != 1 && channels != 3) throw InputError(path, "", "unsupported PNG channel layout");
+  image = Image(width, height, channels);
+  image.srgb_encoded = true;
+  const double scale = bits == 16 ? 65535.0 : 255.0;
+  for (size_t i = 0; i < image.pixels.size(); ++i)
+    image.pixels[i] = float((bits == 16 ? (data[2 * i] << 8 | data[2 * i + 1]) : data[i]) / scale);
+  return image;
+}
+
+void write_pfm(const Image& image, const std::string& path) {
+  std::string bytes = std::string(image.channels == 3 ? "PF" : "Pf") + "\n" +
+                      std::to_string(image.width) + " " + std::to_string(image.height) + "\n-1.0\n";
+  const size_t header = bytes.size();
+  bytes.resize(header + image.pixels.size() * 4);
+  const size_t row = size_t(image.width) * image.channels;
+  for (int y = 0; y < image.height; ++y)  // bottom row first
+    std::memcpy(bytes.data() + header + size_t(image.height - 1 - y) * row * 4,
+                image.pixels.data() + size_t(y) * row, row * 4);
+  write_file_atomically(path, bytes);
+}
+
+Image read_pfm(const std::string& path) {
+  FilePtr f = open_file(path, "rb");
+  if (!f) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
+  char kind[3] = {};
+  int width = 0, height = 0;
+  double scale = 0;
+  if (std::fscanf(f.get(), "%2s %d %d %lf", kind, &width, &height, &scale) != 4 ||
+      (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0))
+    throw InputError(path, "byte offset 0", "not a PFM file (expected PF or Pf header)");
+  if (width <= 0 || height <= 0 || width > 1 << 16 || height > 1 << 16 || scale == 0)
+    throw InputError(path, "header", "implausible size or scale");
+  if (scale > 0) throw InputError(path, "header", "big-endian PFM is not supported");
+  std::fgetc(f.get());  // the single whitespace after the scale
+  Image image(width, height, kind[1] == 'F' ? 3 : 1);
+  const size_t row = size_t(width) * image.channels;
+  for (int y = height - 1; y >= 0; --y)
+    if (std::fread(image.pixels.data() + size_t(y) * row, 4, row, f.get()) != row)
+      throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get())),
+                       "truncated pixel data");
+  return image;
+}
+
+void write_image(const Image& image, const std::string& path, int png_bits) {
+  if (ends_with(path, ".pfm")) return write_pfm(image, path);
+  if (ends_with(path, ".png")) return write_png(image, path, png_bits);
+  throw OutputError(path, "unknown image format (use .png or .pfm)");
+}
+
+Image read_image(const std::string& path) {
+  if (ends_with(path, ".pfm")) return read_pfm(path);
+  return read_png(path);
+}
+
+}  // namespace linebake

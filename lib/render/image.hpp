@@ -1,0 +1,43 @@
+#pragma once
+// Images as the renderers produce and the metrics read them: float pixels, row-major, top row
+// first. PNG output is sRGB-encoded (8 or 16 bits); PFM keeps the float values exactly.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace linebake {
+
+struct Image {
+  int width = 0, height = 0, channels = 3;  // 1 (grey) or 3 (RGB)
+  // What the values mean: linear light (renderers) or already sRGB-encoded (a PNG read back).
+  bool srgb_encoded = false;
+  std::vector<float> pixels;  // width * height * channels
+
+  Image() = default;
+  Image(int w, int h, int c = 3) : width(w), height(h), channels(c), pixels(size_t(w) * h * c) {}
+  float& at(int x, int y, int c) { return pixels[(size_t(y) * width + x) * channels + c]; }
+  float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
+};
+
+// The values a display shows, in [0, 1]: linear images are sRGB-encoded, encoded ones copied.
+Image display_encoded(const Image& image);
+
+// PNG with 8 or 16 bits per channel, sRGB chunk set. Linear images are encoded on the way out.
+void write_png(const Image& image, const std::string& path, int bits = 8);
+// 16-bit grey PNG of raw counts (saturating at 65535), e.g. a depth-complexity image.
+void write_png_counts(const std::vector<uint32_t>& counts, int width, int height,
+                      const std::string& path);
+// 8/16-bit grey, grey+alpha, RGB or RGBA; alpha dropped, grey kept as one channel. Values are
+// the stored ones in [0, 1] (srgb_encoded = true).
+Image read_png(const std::string& path);
+
+// Portable float map (little-endian "PF"/"Pf"): the exact float values, bottom row first on disk.
+void write_pfm(const Image& image, const std::string& path);
+Image read_pfm(const std::string& path);  // srgb_encoded = false
+
+// By extension: .png or .pfm.
+void write_image(const Image& image, const std::string& path, int png_bits = 8);
+Image read_image(const std::string& path);
+
+}  // namespace linebake

@@ -1,0 +1,214 @@
+#include "render/ray_tracer.hpp"
+
+#include <tbb/blocked_range2d.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <tuple>
+
+namespace linebake {
+namespace {
+
+struct RawHit {
+  double t;
+  unsigned instance, geometry, primitive;
+  RTCHit hit;
+};
+
+// The intersection context carries the hit list to the filter.
+struct CollectContext {
+  RTCIntersectContext context;
+  std::vector<RawHit>* hits;
+};
+
+void collect_filter(const RTCFilterFunctionNArguments* args) {
+  auto* self = reinterpret_cast<const CollectContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    RTCHit h;
+    h.Ng_x = RTCHitN_Ng_x(args->hit, args->N, i);
+    h.Ng_y = RTCHitN_Ng_y(args->hit, args->N, i);
+    h.Ng_z = RTCHitN_Ng_z(args->hit, args->N, i);
+    h.u = RTCHitN_u(args->hit, args->N, i);
+    h.v = RTCHitN_v(args->hit, args->N, i);
+    h.primID = RTCHitN_primID(args->hit, args->N, i);
+    h.geomID = RTCHitN_geomID(args->hit, args->N, i);
+    h.instID[0] = RTCHitN_instID(args->hit, args->N, i, 0);
+    self->hits->push_back(
+        {double(RTCRayN_tfar(args->ray, args->N, i)), h.instID[0], h.geomID, h.primID, h});
+    args->valid[i] = 0;  // reject: traversal goes on past this hit
+  }
+}
+
+auto key(const RawHit& h) {
+  return std::tie(h.instance, h.geometry, h.primitive);
+}
+
+// Sorts, removes repeated reports of one hit and back hits; returns the front hits in order.
+void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const EmbreeScene& scene,
+             std::vector<RayHit>& out, TraceCounters& counters) {
+  std::sort(raw.begin(), raw.end(), [](const RawHit& a, const RawHit& b) {
+    return std::tie(a.instance, a.geometry, a.primitive, a.t) <
+           std::tie(b.instance, b.geometry, b.primitive, b.t);
+  });
+  out.clear();
+  for (size_t i = 0; i < raw.size(); ++i) {
+    const RawHit& h = raw[i];
+    if (i > 0 && key(raw[i - 1]) == key(h) &&
+        h.t - raw[i - 1].t <= 1e-6 * std::max(1.0, std::abs(h.t))) {
+      ++counters.duplicates;
+      continue;
+    }
+    const double facing =
+        h.hit.Ng_x * direction.x + h.hit.Ng_y * direction.y + h.hit.Ng_z * direction.z;
+    if (facing > 0) {
+      ++counters.back_hits;
+      continue;
+    }
+    out.push_back({h.t, h.instance, h.geometry, h.primitive, scene.surface(h.hit)});
+  }
+  std::sort(out.begin(), out.end(), [](const RayHit& a, const RayHit& b) {
+    return std::tie(a.t, a.instance, a.geometry, a.primitive) <
+           std::tie(b.t, b.instance, b.geometry, b.primitive);
+  });
+  // A ray through a seam (a joint between segments, an edge between triangles) hits both
+  // primitives at one distance; keep the first.
+  size_t kept = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    bool seam = false;
+    for (size_t k = kept; k-- > 0 && out[i].t - out[k].t <= 1e-5 * std::max(1.0, out[i].t);)
+      if (out[k].instance == out[i].instance && out[k].geometry == out[i].geometry &&
+          scene.adjacent(out[i].geometry, out[k].primitive, out[i].primitive)) {
+        seam = true;
+        break;
+      }
+    if (seam)
+      ++counters.duplicates;
+    else
+      out[kept++] = out[i];
+  }
+  out.resize(kept);
+  counters.hits += out.size();
+}
+
+void collect(const EmbreeScene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
+             double t_near, double t_far, std::vector<RawHit>& raw) {
+  raw.clear();
+  CollectContext ctx;
+  rtcInitIntersectContext(&ctx.context);
+  ctx.context.filter = &collect_filter;
+  ctx.hits = &raw;
+  RTCRayHit rh{};
+  rh.ray.org_x = float(origin.x), rh.ray.org_y = float(origin.y), rh.ray.org_z = float(origin.z);
+  rh.ray.dir_x = float(direction.x), rh.ray.dir_y = float(direction.y);
+  rh.ray.dir_z = float(direction.z);
+  rh.ray.tnear = float(t_near);
+  rh.ray.tfar = float(std::min(t_far, 3.0e38));
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene.handle(), &ctx.context, &rh);
+}
+
+}  // namespace
+
+std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm::dvec3 direction,
+                               double t_near, double t_far, TraceCounters* counters) {
+  direction = glm::normalize(direction);
+  std::vector<RawHit> raw;
+  collect(scene, origin, direction, t_near, t_far, raw);
+  std::vector<RayHit> hits;
+  TraceCounters local;
+  resolve(raw, direction, scene, hits, counters ? *counters : local);
+  return hits;
+}
+
+std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec3& direction,
+                                const TransferFunction& tf, const TraceOptions& options,
+                                uint64_t* composited) {
+  const Shading& s = options.shading;
+  const glm::dvec3 to_eye = -glm::normalize(direction);
+  glm::dvec3 colour(0);
+  double alpha = 0;
+  uint64_t used = 0;
+  for (const RayHit& h : hits) {
+    if (options.early_termination && alpha >= options.termination_alpha) break;
+    const Rgba base = tf.evaluate(h.surface.attribute);
+    glm::dvec3 n = h.surface.normal;
+    if (glm::dot(n, to_eye) < 0) n = -n;  // interpolated normals can tip past the silhouette
+    const double lambert = std::max(0.0, glm::dot(n, to_eye));
+    const glm::dvec3 c(base.r, base.g, base.b);
+    const glm::dvec3 shaded = (s.ambient + s.diffuse * lambert) * c +
+                              s.specular * std::pow(lambert, s.shininess) * glm::dvec3(1);
+    colour += (1 - alpha) * base.a * shaded;
+    alpha += (1 - alpha) * base.a;
+    ++used;
+  }
+  if (composited) *composited += used;
+  const glm::dvec3 bg(s.background[0], s.background[1], s.background[2]);
+  colour += (1 - alpha) * bg;
+  return {colour.x, colour.y, colour.z, alpha};
+}
+
+Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const TransferFunction& tf_in,
+                  const TraceOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  TransferFunction tf = tf_in;
+  if (tf.range[0] == 0 && tf.range[1] == 0) {
+    const auto r = scene.attribute_range();
+    tf.range = {r[0], r[1]};
+  }
+  const int w = options.width, h = options.height;
+  Frame frame;
+  frame.image = Image(w, h, 3);
+  frame.depth_complexity.assign(size_t(w) * h, 0);
+  struct Scratch {
+    std::vector<RawHit> raw;
+    std::vector<RayHit> hits;
+    TraceCounters counters;
+    size_t peak_raw = 0;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
+  const glm::dvec3 forward = camera.forward();
+  tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
+    Scratch& sc = scratch.local();
+    for (int y = tile.rows().begin(); y != tile.rows().end(); ++y)
+      for (int x = tile.cols().begin(); x != tile.cols().end(); ++x) {
+        const glm::dvec3 dir = camera.ray_direction(x, y, w, h);
+        // Clip against the camera's near and far planes, as rasterisation does.
+        const double cosine = glm::dot(dir, forward);
+        collect(scene, camera.eye, dir, camera.near / cosine, camera.far / cosine, sc.raw);
+        sc.peak_raw = std::max(sc.peak_raw, sc.raw.capacity());
+        resolve(sc.raw, dir, scene, sc.hits, sc.counters);
+        const auto c = composite(sc.hits, dir, tf, options, &sc.counters.composited);
+        for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
+        frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
+      }
+  });
+  FrameStats& st = frame.stats;
+  st.width = w, st.height = h;
+  uint64_t hit_buffer_bytes = 0;
+  for (const Scratch& sc : scratch) {
+    st.counters.hits += sc.counters.hits;
+    st.counters.duplicates += sc.counters.duplicates;
+    st.counters.back_hits += sc.counters.back_hits;
+    st.counters.composited += sc.counters.composited;
+    hit_buffer_bytes += sc.peak_raw * sizeof(RawHit) + sc.hits.capacity() * sizeof(RayHit);
+  }
+  uint64_t covered = 0;
+  for (uint32_t d : frame.depth_complexity) {
+    st.max_depth_complexity = std::max(st.max_depth_complexity, d);
+    covered += d > 0;
+  }
+  st.mean_depth_complexity = double(st.counters.hits) / double(size_t(w) * h);
+  st.mean_covered_depth_complexity = covered ? double(st.counters.hits) / double(covered) : 0.0;
+  st.frame_bytes = frame.image.pixels.size() * sizeof(float) +
+                   frame.depth_complexity.size() * sizeof(uint32_t) + hit_buffer_bytes;
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return frame;
+}
+
+}  // namespace linebake

@@ -1,0 +1,112 @@
+// PSNR and SSIM against hand-computed values and scikit-image's; image files round trip.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "core/error.hpp"
+#include "metrics/image_metrics.hpp"
+#include "render/transfer_function.hpp"
+#include "test_util.hpp"
+
+namespace linebake {
+namespace {
+
+Image constant(float v, int w = 16, int h = 16) {
+  Image img(w, h, 3);
+  std::fill(img.pixels.begin(), img.pixels.end(), v);
+  return img;
+}
+
+// The pairs of tests/reference/metrics_reference.py.
+Image pattern(int which) {
+  Image img(32, 24, 3);
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double a = double(
+            float(0.5 + 0.4 * std::sin(0.37 * x + 0.11 * c) * std::cos(0.23 * y - 0.05 * c)));
+        double v = a;
+        if (which == 1)
+          v = std::clamp(a + 0.08 * std::sin(1.3 * x + 2.1 * y + c) * std::cos(0.7 * x * y), 0.0,
+                         1.0);
+        if (which == 2) v = 0.8 * a + 0.1;
+        img.at(x, y, c) = float(v);
+      }
+  return img;
+}
+
+TEST(Metrics, IdenticalImagesGiveTheCaps) {
+  const Image a = pattern(0);
+  EXPECT_EQ(psnr(a, a), 60.0);
+  EXPECT_NEAR(ssim(a, a), 1.0, 1e-12);
+}
+
+TEST(Metrics, ConstantImagesByHand) {
+  // MSE = 0.1^2 -> PSNR = 20 dB. Constant images have zero variance, so SSIM is the luminance
+  // term alone: (2ab + C1) / (a^2 + b^2 + C1), C1 = 1e-4.
+  const Image a = constant(0.5f), b = constant(0.6f);
+  const double ma = double(0.5f), mb = double(0.6f);
+  EXPECT_NEAR(psnr(a, b), -10 * std::log10((mb - ma) * (mb - ma)), 1e-9);
+  EXPECT_NEAR(psnr(a, b), 20.0, 1e-5);
+  EXPECT_NEAR(ssim(a, b), (2 * ma * mb + 1e-4) / (ma * ma + mb * mb + 1e-4), 1e-12);
+  // A tiny difference stays capped at 60 dB (MSE 1e-8 would be 80 dB).
+  EXPECT_EQ(psnr(constant(0.5f), constant(0.5001f)), 60.0);
+}
+
+TEST(Metrics, MatchScikitImage) {
+  // Values printed by tests/reference/metrics_reference.py (scikit-image 0.19.3).
+  const Image a = pattern(0), noise = pattern(1), contrast = pattern(2);
+  EXPECT_NEAR(ssim(a, noise), 0.934840137868, 1e-6);
+  EXPECT_NEAR(psnr(a, noise), 27.508969989057, 1e-5);
+  EXPECT_NEAR(ssim(a, contrast), 0.972911435396, 1e-6);
+  EXPECT_NEAR(psnr(a, contrast), 28.063220737005, 1e-5);
+}
+
+TEST(Metrics, RejectMismatchedOrTinyImages) {
+  EXPECT_THROW(psnr(constant(0, 16, 16), constant(0, 16, 17)), Error);
+  EXPECT_THROW(ssim(constant(0, 10, 10), constant(0, 10, 10)), Error);
+}
+
+TEST(Metrics, ErrorImageIsWhiteWhereEqual) {
+  Image a = constant(0.5f), b = constant(0.5f);
+  b.at(3, 4, 0) = 0.8f;  // mean abs difference over 3 channels: 0.1
+  const Image e = error_image(a, b);
+  EXPECT_EQ(e.at(0, 0, 0), 1.0f);
+  EXPECT_NEAR(e.at(3, 4, 0), 0.9, 1e-6);
+}
+
+TEST(ImageFiles, PfmIsExactAndPngIsSrgbEncoded) {
+  test::TempDir dir;
+  Image img(7, 5, 3);
+  for (size_t i = 0; i < img.pixels.size(); ++i)
+    img.pixels[i] = float(i) / float(img.pixels.size());
+  write_pfm(img, dir.file("a.pfm"));
+  const Image back = read_pfm(dir.file("a.pfm"));
+  EXPECT_EQ(back.pixels, img.pixels);
+  for (const int bits : {8, 16}) {
+    write_png(img, dir.file("a.png"), bits);
+    const Image png = read_png(dir.file("a.png"));
+    ASSERT_EQ(png.width, 7);
+    ASSERT_EQ(png.channels, 3);
+    EXPECT_TRUE(png.srgb_encoded);
+    const double step = bits == 8 ? 1 / 255.0 : 1 / 65535.0;
+    for (size_t i = 0; i < img.pixels.size(); ++i)
+      EXPECT_NEAR(png.pixels[i], linear_to_srgb(img.pixels[i]), 0.5 * step + 1e-7);
+  }
+  std::ofstream(dir.file("bad.png")) << "not a png";
+  EXPECT_THROW(read_png(dir.file("bad.png")), InputError);
+  std::ofstream(dir.file("short.pfm")) << "PF\n4 4\n-1.0\n0123";
+  try {
+    read_pfm(dir.file("short.pfm"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos);
+  }
+  EXPECT_THROW(write_image(img, dir.file("a.tiff")), OutputError);
+  EXPECT_EQ(dir.entries().size(), 4u);  // a.pfm a.png bad.png short.pfm: nothing half-written
+}
+
+}  // namespace
+}  // namespace linebake

@@ -1,0 +1,307 @@
+// The CPU ray tracer against hand-computed pixels, hit bookkeeping along rays, curve/triangle
+// agreement, cameras and transfer functions.
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+
+#include "accel/embree_scene.hpp"
+#include "core/error.hpp"
+#include "render/ray_tracer.hpp"
+#include "test_util.hpp"
+#include "tubes/tube_builder.hpp"
+
+namespace linebake {
+namespace {
+
+// n straight lines along x, stacked along z at z = 0, -1, -2, ...; each split into two
+// segments with the joint at x = 0 (where the test rays pass). Attribute of line i: values[i].
+LineSet stacked_lines(int n, const std::vector<float>& values = {}) {
+  LineSet lines;
+  Attribute a{"value", {}};
+  for (int i = 0; i < n; ++i) {
+    for (const float x : {-1.0f, 0.0f, 1.0f}) {
+      lines.append_point(x, 0.0f, -float(i));
+      a.values.push_back(values.empty() ? 0.0f : values[size_t(i)]);
+    }
+    lines.end_line();
+  }
+  lines.attributes.push_back(a);
+  return lines;
+}
+
+// Red, green, blue at attribute 0, 0.5, 1 (exact in sRGB and linear), opacity 0.5, 0.25, 0.8.
+TransferFunction rgb_tf() {
+  TransferFunction tf;
+  tf.name = "test";
+  tf.colours = {{0.0, {1, 0, 0}}, {0.5, {0, 1, 0}}, {1.0, {0, 0, 1}}};
+  tf.opacities = {{0.0, 0.5}, {0.5, 0.25}, {1.0, 0.8}};
+  tf.range = {0, 1};
+  return tf;
+}
+
+constexpr float kRadius = 0.2f;
+const glm::dvec3 kOrigin(0.3, 0.0, 10.0), kDown(0, 0, -1);
+
+TEST(RayTracer, ThreeOverlappingTubesMatchTheHandComputedPixel) {
+  const LineSet lines = stacked_lines(3, {0.0f, 0.5f, 1.0f});
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "value", {});
+  TraceOptions o;
+  o.shading.background = {0.25, 0.5, 0.75};
+  const auto hits = trace_hits(scene, kOrigin, kDown);
+  ASSERT_EQ(hits.size(), 3u);
+  const auto c = composite(hits, kDown, rgb_tf(), o);
+  // Each hit faces the eye head-on: lambert 1, specular 1, so shaded = 0.95 c + 0.2.
+  const double k = o.shading.ambient + o.shading.diffuse, s = o.shading.specular;
+  const double shaded[3][3] = {{k + s, s, s}, {s, k + s, s}, {s, s, k + s}};
+  const double alpha[3] = {0.5, 0.25, 0.8};
+  double expected[3] = {0, 0, 0}, transmittance = 1;
+  for (int i = 0; i < 3; ++i) {
+    for (int ch = 0; ch < 3; ++ch) expected[ch] += transmittance * alpha[i] * shaded[i][ch];
+    transmittance *= 1 - alpha[i];
+  }
+  for (int ch = 0; ch < 3; ++ch) expected[ch] += transmittance * o.shading.background[size_t(ch)];
+  // By hand: T = 0.5 * 0.75 * 0.2 = 0.075.
+  EXPECT_NEAR(transmittance, 0.075, 1e-12);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(c[size_t(ch)], expected[ch], 1e-4) << ch;
+  EXPECT_NEAR(c[3], 1 - 0.075, 1e-4);
+
+  // The same pixel through the full frame path: a 1x1 image looks along the camera axis.
+  Camera cam;
+  cam.eye = kOrigin;
+  cam.target = kOrigin + kDown;
+  cam.near = 0.01, cam.far = 100;
+  o.width = o.height = 1;
+  const Frame f = trace_frame(scene, cam, rgb_tf(), o);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(f.image.at(0, 0, ch), expected[ch], 1e-4);
+  EXPECT_EQ(f.depth_complexity[0], 3u);
+
+  // Early termination stops after the hit that takes A past the threshold.
+  o.early_termination = true;
+  o.termination_alpha = 0.6;  // A = 0.5, then 0.625: two hits composited
+  uint64_t used = 0;
+  composite(hits, kDown, rgb_tf(), o, &used);
+  EXPECT_EQ(used, 2u);
+}
+
+TEST(RayTracer, EveryHitOnceAlongARayThroughNTubesAtTheirJoints) {
+  for (const int n : {1, 4, 9}) {
+    const LineSet lines = stacked_lines(n);
+    for (const uint64_t per_scene : {uint64_t{0xFFFFFFFF}, uint64_t{4}}) {  // 4: instanced
+      EmbreeOptions options;
+      options.max_primitives_per_scene = per_scene;
+      const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", options);
+      EXPECT_EQ(scene.stats().instanced, per_scene == 4 && n > 2);
+      TraceCounters counters;
+      // Through the joints at x = 0: neighbour flags keep them to one hit per tube.
+      const auto hits = trace_hits(scene, {0, 0, 10}, kDown, 0, 1e30, &counters);
+      ASSERT_EQ(hits.size(), size_t(n)) << "n " << n << " per scene " << per_scene;
+      for (int i = 0; i < n; ++i) EXPECT_NEAR(hits[size_t(i)].t, 10.0 + i - kRadius, 1e-4);
+      EXPECT_EQ(counters.duplicates, uint64_t(n));  // the second segment at each joint
+      // Away from the joints: one rejected back hit (the far side) per tube, no doubles.
+      TraceCounters off_joint;
+      EXPECT_EQ(trace_hits(scene, kOrigin, kDown, 0, 1e30, &off_joint).size(), size_t(n));
+      EXPECT_EQ(off_joint.back_hits, uint64_t(n));
+      EXPECT_EQ(off_joint.duplicates, 0u);
+    }
+  }
+}
+
+TEST(RayTracer, TriangleTubesGiveOneFrontHitPerTube) {
+  const int n = 5;
+  const LineSet lines = stacked_lines(n);
+  TubeOptions t;
+  t.sides = 8;
+  t.radius = kRadius;
+  t.radius_absolute = true;
+  t.attribute = "none";
+  const TubeMesh mesh = build_tubes(lines, t);
+  for (const uint64_t per_scene : {uint64_t{0xFFFFFFFF}, uint64_t{8}}) {
+    EmbreeOptions options;
+    options.max_primitives_per_scene = per_scene;
+    const EmbreeScene scene = EmbreeScene::from_tubes(mesh, options);
+    TraceCounters counters;
+    const auto hits = trace_hits(scene, kOrigin, kDown, 0, 1e30, &counters);
+    ASSERT_EQ(hits.size(), size_t(n));
+    // The octagon's top is a flat face at radius * cos(pi / 8) from the axis (ring vertex 0
+    // points along the frame normal; the test only needs the hit between that and the radius).
+    for (int i = 0; i < n; ++i) {
+      EXPECT_GE(hits[size_t(i)].t, 10.0 + i - kRadius - 1e-4);
+      EXPECT_LE(hits[size_t(i)].t, 10.0 + i - kRadius * std::cos(M_PI / 8) + 1e-4);
+      EXPECT_GT(glm::dot(hits[size_t(i)].surface.normal, -kDown), 0.5);
+    }
+    EXPECT_EQ(counters.back_hits, uint64_t(n));
+    EXPECT_EQ(hits.front().t < hits.back().t, true);
+  }
+}
+
+TEST(RayTracer, CurvesAndTrianglesAgreeOnCoverage) {
+  LineSet lines;
+  for (int i = 0; i < 6; ++i) {
+    for (int k = 0; k <= 8; ++k) {
+      const float s = float(k) / 8;
+      lines.append_point(-1 + 2 * s, 0.6f * std::sin(3 * s + float(i)), 0.3f * float(i) - 0.8f);
+    }
+    lines.end_line();
+  }
+  TubeOptions t;
+  t.sides = 32;
+  t.radius = 0.05f;
+  t.radius_absolute = true;
+  t.attribute = "none";
+  const EmbreeScene curves = EmbreeScene::from_lines(lines, t.radius, "", {});
+  const EmbreeScene triangles = EmbreeScene::from_tubes(build_tubes(lines, t), {});
+  const Camera cam = frame_bounds(curves.bounds(), 1.0, 20, 15);
+  TraceOptions o;
+  o.width = o.height = 96;
+  const TransferFunction tf = transfer_function_preset("opaque");
+  const Frame a = trace_frame(curves, cam, tf, o), b = trace_frame(triangles, cam, tf, o);
+  size_t both = 0, either = 0;
+  for (size_t i = 0; i < a.depth_complexity.size(); ++i) {
+    both += a.depth_complexity[i] > 0 && b.depth_complexity[i] > 0;
+    either += a.depth_complexity[i] > 0 || b.depth_complexity[i] > 0;
+  }
+  ASSERT_GT(either, 500u);
+  EXPECT_GT(double(both) / double(either), 0.95);  // 32-gons against round tubes: edge pixels
+}
+
+TEST(RayTracer, FramesDoNotDependOnTheThreadCount) {
+  const LineSet lines = stacked_lines(4, {0.0f, 0.3f, 0.6f, 1.0f});
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "value", {});
+  const Camera cam = frame_bounds(scene.bounds(), 1.5, 30, 20);
+  TraceOptions o;
+  o.width = 60, o.height = 40;
+  const Frame many = trace_frame(scene, cam, rgb_tf(), o);
+  Frame one;
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    one = trace_frame(scene, cam, rgb_tf(), o);
+  }
+  EXPECT_EQ(many.image.pixels, one.image.pixels);
+  EXPECT_EQ(many.depth_complexity, one.depth_complexity);
+}
+
+TEST(EmbreeScene, BezierCurvesThroughStraightPointsHitLikeLinearOnes) {
+  const LineSet lines = stacked_lines(3);
+  EmbreeOptions o;
+  o.geometry = EmbreeGeometry::BezierCurve;
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", o);
+  EXPECT_EQ(scene.stats().primitives, 6u);
+  const auto hits = trace_hits(scene, kOrigin, kDown);  // away from the joints
+  ASSERT_EQ(hits.size(), 3u);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(hits[size_t(i)].t, 10.0 + i - kRadius, 1e-3);
+}
+
+TEST(EmbreeScene, ReportsBuildFiguresAndRejectsBadInput) {
+  const LineSet lines = stacked_lines(2);
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "value", {});
+  EXPECT_EQ(scene.stats().primitives, 4u);
+  EXPECT_GT(scene.stats().bvh_bytes, 0u);
+  EXPECT_GE(scene.stats().bvh_peak_bytes, scene.stats().bvh_bytes);
+  // Linear curves: one FLOAT4 per point plus a padding vertex, an index and a flag per segment.
+  EXPECT_EQ(scene.stats().buffer_bytes, (6 + 1) * 16u + 4 * 4u + 4u);
+  EXPECT_THROW(EmbreeScene::from_lines(lines, 0.0f, "", {}), Error);
+  EXPECT_THROW(EmbreeScene::from_lines(lines, kRadius, "nope", {}), Error);
+}
+
+TEST(Camera, CentreRayIsTheViewDirectionAndTheBoundsFit) {
+  Bounds b;
+  b.empty = false;
+  b.min = {-1, -2, -0.5f};
+  b.max = {3, 1, 0.5f};
+  const Camera c = frame_bounds(b, 16.0 / 9.0, 40, 25);
+  const glm::dvec3 centre = c.ray_direction(0, 0, 1, 1);
+  EXPECT_NEAR(glm::length(centre - c.forward()), 0, 1e-12);
+  // Every box corner projects inside the image.
+  const glm::dvec3 f = c.forward(), r = glm::normalize(glm::cross(f, c.up)), u = glm::cross(r, f);
+  const double th = std::tan(c.fov_y_degrees * M_PI / 360), tw = th * 16.0 / 9.0;
+  for (int i = 0; i < 8; ++i) {
+    const glm::dvec3 p((i & 1) ? b.max[0] : b.min[0], (i & 2) ? b.max[1] : b.min[1],
+                       (i & 4) ? b.max[2] : b.min[2]);
+    const glm::dvec3 d = p - c.eye;
+    const double z = glm::dot(d, f);
+    EXPECT_GT(z, c.near);
+    EXPECT_LT(z, c.far);
+    EXPECT_LE(std::abs(glm::dot(d, r) / z), tw);
+    EXPECT_LE(std::abs(glm::dot(d, u) / z), th);
+  }
+}
+
+TEST(Camera, OrbitZoomFlightZoomsInTwice) {
+  Bounds b;
+  b.empty = false;
+  b.min = {-1.0f, -1.0f, -1.0f};
+  b.max = {1.0f, 1.0f, 1.0f};
+  FlightOptions o;
+  o.frames = 100;
+  const auto zoom = make_flight(b, 1.0, o);
+  o.kind = FlightKind::Orbit;
+  const auto orbit = make_flight(b, 1.0, o);
+  ASSERT_EQ(zoom.size(), 100u);
+  const auto distance = [](const Camera& c) { return glm::length(c.eye - c.target); };
+  EXPECT_NEAR(distance(zoom[30]), 0.35 * distance(orbit[30]), 1e-9);
+  EXPECT_NEAR(distance(zoom[70]), 0.35 * distance(orbit[70]), 1e-9);
+  EXPECT_NEAR(distance(zoom[0]), distance(orbit[0]), 1e-9);
+  EXPECT_NEAR(distance(zoom[50]), distance(orbit[50]), 1e-9);
+  for (const auto& c : orbit) EXPECT_NEAR(distance(c), distance(orbit[0]), 1e-9);
+}
+
+TEST(Camera, KeyframesInterpolateAndBadFilesNameThePlace) {
+  test::TempDir dir;
+  const std::string good = dir.file("k.json"), bad = dir.file("bad.json");
+  std::ofstream(good) << R"({"keyframes": [{"eye": [0, 0, 10], "target": [0, 0, 0]},
+                                          {"eye": [10, 0, 0], "target": [0, 0, 0], "fov": 60}]})";
+  std::ofstream(bad) << R"({"keyframes": [{"eye": [0, 0], "target": [0, 0, 0]}]})";
+  Bounds b;
+  b.empty = false;
+  b.max = {1.0f, 1.0f, 1.0f};
+  FlightOptions o;
+  o.kind = FlightKind::Keyframes;
+  o.keyframes_file = good;
+  o.frames = 3;
+  const auto cams = make_flight(b, 1.0, o);
+  ASSERT_EQ(cams.size(), 3u);
+  EXPECT_NEAR(glm::length(cams[1].eye - glm::dvec3(5, 0, 5)), 0, 1e-12);
+  EXPECT_NEAR(cams[1].fov_y_degrees, 50, 1e-12);
+  o.keyframes_file = bad;
+  try {
+    make_flight(b, 1.0, o);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "keyframe 0");
+  }
+}
+
+TEST(TransferFunction, PresetsAndJsonRoundTrip) {
+  const TransferFunction opaque = transfer_function_preset("opaque");
+  EXPECT_EQ(opaque.at(0.3).a, 1.0);
+  EXPECT_NEAR(transfer_function_preset("transparent").at(0.9).a, 0.1, 1e-12);
+  const TransferFunction semi = transfer_function_preset("semi");
+  EXPECT_LT(semi.at(0.1).a, 0.1);
+  EXPECT_EQ(semi.at(1.0).a, 1.0);
+  // Between points: linear. semi has (0.4, 0.08) and (1, 1): at 0.7, 0.54.
+  EXPECT_NEAR(semi.at(0.7).a, 0.54, 1e-12);
+  EXPECT_NEAR(rgb_tf().at(0.25).g, srgb_to_linear(0.5), 1e-12);  // interpolated in sRGB
+  test::TempDir dir;
+  TransferFunction tf = rgb_tf();
+  save_transfer_function(tf, dir.file("tf.json"));
+  const TransferFunction back = load_transfer_function(dir.file("tf.json"));
+  for (const double t : {0.0, 0.1, 0.5, 0.77, 1.0}) {
+    EXPECT_EQ(back.at(t).r, tf.at(t).r);
+    EXPECT_EQ(back.at(t).a, tf.at(t).a);
+  }
+  EXPECT_EQ(back.range, tf.range);
+  std::ofstream(dir.file("broken.json"))
+      << R"({"colours": [[0, 1, 0, 0]], "opacities": [[0.5, 2]]})";
+  try {
+    load_transfer_function(dir.file("broken.json"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "opacities[0]");
+  }
+  EXPECT_THROW(transfer_function_preset("rainbow"), Error);
+}
+
+}  // namespace
+}  // namespace linebake
