@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
@@ -291,6 +292,40 @@ TEST(Bake, ProvenanceRecordsTheBuild) {
   EXPECT_GE(tubes->build.peak_rss, tubes->build.rss_before);
   EXPECT_GT(tubes->build.peak_rss, 0u);
   EXPECT_EQ(tubes->stats["triangles"].get<uint64_t>(), mesh.triangle_count());
+}
+
+TEST(Bake, EmbreeBuffersRoundTripAndRebuildToTheSameScene) {
+  TempDir dir;
+  BakeOptions o = small_bake(dir);
+  o.assets = {"tubes", "embree"};
+  const BakeResult first = bake(o);
+  ASSERT_EQ(first.steps.size(), 3u);
+  EXPECT_TRUE(first.steps[2].built);
+  const CacheReader cache(o.cache);
+  const auto p = cache.provenance(kEmbreeGroup);
+  ASSERT_TRUE(p);
+  const LineSet lines = load_lines(cache);
+  EXPECT_EQ(p->stats["primitives"].get<uint64_t>(), lines.segment_count());
+  EXPECT_EQ(p->memory_bytes,
+            p->stats["buffer_bytes"].get<uint64_t>() + p->stats["bvh_bytes"].get<uint64_t>());
+  EXPECT_GT(p->stats["bvh_bytes"].get<uint64_t>(), 0u);
+  // The curves share the tubes' radius, and the stored buffers are what a fresh build prepares.
+  const StoredCurves stored = load_embree(cache);
+  EXPECT_FLOAT_EQ(stored.radius, load_tubes(cache).radius);
+  const EmbreeScene fresh = EmbreeScene::from_lines(lines, stored.radius, stored.attribute, {});
+  const auto parts = fresh.prepared_curves();
+  ASSERT_EQ(parts.size(), stored.parts.size());
+  for (size_t i = 0; i < parts.size(); ++i) {
+    EXPECT_TRUE(std::equal(parts[i].vertices.begin(), parts[i].vertices.end(),
+                           stored.parts[i].vertices.begin(), stored.parts[i].vertices.end()));
+    EXPECT_TRUE(std::equal(parts[i].indices.begin(), parts[i].indices.end(),
+                           stored.parts[i].indices.begin(), stored.parts[i].indices.end()));
+    EXPECT_TRUE(std::equal(parts[i].flags.begin(), parts[i].flags.end(),
+                           stored.parts[i].flags.begin(), stored.parts[i].flags.end()));
+  }
+  EXPECT_FALSE(bake(o).steps[2].built);  // unchanged: reused
+  o.embree.quality = BuildQuality::High;
+  EXPECT_TRUE(bake(o).steps[2].built);
 }
 
 TEST(Bake, BadInputLeavesTheOldCacheAlone) {

@@ -17,7 +17,7 @@ Command add_bake(CLI::App& app) {
     BakeOptions options;
     std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";
     std::vector<float> attribute_range;
-    std::string grid = "auto";
+    std::string grid = "auto", embree_geometry = "linear", embree_quality = "medium";
     bool json = false;
   };
   auto args = std::make_shared<Args>();
@@ -27,7 +27,7 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(CLI::IsMember({"reject", "repair"}));
-  sub->add_option("--assets", o.assets, "Assets to build: tubes, voxels (default: tubes)")
+  sub->add_option("--assets", o.assets, "Assets to build: tubes, voxels, embree (default: tubes)")
       ->delimiter(',');
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
@@ -61,6 +61,13 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--voxel-attribute", o.voxels.attribute,
                   "Voxels: vertex attribute stored as unorm8 at chord ends (default: the first; "
                   "none)");
+  sub->add_option("--embree-geometry", args->embree_geometry,
+                  "Embree: linear (default, round linear curves) | bezier (Catmull-Rom)")
+      ->check(CLI::IsMember({"linear", "bezier"}));
+  sub->add_option("--embree-quality", args->embree_quality, "Embree: low | medium (default) | high")
+      ->check(CLI::IsMember({"low", "medium", "high"}));
+  sub->add_flag("--embree-compact", o.embree.compact, "Embree: RTC_SCENE_FLAG_COMPACT");
+  sub->add_flag("--embree-robust", o.embree.robust, "Embree: RTC_SCENE_FLAG_ROBUST");
   sub->add_option("--compression", args->compression, "none | deflate | lz4 (default) | blosc-zstd")
       ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
   sub->add_option("--compression-level", o.compression_level,
@@ -75,6 +82,8 @@ Command add_bake(CLI::App& app) {
     options.compression = parse_compression(args->compression);
     options.tubes.normals = parse_normal_encoding(args->normals);
     parse_grid(args->grid, options.voxels);
+    options.embree.geometry = parse_embree_geometry(args->embree_geometry);
+    options.embree.quality = parse_build_quality(args->embree_quality);
     if (args->attribute_range.size() == 2)
       options.tubes.attribute_range =
           std::array<float, 2>{args->attribute_range[0], args->attribute_range[1]};

@@ -132,24 +132,27 @@ Command add_render(CLI::App& app) {
     options.quality = parse_build_quality(args->quality);
     LineSet lines;
     TubeMesh tubes;
-    if (has_tubes) tubes = load_tubes(cache);
+    // The curves take the cached tubes' radius and attribute, from their provenance (the mesh
+    // itself is only loaded for the reference).
+    const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
     std::optional<EmbreeScene> scene;
     if (reference) {
       if (!has_tubes)
         throw Error(args->cache +
                     ": the reference renders the tube mesh; bake --assets tubes first");
+      tubes = load_tubes(cache);
       scene.emplace(EmbreeScene::from_tubes(tubes, options));
     } else {
       lines = load_lines(cache);
       options.geometry = parse_embree_geometry(args->geometry);
       std::string attribute = args->attribute;
       if (attribute.empty())
-        attribute = has_tubes ? tubes.attribute
-                              : (lines.attributes.empty() ? "" : lines.attributes[0].name);
+        attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
+                                    : (lines.attributes.empty() ? "" : lines.attributes[0].name);
       float radius = args->radius;
       if (!(radius > 0)) {
-        if (has_tubes) {
-          radius = tubes.radius;
+        if (tube_provenance && tube_provenance->stats.contains("radius_world")) {
+          radius = tube_provenance->stats["radius_world"].get<float>();
         } else {
           const Bounds b = compute_bounds(lines);
           const float dx = b.max[0] - b.min[0], dy = b.max[1] - b.min[1], dz = b.max[2] - b.min[2];

@@ -346,6 +346,13 @@ Bounds EmbreeScene::bounds() const {
   return out;
 }
 
+std::vector<PreparedCurves> EmbreeScene::prepared_curves() const {
+  std::vector<PreparedCurves> out;
+  if (state_->geometry == EmbreeGeometry::Triangles) return out;
+  for (const Part& part : state_->parts) out.push_back({part.vertices, part.indices, part.flags});
+  return out;
+}
+
 bool EmbreeScene::adjacent(unsigned geometry, unsigned a, unsigned b) const {
   const State& s = *state_;
   const Part& part = s.parts[geometry];

@@ -58,6 +58,14 @@ struct SurfacePoint {
   double attribute = 0;
 };
 
+// Embree's input buffers for one curve geometry, as prepared: what the cache keeps, ready for
+// rtcSetSharedGeometryBuffer (vertices are FLOAT4 x, y, z, r with one zero padding vertex).
+struct PreparedCurves {
+  Array<float> vertices;
+  Array<uint32_t> indices;  // first vertex of each segment (Bezier: 4 x segment)
+  Array<uint8_t> flags;     // RTC_CURVE_FLAG_NEIGHBOR_LEFT / _RIGHT (linear curves only)
+};
+
 class EmbreeScene {
  public:
   // Curves over the line set with one world-space radius; `attribute` names the vertex
@@ -80,6 +88,8 @@ class EmbreeScene {
   // sharing a vertex). A ray through the seam reports both at the same distance, where
   // rasterisation makes one fragment: the tracer counts such a pair once.
   bool adjacent(unsigned geometry, unsigned a, unsigned b) const;
+  // The prepared curve buffers per geometry (empty for triangles: those are the tube mesh's).
+  std::vector<PreparedCurves> prepared_curves() const;
   // Scene bounds (for cameras).
   Bounds bounds() const;
 

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
@@ -18,6 +19,7 @@ namespace {
 constexpr uint64_t kLinesVersion = 1;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
+constexpr uint64_t kEmbreeVersion = 1;
 
 uint64_t threads() {
   return static_cast<uint64_t>(tbb::info::default_concurrency());
@@ -49,7 +51,7 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 }  // namespace
 
 const std::vector<std::string>& bakeable_assets() {
-  static const std::vector<std::string> assets{"tubes", "voxels"};
+  static const std::vector<std::string> assets{"tubes", "voxels", "embree"};
   return assets;
 }
 
@@ -98,11 +100,35 @@ std::string voxels_key(const std::string& lines_hash, const VoxelOptions& voxels
                  to_string(compression), std::to_string(level)});
 }
 
+nlohmann::json to_json(const EmbreeOptions& e, const TubeOptions& t) {
+  return {{"geometry", to_string(e.geometry)},
+          {"quality", to_string(e.quality)},
+          {"compact", e.compact},
+          {"robust", e.robust},
+          {"max_primitives_per_scene", e.max_primitives_per_scene},
+          {"radius", t.radius},
+          {"radius_absolute", t.radius_absolute},
+          {"attribute", t.attribute}};
+}
+
+std::string embree_key(const std::string& lines_hash, const EmbreeOptions& e, const TubeOptions& t,
+                       Compression compression, int level) {
+  return key_of({"embree", std::to_string(kEmbreeVersion), lines_hash, to_json(e, t).dump(),
+                 to_string(compression), std::to_string(level)});
+}
+
+// The attribute the tubes colour by, for the curves: "" = the first, "none" = none.
+static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
+  if (t.attribute == "none") return "";
+  if (!t.attribute.empty()) return t.attribute;
+  return lines.attributes.empty() ? "" : lines.attributes[0].name;
+}
+
 BakeResult bake(const BakeOptions& options) {
   for (const std::string& asset : options.assets)
     if (std::find(bakeable_assets().begin(), bakeable_assets().end(), asset) ==
         bakeable_assets().end())
-      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels)");
+      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree)");
   BakeResult result;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
 
@@ -175,13 +201,17 @@ BakeResult bake(const BakeOptions& options) {
   std::vector<BakeStep> asset_steps;
   TubeMesh tubes;
   VoxelGrid voxels;
+  StoredCurves curves;
   for (const std::string& asset : options.assets) {
     BakeStep step{asset, false, {}};
-    const bool is_tubes = asset == "tubes";
-    const std::string key = is_tubes ? tubes_key(lines_hash, options.tubes, options.compression,
-                                                 options.compression_level)
-                                     : voxels_key(lines_hash, options.voxels, options.compression,
-                                                  options.compression_level);
+    const bool is_tubes = asset == "tubes", is_voxels = asset == "voxels";
+    const std::string key =
+        is_tubes
+            ? tubes_key(lines_hash, options.tubes, options.compression, options.compression_level)
+        : is_voxels
+            ? voxels_key(lines_hash, options.voxels, options.compression, options.compression_level)
+            : embree_key(lines_hash, options.embree, options.tubes, options.compression,
+                         options.compression_level);
     const auto previous = old_provenance("/assets/" + asset);
     if (!options.force && previous && previous->key == key) {
       step.provenance = *previous;
@@ -194,10 +224,33 @@ BakeResult bake(const BakeOptions& options) {
     {
       TerminalProgress progress("building " + asset);
       const ProgressFn callback = options.progress ? progress.callback() : ProgressFn{};
-      if (is_tubes)
+      if (is_tubes) {
         tubes = build_tubes(lines, options.tubes, callback);
-      else
+      } else if (is_voxels) {
         voxels = voxelize(lines, options.voxels, callback);
+      } else {
+        curves.geometry = options.embree.geometry;
+        curves.radius = world_radius(lines, options.tubes);
+        curves.attribute = curve_attribute(lines, options.tubes);
+        const EmbreeScene scene =
+            EmbreeScene::from_lines(lines, curves.radius, curves.attribute, options.embree);
+        curves.parts = scene.prepared_curves();
+        const BvhStats& b = scene.stats();
+        p.stats = {{"geometry", to_string(b.geometry)},
+                   {"quality", to_string(options.embree.quality)},
+                   {"primitives", b.primitives},
+                   {"parts", b.parts},
+                   {"instanced", b.instanced},
+                   {"radius_world", curves.radius},
+                   {"attribute", curves.attribute},
+                   {"prepare_s", b.prepare_s},
+                   {"commit_s", b.commit_s},
+                   {"buffer_bytes", b.buffer_bytes},
+                   {"bvh_bytes", b.bvh_bytes},
+                   {"bvh_peak_bytes", b.bvh_peak_bytes}};
+        // What ray tracing needs resident: the prepared buffers and the BVH.
+        p.memory_bytes = b.buffer_bytes + b.bvh_bytes;
+      }
     }
     p.build = meter.stop();
     if (is_tubes) {
@@ -210,6 +263,8 @@ BakeResult bake(const BakeOptions& options) {
       if (tubes.lines_dropped)
         result.notes.push_back("tubes: " + std::to_string(tubes.lines_dropped) +
                                " lines with fewer than two distinct points have no tube");
+    } else if (!is_voxels) {
+      p.parameters = to_json(options.embree, options.tubes);
     } else {
       p.parameters = to_json(options.voxels);
       p.stats = {{"resolution", voxels.resolution},
@@ -256,7 +311,9 @@ BakeResult bake(const BakeOptions& options) {
     TerminalProgress progress("writing " + result.cache);
     uint64_t total = lines_step.built ? line_set_bytes(lines) : 0;
     for (const BakeStep& s : asset_steps)
-      if (s.built) total += s.provenance.memory_bytes;
+      if (s.built)
+        total += s.step == "embree" ? s.provenance.stats.value("buffer_bytes", uint64_t{0})
+                                    : s.provenance.memory_bytes;
     if (options.progress) writer.set_progress(progress.callback(), total);
     if (lines_step.built) {
       store_lines(writer, lines, lines_step.provenance);
@@ -268,8 +325,10 @@ BakeResult bake(const BakeOptions& options) {
         writer.copy_group(result.cache, "/assets/" + s.step);
       else if (s.step == "tubes")
         store_tubes(writer, tubes, s.provenance);
-      else
+      else if (s.step == "voxels")
         store_voxels(writer, voxels, s.provenance);
+      else
+        store_embree(writer, curves, s.provenance);
     }
     for (const std::string& name : kept) writer.copy_group(result.cache, "/assets/" + name);
     old.reset();

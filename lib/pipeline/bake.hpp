@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
 #include "formats/registry.hpp"
 #include "lines/validate.hpp"
@@ -21,9 +22,11 @@ struct BakeOptions {
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
   std::string cache;                         // output; default <input stem>.lbc.h5
-  std::vector<std::string> assets{"tubes"};  // and/or "voxels"
+  std::vector<std::string> assets{"tubes"};  // and/or "voxels", "embree"
   TubeOptions tubes;
   VoxelOptions voxels;
+  // Embree curves: radius and attribute follow `tubes` (the same tubes, ray traced).
+  EmbreeOptions embree;
   Compression compression = Compression::Lz4;
   int compression_level = -1;  // codec default
   bool force = false;          // rebuild every step

@@ -79,12 +79,16 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
   const auto columns = asset_columns(caches);
   header = {"data set", "lines", "LS (segments)", "LM"};
   for (const std::string& a : columns) {
-    const std::string label = a == "tubes" ? "tubes (RAS)" : a == "voxels" ? "voxels (VRC)" : a;
+    const std::string label = a == "tubes"    ? "tubes (RAS)"
+                              : a == "voxels" ? "voxels (VRC)"
+                              : a == "embree" ? "embree (OSP)"
+                                              : a;
     header.push_back(label + " size");
     header.push_back(a + " build (s)");
     header.push_back(a + " build peak RSS");
     header.push_back(a + " on disk");
     if (a == "voxels") header.push_back("voxel grid, chords, error max/mean (voxels)");
+    if (a == "embree") header.push_back("embree rebuild: commit (s), BVH");
   }
   std::vector<std::vector<std::string>> rows;
   for (const CacheSummary& c : caches) {
@@ -94,7 +98,7 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
     for (const std::string& a : columns) {
       const Provenance* p = find_asset(c, a);
       if (!p) {
-        row.insert(row.end(), a == "voxels" ? 5 : 4, "-");
+        row.insert(row.end(), a == "voxels" || a == "embree" ? 5 : 4, "-");
         continue;
       }
       row.push_back(format_bytes(p->memory_bytes));
@@ -111,6 +115,9 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
                       p->stats.value("mean_error_voxels", 0.0));
         row.push_back(text);
       }
+      if (a == "embree")
+        row.push_back(seconds(p->stats.value("commit_s", 0.0)) + " s, " +
+                      format_bytes(p->stats.value("bvh_bytes", uint64_t{0})));
     }
     rows.push_back(std::move(row));
   }

@@ -314,6 +314,15 @@ void Builder::write_line(size_t line, Scratch& s) const {
   }
 }
 
+}  // namespace
+
+float world_radius(const LineSet& lines, const TubeOptions& options) {
+  return options.radius_absolute ? options.radius
+                                 : options.radius * compute_bounds(lines).diagonal();
+}
+
+namespace {
+
 void Builder::build(const ProgressFn& progress) {
   if (options_.sides < 3 || options_.sides > 32)
     throw Error("tubes: sides must be 3..32, got " + std::to_string(options_.sides));
@@ -323,7 +332,7 @@ void Builder::build(const ProgressFn& progress) {
   mesh_.sides = options_.sides;
   mesh_.caps = options_.caps;
   mesh_.normals = options_.normals;
-  mesh_.radius = options_.radius_absolute ? options_.radius : options_.radius * diagonal;
+  mesh_.radius = world_radius(lines_, options_);
   if (!(mesh_.radius > 0)) throw Error("tubes: the data has no extent, use an absolute radius");
   min_distance_ = options_.min_point_distance * diagonal;
   resolve_attributes();

@@ -33,6 +33,9 @@ struct TubeOptions {
   float min_point_distance = 1e-6f;
 };
 
+// The tube radius in world units: options.radius x the bounding-box diagonal, or as given.
+float world_radius(const LineSet& lines, const TubeOptions& options);
+
 // Throws linebake::Error for options out of range or a line too large for one chunk.
 TubeMesh build_tubes(const LineSet& lines, const TubeOptions& options,
                      const ProgressFn& progress = {});
