@@ -99,6 +99,24 @@ check "export with no target is an error" exit_code 4 "$bin" export "$tmp/c.lbc.
 check "bad grid is an error" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/g.lbc.h5" --assets voxels --grid 12x3
 check "bench tubes" bash -c "'$bin' bench tubes --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"segments\": 495000'"
 check "bench voxels" bash -c "'$bin' bench voxels --input '$tmp/c.binlines' --grid 64 --repeat 1 --json | grep -q '\"resolution\": \\['"
+
+# Embree, render, compare
+check "bake embree next to tubes" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,embree 2>&1 >/dev/null | grep -q 'embree: built'"
+check "report has the OSP column" bash -c "'$bin' report '$tmp/t.lbc.h5' --markdown | grep -q 'embree (OSP)'"
+check "render embree" "$bin" render "$tmp/t.lbc.h5" --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/e.png" --stats "$tmp/e.json" --depth-complexity "$tmp/dc.png"
+check "render stats json" bash -c "grep -q '\"back_hits_rejected\"' '$tmp/e.json' && grep -q '\"bvh_bytes\"' '$tmp/e.json'"
+check "render reference pfm" "$bin" render "$tmp/t.lbc.h5" --technique reference --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/r.pfm"
+check "compare pfm against png of one render" bash -c "'$bin' compare '$tmp/e.png' '$tmp/e.png' | grep -q '60.0000 dB'"
+check "compare embree to reference" bash -c "'$bin' compare '$tmp/e.png' '$tmp/r.pfm' --json --error-image '$tmp/err.png' | grep -q '\"ssim\"' && test -s '$tmp/err.png'"
+check "render all frames" bash -c "'$bin' render '$tmp/t.lbc.h5' --frames all --frame-count 3 --size 32x24 -o '$tmp/f.png' 2>/dev/null && test -s '$tmp/f_000.png' && test -s '$tmp/f_002.png'"
+check "voxels-only bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/v.lbc.h5' --assets voxels --grid 32 > /dev/null 2>&1"
+check "reference without tubes is an error" exit_code 4 "$bin" render "$tmp/v.lbc.h5" --technique reference --size 32x24 -o "$tmp/x.png"
+check "curves render without tubes" "$bin" render "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/v.png"
+printf '{"keyframes": [{"eye": [0, 0], "target": [0, 0, 0]}]}' > "$tmp/bad_keys.json"
+check "bad keyframes exit 2" exit_code 2 "$bin" render "$tmp/t.lbc.h5" --flight "$tmp/bad_keys.json" --size 32x24 -o "$tmp/x.png"
+check "compare different sizes is an error" exit_code 4 "$bin" compare "$tmp/e.png" "$tmp/f_000.png"
+printf 'not a png' > "$tmp/bad.png"
+check "compare unreadable png exits 2" exit_code 2 "$bin" compare "$tmp/bad.png" "$tmp/e.png"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"
