@@ -142,7 +142,8 @@ struct EmbreeScene::State {
         in_scene = 0;
       }
       RTCGeometry g = new_geometry(parts[i]);
-      rtcAttachGeometryByID(current_scene, g, instanced ? unsigned(i) : unsigned(i));
+      rtcAttachGeometryByID(current_scene, g,
+                            unsigned(i));  // geomID = part index, also in sub-scenes
       rtcReleaseGeometry(g);
       in_scene += parts[i].primitives;
     }
