@@ -23,10 +23,6 @@
 namespace linebake::cli {
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 // Best-of-n memcpy bandwidth (bytes written per second) over pre-touched 1 GiB buffers, with the
 // copy split over all threads like the builders split their work.
 double memcpy_bandwidth(int repeats) {

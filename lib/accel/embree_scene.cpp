@@ -6,13 +6,10 @@
 #include <cstring>
 
 #include "core/error.hpp"
+#include "core/measure.hpp"
 
 namespace linebake {
 namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 // Embree reads the last element of vertex and index buffers with 16-byte loads. A buffer can
 // be shared as is when it sits in page-granular memory (linebake's large allocations and cache

@@ -47,7 +47,7 @@ StepMeter::StepMeter() {
 
 StepFigures StepMeter::stop() const {
   StepFigures f;
-  f.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
+  f.wall_s = seconds_since(wall_start_);
   f.cpu_s = process_cpu_seconds() - cpu_start_;
   f.rss_before = rss_before_;
   f.peak_rss = peak_rss_bytes();

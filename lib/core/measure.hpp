@@ -29,6 +29,11 @@ class StepMeter {
   bool reset_ok_ = false;
 };
 
+// Wall seconds since `start` on the steady clock.
+inline double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 uint64_t current_rss_bytes();
 uint64_t peak_rss_bytes();
 double process_cpu_seconds();

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <tuple>
 
+#include "core/measure.hpp"
+
 namespace linebake {
 namespace {
 
@@ -47,18 +49,25 @@ auto key(const RawHit& h) {
   return std::tie(h.instance, h.geometry, h.primitive);
 }
 
-// Sorts, removes repeated reports of one hit and back hits; returns the front hits in order.
+// Sorts by distance, removes repeated reports of one hit, back hits and seam doubles; returns
+// the front hits in order.
 void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const EmbreeScene& scene,
              std::vector<RayHit>& out, TraceCounters& counters) {
   std::sort(raw.begin(), raw.end(), [](const RawHit& a, const RawHit& b) {
-    return std::tie(a.instance, a.geometry, a.primitive, a.t) <
-           std::tie(b.instance, b.geometry, b.primitive, b.t);
+    return std::tie(a.t, a.instance, a.geometry, a.primitive) <
+           std::tie(b.t, b.instance, b.geometry, b.primitive);
   });
   out.clear();
   for (size_t i = 0; i < raw.size(); ++i) {
     const RawHit& h = raw[i];
-    if (i > 0 && key(raw[i - 1]) == key(h) &&
-        h.t - raw[i - 1].t <= 1e-6 * std::max(1.0, std::abs(h.t))) {
+    // A filter can report one hit twice.
+    bool repeated = false;
+    for (size_t k = i; k-- > 0 && h.t - raw[k].t <= 1e-6 * std::max(1.0, std::abs(h.t));)
+      if (key(raw[k]) == key(h)) {
+        repeated = true;
+        break;
+      }
+    if (repeated) {
       ++counters.duplicates;
       continue;
     }
@@ -68,29 +77,21 @@ void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const Embree
       ++counters.back_hits;
       continue;
     }
-    out.push_back({h.t, h.instance, h.geometry, h.primitive, scene.surface(h.hit)});
-  }
-  std::sort(out.begin(), out.end(), [](const RayHit& a, const RayHit& b) {
-    return std::tie(a.t, a.instance, a.geometry, a.primitive) <
-           std::tie(b.t, b.instance, b.geometry, b.primitive);
-  });
-  // A ray through a seam (a joint between segments, an edge between triangles) hits both
-  // primitives at one distance; keep the first.
-  size_t kept = 0;
-  for (size_t i = 0; i < out.size(); ++i) {
+    // A ray through a seam (a joint between segments, an edge between triangles) hits both
+    // primitives at one distance; keep the first.
     bool seam = false;
-    for (size_t k = kept; k-- > 0 && out[i].t - out[k].t <= 1e-5 * std::max(1.0, out[i].t);)
-      if (out[k].instance == out[i].instance && out[k].geometry == out[i].geometry &&
-          scene.adjacent(out[i].geometry, out[k].primitive, out[i].primitive)) {
+    for (size_t k = out.size(); k-- > 0 && h.t - out[k].t <= 1e-5 * std::max(1.0, h.t);)
+      if (out[k].instance == h.instance && out[k].geometry == h.geometry &&
+          scene.adjacent(h.geometry, out[k].primitive, h.primitive)) {
         seam = true;
         break;
       }
-    if (seam)
+    if (seam) {
       ++counters.duplicates;
-    else
-      out[kept++] = out[i];
+      continue;
+    }
+    out.push_back({h.t, h.instance, h.geometry, h.primitive, scene.surface(h.hit)});
   }
-  out.resize(kept);
   counters.hits += out.size();
 }
 
@@ -207,7 +208,7 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
   st.mean_covered_depth_complexity = covered ? double(st.counters.hits) / double(covered) : 0.0;
   st.frame_bytes = frame.image.pixels.size() * sizeof(float) +
                    frame.depth_complexity.size() * sizeof(uint32_t) + hit_buffer_bytes;
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  st.seconds = seconds_since(start);
   return frame;
 }
 
