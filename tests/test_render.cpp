@@ -86,26 +86,86 @@ TEST(RayTracer, ThreeOverlappingTubesMatchTheHandComputedPixel) {
 }
 
 TEST(RayTracer, EveryHitOnceAlongARayThroughNTubesAtTheirJoints) {
-  for (const int n : {1, 4, 9}) {
-    const LineSet lines = stacked_lines(n);
-    for (const uint64_t per_scene : {uint64_t{0xFFFFFFFF}, uint64_t{4}}) {  // 4: instanced
-      EmbreeOptions options;
-      options.max_primitives_per_scene = per_scene;
-      const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", options);
-      EXPECT_EQ(scene.stats().instanced, per_scene == 4 && n > 2);
-      TraceCounters counters;
-      // Through the joints at x = 0: neighbour flags keep them to one hit per tube.
-      const auto hits = trace_hits(scene, {0, 0, 10}, kDown, 0, 1e30, &counters);
-      ASSERT_EQ(hits.size(), size_t(n)) << "n " << n << " per scene " << per_scene;
-      for (int i = 0; i < n; ++i) EXPECT_NEAR(hits[size_t(i)].t, 10.0 + i - kRadius, 1e-4);
-      EXPECT_EQ(counters.duplicates, uint64_t(n));  // the second segment at each joint
-      // Away from the joints: one rejected back hit (the far side) per tube, no doubles.
-      TraceCounters off_joint;
-      EXPECT_EQ(trace_hits(scene, kOrigin, kDown, 0, 1e30, &off_joint).size(), size_t(n));
-      EXPECT_EQ(off_joint.back_hits, uint64_t(n));
-      EXPECT_EQ(off_joint.duplicates, 0u);
+  for (const auto geometry : {EmbreeGeometry::LinearCurve, EmbreeGeometry::Capsules})
+    for (const int n : {1, 4, 9}) {
+      const LineSet lines = stacked_lines(n);
+      for (const uint64_t per_scene : {uint64_t{0xFFFFFFFF}, uint64_t{4}}) {  // 4: instanced
+        SCOPED_TRACE(std::string(to_string(geometry)) + " n " + std::to_string(n) + " per scene " +
+                     std::to_string(per_scene));
+        EmbreeOptions options;
+        options.geometry = geometry;
+        options.max_primitives_per_scene = per_scene;
+        const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", options);
+        EXPECT_EQ(scene.stats().instanced, per_scene == 4 && n > 2);
+        TraceCounters counters;
+        // Through the joints at x = 0: one hit per tube; the second segment's is a seam double.
+        const auto hits = trace_hits(scene, {0, 0, 10}, kDown, 0, 1e30, &counters);
+        ASSERT_EQ(hits.size(), size_t(n));
+        for (int i = 0; i < n; ++i) EXPECT_NEAR(hits[size_t(i)].t, 10.0 + i - kRadius, 1e-4);
+        EXPECT_EQ(counters.duplicates, uint64_t(n));
+        // Away from the joints: one rejected back hit (the far side) per tube, no doubles.
+        TraceCounters off_joint;
+        EXPECT_EQ(trace_hits(scene, kOrigin, kDown, 0, 1e30, &off_joint).size(), size_t(n));
+        EXPECT_EQ(off_joint.back_hits, uint64_t(n));
+        EXPECT_EQ(off_joint.duplicates, 0u);
+        // Stepping finds the same hits; past a hit it does not see the seam double at all.
+        for (const glm::dvec3& origin : {glm::dvec3(0, 0, 10), kOrigin}) {
+          TraceCounters stepped;
+          const auto again =
+              trace_hits(scene, origin, kDown, 0, 1e30, &stepped, HitCollection::Stepping);
+          ASSERT_EQ(again.size(), size_t(n));
+          for (int i = 0; i < n; ++i) EXPECT_NEAR(again[size_t(i)].t, 10.0 + i - kRadius, 1e-4);
+          EXPECT_EQ(stepped.back_hits, uint64_t(n));
+          EXPECT_EQ(stepped.duplicates, 0u);
+        }
+      }
     }
-  }
+}
+
+TEST(Capsules, ARayAlongTheChainSeesOnlyItsEndCaps) {
+  // Three collinear segments along x; the ray runs down the axis. The union of the capsules is
+  // one long capsule: the ray enters the first end cap and leaves the last, and the joint
+  // spheres and cylinders in between lie inside the neighbours.
+  LineSet lines;
+  for (const float x : {-1.0f, -0.2f, 0.5f, 1.0f}) lines.append_point(x, 0, 0);
+  lines.end_line();
+  EmbreeOptions o;
+  o.geometry = EmbreeGeometry::Capsules;
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", o);
+  TraceCounters c;
+  const auto hits = trace_hits(scene, {-5, 0, 0}, {1, 0, 0}, 0, 1e30, &c);
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_NEAR(hits[0].t, 4 - kRadius, 1e-5);
+  EXPECT_NEAR(glm::length(hits[0].surface.normal - glm::dvec3(-1, 0, 0)), 0, 1e-5);
+  EXPECT_EQ(c.back_hits, 1u);  // leaving through the far cap at t = 6 + r
+  EXPECT_EQ(c.duplicates, 0u);
+}
+
+TEST(Capsules, TheJointSphereFillsTheOuterCornerOfABend) {
+  // An L: (0,0,0) -> (1,0,0) -> (1,1,0). Beyond the corner, outside both cylinders, only the
+  // joint sphere is there: a ray down z at (1 + r/2, -r/2) meets it at height r / sqrt(2).
+  LineSet lines;
+  lines.append_point(0, 0, 0);
+  lines.append_point(1, 0, 0);
+  lines.append_point(1, 1, 0);
+  lines.end_line();
+  EmbreeOptions o;
+  o.geometry = EmbreeGeometry::Capsules;
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "", o);
+  const double r = kRadius;
+  TraceCounters c;
+  const auto hits = trace_hits(scene, {1 + r / 2, -r / 2, 10}, kDown, 0, 1e30, &c);
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_NEAR(hits[0].t, 10 - r / std::sqrt(2.0), 1e-5);
+  EXPECT_EQ(c.back_hits, 1u);
+  // Inside the bend the cylinders overlap: the first segment's wall is higher there (at
+  // sqrt(r^2 - (r/4)^2)); the second's, lower, lies inside it. One way in, one way out.
+  TraceCounters inner;
+  const auto inside = trace_hits(scene, {1 - r / 2, r / 4, 10}, kDown, 0, 1e30, &inner);
+  ASSERT_EQ(inside.size(), 1u);
+  EXPECT_NEAR(inside[0].t, 10 - std::sqrt(r * r - r * r / 16), 1e-5);
+  EXPECT_EQ(inner.back_hits, 1u);
+  EXPECT_EQ(inner.duplicates, 0u);
 }
 
 TEST(RayTracer, TriangleTubesGiveOneFrontHitPerTube) {
@@ -164,6 +224,16 @@ TEST(RayTracer, CurvesAndTrianglesAgreeOnCoverage) {
   }
   ASSERT_GT(either, 500u);
   EXPECT_GT(double(both) / double(either), 0.95);  // 32-gons against round tubes: edge pixels
+
+  // Capsule chains are round linear curves by another method: the same pixels, the same hits.
+  EmbreeOptions capsule_options;
+  capsule_options.geometry = EmbreeGeometry::Capsules;
+  const EmbreeScene capsules = EmbreeScene::from_lines(lines, t.radius, "", capsule_options);
+  const Frame c = trace_frame(capsules, cam, tf, o);
+  size_t same = 0;
+  for (size_t i = 0; i < a.depth_complexity.size(); ++i)
+    same += a.depth_complexity[i] == c.depth_complexity[i];
+  EXPECT_GT(double(same) / double(a.depth_complexity.size()), 0.995);
 }
 
 TEST(RayTracer, FramesDoNotDependOnTheThreadCount) {
@@ -226,6 +296,37 @@ TEST(Camera, CentreRayIsTheViewDirectionAndTheBoundsFit) {
     EXPECT_LE(std::abs(glm::dot(d, r) / z), tw);
     EXPECT_LE(std::abs(glm::dot(d, u) / z), th);
   }
+}
+
+TEST(Camera, OrbitDistanceFitsTheBoxTightlyFromEveryAzimuth) {
+  // An elongated box (like the aneurysm): along the orbit, the tightest frame puts some corner
+  // exactly at the 5% margin, and none beyond it.
+  Bounds b;
+  b.empty = false;
+  b.min = {-4, -1, -0.5f};
+  b.max = {4, 1, 0.5f};
+  FlightOptions o;
+  o.kind = FlightKind::Orbit;
+  o.frames = 360;  // one frame per degree: the azimuths the fit samples
+  const double aspect = 16.0 / 9.0;
+  const auto cams = make_flight(b, aspect, o);
+  double tightest = 0;
+  for (const Camera& c : cams) {
+    const glm::dvec3 f = c.forward(), r = glm::normalize(glm::cross(f, c.up)), u = glm::cross(r, f);
+    const double th = std::tan(c.fov_y_degrees * M_PI / 360), tw = th * aspect;
+    for (int i = 0; i < 8; ++i) {
+      const glm::dvec3 p((i & 1) ? b.max[0] : b.min[0], (i & 2) ? b.max[1] : b.min[1],
+                         (i & 4) ? b.max[2] : b.min[2]);
+      const glm::dvec3 d = p - c.eye;
+      const double z = glm::dot(d, f);
+      tightest = std::max(
+          {tightest, std::abs(glm::dot(d, r)) / z / tw, std::abs(glm::dot(d, u)) / z / th});
+    }
+  }
+  EXPECT_NEAR(tightest, 1 / 1.05, 1e-9);
+  // The bounding-sphere fit would stand further off.
+  const double sphere_fit = std::sqrt(64.0 + 4 + 1) / 2 / std::sin(20 * M_PI / 180);
+  EXPECT_LT(glm::length(cams[0].eye - cams[0].target), 0.9 * sphere_fit);
 }
 
 TEST(Camera, OrbitZoomFlightZoomsInTwice) {

@@ -63,7 +63,7 @@ Command add_bake(CLI::App& app) {
                   "none)");
   sub->add_option("--embree-geometry", args->embree_geometry,
                   "Embree: linear (default, round linear curves) | bezier (Catmull-Rom)")
-      ->check(CLI::IsMember({"linear", "bezier"}));
+      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
   sub->add_option("--embree-quality", args->embree_quality, "Embree: low | medium (default) | high")
       ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_flag("--embree-compact", o.embree.compact, "Embree: RTC_SCENE_FLAG_COMPACT");

@@ -79,7 +79,7 @@ Command add_render(CLI::App& app) {
     std::string cache, technique = "embree", geometry = "linear", tf = "semi",
                        flight = "orbit-zoom";
     std::string frames, output, stats, depth_image, size = "1280x720", attribute,
-                                                    quality = "medium";
+                                                    quality = "medium", hits = "filter";
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
     bool early = false;
@@ -91,8 +91,9 @@ Command add_render(CLI::App& app) {
   sub->add_option("--technique", args->technique,
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh)")
       ->check(CLI::IsMember({"embree", "reference"}));
-  sub->add_option("--geometry", args->geometry, "embree: linear (default) | bezier curves")
-      ->check(CLI::IsMember({"linear", "bezier"}));
+  sub->add_option("--geometry", args->geometry,
+                  "embree: linear (default) | bezier curves | capsules (user geometry)")
+      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
   sub->add_option("--quality", args->quality, "Embree build quality: low | medium | high")
       ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_option("--tf", args->tf, "Transfer function: opaque | semi | transparent | FILE.json");
@@ -115,6 +116,10 @@ Command add_render(CLI::App& app) {
   sub->add_option("--stats", args->stats, "Frame statistics as JSON");
   sub->add_option("--depth-complexity", args->depth_image,
                   "16-bit grey PNG of front hits per pixel");
+  sub->add_option("--hits", args->hits,
+                  "How hits are found: filter (one traversal, default) | stepping (closest-hit "
+                  "queries from just past the last hit)")
+      ->check(CLI::IsMember({"filter", "stepping"}));
   sub->add_flag("--early-termination", args->early,
                 "Stop compositing at opacity 0.99 (never for ground truth)");
   return [args] {
@@ -164,6 +169,7 @@ Command add_render(CLI::App& app) {
     TraceOptions trace;
     trace.width = width, trace.height = height;
     trace.early_termination = args->early;
+    trace.collection = parse_hit_collection(args->hits);
     FlightOptions flight;
     flight.kind = parse_flight_kind(args->flight);
     if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args->flight;
@@ -178,6 +184,7 @@ Command add_render(CLI::App& app) {
     const bool numbered = frames.size() > 1;
     nlohmann::json stats = {{"technique", args->technique},
                             {"transfer_function", tf.name},
+                            {"hit_collection", to_string(trace.collection)},
                             {"flight", to_string(flight.kind)},
                             {"bvh", to_json(scene->stats())},
                             {"frames", nlohmann::json::array()}};

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 
+#include "accel/capsule_chain.hpp"
 #include "core/error.hpp"
 #include "core/measure.hpp"
 
@@ -37,6 +38,7 @@ struct Part {
   Array<uint32_t> indices;        // first vertex of each segment
   Array<uint8_t> flags;           // neighbour flags (linear curves)
   Array<uint32_t> segment_point;  // part-local first point of each segment
+  CapsuleChain chain;             // capsules: views the three buffers above
   // Triangles: the chunk, and the buffers Embree reads (the chunk's own, or padded copies).
   size_t chunk = 0;
   Array<float> positions;
@@ -105,6 +107,9 @@ struct EmbreeScene::State {
                                  mesh.chunks[part.chunk].vertex_count());
       rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
                                  part.triangle_indices.data(), 0, 12, part.primitives);
+    } else if (geometry == EmbreeGeometry::Capsules) {
+      g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      set_capsule_geometry(g, &part.chain, uint32_t(part.primitives));
     } else {
       const bool linear = geometry == EmbreeGeometry::LinearCurve;
       g = rtcNewGeometry(device, linear ? RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE
@@ -168,7 +173,8 @@ EmbreeGeometry parse_embree_geometry(const std::string& name) {
   if (name == "linear") return EmbreeGeometry::LinearCurve;
   if (name == "bezier") return EmbreeGeometry::BezierCurve;
   if (name == "triangles") return EmbreeGeometry::Triangles;
-  throw Error("unknown Embree geometry '" + name + "' (linear, bezier, triangles)");
+  if (name == "capsules") return EmbreeGeometry::Capsules;
+  throw Error("unknown Embree geometry '" + name + "' (linear, bezier, triangles, capsules)");
 }
 
 const char* to_string(EmbreeGeometry g) {
@@ -179,6 +185,8 @@ const char* to_string(EmbreeGeometry g) {
       return "bezier";
     case EmbreeGeometry::Triangles:
       return "triangles";
+    case EmbreeGeometry::Capsules:
+      return "capsules";
   }
   return "?";
 }
@@ -220,7 +228,8 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
     const ValueRange r = compute_range(a->values);
     state->range = {r.min, r.max};
   }
-  const bool linear = options.geometry == EmbreeGeometry::LinearCurve;
+  // Linear curves and capsules share one layout: a vertex per point, a segment indexes its first.
+  const bool linear = options.geometry != EmbreeGeometry::BezierCurve;
   const uint64_t limit = std::min<uint64_t>(options.max_primitives_per_scene, 0xFFFFFFFFull / 4);
   // Lines into parts of at most `limit` segments.
   size_t line = 0;
@@ -277,6 +286,7 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
       }
     }
     std::memset(part.vertices.data() + 4 * vertex_count, 0, 16);
+    part.chain = {part.vertices.data(), part.indices.data(), part.flags.data()};
     state->stats.primitives += part.primitives;
     state->stats.buffer_bytes += part.vertices.bytes() + part.indices.bytes() + part.flags.bytes();
     if (part.primitives > 0) state->parts.push_back(std::move(part));

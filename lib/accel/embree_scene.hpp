@@ -20,9 +20,11 @@ namespace linebake {
 enum class EmbreeGeometry {
   LinearCurve,  // RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE with neighbour flags (joints merged)
   BezierCurve,  // RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE, Catmull-Rom through the points
-  Triangles     // the cached tube mesh, its buffers shared with Embree
+  Triangles,    // the cached tube mesh, its buffers shared with Embree
+  Capsules      // user geometry: capsule chains intersected analytically (accel/capsule_chain)
 };
-EmbreeGeometry parse_embree_geometry(const std::string& name);  // linear | bezier | triangles
+// linear | bezier | triangles | capsules
+EmbreeGeometry parse_embree_geometry(const std::string& name);
 const char* to_string(EmbreeGeometry geometry);
 
 enum class BuildQuality { Low, Medium, High };
@@ -63,7 +65,7 @@ struct SurfacePoint {
 struct PreparedCurves {
   Array<float> vertices;
   Array<uint32_t> indices;  // first vertex of each segment (Bezier: 4 x segment)
-  Array<uint8_t> flags;     // RTC_CURVE_FLAG_NEIGHBOR_LEFT / _RIGHT (linear curves only)
+  Array<uint8_t> flags;     // RTC_CURVE_FLAG_NEIGHBOR_LEFT / _RIGHT (linear curves, capsules)
 };
 
 class EmbreeScene {

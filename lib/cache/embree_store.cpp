@@ -48,17 +48,18 @@ StoredCurves load_embree(const CacheReader& cache) {
   } catch (const std::exception& e) {
     throw InputError(cache.path(), where, std::string("bad curve description: ") + e.what());
   }
+  // Linear curves and capsules: a vertex per point and neighbour flags.
+  const bool point_layout = c.geometry != EmbreeGeometry::BezierCurve;
   for (size_t i = 0; i < parts; ++i) {
     const std::string g = part_group(i);
     PreparedCurves p;
     p.vertices = cache.read<float>(g + "/vertices");
     p.indices = cache.read<uint32_t>(g + "/indices");
-    if (c.geometry == EmbreeGeometry::LinearCurve)
-      p.flags = cache.read<uint8_t>(g + "/flags", p.indices.size());
+    if (point_layout) p.flags = cache.read<uint8_t>(g + "/flags", p.indices.size());
     const uint64_t vertices = p.vertices.size() / 4;
     for (uint64_t s = 0; s < p.indices.size(); ++s)
       // Past the last real vertex (the stored buffer ends with one padding vertex).
-      if (uint64_t(p.indices[s]) + (c.geometry == EmbreeGeometry::LinearCurve ? 3 : 5) > vertices)
+      if (uint64_t(p.indices[s]) + (point_layout ? 3 : 5) > vertices)
         throw InputError(cache.path(), "dataset " + g + "/indices",
                          "segment " + std::to_string(s) + " points past the vertices");
     c.parts.push_back(std::move(p));

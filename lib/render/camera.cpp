@@ -89,18 +89,50 @@ glm::dvec3 Camera::ray_direction(double x, double y, int width, int height) cons
   return glm::normalize(f + sx * r + sy * u);
 }
 
+namespace {
+
+glm::dvec3 view_direction(double azimuth, double elevation) {
+  return {std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
+          std::cos(elevation) * std::cos(azimuth)};
+}
+
+// The smallest distance from the box centre at which every box corner projects inside the
+// frustum, for every azimuth of the orbit at this elevation: constant along an orbit and much
+// tighter than the bounding sphere for elongated data. Per corner offset o and view direction d
+// (from the centre towards the eye), depth is D - o.d and the corner fits when
+// |o.right| <= tan(fov_x/2) (D - o.d) and |o.up| <= tan(fov_y/2) (D - o.d).
+double orbit_fit_distance(const Bounds& b, double aspect, double elevation, double fov_y) {
+  const Sphere s = bounding_sphere(b);
+  if (b.empty) return s.radius / std::sin(fov_y / 2);
+  const double th = std::tan(fov_y / 2) / 1.05, tw = th * aspect;  // a 5% margin
+  double distance = 0;
+  for (int a = 0; a < 360; ++a) {
+    const glm::dvec3 d = view_direction(radians(a), elevation);
+    const glm::dvec3 right = glm::normalize(glm::cross(-d, glm::dvec3(0, 1, 0)));
+    const glm::dvec3 up = glm::cross(right, -d);
+    for (int i = 0; i < 8; ++i) {
+      const glm::dvec3 corner((i & 1) ? b.max[0] : b.min[0], (i & 2) ? b.max[1] : b.min[1],
+                              (i & 4) ? b.max[2] : b.min[2]);
+      const glm::dvec3 o = corner - s.centre;
+      distance = std::max(distance, glm::dot(o, d) + std::max(std::abs(glm::dot(o, right)) / tw,
+                                                              std::abs(glm::dot(o, up)) / th));
+    }
+  }
+  // Never inside the sphere: the near plane must stay in front of the data.
+  return std::max(distance, 1.01 * s.radius);
+}
+
+}  // namespace
+
 Camera frame_bounds(const Bounds& bounds, double aspect, double azimuth_degrees,
                     double elevation_degrees, double distance_scale, double fov_y_degrees) {
   const Sphere s = bounding_sphere(bounds);
-  const double fov_y = radians(fov_y_degrees);
-  const double fov_x = 2 * std::atan(std::tan(fov_y / 2) * aspect);
-  const double distance = s.radius / std::sin(std::min(fov_x, fov_y) / 2) * distance_scale;
-  const double az = radians(azimuth_degrees), el = radians(elevation_degrees);
-  const glm::dvec3 direction(std::cos(el) * std::sin(az), std::sin(el),
-                             std::cos(el) * std::cos(az));
+  const double el = radians(elevation_degrees);
+  const double distance =
+      orbit_fit_distance(bounds, aspect, el, radians(fov_y_degrees)) * distance_scale;
   Camera c;
   c.target = s.centre;
-  c.eye = s.centre + distance * direction;
+  c.eye = s.centre + distance * view_direction(radians(azimuth_degrees), el);
   c.up = {0, 1, 0};
   c.fov_y_degrees = fov_y_degrees;
   fit_clip_planes(c, s);

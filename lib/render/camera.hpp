@@ -22,8 +22,9 @@ struct Camera {
   glm::dvec3 forward() const { return glm::normalize(target - eye); }
 };
 
-// The camera that looks at the centre of `bounds` from direction (azimuth, elevation) at the
-// distance where the bounding sphere just fits the narrower field of view, times `distance_scale`.
+// The camera that looks at the centre of `bounds` from direction (azimuth, elevation), at the
+// nearest distance where the whole box fits the view from every azimuth at this elevation (plus
+// 5%), times `distance_scale`: an orbit keeps one distance and elongated data fills the frame.
 Camera frame_bounds(const Bounds& bounds, double aspect, double azimuth_degrees,
                     double elevation_degrees, double distance_scale = 1.0,
                     double fov_y_degrees = 40);

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <tuple>
 
+#include "core/error.hpp"
 #include "core/measure.hpp"
 
 namespace linebake {
@@ -95,13 +96,8 @@ void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const Embree
   counters.hits += out.size();
 }
 
-void collect(const EmbreeScene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
-             double t_near, double t_far, std::vector<RawHit>& raw) {
-  raw.clear();
-  CollectContext ctx;
-  rtcInitIntersectContext(&ctx.context);
-  ctx.context.filter = &collect_filter;
-  ctx.hits = &raw;
+RTCRayHit make_ray(const glm::dvec3& origin, const glm::dvec3& direction, double t_near,
+                   double t_far) {
   RTCRayHit rh{};
   rh.ray.org_x = float(origin.x), rh.ray.org_y = float(origin.y), rh.ray.org_z = float(origin.z);
   rh.ray.dir_x = float(direction.x), rh.ray.dir_y = float(direction.y);
@@ -111,16 +107,63 @@ void collect(const EmbreeScene& scene, const glm::dvec3& origin, const glm::dvec
   rh.ray.mask = 0xFFFFFFFFu;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+void collect_by_filter(const EmbreeScene& scene, const glm::dvec3& origin,
+                       const glm::dvec3& direction, double t_near, double t_far,
+                       std::vector<RawHit>& raw) {
+  CollectContext ctx;
+  rtcInitIntersectContext(&ctx.context);
+  ctx.context.filter = &collect_filter;
+  ctx.hits = &raw;
+  RTCRayHit rh = make_ray(origin, direction, t_near, t_far);
   rtcIntersect1(scene.handle(), &ctx.context, &rh);
+}
+
+void collect_by_stepping(const EmbreeScene& scene, const glm::dvec3& origin,
+                         const glm::dvec3& direction, double t_near, double t_far,
+                         std::vector<RawHit>& raw) {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  for (double t = t_near;;) {
+    RTCRayHit rh = make_ray(origin, direction, t, t_far);
+    rtcIntersect1(scene.handle(), &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
+    const double hit_t = rh.ray.tfar;
+    raw.push_back({hit_t, rh.hit.instID[0], rh.hit.geomID, rh.hit.primID, rh.hit});
+    // Just past the hit, and always forward in float.
+    t = std::max(hit_t * (1 + 1e-6), double(std::nextafter(float(hit_t), 3.0e38f)));
+  }
+}
+
+void collect(const EmbreeScene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
+             double t_near, double t_far, HitCollection collection, std::vector<RawHit>& raw) {
+  raw.clear();
+  if (collection == HitCollection::Filter)
+    collect_by_filter(scene, origin, direction, t_near, t_far, raw);
+  else
+    collect_by_stepping(scene, origin, direction, t_near, t_far, raw);
 }
 
 }  // namespace
 
+HitCollection parse_hit_collection(const std::string& name) {
+  if (name == "filter") return HitCollection::Filter;
+  if (name == "stepping") return HitCollection::Stepping;
+  throw Error("unknown hit collection '" + name + "' (filter, stepping)");
+}
+
+const char* to_string(HitCollection collection) {
+  return collection == HitCollection::Filter ? "filter" : "stepping";
+}
+
 std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm::dvec3 direction,
-                               double t_near, double t_far, TraceCounters* counters) {
+                               double t_near, double t_far, TraceCounters* counters,
+                               HitCollection collection) {
   direction = glm::normalize(direction);
   std::vector<RawHit> raw;
-  collect(scene, origin, direction, t_near, t_far, raw);
+  collect(scene, origin, direction, t_near, t_far, collection, raw);
   std::vector<RayHit> hits;
   TraceCounters local;
   resolve(raw, direction, scene, hits, counters ? *counters : local);
@@ -181,7 +224,8 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
         const glm::dvec3 dir = camera.ray_direction(x, y, w, h);
         // Clip against the camera's near and far planes, as rasterisation does.
         const double cosine = glm::dot(dir, forward);
-        collect(scene, camera.eye, dir, camera.near / cosine, camera.far / cosine, sc.raw);
+        collect(scene, camera.eye, dir, camera.near / cosine, camera.far / cosine,
+                options.collection, sc.raw);
         sc.peak_raw = std::max(sc.peak_raw, sc.raw.capacity());
         resolve(sc.raw, dir, scene, sc.hits, sc.counters);
         const auto c = composite(sc.hits, dir, tf, options, &sc.counters.composited);

@@ -7,6 +7,7 @@
 // primitive) and composited front to back in double precision (techniques.md section 1).
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "accel/embree_scene.hpp"
@@ -22,11 +23,19 @@ struct Shading {
   std::array<double, 3> background{1, 1, 1};  // linear RGB
 };
 
+// How the hits along a ray are found. Filter: one traversal whose intersection filter records and
+// rejects every hit. Stepping: closest-hit queries repeated from just past the previous hit (what
+// hardware ray tracing does); a hit within 1e-6 t of the previous one is not seen again.
+enum class HitCollection { Filter, Stepping };
+HitCollection parse_hit_collection(const std::string& name);  // filter | stepping
+const char* to_string(HitCollection collection);
+
 struct TraceOptions {
   int width = 1280, height = 720;
   // Stop compositing a pixel once its opacity reaches termination_alpha. Off for ground truth.
   bool early_termination = false;
   double termination_alpha = 0.99;
+  HitCollection collection = HitCollection::Filter;
   Shading shading;
 };
 
@@ -46,7 +55,8 @@ struct TraceCounters {
 // Every front hit along one ray within [t_near, t_far), nearest first.
 std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm::dvec3 direction,
                                double t_near = 0, double t_far = 1e300,
-                               TraceCounters* counters = nullptr);
+                               TraceCounters* counters = nullptr,
+                               HitCollection collection = HitCollection::Filter);
 
 // Front-to-back compositing of shaded hits over the background: returns linear RGB and A.
 std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec3& direction,
