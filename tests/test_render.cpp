@@ -252,6 +252,28 @@ TEST(RayTracer, FramesDoNotDependOnTheThreadCount) {
   EXPECT_EQ(many.depth_complexity, one.depth_complexity);
 }
 
+TEST(RayTracer, PacketsMatchSingleRays) {
+  // 61x41: tiles whose edges cut 4x2 packets, so some lanes are off the image.
+  const LineSet lines = stacked_lines(4, {0.0f, 0.3f, 0.6f, 1.0f});
+  for (const auto geometry : {EmbreeGeometry::LinearCurve, EmbreeGeometry::Capsules}) {
+    EmbreeOptions eo;
+    eo.geometry = geometry;
+    const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "value", eo);
+    const Camera cam = frame_bounds(scene.bounds(), 61.0 / 41.0, 30, 20);
+    TraceOptions o;
+    o.width = 61, o.height = 41;
+    const Frame single = trace_frame(scene, cam, rgb_tf(), o);
+    o.packets = true;
+    const Frame packed = trace_frame(scene, cam, rgb_tf(), o);
+    EXPECT_EQ(packed.depth_complexity, single.depth_complexity) << to_string(geometry);
+    ASSERT_GT(single.stats.counters.hits, 500u);
+    float worst = 0;
+    for (size_t i = 0; i < single.image.pixels.size(); ++i)
+      worst = std::max(worst, std::abs(single.image.pixels[i] - packed.image.pixels[i]));
+    EXPECT_LT(worst, 1e-5f) << to_string(geometry);
+  }
+}
+
 TEST(EmbreeScene, BezierCurvesThroughStraightPointsHitLikeLinearOnes) {
   const LineSet lines = stacked_lines(3);
   EmbreeOptions o;
@@ -261,6 +283,38 @@ TEST(EmbreeScene, BezierCurvesThroughStraightPointsHitLikeLinearOnes) {
   const auto hits = trace_hits(scene, kOrigin, kDown);  // away from the joints
   ASSERT_EQ(hits.size(), 3u);
   for (int i = 0; i < 3; ++i) EXPECT_NEAR(hits[size_t(i)].t, 10.0 + i - kRadius, 1e-3);
+}
+
+TEST(EmbreeScene, PreparedBuffersRebuildTheSameScene) {
+  // Lines without segments in between and at the end, and parts split at 3 segments: the
+  // prepared buffers of one build make a scene that hits exactly like it.
+  LineSet lines = stacked_lines(5, {0.0f, 0.25f, 0.5f, 0.75f, 1.0f});
+  lines.append_point(0, 0, 5);
+  lines.attributes[0].values.push_back(0);
+  lines.end_line();
+  for (const auto geometry :
+       {EmbreeGeometry::LinearCurve, EmbreeGeometry::BezierCurve, EmbreeGeometry::Capsules}) {
+    SCOPED_TRACE(to_string(geometry));
+    EmbreeOptions o;
+    o.geometry = geometry;
+    o.max_primitives_per_scene = 3;
+    const EmbreeScene built = EmbreeScene::from_lines(lines, kRadius, "value", o);
+    const EmbreeScene again =
+        EmbreeScene::from_prepared(lines, built.prepared_curves(), "value", o);
+    EXPECT_EQ(again.stats().primitives, built.stats().primitives);
+    EXPECT_EQ(again.stats().parts, built.stats().parts);
+    for (const glm::dvec3& origin : {glm::dvec3(0, 0, 10), kOrigin, glm::dvec3(-0.7, 0.1, 10)}) {
+      const auto a = trace_hits(built, origin, kDown), b = trace_hits(again, origin, kDown);
+      ASSERT_EQ(a.size(), b.size());
+      for (size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].t, b[i].t);
+        EXPECT_EQ(a[i].surface.attribute, b[i].surface.attribute);
+      }
+    }
+    // Buffers of other lines are refused.
+    EXPECT_THROW(EmbreeScene::from_prepared(stacked_lines(4), built.prepared_curves(), "", o),
+                 Error);
+  }
 }
 
 TEST(EmbreeScene, ReportsBuildFiguresAndRejectsBadInput) {

@@ -7,13 +7,17 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "accel/capsule_chain.hpp"
+#include "accel/embree_scene.hpp"
 #include "commands.hpp"
 #include "core/array.hpp"
+#include "core/error.hpp"
 #include "core/measure.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
@@ -44,7 +48,7 @@ double memcpy_bandwidth(int repeats) {
 }
 
 struct BenchArgs {
-  std::string step, input = "synth:clouds", grid = "512";
+  std::string step, input = "synth:clouds", grid = "512", geometry = "linear", quality = "medium";
   int sides = 3, repeat = 3, threads = 0;
   uint32_t quantization = 32;
   bool json = false;
@@ -114,6 +118,116 @@ void bench_voxels(const BenchArgs& args) {
             << " GiB\n";
 }
 
+// The baseline: a fresh device and scene over the already prepared buffers, shared with Embree
+// as they are; only rtcCommitScene is timed.
+double bare_commit_seconds(const std::vector<PreparedCurves>& parts, EmbreeGeometry geometry,
+                           BuildQuality quality) {
+  RTCDevice device = rtcNewDevice(nullptr);
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(scene, quality == BuildQuality::Low    ? RTC_BUILD_QUALITY_LOW
+                                 : quality == BuildQuality::High ? RTC_BUILD_QUALITY_HIGH
+                                                                 : RTC_BUILD_QUALITY_MEDIUM);
+  std::vector<CapsuleChain> chains(parts.size());
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const PreparedCurves& p = parts[i];
+    RTCGeometry g = nullptr;
+    if (geometry == EmbreeGeometry::Capsules) {
+      g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      chains[i] = {p.vertices.data(), p.indices.data(), p.flags.data()};
+      set_capsule_geometry(g, &chains[i], uint32_t(p.indices.size()));
+    } else {
+      const bool linear = geometry == EmbreeGeometry::LinearCurve;
+      g = rtcNewGeometry(device, linear ? RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE
+                                        : RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, p.vertices.data(),
+                                 0, 16, p.vertices.size() / 4 - 1);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, p.indices.data(), 0,
+                                 4, p.indices.size());
+      if (linear)
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_FLAGS, 0, RTC_FORMAT_UCHAR, p.flags.data(), 0,
+                                   1, p.flags.size());
+    }
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  rtcCommitScene(scene);
+  const double seconds = seconds_since(start);
+  const bool failed = rtcGetDeviceError(device) != RTC_ERROR_NONE;
+  rtcReleaseScene(scene);
+  rtcReleaseDevice(device);
+  if (failed) throw Error("Embree: the bare build failed");
+  return seconds;
+}
+
+// linebake's Embree build (buffer preparation + commit) against a bare rtcCommitScene on the
+// same buffers, runs interleaved; the target is a ratio of best times of at most 1.2.
+void bench_embree(const BenchArgs& args) {
+  const LineSet lines = load(args);
+  EmbreeOptions options;
+  options.geometry = parse_embree_geometry(args.geometry);
+  if (options.geometry == EmbreeGeometry::Triangles)
+    throw Error("bench embree: curves only (linear, bezier, capsules)");
+  options.quality = parse_build_quality(args.quality);
+  const Bounds b = compute_bounds(lines);
+  const float dx = b.max[0] - b.min[0], dy = b.max[1] - b.min[1], dz = b.max[2] - b.min[2];
+  const float radius = TubeOptions{}.radius * std::sqrt(dx * dx + dy * dy + dz * dz);
+  const std::string attribute = lines.attributes.empty() ? "" : lines.attributes[0].name;
+  std::vector<double> ours, prepare, commit, bare;
+  BvhStats stats;
+  for (int r = 0; r < args.repeat; ++r) {
+    std::vector<PreparedCurves> buffers;
+    {
+      const auto start = std::chrono::steady_clock::now();
+      const EmbreeScene scene = EmbreeScene::from_lines(lines, radius, attribute, options);
+      ours.push_back(seconds_since(start));
+      stats = scene.stats();
+      prepare.push_back(stats.prepare_s);
+      commit.push_back(stats.commit_s);
+      buffers = scene.prepared_curves();
+    }
+    bare.push_back(bare_commit_seconds(buffers, options.geometry, options.quality));
+  }
+  const auto best = [](std::vector<double> v) { return *std::min_element(v.begin(), v.end()); };
+  const double ratio = best(ours) / best(bare);
+  const size_t threads =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  const nlohmann::json out = {{"step", "embree"},
+                              {"input", args.input},
+                              {"threads", threads},
+                              {"geometry", to_string(options.geometry)},
+                              {"quality", to_string(options.quality)},
+                              {"primitives", stats.primitives},
+                              {"ours_runs_s", ours},
+                              {"prepare_runs_s", prepare},
+                              {"commit_runs_s", commit},
+                              {"bare_commit_runs_s", bare},
+                              {"ratio_best", ratio},
+                              {"target_ratio", 1.2},
+                              {"buffer_bytes", stats.buffer_bytes},
+                              {"bvh_bytes", stats.bvh_bytes},
+                              {"bvh_peak_bytes", stats.bvh_peak_bytes}};
+  if (args.json) {
+    std::cout << out.dump(2) << "\n";
+    return;
+  }
+  std::cout << std::fixed << std::setprecision(3) << "embree: " << args.input << ", "
+            << stats.primitives << " " << to_string(options.geometry) << " primitives, "
+            << to_string(options.quality) << " quality, " << threads << " threads\n"
+            << "  ours (s):        ";
+  for (double t : ours) std::cout << t << " ";
+  std::cout << "(prepare best " << best(prepare) << ", commit best " << best(commit) << ")\n"
+            << "  bare commit (s): ";
+  for (double t : bare) std::cout << t << " ";
+  std::cout << "\n  ratio:           " << std::setprecision(3) << ratio
+            << " (best over best; target <= 1.2: " << (ratio <= 1.2 ? "met" : "missed") << ")\n"
+            << "  memory:          buffers " << std::setprecision(1)
+            << double(stats.buffer_bytes) / (1 << 20) << " MiB, BVH "
+            << double(stats.bvh_bytes) / (1 << 20) << " MiB (peak "
+            << double(stats.bvh_peak_bytes) / (1 << 20) << " MiB)\n";
+}
+
 void bench_tubes(const BenchArgs& args) {
   const LineSet lines = load(args);
   TubeOptions options;
@@ -175,15 +289,19 @@ void bench_tubes(const BenchArgs& args) {
 }  // namespace
 
 Command add_bench(CLI::App& app) {
-  auto* sub = app.add_subcommand("bench", "Benchmark a build step (tubes, voxels)");
+  auto* sub = app.add_subcommand("bench", "Benchmark a build step (tubes, voxels, embree)");
   auto args = std::make_shared<BenchArgs>();
   sub->add_option("step", args->step, "Step to measure")
       ->required()
-      ->check(CLI::IsMember({"tubes", "voxels"}));
+      ->check(CLI::IsMember({"tubes", "voxels", "embree"}));
   sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
   sub->add_option("--grid", args->grid, "voxels: auto, N or NxNxN (default 512)");
   sub->add_option("--quantization", args->quantization, "voxels: 16 | 32 (default) | 64")
       ->check(CLI::IsMember({16, 32, 64}));
+  sub->add_option("--geometry", args->geometry, "embree: linear (default) | bezier | capsules")
+      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
+  sub->add_option("--quality", args->quality, "embree: low | medium (default) | high")
+      ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_option("--tube-sides", args->sides, "Ring vertices (default 3)")
       ->check(CLI::Range(3, 32));
   sub->add_option("--repeat", args->repeat, "Runs; the best is reported (default 3)")
@@ -198,6 +316,8 @@ Command add_bench(CLI::App& app) {
                                                     size_t(args->threads));
     if (args->step == "voxels")
       bench_voxels(*args);
+    else if (args->step == "embree")
+      bench_embree(*args);
     else
       bench_tubes(*args);
   };

@@ -8,6 +8,7 @@
 
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
+#include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "commands.hpp"
@@ -82,7 +83,7 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
-    bool early = false;
+    bool early = false, packets = false;
   };
   auto args = std::make_shared<Args>();
   sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")
@@ -120,6 +121,8 @@ Command add_render(CLI::App& app) {
                   "How hits are found: filter (one traversal, default) | stepping (closest-hit "
                   "queries from just past the last hit)")
       ->check(CLI::IsMember({"filter", "stepping"}));
+  sub->add_flag("--packets", args->packets,
+                "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");
   sub->add_flag("--early-termination", args->early,
                 "Stop compositing at opacity 0.99 (never for ground truth)");
   return [args] {
@@ -141,6 +144,7 @@ Command add_render(CLI::App& app) {
     // itself is only loaded for the reference).
     const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
     std::optional<EmbreeScene> scene;
+    bool from_cache = false;  // built from the cache's prepared Embree buffers
     if (reference) {
       if (!has_tubes)
         throw Error(args->cache +
@@ -164,12 +168,28 @@ Command add_render(CLI::App& app) {
           radius = TubeOptions{}.radius * std::sqrt(dx * dx + dy * dy + dz * dz);
         }
       }
-      scene.emplace(EmbreeScene::from_lines(lines, radius, attribute, options));
+      // Bake's prepared buffers, when they are these curves, spare the preparation.
+      std::optional<StoredCurves> stored;
+      if (cache.exists(kEmbreeGroup)) {
+        stored = load_embree(cache);
+        if (stored->geometry != options.geometry || stored->radius != radius ||
+            stored->attribute != attribute)
+          stored.reset();
+      }
+      if (stored)
+        scene.emplace(
+            EmbreeScene::from_prepared(lines, std::move(stored->parts), attribute, options));
+      else
+        scene.emplace(EmbreeScene::from_lines(lines, radius, attribute, options));
+      from_cache = stored.has_value();
     }
     TraceOptions trace;
     trace.width = width, trace.height = height;
     trace.early_termination = args->early;
     trace.collection = parse_hit_collection(args->hits);
+    trace.packets = args->packets;
+    if (trace.packets && trace.collection != HitCollection::Filter)
+      throw Error("--packets: packets collect hits with the filter, not by stepping");
     FlightOptions flight;
     flight.kind = parse_flight_kind(args->flight);
     if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args->flight;
@@ -185,8 +205,10 @@ Command add_render(CLI::App& app) {
     nlohmann::json stats = {{"technique", args->technique},
                             {"transfer_function", tf.name},
                             {"hit_collection", to_string(trace.collection)},
+                            {"packets", trace.packets},
                             {"flight", to_string(flight.kind)},
                             {"bvh", to_json(scene->stats())},
+                            {"bvh_from_cached_buffers", from_cache},
                             {"frames", nlohmann::json::array()}};
     TerminalProgress progress("render");
     for (size_t i = 0; i < frames.size(); ++i) {

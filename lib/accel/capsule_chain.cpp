@@ -35,13 +35,17 @@ int solve_quadratic(double a, double b, double c, double roots[2]) {
   return 2;
 }
 
-// Fills one RTCHit for Embree and the filters.
-RTCHit make_hit(const CapsuleHit& c, unsigned primitive, unsigned geometry, unsigned instance) {
-  RTCHit h{};
-  h.Ng_x = float(c.normal.x), h.Ng_y = float(c.normal.y), h.Ng_z = float(c.normal.z);
-  h.u = float(c.u), h.v = 0;
-  h.primID = primitive, h.geomID = geometry, h.instID[0] = instance;
-  return h;
+// Writes lane i of a hit packet of size n.
+void write_hit(RTCHitN* hits, unsigned n, unsigned i, const CapsuleHit& c, unsigned primitive,
+               unsigned geometry, unsigned instance) {
+  RTCHitN_Ng_x(hits, n, i) = float(c.normal.x);
+  RTCHitN_Ng_y(hits, n, i) = float(c.normal.y);
+  RTCHitN_Ng_z(hits, n, i) = float(c.normal.z);
+  RTCHitN_u(hits, n, i) = float(c.u);
+  RTCHitN_v(hits, n, i) = 0;
+  RTCHitN_primID(hits, n, i) = primitive;
+  RTCHitN_geomID(hits, n, i) = geometry;
+  RTCHitN_instID(hits, n, i, 0) = instance;
 }
 
 void capsule_bounds(const RTCBoundsFunctionArguments* args) {
@@ -52,92 +56,56 @@ void capsule_bounds(const RTCBoundsFunctionArguments* args) {
                      float(hi.x), float(hi.y), float(hi.z), 0};
 }
 
-// Runs the filters on the crossings of one ray lane in distance order; the first one they accept
-// is the hit (`accept` writes it). Rejected crossings let traversal go on.
-template <class Filter, class Accept>
-void report(const CapsuleChain& chain, unsigned primitive, RTCRayN* rays, unsigned n, unsigned i,
-            Filter&& filter, Accept&& accept) {
+// Runs the filters on the crossings of ray lane i in distance order; the first one they accept
+// is the hit (`accept` writes it). Rejected crossings let traversal go on. The filters see the
+// caller's packet (Embree keeps packet size and ray order for them) with only lane i valid and
+// its tfar set to the candidate distance, restored when they reject it.
+template <class Args, class Invoke, class Accept>
+void report(const Args* args, RTCRayN* rays, unsigned i, Invoke&& invoke, Accept&& accept) {
+  const auto& chain = *static_cast<const CapsuleChain*>(args->geometryUserPtr);
+  const unsigned n = args->N, instance = args->context->instID[0];
   const glm::dvec3 origin(RTCRayN_org_x(rays, n, i), RTCRayN_org_y(rays, n, i),
                           RTCRayN_org_z(rays, n, i));
   const glm::dvec3 direction(RTCRayN_dir_x(rays, n, i), RTCRayN_dir_y(rays, n, i),
                              RTCRayN_dir_z(rays, n, i));
-  CapsuleHit hits[4];
-  const int count = intersect_capsule(chain, primitive, origin, direction, hits);
+  CapsuleHit crossings[4];
+  const int count = intersect_capsule(chain, args->primID, origin, direction, crossings);
   for (int k = 0; k < count; ++k) {
-    const double t = hits[k].t;
-    if (!(t > RTCRayN_tnear(rays, n, i) && t < RTCRayN_tfar(rays, n, i))) continue;
-    // The filters see a one-ray packet whose tfar is the candidate distance.
-    RTCRay ray{};
-    ray.org_x = float(origin.x), ray.org_y = float(origin.y), ray.org_z = float(origin.z);
-    ray.dir_x = float(direction.x), ray.dir_y = float(direction.y), ray.dir_z = float(direction.z);
-    ray.tnear = RTCRayN_tnear(rays, n, i);
-    ray.tfar = float(t);
-    ray.mask = RTCRayN_mask(rays, n, i);
-    if (filter(ray, hits[k])) {
-      accept(hits[k]);
+    const float t = float(crossings[k].t), tfar = RTCRayN_tfar(rays, n, i);
+    if (!(t > RTCRayN_tnear(rays, n, i) && t < tfar)) continue;
+    alignas(64) unsigned char storage[sizeof(RTCHit16)];
+    auto* hit = reinterpret_cast<RTCHitN*>(storage);
+    write_hit(hit, n, i, crossings[k], args->primID, args->geomID, instance);
+    int valid[16] = {};
+    valid[i] = -1;
+    RTCRayN_tfar(rays, n, i) = t;
+    RTCFilterFunctionNArguments f{valid, args->geometryUserPtr, args->context, rays, hit, n};
+    invoke(args, &f);
+    if (valid[i] != 0) {
+      accept(crossings[k], instance);
       return;
     }
+    RTCRayN_tfar(rays, n, i) = tfar;
   }
 }
 
 void capsule_intersect(const RTCIntersectFunctionNArguments* args) {
-  const auto& chain = *static_cast<const CapsuleChain*>(args->geometryUserPtr);
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, args->N);
   RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, args->N);
-  const unsigned n = args->N, instance = args->context->instID[0];
-  for (unsigned i = 0; i < n; ++i) {
+  for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    report(
-        chain, args->primID, rays, n, i,
-        [&](RTCRay& ray, const CapsuleHit& c) {
-          RTCHit hit = make_hit(c, args->primID, args->geomID, instance);
-          int valid = -1;
-          RTCFilterFunctionNArguments f{&valid,
-                                        args->geometryUserPtr,
-                                        args->context,
-                                        reinterpret_cast<RTCRayN*>(&ray),
-                                        reinterpret_cast<RTCHitN*>(&hit),
-                                        1};
-          rtcFilterIntersection(args, &f);
-          return valid != 0;
-        },
-        [&](const CapsuleHit& c) {
-          const RTCHit hit = make_hit(c, args->primID, args->geomID, instance);
-          RTCRayN_tfar(rays, n, i) = float(c.t);
-          RTCHitN_Ng_x(hits, n, i) = hit.Ng_x;
-          RTCHitN_Ng_y(hits, n, i) = hit.Ng_y;
-          RTCHitN_Ng_z(hits, n, i) = hit.Ng_z;
-          RTCHitN_u(hits, n, i) = hit.u;
-          RTCHitN_v(hits, n, i) = hit.v;
-          RTCHitN_primID(hits, n, i) = hit.primID;
-          RTCHitN_geomID(hits, n, i) = hit.geomID;
-          RTCHitN_instID(hits, n, i, 0) = instance;
-        });
+    report(args, rays, i, &rtcFilterIntersection, [&](const CapsuleHit& c, unsigned instance) {
+      write_hit(hits, args->N, i, c, args->primID, args->geomID, instance);  // tfar is c.t
+    });
   }
 }
 
 void capsule_occluded(const RTCOccludedFunctionNArguments* args) {
-  const auto& chain = *static_cast<const CapsuleChain*>(args->geometryUserPtr);
-  const unsigned n = args->N, instance = args->context->instID[0];
-  for (unsigned i = 0; i < n; ++i) {
+  for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    report(
-        chain, args->primID, args->ray, n, i,
-        [&](RTCRay& ray, const CapsuleHit& c) {
-          RTCHit hit = make_hit(c, args->primID, args->geomID, instance);
-          int valid = -1;
-          RTCFilterFunctionNArguments f{&valid,
-                                        args->geometryUserPtr,
-                                        args->context,
-                                        reinterpret_cast<RTCRayN*>(&ray),
-                                        reinterpret_cast<RTCHitN*>(&hit),
-                                        1};
-          rtcFilterOcclusion(args, &f);
-          return valid != 0;
-        },
-        [&](const CapsuleHit&) {
-          RTCRayN_tfar(args->ray, n, i) = -std::numeric_limits<float>::infinity();
-        });
+    report(args, args->ray, i, &rtcFilterOcclusion, [&](const CapsuleHit&, unsigned) {
+      RTCRayN_tfar(args->ray, args->N, i) = -std::numeric_limits<float>::infinity();
+    });
   }
 }
 

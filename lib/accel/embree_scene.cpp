@@ -71,6 +71,16 @@ struct EmbreeScene::State {
     if (device) rtcReleaseDevice(device);
   }
 
+  void set_attribute(const LineSet& lines, const std::string& name) {
+    if (name.empty()) return;
+    const Attribute* a = lines.find_attribute(name);
+    if (!a) throw Error("Embree: no vertex attribute named '" + name + "'");
+    attribute = Array<float>(a->values.size());
+    std::copy(a->values.begin(), a->values.end(), attribute.begin());
+    const ValueRange r = compute_range(a->values);
+    range = {r.min, r.max};
+  }
+
   static bool monitor(void* user, ssize_t bytes, bool /*post*/) {
     auto* self = static_cast<State*>(user);
     const int64_t now = self->current.fetch_add(bytes) + bytes;
@@ -220,14 +230,7 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
   state->geometry = options.geometry;
   state->stats.geometry = options.geometry;
   const auto start = std::chrono::steady_clock::now();
-  if (!attribute.empty()) {
-    const Attribute* a = lines.find_attribute(attribute);
-    if (!a) throw Error("Embree: no vertex attribute named '" + attribute + "'");
-    state->attribute = Array<float>(a->values.size());
-    std::copy(a->values.begin(), a->values.end(), state->attribute.begin());
-    const ValueRange r = compute_range(a->values);
-    state->range = {r.min, r.max};
-  }
+  state->set_attribute(lines, attribute);
   // Linear curves and capsules share one layout: a vertex per point, a segment indexes its first.
   const bool linear = options.geometry != EmbreeGeometry::BezierCurve;
   const uint64_t limit = std::min<uint64_t>(options.max_primitives_per_scene, 0xFFFFFFFFull / 4);
@@ -291,6 +294,59 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
     state->stats.buffer_bytes += part.vertices.bytes() + part.indices.bytes() + part.flags.bytes();
     if (part.primitives > 0) state->parts.push_back(std::move(part));
   }
+  state->stats.prepare_s = seconds_since(start);
+  state->create_device();
+  state->commit(options);
+  return EmbreeScene(std::move(state));
+}
+
+EmbreeScene EmbreeScene::from_prepared(const LineSet& lines, std::vector<PreparedCurves> buffers,
+                                       const std::string& attribute, const EmbreeOptions& options) {
+  if (options.geometry == EmbreeGeometry::Triangles)
+    throw Error("Embree: prepared buffers hold curves, not triangles");
+  auto state = std::make_unique<State>();
+  state->geometry = options.geometry;
+  state->stats.geometry = options.geometry;
+  const auto start = std::chrono::steady_clock::now();
+  state->set_attribute(lines, attribute);
+  // Parts hold whole lines in order: walk the lines to find each segment's first point.
+  const bool point_layout = options.geometry != EmbreeGeometry::BezierCurve;
+  size_t line = 0;
+  for (PreparedCurves& b : buffers) {
+    Part part;
+    part.primitives = b.indices.size();
+    part.first_point = line < lines.line_count() ? lines.line_offsets[line] : 0;
+    part.segment_point = Array<uint32_t>(part.primitives);
+    // from_lines closes a part at the first line that does not fit, so lines without segments
+    // after its last segment still belong to it.
+    uint64_t s = 0;
+    bool fits = true;
+    while (line < lines.line_count() && (s < part.primitives || lines.line_size(line) < 2)) {
+      const uint64_t begin = lines.line_offsets[line], end = lines.line_offsets[line + 1];
+      if (end - begin > 1 && s + (end - begin - 1) > part.primitives) {
+        fits = false;
+        break;
+      }
+      for (uint64_t p = begin; p + 1 < end; ++p, ++s)
+        part.segment_point[s] = uint32_t(p - part.first_point);
+      ++line;
+    }
+    const uint64_t vertices = b.vertices.size() / 4;
+    if (!fits || s != part.primitives || vertices < 1 || (point_layout && b.flags.size() != s) ||
+        (point_layout ? lines.line_offsets[line] - part.first_point + 1 != vertices
+                      : 4 * s + 1 != vertices))
+      throw Error("Embree: the prepared buffers do not match the lines");
+    part.vertices = std::move(b.vertices);
+    part.indices = std::move(b.indices);
+    part.flags = std::move(b.flags);
+    part.chain = {part.vertices.data(), part.indices.data(), part.flags.data()};
+    state->stats.primitives += part.primitives;
+    state->stats.buffer_bytes += part.vertices.bytes() + part.indices.bytes() + part.flags.bytes();
+    state->parts.push_back(std::move(part));
+  }
+  while (buffers.empty() && line < lines.line_count() && lines.line_size(line) < 2) ++line;
+  if (line != lines.line_count())
+    throw Error("Embree: the prepared buffers do not match the lines");
   state->stats.prepare_s = seconds_since(start);
   state->create_device();
   state->commit(options);

@@ -74,6 +74,11 @@ class EmbreeScene {
   // attribute hits report ("" for none).
   static EmbreeScene from_lines(const LineSet& lines, float radius, const std::string& attribute,
                                 const EmbreeOptions& options);
+  // Curves from buffers prepared earlier for these lines (the cache's /assets/embree: the same
+  // geometry and line order), skipping preparation; options.geometry must match the buffers.
+  // Throws when the buffers do not cover the lines' segments.
+  static EmbreeScene from_prepared(const LineSet& lines, std::vector<PreparedCurves> buffers,
+                                   const std::string& attribute, const EmbreeOptions& options);
   // Triangles over the tube mesh (options.geometry is ignored).
   static EmbreeScene from_tubes(const TubeMesh& mesh, const EmbreeOptions& options);
 

@@ -21,7 +21,8 @@ struct RawHit {
   RTCHit hit;
 };
 
-// The intersection context carries the hit list to the filter.
+// The intersection context carries the hit lists to the filter, one per ray of the packet
+// (Embree calls the filters with the packet's size and ray order).
 struct CollectContext {
   RTCIntersectContext context;
   std::vector<RawHit>* hits;
@@ -40,7 +41,7 @@ void collect_filter(const RTCFilterFunctionNArguments* args) {
     h.primID = RTCHitN_primID(args->hit, args->N, i);
     h.geomID = RTCHitN_geomID(args->hit, args->N, i);
     h.instID[0] = RTCHitN_instID(args->hit, args->N, i, 0);
-    self->hits->push_back(
+    self->hits[i].push_back(
         {double(RTCRayN_tfar(args->ray, args->N, i)), h.instID[0], h.geomID, h.primID, h});
     args->valid[i] = 0;  // reject: traversal goes on past this hit
   }
@@ -137,6 +138,37 @@ void collect_by_stepping(const EmbreeScene& scene, const glm::dvec3& origin,
   }
 }
 
+// A packet of 4x2 pixels traced together (rtcIntersect8, coherent): lanes with valid = 0 are off
+// the tile.
+constexpr int kPacketWidth = 4, kPacketHeight = 2, kPacket = kPacketWidth * kPacketHeight;
+
+void collect_packet(const EmbreeScene& scene, const glm::dvec3& origin,
+                    const glm::dvec3 (&direction)[kPacket], const double (&t_near)[kPacket],
+                    const double (&t_far)[kPacket], const int (&valid)[kPacket],
+                    std::vector<RawHit> (&raw)[kPacket]) {
+  CollectContext ctx;
+  rtcInitIntersectContext(&ctx.context);
+  ctx.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  ctx.context.filter = &collect_filter;
+  ctx.hits = raw;
+  alignas(32) RTCRayHit8 rh{};
+  alignas(32) int mask[kPacket];
+  for (int i = 0; i < kPacket; ++i) {
+    raw[i].clear();
+    mask[i] = valid[i] ? -1 : 0;
+    rh.ray.org_x[i] = float(origin.x), rh.ray.org_y[i] = float(origin.y);
+    rh.ray.org_z[i] = float(origin.z);
+    rh.ray.dir_x[i] = float(direction[i].x), rh.ray.dir_y[i] = float(direction[i].y);
+    rh.ray.dir_z[i] = float(direction[i].z);
+    rh.ray.tnear[i] = float(t_near[i]);
+    rh.ray.tfar[i] = float(std::min(t_far[i], 3.0e38));
+    rh.ray.mask[i] = 0xFFFFFFFFu;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect8(mask, scene.handle(), &ctx.context, &rh);
+}
+
 void collect(const EmbreeScene& scene, const glm::dvec3& origin, const glm::dvec3& direction,
              double t_near, double t_far, HitCollection collection, std::vector<RawHit>& raw) {
   raw.clear();
@@ -210,27 +242,56 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
   frame.image = Image(w, h, 3);
   frame.depth_complexity.assign(size_t(w) * h, 0);
   struct Scratch {
-    std::vector<RawHit> raw;
+    std::vector<RawHit> raw[kPacket];
     std::vector<RayHit> hits;
     TraceCounters counters;
     size_t peak_raw = 0;
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
   const glm::dvec3 forward = camera.forward();
+  // The ray through pixel (x, y), clipped against the camera's near and far planes as
+  // rasterisation is.
+  const auto ray = [&](int x, int y, glm::dvec3& dir, double& t_near, double& t_far) {
+    dir = camera.ray_direction(x, y, w, h);
+    const double cosine = glm::dot(dir, forward);
+    t_near = camera.near / cosine, t_far = camera.far / cosine;
+  };
+  const auto shade = [&](Scratch& sc, std::vector<RawHit>& raw, int x, int y,
+                         const glm::dvec3& dir) {
+    sc.peak_raw = std::max(sc.peak_raw, raw.capacity());
+    resolve(raw, dir, scene, sc.hits, sc.counters);
+    const auto c = composite(sc.hits, dir, tf, options, &sc.counters.composited);
+    for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
+    frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
+  };
+  const bool packets = options.packets && options.collection == HitCollection::Filter;
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
     Scratch& sc = scratch.local();
-    for (int y = tile.rows().begin(); y != tile.rows().end(); ++y)
-      for (int x = tile.cols().begin(); x != tile.cols().end(); ++x) {
-        const glm::dvec3 dir = camera.ray_direction(x, y, w, h);
-        // Clip against the camera's near and far planes, as rasterisation does.
-        const double cosine = glm::dot(dir, forward);
-        collect(scene, camera.eye, dir, camera.near / cosine, camera.far / cosine,
-                options.collection, sc.raw);
-        sc.peak_raw = std::max(sc.peak_raw, sc.raw.capacity());
-        resolve(sc.raw, dir, scene, sc.hits, sc.counters);
-        const auto c = composite(sc.hits, dir, tf, options, &sc.counters.composited);
-        for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
-        frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
+    const auto rows = tile.rows(), cols = tile.cols();
+    if (!packets) {
+      for (int y = rows.begin(); y != rows.end(); ++y)
+        for (int x = cols.begin(); x != cols.end(); ++x) {
+          glm::dvec3 dir;
+          double t_near, t_far;
+          ray(x, y, dir, t_near, t_far);
+          collect(scene, camera.eye, dir, t_near, t_far, options.collection, sc.raw[0]);
+          shade(sc, sc.raw[0], x, y, dir);
+        }
+      return;
+    }
+    for (int y0 = rows.begin(); y0 < rows.end(); y0 += kPacketHeight)
+      for (int x0 = cols.begin(); x0 < cols.end(); x0 += kPacketWidth) {
+        glm::dvec3 dir[kPacket];
+        double t_near[kPacket], t_far[kPacket];
+        int valid[kPacket];
+        for (int i = 0; i < kPacket; ++i) {
+          const int x = x0 + i % kPacketWidth, y = y0 + i / kPacketWidth;
+          valid[i] = x < cols.end() && y < rows.end();
+          ray(valid[i] ? x : x0, valid[i] ? y : y0, dir[i], t_near[i], t_far[i]);
+        }
+        collect_packet(scene, camera.eye, dir, t_near, t_far, valid, sc.raw);
+        for (int i = 0; i < kPacket; ++i)
+          if (valid[i]) shade(sc, sc.raw[i], x0 + i % kPacketWidth, y0 + i / kPacketWidth, dir[i]);
       }
   });
   FrameStats& st = frame.stats;
@@ -241,7 +302,8 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
     st.counters.duplicates += sc.counters.duplicates;
     st.counters.back_hits += sc.counters.back_hits;
     st.counters.composited += sc.counters.composited;
-    hit_buffer_bytes += sc.peak_raw * sizeof(RawHit) + sc.hits.capacity() * sizeof(RayHit);
+    hit_buffer_bytes += (packets ? kPacket : 1) * sc.peak_raw * sizeof(RawHit) +
+                        sc.hits.capacity() * sizeof(RayHit);
   }
   uint64_t covered = 0;
   for (uint32_t d : frame.depth_complexity) {

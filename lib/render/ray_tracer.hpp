@@ -36,6 +36,8 @@ struct TraceOptions {
   bool early_termination = false;
   double termination_alpha = 0.99;
   HitCollection collection = HitCollection::Filter;
+  // Trace 4x2 pixel packets with rtcIntersect8 (filter collection only).
+  bool packets = false;
   Shading shading;
 };
 
