@@ -117,6 +117,17 @@ check "bad keyframes exit 2" exit_code 2 "$bin" render "$tmp/t.lbc.h5" --flight 
 check "compare different sizes is an error" exit_code 4 "$bin" compare "$tmp/e.png" "$tmp/f_000.png"
 printf 'not a png' > "$tmp/bad.png"
 check "compare unreadable png exits 2" exit_code 2 "$bin" compare "$tmp/bad.png" "$tmp/e.png"
+check "render capsules, stepping and packets" bash -c "'$bin' render '$tmp/t.lbc.h5' --geometry capsules --size 48x32 -o '$tmp/cap.png' && '$bin' render '$tmp/t.lbc.h5' --hits stepping --size 48x32 -o '$tmp/st.png' && '$bin' render '$tmp/t.lbc.h5' --packets --size 48x32 -o '$tmp/pk.png' --stats '$tmp/pk.json' && grep -q '\"packets\": true' '$tmp/pk.json'"
+check "stepping with packets is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --hits stepping --packets --size 32x24 -o "$tmp/x.png"
+check "render uses the cached Embree buffers" bash -c "'$bin' render '$tmp/t.lbc.h5' --size 32x24 -o '$tmp/cb.png' --stats '$tmp/cb.json' && grep -q '\"bvh_from_cached_buffers\": true' '$tmp/cb.json'"
+check "bench embree" bash -c "'$bin' bench embree --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"ratio_best\"'"
+# Vulkan on lavapipe (VK_ICD_FILENAMES from CTest), validation layer on
+check "render ll (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --technique ll --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/ll.png" --stats "$tmp/ll.json" --depth-complexity "$tmp/lldc.png"
+check "ll stats name the device and passes" bash -c "grep -q '\"gather\"' '$tmp/ll.json' && grep -q '\"device\"' '$tmp/ll.json'"
+check "ll equals the reference (PSNR >= 45 dB)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique reference --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/r8.png' && '$bin' compare '$tmp/ll.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
+check "render opaque (Vulkan)" "$bin" render "$tmp/t.lbc.h5" --technique opaque --validation --tf opaque --size 64x48 -o "$tmp/op.png"
+check "ll without tubes is an error" exit_code 4 "$bin" render "$tmp/v.lbc.h5" --technique ll --size 32x24 -o "$tmp/x.png"
+check "unknown Vulkan device is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --device no-such-gpu --size 32x24 -o "$tmp/x.png"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"

@@ -16,6 +16,7 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "render/ray_tracer.hpp"
+#include "render/vulkan/raster_renderer.hpp"
 #include "tubes/tube_builder.hpp"
 
 namespace linebake::cli {
@@ -72,6 +73,79 @@ nlohmann::json to_json(const FrameStats& s, const Camera& c, int frame) {
           {"frame_bytes", s.frame_bytes}};
 }
 
+// The Vulkan techniques: the cached tube mesh rasterised headless.
+template <class Args>
+void render_raster(const Args& args, const CacheReader& cache, const TransferFunction& tf,
+                   int width, int height) {
+  if (!cache.exists("/assets/tubes"))
+    throw Error(args.cache +
+                ": the Vulkan techniques draw the tube mesh; bake --assets tubes first");
+  const TubeMesh tubes = load_tubes(cache);
+  vk::ContextOptions context_options;
+  context_options.device = args.device;
+  context_options.validation = args.validation;
+  vk::Context context(context_options);
+  vk::RasterRenderer renderer(context, tubes);
+  vk::RasterOptions o;
+  o.technique = vk::parse_raster_technique(args.technique);
+  o.width = width, o.height = height;
+  o.sort = vk::parse_list_sort(args.sort);
+  o.capacity = args.capacity;
+  o.early_termination = args.early;
+  FlightOptions flight;
+  flight.kind = parse_flight_kind(args.flight);
+  if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args.flight;
+  flight.frames = args.frame_count;
+  const EmbreeScene bounds_scene = EmbreeScene::from_tubes(tubes, {});
+  const std::vector<Camera> cameras =
+      make_flight(bounds_scene.bounds(), double(width) / height, flight);
+  std::vector<int> frames;
+  if (args.frames == "all")
+    for (int i = 0; i < args.frame_count; ++i) frames.push_back(i);
+  else
+    frames.push_back(args.frame);
+  const bool numbered = frames.size() > 1;
+  nlohmann::json stats = {{"technique", args.technique},      {"device", context.info().name},
+                          {"driver", context.info().driver},  {"transfer_function", tf.name},
+                          {"flight", to_string(flight.kind)}, {"mesh_bytes", renderer.mesh_bytes()},
+                          {"frames", nlohmann::json::array()}};
+  if (o.technique == vk::RasterTechnique::LinkedLists) stats["sort"] = vk::to_string(o.sort);
+  TerminalProgress progress("render");
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const vk::RasterFrame frame = renderer.render(cameras[size_t(frames[i])], tf, o);
+    if (context.validation_errors() > 0)
+      throw Error("Vulkan validation: " + std::to_string(context.validation_errors()) +
+                  " error(s); last: " + context.last_validation_error());
+    write_image(frame.image, frame_path(args.output, frames[i], numbered), args.png_bits);
+    if (!args.depth_image.empty() && !frame.depth_complexity.empty())
+      write_png_counts(frame.depth_complexity, width, height,
+                       frame_path(args.depth_image, frames[i], numbered));
+    nlohmann::json passes = nlohmann::json::object();
+    for (const auto& [name, ms] : frame.stats.pass_ms) passes[name] = ms;
+    const Camera& c = cameras[size_t(frames[i])];
+    stats["frames"].push_back(
+        {{"frame", frames[i]},
+         {"seconds", frame.stats.seconds},
+         {"gpu_ms", passes},
+         {"size", {width, height}},
+         {"camera",
+          {{"eye", {c.eye.x, c.eye.y, c.eye.z}},
+           {"target", {c.target.x, c.target.y, c.target.z}},
+           {"fov", c.fov_y_degrees}}},
+         {"fragments", frame.stats.fragments},
+         {"node_capacity", frame.stats.capacity},
+         {"regrows", frame.stats.regrows},
+         {"depth_complexity",
+          {{"max", frame.stats.max_depth_complexity}, {"mean", frame.stats.mean_depth_complexity}}},
+         {"frame_bytes", frame.stats.frame_bytes}});
+    progress.update(i + 1, frames.size());
+    if (!TerminalProgress::enabled())
+      std::cerr << "frame " << frames[i] << ": " << frame.stats.seconds << " s on "
+                << context.info().name << "\n";
+  }
+  if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
+}
+
 }  // namespace
 
 Command add_render(CLI::App& app) {
@@ -81,6 +155,9 @@ Command add_render(CLI::App& app) {
                        flight = "orbit-zoom";
     std::string frames, output, stats, depth_image, size = "1280x720", attribute,
                                                     quality = "medium", hits = "filter";
+    std::string sort = "heap", device;
+    uint64_t capacity = 0;
+    bool validation = false;
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
     bool early = false, packets = false;
@@ -90,8 +167,17 @@ Command add_render(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   sub->add_option("--technique", args->technique,
-                  "embree (CPU ray tracing of curves) | reference (exact, the tube mesh)")
-      ->check(CLI::IsMember({"embree", "reference"}));
+                  "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
+                  "opaque | ll (Vulkan rasterisation of the tube mesh)")
+      ->check(CLI::IsMember({"embree", "reference", "opaque", "ll"}));
+  sub->add_option("--sort", args->sort, "ll: per-pixel sort insertion | shell | heap (default)")
+      ->check(CLI::IsMember({"insertion", "shell", "heap"}));
+  sub->add_option("--capacity", args->capacity,
+                  "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)");
+  sub->add_option("--device", args->device,
+                  "Vulkan device: part of its name (default: a discrete GPU, else the first)");
+  sub->add_flag("--validation", args->validation,
+                "Vulkan: enable the Khronos validation layer; validation errors fail the run");
   sub->add_option("--geometry", args->geometry,
                   "embree: linear (default) | bezier curves | capsules (user geometry)")
       ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
@@ -128,13 +214,17 @@ Command add_render(CLI::App& app) {
   return [args] {
     const auto [width, height] = parse_size(args->size);
     const bool reference = args->technique == "reference";
-    if (reference && args->early)
+    if ((reference || args->technique == "opaque") && args->early)
       throw Error("--early-termination: the reference never stops early");
     if (args->frame >= args->frame_count && args->frames.empty())
       throw Error("--frame " + std::to_string(args->frame) + " is past the flight's " +
                   std::to_string(args->frame_count) + " frames");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
+    if (args->technique == "opaque" || args->technique == "ll") {
+      render_raster(*args, cache, tf, width, height);
+      return;
+    }
     const bool has_tubes = cache.exists("/assets/tubes");
     EmbreeOptions options;
     options.quality = parse_build_quality(args->quality);

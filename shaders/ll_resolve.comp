@@ -1,0 +1,102 @@
+#version 460
+// Per-pixel linked lists, resolve pass: copy the pixel's list (up to kMaxFragments nodes) into
+// local arrays, sort by depth and blend front to back over the background. Longer lists are
+// reported through `longest` and the host re-runs the resolve with room for them.
+#include "frame.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(constant_id = 0) const uint kMaxFragments = 256;
+layout(constant_id = 1) const uint kSort = 2;  // 0 insertion, 1 shell (24, 9, 4, 1), 2 heap
+
+layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
+layout(set = 0, binding = 2, std430) readonly buffer Nodes { uint nodes[]; };
+layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
+layout(set = 0, binding = 5, std430) buffer Stats { uint longest; uint depth_complexity[]; };
+
+float depth_of[kMaxFragments];
+uint node_of[kMaxFragments];
+
+void swap_entries(uint i, uint j) {
+  const float d = depth_of[i];
+  depth_of[i] = depth_of[j];
+  depth_of[j] = d;
+  const uint n = node_of[i];
+  node_of[i] = node_of[j];
+  node_of[j] = n;
+}
+
+void insertion_sort(uint count, uint gap) {
+  for (uint i = gap; i < count; ++i) {
+    const float d = depth_of[i];
+    const uint n = node_of[i];
+    uint j = i;
+    while (j >= gap && depth_of[j - gap] > d) {
+      depth_of[j] = depth_of[j - gap];
+      node_of[j] = node_of[j - gap];
+      j -= gap;
+    }
+    depth_of[j] = d;
+    node_of[j] = n;
+  }
+}
+
+void sift_down(uint i, uint count) {
+  for (;;) {
+    const uint l = 2u * i + 1u, r = l + 1u;
+    uint m = i;
+    if (l < count && depth_of[l] < depth_of[m]) m = l;
+    if (r < count && depth_of[r] < depth_of[m]) m = r;
+    if (m == i) return;
+    swap_entries(i, m);
+    i = m;
+  }
+}
+
+vec3 colour_acc = vec3(0.0);
+float alpha_acc = 0.0;
+
+bool blend(uint node) {  // false once compositing may stop
+  const uint base = 6u * node;
+  const vec3 rgb = vec3(uintBitsToFloat(nodes[base]), uintBitsToFloat(nodes[base + 1u]),
+                        uintBitsToFloat(nodes[base + 2u]));
+  const float a = uintBitsToFloat(nodes[base + 3u]);
+  colour_acc += (1.0 - alpha_acc) * a * rgb;
+  alpha_acc += (1.0 - alpha_acc) * a;
+  return !(frame.tf_counts.z != 0u && alpha_acc >= frame.termination.x);
+}
+
+void main() {
+  const uvec2 p = gl_GlobalInvocationID.xy;
+  if (p.x >= frame.size.x || p.y >= frame.size.y) return;
+  const uint pixel = p.y * frame.size.x + p.x;
+  uint count = 0u, total = 0u;
+  for (uint n = heads[pixel]; n != 0xFFFFFFFFu; n = nodes[6u * n + 5u]) {
+    if (count < kMaxFragments) {
+      depth_of[count] = uintBitsToFloat(nodes[6u * n + 4u]);
+      node_of[count] = n;
+      ++count;
+    }
+    ++total;
+  }
+  depth_complexity[pixel] = total;
+  if (total > kMaxFragments) atomicMax(longest, total);
+  if (kSort == 2u) {
+    // Min-heap priority queue: pop the nearest fragment, blend, repeat.
+    for (uint i = count / 2u; i-- > 0u;) sift_down(i, count);
+    for (uint left = count; left > 0u; --left) {
+      if (!blend(node_of[0])) break;
+      swap_entries(0u, left - 1u);
+      sift_down(0u, left - 1u);
+    }
+  } else {
+    if (kSort == 1u) {
+      insertion_sort(count, 24u);
+      insertion_sort(count, 9u);
+      insertion_sort(count, 4u);
+    }
+    insertion_sort(count, 1u);
+    for (uint i = 0u; i < count; ++i)
+      if (!blend(node_of[i])) break;
+  }
+  pixels[pixel] = vec4(colour_acc + (1.0 - alpha_acc) * frame.background.rgb, alpha_acc);
+}
