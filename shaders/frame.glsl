@@ -22,36 +22,33 @@ float srgb_to_linear(float c) {
   return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
 
+// Point i of the colour (x, r, g, b) or the opacity (x, a) table.
+vec4 tf_point(bool colour, uint i) {
+  return colour ? frame.colours[i] : frame.opacities[i];
+}
+
+// Piecewise linear through the table's points at t, clamped to the end points; returns the
+// value columns (colour: rgb, opacity: a in .x).
+vec3 tf_interpolate(bool colour, float t) {
+  const uint n = colour ? frame.tf_counts.x : frame.tf_counts.y;
+  if (t <= tf_point(colour, 0).x) return tf_point(colour, 0).yzw;
+  if (t >= tf_point(colour, n - 1).x) return tf_point(colour, n - 1).yzw;
+  for (uint i = 1; i < n; ++i) {
+    const vec4 hi = tf_point(colour, i);
+    if (t < hi.x) {
+      const vec4 lo = tf_point(colour, i - 1);
+      const float w = hi.x > lo.x ? (t - lo.x) / (hi.x - lo.x) : 0.0;
+      return lo.yzw + w * (hi.yzw - lo.yzw);
+    }
+  }
+  return tf_point(colour, n - 1).yzw;
+}
+
 vec4 transfer_function(float value) {
   const float span = frame.ranges.w - frame.ranges.z;
-  float t = span > 0.0 ? (value - frame.ranges.z) / span : 0.5;
-  t = clamp(t, 0.0, 1.0);
-  vec3 srgb = frame.colours[0].yzw;
-  const uint nc = frame.tf_counts.x;
-  if (t >= frame.colours[nc - 1].x) {
-    srgb = frame.colours[nc - 1].yzw;
-  } else if (t > frame.colours[0].x) {
-    for (uint i = 1; i < nc; ++i)
-      if (t < frame.colours[i].x) {
-        const vec4 lo = frame.colours[i - 1], hi = frame.colours[i];
-        const float w = hi.x > lo.x ? (t - lo.x) / (hi.x - lo.x) : 0.0;
-        srgb = lo.yzw + w * (hi.yzw - lo.yzw);
-        break;
-      }
-  }
-  float a = frame.opacities[0].y;
-  const uint no = frame.tf_counts.y;
-  if (t >= frame.opacities[no - 1].x) {
-    a = frame.opacities[no - 1].y;
-  } else if (t > frame.opacities[0].x) {
-    for (uint i = 1; i < no; ++i)
-      if (t < frame.opacities[i].x) {
-        const vec4 lo = frame.opacities[i - 1], hi = frame.opacities[i];
-        const float w = hi.x > lo.x ? (t - lo.x) / (hi.x - lo.x) : 0.0;
-        a = lo.y + w * (hi.y - lo.y);
-        break;
-      }
-  }
+  const float t = clamp(span > 0.0 ? (value - frame.ranges.z) / span : 0.5, 0.0, 1.0);
+  const vec3 srgb = tf_interpolate(true, t);
+  const float a = tf_interpolate(false, t).x;
   return vec4(srgb_to_linear(srgb.r), srgb_to_linear(srgb.g), srgb_to_linear(srgb.b),
               clamp(a, 0.0, 1.0));
 }

@@ -49,8 +49,8 @@ Scene make_scene(int size) {
   t.radius_absolute = true;
   t.attribute = "value";
   s.mesh = build_tubes(wavy_lines(), t);
-  const EmbreeScene probe = EmbreeScene::from_tubes(s.mesh, {});
-  s.camera = frame_bounds(probe.bounds(), 1.0, 8, 12);  // nearly along the stack: deep lists
+  s.camera =
+      frame_bounds(compute_bounds(s.mesh), 1.0, 8, 12);  // nearly along the stack: deep lists
   s.trace.width = s.trace.height = size;
   return s;
 }

@@ -73,6 +73,29 @@ nlohmann::json to_json(const FrameStats& s, const Camera& c, int frame) {
           {"frame_bytes", s.frame_bytes}};
 }
 
+// The flight's cameras and the frames to render (--frame F or --frames all).
+struct FlightPlan {
+  FlightKind kind = FlightKind::OrbitZoom;
+  std::vector<Camera> cameras;
+  std::vector<int> frames;
+};
+
+template <class Args>
+FlightPlan plan_flight(const Args& args, const Bounds& bounds, int width, int height) {
+  FlightOptions flight;
+  flight.kind = parse_flight_kind(args.flight);
+  if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args.flight;
+  flight.frames = args.frame_count;
+  FlightPlan plan;
+  plan.kind = flight.kind;
+  plan.cameras = make_flight(bounds, double(width) / height, flight);
+  if (args.frames == "all")
+    for (int i = 0; i < args.frame_count; ++i) plan.frames.push_back(i);
+  else
+    plan.frames.push_back(args.frame);
+  return plan;
+}
+
 // The Vulkan techniques: the cached tube mesh rasterised headless.
 template <class Args>
 void render_raster(const Args& args, const CacheReader& cache, const TransferFunction& tf,
@@ -92,22 +115,13 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   o.sort = vk::parse_list_sort(args.sort);
   o.capacity = args.capacity;
   o.early_termination = args.early;
-  FlightOptions flight;
-  flight.kind = parse_flight_kind(args.flight);
-  if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args.flight;
-  flight.frames = args.frame_count;
-  const EmbreeScene bounds_scene = EmbreeScene::from_tubes(tubes, {});
-  const std::vector<Camera> cameras =
-      make_flight(bounds_scene.bounds(), double(width) / height, flight);
-  std::vector<int> frames;
-  if (args.frames == "all")
-    for (int i = 0; i < args.frame_count; ++i) frames.push_back(i);
-  else
-    frames.push_back(args.frame);
+  const FlightPlan plan = plan_flight(args, compute_bounds(tubes), width, height);
+  const std::vector<Camera>& cameras = plan.cameras;
+  const std::vector<int>& frames = plan.frames;
   const bool numbered = frames.size() > 1;
   nlohmann::json stats = {{"technique", args.technique},      {"device", context.info().name},
                           {"driver", context.info().driver},  {"transfer_function", tf.name},
-                          {"flight", to_string(flight.kind)}, {"mesh_bytes", renderer.mesh_bytes()},
+                          {"flight", to_string(plan.kind)},   {"mesh_bytes", renderer.mesh_bytes()},
                           {"frames", nlohmann::json::array()}};
   if (o.technique == vk::RasterTechnique::LinkedLists) stats["sort"] = vk::to_string(o.sort);
   TerminalProgress progress("render");
@@ -280,23 +294,15 @@ Command add_render(CLI::App& app) {
     trace.packets = args->packets;
     if (trace.packets && trace.collection != HitCollection::Filter)
       throw Error("--packets: packets collect hits with the filter, not by stepping");
-    FlightOptions flight;
-    flight.kind = parse_flight_kind(args->flight);
-    if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args->flight;
-    flight.frames = args->frame_count;
-    const std::vector<Camera> cameras =
-        make_flight(scene->bounds(), double(width) / height, flight);
-    std::vector<int> frames;
-    if (args->frames == "all")
-      for (int i = 0; i < args->frame_count; ++i) frames.push_back(i);
-    else
-      frames.push_back(args->frame);
+    const FlightPlan plan = plan_flight(*args, scene->bounds(), width, height);
+    const std::vector<Camera>& cameras = plan.cameras;
+    const std::vector<int>& frames = plan.frames;
     const bool numbered = frames.size() > 1;
     nlohmann::json stats = {{"technique", args->technique},
                             {"transfer_function", tf.name},
                             {"hit_collection", to_string(trace.collection)},
                             {"packets", trace.packets},
-                            {"flight", to_string(flight.kind)},
+                            {"flight", to_string(plan.kind)},
                             {"bvh", to_json(scene->stats())},
                             {"bvh_from_cached_buffers", from_cache},
                             {"frames", nlohmann::json::array()}};

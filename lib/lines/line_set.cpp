@@ -55,10 +55,9 @@ bool LineSet::same_data(const LineSet& other) const {
          same_attributes(line_attributes, other.line_attributes);
 }
 
-Bounds compute_bounds(const LineSet& lines) {
-  Bounds b;
-  for (size_t i = 0; i < lines.point_count(); ++i) {
-    const float* p = &lines.positions[3 * i];
+void include_points(Bounds& b, std::span<const float> xyz) {
+  for (size_t i = 0; i + 2 < xyz.size(); i += 3) {
+    const float* p = &xyz[i];
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
     for (int k = 0; k < 3; ++k) {
       if (b.empty || p[k] < b.min[k]) b.min[k] = p[k];
@@ -67,6 +66,11 @@ Bounds compute_bounds(const LineSet& lines) {
     if (b.empty) b.min = b.max = {p[0], p[1], p[2]};
     b.empty = false;
   }
+}
+
+Bounds compute_bounds(const LineSet& lines) {
+  Bounds b;
+  include_points(b, std::span<const float>(lines.positions.data(), 3 * lines.point_count()));
   return b;
 }
 

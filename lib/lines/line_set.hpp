@@ -50,6 +50,8 @@ struct LineSet {
 
 // Bounds of all finite points.
 Bounds compute_bounds(const LineSet& lines);
+// Grows `bounds` by points given as x y z triples; non-finite points are skipped.
+void include_points(Bounds& bounds, std::span<const float> xyz);
 
 struct ValueRange {
   float min = 0;

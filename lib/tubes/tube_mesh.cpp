@@ -68,4 +68,11 @@ std::array<float, 3> decode_octahedral(int16_t su, int16_t sv) {
   return {x / len, y / len, z / len};
 }
 
+Bounds compute_bounds(const TubeMesh& mesh) {
+  Bounds b;
+  for (const TubeChunk& chunk : mesh.chunks)
+    include_points(b, std::span<const float>(chunk.positions.data(), chunk.positions.size()));
+  return b;
+}
+
 }  // namespace linebake

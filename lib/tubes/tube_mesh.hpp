@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/array.hpp"
+#include "lines/line_set.hpp"
 
 namespace linebake {
 
@@ -49,6 +50,9 @@ struct TubeMesh {
   uint64_t triangle_count() const;
   uint64_t bytes() const;
 };
+
+// Bounding box of every vertex position (the tube surface, radius included).
+Bounds compute_bounds(const TubeMesh& mesh);
 
 // Vertex bytes for a layout, used for chunk budgets and reports.
 uint64_t tube_vertex_bytes(NormalEncoding normals, bool has_attribute);
