@@ -6,6 +6,7 @@
 #include <cmath>
 #include <iostream>
 #include <numeric>
+#include <tuple>
 
 #include "accel/embree_scene.hpp"
 #include "core/error.hpp"
@@ -19,10 +20,12 @@ namespace linebake {
 namespace {
 
 // Six wavy lines stacked in depth, nearly in phase: up to six overlapping tubes per pixel.
-LineSet wavy_lines() {
+// Interleaved: drawn in the depth order 0, 3, 1, 4, 2, 5 instead of front to back.
+LineSet wavy_lines(bool interleaved = false) {
   LineSet lines;
   Attribute a{"value", {}};
-  for (int i = 0; i < 6; ++i) {
+  for (int line = 0; line < 6; ++line) {
+    const int i = interleaved ? (line % 2 == 0 ? line / 2 : 3 + line / 2) : line;
     for (int k = 0; k <= 24; ++k) {
       const float s = float(k) / 24;
       lines.append_point(-1 + 2 * s, 0.5f * std::sin(4 * s + 0.15f * float(i)),
@@ -41,14 +44,14 @@ struct Scene {
   TraceOptions trace;
 };
 
-Scene make_scene(int size) {
+Scene make_scene(int size, bool interleaved = false) {
   Scene s;
   TubeOptions t;
   t.sides = 8;
   t.radius = 0.06f;
   t.radius_absolute = true;
   t.attribute = "value";
-  s.mesh = build_tubes(wavy_lines(), t);
+  s.mesh = build_tubes(wavy_lines(interleaved), t);
   s.camera =
       frame_bounds(compute_bounds(s.mesh), 1.0, 8, 12);  // nearly along the stack: deep lists
   s.trace.width = s.trace.height = size;
@@ -143,6 +146,251 @@ TEST(Vulkan, OpaqueEqualsTheOpaqueReference) {
   EXPECT_LE(flipped, f.image.pixels.size() / 3 / 500);  // at most 0.2 % of the pixels
   EXPECT_GE(db, 45.0);
   std::cout << "opaque: PSNR " << db << " dB, " << flipped << " pixels differ by more than 1e-3\n";
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+// Rasterisation vs ray casting: the same pixel centres, but silhouettes within float precision
+// of a centre can flip between two tubes (see OpaqueEqualsTheOpaqueReference).
+size_t pixels_differing(const Image& a, const Image& b, double tolerance = 1e-3) {
+  size_t differing = 0;
+  for (size_t i = 0; i < a.pixels.size(); i += 3) {
+    double diff = 0;
+    for (size_t k = 0; k < 3; ++k)
+      diff = std::max(diff, std::abs(double(a.pixels[i + k]) - double(b.pixels[i + k])));
+    differing += diff > tolerance;
+  }
+  return differing;
+}
+
+TEST(Vulkan, DepthPeelingEqualsTheReferenceAndPeelsEveryLayer) {
+  const Scene s = make_scene(96);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
+  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  vk::RasterOptions o;
+  o.technique = vk::RasterTechnique::DepthPeeling;
+  o.width = o.height = 96;
+  const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+  const double db = psnr(display(f.image), display(reference.image));
+  EXPECT_GE(db, 50.0);
+  // One pass per layer of the deepest pixel, which the ray tracer measures independently.
+  EXPECT_EQ(uint32_t(f.stats.layers), f.stats.max_depth_complexity);
+  EXPECT_GE(f.stats.max_depth_complexity + 1, reference.stats.max_depth_complexity);
+  EXPECT_LE(f.stats.max_depth_complexity, reference.stats.max_depth_complexity + 1);
+  EXPECT_FALSE(f.stats.layers_capped);
+  // Capping the layers drops the farthest ones: a different image, reported as capped.
+  o.max_layers = 2;
+  const vk::RasterFrame capped = renderer.render(s.camera, tf, o);
+  EXPECT_TRUE(capped.stats.layers_capped);
+  EXPECT_EQ(capped.stats.layers, 2);
+  EXPECT_LT(psnr(display(capped.image), display(reference.image)), db);
+  EXPECT_GT(pixels_differing(capped.image, reference.image), 100u);
+  std::cout << "dp: " << f.stats.layers << " layers, PSNR " << db << " dB, "
+            << pixels_differing(f.image, reference.image) << " pixels differ by more than 1e-3\n";
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+// MLAB on the CPU for one pixel (techniques.md section 4): the ray's hits inserted in primitive
+// order, the order in which the rasteriser delivers one pixel's fragments (lavapipe shades a
+// pixel's fragments in draw order), then blended over the background.
+std::array<double, 3> mlab_pixel(std::vector<RayHit> hits, const glm::dvec3& direction,
+                                 const TransferFunction& tf, const TraceOptions& trace, int k) {
+  std::stable_sort(hits.begin(), hits.end(), [](const RayHit& a, const RayHit& b) {
+    return std::tie(a.geometry, a.primitive) < std::tie(b.geometry, b.primitive);
+  });
+  struct Node {
+    double depth = 1e300;
+    glm::dvec3 rgb{0};
+    double t = 1;
+  };
+  std::vector<Node> nodes(size_t(k) + 1);
+  TraceOptions black = trace;
+  black.shading.background = {0, 0, 0};
+  for (const RayHit& hit : hits) {
+    const auto c = composite({hit}, direction, tf, black);  // premultiplied rgb, alpha
+    if (c[3] <= 0) continue;
+    Node f{hit.t, {c[0], c[1], c[2]}, 1 - c[3]};
+    nodes[size_t(k)] = Node{};
+    for (Node& n : nodes)
+      if (n.depth >= f.depth) std::swap(n, f);
+    if (nodes[size_t(k)].depth < 1e300) {
+      Node& src = nodes[size_t(k) - 1];
+      const Node& dst = nodes[size_t(k)];
+      src.rgb += src.t * dst.rgb;
+      src.t *= dst.t;
+    }
+  }
+  glm::dvec3 colour{0};
+  double t = 1;
+  for (int i = 0; i < k; ++i) colour += t * nodes[size_t(i)].rgb, t *= nodes[size_t(i)].t;
+  return {colour.x + t * trace.shading.background[0], colour.y + t * trace.shading.background[1],
+          colour.z + t * trace.shading.background[2]};
+}
+
+TEST(Vulkan, MlabEqualsTheReferenceWithEnoughNodesAndACpuMlabWithFew) {
+  // Lines drawn out of depth order, so that few nodes must merge fragments that later ones fall
+  // between: MLAB's approximation.
+  const Scene s = make_scene(96, true);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
+  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  ASSERT_LE(reference.stats.max_depth_complexity, 12u);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  vk::RasterOptions o;
+  o.technique = vk::RasterTechnique::Mlab;
+  o.width = o.height = 96;
+  o.layers = 12;  // >= the deepest pixel: no merge ever happens
+  const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+  const double db = psnr(display(f.image), display(reference.image));
+  EXPECT_GE(db, 50.0);
+  EXPECT_EQ(f.stats.critical_section,
+            ctx.info().fragment_shader_interlock ? "interlock" : "spin lock");
+  // One node: the GPU's merges equal the CPU model's, and differ from the exact image.
+  o.layers = 1;
+  const vk::RasterFrame merged = renderer.render(s.camera, tf, o);
+  TransferFunction model_tf = tf;  // over the mesh's attribute range, as trace_frame does
+  model_tf.range = {reference_scene.attribute_range()[0], reference_scene.attribute_range()[1]};
+  Image model(96, 96, 3);
+  for (int y = 0; y < 96; ++y)
+    for (int x = 0; x < 96; ++x) {
+      const glm::dvec3 dir = s.camera.ray_direction(x, y, 96, 96);
+      const auto c =
+          mlab_pixel(trace_hits(reference_scene, s.camera.eye, dir), dir, model_tf, s.trace, 1);
+      for (int k = 0; k < 3; ++k) model.at(x, y, k) = float(c[size_t(k)]);
+    }
+  const double merged_db = psnr(display(merged.image), display(reference.image));
+  const double model_db = psnr(display(merged.image), display(model));
+  const size_t off_reference = pixels_differing(merged.image, reference.image, 1e-4);
+  const size_t off_model = pixels_differing(merged.image, model, 1e-4);
+  // PSNR saturates at 60 dB here (the colours of the merged lines are close), so count pixels
+  // off by more than 1e-4: many against the reference, only silhouette flips against the model.
+  EXPECT_GT(off_reference, 20u);
+  EXPECT_LE(off_model, 2u);
+  EXPECT_GE(model_db, 50.0);
+  std::cout << "mlab: k 12 " << db << " dB (" << f.stats.critical_section << "); k 1 " << merged_db
+            << " dB against the reference (" << off_reference << " pixels off by > 1e-4), "
+            << model_db << " dB against the CPU MLAB model (" << off_model << " pixels)\n";
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+TEST(Vulkan, MlabdbWithOpaqueLinesEqualsTheReference) {
+  const Scene s = make_scene(96);
+  const TransferFunction tf = transfer_function_preset("opaque");
+  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
+  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  vk::RasterOptions o;
+  o.technique = vk::RasterTechnique::MlabBuckets;
+  o.width = o.height = 96;
+  const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+  // As for `opaque`: silhouette flips only (at most 0.2 % of the pixels).
+  const size_t flipped = pixels_differing(f.image, reference.image);
+  EXPECT_LE(flipped, f.image.pixels.size() / 3 / 500);
+  const double db = psnr(display(f.image), display(reference.image));
+  EXPECT_GE(db, 45.0);
+  std::cout << "mlabdb opaque: PSNR " << db << " dB, " << flipped << " pixels differ\n";
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+// The total opacity 1 - prod(1 - a_i) of a pixel, from two reference renders: over a white and
+// over a black background the images differ by exactly (1 - A).
+std::vector<double> reference_opacity(const Scene& s, const TransferFunction& tf) {
+  const EmbreeScene scene = EmbreeScene::from_tubes(s.mesh, {});
+  TraceOptions white = s.trace, black = s.trace;
+  white.shading.background = {1, 1, 1};
+  black.shading.background = {0, 0, 0};
+  const Frame w = trace_frame(scene, s.camera, tf, white);
+  const Frame b = trace_frame(scene, s.camera, tf, black);
+  std::vector<double> opacity(w.image.pixels.size() / 3);
+  for (size_t p = 0; p < opacity.size(); ++p)
+    opacity[p] = 1.0 - (double(w.image.pixels[3 * p]) - double(b.image.pixels[3 * p]));
+  return opacity;
+}
+
+TEST(Vulkan, MomentAndWeightedOitTotalOpacityIsExact) {
+  // MBOIT: 1 - exp(-b0) with b0 = sum of -ln(1 - a_i) is 1 - prod(1 - a_i); WBOIT's revealage is
+  // the same product. Both equal the reference's opacity wherever the fragments agree.
+  const Scene s = make_scene(96);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const std::vector<double> expected = reference_opacity(s, tf);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  for (const auto technique : {vk::RasterTechnique::Mboit, vk::RasterTechnique::Wboit}) {
+    vk::RasterOptions o;
+    o.technique = technique;
+    o.width = o.height = 96;
+    const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+    size_t equal = 0, covered = 0;
+    for (size_t p = 0; p < expected.size(); ++p) {
+      equal += std::abs(double(f.alpha[p]) - expected[p]) < 1e-4;
+      covered += expected[p] > 0.01;
+    }
+    EXPECT_GE(double(equal) / double(expected.size()), 0.995) << to_string(technique);
+    EXPECT_GT(covered, expected.size() / 10);
+    // The image itself is the resolved colour over the background with that opacity.
+    vk::RasterOptions black = o;
+    black.shading.background = {0, 0, 0};
+    const vk::RasterFrame over_black = renderer.render(s.camera, tf, black);
+    float worst = 0;
+    for (size_t p = 0; p < expected.size(); ++p)
+      worst = std::max(
+          worst,
+          std::abs((1.0f - (f.image.pixels[3 * p] - over_black.image.pixels[3 * p])) - f.alpha[p]));
+    EXPECT_LT(worst, 1e-5f) << to_string(technique);
+    std::cout << to_string(technique) << ": opacity equal to the reference's in " << equal << " of "
+              << expected.size() << " pixels\n";
+  }
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+TEST(Vulkan, WeightedOitIsExactForOneLayer) {
+  // With one fragment per pixel the weighted average is that fragment: WBOIT is exact.
+  LineSet lines;
+  lines.append_point(-1, 0, 0);
+  lines.append_point(1, 0.2f, 0);
+  lines.end_line();
+  TubeOptions t;
+  t.sides = 12;
+  t.radius = 0.15f;
+  t.radius_absolute = true;
+  Scene s;
+  s.mesh = build_tubes(lines, t);
+  s.camera = frame_bounds(compute_bounds(s.mesh), 1.0, 0, 0);
+  s.trace.width = s.trace.height = 64;
+  const TransferFunction tf = transfer_function_preset("transparent");
+  const Frame reference = trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  vk::RasterOptions o;
+  o.technique = vk::RasterTechnique::Wboit;
+  o.width = o.height = 64;
+  const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+  EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0);
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+TEST(Vulkan, CountedDepthComplexityMatchesTheListsAndTheRayTracer) {
+  const Scene s = make_scene(96);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const Frame reference = trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  const vk::RasterFrame counted = renderer.count_fragments(s.camera, tf, 96, 96);
+  vk::RasterOptions o;
+  o.width = o.height = 96;
+  const vk::RasterFrame lists = renderer.render(s.camera, tf, o);
+  // Every fragment of `semi` is stored by the lists (opacity > 0), so the counts are equal.
+  EXPECT_EQ(counted.depth_complexity, lists.depth_complexity);
+  size_t same = 0;
+  for (size_t i = 0; i < reference.depth_complexity.size(); ++i)
+    same += counted.depth_complexity[i] == reference.depth_complexity[i];
+  EXPECT_GE(double(same) / double(reference.depth_complexity.size()), 0.99);
+  EXPECT_EQ(counted.stats.max_depth_complexity, lists.stats.max_depth_complexity);
+  EXPECT_TRUE(counted.image.pixels.empty());
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
 }
 

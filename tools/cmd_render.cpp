@@ -1,10 +1,10 @@
 // linebake render <cache>: renders frames of a flight with the CPU ray tracer (technique
-// `embree`, curves) or the ground truth (technique `reference`, the triangle tube mesh).
+// `embree`, curves), the ground truth (technique `reference`, the triangle tube mesh) or one of
+// the Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit).
 
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <regex>
 
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
@@ -15,32 +15,13 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "flight_plan.hpp"
 #include "render/ray_tracer.hpp"
 #include "render/vulkan/raster_renderer.hpp"
 #include "tubes/tube_builder.hpp"
 
 namespace linebake::cli {
 namespace {
-
-std::array<int, 2> parse_size(const std::string& text) {
-  static const std::regex pattern(R"((\d{1,5})x(\d{1,5}))");
-  std::smatch m;
-  if (!std::regex_match(text, m, pattern)) throw Error("--size: expected WxH, got '" + text + "'");
-  const int w = std::stoi(m[1]), h = std::stoi(m[2]);
-  if (w < 1 || h < 1 || w > 16384 || h > 16384) throw Error("--size: 1..16384 per axis");
-  return {w, h};
-}
-
-// "out.png" -> "out_007.png" for frame 7 of a multi-frame render.
-std::string frame_path(const std::string& path, int frame, bool numbered) {
-  if (!numbered) return path;
-  const auto dot = path.find_last_of('.');
-  const auto slash = path.find_last_of('/');
-  char number[16];
-  std::snprintf(number, sizeof number, "_%03d", frame);
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path + number;
-  return path.substr(0, dot) + number + path.substr(dot);
-}
 
 nlohmann::json to_json(const BvhStats& s) {
   return {{"geometry", to_string(s.geometry)},
@@ -73,29 +54,6 @@ nlohmann::json to_json(const FrameStats& s, const Camera& c, int frame) {
           {"frame_bytes", s.frame_bytes}};
 }
 
-// The flight's cameras and the frames to render (--frame F or --frames all).
-struct FlightPlan {
-  FlightKind kind = FlightKind::OrbitZoom;
-  std::vector<Camera> cameras;
-  std::vector<int> frames;
-};
-
-template <class Args>
-FlightPlan plan_flight(const Args& args, const Bounds& bounds, int width, int height) {
-  FlightOptions flight;
-  flight.kind = parse_flight_kind(args.flight);
-  if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = args.flight;
-  flight.frames = args.frame_count;
-  FlightPlan plan;
-  plan.kind = flight.kind;
-  plan.cameras = make_flight(bounds, double(width) / height, flight);
-  if (args.frames == "all")
-    for (int i = 0; i < args.frame_count; ++i) plan.frames.push_back(i);
-  else
-    plan.frames.push_back(args.frame);
-  return plan;
-}
-
 // The Vulkan techniques: the cached tube mesh rasterised headless.
 template <class Args>
 void render_raster(const Args& args, const CacheReader& cache, const TransferFunction& tf,
@@ -115,7 +73,14 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   o.sort = vk::parse_list_sort(args.sort);
   o.capacity = args.capacity;
   o.early_termination = args.early;
-  const FlightPlan plan = plan_flight(args, compute_bounds(tubes), width, height);
+  o.max_layers = args.max_layers;
+  o.layers = args.layers;
+  o.tau_alpha = args.tau_alpha, o.tau_opaque = args.tau_opaque;
+  o.mboit_beta = args.beta;
+  o.wboit_weight = args.wboit_weight;
+  o.interlock = !args.no_interlock;
+  const FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
+                                      compute_bounds(tubes), width, height);
   const std::vector<Camera>& cameras = plan.cameras;
   const std::vector<int>& frames = plan.frames;
   const bool numbered = frames.size() > 1;
@@ -124,6 +89,9 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
                           {"flight", to_string(plan.kind)},   {"mesh_bytes", renderer.mesh_bytes()},
                           {"frames", nlohmann::json::array()}};
   if (o.technique == vk::RasterTechnique::LinkedLists) stats["sort"] = vk::to_string(o.sort);
+  if (o.technique == vk::RasterTechnique::MlabBuckets)
+    stats["tau"] = {{"alpha", o.tau_alpha}, {"opaque", o.tau_opaque}};
+  if (o.technique == vk::RasterTechnique::Mboit) stats["beta"] = o.mboit_beta;
   TerminalProgress progress("render");
   for (size_t i = 0; i < frames.size(); ++i) {
     const vk::RasterFrame frame = renderer.render(cameras[size_t(frames[i])], tf, o);
@@ -152,6 +120,16 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
          {"depth_complexity",
           {{"max", frame.stats.max_depth_complexity}, {"mean", frame.stats.mean_depth_complexity}}},
          {"frame_bytes", frame.stats.frame_bytes}});
+    if (frame.stats.layers > 0) {
+      stats["frames"].back()["layers"] = frame.stats.layers;
+      if (o.technique == vk::RasterTechnique::DepthPeeling)
+        stats["frames"].back()["layers_capped"] = frame.stats.layers_capped;
+    }
+    if (!frame.stats.critical_section.empty())
+      stats["frames"].back()["critical_section"] = frame.stats.critical_section;
+    if (frame.stats.layers_capped)
+      std::cerr << "warning: frame " << frames[i] << " needs " << frame.stats.max_depth_complexity
+                << " layers; dp peeled " << frame.stats.layers << " (--max-layers)\n";
     progress.update(i + 1, frames.size());
     if (!TerminalProgress::enabled())
       std::cerr << "frame " << frames[i] << ": " << frame.stats.seconds << " s on "
@@ -171,7 +149,9 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device;
     uint64_t capacity = 0;
-    bool validation = false;
+    bool validation = false, no_interlock = false;
+    int max_layers = 2000, layers = 0, wboit_weight = 0;
+    double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1;
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
     bool early = false, packets = false;
@@ -182,12 +162,32 @@ Command add_render(CLI::App& app) {
       ->check(CLI::ExistingFile);
   sub->add_option("--technique", args->technique,
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
-                  "opaque | ll (Vulkan rasterisation of the tube mesh)")
-      ->check(CLI::IsMember({"embree", "reference", "opaque", "ll"}));
+                  "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
+                  "the tube mesh)")
+      ->check(CLI::IsMember(
+          {"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit", "wboit"}));
   sub->add_option("--sort", args->sort, "ll: per-pixel sort insertion | shell | heap (default)")
       ->check(CLI::IsMember({"insertion", "shell", "heap"}));
   sub->add_option("--capacity", args->capacity,
                   "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)");
+  sub->add_option("--max-layers", args->max_layers, "dp: peel at most this many layers (2000)")
+      ->check(CLI::Range(1, 100000));
+  sub->add_option("--layers", args->layers,
+                  "mlab: nodes per pixel (default 8); mlabdb: 1 front + k-1 back (default 4)")
+      ->check(CLI::Range(1, 64));
+  sub->add_option("--tau-alpha", args->tau_alpha,
+                  "mlabdb: opacity above which the back bucket starts (0.2)")
+      ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--tau-opaque", args->tau_opaque,
+                  "mlabdb: opacity from which fragments hide what is behind (0.98)")
+      ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--beta", args->beta, "mboit: overestimation (0.1; MBOIT's authors: 0.25)")
+      ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--wboit-weight", args->wboit_weight,
+                  "wboit: 0 (the public code's, default) or McGuire & Bavoil's equation 7, 8, 9")
+      ->check(CLI::IsMember({0, 7, 8, 9}));
+  sub->add_flag("--no-interlock", args->no_interlock,
+                "mlab, mlabdb: use the per-pixel spin lock even where interlock exists");
   sub->add_option("--device", args->device,
                   "Vulkan device: part of its name (default: a discrete GPU, else the first)");
   sub->add_flag("--validation", args->validation,
@@ -228,14 +228,12 @@ Command add_render(CLI::App& app) {
   return [args] {
     const auto [width, height] = parse_size(args->size);
     const bool reference = args->technique == "reference";
-    if ((reference || args->technique == "opaque") && args->early)
-      throw Error("--early-termination: the reference never stops early");
-    if (args->frame >= args->frame_count && args->frames.empty())
-      throw Error("--frame " + std::to_string(args->frame) + " is past the flight's " +
-                  std::to_string(args->frame_count) + " frames");
+    if (args->early && args->technique != "embree" && args->technique != "ll")
+      throw Error("--early-termination: only embree and ll stop early (" + args->technique +
+                  " does not)");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
-    if (args->technique == "opaque" || args->technique == "ll") {
+    if (vk::is_raster_technique(args->technique)) {
       render_raster(*args, cache, tf, width, height);
       return;
     }
@@ -294,7 +292,8 @@ Command add_render(CLI::App& app) {
     trace.packets = args->packets;
     if (trace.packets && trace.collection != HitCollection::Filter)
       throw Error("--packets: packets collect hits with the filter, not by stepping");
-    const FlightPlan plan = plan_flight(*args, scene->bounds(), width, height);
+    const FlightPlan plan = plan_flight(args->flight, args->frame_count, args->frame, args->frames,
+                                        scene->bounds(), width, height);
     const std::vector<Camera>& cameras = plan.cameras;
     const std::vector<int>& frames = plan.frames;
     const bool numbered = frames.size() > 1;

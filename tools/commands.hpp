@@ -25,5 +25,6 @@ Command add_report(CLI::App& app);
 Command add_export(CLI::App& app);
 Command add_render(CLI::App& app);
 Command add_compare(CLI::App& app);
+Command add_depth_complexity(CLI::App& app);
 
 }  // namespace linebake::cli

@@ -167,15 +167,26 @@ Context::Context(const ContextOptions& options) {
     vkGetPhysicalDeviceProperties(physical_, &props);
     timestamp_period_ns_ = props.limits.timestampPeriod;
 
+    VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT supported_interlock{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
     VkPhysicalDeviceVulkan13Features supported13{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+    if (info_.fragment_shader_interlock) supported13.pNext = &supported_interlock;
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &supported13};
     vkGetPhysicalDeviceFeatures2(physical_, &supported);
     if (!supported.features.fragmentStoresAndAtomics || !supported13.dynamicRendering)
       throw Error("Vulkan: " + info_.name + " lacks fragmentStoresAndAtomics or dynamicRendering");
+    // MLAB's ordered critical section; without it the shaders fall back to a spin lock.
+    info_.fragment_shader_interlock =
+        info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
+    VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT interlock{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
+    interlock.fragmentShaderPixelInterlock = VK_TRUE;
     VkPhysicalDeviceVulkan13Features features13{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
     features13.dynamicRendering = VK_TRUE;
+    const char* device_extensions[] = {"VK_EXT_fragment_shader_interlock"};
+    if (info_.fragment_shader_interlock) features13.pNext = &interlock;
     VkPhysicalDeviceFeatures features{};
     features.fragmentStoresAndAtomics = VK_TRUE;
     const float priority = 1;
@@ -188,6 +199,10 @@ Context::Context(const ContextOptions& options) {
     create.pQueueCreateInfos = &queue;
     create.pEnabledFeatures = &features;
     create.pNext = &features13;
+    if (info_.fragment_shader_interlock) {
+      create.enabledExtensionCount = 1;
+      create.ppEnabledExtensionNames = device_extensions;
+    }
     check(vkCreateDevice(physical_, &create, nullptr, &device_), "vkCreateDevice");
     vkGetDeviceQueue(device_, family_, 0, &queue_);
     VkCommandPoolCreateInfo pool{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};

@@ -1,9 +1,15 @@
 #pragma once
-// The object-order techniques on Vulkan: the cached tube mesh drawn headless (dynamic rendering,
-// no window) with the rendering core's camera, transfer function and Blinn-Phong shading, so
-// images compare with the CPU ray tracer's. Techniques: `opaque` (depth-tested) and `ll`
-// (per-pixel linked lists: gather every fragment, sort per pixel, blend front to back; the node
-// buffer grows and the frame is re-rendered when it overflows, never dropping fragments).
+// The object-order techniques on Vulkan (techniques.md sections 1-7): the cached tube mesh drawn
+// headless (dynamic rendering, no window) with the rendering core's camera, transfer function and
+// Blinn-Phong shading, so images compare with the CPU ray tracer's.
+//   opaque  depth-tested, the paper's opaque setting
+//   dp      depth peeling: a counting pass finds the layers, then one pass per layer (exact)
+//   ll      per-pixel linked lists: gather every fragment, sort per pixel, blend front to back;
+//           the node buffer grows and the frame is re-rendered on overflow (exact)
+//   mlab    multi-layer alpha blending, k nodes per pixel (interlock, else a spin lock)
+//   mlabdb  MLAB with depth buckets: a front bucket and k-1 back nodes, opaque cut-off
+//   mboit   moment-based OIT with four power moments
+//   wboit   weighted blended OIT, the cheap baseline
 
 #include <memory>
 #include <string>
@@ -18,9 +24,11 @@
 
 namespace linebake::vk {
 
-enum class RasterTechnique { Opaque, LinkedLists };
-RasterTechnique parse_raster_technique(const std::string& name);  // opaque | ll
+enum class RasterTechnique { Opaque, DepthPeeling, LinkedLists, Mlab, MlabBuckets, Mboit, Wboit };
+// opaque | dp | ll | mlab | mlabdb | mboit | wboit
+RasterTechnique parse_raster_technique(const std::string& name);
 const char* to_string(RasterTechnique technique);
+bool is_raster_technique(const std::string& name);
 
 // Per-pixel sort of the linked-list resolve (techniques.md section 3).
 enum class ListSort { Insertion, Shell, Heap };
@@ -34,8 +42,17 @@ struct RasterOptions {
   // Node capacity of the fragment buffer; 0: expected mean depth complexity x pixels.
   uint64_t capacity = 0;
   double expected_depth_complexity = 20;  // the public presets: 20 (<= 1M segments), 120 above
-  bool early_termination = false;
+  bool early_termination = false;         // ll: stop the resolve at termination_alpha
   double termination_alpha = 0.99;
+  int max_layers = 2000;  // dp: at most this many layers (the public code's cap)
+  // mlab / mlabdb: nodes per pixel k; 0 picks the defaults, 8 for mlab and 4 for mlabdb
+  // (1 front bucket + 3 back nodes, the paper's runs).
+  int layers = 0;
+  double tau_alpha = 0.2, tau_opaque = 0.98;  // mlabdb bucket thresholds
+  double mboit_beta = 0.1;                    // overestimation (MBOIT's authors suggest 0.25)
+  double mboit_bias = 5e-7;                   // moment bias for float32 storage
+  int wboit_weight = 0;   // 0: the public code's weight; 7, 8, 9: McGuire & Bavoil's equations
+  bool interlock = true;  // mlab / mlabdb: use fragment shader interlock when the device has it
   Shading shading;
 };
 
@@ -48,11 +65,15 @@ struct RasterStats {
   int regrows = 0;           // re-renders after an overflow of the node buffer
   uint32_t max_depth_complexity = 0;
   double mean_depth_complexity = 0;
+  int layers = 0;                // dp: layers peeled; mlab / mlabdb: nodes per pixel
+  bool layers_capped = false;    // dp: the depth complexity exceeded max_layers
+  std::string critical_section;  // mlab / mlabdb: "interlock" or "spin lock"
 };
 
 struct RasterFrame {
-  Image image;                             // linear RGB
-  std::vector<uint32_t> depth_complexity;  // fragments per pixel (linked lists)
+  Image image;                             // linear RGB, background included
+  std::vector<float> alpha;                // the technique's total opacity per pixel
+  std::vector<uint32_t> depth_complexity;  // contributing fragments per pixel (dp, ll, counts)
   RasterStats stats;
 };
 
@@ -66,6 +87,10 @@ class RasterRenderer {
 
   RasterFrame render(const Camera& camera, const TransferFunction& tf,
                      const RasterOptions& options);
+
+  // Depth complexity only: fragments with opacity > 0 per pixel, counted by one draw (no image).
+  RasterFrame count_fragments(const Camera& camera, const TransferFunction& tf, int width,
+                              int height);
 
   uint64_t mesh_bytes() const;
 

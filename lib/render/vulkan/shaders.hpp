@@ -12,7 +12,7 @@ struct Spirv {
   size_t size_bytes = 0;
 };
 
-// "tube.vert", "opaque.frag", "ll_gather.frag", "ll_resolve.comp"; throws for other names.
+// By source file name, e.g. "tube.vert" or "ll_resolve.comp"; throws for other names.
 Spirv shader_spirv(const std::string& name);
 
 }  // namespace linebake::vk

@@ -1,0 +1,139 @@
+// linebake depth-complexity <cache>: fragments per pixel along a flight (the paper's depth-
+// complexity images), counted by one Vulkan draw of the tube mesh, or exactly by the CPU
+// reference tracer (--on cpu). Writes a 16-bit grey PNG of the counts and statistics that size a
+// linked-list buffer or a depth-peeling run: max, mean, mean over covered pixels, percentiles.
+
+#include <algorithm>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "accel/embree_scene.hpp"
+#include "cache/cache.hpp"
+#include "cache/tube_store.hpp"
+#include "commands.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "flight_plan.hpp"
+#include "render/ray_tracer.hpp"
+#include "render/vulkan/raster_renderer.hpp"
+
+namespace linebake::cli {
+namespace {
+
+nlohmann::json summarise(std::vector<uint32_t> counts) {
+  uint64_t total = 0, covered = 0;
+  for (uint32_t c : counts) total += c, covered += c > 0;
+  std::sort(counts.begin(), counts.end());
+  const auto covered_percentile = [&](double q) -> uint32_t {
+    if (covered == 0) return 0;
+    const uint64_t first = counts.size() - covered;
+    return counts[first + std::min<uint64_t>(covered - 1, uint64_t(q * double(covered)))];
+  };
+  return {{"max", counts.empty() ? 0u : counts.back()},
+          {"mean", counts.empty() ? 0.0 : double(total) / double(counts.size())},
+          {"mean_covered", covered ? double(total) / double(covered) : 0.0},
+          {"covered_pixels", covered},
+          {"fragments", total},
+          {"covered_percentiles",
+           {{"p50", covered_percentile(0.5)},
+            {"p90", covered_percentile(0.9)},
+            {"p99", covered_percentile(0.99)}}}};
+}
+
+}  // namespace
+
+Command add_depth_complexity(CLI::App& app) {
+  auto* sub = app.add_subcommand(
+      "depth-complexity", "Depth-complexity images and statistics of a flight (fragments/pixel)");
+  struct Args {
+    std::string cache, output, stats, tf = "semi", flight = "orbit-zoom", frames, size = "1280x720",
+                                      on = "gpu", device;
+    int frame = 0, frame_count = 64;
+    bool validation = false;
+  };
+  auto args = std::make_shared<Args>();
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5) with tubes")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub->add_option("-o,--output", args->output, "16-bit grey PNG of the counts");
+  sub->add_option("--stats", args->stats, "Statistics as JSON (per frame)");
+  sub->add_option("--on", args->on,
+                  "gpu: count with one Vulkan draw (default) | cpu: the exact reference tracer")
+      ->check(CLI::IsMember({"gpu", "cpu"}));
+  sub->add_option(
+      "--tf", args->tf,
+      "Transfer function (recorded; every front fragment counts, whatever its opacity)");
+  sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
+  sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
+      ->check(CLI::Range(1, 100000));
+  sub->add_option("--frame", args->frame, "Frame (default 0)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
+      ->check(CLI::IsMember({"all"}));
+  sub->add_option("--size", args->size, "Image size WxH (default 1280x720)");
+  sub->add_option("--device", args->device, "Vulkan device: part of its name");
+  sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
+  return [args] {
+    const auto [width, height] = parse_size(args->size);
+    if (args->output.empty() && args->stats.empty())
+      throw Error("depth-complexity: nothing to write; give -o and/or --stats");
+    const TransferFunction tf = resolve_transfer_function(args->tf);
+    const CacheReader cache(args->cache);
+    if (!cache.exists("/assets/tubes"))
+      throw Error(args->cache + ": depth complexity counts the tube mesh; bake --assets tubes");
+    const TubeMesh tubes = load_tubes(cache);
+    const FlightPlan plan = plan_flight(args->flight, args->frame_count, args->frame, args->frames,
+                                        compute_bounds(tubes), width, height);
+    const bool numbered = plan.frames.size() > 1;
+    std::optional<vk::Context> context;
+    std::optional<vk::RasterRenderer> renderer;
+    std::optional<EmbreeScene> scene;
+    nlohmann::json stats = {{"on", args->on},
+                            {"transfer_function", tf.name},
+                            {"size", {width, height}},
+                            {"frames", nlohmann::json::array()}};
+    if (args->on == "gpu") {
+      vk::ContextOptions options;
+      options.device = args->device;
+      options.validation = args->validation;
+      context.emplace(options);
+      renderer.emplace(*context, tubes);
+      stats["device"] = context->info().name;
+    } else {
+      scene.emplace(EmbreeScene::from_tubes(tubes, {}));
+    }
+    TerminalProgress progress("depth-complexity");
+    for (size_t i = 0; i < plan.frames.size(); ++i) {
+      const Camera& camera = plan.cameras[size_t(plan.frames[i])];
+      std::vector<uint32_t> counts;
+      double seconds = 0;
+      if (renderer) {
+        const vk::RasterFrame f = renderer->count_fragments(camera, tf, width, height);
+        if (context->validation_errors() > 0)
+          throw Error("Vulkan validation: " + std::to_string(context->validation_errors()) +
+                      " error(s); last: " + context->last_validation_error());
+        counts = f.depth_complexity;
+        seconds = f.stats.seconds;
+      } else {
+        TraceOptions trace;
+        trace.width = width, trace.height = height;
+        const Frame f = trace_frame(*scene, camera, tf, trace);
+        counts = f.depth_complexity;
+        seconds = f.stats.seconds;
+      }
+      if (!args->output.empty())
+        write_png_counts(counts, width, height, frame_path(args->output, plan.frames[i], numbered));
+      nlohmann::json entry = summarise(counts);
+      entry["frame"] = plan.frames[i];
+      entry["seconds"] = seconds;
+      stats["frames"].push_back(entry);
+      progress.update(i + 1, plan.frames.size());
+      if (!TerminalProgress::enabled())
+        std::cerr << "frame " << plan.frames[i] << ": depth complexity max " << entry["max"]
+                  << ", mean over covered pixels " << entry["mean_covered"] << "\n";
+    }
+    if (!args->stats.empty()) write_file_atomically(args->stats, stats.dump(2) + "\n");
+  };
+}
+
+}  // namespace linebake::cli

@@ -1,0 +1,48 @@
+#include "flight_plan.hpp"
+
+#include <cstdio>
+#include <regex>
+
+#include "core/error.hpp"
+
+namespace linebake::cli {
+
+std::array<int, 2> parse_size(const std::string& text) {
+  static const std::regex pattern(R"((\d{1,5})x(\d{1,5}))");
+  std::smatch m;
+  if (!std::regex_match(text, m, pattern)) throw Error("--size: expected WxH, got '" + text + "'");
+  const int w = std::stoi(m[1]), h = std::stoi(m[2]);
+  if (w < 1 || h < 1 || w > 16384 || h > 16384) throw Error("--size: 1..16384 per axis");
+  return {w, h};
+}
+
+std::string frame_path(const std::string& path, int frame, bool numbered) {
+  if (!numbered) return path;
+  const auto dot = path.find_last_of('.');
+  const auto slash = path.find_last_of('/');
+  char number[16];
+  std::snprintf(number, sizeof number, "_%03d", frame);
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path + number;
+  return path.substr(0, dot) + number + path.substr(dot);
+}
+
+FlightPlan plan_flight(const std::string& flight_name, int frame_count, int frame,
+                       const std::string& frames, const Bounds& bounds, int width, int height) {
+  if (frame >= frame_count && frames.empty())
+    throw Error("--frame " + std::to_string(frame) + " is past the flight's " +
+                std::to_string(frame_count) + " frames");
+  FlightOptions flight;
+  flight.kind = parse_flight_kind(flight_name);
+  if (flight.kind == FlightKind::Keyframes) flight.keyframes_file = flight_name;
+  flight.frames = frame_count;
+  FlightPlan plan;
+  plan.kind = flight.kind;
+  plan.cameras = make_flight(bounds, double(width) / height, flight);
+  if (frames == "all")
+    for (int i = 0; i < frame_count; ++i) plan.frames.push_back(i);
+  else
+    plan.frames.push_back(frame);
+  return plan;
+}
+
+}  // namespace linebake::cli

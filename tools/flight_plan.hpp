@@ -1,0 +1,30 @@
+#pragma once
+// What `render` and `depth-complexity` share on the command line: the image size, the flight's
+// cameras and which frames to draw, and numbered output names for multi-frame runs.
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "lines/line_set.hpp"
+#include "render/camera.hpp"
+
+namespace linebake::cli {
+
+// "WxH", 1..16384 per axis.
+std::array<int, 2> parse_size(const std::string& text);
+
+// "out.png" -> "out_007.png" for frame 7 of a multi-frame render.
+std::string frame_path(const std::string& path, int frame, bool numbered);
+
+struct FlightPlan {
+  FlightKind kind = FlightKind::OrbitZoom;
+  std::vector<Camera> cameras;
+  std::vector<int> frames;  // --frame F, or every frame for --frames all
+};
+
+// flight: orbit-zoom | orbit | KEYFRAMES.json; frames: "" or "all".
+FlightPlan plan_flight(const std::string& flight, int frame_count, int frame,
+                       const std::string& frames, const Bounds& bounds, int width, int height);
+
+}  // namespace linebake::cli
