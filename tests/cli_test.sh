@@ -126,6 +126,21 @@ check "render ll (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --techn
 check "ll stats name the device and passes" bash -c "grep -q '\"gather\"' '$tmp/ll.json' && grep -q '\"device\"' '$tmp/ll.json'"
 check "ll equals the reference (PSNR >= 45 dB)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique reference --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/r8.png' && '$bin' compare '$tmp/ll.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
 check "render opaque (Vulkan)" "$bin" render "$tmp/t.lbc.h5" --technique opaque --validation --tf opaque --size 64x48 -o "$tmp/op.png"
+check "dp equals the reference (PSNR >= 45 dB)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique dp --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/dp.png' --stats '$tmp/dp.json' && '$bin' compare '$tmp/dp.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
+check "dp stats: layers peeled = max depth complexity" python3 -c "import json; f=json.load(open('$tmp/dp.json'))['frames'][0]; assert f['layers'] == f['depth_complexity']['max'] > 0 and not f['layers_capped'], f"
+for t in mlab mlabdb mboit wboit; do
+  check "render $t (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --technique $t --validation --tf transparent --size 64x48 -o "$tmp/$t.png" --stats "$tmp/$t.json"
+done
+check "mlab stats name the critical section and k" python3 -c "import json; f=json.load(open('$tmp/mlab.json'))['frames'][0]; assert f['layers'] == 8 and f['critical_section'] in ('spin lock', 'interlock'), f"
+check "mlabdb defaults to 4 nodes" python3 -c "import json; f=json.load(open('$tmp/mlabdb.json'))['frames'][0]; assert f['layers'] == 4, f"
+check "mlab --layers 65 is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mlab --layers 65 --size 32x24 -o "$tmp/x.png"
+check "wboit unknown weight is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique wboit --wboit-weight 5 --size 32x24 -o "$tmp/x.png"
+check "early termination only for embree and ll" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique mboit --early-termination --size 32x24 -o "$tmp/x.png"
+check "depth-complexity (GPU) writes counts and stats" "$bin" depth-complexity "$tmp/t.lbc.h5" --validation --frame 3 --frame-count 8 --size 96x64 -o "$tmp/dc.png" --stats "$tmp/dc.json"
+check "depth-complexity (CPU) agrees with the GPU" bash -c "'$bin' depth-complexity '$tmp/t.lbc.h5' --on cpu --frame 3 --frame-count 8 --size 96x64 --stats '$tmp/dc_cpu.json' && python3 -c \"import json; g=json.load(open('$tmp/dc.json'))['frames'][0]; c=json.load(open('$tmp/dc_cpu.json'))['frames'][0]; assert g['max'] > 0 and abs(g['fragments'] - c['fragments']) <= 0.01 * c['fragments'], (g, c)\""
+check "depth-complexity max equals ll's" python3 -c "import json; g=json.load(open('$tmp/dc.json'))['frames'][0]; l=json.load(open('$tmp/ll.json'))['frames'][0]; assert g['max'] == l['depth_complexity']['max'], (g, l)"
+check "depth-complexity without outputs is an error" exit_code 4 "$bin" depth-complexity "$tmp/t.lbc.h5" --size 32x24
+check "depth-complexity without tubes is an error" exit_code 4 "$bin" depth-complexity "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/x.png"
 check "ll without tubes is an error" exit_code 4 "$bin" render "$tmp/v.lbc.h5" --technique ll --size 32x24 -o "$tmp/x.png"
 check "unknown Vulkan device is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --device no-such-gpu --size 32x24 -o "$tmp/x.png"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
