@@ -6,7 +6,8 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const uint kMaxFragments = 256;
-layout(constant_id = 1) const uint kSort = 2;  // 0 insertion, 1 shell (24, 9, 4, 1), 2 heap
+// 0 insertion, 1 shell (24, 9, 4, 1), 2 heap, 3 quicksort with insertion sort below 16
+layout(constant_id = 1) const uint kSort = 2;
 
 layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
 layout(set = 0, binding = 2, std430) readonly buffer Nodes { uint nodes[]; };
@@ -37,6 +38,62 @@ void insertion_sort(uint count, uint gap) {
     }
     depth_of[j] = d;
     node_of[j] = n;
+  }
+}
+
+// Insertion sort of [lo, hi).
+void insertion_sort_range(uint lo, uint hi) {
+  for (uint i = lo + 1u; i < hi; ++i) {
+    const float d = depth_of[i];
+    const uint n = node_of[i];
+    uint j = i;
+    while (j > lo && depth_of[j - 1u] > d) {
+      depth_of[j] = depth_of[j - 1u];
+      node_of[j] = node_of[j - 1u];
+      --j;
+    }
+    depth_of[j] = d;
+    node_of[j] = n;
+  }
+}
+
+// Quicksort (median-of-three pivot, explicit stack, the smaller side pushed last so the stack
+// stays within log2 of the count) that leaves ranges below 16 to insertion sort.
+void quick_hybrid_sort(uint count) {
+  uint stack_lo[32], stack_hi[32];
+  uint top = 0u;
+  stack_lo[0] = 0u;
+  stack_hi[0] = count;
+  top = 1u;
+  while (top > 0u) {
+    --top;
+    const uint lo = stack_lo[top], hi = stack_hi[top];
+    if (hi - lo < 16u) {
+      insertion_sort_range(lo, hi);
+      continue;
+    }
+    const uint mid = lo + (hi - lo) / 2u;
+    if (depth_of[mid] < depth_of[lo]) swap_entries(mid, lo);
+    if (depth_of[hi - 1u] < depth_of[lo]) swap_entries(hi - 1u, lo);
+    if (depth_of[hi - 1u] < depth_of[mid]) swap_entries(hi - 1u, mid);
+    const float pivot = depth_of[mid];
+    uint i = lo, j = hi - 1u;
+    for (;;) {  // Hoare partition: [lo, j] <= pivot <= [j + 1, hi)
+      while (depth_of[i] < pivot) ++i;
+      while (depth_of[j] > pivot) --j;
+      if (i >= j) break;
+      swap_entries(i, j);
+      ++i;
+      --j;
+    }
+    const uint split = j + 1u;
+    // The larger side waits on the stack; the smaller is sorted next.
+    const bool left_smaller = split - lo < hi - split;
+    stack_lo[top] = left_smaller ? split : lo;
+    stack_hi[top] = left_smaller ? hi : split;
+    stack_lo[top + 1u] = left_smaller ? lo : split;
+    stack_hi[top + 1u] = left_smaller ? split : hi;
+    top += 2u;
   }
 }
 
@@ -89,12 +146,16 @@ void main() {
       sift_down(0u, left - 1u);
     }
   } else {
-    if (kSort == 1u) {
-      insertion_sort(count, 24u);
-      insertion_sort(count, 9u);
-      insertion_sort(count, 4u);
+    if (kSort == 3u) {
+      quick_hybrid_sort(count);
+    } else {
+      if (kSort == 1u) {
+        insertion_sort(count, 24u);
+        insertion_sort(count, 9u);
+        insertion_sort(count, 4u);
+      }
+      insertion_sort(count, 1u);
     }
-    insertion_sort(count, 1u);
     for (uint i = 0u; i < count; ++i)
       if (!blend(node_of[i])) break;
   }

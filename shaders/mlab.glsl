@@ -65,8 +65,12 @@ void insert_fragment(uint first, float depth, vec3 rgb, float t) {
       const float d = node_depth[i];
       const vec3 c = node_rgb[i];
       const float tt = node_t[i];
-      node_depth[i] = depth, node_rgb[i] = rgb, node_t[i] = t;
-      depth = d, rgb = c, t = tt;
+      node_depth[i] = depth;
+      node_rgb[i] = rgb;
+      node_t[i] = t;
+      depth = d;
+      rgb = c;
+      t = tt;
     }
   }
   if (!isinf(node_depth[kLayers]))

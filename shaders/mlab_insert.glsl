@@ -23,7 +23,9 @@ void mlab_fragment(uint pixel, vec4 c) {
   load_nodes(pixel);
   if (d < min_depth) {
     if (isinf(node_depth[0])) {
-      node_depth[0] = d, node_rgb[0] = rgb, node_t[0] = t;
+      node_depth[0] = d;
+      node_rgb[0] = rgb;
+      node_t[0] = t;
     } else {
       merge_nodes(0u, d, rgb, t);
     }

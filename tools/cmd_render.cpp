@@ -166,8 +166,9 @@ Command add_render(CLI::App& app) {
                   "the tube mesh)")
       ->check(CLI::IsMember(
           {"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit", "wboit"}));
-  sub->add_option("--sort", args->sort, "ll: per-pixel sort insertion | shell | heap (default)")
-      ->check(CLI::IsMember({"insertion", "shell", "heap"}));
+  sub->add_option("--sort", args->sort,
+                  "ll: per-pixel sort insertion | shell | heap (default) | quick-hybrid")
+      ->check(CLI::IsMember({"insertion", "shell", "heap", "quick-hybrid"}));
   sub->add_option("--capacity", args->capacity,
                   "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)");
   sub->add_option("--max-layers", args->max_layers, "dp: peel at most this many layers (2000)")

@@ -78,7 +78,8 @@ ListSort parse_list_sort(const std::string& name) {
   if (name == "insertion") return ListSort::Insertion;
   if (name == "shell") return ListSort::Shell;
   if (name == "heap") return ListSort::Heap;
-  throw Error("unknown linked-list sort '" + name + "' (insertion, shell, heap)");
+  if (name == "quick-hybrid") return ListSort::QuickHybrid;
+  throw Error("unknown linked-list sort '" + name + "' (insertion, shell, heap, quick-hybrid)");
 }
 
 const char* to_string(ListSort s) {
@@ -89,6 +90,8 @@ const char* to_string(ListSort s) {
       return "shell";
     case ListSort::Heap:
       return "heap";
+    case ListSort::QuickHybrid:
+      return "quick-hybrid";
   }
   return "?";
 }

@@ -31,8 +31,9 @@ const char* to_string(RasterTechnique technique);
 bool is_raster_technique(const std::string& name);
 
 // Per-pixel sort of the linked-list resolve (techniques.md section 3).
-enum class ListSort { Insertion, Shell, Heap };
-ListSort parse_list_sort(const std::string& name);  // insertion | shell | heap
+enum class ListSort { Insertion, Shell, Heap, QuickHybrid };
+// insertion | shell | heap | quick-hybrid (quicksort, insertion sort below 16)
+ListSort parse_list_sort(const std::string& name);
 const char* to_string(ListSort sort);
 
 struct RasterOptions {
