@@ -74,7 +74,8 @@ struct RasterStats {
 struct RasterFrame {
   Image image;                             // linear RGB, background included
   std::vector<float> alpha;                // the technique's total opacity per pixel
-  std::vector<uint32_t> depth_complexity;  // contributing fragments per pixel (dp, ll, counts)
+  // Fragments per pixel: every front fragment (dp, count_fragments), those stored (ll: opacity > 0).
+  std::vector<uint32_t> depth_complexity;
   RasterStats stats;
 };
 
