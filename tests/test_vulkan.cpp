@@ -76,6 +76,18 @@ size_t pixels_differing(const Image& a, const Image& b, double tolerance = 1e-3)
   return differing;
 }
 
+// The CPU ground truth of a scene: the tube mesh ray traced, every hit composited.
+Frame reference_frame(const Scene& s, const TransferFunction& tf) {
+  return trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+}
+
+vk::RasterOptions raster_options(vk::RasterTechnique technique, int size) {
+  vk::RasterOptions o;
+  o.technique = technique;
+  o.width = o.height = size;
+  return o;
+}
+
 vk::ContextOptions validated() {
   vk::ContextOptions o;
   o.validation = true;
@@ -85,8 +97,7 @@ vk::ContextOptions validated() {
 TEST(Vulkan, LinkedListsWithEverySortEqualTheReference) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("semi");
-  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
-  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
   for (const auto sort : {vk::ListSort::Insertion, vk::ListSort::Shell, vk::ListSort::Heap,
@@ -139,7 +150,7 @@ TEST(Vulkan, EverySortOrdersLongLists) {
   s.camera.near = 0.1, s.camera.far = 100;
   s.trace.width = s.trace.height = 64;
   const TransferFunction tf = transfer_function_preset("transparent");
-  const Frame reference = trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   ASSERT_GE(reference.stats.max_depth_complexity, 40u);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
@@ -181,13 +192,10 @@ TEST(Vulkan, ASmallNodeBufferGrowsAndTheImageStaysExact) {
 TEST(Vulkan, OpaqueEqualsTheOpaqueReference) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("opaque");
-  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
-  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  vk::RasterOptions o;
-  o.technique = vk::RasterTechnique::Opaque;
-  o.width = o.height = 96;
+  vk::RasterOptions o = raster_options(vk::RasterTechnique::Opaque, 96);
   const vk::RasterFrame f = renderer.render(s.camera, tf, o);
   // Where a silhouette passes within float precision of a pixel centre, the rasteriser's edge
   // test and Embree's ray-triangle test can disagree: a few pixels flip between two tubes
@@ -210,13 +218,10 @@ TEST(Vulkan, OpaqueEqualsTheOpaqueReference) {
 TEST(Vulkan, DepthPeelingEqualsTheReferenceAndPeelsEveryLayer) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("semi");
-  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
-  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  vk::RasterOptions o;
-  o.technique = vk::RasterTechnique::DepthPeeling;
-  o.width = o.height = 96;
+  vk::RasterOptions o = raster_options(vk::RasterTechnique::DepthPeeling, 96);
   const vk::RasterFrame f = renderer.render(s.camera, tf, o);
   const double db = psnr(display(f.image), display(reference.image));
   EXPECT_GE(db, 50.0);
@@ -284,9 +289,7 @@ TEST(Vulkan, MlabEqualsTheReferenceWithEnoughNodesAndACpuMlabWithFew) {
   ASSERT_LE(reference.stats.max_depth_complexity, 12u);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  vk::RasterOptions o;
-  o.technique = vk::RasterTechnique::Mlab;
-  o.width = o.height = 96;
+  vk::RasterOptions o = raster_options(vk::RasterTechnique::Mlab, 96);
   o.layers = 12;  // >= the deepest pixel: no merge ever happens
   const vk::RasterFrame f = renderer.render(s.camera, tf, o);
   const double db = psnr(display(f.image), display(reference.image));
@@ -324,13 +327,10 @@ TEST(Vulkan, MlabEqualsTheReferenceWithEnoughNodesAndACpuMlabWithFew) {
 TEST(Vulkan, MlabdbWithOpaqueLinesEqualsTheReference) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("opaque");
-  const EmbreeScene reference_scene = EmbreeScene::from_tubes(s.mesh, {});
-  const Frame reference = trace_frame(reference_scene, s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  vk::RasterOptions o;
-  o.technique = vk::RasterTechnique::MlabBuckets;
-  o.width = o.height = 96;
+  vk::RasterOptions o = raster_options(vk::RasterTechnique::MlabBuckets, 96);
   const vk::RasterFrame f = renderer.render(s.camera, tf, o);
   // As for `opaque`: silhouette flips only (at most 0.2 % of the pixels).
   const size_t flipped = pixels_differing(f.image, reference.image);
@@ -365,9 +365,7 @@ TEST(Vulkan, MomentAndWeightedOitTotalOpacityIsExact) {
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
   for (const auto technique : {vk::RasterTechnique::Mboit, vk::RasterTechnique::Wboit}) {
-    vk::RasterOptions o;
-    o.technique = technique;
-    o.width = o.height = 96;
+    vk::RasterOptions o = raster_options(technique, 96);
     const vk::RasterFrame f = renderer.render(s.camera, tf, o);
     size_t equal = 0, covered = 0;
     for (size_t p = 0; p < expected.size(); ++p) {
@@ -407,12 +405,10 @@ TEST(Vulkan, WeightedOitIsExactForOneLayer) {
   s.camera = frame_bounds(compute_bounds(s.mesh), 1.0, 0, 0);
   s.trace.width = s.trace.height = 64;
   const TransferFunction tf = transfer_function_preset("transparent");
-  const Frame reference = trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  vk::RasterOptions o;
-  o.technique = vk::RasterTechnique::Wboit;
-  o.width = o.height = 64;
+  vk::RasterOptions o = raster_options(vk::RasterTechnique::Wboit, 64);
   const vk::RasterFrame f = renderer.render(s.camera, tf, o);
   EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0);
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
@@ -421,7 +417,7 @@ TEST(Vulkan, WeightedOitIsExactForOneLayer) {
 TEST(Vulkan, CountedDepthComplexityMatchesTheListsAndTheRayTracer) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("semi");
-  const Frame reference = trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, s.trace);
+  const Frame reference = reference_frame(s, tf);
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
   const vk::RasterFrame counted = renderer.count_fragments(s.camera, tf, 96, 96);
@@ -463,9 +459,7 @@ TEST(Vulkan, MlabdbBeatsMboitForOpaqueAndSemiAndLosesForTransparent) {
     const Image reference = display(trace_frame(reference_scene, camera, tf, trace).image);
     double quality[2] = {};
     for (const auto technique : {vk::RasterTechnique::MlabBuckets, vk::RasterTechnique::Mboit}) {
-      vk::RasterOptions o;
-      o.technique = technique;
-      o.width = o.height = 160;
+      vk::RasterOptions o = raster_options(technique, 160);
       quality[technique == vk::RasterTechnique::Mboit] =
           ssim(display(renderer.render(camera, tf, o).image), reference);
     }

@@ -477,7 +477,7 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
 }
 
 void RasterRenderer::State::begin_timing(VkCommandBuffer cmd) {
-  timer.names.clear();
+  pass_names.clear();
   next_query = 0;
   if (!queries) return;
   vkCmdResetQueryPool(cmd, queries, 0, kQueries);
@@ -487,7 +487,7 @@ void RasterRenderer::State::begin_timing(VkCommandBuffer cmd) {
 void RasterRenderer::State::mark(VkCommandBuffer cmd, const std::string& pass_name) {
   if (!queries || next_query >= kQueries) return;
   vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, next_query++);
-  timer.names.push_back(pass_name);
+  pass_names.push_back(pass_name);
 }
 
 void RasterRenderer::State::read_timings(RasterStats& s) {
@@ -498,7 +498,7 @@ void RasterRenderer::State::read_timings(RasterStats& s) {
                             VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) != VK_SUCCESS)
     return;
   for (uint32_t i = 1; i < next_query; ++i)
-    s.pass_ms.emplace_back(timer.names[i - 1],
+    s.pass_ms.emplace_back(pass_names[i - 1],
                            double(ticks[i] - ticks[i - 1]) * ctx.timestamp_period_ns() * 1e-6);
 }
 

@@ -72,9 +72,10 @@ struct RasterStats {
 };
 
 struct RasterFrame {
-  Image image;                             // linear RGB, background included
-  std::vector<float> alpha;                // the technique's total opacity per pixel
-  // Fragments per pixel: every front fragment (dp, count_fragments), those stored (ll: opacity > 0).
+  Image image;               // linear RGB, background included
+  std::vector<float> alpha;  // the technique's total opacity per pixel
+  // Fragments per pixel: every front fragment (dp, count_fragments), those stored (ll: opacity >
+  // 0).
   std::vector<uint32_t> depth_complexity;
   RasterStats stats;
 };

@@ -62,11 +62,6 @@ struct DrawSetup {
   float clear_scalar = 0;                  // target 1
 };
 
-// Where each pass's GPU time goes: named timestamps, read back after the frame.
-struct PassTimer {
-  std::vector<std::string> names;  // names[i] ends at query i + 1
-};
-
 struct RasterRenderer::State {
   Context& ctx;
   std::vector<ChunkBuffers> chunks;
@@ -82,7 +77,7 @@ struct RasterRenderer::State {
   VkQueryPool queries = VK_NULL_HANDLE;
   static constexpr uint32_t kQueries = 8;
   uint32_t next_query = 0;
-  PassTimer timer;
+  std::vector<std::string> pass_names;  // pass_names[i] ends at timestamp query i + 1
 
   // Per-frame resources, kept while the size fits.
   int width = 0, height = 0;
