@@ -18,6 +18,7 @@ layout(set = 0, binding = 0, std140) uniform FrameUniforms {
   vec4 depth_params;  // ln z_min, ln z_max of the data in view space; MLABDB tau_alpha, tau_o
   vec4 oit_params;    // MBOIT moment bias, overestimation beta; 0, 0
   uvec4 oit_counts;   // MLAB/MLABDB nodes per pixel k, WBOIT weight function, 0, 0
+  vec4 moment_params; // MBOIT trigonometric phase scale, wrapping-zone ramp slope, offset; 0
   vec4 colours[kMaxTfPoints];    // x, sRGB r, g, b
   vec4 opacities[kMaxTfPoints];  // x, opacity
 } frame;

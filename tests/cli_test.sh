@@ -133,6 +133,10 @@ for t in mlab mlabdb mboit wboit; do
 done
 check "mlab stats name the critical section and k" python3 -c "import json; f=json.load(open('$tmp/mlab.json'))['frames'][0]; assert f['layers'] == 8 and f['critical_section'] in ('spin lock', 'interlock'), f"
 check "mlabdb defaults to 4 nodes" python3 -c "import json; f=json.load(open('$tmp/mlabdb.json'))['frames'][0]; assert f['layers'] == 4, f"
+check "mboit 8 trigonometric moments (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --technique mboit --moments 8 --moment-basis trigonometric --validation --tf transparent --size 64x48 -o "$tmp/mb8.png" --stats "$tmp/mb8.json"
+check "mboit stats name basis, count and default bias" python3 -c "import json; m=json.load(open('$tmp/mb8.json'))['moments']; assert m == {'basis': 'trigonometric', 'count': 8, 'bias': 1.5e-5}, m"
+check "mboit 8 moments use a third target" python3 -c "import json; a=json.load(open('$tmp/mboit.json'))['frames'][0]['frame_bytes']; b=json.load(open('$tmp/mb8.json'))['frames'][0]['frame_bytes']; assert b - a == 64 * 48 * 32, (a, b)"
+check "mboit --moments 5 is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mboit --moments 5 --size 32x24 -o "$tmp/x.png"
 check "mlab --layers 65 is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mlab --layers 65 --size 32x24 -o "$tmp/x.png"
 check "wboit unknown weight is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique wboit --wboit-weight 5 --size 32x24 -o "$tmp/x.png"
 check "early termination only for embree and ll" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique mboit --early-termination --size 32x24 -o "$tmp/x.png"

@@ -77,6 +77,9 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   o.layers = args.layers;
   o.tau_alpha = args.tau_alpha, o.tau_opaque = args.tau_opaque;
   o.mboit_beta = args.beta;
+  o.moment_basis = vk::parse_moment_basis(args.moment_basis);
+  o.moments = args.moments;
+  if (args.moment_bias >= 0) o.mboit_bias = args.moment_bias;
   o.wboit_weight = args.wboit_weight;
   o.interlock = !args.no_interlock;
   const FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
@@ -91,7 +94,13 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   if (o.technique == vk::RasterTechnique::LinkedLists) stats["sort"] = vk::to_string(o.sort);
   if (o.technique == vk::RasterTechnique::MlabBuckets)
     stats["tau"] = {{"alpha", o.tau_alpha}, {"opaque", o.tau_opaque}};
-  if (o.technique == vk::RasterTechnique::Mboit) stats["beta"] = o.mboit_beta;
+  if (o.technique == vk::RasterTechnique::Mboit) {
+    stats["beta"] = o.mboit_beta;
+    stats["moments"] = {
+        {"basis", vk::to_string(o.moment_basis)},
+        {"count", o.moments},
+        {"bias", o.mboit_bias.value_or(vk::default_moment_bias(o.moment_basis, o.moments))}};
+  }
   TerminalProgress progress("render");
   for (size_t i = 0; i < frames.size(); ++i) {
     const vk::RasterFrame frame = renderer.render(cameras[size_t(frames[i])], tf, o);
@@ -150,8 +159,9 @@ Command add_render(CLI::App& app) {
     std::string sort = "heap", device;
     uint64_t capacity = 0;
     bool validation = false, no_interlock = false;
-    int max_layers = 2000, layers = 0, wboit_weight = 0;
-    double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1;
+    int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
+    double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1, moment_bias = -1;
+    std::string moment_basis = "power";
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
     bool early = false, packets = false;
@@ -184,6 +194,16 @@ Command add_render(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--beta", args->beta, "mboit: overestimation (0.1; MBOIT's authors: 0.25)")
       ->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--moments", args->moments,
+                  "mboit: real moments beyond b0, 4 (default), 6 or 8 (trigonometric: 2, 3, 4 "
+                  "complex moments)")
+      ->check(CLI::IsMember({4, 6, 8}));
+  sub->add_option("--moment-basis", args->moment_basis, "mboit: power (default) | trigonometric")
+      ->check(CLI::IsMember({"power", "trigonometric"}));
+  sub->add_option("--moment-bias", args->moment_bias,
+                  "mboit: moment bias (default by basis and count for float32, e.g. 5e-7 for "
+                  "4 power moments)")
+      ->check(CLI::Range(0.0, 0.5));
   sub->add_option("--wboit-weight", args->wboit_weight,
                   "wboit: 0 (the public code's, default) or McGuire & Bavoil's equation 7, 8, 9")
       ->check(CLI::IsMember({0, 7, 8, 9}));

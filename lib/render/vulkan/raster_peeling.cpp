@@ -38,7 +38,7 @@ void RasterRenderer::State::render_peeling(const RasterOptions& o, RasterFrame& 
       const int end = std::min(layers, done + kLayersPerSubmission);
       for (; done < end; ++done) {
         draw(cmd, peel);
-        copy_targets(cmd, 2, nodes.buffer, 0, layer_depth_offset);
+        copy_targets(cmd, nodes.buffer, {0, layer_depth_offset});
         dispatch(cmd, compute("dp_blend.comp", {0}));
       }
       if (done == layers) {

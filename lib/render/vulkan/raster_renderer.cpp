@@ -54,6 +54,17 @@ struct Specialisation {
   }
 };
 
+constexpr double kPi = 3.14159265358979323846;
+
+// Monotonic along the unit circle from angle 0, as shaders/moments.glsl's circle_parameter().
+double circle_parameter(double angle) {
+  const double x = std::cos(angle), y = std::sin(angle);
+  double r = std::abs(y) - std::abs(x);
+  if (x < 0) r = 2 - r;
+  if (y < 0) r = 6 - r;
+  return r;
+}
+
 const char* const kTechniqueNames[] = {"opaque", "dp", "ll", "mlab", "mlabdb", "mboit", "wboit"};
 
 }  // namespace
@@ -80,6 +91,23 @@ ListSort parse_list_sort(const std::string& name) {
   if (name == "heap") return ListSort::Heap;
   if (name == "quick-hybrid") return ListSort::QuickHybrid;
   throw Error("unknown linked-list sort '" + name + "' (insertion, shell, heap, quick-hybrid)");
+}
+
+MomentBasis parse_moment_basis(const std::string& name) {
+  if (name == "power") return MomentBasis::Power;
+  if (name == "trigonometric") return MomentBasis::Trigonometric;
+  throw Error("unknown moment basis '" + name + "' (power, trigonometric)");
+}
+
+const char* to_string(MomentBasis basis) {
+  return basis == MomentBasis::Power ? "power" : "trigonometric";
+}
+
+double default_moment_bias(MomentBasis basis, int moments) {
+  const bool power = basis == MomentBasis::Power;
+  if (moments <= 4) return power ? 5e-7 : 4e-7;
+  if (moments <= 6) return power ? 5e-6 : 8e-6;
+  return power ? 5e-5 : 1.5e-5;
 }
 
 const char* to_string(ListSort s) {
@@ -129,7 +157,7 @@ void RasterRenderer::State::destroy_image(Image2D& i) {
 
 void RasterRenderer::State::release_frame() {
   for (Buffer* b : {&uniforms, &pixel_state, &nodes, &counter, &output, &stats}) ctx.destroy(*b);
-  for (Image2D* i : {&colour, &scalar, &depth}) destroy_image(*i);
+  for (Image2D* i : {&colour, &scalar, &colour2, &depth}) destroy_image(*i);
   width = height = 0;
   pixel_state_bytes = node_bytes = list_capacity = 0;
 }
@@ -240,7 +268,8 @@ VkPipeline RasterRenderer::State::graphics(const DrawSetup& setup) {
                                            (setup.depth ? "d" : "") + (setup.additive ? "+" : ""),
                                        setup.constants);
   if (auto it = pipelines.find(key); it != pipelines.end()) return it->second;
-  const VkFormat formats[2] = {VK_FORMAT_R32G32B32A32_SFLOAT, VK_FORMAT_R32_SFLOAT};
+  const VkFormat formats[3] = {VK_FORMAT_R32G32B32A32_SFLOAT, VK_FORMAT_R32_SFLOAT,
+                               VK_FORMAT_R32G32B32A32_SFLOAT};
   if (setup.additive)
     for (uint32_t t = 0; t < setup.targets; ++t) {
       VkFormatProperties props;
@@ -293,7 +322,7 @@ VkPipeline RasterRenderer::State::graphics(const DrawSetup& setup) {
   depth_state.depthTestEnable = setup.depth;
   depth_state.depthWriteEnable = setup.depth;
   depth_state.depthCompareOp = VK_COMPARE_OP_LESS;
-  VkPipelineColorBlendAttachmentState blend_attachments[2] = {};
+  VkPipelineColorBlendAttachmentState blend_attachments[3] = {};
   for (VkPipelineColorBlendAttachmentState& b : blend_attachments) {
     b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
                        VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
@@ -412,6 +441,7 @@ void RasterRenderer::State::prepare_frame(int w, int h, uint64_t pixel_state_wan
       VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
   colour = make_image(VK_FORMAT_R32G32B32A32_SFLOAT, target, VK_IMAGE_ASPECT_COLOR_BIT);
   scalar = make_image(VK_FORMAT_R32_SFLOAT, target, VK_IMAGE_ASPECT_COLOR_BIT);
+  colour2 = make_image(VK_FORMAT_R32G32B32A32_SFLOAT, target, VK_IMAGE_ASPECT_COLOR_BIT);
   depth = make_image(VK_FORMAT_D32_SFLOAT, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
                      VK_IMAGE_ASPECT_DEPTH_BIT);
   write_descriptors();
@@ -462,7 +492,15 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
   for (int k = 0; k < 3; ++k) u.view_dir[k] = float(forward[k]);
   u.depth_params[0] = float(std::log(z_lo)), u.depth_params[1] = float(std::log(z_hi));
   u.depth_params[2] = float(o.tau_alpha), u.depth_params[3] = float(o.tau_opaque);
-  u.oit_params[0] = float(o.mboit_bias), u.oit_params[1] = float(o.mboit_beta);
+  u.oit_params[0] = float(o.mboit_bias.value_or(default_moment_bias(o.moment_basis, o.moments)));
+  u.oit_params[1] = float(o.mboit_beta);
+  // Trigonometric moments: the phase runs over [0, 2 pi - zone] and roots inside the wrapping
+  // zone (the last 0.1 pi of the circle) get a linear ramp of weight, as in MBOIT's code.
+  const double zone = 0.1 * kPi;
+  u.moment_params[0] = float(kPi - 0.5 * zone);
+  const double zone_end = 7, zone_begin = circle_parameter(2 * kPi - zone);
+  u.moment_params[1] = float(1 / (zone_end - zone_begin));
+  u.moment_params[2] = float(1 - zone_end / (zone_end - zone_begin));
   u.oit_counts[0] = uint32_t(std::max(o.layers, 0));
   u.oit_counts[1] = uint32_t(o.wboit_weight);
   for (size_t i = 0; i < tf.colours.size(); ++i) {
@@ -509,9 +547,10 @@ void RasterRenderer::State::fill(VkCommandBuffer cmd, const Buffer& buffer, uint
 
 void RasterRenderer::State::draw(VkCommandBuffer cmd, const DrawSetup& setup) {
   VkPipeline pipeline = graphics(setup);
-  VkRenderingAttachmentInfo targets[2] = {{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO},
+  VkRenderingAttachmentInfo targets[3] = {{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO},
+                                          {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO},
                                           {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO}};
-  const Image2D* images[2] = {&colour, &scalar};
+  const Image2D* images[3] = {&colour, &scalar, &colour2};
   for (uint32_t t = 0; t < setup.targets; ++t) {
     image_barrier(cmd, images[t]->image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                   VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
@@ -523,6 +562,7 @@ void RasterRenderer::State::draw(VkCommandBuffer cmd, const DrawSetup& setup) {
   }
   targets[0].clearValue.color = {{setup.clear[0], setup.clear[1], setup.clear[2], setup.clear[3]}};
   targets[1].clearValue.color = {{setup.clear_scalar, 0, 0, 0}};
+  targets[2].clearValue.color = {{0, 0, 0, 0}};
   VkRenderingAttachmentInfo depth_target{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
   if (setup.depth) {
     image_barrier(
@@ -559,11 +599,10 @@ void RasterRenderer::State::draw(VkCommandBuffer cmd, const DrawSetup& setup) {
   barrier_all(cmd);
 }
 
-void RasterRenderer::State::copy_targets(VkCommandBuffer cmd, uint32_t targets, VkBuffer buffer,
-                                         uint64_t offset0, uint64_t offset1) {
-  const Image2D* images[2] = {&colour, &scalar};
-  const uint64_t offsets[2] = {offset0, offset1};
-  for (uint32_t t = 0; t < targets; ++t) {
+void RasterRenderer::State::copy_targets(VkCommandBuffer cmd, VkBuffer buffer,
+                                         const std::vector<uint64_t>& offsets) {
+  const Image2D* images[3] = {&colour, &scalar, &colour2};
+  for (size_t t = 0; t < offsets.size() && t < 3; ++t) {
     image_barrier(cmd, images[t]->image, VK_IMAGE_ASPECT_COLOR_BIT,
                   VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                   VK_ACCESS_TRANSFER_READ_BIT);
@@ -615,7 +654,7 @@ void RasterRenderer::State::render_opaque(RasterFrame& frame) {
     setup.clear = {bg[0], bg[1], bg[2], 0};
     draw(cmd, setup);
     mark(cmd, "draw");
-    copy_targets(cmd, 1, output.buffer, 0, 0);
+    copy_targets(cmd, output.buffer, {0});
   });
   read_timings(frame.stats);
   read_output(frame);
@@ -661,8 +700,8 @@ std::pair<uint64_t, uint64_t> frame_layout(const RasterOptions& o, uint64_t pixe
     case RasterTechnique::Mlab:
     case RasterTechnique::MlabBuckets:
       return {pixels * 12, pixels * uint64_t(o.layers) * 20};  // locks + bucket depths; nodes
-    case RasterTechnique::Mboit:
-      return {4, pixels * 36};  // moments (16 + 4 bytes) + accumulation (16 bytes)
+    case RasterTechnique::Mboit:  // moments (b0..b3, b_n, b4..b7 when n > 4) + accumulation
+      return {4, pixels * ((o.moments > 4 ? 36 : 20) + 16)};
     case RasterTechnique::Wboit:
       return {4, pixels * 20};  // accumulation + absorbance
   }
@@ -683,6 +722,8 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
                 (buckets ? "2" : "1") + ", 64], not " + std::to_string(o.layers));
   if (o.technique == RasterTechnique::DepthPeeling && o.max_layers < 1)
     throw Error("dp: max layers must be at least 1");
+  if (o.technique == RasterTechnique::Mboit && o.moments != 4 && o.moments != 6 && o.moments != 8)
+    throw Error("mboit: moments must be 4, 6 or 8, not " + std::to_string(o.moments));
   if (o.technique == RasterTechnique::Wboit &&
       !(o.wboit_weight == 0 || (o.wboit_weight >= 7 && o.wboit_weight <= 9)))
     throw Error("wboit: weight must be 0, 7, 8 or 9, not " + std::to_string(o.wboit_weight));
@@ -718,7 +759,7 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
       s.render_mlab(o, frame);
       break;
     case RasterTechnique::Mboit:
-      s.render_moments(frame);
+      s.render_moments(o, frame);
       break;
     case RasterTechnique::Wboit:
       s.render_weighted(frame);

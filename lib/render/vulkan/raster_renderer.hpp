@@ -8,10 +8,11 @@
 //           the node buffer grows and the frame is re-rendered on overflow (exact)
 //   mlab    multi-layer alpha blending, k nodes per pixel (interlock, else a spin lock)
 //   mlabdb  MLAB with depth buckets: a front bucket and k-1 back nodes, opaque cut-off
-//   mboit   moment-based OIT with four power moments
+//   mboit   moment-based OIT: 4, 6 or 8 power moments or 2, 3 or 4 trigonometric moments
 //   wboit   weighted blended OIT, the cheap baseline
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,16 @@ enum class ListSort { Insertion, Shell, Heap, QuickHybrid };
 ListSort parse_list_sort(const std::string& name);
 const char* to_string(ListSort sort);
 
+// MBOIT's moments (techniques.md section 6): powers of the warped depth, or points on the unit
+// circle (trigonometric moments, better for many layers at the same storage).
+enum class MomentBasis { Power, Trigonometric };
+// power | trigonometric
+MomentBasis parse_moment_basis(const std::string& name);
+const char* to_string(MomentBasis basis);
+// The moment bias for float32 storage that MBOIT's authors and the paper's code use:
+// power 5e-7 / 5e-6 / 5e-5 and trigonometric 4e-7 / 8e-6 / 1.5e-5 for 4 / 6 / 8 moments.
+double default_moment_bias(MomentBasis basis, int moments);
+
 struct RasterOptions {
   RasterTechnique technique = RasterTechnique::LinkedLists;
   int width = 1280, height = 720;
@@ -51,7 +62,10 @@ struct RasterOptions {
   int layers = 0;
   double tau_alpha = 0.2, tau_opaque = 0.98;  // mlabdb bucket thresholds
   double mboit_beta = 0.1;                    // overestimation (MBOIT's authors suggest 0.25)
-  double mboit_bias = 5e-7;                   // moment bias for float32 storage
+  MomentBasis moment_basis = MomentBasis::Power;
+  // mboit: real moments beyond b0, 4, 6 or 8 (trigonometric: 2, 3 or 4 complex moments).
+  int moments = 4;
+  std::optional<double> mboit_bias;  // unset: default_moment_bias(moment_basis, moments)
   int wboit_weight = 0;   // 0: the public code's weight; 7, 8, 9: McGuire & Bavoil's equations
   bool interlock = true;  // mlab / mlabdb: use fragment shader interlock when the device has it
   Shading shading;

@@ -36,6 +36,7 @@ struct FrameUniforms {
   float depth_params[4];
   float oit_params[4];
   uint32_t oit_counts[4];
+  float moment_params[4];
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
 };
@@ -51,7 +52,8 @@ struct Image2D {
   VkImageView view = VK_NULL_HANDLE;
 };
 
-// How one pass draws the tubes. Colour targets: 1 = RGBA32F, 2 = RGBA32F + R32F.
+// How one pass draws the tubes. Colour targets: 1 = RGBA32F, 2 = RGBA32F + R32F,
+// 3 = RGBA32F + R32F + RGBA32F.
 struct DrawSetup {
   std::string fragment;
   uint32_t targets = 0;
@@ -59,7 +61,7 @@ struct DrawSetup {
   bool additive = false;                   // additive blending on every target
   std::vector<uint32_t> constants;         // fragment specialisation constants 0, 1, ...
   std::array<float, 4> clear{0, 0, 0, 0};  // target 0
-  float clear_scalar = 0;                  // target 1
+  float clear_scalar = 0;                  // target 1 (target 2 clears to zero)
 };
 
 struct RasterRenderer::State {
@@ -84,7 +86,7 @@ struct RasterRenderer::State {
   uint64_t pixel_state_bytes = 0, node_bytes = 0;
   uint64_t list_capacity = 0;  // ll: nodes the gather may write (<= node_bytes / 24)
   Buffer uniforms, pixel_state, nodes, counter, output, stats;
-  Image2D colour, scalar, depth;
+  Image2D colour, scalar, colour2, depth;
 
   explicit State(Context& c) : ctx(c) {}
   ~State();
@@ -108,9 +110,9 @@ struct RasterRenderer::State {
   void fill(VkCommandBuffer cmd, const Buffer& buffer, uint64_t offset, uint64_t size,
             uint32_t word);
   void draw(VkCommandBuffer cmd, const DrawSetup& setup);
-  // Copies the targets of the last draw into `buffer`: target 0 at offset0, target 1 at offset1.
-  void copy_targets(VkCommandBuffer cmd, uint32_t targets, VkBuffer buffer, uint64_t offset0,
-                    uint64_t offset1);
+  // Copies the first offsets.size() targets of the last draw into `buffer`, target t at
+  // offsets[t].
+  void copy_targets(VkCommandBuffer cmd, VkBuffer buffer, const std::vector<uint64_t>& offsets);
   void dispatch(VkCommandBuffer cmd, VkPipeline pipeline);
 
   // After the submission: timings, the output image, the depth-complexity counts.
@@ -124,7 +126,7 @@ struct RasterRenderer::State {
                     RasterFrame& frame);
   void render_peeling(const RasterOptions& o, RasterFrame& frame);
   void render_mlab(const RasterOptions& o, RasterFrame& frame);
-  void render_moments(RasterFrame& frame);
+  void render_moments(const RasterOptions& o, RasterFrame& frame);
   void render_weighted(RasterFrame& frame);
   void count_fragments(RasterFrame& frame);
 

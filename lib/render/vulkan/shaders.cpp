@@ -41,6 +41,9 @@ constexpr uint32_t kMlabResolveComp[] =
 constexpr uint32_t kMboitMomentsFrag[] =
 #include "mboit_moments.frag.inc"
     ;
+constexpr uint32_t kMboitMomentsWideFrag[] =
+#include "mboit_moments_wide.frag.inc"
+    ;
 constexpr uint32_t kMboitColourFrag[] =
 #include "mboit_colour.frag.inc"
     ;
@@ -77,6 +80,7 @@ const Embedded kShaders[] = {
     {"mlabdb_depth.frag", view(kMlabdbDepthFrag)},
     {"mlab_resolve.comp", view(kMlabResolveComp)},
     {"mboit_moments.frag", view(kMboitMomentsFrag)},
+    {"mboit_moments_wide.frag", view(kMboitMomentsWideFrag)},
     {"mboit_colour.frag", view(kMboitColourFrag)},
     {"mboit_resolve.comp", view(kMboitResolveComp)},
     {"wboit_accumulate.frag", view(kWboitAccumulateFrag)},
