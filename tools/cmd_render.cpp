@@ -11,13 +11,16 @@
 #include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "render/ray_tracer.hpp"
+#include "render/voxel_ray_caster.hpp"
 #include "render/vulkan/raster_renderer.hpp"
+#include "render/vulkan/voxel_caster.hpp"
 #include "tubes/tube_builder.hpp"
 
 namespace linebake::cli {
@@ -147,6 +150,99 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
 }
 
+// Voxel ray casting from the cached voxel line grid, on the CPU or with Vulkan compute. The
+// flight frames the cached tube mesh's bounds when there is one (so frames compare with the
+// reference's), else the lines' widened by the radius.
+template <class Args>
+void render_vrc(const Args& args, const CacheReader& cache, const TransferFunction& tf, int width,
+                int height) {
+  if (!cache.exists(kVoxelsGroup))
+    throw Error(args.cache + ": vrc ray casts the voxel line grid; bake --assets voxels first");
+  const VoxelGrid grid = load_voxels(cache);
+  VrcOptions o;
+  o.width = width, o.height = height;
+  o.early_termination = !args.no_early_termination;
+  o.skip_empty_space = !args.no_skip;
+  Bounds bounds;
+  const auto tube_provenance =
+      cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
+  o.radius = args.radius;
+  if (!(o.radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
+    o.radius = tube_provenance->stats["radius_world"].template get<double>();
+  o.radius = vrc_radius(grid, o.radius);
+  if (tube_provenance) {
+    bounds = compute_bounds(load_tubes(cache));
+  } else {
+    bounds = compute_bounds(load_lines(cache));
+    for (int k = 0; k < 3; ++k) {
+      bounds.min[size_t(k)] -= float(o.radius);
+      bounds.max[size_t(k)] += float(o.radius);
+    }
+  }
+  const bool gpu = args.on == "gpu";
+  const OccupancyPyramid occupancy = build_occupancy(grid);
+  std::optional<vk::Context> context;
+  std::optional<vk::VoxelCaster> caster;
+  if (gpu) {
+    vk::ContextOptions context_options;
+    context_options.device = args.device;
+    context_options.validation = args.validation;
+    context.emplace(context_options);
+    caster.emplace(*context, grid, occupancy);
+  }
+  const FlightPlan plan =
+      plan_flight(args.flight, args.frame_count, args.frame, args.frames, bounds, width, height);
+  const bool numbered = plan.frames.size() > 1;
+  nlohmann::json stats = {{"technique", "vrc"},
+                          {"on", args.on},
+                          {"transfer_function", tf.name},
+                          {"flight", to_string(plan.kind)},
+                          {"grid",
+                           {{"resolution", grid.resolution},
+                            {"quantization", grid.quantization},
+                            {"voxel_size", grid.voxel_size},
+                            {"representation_bytes", grid.representation_bytes()}}},
+                          {"occupancy_levels", occupancy.levels()},
+                          {"occupancy_bytes", occupancy.bytes()},
+                          {"radius", o.radius},
+                          {"radius_clamped", args.radius > grid.voxel_size},
+                          {"early_termination", o.early_termination},
+                          {"skip_empty_space", o.skip_empty_space},
+                          {"frames", nlohmann::json::array()}};
+  if (gpu) stats["device"] = context->info().name;
+  TerminalProgress progress("render");
+  for (size_t i = 0; i < plan.frames.size(); ++i) {
+    const Camera& c = plan.cameras[size_t(plan.frames[i])];
+    const VrcFrame frame =
+        gpu ? caster->render(c, tf, o) : cast_voxel_frame(grid, occupancy, c, tf, o);
+    if (gpu && context->validation_errors() > 0)
+      throw Error("Vulkan validation: " + std::to_string(context->validation_errors()) +
+                  " error(s); last: " + context->last_validation_error());
+    write_image(frame.image, frame_path(args.output, plan.frames[i], numbered), args.png_bits);
+    if (!args.depth_image.empty())
+      write_png_counts(frame.depth_complexity, width, height,
+                       frame_path(args.depth_image, plan.frames[i], numbered));
+    const VrcStats& s = frame.stats;
+    stats["frames"].push_back({{"frame", plan.frames[i]},
+                               {"seconds", s.seconds},
+                               {"size", {width, height}},
+                               {"camera",
+                                {{"eye", {c.eye.x, c.eye.y, c.eye.z}},
+                                 {"target", {c.target.x, c.target.y, c.target.z}},
+                                 {"fov", c.fov_y_degrees}}},
+                               {"hits", s.hits},
+                               {"depth_complexity", {{"max", s.max_depth_complexity}}},
+                               {"voxels_visited", s.voxels_visited},
+                               {"cells_skipped", s.cells_skipped},
+                               {"chords_tested", s.chords_tested},
+                               {"frame_bytes", s.frame_bytes}});
+    progress.update(i + 1, plan.frames.size());
+    if (!TerminalProgress::enabled())
+      std::cerr << "frame " << plan.frames[i] << ": " << s.seconds << " s\n";
+  }
+  if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
+}
+
 }  // namespace
 
 Command add_render(CLI::App& app) {
@@ -156,7 +252,8 @@ Command add_render(CLI::App& app) {
                        flight = "orbit-zoom";
     std::string frames, output, stats, depth_image, size = "1280x720", attribute,
                                                     quality = "medium", hits = "filter";
-    std::string sort = "heap", device;
+    std::string sort = "heap", device, on = "cpu";
+    bool no_early_termination = false, no_skip = false;
     uint64_t capacity = 0;
     bool validation = false, no_interlock = false;
     int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
@@ -173,9 +270,15 @@ Command add_render(CLI::App& app) {
   sub->add_option("--technique", args->technique,
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
                   "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
-                  "the tube mesh)")
-      ->check(CLI::IsMember(
-          {"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit", "wboit"}));
+                  "the tube mesh) | vrc (voxel ray casting of the voxel line grid)")
+      ->check(CLI::IsMember({"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit",
+                             "wboit", "vrc"}));
+  sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
+      ->check(CLI::IsMember({"cpu", "gpu"}));
+  sub->add_flag("--no-early-termination", args->no_early_termination,
+                "vrc: composite every hit (default: stop at opacity 0.99, as the paper's VRC)");
+  sub->add_flag("--no-skip", args->no_skip,
+                "vrc: walk every voxel (default: skip cells empty in the occupancy mips)");
   sub->add_option("--sort", args->sort,
                   "ll: per-pixel sort insertion | shell | heap (default) | quick-hybrid")
       ->check(CLI::IsMember({"insertion", "shell", "heap", "quick-hybrid"}));
@@ -249,11 +352,19 @@ Command add_render(CLI::App& app) {
   return [args] {
     const auto [width, height] = parse_size(args->size);
     const bool reference = args->technique == "reference";
-    if (args->early && args->technique != "embree" && args->technique != "ll")
-      throw Error("--early-termination: only embree and ll stop early (" + args->technique +
+    if (args->early && args->technique != "embree" && args->technique != "ll" &&
+        args->technique != "vrc")
+      throw Error("--early-termination: only embree, ll and vrc stop early (" + args->technique +
                   " does not)");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
+    if (args->technique == "vrc") {
+      render_vrc(*args, cache, tf, width, height);
+      return;
+    }
+    if (args->on != "cpu" || args->no_early_termination || args->no_skip)
+      throw Error("--on, --no-early-termination, --no-skip: vrc options (not " + args->technique +
+                  ")");
     if (vk::is_raster_technique(args->technique)) {
       render_raster(*args, cache, tf, width, height);
       return;

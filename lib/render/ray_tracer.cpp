@@ -202,6 +202,14 @@ std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm:
   return hits;
 }
 
+glm::dvec3 shade_hit(const Rgba& base, glm::dvec3 n, const glm::dvec3& to_eye, const Shading& s) {
+  if (glm::dot(n, to_eye) < 0) n = -n;  // interpolated normals can tip past the silhouette
+  const double lambert = std::max(0.0, glm::dot(n, to_eye));
+  const glm::dvec3 c(base.r, base.g, base.b);
+  return (s.ambient + s.diffuse * lambert) * c +
+         s.specular * std::pow(lambert, s.shininess) * glm::dvec3(1);
+}
+
 std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec3& direction,
                                 const TransferFunction& tf, const TraceOptions& options,
                                 uint64_t* composited) {
@@ -213,12 +221,7 @@ std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec
   for (const RayHit& h : hits) {
     if (options.early_termination && alpha >= options.termination_alpha) break;
     const Rgba base = tf.evaluate(h.surface.attribute);
-    glm::dvec3 n = h.surface.normal;
-    if (glm::dot(n, to_eye) < 0) n = -n;  // interpolated normals can tip past the silhouette
-    const double lambert = std::max(0.0, glm::dot(n, to_eye));
-    const glm::dvec3 c(base.r, base.g, base.b);
-    const glm::dvec3 shaded = (s.ambient + s.diffuse * lambert) * c +
-                              s.specular * std::pow(lambert, s.shininess) * glm::dvec3(1);
+    const glm::dvec3 shaded = shade_hit(base, h.surface.normal, to_eye, s);
     colour += (1 - alpha) * base.a * shaded;
     alpha += (1 - alpha) * base.a;
     ++used;

@@ -60,6 +60,10 @@ std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm:
                                TraceCounters* counters = nullptr,
                                HitCollection collection = HitCollection::Filter);
 
+// Blinn-Phong of one hit with straight colour `base`, the normal flipped toward the eye.
+glm::dvec3 shade_hit(const Rgba& base, glm::dvec3 normal, const glm::dvec3& to_eye,
+                     const Shading& shading);
+
 // Front-to-back compositing of shaded hits over the background: returns linear RGB and A.
 std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec3& direction,
                                 const TransferFunction& tf, const TraceOptions& options,

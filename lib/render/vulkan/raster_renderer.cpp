@@ -10,19 +10,10 @@
 #include "core/measure.hpp"
 #include "render/vulkan/raster_state.hpp"
 #include "render/vulkan/shaders.hpp"
+#include "render/vulkan/transfer_table.hpp"
 
 namespace linebake::vk {
 namespace {
-
-VkShaderModule make_module(VkDevice device, const std::string& name) {
-  const Spirv code = shader_spirv(name);
-  VkShaderModuleCreateInfo create{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-  create.codeSize = code.size_bytes;
-  create.pCode = code.words;
-  VkShaderModule module;
-  check(vkCreateShaderModule(device, &create, nullptr, &module), "vkCreateShaderModule");
-  return module;
-}
 
 void image_barrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect,
                    VkImageLayout from, VkImageLayout to, VkAccessFlags dst) {
@@ -279,7 +270,8 @@ VkPipeline RasterRenderer::State::graphics(const DrawSetup& setup) {
                     " cannot blend 32-bit float colour attachments");
     }
   VkDevice d = ctx.device();
-  VkShaderModule vs = make_module(d, "tube.vert"), fs = make_module(d, setup.fragment);
+  VkShaderModule vs = create_shader_module(d, "tube.vert"),
+                 fs = create_shader_module(d, setup.fragment);
   const Specialisation spec(setup.constants);
   VkPipelineShaderStageCreateInfo stages[2] = {
       {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO},
@@ -370,7 +362,7 @@ VkPipeline RasterRenderer::State::compute(const std::string& name,
   const std::string key = pipeline_key(name, constants);
   if (auto it = pipelines.find(key); it != pipelines.end()) return it->second;
   VkDevice d = ctx.device();
-  VkShaderModule cs = make_module(d, name);
+  VkShaderModule cs = create_shader_module(d, name);
   const Specialisation spec(constants);
   VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
@@ -468,11 +460,7 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
   u.size[2] = uint32_t(std::min<uint64_t>(list_capacity, 0xFFFFFFFFu));
-  if (tf.colours.empty() || tf.opacities.empty() || tf.colours.size() > kMaxTfPoints ||
-      tf.opacities.size() > kMaxTfPoints)
-    throw Error("transfer function '" + tf.name + "': 1 to " + std::to_string(kMaxTfPoints) +
-                " colour and opacity points for the GPU techniques");
-  u.tf_counts[0] = uint32_t(tf.colours.size()), u.tf_counts[1] = uint32_t(tf.opacities.size());
+  write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
   u.tf_counts[2] = o.early_termination ? 1u : 0u;
   u.termination[0] = float(o.termination_alpha);
   // The data's view-depth range (its box corners, widened by 10 % and clamped to the camera's
@@ -503,14 +491,6 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
   u.moment_params[2] = float(1 - zone_end / (zone_end - zone_begin));
   u.oit_counts[0] = uint32_t(std::max(o.layers, 0));
   u.oit_counts[1] = uint32_t(o.wboit_weight);
-  for (size_t i = 0; i < tf.colours.size(); ++i) {
-    u.colours[i][0] = float(tf.colours[i].x);
-    for (int k = 0; k < 3; ++k) u.colours[i][k + 1] = float(tf.colours[i].srgb[size_t(k)]);
-  }
-  for (size_t i = 0; i < tf.opacities.size(); ++i) {
-    u.opacities[i][0] = float(tf.opacities[i].x);
-    u.opacities[i][1] = float(tf.opacities[i].opacity);
-  }
   std::memcpy(uniforms.mapped, &u, sizeof u);
 }
 

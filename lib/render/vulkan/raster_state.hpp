@@ -15,10 +15,10 @@
 
 #include "lines/line_set.hpp"
 #include "render/vulkan/raster_renderer.hpp"
+#include "render/vulkan/transfer_table.hpp"
 
 namespace linebake::vk {
 
-constexpr int kMaxTfPoints = 32;  // shaders/frame.glsl
 constexpr uint32_t kListNodeBytes = 24;
 constexpr uint32_t kBindings = 6;
 

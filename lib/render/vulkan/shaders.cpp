@@ -1,6 +1,7 @@
 #include "render/vulkan/shaders.hpp"
 
 #include "core/error.hpp"
+#include "render/vulkan/context.hpp"
 
 namespace linebake::vk {
 namespace {
@@ -50,6 +51,9 @@ constexpr uint32_t kMboitColourFrag[] =
 constexpr uint32_t kMboitResolveComp[] =
 #include "mboit_resolve.comp.inc"
     ;
+constexpr uint32_t kVrcComp[] =
+#include "vrc.comp.inc"
+    ;
 constexpr uint32_t kWboitAccumulateFrag[] =
 #include "wboit_accumulate.frag.inc"
     ;
@@ -85,6 +89,7 @@ const Embedded kShaders[] = {
     {"mboit_resolve.comp", view(kMboitResolveComp)},
     {"wboit_accumulate.frag", view(kWboitAccumulateFrag)},
     {"wboit_resolve.comp", view(kWboitResolveComp)},
+    {"vrc.comp", view(kVrcComp)},
 };
 
 }  // namespace
@@ -93,6 +98,16 @@ Spirv shader_spirv(const std::string& name) {
   for (const Embedded& e : kShaders)
     if (name == e.name) return e.code;
   throw Error("no embedded shader named '" + name + "'");
+}
+
+VkShaderModule create_shader_module(VkDevice device, const std::string& name) {
+  const Spirv code = shader_spirv(name);
+  VkShaderModuleCreateInfo create{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  create.codeSize = code.size_bytes;
+  create.pCode = code.words;
+  VkShaderModule module;
+  check(vkCreateShaderModule(device, &create, nullptr, &module), "vkCreateShaderModule");
+  return module;
 }
 
 }  // namespace linebake::vk

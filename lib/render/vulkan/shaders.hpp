@@ -1,6 +1,8 @@
 #pragma once
 // The SPIR-V of shaders/, compiled by glslc at build time and embedded in the binary.
 
+#include <vulkan/vulkan.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -14,5 +16,7 @@ struct Spirv {
 
 // By source file name, e.g. "tube.vert" or "ll_resolve.comp"; throws for other names.
 Spirv shader_spirv(const std::string& name);
+// A shader module of one embedded shader (the caller destroys it).
+VkShaderModule create_shader_module(VkDevice device, const std::string& name);
 
 }  // namespace linebake::vk

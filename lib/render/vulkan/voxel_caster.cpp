@@ -1,0 +1,259 @@
+#include "render/vulkan/voxel_caster.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "core/error.hpp"
+#include "core/measure.hpp"
+#include "render/vulkan/shaders.hpp"
+#include "render/vulkan/transfer_table.hpp"
+
+namespace linebake::vk {
+namespace {
+
+constexpr int kMaxLevels = 16;  // shaders/vrc.comp
+
+// std140 mirror of VrcUniforms in shaders/vrc.comp.
+struct VrcUniforms {
+  float eye[4], forward[4], right[4], up[4];
+  float shading[4], background[4], ranges[4];
+  uint32_t size[4], tf_counts[4];
+  float params[4], origin[4];
+  uint32_t grid[4], levels[4];
+  uint32_t level_resolution[kMaxLevels][4];
+  float colours[kMaxTfPoints][4];
+  float opacities[kMaxTfPoints][4];
+};
+
+constexpr uint32_t kBindings = 6;  // uniforms, offsets, chords, occupancy, output, hits
+
+}  // namespace
+
+struct VoxelCaster::State {
+  Context& ctx;
+  const VoxelGrid& grid;
+  std::array<uint32_t, 4> grid_info{};
+  std::array<float, 4> origin{};
+  float voxel_size = 1;
+  std::array<float, 2> attribute_range{};
+  std::vector<std::array<uint32_t, 4>> levels;
+  Buffer uniforms, offsets, chords, occupancy, output, hits;
+  VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  VkQueryPool queries = VK_NULL_HANDLE;
+  int width = 0, height = 0;
+  double gpu_ms = 0;
+
+  State(Context& c, const VoxelGrid& g) : ctx(c), grid(g) {}
+
+  Buffer upload(const void* data, uint64_t bytes) {
+    // Vulkan has no zero-sized buffers; an empty array becomes one unused word.
+    Buffer b =
+        ctx.create_buffer(std::max<uint64_t>(bytes, 4), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    if (bytes > 0) std::memcpy(b.mapped, data, bytes);
+    return b;
+  }
+
+  void write_descriptors() {
+    const Buffer* buffers[kBindings] = {&uniforms, &offsets, &chords, &occupancy, &output, &hits};
+    VkDescriptorBufferInfo infos[kBindings];
+    VkWriteDescriptorSet writes[kBindings];
+    for (uint32_t i = 0; i < kBindings; ++i) {
+      infos[i] = {buffers[i]->buffer, 0, VK_WHOLE_SIZE};
+      writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      writes[i].dstSet = set;
+      writes[i].dstBinding = i;
+      writes[i].descriptorCount = 1;
+      writes[i].descriptorType =
+          i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      writes[i].pBufferInfo = &infos[i];
+    }
+    vkUpdateDescriptorSets(ctx.device(), kBindings, writes, 0, nullptr);
+  }
+
+  void resize(int w, int h) {
+    if (w == width && h == height) return;
+    vkDeviceWaitIdle(ctx.device());
+    ctx.destroy(output);
+    ctx.destroy(hits);
+    const uint64_t pixels = uint64_t(w) * uint64_t(h);
+    output = ctx.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    hits = ctx.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    width = w, height = h;
+    write_descriptors();
+  }
+
+  ~State() {
+    VkDevice d = ctx.device();
+    vkDeviceWaitIdle(d);
+    for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy, &output, &hits}) ctx.destroy(*b);
+    if (queries) vkDestroyQueryPool(d, queries, nullptr);
+    if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
+    if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
+    if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
+    if (set_layout) vkDestroyDescriptorSetLayout(d, set_layout, nullptr);
+  }
+};
+
+VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy)
+    : state_(std::make_unique<State>(context, grid)) {
+  State& s = *state_;
+  if (occupancy.levels() > size_t(kMaxLevels) || occupancy.levels() == 0)
+    throw Error("vrc: the occupancy pyramid needs 1 to 16 levels, not " +
+                std::to_string(occupancy.levels()));
+  if (grid.offsets.size() != grid.voxel_count() + 1)
+    throw Error("vrc: the voxel grid's offsets do not match its resolution");
+  s.grid_info = {grid.resolution[0], grid.resolution[1], grid.resolution[2], grid.quantization};
+  s.origin = {grid.origin[0], grid.origin[1], grid.origin[2], 0};
+  s.voxel_size = grid.voxel_size;
+  s.attribute_range = grid.attribute_range;
+  for (size_t k = 0; k < occupancy.levels(); ++k)
+    s.levels.push_back({occupancy.resolution[k][0], occupancy.resolution[k][1],
+                        occupancy.resolution[k][2], uint32_t(occupancy.first_word[k])});
+  s.uniforms = context.create_buffer(sizeof(VrcUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  s.offsets = s.upload(grid.offsets.data(), grid.offsets.bytes());
+  s.chords = s.upload(grid.chords.data(), grid.chords.bytes());
+  s.occupancy = s.upload(occupancy.words.data(), occupancy.bytes());
+  VkDevice d = context.device();
+  std::vector<VkDescriptorSetLayoutBinding> bindings;
+  for (uint32_t i = 0; i < kBindings; ++i)
+    bindings.push_back(
+        {i, i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+         VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  set_info.bindingCount = kBindings;
+  set_info.pBindings = bindings.data();
+  check(vkCreateDescriptorSetLayout(d, &set_info, nullptr, &s.set_layout), "descriptor layout");
+  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  layout_info.setLayoutCount = 1;
+  layout_info.pSetLayouts = &s.set_layout;
+  check(vkCreatePipelineLayout(d, &layout_info, nullptr, &s.layout), "pipeline layout");
+  const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+                                        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kBindings - 1}};
+  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pool_info.maxSets = 1;
+  pool_info.poolSizeCount = 2;
+  pool_info.pPoolSizes = sizes;
+  check(vkCreateDescriptorPool(d, &pool_info, nullptr, &s.pool), "descriptor pool");
+  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  alloc.descriptorPool = s.pool;
+  alloc.descriptorSetCount = 1;
+  alloc.pSetLayouts = &s.set_layout;
+  check(vkAllocateDescriptorSets(d, &alloc, &s.set), "descriptor set");
+  VkShaderModule module = create_shader_module(d, "vrc.comp");
+  VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  create.stage.module = module;
+  create.stage.pName = "main";
+  create.layout = s.layout;
+  const VkResult made =
+      vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &s.pipeline);
+  vkDestroyShaderModule(d, module, nullptr);
+  check(made, "vkCreateComputePipelines (vrc.comp)");
+  if (context.timestamps()) {
+    VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    q.queryCount = 2;
+    check(vkCreateQueryPool(d, &q, nullptr, &s.queries), "query pool");
+  }
+}
+
+VoxelCaster::~VoxelCaster() = default;
+
+double VoxelCaster::last_gpu_ms() const {
+  return state_->gpu_ms;
+}
+
+uint64_t VoxelCaster::grid_bytes() const {
+  return state_->offsets.size + state_->chords.size + state_->occupancy.size;
+}
+
+VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in,
+                             const VrcOptions& o) {
+  if (o.width < 1 || o.height < 1) throw Error("vrc: empty image size");
+  const auto start = std::chrono::steady_clock::now();
+  State& s = *state_;
+  s.resize(o.width, o.height);
+  TransferFunction tf = tf_in;
+  if (tf.range[0] == 0 && tf.range[1] == 0)
+    tf.range = {double(s.attribute_range[0]), double(s.attribute_range[1])};
+  VrcUniforms u{};
+  const glm::dvec3 f = camera.forward();
+  const glm::dvec3 r = glm::normalize(glm::cross(f, camera.up));
+  const glm::dvec3 up = glm::cross(r, f);
+  const double half_h = std::tan(camera.fov_y_degrees * 3.14159265358979323846 / 360.0);
+  const double half_w = half_h * double(o.width) / double(o.height);
+  for (int k = 0; k < 3; ++k) {
+    u.eye[k] = float(camera.eye[k]);
+    u.forward[k] = float(f[k]);
+    u.right[k] = float(r[k] * half_w);
+    u.up[k] = float(up[k] * half_h);
+    u.background[k] = float(o.shading.background[size_t(k)]);
+    u.origin[k] = s.origin[size_t(k)];
+    u.grid[k] = s.grid_info[size_t(k)];
+  }
+  u.grid[3] = s.grid_info[3];
+  u.shading[0] = float(o.shading.ambient), u.shading[1] = float(o.shading.diffuse);
+  u.shading[2] = float(o.shading.specular), u.shading[3] = float(o.shading.shininess);
+  u.ranges[0] = s.attribute_range[0], u.ranges[1] = s.attribute_range[1];
+  u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
+  u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
+  u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = o.skip_empty_space ? 1u : 0u;
+  write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
+  VrcFrame frame;
+  frame.stats.radius = vrc_radius(s.grid, o.radius);
+  frame.stats.radius_clamped = o.radius > double(s.voxel_size);
+  u.params[0] = float(o.termination_alpha), u.params[1] = float(frame.stats.radius);
+  u.params[2] = s.voxel_size;
+  u.levels[0] = uint32_t(s.levels.size());
+  for (size_t k = 0; k < s.levels.size(); ++k)
+    for (size_t c = 0; c < 4; ++c) u.level_resolution[k][c] = s.levels[k][c];
+  std::memcpy(s.uniforms.mapped, &u, sizeof u);
+  s.ctx.submit([&](VkCommandBuffer cmd) {
+    if (s.queries) {
+      vkCmdResetQueryPool(cmd, s.queries, 0, 2);
+      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.set, 0,
+                            nullptr);
+    vkCmdDispatch(cmd, uint32_t(o.width + 7) / 8, uint32_t(o.height + 7) / 8, 1);
+    if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
+    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                         1, &barrier, 0, nullptr, 0, nullptr);
+  });
+  s.gpu_ms = 0;
+  if (s.queries) {
+    uint64_t ticks[2] = {};
+    if (vkGetQueryPoolResults(s.ctx.device(), s.queries, 0, 2, sizeof ticks, ticks, 8,
+                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
+      s.gpu_ms = double(ticks[1] - ticks[0]) * s.ctx.timestamp_period_ns() * 1e-6;
+  }
+  const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
+  frame.image = Image(o.width, o.height, 3);
+  frame.alpha.resize(pixels);
+  frame.depth_complexity.resize(pixels);
+  const auto* rgba = static_cast<const float*>(s.output.mapped);
+  const auto* counts = static_cast<const uint32_t*>(s.hits.mapped);
+  for (uint64_t p = 0; p < pixels; ++p) {
+    for (uint64_t k = 0; k < 3; ++k) frame.image.pixels[3 * p + k] = rgba[4 * p + k];
+    frame.alpha[p] = rgba[4 * p + 3];
+    frame.depth_complexity[p] = counts[p];
+    frame.stats.hits += counts[p];
+    frame.stats.max_depth_complexity = std::max(frame.stats.max_depth_complexity, counts[p]);
+  }
+  frame.stats.frame_bytes = pixels * (16 + 4);
+  frame.stats.seconds = seconds_since(start);
+  return frame;
+}
+
+}  // namespace linebake::vk
