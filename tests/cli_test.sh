@@ -147,6 +147,17 @@ check "depth-complexity without outputs is an error" exit_code 4 "$bin" depth-co
 check "depth-complexity without tubes is an error" exit_code 4 "$bin" depth-complexity "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/x.png"
 check "ll without tubes is an error" exit_code 4 "$bin" render "$tmp/v.lbc.h5" --technique ll --size 32x24 -o "$tmp/x.png"
 check "unknown Vulkan device is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --device no-such-gpu --size 32x24 -o "$tmp/x.png"
+# Voxel ray casting (CPU and Vulkan compute) and ray tracing's absence on lavapipe
+check "vrc without voxels is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique vrc --size 32x24 -o "$tmp/x.png"
+check "bake voxels next to tubes" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,voxels --grid 64 > /dev/null 2>&1"
+check "render vrc on the CPU" "$bin" render "$tmp/t.lbc.h5" --technique vrc --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/vrc.png" --stats "$tmp/vrc.json" --depth-complexity "$tmp/vrcdc.png"
+check "render vrc on the GPU with validation" "$bin" render "$tmp/t.lbc.h5" --technique vrc --on gpu --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/vrcg.png" --stats "$tmp/vrcg.json"
+check "vrc GPU and CPU agree (PSNR >= 45 dB)" bash -c "'$bin' compare '$tmp/vrcg.png' '$tmp/vrc.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
+check "vrc resembles the reference (SSIM >= 0.8)" bash -c "'$bin' compare '$tmp/vrc.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"ssim\"] >= 0.8 else 1)'"
+check "vrc stats: grid, radius, hits, occupancy levels" python3 -c "import json; j=json.load(open('$tmp/vrc.json')); f=j['frames'][0]; assert j['grid']['resolution'][0] <= 64 and 0 < j['radius'] <= j['grid']['voxel_size'] and f['hits'] > 0 and f['voxels_visited'] > 0 and j['occupancy_levels'] > 1 and j['skip_empty_space'], j"
+check "vrc --no-skip gives the same image" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique vrc --no-skip --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/vrcns.png' && cmp '$tmp/vrcns.png' '$tmp/vrc.png'"
+check "--on is a vrc option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --on gpu --size 32x24 -o "$tmp/x.png"
+check "rtx on lavapipe: one clear line, exit 4" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique rtx --size 32x24 -o '$tmp/rtx.png' 2> '$tmp/rtx.err'; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/rtx.err') -eq 1 ] && grep -q 'not supported on this device' '$tmp/rtx.err' && [ ! -e '$tmp/rtx.png' ]"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"

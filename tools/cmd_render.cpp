@@ -270,9 +270,10 @@ Command add_render(CLI::App& app) {
   sub->add_option("--technique", args->technique,
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
                   "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
-                  "the tube mesh) | vrc (voxel ray casting of the voxel line grid)")
-      ->check(CLI::IsMember({"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit",
-                             "wboit", "vrc"}));
+                  "the tube mesh) | vrc (voxel ray casting of the voxel line grid) | rtx "
+                  "(Vulkan ray tracing; needs a device with VK_KHR_ray_tracing_pipeline)")
+      ->check(CLI::IsMember({"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb",
+                             "mboit", "wboit", "vrc", "rtx"}));
   sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
       ->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_flag("--no-early-termination", args->no_early_termination,
@@ -358,6 +359,16 @@ Command add_render(CLI::App& app) {
                   " does not)");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
+    if (args->technique == "rtx") {
+      vk::ContextOptions context_options;
+      context_options.device = args->device;
+      const vk::Context context(context_options);
+      if (!context.info().ray_tracing)
+        throw Error("rtx: ray tracing is not supported on this device (" + context.info().name +
+                    "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure");
+      throw Error("rtx: the Vulkan ray tracing path is not implemented yet (" +
+                  context.info().name + " supports it)");
+    }
     if (args->technique == "vrc") {
       render_vrc(*args, cache, tf, width, height);
       return;

@@ -1,0 +1,187 @@
+// Voxel ray casting (VRC) on the CPU and with Vulkan compute (lavapipe): a hand-built grid with
+// one line through known voxels against the analytic ray-line distance, GPU against CPU, and
+// quality against the tube-mesh reference as the grid and its quantisation grow.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+#include "accel/embree_scene.hpp"
+#include "metrics/image_metrics.hpp"
+#include "render/ray_tracer.hpp"
+#include "render/voxel_ray_caster.hpp"
+#include "render/vulkan/voxel_caster.hpp"
+#include "synth/synth.hpp"
+#include "tubes/tube_builder.hpp"
+#include "voxels/voxelizer.hpp"
+
+namespace linebake {
+namespace {
+
+// 12 x 3 x 3 voxels of size 1 at the origin; voxels 4..7 of the middle row (y = z = 1) hold one
+// chord each, from the x-low face to the x-high face at the face cell (8, 8) of Q = 16: the line
+// y = z = 1 + 8.5 / 16 from x = 4 to x = 8. Voxels x <= 2 and x >= 9 are empty space.
+VoxelGrid one_line_grid() {
+  VoxelGrid g;
+  g.resolution = {12, 3, 3};
+  g.origin = {0, 0, 0};
+  g.voxel_size = 1;
+  g.quantization = 16;
+  g.attribute_range = {0, 1};
+  g.offsets = Array<uint32_t>(g.voxel_count() + 1);
+  std::vector<uint32_t> words;
+  for (uint32_t z = 0; z < 3; ++z)
+    for (uint32_t y = 0; y < 3; ++y)
+      for (uint32_t x = 0; x < 12; ++x) {
+        g.offsets[g.index(x, y, z)] = uint32_t(words.size() / 2);
+        if (y == 1 && z == 1 && x >= 4 && x <= 7) {
+          const auto w = pack_chord({0, 8, 8, 0}, {1, 8, 8, 0}, 7, 128, 128, 16);
+          words.push_back(w[0]);
+          words.push_back(w[1]);
+        }
+      }
+  g.offsets[g.voxel_count()] = uint32_t(words.size() / 2);
+  g.chords = Array<uint32_t>(words.size());
+  for (size_t i = 0; i < words.size(); ++i) g.chords[i] = words[i];
+  return g;
+}
+
+// Distance from the ray to the infinite line y = z = c, and the x where they are closest.
+std::pair<double, double> ray_line_distance(const glm::dvec3& o, const glm::dvec3& d, double c) {
+  // Line: p = (s, c, c). Closest points of two lines with directions d and e = (1, 0, 0).
+  const glm::dvec3 e(1, 0, 0), w = o - glm::dvec3(0, c, c);
+  const double a = glm::dot(d, d), b = glm::dot(d, e), cc = glm::dot(e, e);
+  const double dd = glm::dot(d, w), ee = glm::dot(e, w);
+  const double den = a * cc - b * b;
+  const double t = (b * ee - cc * dd) / den, s = (a * ee - b * dd) / den;
+  return {glm::length((o + t * d) - glm::dvec3(s, c, c)), s};
+}
+
+TEST(Vrc, OneLineThroughKnownVoxelsHitsTheExpectedPixels) {
+  const VoxelGrid grid = one_line_grid();
+  const OccupancyPyramid occupancy = build_occupancy(grid);
+  Camera camera;
+  camera.eye = {6, 2.5, 8};  // above the line, looking down -z, a little off its axis
+  camera.target = {6, 1.5, 1.5};
+  camera.near = 0.1, camera.far = 100;
+  VrcOptions o;
+  o.width = 96, o.height = 64;
+  o.radius = 0.3;
+  TransferFunction tf = transfer_function_preset("transparent");  // opacity 0.1 everywhere
+  const double c = 1 + 8.5 / 16;
+  for (const bool skip : {true, false}) {
+    o.skip_empty_space = skip;
+    const VrcFrame f = cast_voxel_frame(grid, occupancy, camera, tf, o);
+    size_t expected_hits = 0, agree = 0, compared = 0;
+    for (int y = 0; y < o.height; ++y)
+      for (int x = 0; x < o.width; ++x) {
+        const glm::dvec3 d = camera.ray_direction(x, y, o.width, o.height);
+        const auto [distance, along] = ray_line_distance(camera.eye, d, c);
+        // Away from the silhouette and from the line's rounded ends.
+        if (std::abs(distance - o.radius) < 0.02 || std::abs(along - 4) < 0.35 ||
+            std::abs(along - 8) < 0.35)
+          continue;
+        const bool expected = distance < o.radius && along > 4 && along < 8;
+        const float alpha = f.alpha[size_t(y) * size_t(o.width) + size_t(x)];
+        ++compared;
+        expected_hits += expected;
+        // One hit, never two where the capsules of neighbouring chords overlap.
+        agree += expected ? std::abs(alpha - 0.1f) < 1e-5f : alpha == 0.0f;
+      }
+    EXPECT_EQ(agree, compared) << "skip " << skip;
+    EXPECT_GT(expected_hits, 300u);
+    EXPECT_GT(compared, size_t(o.width * o.height) * 3 / 4);
+    std::cout << "skip " << skip << ": " << expected_hits << " pixels on the line, " << compared
+              << " compared\n";
+    for (float a : f.alpha) EXPECT_LE(a, 0.1f + 1e-5f);
+    if (skip)
+      EXPECT_GT(f.stats.cells_skipped, 0u);
+    else
+      EXPECT_EQ(f.stats.cells_skipped, 0u);
+  }
+}
+
+struct SynthScene {
+  LineSet lines;
+  TubeMesh mesh;
+  Camera camera;
+};
+
+SynthScene aneurysm_scene() {
+  SynthScene s;
+  synth::SynthParams params;
+  params.name = "aneurysm";
+  params.scale = 0.2;
+  s.lines = synth::generate(params);
+  TubeOptions t;
+  t.sides = 8;
+  t.radius = 0.002f;
+  t.attribute = synth::find_data_set("aneurysm").attribute;
+  s.mesh = build_tubes(s.lines, t);
+  s.camera = frame_bounds(compute_bounds(s.mesh), 1.0, 30, 20);
+  return s;
+}
+
+VoxelGrid grid_for(const SynthScene& s, uint32_t resolution, uint32_t quantization) {
+  VoxelOptions v;
+  v.grid = resolution;
+  v.quantization = quantization;
+  v.attribute = synth::find_data_set("aneurysm").attribute;
+  return voxelize(s.lines, v);
+}
+
+TEST(Vrc, QualityGrowsWithTheGridAndItsQuantisation) {
+  const SynthScene s = aneurysm_scene();
+  const TransferFunction tf = transfer_function_preset("semi");
+  TraceOptions trace;
+  trace.width = trace.height = 128;
+  const Image reference =
+      display_encoded(trace_frame(EmbreeScene::from_tubes(s.mesh, {}), s.camera, tf, trace).image);
+  double quality[2][2] = {};
+  int i = 0;
+  for (const auto& [resolution, quantization] : {std::pair{48u, 16u}, std::pair{192u, 64u}}) {
+    const VoxelGrid grid = grid_for(s, resolution, quantization);
+    VrcOptions o;
+    o.width = o.height = 128;
+    o.radius = s.mesh.radius;
+    o.early_termination = false;
+    const VrcFrame f = cast_voxel_frame(grid, build_occupancy(grid), s.camera, tf, o);
+    EXPECT_FALSE(f.stats.radius_clamped);
+    const Image image = display_encoded(f.image);
+    quality[i][0] = ssim(image, reference);
+    quality[i][1] = psnr(image, reference);
+    std::cout << "vrc grid " << resolution << ", Q " << quantization << ": SSIM " << quality[i][0]
+              << ", PSNR " << quality[i][1] << " dB\n";
+    ++i;
+  }
+  EXPECT_GT(quality[1][0], quality[0][0]);
+  EXPECT_GT(quality[1][1], quality[0][1]);
+}
+
+TEST(Vrc, GpuAndCpuAgree) {
+  const SynthScene s = aneurysm_scene();
+  const VoxelGrid grid = grid_for(s, 96, 32);
+  const OccupancyPyramid occupancy = build_occupancy(grid);
+  vk::ContextOptions context_options;
+  context_options.validation = true;
+  vk::Context ctx(context_options);
+  vk::VoxelCaster caster(ctx, grid, occupancy);
+  for (const std::string preset : {"semi", "transparent"}) {
+    const TransferFunction tf = transfer_function_preset(preset);
+    VrcOptions o;
+    o.width = 128, o.height = 96;
+    o.radius = s.mesh.radius;
+    const VrcFrame cpu = cast_voxel_frame(grid, occupancy, s.camera, tf, o);
+    const VrcFrame gpu = caster.render(s.camera, tf, o);
+    const double db = psnr(display_encoded(gpu.image), display_encoded(cpu.image));
+    std::cout << "vrc " << preset << ": GPU vs CPU PSNR " << db << " dB, hits " << gpu.stats.hits
+              << " vs " << cpu.stats.hits << "\n";
+    EXPECT_GE(db, 45.0) << preset;
+    EXPECT_GT(cpu.stats.hits, 1000u);
+  }
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+}  // namespace
+}  // namespace linebake
