@@ -272,8 +272,8 @@ Command add_render(CLI::App& app) {
                   "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
                   "the tube mesh) | vrc (voxel ray casting of the voxel line grid) | rtx "
                   "(Vulkan ray tracing; needs a device with VK_KHR_ray_tracing_pipeline)")
-      ->check(CLI::IsMember({"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb",
-                             "mboit", "wboit", "vrc", "rtx"}));
+      ->check(CLI::IsMember({"embree", "reference", "opaque", "dp", "ll", "mlab", "mlabdb", "mboit",
+                             "wboit", "vrc", "rtx"}));
   sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
       ->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_flag("--no-early-termination", args->no_early_termination,
