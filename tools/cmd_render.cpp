@@ -1,6 +1,7 @@
 // linebake render <cache>: renders frames of a flight with the CPU ray tracer (technique
 // `embree`, curves), the ground truth (technique `reference`, the triangle tube mesh) or one of
-// the Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit).
+// the Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit), or voxel
+// ray casting of the voxel line grid (vrc, CPU or Vulkan compute).
 
 #include <cmath>
 #include <iostream>
@@ -236,6 +237,7 @@ void render_vrc(const Args& args, const CacheReader& cache, const TransferFuncti
                                {"cells_skipped", s.cells_skipped},
                                {"chords_tested", s.chords_tested},
                                {"frame_bytes", s.frame_bytes}});
+    if (gpu) stats["frames"].back()["gpu_ms"] = caster->last_gpu_ms();
     progress.update(i + 1, plan.frames.size());
     if (!TerminalProgress::enabled())
       std::cerr << "frame " << plan.frames[i] << ": " << s.seconds << " s\n";

@@ -115,6 +115,15 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   for (size_t k = 0; k < occupancy.levels(); ++k)
     s.levels.push_back({occupancy.resolution[k][0], occupancy.resolution[k][1],
                         occupancy.resolution[k][2], uint32_t(occupancy.first_word[k])});
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(context.physical_device(), &props);
+  const uint64_t limit = props.limits.maxStorageBufferRange;
+  for (const auto& [name, bytes] :
+       {std::pair{"offsets", grid.offsets.bytes()}, std::pair{"chords", grid.chords.bytes()}})
+    if (bytes > limit)
+      throw Error(std::string("vrc: the grid's ") + name + " take " + std::to_string(bytes >> 20) +
+                  " MiB, more than one storage buffer may hold on " + context.info().name + " (" +
+                  std::to_string(limit >> 20) + " MiB); use --on cpu or a coarser grid");
   s.uniforms = context.create_buffer(sizeof(VrcUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   s.offsets = s.upload(grid.offsets.data(), grid.offsets.bytes());
   s.chords = s.upload(grid.chords.data(), grid.chords.bytes());
