@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "core/measure.hpp"
+#include "render/vulkan/buffer_set.hpp"
 #include "render/vulkan/raster_state.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
@@ -217,32 +218,10 @@ void RasterRenderer::State::upload(const TubeMesh& mesh) {
 
 void RasterRenderer::State::create_layout() {
   VkDevice d = ctx.device();
-  std::vector<VkDescriptorSetLayoutBinding> bindings;
-  for (uint32_t i = 0; i < kBindings; ++i)
-    bindings.push_back(
-        {i, i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT,
-         nullptr});
-  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  set_info.bindingCount = uint32_t(bindings.size());
-  set_info.pBindings = bindings.data();
-  check(vkCreateDescriptorSetLayout(d, &set_info, nullptr, &set_layout), "descriptor layout");
-  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  layout_info.setLayoutCount = 1;
-  layout_info.pSetLayouts = &set_layout;
-  check(vkCreatePipelineLayout(d, &layout_info, nullptr, &layout), "pipeline layout");
-  const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-                                        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kBindings - 1}};
-  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pool_info.maxSets = 1;
-  pool_info.poolSizeCount = 2;
-  pool_info.pPoolSizes = sizes;
-  check(vkCreateDescriptorPool(d, &pool_info, nullptr, &pool), "descriptor pool");
-  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-  alloc.descriptorPool = pool;
-  alloc.descriptorSetCount = 1;
-  alloc.pSetLayouts = &set_layout;
-  check(vkAllocateDescriptorSets(d, &alloc, &set), "descriptor set");
+  const BufferSet b = create_buffer_set(
+      d, kBindings,
+      VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT);
+  set_layout = b.set_layout, layout = b.layout, pool = b.pool, set = b.set;
   if (ctx.timestamps()) {
     VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
     q.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -380,20 +359,7 @@ VkPipeline RasterRenderer::State::compute(const std::string& name,
 }
 
 void RasterRenderer::State::write_descriptors() {
-  const Buffer* buffers[kBindings] = {&uniforms, &pixel_state, &nodes, &counter, &output, &stats};
-  VkDescriptorBufferInfo infos[kBindings];
-  VkWriteDescriptorSet writes[kBindings];
-  for (uint32_t i = 0; i < kBindings; ++i) {
-    infos[i] = {buffers[i]->buffer, 0, VK_WHOLE_SIZE};
-    writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    writes[i].dstSet = set;
-    writes[i].dstBinding = i;
-    writes[i].descriptorCount = 1;
-    writes[i].descriptorType =
-        i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    writes[i].pBufferInfo = &infos[i];
-  }
-  vkUpdateDescriptorSets(ctx.device(), kBindings, writes, 0, nullptr);
+  write_buffer_set(ctx.device(), set, {&uniforms, &pixel_state, &nodes, &counter, &output, &stats});
 }
 
 void RasterRenderer::State::prepare_frame(int w, int h, uint64_t pixel_state_wanted,

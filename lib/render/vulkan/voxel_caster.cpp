@@ -7,6 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/measure.hpp"
+#include "render/vulkan/buffer_set.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
 
@@ -60,20 +61,7 @@ struct VoxelCaster::State {
   }
 
   void write_descriptors() {
-    const Buffer* buffers[kBindings] = {&uniforms, &offsets, &chords, &occupancy, &output, &hits};
-    VkDescriptorBufferInfo infos[kBindings];
-    VkWriteDescriptorSet writes[kBindings];
-    for (uint32_t i = 0; i < kBindings; ++i) {
-      infos[i] = {buffers[i]->buffer, 0, VK_WHOLE_SIZE};
-      writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      writes[i].dstSet = set;
-      writes[i].dstBinding = i;
-      writes[i].descriptorCount = 1;
-      writes[i].descriptorType =
-          i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-      writes[i].pBufferInfo = &infos[i];
-    }
-    vkUpdateDescriptorSets(ctx.device(), kBindings, writes, 0, nullptr);
+    write_buffer_set(ctx.device(), set, {&uniforms, &offsets, &chords, &occupancy, &output, &hits});
   }
 
   void resize(int w, int h) {
@@ -129,31 +117,8 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   s.chords = s.upload(grid.chords.data(), grid.chords.bytes());
   s.occupancy = s.upload(occupancy.words.data(), occupancy.bytes());
   VkDevice d = context.device();
-  std::vector<VkDescriptorSetLayoutBinding> bindings;
-  for (uint32_t i = 0; i < kBindings; ++i)
-    bindings.push_back(
-        {i, i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-         VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
-  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  set_info.bindingCount = kBindings;
-  set_info.pBindings = bindings.data();
-  check(vkCreateDescriptorSetLayout(d, &set_info, nullptr, &s.set_layout), "descriptor layout");
-  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  layout_info.setLayoutCount = 1;
-  layout_info.pSetLayouts = &s.set_layout;
-  check(vkCreatePipelineLayout(d, &layout_info, nullptr, &s.layout), "pipeline layout");
-  const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-                                        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kBindings - 1}};
-  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  pool_info.maxSets = 1;
-  pool_info.poolSizeCount = 2;
-  pool_info.pPoolSizes = sizes;
-  check(vkCreateDescriptorPool(d, &pool_info, nullptr, &s.pool), "descriptor pool");
-  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-  alloc.descriptorPool = s.pool;
-  alloc.descriptorSetCount = 1;
-  alloc.pSetLayouts = &s.set_layout;
-  check(vkAllocateDescriptorSets(d, &alloc, &s.set), "descriptor set");
+  const BufferSet b = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
+  s.set_layout = b.set_layout, s.layout = b.layout, s.pool = b.pool, s.set = b.set;
   VkShaderModule module = create_shader_module(d, "vrc.comp");
   VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
