@@ -12,6 +12,7 @@ namespace linebake::vk {
 
 class VoxelCaster {
  public:
+  // `grid` must outlive the caster (its voxel size clamps the radius); its arrays are copied.
   VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy);
   VoxelCaster(const VoxelCaster&) = delete;
   VoxelCaster& operator=(const VoxelCaster&) = delete;
