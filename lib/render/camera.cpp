@@ -78,15 +78,20 @@ std::vector<Camera> read_keyframes(const std::string& file) {
 
 }  // namespace
 
-glm::dvec3 Camera::ray_direction(double x, double y, int width, int height) const {
+Camera::ImagePlane Camera::image_plane(int width, int height) const {
   const glm::dvec3 f = forward();
   const glm::dvec3 r = glm::normalize(glm::cross(f, up));
   const glm::dvec3 u = glm::cross(r, f);
   const double half_h = std::tan(radians(fov_y_degrees) / 2);
   const double half_w = half_h * double(width) / double(height);
-  const double sx = (2 * (x + 0.5) / width - 1) * half_w;
-  const double sy = (1 - 2 * (y + 0.5) / height) * half_h;
-  return glm::normalize(f + sx * r + sy * u);
+  return {f, half_w * r, half_h * u};
+}
+
+glm::dvec3 Camera::ray_direction(double x, double y, int width, int height) const {
+  const ImagePlane p = image_plane(width, height);
+  const double sx = 2 * (x + 0.5) / width - 1;
+  const double sy = 1 - 2 * (y + 0.5) / height;
+  return glm::normalize(p.forward + sx * p.right + sy * p.up);
 }
 
 namespace {

@@ -19,6 +19,12 @@ struct Camera {
   // Primary ray through the centre of pixel (x, y) of a width x height image; y grows downwards.
   // Returns the unit direction; the origin is `eye`.
   glm::dvec3 ray_direction(double x, double y, int width, int height) const;
+  // The image plane ray_direction() spans: direction = normalize(forward + sx right + sy up)
+  // with sx, sy in [-1, 1] from the left / bottom edge; right and up carry the half extents.
+  struct ImagePlane {
+    glm::dvec3 forward, right, up;
+  };
+  ImagePlane image_plane(int width, int height) const;
   glm::dvec3 forward() const { return glm::normalize(target - eye); }
 };
 

@@ -158,16 +158,12 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   if (tf.range[0] == 0 && tf.range[1] == 0)
     tf.range = {double(s.attribute_range[0]), double(s.attribute_range[1])};
   VrcUniforms u{};
-  const glm::dvec3 f = camera.forward();
-  const glm::dvec3 r = glm::normalize(glm::cross(f, camera.up));
-  const glm::dvec3 up = glm::cross(r, f);
-  const double half_h = std::tan(camera.fov_y_degrees * 3.14159265358979323846 / 360.0);
-  const double half_w = half_h * double(o.width) / double(o.height);
+  const Camera::ImagePlane plane = camera.image_plane(o.width, o.height);
   for (int k = 0; k < 3; ++k) {
     u.eye[k] = float(camera.eye[k]);
-    u.forward[k] = float(f[k]);
-    u.right[k] = float(r[k] * half_w);
-    u.up[k] = float(up[k] * half_h);
+    u.forward[k] = float(plane.forward[k]);
+    u.right[k] = float(plane.right[k]);
+    u.up[k] = float(plane.up[k]);
     u.background[k] = float(o.shading.background[size_t(k)]);
     u.origin[k] = s.origin[size_t(k)];
     u.grid[k] = s.grid_info[size_t(k)];
