@@ -170,14 +170,14 @@ void render_vrc(const Args& args, const CacheReader& cache, const TransferFuncti
   o.radius = args.radius;
   if (!(o.radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
     o.radius = tube_provenance->stats["radius_world"].template get<double>();
-  o.radius = vrc_radius(grid, o.radius);
+  const double radius = vrc_radius(grid, o.radius);  // what the casters use
   if (tube_provenance) {
     bounds = compute_bounds(load_tubes(cache));
   } else {
     bounds = compute_bounds(load_lines(cache));
     for (int k = 0; k < 3; ++k) {
-      bounds.min[size_t(k)] -= float(o.radius);
-      bounds.max[size_t(k)] += float(o.radius);
+      bounds.min[size_t(k)] -= float(radius);
+      bounds.max[size_t(k)] += float(radius);
     }
   }
   const bool gpu = args.on == "gpu";
@@ -205,8 +205,8 @@ void render_vrc(const Args& args, const CacheReader& cache, const TransferFuncti
                             {"representation_bytes", grid.representation_bytes()}}},
                           {"occupancy_levels", occupancy.levels()},
                           {"occupancy_bytes", occupancy.bytes()},
-                          {"radius", o.radius},
-                          {"radius_clamped", args.radius > grid.voxel_size},
+                          {"radius", radius},
+                          {"radius_clamped", o.radius > grid.voxel_size},
                           {"early_termination", o.early_termination},
                           {"skip_empty_space", o.skip_empty_space},
                           {"frames", nlohmann::json::array()}};
