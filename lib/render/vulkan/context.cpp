@@ -31,7 +31,8 @@ bool has_layer(const char* name) {
 }
 
 DeviceInfo describe(VkPhysicalDevice device) {
-  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  VkPhysicalDeviceIDProperties id{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES};
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES, &id};
   VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &driver};
   vkGetPhysicalDeviceProperties2(device, &props);
   DeviceInfo info;
@@ -41,7 +42,9 @@ DeviceInfo describe(VkPhysicalDevice device) {
   info.api_version = props.properties.apiVersion;
   info.fragment_shader_interlock = has_extension(device, "VK_EXT_fragment_shader_interlock");
   info.ray_tracing = has_extension(device, "VK_KHR_ray_tracing_pipeline") &&
-                     has_extension(device, "VK_KHR_acceleration_structure");
+                     has_extension(device, "VK_KHR_acceleration_structure") &&
+                     has_extension(device, "VK_KHR_deferred_host_operations");
+  std::copy(std::begin(id.driverUUID), std::end(id.driverUUID), info.driver_uuid.begin());
   return info;
 }
 
@@ -80,6 +83,13 @@ std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
 }
 
 }  // namespace
+
+std::string to_hex(const std::array<uint8_t, 16>& uuid) {
+  static const char* digits = "0123456789abcdef";
+  std::string out;
+  for (uint8_t b : uuid) out += digits[b >> 4], out += digits[b & 15];
+  return out;
+}
 
 void check(VkResult result, const char* what) {
   if (result != VK_SUCCESS)
@@ -167,26 +177,72 @@ Context::Context(const ContextOptions& options) {
     vkGetPhysicalDeviceProperties(physical_, &props);
     timestamp_period_ns_ = props.limits.timestampPeriod;
 
+    if (options.ray_tracing && !info_.ray_tracing)
+      throw RayTracingUnsupported(
+          "ray tracing is not supported on this device (" + info_.name +
+          "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure");
+    VkPhysicalDeviceAccelerationStructureFeaturesKHR supported_as{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+    VkPhysicalDeviceRayTracingPipelineFeaturesKHR supported_rt{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR, &supported_as};
     VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT supported_interlock{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
+    VkPhysicalDeviceVulkan12Features supported12{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceVulkan13Features supported13{
-        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
-    if (info_.fragment_shader_interlock) supported13.pNext = &supported_interlock;
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &supported12};
+    // Queried chain: 1.3 -> (interlock) -> 1.2 -> (ray tracing -> acceleration structures).
+    if (info_.fragment_shader_interlock) {
+      supported_interlock.pNext = &supported12;
+      supported13.pNext = &supported_interlock;
+    }
+    if (options.ray_tracing) supported12.pNext = &supported_rt;
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &supported13};
     vkGetPhysicalDeviceFeatures2(physical_, &supported);
     if (!supported.features.fragmentStoresAndAtomics || !supported13.dynamicRendering)
       throw Error("Vulkan: " + info_.name + " lacks fragmentStoresAndAtomics or dynamicRendering");
+    if (options.ray_tracing &&
+        (!supported_rt.rayTracingPipeline || !supported_as.accelerationStructure ||
+         !supported12.bufferDeviceAddress))
+      throw RayTracingUnsupported("ray tracing is not supported on this device (" + info_.name +
+                                  "): the ray tracing pipeline, acceleration structure or "
+                                  "buffer device address feature is off");
     // MLAB's ordered critical section; without it the shaders fall back to a spin lock.
     info_.fragment_shader_interlock =
         info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
+    ray_tracing_ = options.ray_tracing;
+
+    // The features enabled: a chain built from the end.
+    std::vector<const char*> device_extensions;
+    VkPhysicalDeviceAccelerationStructureFeaturesKHR as_features{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+    as_features.accelerationStructure = VK_TRUE;
+    VkPhysicalDeviceRayTracingPipelineFeaturesKHR rt_features{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR, &as_features};
+    rt_features.rayTracingPipeline = VK_TRUE;
     VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT interlock{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
     interlock.fragmentShaderPixelInterlock = VK_TRUE;
+    VkPhysicalDeviceVulkan12Features features12{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceVulkan13Features features13{
-        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &features12};
     features13.dynamicRendering = VK_TRUE;
-    const char* device_extensions[] = {"VK_EXT_fragment_shader_interlock"};
-    if (info_.fragment_shader_interlock) features13.pNext = &interlock;
+    void* chain_end = nullptr;
+    if (info_.fragment_shader_interlock) {
+      device_extensions.push_back("VK_EXT_fragment_shader_interlock");
+      interlock.pNext = chain_end;
+      chain_end = &interlock;
+    }
+    if (ray_tracing_) {
+      for (const char* e : {"VK_KHR_acceleration_structure", "VK_KHR_ray_tracing_pipeline",
+                            "VK_KHR_deferred_host_operations"})
+        device_extensions.push_back(e);
+      features12.bufferDeviceAddress = VK_TRUE;
+      as_features.pNext = chain_end;
+      chain_end = &rt_features;
+    }
+    features12.pNext = chain_end;
     VkPhysicalDeviceFeatures features{};
     features.fragmentStoresAndAtomics = VK_TRUE;
     const float priority = 1;
@@ -199,10 +255,8 @@ Context::Context(const ContextOptions& options) {
     create.pQueueCreateInfos = &queue;
     create.pEnabledFeatures = &features;
     create.pNext = &features13;
-    if (info_.fragment_shader_interlock) {
-      create.enabledExtensionCount = 1;
-      create.ppEnabledExtensionNames = device_extensions;
-    }
+    create.enabledExtensionCount = uint32_t(device_extensions.size());
+    create.ppEnabledExtensionNames = device_extensions.data();
     check(vkCreateDevice(physical_, &create, nullptr, &device_), "vkCreateDevice");
     vkGetDeviceQueue(device_, family_, 0, &queue_);
     VkCommandPoolCreateInfo pool{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
@@ -258,7 +312,10 @@ Buffer Context::create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host
   check(vkCreateBuffer(device_, &create, nullptr, &b.buffer), "vkCreateBuffer");
   VkMemoryRequirements req;
   vkGetBufferMemoryRequirements(device_, b.buffer, &req);
+  VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+  flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
   VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  if (usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) alloc.pNext = &flags;
   alloc.allocationSize = req.size;
   try {
     alloc.memoryTypeIndex =
@@ -278,6 +335,38 @@ Buffer Context::create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host
     throw;
   }
   return b;
+}
+
+VkDeviceAddress Context::address(const Buffer& b) const {
+  VkBufferDeviceAddressInfo info{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+  info.buffer = b.buffer;
+  return vkGetBufferDeviceAddress(device_, &info);
+}
+
+Buffer Context::upload(const void* data, uint64_t bytes, VkBufferUsageFlags usage) {
+  const uint64_t size = std::max<uint64_t>((bytes + 3) / 4 * 4, 4);
+  Buffer staging = create_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  Buffer out;
+  try {
+    std::memset(staging.mapped, 0, size);
+    if (bytes > 0) std::memcpy(staging.mapped, data, bytes);
+    out = create_buffer(size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+    submit([&](VkCommandBuffer cmd) {
+      const VkBufferCopy region{0, 0, size};
+      vkCmdCopyBuffer(cmd, staging.buffer, out.buffer, 1, &region);
+      VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+      barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+      barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                           0, 1, &barrier, 0, nullptr, 0, nullptr);
+    });
+  } catch (...) {
+    destroy(staging);
+    destroy(out);
+    throw;
+  }
+  destroy(staging);
+  return out;
 }
 
 void Context::destroy(Buffer& b) {

@@ -6,9 +6,12 @@
 
 #include <vulkan/vulkan.h>
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "core/error.hpp"
 
 namespace linebake::vk {
 
@@ -18,6 +21,15 @@ void check(VkResult result, const char* what);
 struct ContextOptions {
   std::string device;       // substring of the device name; "" picks a discrete GPU, else any
   bool validation = false;  // enable VK_LAYER_KHRONOS_validation (must be installed)
+  // Enable VK_KHR_acceleration_structure + VK_KHR_ray_tracing_pipeline and buffer device
+  // addresses; the Context throws RayTracingUnsupported on a device without them.
+  bool ray_tracing = false;
+};
+
+// The chosen device cannot ray trace (lavapipe, older GPUs): the message is the one line users see.
+class RayTracingUnsupported : public Error {
+ public:
+  using Error::Error;
 };
 
 struct DeviceInfo {
@@ -26,7 +38,11 @@ struct DeviceInfo {
   uint32_t api_version = 0;
   bool fragment_shader_interlock = false;
   bool ray_tracing = false;  // VK_KHR_ray_tracing_pipeline + VK_KHR_acceleration_structure
+  std::array<uint8_t, 16> driver_uuid{};  // VkPhysicalDeviceIDProperties::driverUUID
 };
+
+// "0123abcd..." (32 hex digits).
+std::string to_hex(const std::array<uint8_t, 16>& uuid);
 
 // Names every Vulkan device the loader sees (for `--device` and error messages).
 std::vector<DeviceInfo> list_devices();
@@ -59,6 +75,14 @@ class Context {
   // Host-visible, coherent buffers: simple and enough for lavapipe and for readbacks; device-
   // local ones for the large per-frame arrays on GPUs.
   Buffer create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host_visible);
+  // With ray tracing enabled: the buffer's device address (it needs
+  // VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT; create_buffer allocates such buffers with the
+  // device-address flag).
+  VkDeviceAddress address(const Buffer& buffer) const;
+  // A device-local buffer holding `bytes` of `data` (through a staging buffer; usage gains
+  // TRANSFER_DST). Sizes round up to 4 bytes.
+  Buffer upload(const void* data, uint64_t bytes, VkBufferUsageFlags usage);
+  bool ray_tracing() const { return ray_tracing_; }
   void destroy(Buffer& buffer);
   uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags properties) const;
 
@@ -89,6 +113,7 @@ class Context {
   uint32_t family_ = 0;
   double timestamp_period_ns_ = 1;
   bool timestamps_ = false;
+  bool ray_tracing_ = false;
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
   std::string last_validation_error_;

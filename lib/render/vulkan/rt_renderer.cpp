@@ -1,0 +1,323 @@
+#include "render/vulkan/rt_renderer.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstring>
+
+#include "core/error.hpp"
+#include "core/measure.hpp"
+#include "render/vulkan/rt_functions.hpp"
+#include "render/vulkan/shaders.hpp"
+#include "render/vulkan/transfer_table.hpp"
+
+namespace linebake::vk {
+namespace {
+
+// std140 mirror of RtUniforms in shaders/rtx_common.glsl.
+struct RtUniforms {
+  float eye[4], forward[4], right[4], up[4];
+  float shading[4], background[4], ranges[4];
+  uint32_t size[4], tf_counts[4];
+  float params[4];
+  float colours[kMaxTfPoints][4];
+  float opacities[kMaxTfPoints][4];
+};
+
+// Binding 0 the TLAS, 1 uniforms, 2 chunk table, 3 output, 4 hit counts, 5 counters.
+constexpr uint32_t kBindings = 6;
+constexpr VkShaderStageFlags kHitStages =
+    VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR;
+
+uint64_t align_up(uint64_t value, uint64_t alignment) {
+  return alignment > 1 ? (value + alignment - 1) / alignment * alignment : value;
+}
+
+}  // namespace
+
+struct RtRenderer::State {
+  Context& ctx;
+  RtFunctions fn;
+  VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  VkQueryPool queries = VK_NULL_HANDLE;
+  Buffer uniforms, output, hits, counters, sbt;
+  VkStridedDeviceAddressRegionKHR raygen{}, miss{}, hit{}, callable{};
+  int width = 0, height = 0;
+
+  explicit State(Context& c) : ctx(c), fn(RtFunctions::load(c.device())) {}
+
+  ~State() {
+    VkDevice d = ctx.device();
+    vkDeviceWaitIdle(d);
+    for (Buffer* b : {&uniforms, &output, &hits, &counters, &sbt}) ctx.destroy(*b);
+    if (queries) vkDestroyQueryPool(d, queries, nullptr);
+    if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
+    if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
+    if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
+    if (set_layout) vkDestroyDescriptorSetLayout(d, set_layout, nullptr);
+  }
+
+  void create_layout() {
+    VkDevice d = ctx.device();
+    std::array<VkDescriptorSetLayoutBinding, kBindings> b{};
+    const VkDescriptorType types[kBindings] = {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR,
+                                               VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+    const VkShaderStageFlags stages[kBindings] = {
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR,
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR | kHitStages | VK_SHADER_STAGE_MISS_BIT_KHR,
+        kHitStages,
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR,
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR,
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR};
+    for (uint32_t i = 0; i < kBindings; ++i) {
+      b[i].binding = i;
+      b[i].descriptorType = types[i];
+      b[i].descriptorCount = 1;
+      b[i].stageFlags = stages[i];
+    }
+    VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    info.bindingCount = kBindings;
+    info.pBindings = b.data();
+    check(vkCreateDescriptorSetLayout(d, &info, nullptr, &set_layout), "descriptor set layout");
+    VkPipelineLayoutCreateInfo pl{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pl.setLayoutCount = 1;
+    pl.pSetLayouts = &set_layout;
+    check(vkCreatePipelineLayout(d, &pl, nullptr, &layout), "pipeline layout");
+    const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1},
+                                          {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+                                          {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4}};
+    VkDescriptorPoolCreateInfo p{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    p.maxSets = 1;
+    p.poolSizeCount = 3;
+    p.pPoolSizes = sizes;
+    check(vkCreateDescriptorPool(d, &p, nullptr, &pool), "descriptor pool");
+    VkDescriptorSetAllocateInfo a{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    a.descriptorPool = pool;
+    a.descriptorSetCount = 1;
+    a.pSetLayouts = &set_layout;
+    check(vkAllocateDescriptorSets(d, &a, &set), "descriptor set");
+  }
+
+  void create_pipeline() {
+    VkDevice d = ctx.device();
+    const char* names[] = {"rtx.rgen", "rtx.rmiss", "rtx_triangles.rchit", "rtx_capsules.rint",
+                           "rtx_capsules.rchit"};
+    const VkShaderStageFlagBits kinds[] = {
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR, VK_SHADER_STAGE_MISS_BIT_KHR,
+        VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, VK_SHADER_STAGE_INTERSECTION_BIT_KHR,
+        VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR};
+    std::array<VkPipelineShaderStageCreateInfo, 5> stages{};
+    for (size_t i = 0; i < stages.size(); ++i) {
+      stages[i] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+      stages[i].stage = kinds[i];
+      stages[i].module = create_shader_module(d, names[i]);
+      stages[i].pName = "main";
+    }
+    // Groups: 0 ray generation, 1 miss, 2 triangles hit group, 3 capsules hit group.
+    std::array<VkRayTracingShaderGroupCreateInfoKHR, 4> groups{};
+    for (auto& g : groups) {
+      g = {VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
+      g.generalShader = g.closestHitShader = g.anyHitShader = g.intersectionShader =
+          VK_SHADER_UNUSED_KHR;
+    }
+    groups[0].type = groups[1].type = VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR;
+    groups[0].generalShader = 0;
+    groups[1].generalShader = 1;
+    groups[2].type = VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR;
+    groups[2].closestHitShader = 2;
+    groups[3].type = VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR;
+    groups[3].intersectionShader = 3;
+    groups[3].closestHitShader = 4;
+    VkRayTracingPipelineCreateInfoKHR create{
+        VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR};
+    create.stageCount = uint32_t(stages.size());
+    create.pStages = stages.data();
+    create.groupCount = uint32_t(groups.size());
+    create.pGroups = groups.data();
+    create.maxPipelineRayRecursionDepth = 1;  // only the ray generation shader traces
+    create.layout = layout;
+    const VkResult made =
+        fn.create_pipelines(d, VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &create, nullptr, &pipeline);
+    for (auto& s : stages) vkDestroyShaderModule(d, s.module, nullptr);
+    check(made, "vkCreateRayTracingPipelinesKHR");
+    create_binding_table(uint32_t(groups.size()));
+  }
+
+  // The shader binding table: ray generation, miss, then the two hit groups (an instance's
+  // record offset picks one).
+  void create_binding_table(uint32_t group_count) {
+    VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR};
+    VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &rt};
+    vkGetPhysicalDeviceProperties2(ctx.physical_device(), &props);
+    const uint64_t handle = rt.shaderGroupHandleSize;
+    const uint64_t stride = align_up(handle, rt.shaderGroupHandleAlignment);
+    const uint64_t base = std::max<uint64_t>(rt.shaderGroupBaseAlignment, 1);
+    std::vector<uint8_t> handles(group_count * handle);
+    check(fn.get_group_handles(ctx.device(), pipeline, 0, group_count, handles.size(),
+                               handles.data()),
+          "vkGetRayTracingShaderGroupHandlesKHR");
+    const uint64_t raygen_size = align_up(stride, base), miss_size = align_up(stride, base);
+    const uint64_t hit_size = align_up(2 * stride, base);
+    std::vector<uint8_t> table(raygen_size + miss_size + hit_size + base, 0);
+    sbt = ctx.create_buffer(
+        table.size(),
+        VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT,
+        true);
+    const VkDeviceAddress address = ctx.address(sbt);
+    const VkDeviceAddress start = align_up(address, base);
+    auto* bytes = static_cast<uint8_t*>(sbt.mapped) + (start - address);
+    std::memcpy(bytes, &handles[0], handle);
+    std::memcpy(bytes + raygen_size, &handles[handle], handle);
+    std::memcpy(bytes + raygen_size + miss_size, &handles[2 * handle], handle);
+    std::memcpy(bytes + raygen_size + miss_size + stride, &handles[3 * handle], handle);
+    raygen = {start, raygen_size, raygen_size};
+    miss = {start + raygen_size, stride, miss_size};
+    hit = {start + raygen_size + miss_size, stride, hit_size};
+    callable = {0, 0, 0};
+  }
+
+  void resize(int w, int h) {
+    if (w == width && h == height) return;
+    vkDeviceWaitIdle(ctx.device());
+    ctx.destroy(output);
+    ctx.destroy(hits);
+    const uint64_t pixels = uint64_t(w) * uint64_t(h);
+    output = ctx.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    hits = ctx.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    width = w, height = h;
+  }
+
+  void write_descriptors(const RtScene& scene) {
+    VkAccelerationStructureKHR tlas = scene.tlas();
+    VkWriteDescriptorSetAccelerationStructureKHR as{
+        VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+    as.accelerationStructureCount = 1;
+    as.pAccelerationStructures = &tlas;
+    const Buffer* buffers[kBindings] = {nullptr, &uniforms, &scene.chunk_table(),
+                                        &output, &hits,     &counters};
+    std::array<VkDescriptorBufferInfo, kBindings> infos{};
+    std::array<VkWriteDescriptorSet, kBindings> writes{};
+    for (uint32_t i = 0; i < kBindings; ++i) {
+      writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      writes[i].dstSet = set;
+      writes[i].dstBinding = i;
+      writes[i].descriptorCount = 1;
+      if (i == 0) {
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+        writes[i].pNext = &as;
+        continue;
+      }
+      infos[i] = {buffers[i]->buffer, 0, VK_WHOLE_SIZE};
+      writes[i].descriptorType =
+          i == 1 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      writes[i].pBufferInfo = &infos[i];
+    }
+    vkUpdateDescriptorSets(ctx.device(), kBindings, writes.data(), 0, nullptr);
+  }
+};
+
+RtRenderer::RtRenderer(Context& context) : state_(std::make_unique<State>(context)) {
+  State& s = *state_;
+  if (!context.ray_tracing())
+    throw Error("rtx: the Vulkan context was created without ray tracing");
+  s.uniforms = context.create_buffer(sizeof(RtUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  s.counters = context.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  s.create_layout();
+  s.create_pipeline();
+  if (context.timestamps()) {
+    VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    q.queryCount = 2;
+    check(vkCreateQueryPool(context.device(), &q, nullptr, &s.queries), "query pool");
+  }
+}
+
+RtRenderer::~RtRenderer() = default;
+
+RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
+                           const TransferFunction& tf_in, const RtOptions& o) {
+  if (o.width < 1 || o.height < 1) throw Error("rtx: empty image size");
+  if (!scene.built()) throw Error("rtx: the scene has no acceleration structure yet");
+  if (o.max_iterations < 1) throw Error("rtx: at least one trace per pixel");
+  const auto start = std::chrono::steady_clock::now();
+  State& s = *state_;
+  s.resize(o.width, o.height);
+  s.write_descriptors(scene);
+  TransferFunction tf = tf_in;
+  const auto range = scene.attribute_range();
+  if (tf.range[0] == 0 && tf.range[1] == 0) tf.range = {double(range[0]), double(range[1])};
+  RtUniforms u{};
+  const Camera::ImagePlane plane = camera.image_plane(o.width, o.height);
+  for (int k = 0; k < 3; ++k) {
+    u.eye[k] = float(camera.eye[k]);
+    u.forward[k] = float(plane.forward[k]);
+    u.right[k] = float(plane.right[k]);
+    u.up[k] = float(plane.up[k]);
+    u.background[k] = float(o.shading.background[size_t(k)]);
+  }
+  u.shading[0] = float(o.shading.ambient), u.shading[1] = float(o.shading.diffuse);
+  u.shading[2] = float(o.shading.specular), u.shading[3] = float(o.shading.shininess);
+  u.ranges[0] = range[0], u.ranges[1] = range[1];
+  u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
+  u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
+  u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = o.max_iterations;
+  u.params[0] = float(o.termination_alpha), u.params[1] = scene.capsule_radius();
+  write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
+  std::memcpy(s.uniforms.mapped, &u, sizeof u);
+  std::memset(s.counters.mapped, 0, 16);
+  s.ctx.submit([&](VkCommandBuffer cmd) {
+    if (s.queries) {
+      vkCmdResetQueryPool(cmd, s.queries, 0, 2);
+      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, s.pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, s.layout, 0, 1, &s.set, 0,
+                            nullptr);
+    s.fn.cmd_trace_rays(cmd, &s.raygen, &s.miss, &s.hit, &s.callable, uint32_t(o.width),
+                        uint32_t(o.height), 1);
+    if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
+    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR,
+                         VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0, nullptr, 0, nullptr);
+  });
+  RtFrame frame;
+  if (s.queries) {
+    uint64_t ticks[2] = {};
+    if (vkGetQueryPoolResults(s.ctx.device(), s.queries, 0, 2, sizeof ticks, ticks, 8,
+                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
+      frame.stats.gpu_ms = double(ticks[1] - ticks[0]) * s.ctx.timestamp_period_ns() * 1e-6;
+  }
+  const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
+  frame.image = Image(o.width, o.height, 3);
+  frame.alpha.resize(pixels);
+  frame.depth_complexity.resize(pixels);
+  const auto* rgba = static_cast<const float*>(s.output.mapped);
+  const auto* counts = static_cast<const uint32_t*>(s.hits.mapped);
+  for (uint64_t p = 0; p < pixels; ++p) {
+    for (uint64_t k = 0; k < 3; ++k) frame.image.pixels[3 * p + k] = rgba[4 * p + k];
+    frame.alpha[p] = rgba[4 * p + 3];
+    frame.depth_complexity[p] = counts[p];
+    frame.stats.hits += counts[p];
+    frame.stats.max_depth_complexity = std::max(frame.stats.max_depth_complexity, counts[p]);
+  }
+  const auto* c = static_cast<const uint32_t*>(s.counters.mapped);
+  frame.stats.back_hits = c[0];
+  frame.stats.truncated_pixels = c[1];
+  frame.stats.traces = c[2];
+  frame.stats.frame_bytes = pixels * (16 + 4);
+  frame.stats.seconds = seconds_since(start);
+  return frame;
+}
+
+}  // namespace linebake::vk

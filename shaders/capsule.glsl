@@ -1,0 +1,110 @@
+// Capsule-chain crossings in float32: the port of intersect_capsule() in
+// lib/accel/capsule_chain.cpp (the union surface of a line's capsules; a joint sphere belongs to
+// the segment it ends). Shared by rtx_capsules.rint and the lavapipe test shader capsule_test.comp,
+// which checks it against the CPU code.
+
+struct CapsuleSegment {
+  vec3 before;  // the previous segment's first point (flags & 1)
+  vec3 p0, p1;
+  vec3 after;   // the next segment's last point (flags & 2)
+  float radius;
+  uint flags;
+};
+
+float capsule_distance_to_segment(vec3 x, vec3 a, vec3 b) {
+  const vec3 axis = b - a;
+  const float length2 = dot(axis, axis);
+  const float h = length2 > 0.0 ? clamp(dot(x - a, axis) / length2, 0.0, 1.0) : 0.0;
+  return length(x - (a + h * axis));
+}
+
+// Real roots of a t^2 + b t + c, ascending (the cancellation-free form); returns the count.
+int capsule_solve_quadratic(float a, float b, float c, out float r0, out float r1) {
+  r0 = 0.0;
+  r1 = 0.0;
+  const float discriminant = b * b - 4.0 * a * c;
+  if (a == 0.0 || discriminant < 0.0) return 0;
+  const float q = -0.5 * (b + (b >= 0.0 ? sqrt(discriminant) : -sqrt(discriminant)));
+  r0 = q / a;
+  r1 = q != 0.0 ? c / q : r0;
+  if (r0 > r1) {
+    const float s = r0;
+    r0 = r1;
+    r1 = s;
+  }
+  return 2;
+}
+
+// Crossings of origin + t direction (unit direction) with the surface `s` owns, nearest first:
+// t, the unit outward normal, and the position along the segment u in [0, 1].
+int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t[4],
+                      out vec3 normal[4], out float u[4]) {
+  int count = 0;
+  for (int k = 0; k < 4; ++k) {
+    t[k] = 0.0;
+    normal[k] = vec3(0.0);
+    u[k] = 0.0;
+  }
+  const float r = s.radius;
+  const float inside = r * (1.0 - 1e-6);
+  const vec3 axis_vector = s.p1 - s.p0;
+  const float len = length(axis_vector);
+  const vec3 axis = len > 0.0 ? axis_vector / len : vec3(0.0);
+  float candidate_t[4];
+  vec3 candidate_n[4];
+  int candidates = 0;
+  float r0, r1;
+  // The cylinder between the end planes.
+  if (len > 0.0) {
+    const vec3 w = origin - s.p0;
+    const vec3 d_perp = direction - dot(direction, axis) * axis;
+    const vec3 w_perp = w - dot(w, axis) * axis;
+    const int n = capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
+                                          dot(w_perp, w_perp) - r * r, r0, r1);
+    for (int k = 0; k < n; ++k) {
+      const float root = k == 0 ? r0 : r1;
+      const float h = dot(w + root * direction, axis);
+      if (h >= 0.0 && h <= len) {
+        candidate_t[candidates] = root;
+        candidate_n[candidates] = w_perp + root * d_perp;
+        ++candidates;
+      }
+    }
+  }
+  // The end sphere beyond p1; the start sphere only on a line's first segment.
+  for (int end = 0; end < 2; ++end) {
+    if (end == 1 && (s.flags & 1u) != 0u) break;
+    const vec3 centre = end == 0 ? s.p1 : s.p0;
+    const vec3 w = origin - centre;
+    const int n = capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
+                                          dot(w, w) - r * r, r0, r1);
+    for (int k = 0; k < n; ++k) {
+      const float root = k == 0 ? r0 : r1;
+      const vec3 x = origin + root * direction;
+      const float h = dot(x - s.p0, axis);
+      if (end == 0 ? h > len : h < 0.0) {
+        candidate_t[candidates] = root;
+        candidate_n[candidates] = x - centre;
+        ++candidates;
+      }
+    }
+  }
+  // Keep crossings outside the neighbours' capsules, in distance order.
+  for (int k = 0; k < candidates; ++k) {
+    const vec3 x = origin + candidate_t[k] * direction;
+    if ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) continue;
+    if ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside) continue;
+    int at = count;
+    while (at > 0 && t[at - 1] > candidate_t[k]) {
+      t[at] = t[at - 1];
+      normal[at] = normal[at - 1];
+      u[at] = u[at - 1];
+      --at;
+    }
+    t[at] = candidate_t[k];
+    normal[at] = normalize(candidate_n[k]);
+    u[at] = len > 0.0 ? clamp(dot(x - s.p0, axis) / len, 0.0, 1.0) : 0.0;
+    ++count;
+  }
+  return count;
+}
