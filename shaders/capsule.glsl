@@ -46,7 +46,9 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     u[k] = 0.0;
   }
   const float r = s.radius;
-  const float inside = r * (1.0 - 1e-6);
+  // Inside a neighbour by more than the float error of the hit point (relative error about
+  // 2^-23 of the ray's extent); the CPU code, in double, uses r (1 - 1e-6).
+  const float extent = length(origin - s.p0);
   const vec3 axis_vector = s.p1 - s.p0;
   const float len = length(axis_vector);
   const vec3 axis = len > 0.0 ? axis_vector / len : vec3(0.0);
@@ -92,6 +94,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
   // Keep crossings outside the neighbours' capsules, in distance order.
   for (int k = 0; k < candidates; ++k) {
     const vec3 x = origin + candidate_t[k] * direction;
+    const float inside = r * (1.0 - 1e-6) - 8.0 * 1.1920929e-7 * (extent + abs(candidate_t[k]));
     if ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) continue;
     if ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside) continue;
     int at = count;

@@ -27,7 +27,8 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(CLI::IsMember({"reject", "repair"}));
-  sub->add_option("--assets", o.assets, "Assets to build: tubes, voxels, embree (default: tubes)")
+  sub->add_option("--assets", o.assets,
+                  "Assets to build: tubes, voxels, embree, rtx (default: tubes)")
       ->delimiter(',');
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
@@ -68,6 +69,16 @@ Command add_bake(CLI::App& app) {
       ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_flag("--embree-compact", o.embree.compact, "Embree: RTC_SCENE_FLAG_COMPACT");
   sub->add_flag("--embree-robust", o.embree.robust, "Embree: RTC_SCENE_FLAG_ROBUST");
+  sub->add_option("--rtx-geometry", o.rtx.geometry,
+                  "rtx: BLAS over the tube mesh's triangles (default) or capsule AABBs")
+      ->check(CLI::IsMember({"triangles", "capsules"}));
+  sub->add_flag(
+      "--rtx-no-compaction", [&o](int64_t) { o.rtx.compaction = false; },
+      "rtx: keep the BLAS as built (default: compacted)");
+  sub->add_option("--device", o.rtx.device,
+                  "rtx: Vulkan device, part of its name (default: a discrete GPU)");
+  sub->add_flag("--validation", o.rtx.validation,
+                "rtx: Khronos validation layer on; validation errors fail the bake");
   sub->add_option("--compression", args->compression, "none | deflate | lz4 (default) | blosc-zstd")
       ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
   sub->add_option("--compression-level", o.compression_level,

@@ -7,10 +7,12 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "accel/capsule_segments.hpp"
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
 #include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
+#include "cache/rtx_store.hpp"
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
 #include "commands.hpp"
@@ -18,9 +20,12 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
+#include "pipeline/bake.hpp"
 #include "render/ray_tracer.hpp"
 #include "render/voxel_ray_caster.hpp"
 #include "render/vulkan/raster_renderer.hpp"
+#include "render/vulkan/rt_renderer.hpp"
+#include "render/vulkan/rt_scene.hpp"
 #include "render/vulkan/voxel_caster.hpp"
 #include "tubes/tube_builder.hpp"
 
@@ -245,6 +250,137 @@ void render_vrc(const Args& args, const CacheReader& cache, const TransferFuncti
   if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
 }
 
+// Vulkan ray tracing. The BLAS come from the cache's /assets/rtx when they were serialised on this
+// driver from the same geometry; otherwise (or with --rebuild) they are built here, and the stats
+// say which and why.
+template <class Args>
+void render_rtx(const Args& args, const CacheReader& cache, const TransferFunction& tf, int width,
+                int height) {
+  vk::ContextOptions context_options;
+  context_options.device = args.device;
+  context_options.validation = args.validation;
+  context_options.ray_tracing = true;
+  std::optional<vk::Context> context;
+  try {
+    context.emplace(context_options);
+  } catch (const vk::RayTracingUnsupported& e) {
+    throw vk::RayTracingUnsupported(std::string("rtx: ") + e.what());
+  }
+  // The geometry: the flag, else what the cache's BLAS were built over, else triangles.
+  std::optional<StoredRtx> stored;
+  if (cache.exists(kRtxGroup)) stored = load_rtx(cache);
+  const std::string geometry = !args.rt_geometry.empty() ? args.rt_geometry
+                               : stored                  ? stored->geometry
+                                                         : "triangles";
+  const bool has_tubes = cache.exists("/assets/tubes");
+  const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
+  TubeMesh tubes;
+  CapsuleSegments capsules;
+  LineSet lines;
+  std::optional<vk::RtScene> scene;
+  std::string source;
+  Bounds bounds;
+  if (geometry == "triangles") {
+    if (!has_tubes)
+      throw Error(args.cache +
+                  ": rtx traces the tube mesh's triangles; bake --assets tubes first "
+                  "(or --rt-geometry capsules)");
+    tubes = load_tubes(cache);
+    bounds = compute_bounds(tubes);
+    scene.emplace(*context, tubes);
+    source = tube_provenance ? tube_provenance->key : "";
+  } else {
+    lines = load_lines(cache);
+    float radius = args.radius;
+    if (!(radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
+      radius = tube_provenance->stats["radius_world"].template get<float>();
+    if (!(radius > 0)) radius = TubeOptions{}.radius * compute_bounds(lines).diagonal();
+    std::string attribute = args.attribute;
+    if (attribute.empty())
+      attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
+                                  : (lines.attributes.empty() ? "" : lines.attributes[0].name);
+    capsules = build_capsule_segments(lines, radius, attribute);
+    bounds = compute_bounds(lines);
+    for (size_t k = 0; k < 3; ++k) bounds.min[k] -= radius, bounds.max[k] += radius;
+    scene.emplace(*context, capsules);
+    const auto lines_provenance = cache.provenance("/lines");
+    source = rtx_capsules_source(
+        lines_provenance ? lines_provenance->stats.value("content_hash", "") : "", radius,
+        attribute);
+  }
+  // Cached BLAS, else a build.
+  std::string rebuild_reason;
+  if (args.rebuild)
+    rebuild_reason = "--rebuild";
+  else if (!stored)
+    rebuild_reason = "the cache has no serialised BLAS (bake --assets rtx)";
+  else if (stored->geometry != geometry)
+    rebuild_reason = "the cached BLAS are over " + stored->geometry + ", not " + geometry;
+  else if (stored->source != source)
+    rebuild_reason = "the cached BLAS were built from other " +
+                     std::string(geometry == "triangles" ? "tubes" : "capsules");
+  else if (auto problem = scene->load(stored->blobs))
+    rebuild_reason = *problem;
+  if (!rebuild_reason.empty()) {
+    if (stored && !args.rebuild)
+      std::cerr << "linebake: rtx: cached BLAS not used (" << rebuild_reason << "); rebuilding\n";
+    scene->build(!args.no_compaction);
+  }
+  vk::RtRenderer renderer(*context);
+  vk::RtOptions o;
+  o.width = width, o.height = height;
+  o.early_termination = args.early;
+  o.max_iterations = uint32_t(args.max_iterations);
+  const FlightPlan plan =
+      plan_flight(args.flight, args.frame_count, args.frame, args.frames, bounds, width, height);
+  const bool numbered = plan.frames.size() > 1;
+  nlohmann::json stats = {{"technique", "rtx"},
+                          {"device", context->info().name},
+                          {"driver", context->info().driver},
+                          {"transfer_function", tf.name},
+                          {"flight", to_string(plan.kind)},
+                          {"acceleration_structures", vk::to_json(scene->figures())},
+                          {"blas_source", rebuild_reason.empty() ? "cache" : "built"},
+                          {"rebuild_reason", rebuild_reason},
+                          {"early_termination", o.early_termination},
+                          {"max_iterations", o.max_iterations},
+                          {"frames", nlohmann::json::array()}};
+  TerminalProgress progress("render");
+  for (size_t i = 0; i < plan.frames.size(); ++i) {
+    const Camera& c = plan.cameras[size_t(plan.frames[i])];
+    const vk::RtFrame frame = renderer.render(*scene, c, tf, o);
+    if (context->validation_errors() > 0)
+      throw Error("Vulkan validation: " + std::to_string(context->validation_errors()) +
+                  " error(s); last: " + context->last_validation_error());
+    write_image(frame.image, frame_path(args.output, plan.frames[i], numbered), args.png_bits);
+    if (!args.depth_image.empty())
+      write_png_counts(frame.depth_complexity, width, height,
+                       frame_path(args.depth_image, plan.frames[i], numbered));
+    const vk::RtStats& s = frame.stats;
+    stats["frames"].push_back({{"frame", plan.frames[i]},
+                               {"seconds", s.seconds},
+                               {"gpu_ms", s.gpu_ms},
+                               {"size", {width, height}},
+                               {"camera",
+                                {{"eye", {c.eye.x, c.eye.y, c.eye.z}},
+                                 {"target", {c.target.x, c.target.y, c.target.z}},
+                                 {"fov", c.fov_y_degrees}}},
+                               {"hits", s.hits},
+                               {"back_hits", s.back_hits},
+                               {"traces", s.traces},
+                               {"truncated_pixels", s.truncated_pixels},
+                               {"depth_complexity", {{"max", s.max_depth_complexity}}},
+                               {"frame_bytes", s.frame_bytes}});
+    if (s.truncated_pixels > 0)
+      std::cerr << "linebake: rtx: frame " << plan.frames[i] << ": " << s.truncated_pixels
+                << " pixels stopped at --max-iterations " << o.max_iterations << "\n";
+    progress.update(i + 1, plan.frames.size());
+    if (!TerminalProgress::enabled())
+      std::cerr << "frame " << plan.frames[i] << ": " << s.seconds << " s (GPU " << s.gpu_ms
+                << " ms)\n";
+  }
+  if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
+}
 }  // namespace
 
 Command add_render(CLI::App& app) {
@@ -256,6 +392,9 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device, on = "cpu";
     bool no_early_termination = false, no_skip = false;
+    std::string rt_geometry;
+    bool rebuild = false, no_compaction = false;
+    int max_iterations = 1024;
     uint64_t capacity = 0;
     bool validation = false, no_interlock = false;
     int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
@@ -282,6 +421,16 @@ Command add_render(CLI::App& app) {
                 "vrc: composite every hit (default: stop at opacity 0.99, as the paper's VRC)");
   sub->add_flag("--no-skip", args->no_skip,
                 "vrc: walk every voxel (default: skip cells empty in the occupancy mips)");
+  sub->add_option("--rt-geometry", args->rt_geometry,
+                  "rtx: triangles (the tube mesh, default) | capsules (AABBs with an analytic "
+                  "intersection shader); default: what the cached BLAS were built over")
+      ->check(CLI::IsMember({"triangles", "capsules"}));
+  sub->add_flag("--rebuild", args->rebuild,
+                "rtx: build the BLAS even if the cache holds serialised ones for this device");
+  sub->add_flag("--no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
+  sub->add_option("--max-iterations", args->max_iterations,
+                  "rtx: traces per pixel at most (default 1024); pixels that run out are counted")
+      ->check(CLI::Range(1, 1 << 20));
   sub->add_option("--sort", args->sort,
                   "ll: per-pixel sort insertion | shell | heap (default) | quick-hybrid")
       ->check(CLI::IsMember({"insertion", "shell", "heap", "quick-hybrid"}));
@@ -356,20 +505,19 @@ Command add_render(CLI::App& app) {
     const auto [width, height] = parse_size(args->size);
     const bool reference = args->technique == "reference";
     if (args->early && args->technique != "embree" && args->technique != "ll" &&
-        args->technique != "vrc")
-      throw Error("--early-termination: only embree, ll and vrc stop early (" + args->technique +
-                  " does not)");
+        args->technique != "vrc" && args->technique != "rtx")
+      throw Error("--early-termination: only embree, ll, vrc and rtx stop early (" +
+                  args->technique + " does not)");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
+    const bool rtx_flags = !args->rt_geometry.empty() || args->rebuild || args->no_compaction ||
+                           args->max_iterations != 1024;
+    if (rtx_flags && args->technique != "rtx")
+      throw Error("--rt-geometry, --rebuild, --no-compaction, --max-iterations: rtx options (not " +
+                  args->technique + ")");
     if (args->technique == "rtx") {
-      vk::ContextOptions context_options;
-      context_options.device = args->device;
-      const vk::Context context(context_options);
-      if (!context.info().ray_tracing)
-        throw Error("rtx: ray tracing is not supported on this device (" + context.info().name +
-                    "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure");
-      throw Error("rtx: the Vulkan ray tracing path is not implemented yet (" +
-                  context.info().name + " supports it)");
+      render_rtx(*args, cache, tf, width, height);
+      return;
     }
     if (args->technique == "vrc") {
       render_vrc(*args, cache, tf, width, height);

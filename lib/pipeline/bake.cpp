@@ -4,12 +4,15 @@
 
 #include <filesystem>
 
+#include "accel/capsule_segments.hpp"
 #include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
+#include "cache/rtx_store.hpp"
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "render/vulkan/rt_scene.hpp"
 #include "synth/synth.hpp"
 
 namespace linebake {
@@ -20,6 +23,7 @@ constexpr uint64_t kLinesVersion = 1;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
 constexpr uint64_t kEmbreeVersion = 1;
+constexpr uint64_t kRtxVersion = 1;
 
 uint64_t threads() {
   return static_cast<uint64_t>(tbb::info::default_concurrency());
@@ -51,7 +55,7 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 }  // namespace
 
 const std::vector<std::string>& bakeable_assets() {
-  static const std::vector<std::string> assets{"tubes", "voxels", "embree"};
+  static const std::vector<std::string> assets{"tubes", "voxels", "embree", "rtx"};
   return assets;
 }
 
@@ -117,6 +121,15 @@ std::string embree_key(const std::string& lines_hash, const EmbreeOptions& e, co
                  to_string(compression), std::to_string(level)});
 }
 
+nlohmann::json to_json(const RtxOptions& r) {
+  return {{"geometry", r.geometry}, {"compaction", r.compaction}};
+}
+
+std::string rtx_capsules_source(const std::string& lines_hash, float radius,
+                                const std::string& attribute) {
+  return key_of({"capsules", lines_hash, std::to_string(radius), attribute});
+}
+
 // The attribute the tubes colour by, for the curves: "" = the first, "none" = none.
 static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
   if (t.attribute == "none") return "";
@@ -124,11 +137,92 @@ static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
   return lines.attributes.empty() ? "" : lines.attributes[0].name;
 }
 
-BakeResult bake(const BakeOptions& options) {
+// Builds the BLAS and TLAS on the ray tracing device, serialises the BLAS into `out` and the
+// figures into the provenance.
+static void build_rtx_step(vk::Context& context, const BakeOptions& options, const LineSet& lines,
+                           const std::string& lines_hash, const std::string& tubes_step_key,
+                           const TubeMesh& built_tubes, const CacheReader* old, StoredRtx& out,
+                           Provenance& p) {
+  std::optional<vk::RtScene> scene;
+  TubeMesh loaded_tubes;
+  CapsuleSegments capsules;
+  if (options.rtx.geometry == "triangles") {
+    const bool built_now =
+        std::find(options.assets.begin(), options.assets.end(), "tubes") != options.assets.end();
+    const TubeMesh* mesh = built_now && !built_tubes.chunks.empty() ? &built_tubes : nullptr;
+    if (!mesh && old) {
+      const auto previous = old->provenance("/assets/tubes");
+      if (previous && previous->key == tubes_step_key) {
+        loaded_tubes = load_tubes(*old);
+        mesh = &loaded_tubes;
+      }
+    }
+    if (!mesh)
+      throw Error(
+          "rtx: triangle BLAS are built over the tube mesh; bake --assets tubes,rtx (with the "
+          "same tube options)");
+    scene.emplace(context, *mesh);
+    out.source = tubes_step_key;
+  } else {
+    const float radius = world_radius(lines, options.tubes);
+    const std::string attribute = curve_attribute(lines, options.tubes);
+    capsules = build_capsule_segments(lines, radius, attribute);
+    scene.emplace(context, capsules);
+    out.source = rtx_capsules_source(lines_hash, radius, attribute);
+  }
+  scene->build(options.rtx.compaction);
+  out.blobs = scene->serialize();
+  out.geometry = options.rtx.geometry;
+  out.compaction = options.rtx.compaction;
+  const vk::DeviceInfo& device = context.info();
+  out.device = device.name;
+  out.driver = device.driver;
+  out.driver_uuid = vk::to_hex(device.driver_uuid);
+  const vk::RtBuildFigures& f = scene->figures();
+  p.stats = vk::to_json(f);
+  uint64_t serialized = 0;
+  for (const auto& blob : out.blobs) serialized += blob.size();
+  p.stats["serialized_bytes"] = serialized;
+  p.stats["device"] = device.name;
+  p.stats["driver"] = device.driver;
+  p.stats["driver_uuid"] = out.driver_uuid;
+  // What ray tracing keeps resident on the device: geometry, BLAS, TLAS and instances.
+  p.memory_bytes = f.resident_bytes();
+  if (context.validation_errors() > 0)
+    throw Error("Vulkan validation: " + std::to_string(context.validation_errors()) +
+                " error(s); last: " + context.last_validation_error());
+}
+
+BakeResult bake(const BakeOptions& options_in) {
+  BakeOptions options = options_in;
   for (const std::string& asset : options.assets)
     if (std::find(bakeable_assets().begin(), bakeable_assets().end(), asset) ==
         bakeable_assets().end())
-      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree)");
+      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree, rtx)");
+  // Build order: rtx needs the tubes of this run.
+  std::stable_sort(
+      options.assets.begin(), options.assets.end(), [](const std::string& a, const std::string& b) {
+        const auto& order = bakeable_assets();
+        return std::find(order.begin(), order.end(), a) < std::find(order.begin(), order.end(), b);
+      });
+  options.assets.erase(std::unique(options.assets.begin(), options.assets.end()),
+                       options.assets.end());
+  if (options.rtx.geometry != "triangles" && options.rtx.geometry != "capsules")
+    throw Error("rtx: unknown geometry '" + options.rtx.geometry + "' (triangles, capsules)");
+  // Ray tracing needs its device before anything is read: the BLAS belong to it (its driver UUID
+  // is part of the step's key), and a device without ray tracing fails here, in one line.
+  std::optional<vk::Context> rt_context;
+  if (std::find(options.assets.begin(), options.assets.end(), "rtx") != options.assets.end()) {
+    vk::ContextOptions co;
+    co.device = options.rtx.device;
+    co.validation = options.rtx.validation;
+    co.ray_tracing = true;
+    try {
+      rt_context.emplace(co);
+    } catch (const vk::RayTracingUnsupported& e) {
+      throw vk::RayTracingUnsupported(std::string("rtx: ") + e.what());
+    }
+  }
   BakeResult result;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
 
@@ -202,16 +296,24 @@ BakeResult bake(const BakeOptions& options) {
   TubeMesh tubes;
   VoxelGrid voxels;
   StoredCurves curves;
+  StoredRtx rtx;
   for (const std::string& asset : options.assets) {
     BakeStep step{asset, false, {}};
     const bool is_tubes = asset == "tubes", is_voxels = asset == "voxels";
-    const std::string key =
-        is_tubes
-            ? tubes_key(lines_hash, options.tubes, options.compression, options.compression_level)
-        : is_voxels
-            ? voxels_key(lines_hash, options.voxels, options.compression, options.compression_level)
-            : embree_key(lines_hash, options.embree, options.tubes, options.compression,
-                         options.compression_level);
+    const bool is_rtx = asset == "rtx";
+    const std::string tubes_step_key =
+        tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
+    std::string key = is_tubes    ? tubes_step_key
+                      : is_voxels ? voxels_key(lines_hash, options.voxels, options.compression,
+                                               options.compression_level)
+                                  : embree_key(lines_hash, options.embree, options.tubes,
+                                               options.compression, options.compression_level);
+    if (is_rtx) {
+      const vk::DeviceInfo& device = rt_context->info();
+      key = key_of({"rtx", std::to_string(kRtxVersion), tubes_step_key, to_json(options.rtx).dump(),
+                    device.name, vk::to_hex(device.driver_uuid), to_string(options.compression),
+                    std::to_string(options.compression_level)});
+    }
     const auto previous = old_provenance("/assets/" + asset);
     if (!options.force && previous && previous->key == key) {
       step.provenance = *previous;
@@ -226,6 +328,9 @@ BakeResult bake(const BakeOptions& options) {
       const ProgressFn callback = options.progress ? progress.callback() : ProgressFn{};
       if (is_tubes) {
         tubes = build_tubes(lines, options.tubes, callback);
+      } else if (is_rtx) {
+        build_rtx_step(*rt_context, options, lines, lines_hash, tubes_step_key, tubes, old.get(),
+                       rtx, p);
       } else if (is_voxels) {
         voxels = voxelize(lines, options.voxels, callback);
       } else {
@@ -263,6 +368,8 @@ BakeResult bake(const BakeOptions& options) {
       if (tubes.lines_dropped)
         result.notes.push_back("tubes: " + std::to_string(tubes.lines_dropped) +
                                " lines with fewer than two distinct points have no tube");
+    } else if (is_rtx) {
+      p.parameters = to_json(options.rtx);
     } else if (!is_voxels) {
       p.parameters = to_json(options.embree, options.tubes);
     } else {
@@ -313,6 +420,7 @@ BakeResult bake(const BakeOptions& options) {
     for (const BakeStep& s : asset_steps)
       if (s.built)
         total += s.step == "embree" ? s.provenance.stats.value("buffer_bytes", uint64_t{0})
+                 : s.step == "rtx"  ? s.provenance.stats.value("serialized_bytes", uint64_t{0})
                                     : s.provenance.memory_bytes;
     if (options.progress) writer.set_progress(progress.callback(), total);
     if (lines_step.built) {
@@ -327,6 +435,8 @@ BakeResult bake(const BakeOptions& options) {
         store_tubes(writer, tubes, s.provenance);
       else if (s.step == "voxels")
         store_voxels(writer, voxels, s.provenance);
+      else if (s.step == "rtx")
+        store_rtx(writer, rtx, s.provenance);
       else
         store_embree(writer, curves, s.provenance);
     }

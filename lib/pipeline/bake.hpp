@@ -17,16 +17,29 @@ namespace linebake {
 // Assets bake knows how to build, in build order.
 const std::vector<std::string>& bakeable_assets();
 
+// The Vulkan ray tracing asset: BLAS built on a device with ray tracing, serialised per device.
+struct RtxOptions {
+  std::string geometry = "triangles";  // triangles (over the tubes) | capsules (AABBs)
+  bool compaction = true;
+  std::string device;  // part of the device name; "" picks a discrete GPU
+  bool validation = false;
+};
+nlohmann::json to_json(const RtxOptions& rtx);
+// The source string of capsule BLAS (StoredRtx::source): lines, radius and attribute.
+std::string rtx_capsules_source(const std::string& lines_hash, float radius,
+                                const std::string& attribute);
+
 struct BakeOptions {
   std::string input;             // file or synth: source
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
   std::string cache;                         // output; default <input stem>.lbc.h5
-  std::vector<std::string> assets{"tubes"};  // and/or "voxels", "embree"
+  std::vector<std::string> assets{"tubes"};  // and/or "voxels", "embree", "rtx"
   TubeOptions tubes;
   VoxelOptions voxels;
   // Embree curves: radius and attribute follow `tubes` (the same tubes, ray traced).
   EmbreeOptions embree;
+  RtxOptions rtx;
   Compression compression = Compression::Lz4;
   int compression_level = -1;  // codec default
   bool force = false;          // rebuild every step

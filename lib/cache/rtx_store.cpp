@@ -1,0 +1,59 @@
+#include "cache/rtx_store.hpp"
+
+#include <cstdio>
+
+#include "core/error.hpp"
+
+namespace linebake {
+
+static std::string blas_dataset(size_t i) {
+  char name[32];
+  std::snprintf(name, sizeof name, "/blas_%06zu", i);
+  return std::string(kRtxGroup) + name;
+}
+
+void store_rtx(CacheWriter& cache, const StoredRtx& rtx, Provenance provenance) {
+  cache.create_group(kRtxGroup);
+  uint64_t disk = 0;
+  for (size_t i = 0; i < rtx.blobs.size(); ++i)
+    disk += cache.write(blas_dataset(i), rtx.blobs[i].data(), rtx.blobs[i].size());
+  const nlohmann::json description = {{"geometry", rtx.geometry}, {"compaction", rtx.compaction},
+                                      {"source", rtx.source},     {"device", rtx.device},
+                                      {"driver", rtx.driver},     {"driver_uuid", rtx.driver_uuid},
+                                      {"blas", rtx.blobs.size()}};
+  cache.write_attribute(kRtxGroup, "acceleration_structures", description.dump());
+  provenance.disk_bytes = disk;
+  cache.write_provenance(kRtxGroup, provenance);
+}
+
+StoredRtx load_rtx(const CacheReader& cache) {
+  const std::string where = std::string("group ") + kRtxGroup;
+  const auto text = cache.attribute(kRtxGroup, "acceleration_structures");
+  if (!text)
+    throw InputError(cache.path(), where,
+                     "no serialised acceleration structures in this cache (bake --assets rtx)");
+  StoredRtx r;
+  size_t count = 0;
+  try {
+    const auto j = nlohmann::json::parse(*text);
+    r.geometry = j.at("geometry").get<std::string>();
+    r.compaction = j.at("compaction").get<bool>();
+    r.source = j.at("source").get<std::string>();
+    r.device = j.at("device").get<std::string>();
+    r.driver = j.at("driver").get<std::string>();
+    r.driver_uuid = j.at("driver_uuid").get<std::string>();
+    count = j.at("blas").get<size_t>();
+  } catch (const std::exception& e) {
+    throw InputError(cache.path(), where,
+                     std::string("bad acceleration structure description: ") + e.what());
+  }
+  if (r.geometry != "triangles" && r.geometry != "capsules")
+    throw InputError(cache.path(), where, "unknown geometry '" + r.geometry + "'");
+  for (size_t i = 0; i < count; ++i) {
+    const Array<uint8_t> blob = cache.read<uint8_t>(blas_dataset(i));
+    r.blobs.emplace_back(blob.data(), blob.data() + blob.size());
+  }
+  return r;
+}
+
+}  // namespace linebake
