@@ -158,6 +158,9 @@ check "vrc stats: grid, radius, hits, occupancy levels" python3 -c "import json;
 check "vrc --no-skip gives the same image" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique vrc --no-skip --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/vrcns.png' && cmp '$tmp/vrcns.png' '$tmp/vrc.png'"
 check "--on is a vrc option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --on gpu --size 32x24 -o "$tmp/x.png"
 check "rtx on lavapipe: one clear line, exit 4" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique rtx --size 32x24 -o '$tmp/rtx.png' 2> '$tmp/rtx.err'; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/rtx.err') -eq 1 ] && grep -q 'not supported on this device' '$tmp/rtx.err' && [ ! -e '$tmp/rtx.png' ]"
+check "bake --assets rtx on lavapipe: one clear line, exit 4, the cache untouched" bash -c "cp '$tmp/t.lbc.h5' '$tmp/before.h5'; '$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,voxels,rtx 2> '$tmp/bakertx.err' > /dev/null; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/bakertx.err') -eq 1 ] && grep -q 'rtx: ray tracing is not supported on this device' '$tmp/bakertx.err' && cmp '$tmp/t.lbc.h5' '$tmp/before.h5'"
+check "--rt-geometry is an rtx option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
+check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"
