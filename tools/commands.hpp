@@ -26,5 +26,6 @@ Command add_export(CLI::App& app);
 Command add_render(CLI::App& app);
 Command add_compare(CLI::App& app);
 Command add_depth_complexity(CLI::App& app);
+Command add_run(CLI::App& app);
 
 }  // namespace linebake::cli

@@ -1,0 +1,20 @@
+#pragma once
+// The evaluation report of a pipeline run: Table 1 of every cache (pipeline/report.hpp) and, per
+// data set and transfer function, each technique's frame times and its PSNR / SSIM against the
+// reference along the flight, from the files the run's steps wrote. Markdown and JSON.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "pipeline/pipeline.hpp"
+
+namespace linebake {
+
+// `skipped`: step id -> reason for steps that did not run. Missing files of skipped steps are
+// reported as skipped; of other steps, as an Error naming the file.
+nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<PipelineStep>& steps,
+                               const nlohmann::json& machine);
+std::string evaluation_markdown(const Pipeline& pipeline, const nlohmann::json& evaluation);
+
+}  // namespace linebake

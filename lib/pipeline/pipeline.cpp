@@ -1,0 +1,281 @@
+#include "pipeline/pipeline.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "core/error.hpp"
+#include "core/hash.hpp"
+
+namespace linebake {
+namespace {
+
+// {"grid": 32, "early-termination": true, "assets": ["tubes", "voxels"]} -> --grid 32
+// --early-termination --assets tubes,voxels: a pipeline's options are the CLI's long options.
+std::vector<std::string> options_to_args(const nlohmann::json& options, const std::string& file,
+                                         const std::string& where) {
+  std::vector<std::string> args;
+  if (options.is_null()) return args;
+  if (!options.is_object()) throw InputError(file, where, "options must be an object");
+  for (const auto& [name, value] : options.items()) {
+    const std::string flag = "--" + name;
+    if (value.is_boolean()) {
+      if (value.get<bool>()) args.push_back(flag);
+    } else if (value.is_string()) {
+      args.insert(args.end(), {flag, value.get<std::string>()});
+    } else if (value.is_number_integer()) {
+      args.insert(args.end(), {flag, std::to_string(value.get<int64_t>())});
+    } else if (value.is_number()) {
+      char text[64];
+      std::snprintf(text, sizeof text, "%.17g", value.get<double>());
+      args.insert(args.end(), {flag, text});
+    } else if (value.is_array()) {
+      std::string joined;
+      for (const auto& v : value) {
+        if (!v.is_string() && !v.is_number())
+          throw InputError(file, where + "." + name, "list items must be strings or numbers");
+        joined += (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>() : v.dump());
+      }
+      args.insert(args.end(), {flag, joined});
+    } else {
+      throw InputError(file, where + "." + name, "must be a boolean, number, string or list");
+    }
+  }
+  return args;
+}
+
+std::string string_at(const nlohmann::json& j, const char* key, const std::string& fallback,
+                      const std::string& file, const std::string& where) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_string()) throw InputError(file, where + "." + key, "must be a string");
+  return j[key].get<std::string>();
+}
+
+bool safe_name(const std::string& name) {
+  if (name.empty() || name == "." || name == "..") return false;
+  for (char c : name)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
+      return false;
+  return true;
+}
+
+std::string key_of(const std::vector<std::string>& parts) {
+  Hasher h;
+  for (const std::string& p : parts) h.update(std::string_view(p));
+  return h.hex();
+}
+
+}  // namespace
+
+Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
+  if (!j.is_object()) throw InputError(file, "", "a pipeline is a JSON object");
+  static const std::set<std::string> known{
+      "name",   "output", "datasets", "assets",   "techniques", "transfer_functions",
+      "flight", "frames", "size",     "reference"};
+  for (const auto& [key, value] : j.items())
+    if (!known.count(key)) throw InputError(file, key, "unknown pipeline key");
+  Pipeline p;
+  p.file = file;
+  p.name = string_at(j, "name", std::filesystem::path(file).stem().string(), file, "");
+  p.output = string_at(j, "output", "out/" + p.name, file, "");
+  if (!j.contains("datasets") || !j["datasets"].is_array() || j["datasets"].empty())
+    throw InputError(file, "datasets", "a list of at least one {name, source} is needed");
+  const std::filesystem::path base = std::filesystem::path(file).parent_path();
+  std::set<std::string> names;
+  for (size_t i = 0; i < j["datasets"].size(); ++i) {
+    const auto& d = j["datasets"][i];
+    const std::string where = "datasets[" + std::to_string(i) + "]";
+    if (!d.is_object()) throw InputError(file, where, "must be an object {name, source}");
+    PipelineDataset ds;
+    ds.name = string_at(d, "name", "", file, where);
+    ds.source = string_at(d, "source", "", file, where);
+    if (!safe_name(ds.name))
+      throw InputError(file, where + ".name", "a name of letters, digits, '-', '_' or '.'");
+    if (ds.source.empty()) throw InputError(file, where + ".source", "missing");
+    if (!names.insert(ds.name).second)
+      throw InputError(file, where + ".name", "'" + ds.name + "' appears twice");
+    if (ds.source.rfind("synth:", 0) != 0 && std::filesystem::path(ds.source).is_relative())
+      ds.source = (base / ds.source).lexically_normal().string();
+    p.datasets.push_back(ds);
+  }
+  p.bake_options = options_to_args(j.value("assets", nlohmann::json()), file, "assets");
+  if (!j.contains("techniques") || !j["techniques"].is_array() || j["techniques"].empty())
+    throw InputError(file, "techniques", "a list of at least one technique is needed");
+  std::set<std::string> labels;
+  for (size_t i = 0; i < j["techniques"].size(); ++i) {
+    const auto& t = j["techniques"][i];
+    const std::string where = "techniques[" + std::to_string(i) + "]";
+    PipelineTechnique pt;
+    if (t.is_string()) {
+      pt.technique = t.get<std::string>();
+    } else if (t.is_object()) {
+      pt.technique = string_at(t, "technique", "", file, where);
+      pt.label = string_at(t, "label", "", file, where);
+      pt.options = options_to_args(t.value("options", nlohmann::json()), file, where + ".options");
+    } else {
+      throw InputError(file, where, "a technique name or {technique, label, options}");
+    }
+    if (pt.technique.empty()) throw InputError(file, where + ".technique", "missing");
+    if (pt.label.empty()) pt.label = pt.technique;
+    if (!safe_name(pt.label))
+      throw InputError(file, where + ".label", "a name of letters, digits, '-', '_' or '.'");
+    if (!labels.insert(pt.label).second)
+      throw InputError(file, where, "label '" + pt.label + "' appears twice; give a \"label\"");
+    p.techniques.push_back(pt);
+  }
+  if (j.contains("transfer_functions")) {
+    const auto& tfs = j["transfer_functions"];
+    if (!tfs.is_array() || tfs.empty())
+      throw InputError(file, "transfer_functions", "a list of presets or files");
+    p.transfer_functions.clear();
+    for (const auto& tf : tfs) {
+      if (!tf.is_string()) throw InputError(file, "transfer_functions", "names must be strings");
+      p.transfer_functions.push_back(tf.get<std::string>());
+      if (!safe_name(p.transfer_functions.back()))
+        throw InputError(file, "transfer_functions",
+                         "'" + p.transfer_functions.back() +
+                             "': a preset name (opaque, semi, "
+                             "transparent) or a file name without directories");
+    }
+  }
+  p.flight = string_at(j, "flight", p.flight, file, "");
+  if (j.contains("frames")) {
+    if (!j["frames"].is_number_integer() || j["frames"].get<int64_t>() < 1 ||
+        j["frames"].get<int64_t>() > 100000)
+      throw InputError(file, "frames", "an integer 1..100000");
+    p.frame_count = int(j["frames"].get<int64_t>());
+  }
+  p.size = string_at(j, "size", p.size, file, "");
+  p.reference = string_at(j, "reference", p.reference, file, "");
+  bool has_reference = false;
+  for (const PipelineTechnique& t : p.techniques) has_reference |= t.label == p.reference;
+  if (!has_reference)
+    throw InputError(file, "reference", "'" + p.reference + "' is not one of the techniques");
+  return p;
+}
+
+Pipeline load_pipeline(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "", "cannot open the pipeline file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(path, "byte offset " + std::to_string(e.byte),
+                     std::string("not JSON: ") + e.what());
+  }
+  return parse_pipeline(j, path);
+}
+
+std::string cache_path(const Pipeline& p, const std::string& dataset) {
+  return p.output + "/" + dataset + ".lbc.h5";
+}
+
+std::string render_stem(const Pipeline& p, const std::string& dataset, const std::string& label,
+                        const std::string& tf) {
+  return p.output + "/" + dataset + "/" + label + "-" + tf;
+}
+
+std::string frame_file(const std::string& stem, int frame, const char* suffix) {
+  char number[16];
+  std::snprintf(number, sizeof number, "_%03d", frame);
+  return stem + number + suffix;
+}
+
+std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& context) {
+  std::vector<PipelineStep> steps;
+  const bool several = p.frame_count > 1;
+  const auto frame_png = [&](const std::string& stem, int f) {
+    return several ? frame_file(stem, f, ".png") : stem + ".png";
+  };
+  for (const PipelineDataset& d : p.datasets) {
+    PipelineStep bake;
+    bake.id = "bake/" + d.name;
+    bake.kind = "bake";
+    bake.args = {"bake", d.source, "-o", cache_path(p, d.name)};
+    bake.args.insert(bake.args.end(), p.bake_options.begin(), p.bake_options.end());
+    bake.outputs = {cache_path(p, d.name)};
+    const bool synth = d.source.rfind("synth:", 0) == 0;
+    const std::string input_hash =
+        synth || !context.file_hash ? std::string("synth") : context.file_hash(d.source);
+    std::vector<std::string> parts = bake.args;
+    parts.push_back(input_hash);
+    bake.key = key_of(parts);
+    steps.push_back(bake);
+    const std::string bake_key = bake.key;
+    for (const std::string& tf : p.transfer_functions) {
+      std::string reference_key;
+      for (const PipelineTechnique& t : p.techniques) {
+        PipelineStep render;
+        render.id = "render/" + d.name + "/" + t.label + "/" + tf;
+        render.kind = "render";
+        render.depends = {bake.id};
+        const std::string stem = render_stem(p, d.name, t.label, tf);
+        render.args = {"render",
+                       cache_path(p, d.name),
+                       "--technique",
+                       t.technique,
+                       "--tf",
+                       tf,
+                       "--flight",
+                       p.flight,
+                       "--frame-count",
+                       std::to_string(p.frame_count),
+                       "--size",
+                       p.size,
+                       "-o",
+                       stem + ".png",
+                       "--stats",
+                       stem + ".json",
+                       "--depth-complexity",
+                       stem + "-dc.png"};
+        if (several) render.args.insert(render.args.end(), {"--frames", "all"});
+        render.args.insert(render.args.end(), t.options.begin(), t.options.end());
+        render.outputs = {stem + ".json"};
+        for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));
+        std::vector<std::string> rparts = render.args;
+        rparts.push_back(bake_key);
+        render.key = key_of(rparts);
+        if (t.technique == "rtx" && !context.ray_tracing)
+          render.skip_reason = "no Vulkan device with ray tracing";
+        else if (t.technique != "embree" && t.technique != "reference" && !context.vulkan &&
+                 !(t.technique == "vrc" &&
+                   std::find(t.options.begin(), t.options.end(), "gpu") == t.options.end()))
+          render.skip_reason = "no Vulkan device";
+        steps.push_back(render);
+        if (t.label == p.reference) reference_key = render.key;
+      }
+      // Every technique but the reference, frame by frame, against the reference.
+      const std::string ref_stem = render_stem(p, d.name, p.reference, tf);
+      for (const PipelineTechnique& t : p.techniques) {
+        if (t.label == p.reference) continue;
+        const std::string stem = render_stem(p, d.name, t.label, tf);
+        const std::string render_id = "render/" + d.name + "/" + t.label + "/" + tf;
+        const PipelineStep* render = nullptr;
+        for (const PipelineStep& s : steps)
+          if (s.id == render_id) render = &s;
+        for (int f = 0; f < p.frame_count; ++f) {
+          PipelineStep c;
+          c.id = "compare/" + d.name + "/" + t.label + "/" + tf + "/" + std::to_string(f);
+          c.kind = "compare";
+          c.depends = {render_id, "render/" + d.name + "/" + p.reference + "/" + tf};
+          const std::string err =
+              several ? frame_file(stem + "-error", f, ".png") : stem + "-error.png";
+          const std::string json =
+              several ? frame_file(stem + "-compare", f, ".json") : stem + "-compare.json";
+          c.args = {"compare", frame_png(stem, f), frame_png(ref_stem, f),
+                    "--json",  "--error-image",    err};
+          c.stdout_file = json;
+          c.outputs = {json, err};
+          c.key = key_of({c.args[1], c.args[2], render->key, reference_key});
+          c.skip_reason = render->skip_reason;
+          steps.push_back(c);
+        }
+      }
+    }
+  }
+  return steps;
+}
+
+}  // namespace linebake

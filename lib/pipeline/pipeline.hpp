@@ -1,0 +1,69 @@
+#pragma once
+// Pipelines: a declarative file (docs/pipelines.md) naming data sets, asset options, techniques,
+// transfer functions, a flight and an image size, planned into steps (bake, render, compare) that
+// run as a dependency graph. Planning is pure: it turns the file into command lines and keys; the
+// runner (tools/cmd_run.cpp) executes them and reuses steps whose key is unchanged.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace linebake {
+
+struct PipelineTechnique {
+  std::string technique;             // a `render --technique` name
+  std::vector<std::string> options;  // extra render arguments
+  std::string label;                 // output name; default: technique
+};
+
+struct PipelineDataset {
+  std::string name;
+  std::string source;  // file (relative to the pipeline file) or synth:...
+};
+
+struct Pipeline {
+  std::string name;
+  std::string file;    // where it was read from
+  std::string output;  // output directory
+  std::vector<PipelineDataset> datasets;
+  std::vector<std::string> bake_options;  // extra bake arguments
+  std::vector<PipelineTechnique> techniques;
+  std::vector<std::string> transfer_functions{"semi"};
+  std::string flight = "orbit-zoom";
+  int frame_count = 4;
+  std::string size = "320x180";
+  std::string reference = "reference";  // the technique the others are compared with
+};
+
+// Reads a JSON pipeline. InputError naming the file and the JSON path of a bad entry.
+Pipeline load_pipeline(const std::string& path);
+Pipeline parse_pipeline(const nlohmann::json& json, const std::string& file);
+
+struct PipelineStep {
+  std::string id;                    // "bake/aneurysm", "render/aneurysm/ll/semi", ...
+  std::string kind;                  // bake | render | compare
+  std::vector<std::string> depends;  // step ids
+  std::vector<std::string> args;     // linebake arguments (without the program)
+  std::string stdout_file;           // where the step's standard output goes ("" = inherit)
+  std::vector<std::string> outputs;  // files the step makes (all must exist to reuse it)
+  std::string key;                   // hash of the arguments and the dependencies' keys
+  std::string skip_reason;           // non-empty: not run, and why (a missing device feature)
+};
+
+struct PlanContext {
+  bool vulkan = true;        // some Vulkan device exists
+  bool ray_tracing = false;  // some device can ray trace
+  // Content hash of a local input file (bake keys); empty for synth sources.
+  std::string (*file_hash)(const std::string& path) = nullptr;
+};
+
+// Steps in an order where every step follows its dependencies.
+std::vector<PipelineStep> plan_pipeline(const Pipeline& pipeline, const PlanContext& context);
+
+// Paths the report reads.
+std::string cache_path(const Pipeline& p, const std::string& dataset);
+std::string render_stem(const Pipeline& p, const std::string& dataset, const std::string& label,
+                        const std::string& tf);  // <output>/<dataset>/<label>-<tf>
+std::string frame_file(const std::string& stem, int frame, const char* suffix);
+
+}  // namespace linebake

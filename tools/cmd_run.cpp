@@ -1,0 +1,171 @@
+// linebake run <pipeline.json>: plans the pipeline's steps (bake, render, compare), runs each as
+// a linebake child process in dependency order, reuses steps whose key and outputs are unchanged
+// (the state lives in <output>/.linebake-run.json), and writes report.md / report.json.
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "commands.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/hash.hpp"
+#include "pipeline/evaluation_report.hpp"
+#include "pipeline/pipeline.hpp"
+#include "render/vulkan/context.hpp"
+
+extern char** environ;
+
+namespace linebake::cli {
+namespace {
+
+std::string quoted(const std::vector<std::string>& args) {
+  std::string out = "linebake";
+  for (const std::string& a : args)
+    out += " " + (a.find_first_of(" '\"?&") == std::string::npos ? a : "'" + a + "'");
+  return out;
+}
+
+// Runs this executable with `args`; stdout to `stdout_file` when given. Returns the exit code.
+int run_child(const std::vector<std::string>& args, const std::string& stdout_file) {
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(self.c_str()));
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  const std::string partial = stdout_file + ".partial";
+  if (!stdout_file.empty())
+    posix_spawn_file_actions_addopen(&actions, 1, partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+  pid_t pid = 0;
+  const int spawned = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) throw Error("run: cannot start " + self);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw Error("run: waitpid failed");
+  const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  if (!stdout_file.empty()) {
+    if (code == 0)
+      std::filesystem::rename(partial, stdout_file);
+    else
+      std::filesystem::remove(partial);
+  }
+  return code;
+}
+
+nlohmann::json machine_info() {
+  nlohmann::json m;
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  for (std::string line; std::getline(cpuinfo, line);)
+    if (line.rfind("model name", 0) == 0) {
+      m["cpu"] = line.substr(line.find(':') + 2);
+      break;
+    }
+  m["cores"] = std::thread::hardware_concurrency();
+  std::string devices;
+  try {
+    for (const vk::DeviceInfo& d : vk::list_devices())
+      devices += (devices.empty() ? "" : "; ") + d.name + (d.ray_tracing ? " (ray tracing)" : "");
+  } catch (const Error&) {
+  }
+  m["vulkan"] = devices.empty() ? "none" : devices;
+  return m;
+}
+
+}  // namespace
+
+Command add_run(CLI::App& app) {
+  auto* sub = app.add_subcommand(
+      "run", "Run a pipeline: bake, render and compare every step, then write the report");
+  struct Args {
+    std::string pipeline, output;
+    bool dry_run = false, force = false;
+  };
+  auto args = std::make_shared<Args>();
+  sub->add_option("pipeline", args->pipeline,
+                  "Pipeline file (.json), e.g. pipelines/quickstart.json")
+      ->required();
+  sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)");
+  sub->add_flag("--dry-run", args->dry_run,
+                "List the steps and whether each would run or be reused");
+  sub->add_flag("--force", args->force, "Run every step, even unchanged ones");
+  return [args] {
+    std::string path = args->pipeline;
+    if (!std::filesystem::exists(path) && std::filesystem::exists(path + ".json")) path += ".json";
+    Pipeline p = load_pipeline(path);
+    if (!args->output.empty()) p.output = args->output;
+    PlanContext context;
+    try {
+      for (const vk::DeviceInfo& d : vk::list_devices()) context.ray_tracing |= d.ray_tracing;
+    } catch (const Error&) {
+      context.vulkan = false;
+    }
+    context.file_hash = [](const std::string& file) { return hash_file(file); };
+    const std::vector<PipelineStep> steps = plan_pipeline(p, context);
+    const std::string state_path = p.output + "/.linebake-run.json";
+    nlohmann::json state = nlohmann::json::object();
+    if (std::ifstream in(state_path); in) {
+      try {
+        state = nlohmann::json::parse(in);
+      } catch (const std::exception&) {
+        state = nlohmann::json::object();  // unreadable state: run everything again
+      }
+    }
+    const auto reusable = [&](const PipelineStep& s) {
+      if (args->force || !state.contains(s.id) || state[s.id] != s.key) return false;
+      for (const std::string& o : s.outputs)
+        if (!std::filesystem::exists(o)) return false;
+      return true;
+    };
+    size_t ran = 0, reused = 0, skipped = 0;
+    std::map<std::string, std::string> status;  // id -> ran | reused | skipped
+    for (const PipelineStep& s : steps) {
+      std::string what = !s.skip_reason.empty() ? "skip" : reusable(s) ? "reuse" : "run";
+      for (const std::string& d : s.depends)
+        if (what == "reuse" && status[d] == "run") what = "run";
+      status[s.id] = what;
+      if (args->dry_run) {
+        std::cout << what << " " << s.id << ": "
+                  << (what == "skip" ? s.skip_reason : quoted(s.args)) << "\n";
+        continue;
+      }
+      if (what == "skip") {
+        ++skipped;
+        std::cerr << "linebake: run: " << s.id << ": skipped (" << s.skip_reason << ")\n";
+        continue;
+      }
+      if (what == "reuse") {
+        ++reused;
+        continue;
+      }
+      for (const std::string& o : s.outputs)
+        std::filesystem::create_directories(std::filesystem::path(o).parent_path());
+      std::cerr << "linebake: run: " << s.id << "\n";
+      const int code = run_child(s.args, s.stdout_file);
+      if (code != 0)
+        throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
+                    "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);
+      state[s.id] = s.key;
+      write_file_atomically(state_path, state.dump(1) + "\n");
+      ++ran;
+    }
+    if (args->dry_run) return;
+    const nlohmann::json evaluation = evaluation_json(p, steps, machine_info());
+    write_file_atomically(p.output + "/report.json", evaluation.dump(2) + "\n");
+    write_file_atomically(p.output + "/report.md", evaluation_markdown(p, evaluation));
+    std::cerr << "linebake: run: " << ran << " step(s) run, " << reused << " reused, " << skipped
+              << " skipped\n";
+    std::cout << p.output << "/report.md\n";
+  };
+}
+
+}  // namespace linebake::cli
