@@ -161,6 +161,20 @@ check "rtx on lavapipe: one clear line, exit 4" bash -c "'$bin' render '$tmp/t.l
 check "bake --assets rtx on lavapipe: one clear line, exit 4, the cache untouched" bash -c "cp '$tmp/t.lbc.h5' '$tmp/before.h5'; '$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,voxels,rtx 2> '$tmp/bakertx.err' > /dev/null; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/bakertx.err') -eq 1 ] && grep -q 'rtx: ray tracing is not supported on this device' '$tmp/bakertx.err' && cmp '$tmp/t.lbc.h5' '$tmp/before.h5'"
 check "--rt-geometry is an rtx option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
+# Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step
+pipes="$(dirname "$0")/../pipelines"
+check "run the ci pipeline" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' > '$tmp/run.out' 2> '$tmp/run.err' && grep -q 'report.md' '$tmp/run.out'"
+check "ci report: every technique has PSNR/SSIM, rtx skipped with its reason" python3 -c "
+import json; j=json.load(open('$tmp/ci/report.json')); r={x['technique']: x for x in j['results']}
+assert 'ray tracing' in r['rtx']['skipped'], r['rtx']
+for t in ('embree', 'll', 'mboit', 'vrc-cpu'): assert r[t]['mean_ssim'] > 0.7 and len(r[t]['frames']) == 2, r[t]
+assert r['ll']['mean_psnr_db'] >= 30, r['ll']
+assert j['caches'][0]['name'] == 'aneurysm'"
+check "ci report.md has Table 1 and the quality table" bash -c "grep -q '## Table 1' '$tmp/ci/report.md' && grep -q '| ll |' '$tmp/ci/report.md'"
+check "a second run reuses every step" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' 2>&1 >/dev/null | grep -q ' 0 step(s) run, 14 reused, 3 skipped'"
+check "--dry-run after a change lists what reruns" bash -c "sed 's/\"heap\"/\"shell\"/' '$pipes/ci.json' > '$tmp/ci2.json' && '$bin' run '$tmp/ci2.json' -o '$tmp/ci' --dry-run > '$tmp/dry.txt' && grep -q '^run render/aneurysm/ll/semi' '$tmp/dry.txt' && grep -q '^reuse render/aneurysm/mboit/semi' '$tmp/dry.txt' && [ \$(grep -c '^run ' '$tmp/dry.txt') -eq 3 ]"
+check "a failing step is named, exit 4, finished outputs kept" bash -c "sed 's/\"heap\"/\"bogosort\"/' '$pipes/ci.json' > '$tmp/ci3.json' && '$bin' run '$tmp/ci3.json' -o '$tmp/ci3' > /dev/null 2> '$tmp/fail.err'; [ \$? -eq 4 ] && grep -q 'step render/aneurysm/ll/semi failed' '$tmp/fail.err' && [ -e '$tmp/ci3/aneurysm/embree-semi_001.png' ] && [ ! -e '$tmp/ci3/report.md' ]"
+check "a bad pipeline names the file and the entry" bash -c "echo '{\"datasets\": [], \"techniques\": [\"reference\"]}' > '$tmp/bad.json'; '$bin' run '$tmp/bad.json' 2> '$tmp/bad.err'; [ \$? -eq 2 ] && grep -q 'bad.json: datasets' '$tmp/bad.err'"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 
 echo "cli: $passed passed, $failed failed"

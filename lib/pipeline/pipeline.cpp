@@ -205,7 +205,7 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
     steps.push_back(bake);
     const std::string bake_key = bake.key;
     for (const std::string& tf : p.transfer_functions) {
-      std::string reference_key;
+      std::string reference_key, reference_skip;
       for (const PipelineTechnique& t : p.techniques) {
         PipelineStep render;
         render.id = "render/" + d.name + "/" + t.label + "/" + tf;
@@ -244,7 +244,10 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
                    std::find(t.options.begin(), t.options.end(), "gpu") == t.options.end()))
           render.skip_reason = "no Vulkan device";
         steps.push_back(render);
-        if (t.label == p.reference) reference_key = render.key;
+        if (t.label == p.reference) {
+          reference_key = render.key;
+          reference_skip = render.skip_reason;
+        }
       }
       // Every technique but the reference, frame by frame, against the reference.
       const std::string ref_stem = render_stem(p, d.name, p.reference, tf);
@@ -252,9 +255,13 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         if (t.label == p.reference) continue;
         const std::string stem = render_stem(p, d.name, t.label, tf);
         const std::string render_id = "render/" + d.name + "/" + t.label + "/" + tf;
-        const PipelineStep* render = nullptr;
+        // Copies: `steps` grows below.
+        std::string render_key, render_skip;
         for (const PipelineStep& s : steps)
-          if (s.id == render_id) render = &s;
+          if (s.id == render_id) {
+            render_key = s.key;
+            render_skip = s.skip_reason;
+          }
         for (int f = 0; f < p.frame_count; ++f) {
           PipelineStep c;
           c.id = "compare/" + d.name + "/" + t.label + "/" + tf + "/" + std::to_string(f);
@@ -268,8 +275,8 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
                     "--json",  "--error-image",    err};
           c.stdout_file = json;
           c.outputs = {json, err};
-          c.key = key_of({c.args[1], c.args[2], render->key, reference_key});
-          c.skip_reason = render->skip_reason;
+          c.key = key_of({c.args[1], c.args[2], render_key, reference_key});
+          c.skip_reason = render_skip.empty() ? reference_skip : render_skip;
           steps.push_back(c);
         }
       }
