@@ -375,6 +375,25 @@ void Context::destroy(Buffer& b) {
   b = Buffer{};
 }
 
+VkQueryPool Context::create_timestamp_pair() {
+  if (!timestamps_) return VK_NULL_HANDLE;
+  VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+  q.queryType = VK_QUERY_TYPE_TIMESTAMP;
+  q.queryCount = 2;
+  VkQueryPool pool = VK_NULL_HANDLE;
+  check(vkCreateQueryPool(device_, &q, nullptr, &pool), "vkCreateQueryPool (timestamps)");
+  return pool;
+}
+
+double Context::elapsed_ms(VkQueryPool pair) const {
+  if (!pair) return 0;
+  uint64_t ticks[2] = {};
+  if (vkGetQueryPoolResults(device_, pair, 0, 2, sizeof ticks, ticks, 8,
+                            VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) != VK_SUCCESS)
+    return 0;
+  return double(ticks[1] - ticks[0]) * timestamp_period_ns_ * 1e-6;
+}
+
 VkCommandBuffer Context::begin_commands() {
   VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
   alloc.commandPool = pool_;

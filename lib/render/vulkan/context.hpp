@@ -94,6 +94,11 @@ class Context {
     end_and_wait(cmd);
   }
 
+  // Two timestamp queries for timing one submission, or VK_NULL_HANDLE when the queue has no
+  // timestamps (the caller destroys the pool); elapsed_ms reads them (0 without a pool).
+  VkQueryPool create_timestamp_pair();
+  double elapsed_ms(VkQueryPool pair) const;
+
   VkCommandBuffer begin_commands();
   void end_and_wait(VkCommandBuffer cmd);
 

@@ -7,6 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/measure.hpp"
+#include "render/vulkan/pixel_readback.hpp"
 #include "render/vulkan/rt_functions.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
@@ -233,12 +234,7 @@ RtRenderer::RtRenderer(Context& context) : state_(std::make_unique<State>(contex
   s.counters = context.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   s.create_layout();
   s.create_pipeline();
-  if (context.timestamps()) {
-    VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
-    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
-    q.queryCount = 2;
-    check(vkCreateQueryPool(context.device(), &q, nullptr, &s.queries), "query pool");
-  }
+  s.queries = context.create_timestamp_pair();
 }
 
 RtRenderer::~RtRenderer() = default;
@@ -292,25 +288,14 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
                          VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &barrier, 0, nullptr, 0, nullptr);
   });
   RtFrame frame;
-  if (s.queries) {
-    uint64_t ticks[2] = {};
-    if (vkGetQueryPoolResults(s.ctx.device(), s.queries, 0, 2, sizeof ticks, ticks, 8,
-                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
-      frame.stats.gpu_ms = double(ticks[1] - ticks[0]) * s.ctx.timestamp_period_ns() * 1e-6;
-  }
+  frame.stats.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  frame.image = Image(o.width, o.height, 3);
-  frame.alpha.resize(pixels);
-  frame.depth_complexity.resize(pixels);
-  const auto* rgba = static_cast<const float*>(s.output.mapped);
-  const auto* counts = static_cast<const uint32_t*>(s.hits.mapped);
-  for (uint64_t p = 0; p < pixels; ++p) {
-    for (uint64_t k = 0; k < 3; ++k) frame.image.pixels[3 * p + k] = rgba[4 * p + k];
-    frame.alpha[p] = rgba[4 * p + 3];
-    frame.depth_complexity[p] = counts[p];
-    frame.stats.hits += counts[p];
-    frame.stats.max_depth_complexity = std::max(frame.stats.max_depth_complexity, counts[p]);
-  }
+  PixelReadback read = read_pixels(s.output, s.hits, o.width, o.height);
+  frame.image = std::move(read.image);
+  frame.alpha = std::move(read.alpha);
+  frame.depth_complexity = std::move(read.counts);
+  frame.stats.hits = read.total;
+  frame.stats.max_depth_complexity = read.maximum;
   const auto* c = static_cast<const uint32_t*>(s.counters.mapped);
   frame.stats.back_hits = c[0];
   frame.stats.truncated_pixels = c[1];

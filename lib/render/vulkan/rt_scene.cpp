@@ -123,12 +123,7 @@ struct RtScene::State {
     vkGetPhysicalDeviceProperties2(c.physical_device(), &props);
     scratch_alignment =
         std::max<uint64_t>(as_props.minAccelerationStructureScratchOffsetAlignment, 1);
-    if (c.timestamps()) {
-      VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
-      q.queryType = VK_QUERY_TYPE_TIMESTAMP;
-      q.queryCount = 2;
-      check(vkCreateQueryPool(c.device(), &q, nullptr, &timestamps), "query pool");
-    }
+    timestamps = c.create_timestamp_pair();
   }
 
   ~State() {
@@ -207,12 +202,7 @@ struct RtScene::State {
       record(cmd);
       if (timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timestamps, 1);
     });
-    if (!timestamps) return 0;
-    uint64_t ticks[2] = {};
-    if (vkGetQueryPoolResults(ctx.device(), timestamps, 0, 2, sizeof ticks, ticks, 8,
-                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) != VK_SUCCESS)
-      return 0;
-    return double(ticks[1] - ticks[0]) * ctx.timestamp_period_ns() * 1e-6;
+    return ctx.elapsed_ms(timestamps);
   }
 
   VkAccelerationStructureBuildGeometryInfoKHR blas_info(const ChunkInput& input,

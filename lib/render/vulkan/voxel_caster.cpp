@@ -8,6 +8,7 @@
 #include "core/error.hpp"
 #include "core/measure.hpp"
 #include "render/vulkan/buffer_set.hpp"
+#include "render/vulkan/pixel_readback.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
 
@@ -130,12 +131,7 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
       vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &s.pipeline);
   vkDestroyShaderModule(d, module, nullptr);
   check(made, "vkCreateComputePipelines (vrc.comp)");
-  if (context.timestamps()) {
-    VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
-    q.queryType = VK_QUERY_TYPE_TIMESTAMP;
-    q.queryCount = 2;
-    check(vkCreateQueryPool(d, &q, nullptr, &s.queries), "query pool");
-  }
+  s.queries = context.create_timestamp_pair();
 }
 
 VoxelCaster::~VoxelCaster() = default;
@@ -201,26 +197,14 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
                          1, &barrier, 0, nullptr, 0, nullptr);
   });
-  s.gpu_ms = 0;
-  if (s.queries) {
-    uint64_t ticks[2] = {};
-    if (vkGetQueryPoolResults(s.ctx.device(), s.queries, 0, 2, sizeof ticks, ticks, 8,
-                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT) == VK_SUCCESS)
-      s.gpu_ms = double(ticks[1] - ticks[0]) * s.ctx.timestamp_period_ns() * 1e-6;
-  }
+  s.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  frame.image = Image(o.width, o.height, 3);
-  frame.alpha.resize(pixels);
-  frame.depth_complexity.resize(pixels);
-  const auto* rgba = static_cast<const float*>(s.output.mapped);
-  const auto* counts = static_cast<const uint32_t*>(s.hits.mapped);
-  for (uint64_t p = 0; p < pixels; ++p) {
-    for (uint64_t k = 0; k < 3; ++k) frame.image.pixels[3 * p + k] = rgba[4 * p + k];
-    frame.alpha[p] = rgba[4 * p + 3];
-    frame.depth_complexity[p] = counts[p];
-    frame.stats.hits += counts[p];
-    frame.stats.max_depth_complexity = std::max(frame.stats.max_depth_complexity, counts[p]);
-  }
+  PixelReadback read = read_pixels(s.output, s.hits, o.width, o.height);
+  frame.image = std::move(read.image);
+  frame.alpha = std::move(read.alpha);
+  frame.depth_complexity = std::move(read.counts);
+  frame.stats.hits = read.total;
+  frame.stats.max_depth_complexity = read.maximum;
   frame.stats.frame_bytes = pixels * (16 + 4);
   frame.stats.seconds = seconds_since(start);
   return frame;
