@@ -156,6 +156,20 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
 }
 
+// The radius and attribute of curves and capsules over the lines: the flags, else the cached
+// tubes' (from their provenance), else 0.001 x the diagonal and the first vertex attribute.
+std::pair<float, std::string> curve_defaults(float radius, std::string attribute,
+                                             const std::optional<Provenance>& tube_provenance,
+                                             const LineSet& lines) {
+  if (attribute.empty())
+    attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
+                                : (lines.attributes.empty() ? "" : lines.attributes[0].name);
+  if (!(radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
+    radius = tube_provenance->stats["radius_world"].get<float>();
+  if (!(radius > 0)) radius = TubeOptions{}.radius * compute_bounds(lines).diagonal();
+  return {radius, attribute};
+}
+
 // Voxel ray casting from the cached voxel line grid, on the CPU or with Vulkan compute. The
 // flight frames the cached tube mesh's bounds when there is one (so frames compare with the
 // reference's), else the lines' widened by the radius.
@@ -291,14 +305,8 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
     source = tube_provenance ? tube_provenance->key : "";
   } else {
     lines = load_lines(cache);
-    float radius = args.radius;
-    if (!(radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
-      radius = tube_provenance->stats["radius_world"].template get<float>();
-    if (!(radius > 0)) radius = TubeOptions{}.radius * compute_bounds(lines).diagonal();
-    std::string attribute = args.attribute;
-    if (attribute.empty())
-      attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
-                                  : (lines.attributes.empty() ? "" : lines.attributes[0].name);
+    const auto [radius, attribute] =
+        curve_defaults(args.radius, args.attribute, tube_provenance, lines);
     capsules = build_capsule_segments(lines, radius, attribute);
     bounds = compute_bounds(lines);
     for (size_t k = 0; k < 3; ++k) bounds.min[k] -= radius, bounds.max[k] += radius;
@@ -549,20 +557,8 @@ Command add_render(CLI::App& app) {
     } else {
       lines = load_lines(cache);
       options.geometry = parse_embree_geometry(args->geometry);
-      std::string attribute = args->attribute;
-      if (attribute.empty())
-        attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
-                                    : (lines.attributes.empty() ? "" : lines.attributes[0].name);
-      float radius = args->radius;
-      if (!(radius > 0)) {
-        if (tube_provenance && tube_provenance->stats.contains("radius_world")) {
-          radius = tube_provenance->stats["radius_world"].get<float>();
-        } else {
-          const Bounds b = compute_bounds(lines);
-          const float dx = b.max[0] - b.min[0], dy = b.max[1] - b.min[1], dz = b.max[2] - b.min[2];
-          radius = TubeOptions{}.radius * std::sqrt(dx * dx + dy * dy + dz * dz);
-        }
-      }
+      const auto [radius, attribute] =
+          curve_defaults(args->radius, args->attribute, tube_provenance, lines);
       // Bake's prepared buffers, when they are these curves, spare the preparation.
       std::optional<StoredCurves> stored;
       if (cache.exists(kEmbreeGroup)) {

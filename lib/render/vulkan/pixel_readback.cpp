@@ -23,4 +23,21 @@ PixelReadback read_pixels(const Buffer& rgba_buffer, const Buffer& counts_buffer
   return out;
 }
 
+bool PixelTargets::resize(Context& context, int w, int h) {
+  if (w == width && h == height) return false;
+  vkDeviceWaitIdle(context.device());
+  release(context);
+  const uint64_t pixels = uint64_t(w) * uint64_t(h);
+  rgba = context.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  counts = context.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  width = w, height = h;
+  return true;
+}
+
+void PixelTargets::release(Context& context) {
+  context.destroy(rgba);
+  context.destroy(counts);
+  width = height = 0;
+}
+
 }  // namespace linebake::vk

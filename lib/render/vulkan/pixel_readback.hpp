@@ -20,4 +20,14 @@ struct PixelReadback {
 
 PixelReadback read_pixels(const Buffer& rgba, const Buffer& counts, int width, int height);
 
+// The two host-visible per-pixel buffers those techniques write, sized for one image.
+struct PixelTargets {
+  Buffer rgba, counts;
+  int width = 0, height = 0;
+  // Reallocates for a new size (waiting for the device first); false when the size is unchanged.
+  bool resize(Context& context, int w, int h);
+  void release(Context& context);
+  PixelReadback read() const { return read_pixels(rgba, counts, width, height); }
+};
+
 }  // namespace linebake::vk

@@ -45,16 +45,17 @@ struct RtRenderer::State {
   VkDescriptorSet set = VK_NULL_HANDLE;
   VkPipeline pipeline = VK_NULL_HANDLE;
   VkQueryPool queries = VK_NULL_HANDLE;
-  Buffer uniforms, output, hits, counters, sbt;
+  Buffer uniforms, counters, sbt;
+  PixelTargets targets;
   VkStridedDeviceAddressRegionKHR raygen{}, miss{}, hit{}, callable{};
-  int width = 0, height = 0;
 
   explicit State(Context& c) : ctx(c), fn(RtFunctions::load(c.device())) {}
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
-    for (Buffer* b : {&uniforms, &output, &hits, &counters, &sbt}) ctx.destroy(*b);
+    for (Buffer* b : {&uniforms, &counters, &sbt}) ctx.destroy(*b);
+    targets.release(ctx);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
     if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
@@ -186,25 +187,14 @@ struct RtRenderer::State {
     callable = {0, 0, 0};
   }
 
-  void resize(int w, int h) {
-    if (w == width && h == height) return;
-    vkDeviceWaitIdle(ctx.device());
-    ctx.destroy(output);
-    ctx.destroy(hits);
-    const uint64_t pixels = uint64_t(w) * uint64_t(h);
-    output = ctx.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    hits = ctx.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    width = w, height = h;
-  }
-
   void write_descriptors(const RtScene& scene) {
     VkAccelerationStructureKHR tlas = scene.tlas();
     VkWriteDescriptorSetAccelerationStructureKHR as{
         VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
     as.accelerationStructureCount = 1;
     as.pAccelerationStructures = &tlas;
-    const Buffer* buffers[kBindings] = {nullptr, &uniforms, &scene.chunk_table(),
-                                        &output, &hits,     &counters};
+    const Buffer* buffers[kBindings] = {nullptr,       &uniforms,       &scene.chunk_table(),
+                                        &targets.rgba, &targets.counts, &counters};
     std::array<VkDescriptorBufferInfo, kBindings> infos{};
     std::array<VkWriteDescriptorSet, kBindings> writes{};
     for (uint32_t i = 0; i < kBindings; ++i) {
@@ -246,7 +236,7 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   if (o.max_iterations < 1) throw Error("rtx: at least one trace per pixel");
   const auto start = std::chrono::steady_clock::now();
   State& s = *state_;
-  s.resize(o.width, o.height);
+  s.targets.resize(s.ctx, o.width, o.height);
   s.write_descriptors(scene);
   TransferFunction tf = tf_in;
   const auto range = scene.attribute_range();
@@ -290,7 +280,7 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   RtFrame frame;
   frame.stats.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  PixelReadback read = read_pixels(s.output, s.hits, o.width, o.height);
+  PixelReadback read = s.targets.read();
   frame.image = std::move(read.image);
   frame.alpha = std::move(read.alpha);
   frame.depth_complexity = std::move(read.counts);

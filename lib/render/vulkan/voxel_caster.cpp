@@ -41,14 +41,14 @@ struct VoxelCaster::State {
   float voxel_size = 1;
   std::array<float, 2> attribute_range{};
   std::vector<std::array<uint32_t, 4>> levels;
-  Buffer uniforms, offsets, chords, occupancy, output, hits;
+  Buffer uniforms, offsets, chords, occupancy;
+  PixelTargets targets;
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
   VkPipelineLayout layout = VK_NULL_HANDLE;
   VkDescriptorPool pool = VK_NULL_HANDLE;
   VkDescriptorSet set = VK_NULL_HANDLE;
   VkPipeline pipeline = VK_NULL_HANDLE;
   VkQueryPool queries = VK_NULL_HANDLE;
-  int width = 0, height = 0;
   double gpu_ms = 0;
 
   State(Context& c, const VoxelGrid& g) : ctx(c), grid(g) {}
@@ -62,25 +62,19 @@ struct VoxelCaster::State {
   }
 
   void write_descriptors() {
-    write_buffer_set(ctx.device(), set, {&uniforms, &offsets, &chords, &occupancy, &output, &hits});
+    write_buffer_set(ctx.device(), set,
+                     {&uniforms, &offsets, &chords, &occupancy, &targets.rgba, &targets.counts});
   }
 
   void resize(int w, int h) {
-    if (w == width && h == height) return;
-    vkDeviceWaitIdle(ctx.device());
-    ctx.destroy(output);
-    ctx.destroy(hits);
-    const uint64_t pixels = uint64_t(w) * uint64_t(h);
-    output = ctx.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    hits = ctx.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    width = w, height = h;
-    write_descriptors();
+    if (targets.resize(ctx, w, h)) write_descriptors();
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
-    for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy, &output, &hits}) ctx.destroy(*b);
+    for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy}) ctx.destroy(*b);
+    targets.release(ctx);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
     if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
@@ -199,7 +193,7 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   });
   s.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  PixelReadback read = read_pixels(s.output, s.hits, o.width, o.height);
+  PixelReadback read = s.targets.read();
   frame.image = std::move(read.image);
   frame.alpha = std::move(read.alpha);
   frame.depth_complexity = std::move(read.counts);
