@@ -163,7 +163,7 @@ check "--rt-geometry is an rtx option" exit_code 4 "$bin" render "$tmp/t.lbc.h5"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step
 pipes="$(dirname "$0")/../pipelines"
-check "run the ci pipeline" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' > '$tmp/run.out' 2> '$tmp/run.err' && grep -q 'report.md' '$tmp/run.out'"
+check "run the ci pipeline" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' > '$tmp/run.out' 2> '$tmp/run.err' && grep -q 'report.md' '$tmp/run.out' && grep -q 'report.html' '$tmp/run.out'"
 check "ci report: every technique has PSNR/SSIM, rtx skipped with its reason" python3 -c "
 import json; j=json.load(open('$tmp/ci/report.json')); r={x['technique']: x for x in j['results']}
 assert 'ray tracing' in r['rtx']['skipped'], r['rtx']
@@ -171,6 +171,10 @@ for t in ('embree', 'll', 'mboit', 'vrc-cpu'): assert r[t]['mean_ssim'] > 0.7 an
 assert r['ll']['mean_psnr_db'] >= 30, r['ll']
 assert j['caches'][0]['name'] == 'aneurysm'"
 check "ci report.md has Table 1 and the quality table" bash -c "grep -q '## Table 1' '$tmp/ci/report.md' && grep -q '| ll |' '$tmp/ci/report.md'"
+check "ci report.md links the plots, which exist" bash -c "grep -q '](plots/aneurysm-semi-time.svg)' '$tmp/ci/report.md' && for p in time psnr ssim memory; do grep -q '<polyline' '$tmp/ci/plots/aneurysm-semi-'\$p.svg || exit 1; done"
+check "report.html is self-contained: every image a data: URI, no external resources" bash -c "h='$tmp/ci/report.html'; [ \$(grep -o '<img' \"\$h\" | wc -l) -gt 0 ] && ! grep -Eo '(src|href)=\"[^\"]*' \"\$h\" | grep -Ev '^(src=\"data:image/png;base64,|href=\"(#|aneurysm/))' | grep -q ."
+check "report.html loads in headless Chromium without errors and shows every image" bash -c "h='$tmp/ci/report.html'; n=\$(grep -o '<img' \"\$h\" | wc -l); chromium --headless --no-sandbox --disable-gpu --enable-logging=stderr --v=0 --virtual-time-budget=10000 --dump-dom \"file://\$h\" > '$tmp/dom.html' 2> '$tmp/chromium.err'; grep -q \"data-images=\\\"\$n/\$n\\\"\" '$tmp/dom.html' && ! grep -Eq 'Uncaught|CONSOLE.*[Ee]rror' '$tmp/chromium.err'"
+check "the shipped paper pipelines (YAML) plan, dp left out where the file says" bash -c "'$bin' run '$pipes/paper-small' --dry-run -o '$tmp/ps' > '$tmp/ps.txt' && grep -q '^skip render/clouds/dp/semi: left out of this pipeline on clouds' '$tmp/ps.txt' && grep -q '^run render/clouds/mboit/transparent' '$tmp/ps.txt' && '$bin' run '$pipes/paper.yaml' --dry-run -o '$tmp/pp' | grep -q '^run render/clouds/dp/transparent: .*--size 1920x1080'"
 check "a second run reuses every step" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' 2>&1 >/dev/null | grep -q ' 0 step(s) run, 14 reused, 3 skipped'"
 check "--dry-run after a change lists what reruns" bash -c "sed 's/\"heap\"/\"shell\"/' '$pipes/ci.json' > '$tmp/ci2.json' && '$bin' run '$tmp/ci2.json' -o '$tmp/ci' --dry-run > '$tmp/dry.txt' && grep -q '^run render/aneurysm/ll/semi' '$tmp/dry.txt' && grep -q '^reuse render/aneurysm/mboit/semi' '$tmp/dry.txt' && [ \$(grep -c '^run ' '$tmp/dry.txt') -eq 3 ]"
 check "a failing step is named, exit 4, finished outputs kept" bash -c "sed 's/\"heap\"/\"bogosort\"/' '$pipes/ci.json' > '$tmp/ci3.json' && '$bin' run '$tmp/ci3.json' -o '$tmp/ci3' > /dev/null 2> '$tmp/fail.err'; [ \$? -eq 4 ] && grep -q 'step render/aneurysm/ll/semi failed' '$tmp/fail.err' && [ -e '$tmp/ci3/aneurysm/embree-semi_001.png' ] && [ ! -e '$tmp/ci3/report.md' ]"

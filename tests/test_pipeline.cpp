@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <map>
 
 #include "core/error.hpp"
@@ -115,6 +117,118 @@ TEST(Pipeline, KeysChangeWithTheirInputsOnly) {
   context.file_hash = [](const std::string& path) { return "other-" + path; };
   for (const auto& [id, key] : key_map(small()))
     EXPECT_EQ(base.at(id) != key, id.find("/b") != std::string::npos) << id;
+}
+
+std::string write_temp(const std::string& name, const std::string& text) {
+  const auto path = std::filesystem::temp_directory_path() / ("linebake-test-" + name);
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+std::map<std::string, std::string> plan_keys(const Pipeline& p) {
+  PlanContext context;
+  context.file_hash = &fake_hash;
+  std::map<std::string, std::string> keys;
+  for (const PipelineStep& s : plan_pipeline(p, context)) keys[s.id] = s.key + s.skip_reason;
+  return keys;
+}
+
+TEST(Pipeline, YamlReadsAsTheSameJson) {
+  // small() written in YAML: plain scalars get their types, quoted ones stay strings.
+  const std::string yaml = write_temp("t.yaml", R"(# comment
+name: t
+output: out/t
+datasets:
+  - {name: a, source: "synth:aneurysm?scale=0.01"}
+  - name: b
+    source: data/b.binlines
+assets:
+  assets: [tubes, voxels]
+  grid: 32
+  caps: true
+  radius: 0.002
+techniques:
+  - reference
+  - technique: ll
+    options: {sort: shell}
+  - rtx
+transfer_functions: [semi, opaque]
+frames: 3
+size: "64x48"
+)");
+  const std::string json = write_temp("t.json", small().dump());
+  const Pipeline from_yaml = load_pipeline(yaml), from_json = load_pipeline(json);
+  EXPECT_EQ(from_yaml.bake_options, from_json.bake_options);
+  EXPECT_EQ(from_yaml.frame_count, 3);
+  // Same steps, same command lines (the data set path is relative to each file: same folder).
+  EXPECT_EQ(plan_keys(from_yaml), plan_keys(from_json));
+  // The extension may be left out: .json first, then .yaml.
+  const std::string stem = json.substr(0, json.size() - 5);
+  EXPECT_EQ(load_pipeline(stem).file, json);
+  std::filesystem::remove(json);
+  EXPECT_EQ(load_pipeline(stem).file, yaml);
+}
+
+TEST(Pipeline, YamlErrorsNameLineAndColumnOrTheEntry) {
+  const std::string bad_syntax =
+      write_temp("bad.yaml", "name: t\ndatasets:\n  - {name: a, source: [\n");
+  try {
+    load_pipeline(bad_syntax);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where().rfind("line ", 0), 0u) << e.where();
+    EXPECT_NE(std::string(e.what()).find("bad.yaml"), std::string::npos);
+  }
+  const std::string bad_entry =
+      write_temp("bad2.yaml",
+                 "datasets: [{name: a, source: s.binlines}]\ntechniques: [{technique: ll, "
+                 "options: {sort: {x: 1}}}]\nreference: ll\n");
+  try {
+    load_pipeline(bad_entry);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "techniques[0].options.sort");
+  }
+}
+
+TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {
+  auto j = small();
+  j["techniques"][1]["datasets"] = {"b"};
+  j["techniques"][1]["transfer_functions"] = {"opaque"};
+  PlanContext context;
+  context.file_hash = &fake_hash;
+  context.ray_tracing = true;
+  size_t ll_renders = 0;
+  for (const PipelineStep& s : plan_pipeline(parse_pipeline(j, "t.json"), context)) {
+    if (s.id.find("/ll/") == std::string::npos) {
+      EXPECT_EQ(s.skip_reason, "") << s.id;
+      continue;
+    }
+    const bool runs = s.id.find("/b/ll/opaque") != std::string::npos;
+    EXPECT_EQ(s.skip_reason.empty(), runs) << s.id;
+    if (s.id.rfind("render/", 0) == 0) ++ll_renders;
+    if (s.id == "render/a/ll/opaque") {
+      EXPECT_EQ(s.skip_reason, "left out of this pipeline on a (it runs on b)");
+    }
+    if (s.id == "compare/b/ll/semi/2") {
+      EXPECT_EQ(s.skip_reason, "left out of this pipeline for semi (it runs with opaque)");
+    }
+  }
+  EXPECT_EQ(ll_renders, 4u);  // planned (and reported) everywhere, run in one place
+  // Names must be the pipeline's own.
+  j["techniques"][1]["datasets"] = {"c"};
+  EXPECT_THROW(parse_pipeline(j, "t.json"), InputError);
+  j = small();
+  j["techniques"][1]["transfer_functions"] = {"transparent"};
+  EXPECT_THROW(parse_pipeline(j, "t.json"), InputError);
+  j = small();
+  j["techniques"][1]["frames"] = 2;
+  try {
+    parse_pipeline(j, "t.json");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "techniques[1].frames");
+  }
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
-// linebake run <pipeline.json>: plans the pipeline's steps (bake, render, compare), runs each as
+// linebake run <pipeline>: plans the pipeline's steps (bake, render, compare), runs each as
 // a linebake child process in dependency order, reuses steps whose key and outputs are unchanged
-// (the state lives in <output>/.linebake-run.json), and writes report.md / report.json.
+// (the state lives in <output>/.linebake-run.json), and writes report.html / report.md /
+// report.json and the plots.
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -17,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "pipeline/evaluation_report.hpp"
+#include "pipeline/html_report.hpp"
 #include "pipeline/pipeline.hpp"
 #include "render/vulkan/context.hpp"
 
@@ -34,9 +36,12 @@ std::string quoted(const std::vector<std::string>& args) {
 
 // Runs this executable with `args`; stdout to `stdout_file` when given. Returns the exit code.
 int run_child(const std::vector<std::string>& args, const std::string& stdout_file) {
-  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  // /proc/self/exe, not the path it links to: a rebuild during a long run replaces the file, and
+  // every step should run the same linebake as the first.
+  const std::string self = "/proc/self/exe";
+  std::string name = "linebake";
   std::vector<char*> argv;
-  argv.push_back(const_cast<char*>(self.c_str()));
+  argv.push_back(name.data());
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
   posix_spawn_file_actions_t actions;
@@ -48,7 +53,7 @@ int run_child(const std::vector<std::string>& args, const std::string& stdout_fi
   pid_t pid = 0;
   const int spawned = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  if (spawned != 0) throw Error("run: cannot start " + self);
+  if (spawned != 0) throw Error("run: cannot start linebake again (" + self + ")");
   int status = 0;
   while (waitpid(pid, &status, 0) < 0)
     if (errno != EINTR) throw Error("run: waitpid failed");
@@ -92,16 +97,15 @@ Command add_run(CLI::App& app) {
   };
   auto args = std::make_shared<Args>();
   sub->add_option("pipeline", args->pipeline,
-                  "Pipeline file (.json), e.g. pipelines/quickstart.json")
+                  "Pipeline file (.json, .yaml), e.g. pipelines/quickstart.json or "
+                  "pipelines/paper-small (the extension may be left out)")
       ->required();
   sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)");
   sub->add_flag("--dry-run", args->dry_run,
                 "List the steps and whether each would run or be reused");
   sub->add_flag("--force", args->force, "Run every step, even unchanged ones");
   return [args] {
-    std::string path = args->pipeline;
-    if (!std::filesystem::exists(path) && std::filesystem::exists(path + ".json")) path += ".json";
-    Pipeline p = load_pipeline(path);
+    Pipeline p = load_pipeline(args->pipeline);
     if (!args->output.empty()) p.output = args->output;
     PlanContext context;
     try {
@@ -161,10 +165,14 @@ Command add_run(CLI::App& app) {
     if (args->dry_run) return;
     const nlohmann::json evaluation = evaluation_json(p, steps, machine_info());
     write_file_atomically(p.output + "/report.json", evaluation.dump(2) + "\n");
+    const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
+    std::filesystem::create_directories(p.output + "/plots");
+    for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);
     write_file_atomically(p.output + "/report.md", evaluation_markdown(p, evaluation));
+    write_file_atomically(p.output + "/report.html", evaluation_html(p, evaluation, plots));
     std::cerr << "linebake: run: " << ran << " step(s) run, " << reused << " reused, " << skipped
               << " skipped\n";
-    std::cout << p.output << "/report.md\n";
+    std::cout << p.output << "/report.html\n" << p.output << "/report.md\n";
   };
 }
 

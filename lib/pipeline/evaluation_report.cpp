@@ -49,7 +49,6 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<PipelineStep
   for (const PipelineDataset& d : p.datasets)
     summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
   out["caches"] = report_json(summaries);
-  const bool several = p.frame_count > 1;
   for (const PipelineDataset& d : p.datasets)
     for (const std::string& tf : p.transfer_functions)
       for (const PipelineTechnique& t : p.techniques) {
@@ -72,9 +71,7 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<PipelineStep
           if (fs.contains("gpu_ms")) frame["gpu_ms"] = fs["gpu_ms"];
           if (fs.contains("frame_bytes")) frame["frame_bytes"] = fs["frame_bytes"];
           if (t.label != p.reference) {
-            const std::string compare =
-                several ? frame_file(stem + "-compare", f, ".json") : stem + "-compare.json";
-            const nlohmann::json c = read_json(compare);
+            const nlohmann::json c = read_json(frame_output(p, stem + "-compare", f, ".json"));
             frame["psnr_db"] = c.at("psnr_db");
             frame["ssim"] = c.at("ssim");
           }
@@ -117,14 +114,20 @@ std::string evaluation_markdown(const Pipeline& p, const nlohmann::json& e) {
     summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
   md += report_markdown(summaries) + "\n";
   md += "## Frame time and quality\n\nMeans over the flight; PSNR and SSIM against `" +
-        p.reference + "` (an identical image counts as 100 dB).\n\n";
+        p.reference +
+        "` (an identical image counts as 100 dB). report.html has the image grids; report.json "
+        "every frame's numbers.\n\n";
   std::string current;
   for (const auto& r : e["results"]) {
     const std::string group =
         r["dataset"].get<std::string>() + ", `" + r["transfer_function"].get<std::string>() + "`";
     if (group != current) {
       current = group;
-      md += "\n### " + group +
+      const std::string plot = "plots/" + r["dataset"].get<std::string>() + "-" +
+                               r["transfer_function"].get<std::string>() + "-";
+      md += "\n### " + group + "\n\n![frame time](" + plot + "time.svg) ![PSNR](" + plot +
+            "psnr.svg) ![SSIM](" + plot + "ssim.svg) ![per-frame memory](" + plot +
+            "memory.svg)\n" +
             "\n\n| technique | s / frame | PSNR (dB) | SSIM | min SSIM |\n"
             "|---|---:|---:|---:|---:|\n";
     }

@@ -1,6 +1,11 @@
 #include "pipeline/pipeline.hpp"
 
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -60,6 +65,31 @@ bool safe_name(const std::string& name) {
   return true;
 }
 
+std::vector<std::string> names_at(const nlohmann::json& j, const char* key,
+                                  const std::set<std::string>& allowed, const std::string& file,
+                                  const std::string& where) {
+  std::vector<std::string> names;
+  if (!j.contains(key)) return names;
+  const std::string at = where + "." + key;
+  if (!j[key].is_array() || j[key].empty()) throw InputError(file, at, "a non-empty list of names");
+  for (const auto& v : j[key]) {
+    if (!v.is_string() || !allowed.count(v.get<std::string>()))
+      throw InputError(file, at, v.dump() + " is not one of the pipeline's " + key);
+    names.push_back(v.get<std::string>());
+  }
+  return names;
+}
+
+bool listed(const std::vector<std::string>& only, const std::string& name) {
+  return only.empty() || std::find(only.begin(), only.end(), name) != only.end();
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const std::string& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
 std::string key_of(const std::vector<std::string>& parts) {
   Hasher h;
   for (const std::string& p : parts) h.update(std::string_view(p));
@@ -69,7 +99,8 @@ std::string key_of(const std::vector<std::string>& parts) {
 }  // namespace
 
 Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
-  if (!j.is_object()) throw InputError(file, "", "a pipeline is a JSON object");
+  if (!j.is_object())
+    throw InputError(file, "", "a pipeline is an object (a JSON object or a YAML mapping)");
   static const std::set<std::string> known{
       "name",   "output", "datasets", "assets",   "techniques", "transfer_functions",
       "flight", "frames", "size",     "reference"};
@@ -100,30 +131,6 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
     p.datasets.push_back(ds);
   }
   p.bake_options = options_to_args(j.value("assets", nlohmann::json()), file, "assets");
-  if (!j.contains("techniques") || !j["techniques"].is_array() || j["techniques"].empty())
-    throw InputError(file, "techniques", "a list of at least one technique is needed");
-  std::set<std::string> labels;
-  for (size_t i = 0; i < j["techniques"].size(); ++i) {
-    const auto& t = j["techniques"][i];
-    const std::string where = "techniques[" + std::to_string(i) + "]";
-    PipelineTechnique pt;
-    if (t.is_string()) {
-      pt.technique = t.get<std::string>();
-    } else if (t.is_object()) {
-      pt.technique = string_at(t, "technique", "", file, where);
-      pt.label = string_at(t, "label", "", file, where);
-      pt.options = options_to_args(t.value("options", nlohmann::json()), file, where + ".options");
-    } else {
-      throw InputError(file, where, "a technique name or {technique, label, options}");
-    }
-    if (pt.technique.empty()) throw InputError(file, where + ".technique", "missing");
-    if (pt.label.empty()) pt.label = pt.technique;
-    if (!safe_name(pt.label))
-      throw InputError(file, where + ".label", "a name of letters, digits, '-', '_' or '.'");
-    if (!labels.insert(pt.label).second)
-      throw InputError(file, where, "label '" + pt.label + "' appears twice; give a \"label\"");
-    p.techniques.push_back(pt);
-  }
   if (j.contains("transfer_functions")) {
     const auto& tfs = j["transfer_functions"];
     if (!tfs.is_array() || tfs.empty())
@@ -138,6 +145,39 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
                              "': a preset name (opaque, semi, "
                              "transparent) or a file name without directories");
     }
+  }
+  const std::set<std::string> tf_names(p.transfer_functions.begin(), p.transfer_functions.end());
+  if (!j.contains("techniques") || !j["techniques"].is_array() || j["techniques"].empty())
+    throw InputError(file, "techniques", "a list of at least one technique is needed");
+  std::set<std::string> labels;
+  for (size_t i = 0; i < j["techniques"].size(); ++i) {
+    const auto& t = j["techniques"][i];
+    const std::string where = "techniques[" + std::to_string(i) + "]";
+    PipelineTechnique pt;
+    if (t.is_string()) {
+      pt.technique = t.get<std::string>();
+    } else if (t.is_object()) {
+      pt.technique = string_at(t, "technique", "", file, where);
+      pt.label = string_at(t, "label", "", file, where);
+      pt.options = options_to_args(t.value("options", nlohmann::json()), file, where + ".options");
+      pt.only_datasets = names_at(t, "datasets", names, file, where);
+      pt.only_transfer_functions = names_at(t, "transfer_functions", tf_names, file, where);
+      for (const auto& [key, value] : t.items())
+        if (key != "technique" && key != "label" && key != "options" && key != "datasets" &&
+            key != "transfer_functions")
+          throw InputError(file, where + "." + key, "unknown technique key");
+    } else {
+      throw InputError(file, where,
+                       "a technique name or {technique, label, options, datasets, "
+                       "transfer_functions}");
+    }
+    if (pt.technique.empty()) throw InputError(file, where + ".technique", "missing");
+    if (pt.label.empty()) pt.label = pt.technique;
+    if (!safe_name(pt.label))
+      throw InputError(file, where + ".label", "a name of letters, digits, '-', '_' or '.'");
+    if (!labels.insert(pt.label).second)
+      throw InputError(file, where, "label '" + pt.label + "' appears twice; give a \"label\"");
+    p.techniques.push_back(pt);
   }
   p.flight = string_at(j, "flight", p.flight, file, "");
   if (j.contains("frames")) {
@@ -155,10 +195,77 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
   return p;
 }
 
-Pipeline load_pipeline(const std::string& path) {
+namespace {
+
+// YAML pipelines are read into the same JSON tree. Plain scalars get YAML 1.2 core types
+// (true/false, integers, floats, null); quoted scalars stay strings.
+nlohmann::json yaml_to_json(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Null:
+    case YAML::NodeType::Undefined:
+      return nullptr;
+    case YAML::NodeType::Sequence: {
+      nlohmann::json array = nlohmann::json::array();
+      for (const YAML::Node& item : node) array.push_back(yaml_to_json(item));
+      return array;
+    }
+    case YAML::NodeType::Map: {
+      nlohmann::json object = nlohmann::json::object();
+      for (const auto& entry : node)
+        object[entry.first.as<std::string>()] = yaml_to_json(entry.second);
+      return object;
+    }
+    case YAML::NodeType::Scalar:
+      break;
+  }
+  const std::string text = node.Scalar();
+  if (node.Tag() == "!") return text;  // quoted
+  if (text == "true" || text == "True" || text == "TRUE") return true;
+  if (text == "false" || text == "False" || text == "FALSE") return false;
+  if (text == "null" || text == "~" || text.empty()) return nullptr;
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const long long integer = std::strtoll(begin, &end, 10);
+  if (errno == 0 && end == begin + text.size()) return integer;
+  errno = 0;
+  const double real = std::strtod(begin, &end);
+  if (errno == 0 && end == begin + text.size() &&
+      text.find_first_of("0123456789") != std::string::npos)
+    return real;
+  return text;
+}
+
+bool is_yaml(const std::string& path) {
+  const std::string ext = std::filesystem::path(path).extension().string();
+  return ext == ".yaml" || ext == ".yml";
+}
+
+}  // namespace
+
+std::string find_pipeline(const std::string& path) {
+  if (std::filesystem::exists(path)) return path;
+  for (const char* ext : {".json", ".yaml", ".yml"})
+    if (std::filesystem::exists(path + ext)) return path + ext;
+  return path;
+}
+
+Pipeline load_pipeline(const std::string& given) {
+  const std::string path = find_pipeline(given);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", "cannot open the pipeline file");
   nlohmann::json j;
+  if (is_yaml(path)) {
+    try {
+      j = yaml_to_json(YAML::Load(in));
+    } catch (const YAML::Exception& e) {
+      throw InputError(path,
+                       "line " + std::to_string(e.mark.line + 1) + ", column " +
+                           std::to_string(e.mark.column + 1),
+                       "not YAML: " + e.msg);
+    }
+    return parse_pipeline(j, path);
+  }
   try {
     j = nlohmann::json::parse(in);
   } catch (const nlohmann::json::parse_error& e) {
@@ -183,11 +290,16 @@ std::string frame_file(const std::string& stem, int frame, const char* suffix) {
   return stem + number + suffix;
 }
 
+std::string frame_output(const Pipeline& p, const std::string& stem, int frame,
+                         const char* suffix) {
+  return p.frame_count > 1 ? frame_file(stem, frame, suffix) : stem + suffix;
+}
+
 std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& context) {
   std::vector<PipelineStep> steps;
   const bool several = p.frame_count > 1;
   const auto frame_png = [&](const std::string& stem, int f) {
-    return several ? frame_file(stem, f, ".png") : stem + ".png";
+    return frame_output(p, stem, f, ".png");
   };
   for (const PipelineDataset& d : p.datasets) {
     PipelineStep bake;
@@ -237,7 +349,13 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         std::vector<std::string> rparts = render.args;
         rparts.push_back(bake_key);
         render.key = key_of(rparts);
-        if (t.technique == "rtx" && !context.ray_tracing)
+        if (!listed(t.only_datasets, d.name))
+          render.skip_reason = "left out of this pipeline on " + d.name + " (it runs on " +
+                               joined(t.only_datasets) + ")";
+        else if (!listed(t.only_transfer_functions, tf))
+          render.skip_reason = "left out of this pipeline for " + tf + " (it runs with " +
+                               joined(t.only_transfer_functions) + ")";
+        else if (t.technique == "rtx" && !context.ray_tracing)
           render.skip_reason = "no Vulkan device with ray tracing";
         else if (t.technique != "embree" && t.technique != "reference" && !context.vulkan &&
                  !(t.technique == "vrc" &&
@@ -267,10 +385,8 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
           c.id = "compare/" + d.name + "/" + t.label + "/" + tf + "/" + std::to_string(f);
           c.kind = "compare";
           c.depends = {render_id, "render/" + d.name + "/" + p.reference + "/" + tf};
-          const std::string err =
-              several ? frame_file(stem + "-error", f, ".png") : stem + "-error.png";
-          const std::string json =
-              several ? frame_file(stem + "-compare", f, ".json") : stem + "-compare.json";
+          const std::string err = frame_output(p, stem + "-error", f, ".png");
+          const std::string json = frame_output(p, stem + "-compare", f, ".json");
           c.args = {"compare", frame_png(stem, f), frame_png(ref_stem, f),
                     "--json",  "--error-image",    err};
           c.stdout_file = json;

@@ -14,6 +14,10 @@ struct PipelineTechnique {
   std::string technique;             // a `render --technique` name
   std::vector<std::string> options;  // extra render arguments
   std::string label;                 // output name; default: technique
+  // Where the technique runs: empty = every data set / transfer function of the pipeline. Lets a
+  // pipeline leave a technique out where it would take too long (DP on the largest sets).
+  std::vector<std::string> only_datasets;
+  std::vector<std::string> only_transfer_functions;
 };
 
 struct PipelineDataset {
@@ -35,7 +39,9 @@ struct Pipeline {
   std::string reference = "reference";  // the technique the others are compared with
 };
 
-// Reads a JSON pipeline. InputError naming the file and the JSON path of a bad entry.
+// Reads a pipeline: JSON, or YAML for .yaml/.yml; a path without its extension finds
+// PATH.json, PATH.yaml or PATH.yml. InputError naming the file and the JSON path of a bad entry
+// (YAML syntax errors: the line and column).
 Pipeline load_pipeline(const std::string& path);
 Pipeline parse_pipeline(const nlohmann::json& json, const std::string& file);
 
@@ -65,5 +71,7 @@ std::string cache_path(const Pipeline& p, const std::string& dataset);
 std::string render_stem(const Pipeline& p, const std::string& dataset, const std::string& label,
                         const std::string& tf);  // <output>/<dataset>/<label>-<tf>
 std::string frame_file(const std::string& stem, int frame, const char* suffix);
+// A frame's output as the pipeline names it: stem_NNN.suffix, or stem.suffix for one frame.
+std::string frame_output(const Pipeline& p, const std::string& stem, int frame, const char* suffix);
 
 }  // namespace linebake

@@ -74,8 +74,8 @@ static std::string count(uint64_t n) {
   return out;
 }
 
-static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheSummary>& caches,
-                                                        std::vector<std::string>& header) {
+std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummary>& caches,
+                                                   std::vector<std::string>& header) {
   const auto columns = asset_columns(caches);
   header = {"data set", "lines", "LS (segments)", "LM"};
   for (const std::string& a : columns) {
@@ -126,7 +126,7 @@ static std::vector<std::vector<std::string>> table_rows(const std::vector<CacheS
 
 std::string report_markdown(const std::vector<CacheSummary>& caches) {
   std::vector<std::string> header;
-  const auto rows = table_rows(caches, header);
+  const auto rows = report_table(caches, header);
   std::ostringstream out;
   out << "|";
   for (const auto& h : header) out << " " << h << " |";

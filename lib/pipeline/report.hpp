@@ -19,6 +19,10 @@ struct CacheSummary {
 
 CacheSummary summarize_cache(const CacheReader& cache);
 
+// Table 1's cells, one row per cache, with the column names in `header`.
+std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummary>& caches,
+                                                   std::vector<std::string>& header);
+
 nlohmann::json report_json(const std::vector<CacheSummary>& caches);
 std::string report_markdown(const std::vector<CacheSummary>& caches);
 std::string report_text(const std::vector<CacheSummary>& caches);

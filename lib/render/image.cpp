@@ -36,27 +36,31 @@ FilePtr open_file(const std::string& path, const char* mode) {
 }
 void png_warn(png_structp, png_const_charp) {}
 
-// Rows of big-endian samples, the form libpng writes.
-void write_png_rows(const std::string& path, int width, int height, int channels, int bits,
-                    bool srgb, const std::vector<unsigned char>& data) {
-  AtomicFile file(path);
-  FilePtr f = open_file(file.temp_path(), "wb");
-  if (!f) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
-  std::string error;
+void append_bytes(png_structp png, png_bytep data, png_size_t length) {
+  auto* out = static_cast<std::string*>(png_get_io_ptr(png));
+  out->append(reinterpret_cast<const char*>(data), length);
+}
+void no_flush(png_structp) {}
+
+// Rows of big-endian samples, the form libpng writes, encoded as a PNG file in memory.
+// `what` names the output in errors.
+std::string encode_png_rows(const std::string& what, int width, int height, int channels, int bits,
+                            bool srgb, const std::vector<unsigned char>& data) {
+  std::string error, bytes;
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &error, png_fail, png_warn);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
   if (!png || !info) {
     png_destroy_write_struct(&png, &info);
-    throw OutputError(path, "out of memory in libpng");
+    throw OutputError(what, "out of memory in libpng");
   }
   const size_t row_bytes = size_t(width) * channels * (bits / 8);
   std::vector<png_bytep> rows(height);
   for (int y = 0; y < height; ++y) rows[y] = const_cast<png_bytep>(data.data() + y * row_bytes);
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
-    throw OutputError(path, "PNG write failed: " + error);
+    throw OutputError(what, "PNG write failed: " + error);
   }
-  png_init_io(png, f.get());
+  png_set_write_fn(png, &bytes, append_bytes, no_flush);
   png_set_IHDR(png, info, png_uint_32(width), png_uint_32(height), bits,
                channels == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
                PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
@@ -65,10 +69,23 @@ void write_png_rows(const std::string& path, int width, int height, int channels
   png_write_image(png, rows.data());
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
-  if (std::fflush(f.get()) != 0)
-    throw OutputError(path, std::string("cannot write: ") + std::strerror(errno));
-  f.reset();
-  file.commit();
+  return bytes;
+}
+
+std::vector<unsigned char> quantized_samples(const Image& image, int bits) {
+  const Image encoded = display_encoded(image);
+  const double scale = bits == 8 ? 255.0 : 65535.0;
+  std::vector<unsigned char> data(encoded.pixels.size() * size_t(bits / 8));
+  for (size_t i = 0; i < encoded.pixels.size(); ++i) {
+    const auto v = uint32_t(std::lround(std::clamp(double(encoded.pixels[i]), 0.0, 1.0) * scale));
+    if (bits == 8) {
+      data[i] = uint8_t(v);
+    } else {
+      data[2 * i] = uint8_t(v >> 8);
+      data[2 * i + 1] = uint8_t(v);
+    }
+  }
+  return data;
 }
 
 }  // namespace
@@ -81,21 +98,16 @@ Image display_encoded(const Image& image) {
   return out;
 }
 
+std::string encode_png(const Image& image, int bits) {
+  if (bits != 8 && bits != 16) throw OutputError("PNG", "bit depth must be 8 or 16");
+  return encode_png_rows("PNG", image.width, image.height, image.channels, bits, true,
+                         quantized_samples(image, bits));
+}
+
 void write_png(const Image& image, const std::string& path, int bits) {
   if (bits != 8 && bits != 16) throw OutputError(path, "PNG bit depth must be 8 or 16");
-  const Image encoded = display_encoded(image);
-  const double scale = bits == 8 ? 255.0 : 65535.0;
-  std::vector<unsigned char> data(encoded.pixels.size() * (bits / 8));
-  for (size_t i = 0; i < encoded.pixels.size(); ++i) {
-    const auto v = uint32_t(std::lround(std::clamp(double(encoded.pixels[i]), 0.0, 1.0) * scale));
-    if (bits == 8) {
-      data[i] = uint8_t(v);
-    } else {
-      data[2 * i] = uint8_t(v >> 8);
-      data[2 * i + 1] = uint8_t(v);
-    }
-  }
-  write_png_rows(path, image.width, image.height, image.channels, bits, true, data);
+  write_file_atomically(path, encode_png_rows(path, image.width, image.height, image.channels, bits,
+                                              true, quantized_samples(image, bits)));
 }
 
 void write_png_counts(const std::vector<uint32_t>& counts, int width, int height,
@@ -106,7 +118,7 @@ void write_png_counts(const std::vector<uint32_t>& counts, int width, int height
     data[2 * i] = uint8_t(v >> 8);
     data[2 * i + 1] = uint8_t(v);
   }
-  write_png_rows(path, width, height, 1, 16, false, data);
+  write_file_atomically(path, encode_png_rows(path, width, height, 1, 16, false, data));
 }
 
 Image read_png(const std::string& path) {

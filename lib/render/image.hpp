@@ -25,6 +25,8 @@ Image display_encoded(const Image& image);
 
 // PNG with 8 or 16 bits per channel, sRGB chunk set. Linear images are encoded on the way out.
 void write_png(const Image& image, const std::string& path, int bits = 8);
+// The same PNG file's bytes, in memory (e.g. for a data: URI).
+std::string encode_png(const Image& image, int bits = 8);
 // 16-bit grey PNG of raw counts (saturating at 65535), e.g. a depth-complexity image.
 void write_png_counts(const std::vector<uint32_t>& counts, int width, int height,
                       const std::string& path);
