@@ -19,6 +19,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "curve_defaults.hpp"
 #include "flight_plan.hpp"
 #include "pipeline/bake.hpp"
 #include "render/ray_tracer.hpp"
@@ -154,20 +155,6 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
                 << context.info().name << "\n";
   }
   if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
-}
-
-// The radius and attribute of curves and capsules over the lines: the flags, else the cached
-// tubes' (from their provenance), else 0.001 x the diagonal and the first vertex attribute.
-std::pair<float, std::string> curve_defaults(float radius, std::string attribute,
-                                             const std::optional<Provenance>& tube_provenance,
-                                             const LineSet& lines) {
-  if (attribute.empty())
-    attribute = tube_provenance ? tube_provenance->stats.value("attribute", "")
-                                : (lines.attributes.empty() ? "" : lines.attributes[0].name);
-  if (!(radius > 0) && tube_provenance && tube_provenance->stats.contains("radius_world"))
-    radius = tube_provenance->stats["radius_world"].get<float>();
-  if (!(radius > 0)) radius = TubeOptions{}.radius * compute_bounds(lines).diagonal();
-  return {radius, attribute};
 }
 
 // Voxel ray casting from the cached voxel line grid, on the CPU or with Vulkan compute. The

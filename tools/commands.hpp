@@ -27,5 +27,6 @@ Command add_render(CLI::App& app);
 Command add_compare(CLI::App& app);
 Command add_depth_complexity(CLI::App& app);
 Command add_run(CLI::App& app);
+Command add_view(CLI::App& app);
 
 }  // namespace linebake::cli

@@ -14,7 +14,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::vector<std::pair<CLI::App*, Command>> commands;
   for (auto add : {add_info, add_convert, add_synth, add_bake, add_report, add_export, add_render,
-                   add_depth_complexity, add_compare, add_bench, add_run}) {
+                   add_depth_complexity, add_compare, add_bench, add_run, add_view}) {
     const size_t before = app.get_subcommands({}).size();
     Command run = add(app);
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));

@@ -48,14 +48,15 @@ DeviceInfo describe(VkPhysicalDevice device) {
   return info;
 }
 
-VkInstance create_instance(bool validation) {
+VkInstance create_instance(bool validation, const std::vector<std::string>& wanted = {}) {
   VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
   app.pApplicationName = "linebake";
   app.apiVersion = VK_API_VERSION_1_3;
   VkInstanceCreateInfo create{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   create.pApplicationInfo = &app;
   const char* layers[] = {kValidationLayer};
-  const char* extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+  std::vector<const char*> extensions;
+  for (const std::string& e : wanted) extensions.push_back(e.c_str());
   if (validation) {
     if (!has_layer(kValidationLayer))
       throw Error(
@@ -63,9 +64,10 @@ VkInstance create_instance(bool validation) {
           "(vulkan-validationlayers)");
     create.enabledLayerCount = 1;
     create.ppEnabledLayerNames = layers;
-    create.enabledExtensionCount = 1;
-    create.ppEnabledExtensionNames = extensions;
+    extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
   }
+  create.enabledExtensionCount = uint32_t(extensions.size());
+  create.ppEnabledExtensionNames = extensions.data();
   VkInstance instance = VK_NULL_HANDLE;
   const VkResult r = vkCreateInstance(&create, nullptr, &instance);
   if (r == VK_ERROR_INCOMPATIBLE_DRIVER)
@@ -123,7 +125,7 @@ VKAPI_ATTR VkBool32 VKAPI_CALL Context::on_message(VkDebugUtilsMessageSeverityFl
 }
 
 Context::Context(const ContextOptions& options) {
-  instance_ = create_instance(options.validation);
+  instance_ = create_instance(options.validation, options.instance_extensions);
   try {
     if (options.validation) {
       auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
@@ -241,6 +243,11 @@ Context::Context(const ContextOptions& options) {
       features12.bufferDeviceAddress = VK_TRUE;
       as_features.pNext = chain_end;
       chain_end = &rt_features;
+    }
+    if (options.swapchain) {
+      if (!has_extension(physical_, VK_KHR_SWAPCHAIN_EXTENSION_NAME))
+        throw Error("Vulkan: " + info_.name + " cannot present to a window (no VK_KHR_swapchain)");
+      device_extensions.push_back(VK_KHR_SWAPCHAIN_EXTENSION_NAME);
     }
     features12.pNext = chain_end;
     VkPhysicalDeviceFeatures features{};

@@ -24,6 +24,10 @@ struct ContextOptions {
   // Enable VK_KHR_acceleration_structure + VK_KHR_ray_tracing_pipeline and buffer device
   // addresses; the Context throws RayTracingUnsupported on a device without them.
   bool ray_tracing = false;
+  // A window's needs (the viewer): the instance extensions its surface takes (GLFW's list) and
+  // VK_KHR_swapchain on the device.
+  std::vector<std::string> instance_extensions;
+  bool swapchain = false;
 };
 
 // The chosen device cannot ray trace (lavapipe, older GPUs): the message is the one line users see.
@@ -62,6 +66,7 @@ class Context {
   ~Context();
 
   const DeviceInfo& info() const { return info_; }
+  VkInstance instance() const { return instance_; }
   VkDevice device() const { return device_; }
   VkPhysicalDevice physical_device() const { return physical_; }
   VkQueue queue() const { return queue_; }

@@ -1,0 +1,399 @@
+// linebake view <cache>: a window (GLFW + a Vulkan swapchain) showing one technique at a time
+// over the cached assets. Orbit with the left mouse button, zoom with the wheel; keys switch the
+// technique and the transfer function, take screenshots and compare the view with the ground
+// truth. --script drives it without a user (tests, recorded demos).
+
+#define GLFW_INCLUDE_VULKAN
+#include <GLFW/glfw3.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include "cache/cache.hpp"
+#include "commands.hpp"
+#include "core/error.hpp"
+#include "flight_plan.hpp"
+#include "metrics/image_metrics.hpp"
+#include "pipeline/report.hpp"
+#include "render/overlay_text.hpp"
+#include "render/vulkan/presenter.hpp"
+#include "view_sources.hpp"
+
+namespace linebake::cli {
+namespace {
+
+struct ScriptLine {
+  int line = 0;
+  std::string command;
+  std::vector<std::string> args;
+};
+
+// One command per line; '#' starts a comment. See docs/viewer.md.
+std::vector<ScriptLine> read_script(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "", "cannot open the script");
+  static const std::map<std::string, size_t> arity{
+      {"technique", 1}, {"tf", 1},   {"frame", 1},      {"orbit", 2},   {"zoom", 1}, {"key", 1},
+      {"wait", 1},      {"hold", 1}, {"screenshot", 1}, {"compare", 0}, {"quit", 0}};
+  std::vector<ScriptLine> script;
+  std::string text;
+  for (int number = 1; std::getline(in, text); ++number) {
+    if (const size_t hash = text.find('#'); hash != std::string::npos) text.resize(hash);
+    std::istringstream words(text);
+    ScriptLine line{number, "", {}};
+    if (!(words >> line.command)) continue;
+    for (std::string w; words >> w;) line.args.push_back(w);
+    const auto known = arity.find(line.command);
+    if (known == arity.end())
+      throw InputError(path, "line " + std::to_string(number),
+                       "unknown command '" + line.command + "'");
+    if (line.args.size() != known->second)
+      throw InputError(
+          path, "line " + std::to_string(number),
+          "'" + line.command + "' takes " + std::to_string(known->second) + " argument(s)");
+    script.push_back(line);
+  }
+  return script;
+}
+
+double number_arg(const std::string& path, const ScriptLine& line, size_t i) {
+  try {
+    size_t used = 0;
+    const double v = std::stod(line.args[i], &used);
+    if (used == line.args[i].size() && std::isfinite(v)) return v;
+  } catch (const std::exception&) {
+  }
+  throw InputError(path, "line " + std::to_string(line.line),
+                   "'" + line.args[i] + "' is not a number");
+}
+
+// 8-bit display values, as a PNG written and read back: the viewer's comparison then gives the
+// numbers `linebake compare` gives for the same two images.
+Image as_png_values(const Image& image) {
+  Image out = display_encoded(image);
+  for (float& v : out.pixels) v = std::round(v * 255.0f) / 255.0f;
+  return out;
+}
+
+class Viewer {
+ public:
+  struct Options {
+    std::string cache, technique = "ll", tf = "semi", device, script, flight = "orbit-zoom";
+    int width = 1280, height = 720, frame_count = 64;
+    bool validation = false;
+  };
+
+  explicit Viewer(const Options& options) : options_(options), cache_(options.cache) {
+    if (!glfwInit())
+      throw Error("view: cannot open a window (no display? set DISPLAY, or run under xvfb-run)");
+    glfwWindowHint(GLFW_CLIENT_API, GLFW_NO_API);
+    window_ = glfwCreateWindow(options.width, options.height, "linebake view", nullptr, nullptr);
+    if (!window_) {
+      glfwTerminate();
+      throw Error("view: GLFW could not create a window");
+    }
+    try {
+      vk::ContextOptions context_options;
+      context_options.device = options.device;
+      context_options.validation = options.validation;
+      context_options.swapchain = true;
+      uint32_t count = 0;
+      const char** names = glfwGetRequiredInstanceExtensions(&count);
+      if (!names) throw Error("view: GLFW found no Vulkan window support on this display");
+      for (uint32_t i = 0; i < count; ++i) context_options.instance_extensions.push_back(names[i]);
+      context_.emplace(context_options);
+      VkSurfaceKHR surface = VK_NULL_HANDLE;
+      vk::check(glfwCreateWindowSurface(context_->instance(), window_, nullptr, &surface),
+                "glfwCreateWindowSurface");
+      presenter_.emplace(*context_, surface);
+    } catch (...) {
+      close();
+      throw;
+    }
+    glfwSetWindowUserPointer(window_, this);
+    glfwSetKeyCallback(window_, [](GLFWwindow* w, int key, int, int action, int) {
+      if (action == GLFW_PRESS) static_cast<Viewer*>(glfwGetWindowUserPointer(w))->on_key(key);
+    });
+    glfwSetScrollCallback(window_, [](GLFWwindow* w, double, double dy) {
+      static_cast<Viewer*>(glfwGetWindowUserPointer(w))->zoom(std::pow(0.9, dy));
+    });
+    tf_ = options.tf;
+    switch_technique(options.technique);
+    if (!source_) throw Error("view: " + status_);
+    set_flight_frame(0);
+  }
+  ~Viewer() { close(); }
+
+  int run() {
+    std::vector<ScriptLine> script;
+    if (!options_.script.empty()) script = read_script(options_.script);
+    size_t next = 0;
+    int wait_frames = 0;
+    double last_x = 0, last_y = 0;
+    bool dragging = false;
+    while (!quit_ && !glfwWindowShouldClose(window_)) {
+      glfwPollEvents();
+      // Mouse orbit: 0.3 degrees per pixel dragged.
+      double x, y;
+      glfwGetCursorPos(window_, &x, &y);
+      const bool down = glfwGetMouseButton(window_, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+      if (down && dragging) orbit(0.3 * (x - last_x), 0.3 * (y - last_y));
+      dragging = down, last_x = x, last_y = y;
+      if (!options_.script.empty() && wait_frames == 0) {
+        if (next == script.size()) break;  // a script ends the session
+        execute(script[next++], wait_frames);
+        if (quit_) break;
+      }
+      draw();
+      if (wait_frames > 0) --wait_frames;
+    }
+    return 0;
+  }
+
+ private:
+  void close() {
+    presenter_.reset();
+    source_.reset();
+    reference_.reset();
+    context_.reset();
+    if (window_) glfwDestroyWindow(window_);
+    window_ = nullptr;
+    glfwTerminate();
+  }
+
+  Camera camera() const {
+    if (flight_camera_) return *flight_camera_;
+    return frame_bounds(source_->bounds(), double(width_) / height_, azimuth_, elevation_,
+                        distance_);
+  }
+
+  void set_flight_frame(int frame) {
+    width_ = options_.width, height_ = options_.height;
+    const FlightPlan plan = plan_flight(options_.flight, options_.frame_count, frame, "",
+                                        source_->bounds(), width_, height_);
+    flight_camera_ = plan.cameras.at(size_t(frame));
+    flight_frame_ = frame;
+  }
+
+  void orbit(double degrees_x, double degrees_y) {
+    if (degrees_x == 0 && degrees_y == 0) return;
+    flight_camera_.reset();
+    azimuth_ += degrees_x;
+    elevation_ = std::clamp(elevation_ + degrees_y, -89.0, 89.0);
+  }
+  void zoom(double factor) {
+    flight_camera_.reset();
+    distance_ = std::clamp(distance_ * factor, 0.05, 20.0);
+  }
+
+  void switch_technique(const std::string& name) {
+    try {
+      source_ = make_view_source(name, cache_, *context_);
+      technique_ = name;
+      status_.clear();
+      if (flight_camera_) set_flight_frame(flight_frame_);
+    } catch (const Error& e) {
+      status_ = name + ": " + e.what();  // shown on screen; the last source stays
+      std::cerr << "view: " << status_ << "\n";
+    }
+  }
+
+  void next_technique() {
+    const auto& names = view_techniques();
+    auto it = std::find(names.begin(), names.end(), technique_);
+    const size_t i = it == names.end() ? 0 : size_t(it - names.begin());
+    switch_technique(names[(i + 1) % names.size()]);
+  }
+
+  void next_tf() {
+    static const std::vector<std::string> presets{"opaque", "semi", "transparent"};
+    auto it = std::find(presets.begin(), presets.end(), tf_);
+    tf_ = presets[it == presets.end() ? 0 : size_t(it - presets.begin() + 1) % presets.size()];
+  }
+
+  void on_key(int key) {
+    switch (key) {
+      case GLFW_KEY_T:
+        next_technique();
+        break;
+      case GLFW_KEY_F:
+        next_tf();
+        break;
+      case GLFW_KEY_S:
+        screenshot("");
+        break;
+      case GLFW_KEY_C:
+        compare();
+        break;
+      case GLFW_KEY_R:
+        set_flight_frame(0);
+        break;
+      case GLFW_KEY_RIGHT:
+        set_flight_frame((flight_frame_ + 1) % options_.frame_count);
+        break;
+      case GLFW_KEY_LEFT:
+        set_flight_frame((flight_frame_ + options_.frame_count - 1) % options_.frame_count);
+        break;
+      case GLFW_KEY_Q:
+      case GLFW_KEY_ESCAPE:
+        quit_ = true;
+        break;
+      default:
+        break;
+    }
+  }
+
+  void execute(const ScriptLine& line, int& wait_frames) {
+    const std::string& path = options_.script;
+    const std::string& c = line.command;
+    if (c == "technique") {
+      switch_technique(line.args[0]);
+      if (!status_.empty()) throw InputError(path, "line " + std::to_string(line.line), status_);
+    } else if (c == "tf") {
+      resolve_transfer_function(line.args[0]);  // throws on a bad name
+      tf_ = line.args[0];
+    } else if (c == "frame") {
+      const double f = number_arg(path, line, 0);
+      if (f < 0 || f >= options_.frame_count || f != std::floor(f))
+        throw InputError(path, "line " + std::to_string(line.line),
+                         "frame must be 0.." + std::to_string(options_.frame_count - 1));
+      set_flight_frame(int(f));
+    } else if (c == "orbit") {
+      orbit(number_arg(path, line, 0), number_arg(path, line, 1));
+    } else if (c == "zoom") {
+      zoom(number_arg(path, line, 0));
+    } else if (c == "key") {
+      static const std::map<std::string, int> keys{
+          {"t", GLFW_KEY_T},         {"f", GLFW_KEY_F},       {"s", GLFW_KEY_S},
+          {"c", GLFW_KEY_C},         {"r", GLFW_KEY_R},       {"q", GLFW_KEY_Q},
+          {"right", GLFW_KEY_RIGHT}, {"left", GLFW_KEY_LEFT}, {"escape", GLFW_KEY_ESCAPE}};
+      const auto key = keys.find(line.args[0]);
+      if (key == keys.end())
+        throw InputError(path, "line " + std::to_string(line.line),
+                         "unknown key '" + line.args[0] + "' (t f s c r q left right escape)");
+      on_key(key->second);
+    } else if (c == "wait") {
+      wait_frames = int(std::max(0.0, number_arg(path, line, 0)));
+    } else if (c == "hold") {
+      // Keep the last frame on screen (for a screen grab) without rendering.
+      const auto until = std::chrono::steady_clock::now() +
+                         std::chrono::duration<double>(number_arg(path, line, 0));
+      while (std::chrono::steady_clock::now() < until) {
+        glfwPollEvents();
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    } else if (c == "screenshot") {
+      screenshot(line.args[0]);
+    } else if (c == "compare") {
+      compare();
+    } else if (c == "quit") {
+      quit_ = true;
+    }
+  }
+
+  void draw() {
+    int w = 0, h = 0;
+    glfwGetFramebufferSize(window_, &w, &h);
+    if (w <= 0 || h <= 0) return;
+    if (w != width_ || h != height_) {
+      width_ = w, height_ = h;
+      if (flight_camera_) {  // a resized window keeps the flight's view at the new aspect
+        flight_camera_.reset();
+      }
+    }
+    const TransferFunction tf = resolve_transfer_function(tf_);
+    frame_ = source_->render(camera(), tf, width_, height_);
+    Image shown = frame_.image;
+    char line[256];
+    std::snprintf(line, sizeof line, "%s | %s | %.1f ms | %s per frame%s%s", technique_.c_str(),
+                  tf_.c_str(), frame_.seconds * 1e3, format_bytes(frame_.frame_bytes).c_str(),
+                  comparison_.empty() ? "" : " | ", comparison_.c_str());
+    draw_status_line(shown, line, 0, height_ >= 400 ? 2 : 1);
+    if (!status_.empty())
+      draw_status_line(shown, status_, height_ - (height_ >= 400 ? 18 : 9), height_ >= 400 ? 2 : 1);
+    presenter_->present(shown, width_, height_);
+    if (context_->validation_errors() > 0)
+      throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +
+                  " error(s); last: " + context_->last_validation_error());
+    std::cout << "frame: " << technique_ << " " << tf_ << " " << frame_.seconds << " s "
+              << frame_.frame_bytes << " bytes\n";
+  }
+
+  // The last frame as the technique drew it (no status line), as `render` would write it.
+  void screenshot(std::string path) {
+    if (frame_.image.pixels.empty()) return;
+    if (path.empty()) {
+      char name[64];
+      std::snprintf(name, sizeof name, "linebake-view-%03d.png", screenshots_++);
+      path = name;
+    }
+    write_png(frame_.image, path);
+    std::cout << "screenshot: " << path << "\n";
+  }
+
+  // PSNR / SSIM of the last frame against the ground truth (the reference) from the same camera.
+  void compare() {
+    if (frame_.image.pixels.empty()) return;
+    if (!reference_) reference_ = make_view_source("reference", cache_, *context_);
+    const TransferFunction tf = resolve_transfer_function(tf_);
+    const ViewFrame truth = reference_->render(camera(), tf, width_, height_);
+    const Image a = as_png_values(frame_.image), b = as_png_values(truth.image);
+    char text[128];
+    std::snprintf(text, sizeof text, "PSNR %.2f dB SSIM %.4f", psnr(a, b), ssim(a, b));
+    comparison_ = text;
+    std::cout << "compare: " << technique_ << " " << tf_ << " " << comparison_ << "\n";
+  }
+
+  Options options_;
+  CacheReader cache_;
+  GLFWwindow* window_ = nullptr;
+  std::optional<vk::Context> context_;
+  std::optional<vk::Presenter> presenter_;
+  std::unique_ptr<ViewSource> source_, reference_;
+  std::string technique_, tf_, status_, comparison_;
+  std::optional<Camera> flight_camera_;
+  int flight_frame_ = 0, width_ = 0, height_ = 0, screenshots_ = 0;
+  double azimuth_ = 0, elevation_ = 20, distance_ = 1;
+  ViewFrame frame_;
+  bool quit_ = false;
+};
+
+}  // namespace
+
+Command add_view(CLI::App& app) {
+  auto* sub = app.add_subcommand("view", "Show a cache in a window, one technique at a time");
+  auto options = std::make_shared<Viewer::Options>();
+  std::string size = "1280x720";
+  auto size_text = std::make_shared<std::string>(size);
+  sub->add_option("cache", options->cache, "Asset cache (.lbc.h5)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub->add_option("--technique", options->technique,
+                  "First technique (default ll); T cycles: reference embree opaque dp ll mlab "
+                  "mlabdb mboit wboit vrc vrc-gpu");
+  sub->add_option("--tf", options->tf, "First transfer function (default semi); F cycles presets");
+  sub->add_option("--size", *size_text, "Window size WxH (default 1280x720)");
+  sub->add_option("--flight", options->flight,
+                  "Flight whose frames the arrow keys and 'frame N' step through (orbit-zoom)");
+  sub->add_option("--frame-count", options->frame_count, "Frames in that flight (default 64)")
+      ->check(CLI::Range(1, 100000));
+  sub->add_option("--device", options->device, "Vulkan device: part of its name");
+  sub->add_flag("--validation", options->validation,
+                "Vulkan: enable the Khronos validation layer; validation errors end the session");
+  sub->add_option("--script", options->script,
+                  "Commands to run, one per frame (docs/viewer.md); the session ends after the "
+                  "last")
+      ->check(CLI::ExistingFile);
+  return [options, size_text] {
+    const auto [w, h] = parse_size(*size_text);
+    options->width = w, options->height = h;
+    Viewer viewer(*options);
+    viewer.run();
+  };
+}
+
+}  // namespace linebake::cli
