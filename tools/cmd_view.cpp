@@ -319,8 +319,9 @@ class Viewer {
     if (context_->validation_errors() > 0)
       throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +
                   " error(s); last: " + context_->last_validation_error());
-    std::cout << "frame: " << technique_ << " " << tf_ << " " << frame_.seconds << " s "
-              << frame_.frame_bytes << " bytes\n";
+    if (!options_.script.empty())  // a log for scripted sessions, not a flood at 60 Hz
+      std::cout << "frame: " << technique_ << " " << tf_ << " " << frame_.seconds << " s "
+                << frame_.frame_bytes << " bytes\n";
   }
 
   // The last frame as the technique drew it (no status line), as `render` would write it.
@@ -367,8 +368,7 @@ class Viewer {
 Command add_view(CLI::App& app) {
   auto* sub = app.add_subcommand("view", "Show a cache in a window, one technique at a time");
   auto options = std::make_shared<Viewer::Options>();
-  std::string size = "1280x720";
-  auto size_text = std::make_shared<std::string>(size);
+  auto size_text = std::make_shared<std::string>("1280x720");
   sub->add_option("cache", options->cache, "Asset cache (.lbc.h5)")
       ->required()
       ->check(CLI::ExistingFile);
