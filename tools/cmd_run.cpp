@@ -163,13 +163,14 @@ Command add_run(CLI::App& app) {
       ++ran;
     }
     if (args->dry_run) return;
-    const nlohmann::json evaluation = evaluation_json(p, steps, machine_info());
+    const std::vector<CacheSummary> caches = pipeline_caches(p);
+    const nlohmann::json evaluation = evaluation_json(p, caches, steps, machine_info());
     write_file_atomically(p.output + "/report.json", evaluation.dump(2) + "\n");
     const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
     std::filesystem::create_directories(p.output + "/plots");
     for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);
-    write_file_atomically(p.output + "/report.md", evaluation_markdown(p, evaluation));
-    write_file_atomically(p.output + "/report.html", evaluation_html(p, evaluation, plots));
+    write_file_atomically(p.output + "/report.md", evaluation_markdown(p, caches, evaluation));
+    write_file_atomically(p.output + "/report.html", evaluation_html(p, caches, evaluation, plots));
     std::cerr << "linebake: run: " << ran << " step(s) run, " << reused << " reused, " << skipped
               << " skipped\n";
     std::cout << p.output << "/report.html\n" << p.output << "/report.md\n";

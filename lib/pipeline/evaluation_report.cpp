@@ -32,7 +32,15 @@ std::string fixed(double value, int digits) {
 
 }  // namespace
 
-nlohmann::json evaluation_json(const Pipeline& p, const std::vector<PipelineStep>& steps,
+std::vector<CacheSummary> pipeline_caches(const Pipeline& p) {
+  std::vector<CacheSummary> summaries;
+  for (const PipelineDataset& d : p.datasets)
+    summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
+  return summaries;
+}
+
+nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary>& summaries,
+                               const std::vector<PipelineStep>& steps,
                                const nlohmann::json& machine) {
   std::map<std::string, const PipelineStep*> by_id;
   for (const PipelineStep& s : steps) by_id[s.id] = &s;
@@ -45,9 +53,6 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<PipelineStep
                         {"reference", p.reference},
                         {"caches", nlohmann::json::array()},
                         {"results", nlohmann::json::array()}};
-  std::vector<CacheSummary> summaries;
-  for (const PipelineDataset& d : p.datasets)
-    summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
   out["caches"] = report_json(summaries);
   for (const PipelineDataset& d : p.datasets)
     for (const std::string& tf : p.transfer_functions)
@@ -100,7 +105,8 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<PipelineStep
   return out;
 }
 
-std::string evaluation_markdown(const Pipeline& p, const nlohmann::json& e) {
+std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummary>& summaries,
+                                const nlohmann::json& e) {
   std::string md = "# " + p.name + ": evaluation report\n\n";
   md += "Pipeline `" + p.file + "`: " + std::to_string(p.datasets.size()) + " data set(s), " +
         std::to_string(p.frame_count) + " frame(s) of the `" + p.flight + "` flight at " + p.size +
@@ -109,9 +115,6 @@ std::string evaluation_markdown(const Pipeline& p, const nlohmann::json& e) {
         std::to_string(e["machine"].value("cores", 0)) +
         " cores; Vulkan devices: " + e["machine"].value("vulkan", std::string("none")) + ".\n\n";
   md += "## Table 1: data and representations\n\n";
-  std::vector<CacheSummary> summaries;
-  for (const PipelineDataset& d : p.datasets)
-    summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
   md += report_markdown(summaries) + "\n";
   md += "## Frame time and quality\n\nMeans over the flight; PSNR and SSIM against `" +
         p.reference +

@@ -8,13 +8,19 @@
 #include <vector>
 
 #include "pipeline/pipeline.hpp"
+#include "pipeline/report.hpp"
 
 namespace linebake {
 
 // `skipped`: step id -> reason for steps that did not run. Missing files of skipped steps are
 // reported as skipped; of other steps, as an Error naming the file.
-nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<PipelineStep>& steps,
+// Every data set's cache summary (Table 1), read once and passed to the report writers.
+std::vector<CacheSummary> pipeline_caches(const Pipeline& pipeline);
+
+nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
+                               const std::vector<PipelineStep>& steps,
                                const nlohmann::json& machine);
-std::string evaluation_markdown(const Pipeline& pipeline, const nlohmann::json& evaluation);
+std::string evaluation_markdown(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
+                                const nlohmann::json& evaluation);
 
 }  // namespace linebake

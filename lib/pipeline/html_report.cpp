@@ -243,7 +243,8 @@ std::map<std::string, std::string> evaluation_plots(const Pipeline& p, const nlo
   return plots;
 }
 
-std::string evaluation_html(const Pipeline& p, const nlohmann::json& e,
+std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& summaries,
+                            const nlohmann::json& e,
                             const std::map<std::string, std::string>& plots) {
   const nlohmann::json& m = e["machine"];
   std::string html =
@@ -264,9 +265,6 @@ std::string evaluation_html(const Pipeline& p, const nlohmann::json& e,
   for (const PipelineDataset& d : p.datasets)
     html += "<a href=\"#" + xml_escape(d.name) + "\">" + xml_escape(d.name) + "</a> ";
   html += "</p>\n<h2>Table 1: data and representations</h2>\n";
-  std::vector<CacheSummary> summaries;
-  for (const PipelineDataset& d : p.datasets)
-    summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
   std::vector<std::string> header;
   const auto rows = report_table(summaries, header);
   html += table(header, rows) + paper_comparison(e["caches"]);

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "pipeline/pipeline.hpp"
+#include "pipeline/report.hpp"
 
 namespace linebake {
 
@@ -19,7 +20,8 @@ std::map<std::string, std::string> evaluation_plots(const Pipeline& pipeline,
                                                     const nlohmann::json& evaluation);
 
 // `evaluation` is evaluation_json()'s; images are read from the run's output files.
-std::string evaluation_html(const Pipeline& pipeline, const nlohmann::json& evaluation,
+std::string evaluation_html(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
+                            const nlohmann::json& evaluation,
                             const std::map<std::string, std::string>& plots);
 
 // The frame shown in the image grids: the middle of the flight.
