@@ -10,60 +10,83 @@
 
 namespace linebake::formats {
 
-LineSet read_binlines(const std::string& path, const ReadOptions& options) {
-  io::BinaryReader in(path, options.progress);
-  if (in.size() == 0) in.fail("empty file");
-  const auto version = in.read_value<uint32_t>("version");
-  if (version != 1 && version != 2)
-    in.fail_at(0,
-               "unsupported .binlines version " + std::to_string(version) + " (expected 1 or 2)");
-  const auto line_count = in.read_value<uint32_t>("line count");
-  const auto attribute_count = in.read_value<uint32_t>("attribute count");
-  if (attribute_count > 4096)
-    in.fail_at(8, "implausible attribute count " + std::to_string(attribute_count));
+namespace {
 
-  LineSet lines;
-  lines.attributes.resize(attribute_count);
-  for (uint32_t a = 0; a < attribute_count; ++a) {
-    lines.attributes[a].name = "attribute" + std::to_string(a);
-    if (version == 2) {
-      const uint64_t at = in.offset();
-      const auto length = in.read_value<uint32_t>("attribute name length");
-      if (length > 4096)
-        in.fail_at(at, "implausible attribute name length " + std::to_string(length));
-      std::string name(length, '\0');
-      in.read(name.data(), length, "attribute name");
-      lines.attributes[a].name = name;
+class BinlinesReader : public LineReader {
+ public:
+  BinlinesReader(const std::string& path, const ReadOptions& options)
+      : in_(path, options.progress) {
+    if (in_.size() == 0) in_.fail("empty file");
+    const auto version = in_.read_value<uint32_t>("version");
+    if (version != 1 && version != 2)
+      in_.fail_at(
+          0, "unsupported .binlines version " + std::to_string(version) + " (expected 1 or 2)");
+    line_count_ = in_.read_value<uint32_t>("line count");
+    const auto attribute_count = in_.read_value<uint32_t>("attribute count");
+    if (attribute_count > 4096)
+      in_.fail_at(8, "implausible attribute count " + std::to_string(attribute_count));
+    header_.attributes.resize(attribute_count);
+    for (uint32_t a = 0; a < attribute_count; ++a) {
+      header_.attributes[a].name = "attribute" + std::to_string(a);
+      if (version == 2) {
+        const uint64_t at = in_.offset();
+        const auto length = in_.read_value<uint32_t>("attribute name length");
+        if (length > 4096)
+          in_.fail_at(at, "implausible attribute name length " + std::to_string(length));
+        std::string name(length, '\0');
+        in_.read(name.data(), length, "attribute name");
+        header_.attributes[a].name = name;
+      }
     }
+    // Each line needs at least its 4-byte count: a count beyond that is a corrupt header.
+    if (static_cast<uint64_t>(line_count_) * 4 > in_.size() - in_.offset())
+      in_.fail_at(4, "line count " + std::to_string(line_count_) + " does not fit the file size");
   }
-  // Each line needs at least its 4-byte count: a count beyond that is a corrupt header.
-  if (static_cast<uint64_t>(line_count) * 4 > in.size() - in.offset())
-    in.fail_at(4, "line count " + std::to_string(line_count) + " does not fit the file size");
-  lines.line_offsets.reserve(line_count + 1);
-  for (uint32_t line = 0; line < line_count; ++line) {
-    const uint64_t at = in.offset();
-    const auto n = in.read_value<uint32_t>("point count");
-    const uint64_t needed = static_cast<uint64_t>(n) * (12 + 4ull * attribute_count);
-    if (needed > in.size() - in.offset())
-      in.fail_at(at, "line " + std::to_string(line) + " claims " + std::to_string(n) +
-                         " points, more than the file holds");
-    const size_t first = lines.positions.size();
-    lines.positions.resize(first + 3 * static_cast<size_t>(n));
-    in.read(lines.positions.data() + first, 12ull * n, "positions");
-    for (Attribute& a : lines.attributes) {
-      const size_t begin = a.values.size();
-      a.values.resize(begin + n);
-      in.read(a.values.data() + begin, 4ull * n, "attribute values");
+
+  bool next(LineSet& batch, uint64_t max_points) override {
+    copy_lines(header_, 0, 0, batch);
+    const size_t attributes = header_.attributes.size();
+    while (lines_read_ < line_count_) {
+      const uint64_t at = in_.offset();
+      const auto n = in_.read_value<uint32_t>("point count");
+      const uint64_t needed = static_cast<uint64_t>(n) * (12 + 4ull * attributes);
+      if (needed > in_.size() - in_.offset())
+        in_.fail_at(at, "line " + std::to_string(lines_read_) + " claims " + std::to_string(n) +
+                            " points, more than the file holds");
+      if (batch.line_count() > 0 && batch.point_count() + n > max_points) {
+        in_.seek(at);  // this line starts the next batch
+        break;
+      }
+      const size_t first = batch.positions.size();
+      batch.positions.resize(first + 3 * static_cast<size_t>(n));
+      in_.read(batch.positions.data() + first, 12ull * n, "positions");
+      for (Attribute& a : batch.attributes) {
+        const size_t begin = a.values.size();
+        a.values.resize(begin + n);
+        in_.read(a.values.data() + begin, 4ull * n, "attribute values");
+      }
+      batch.end_line();
+      ++lines_read_;
     }
-    lines.end_line();
+    if (lines_read_ == line_count_ && !in_.at_end())
+      in_.fail("unexpected " + std::to_string(in_.size() - in_.offset()) +
+               " bytes after the last line");
+    if constexpr (std::endian::native == std::endian::big) {
+      io::byteswap_array(batch.positions.data(), batch.positions.size(), 4);
+      for (Attribute& a : batch.attributes) io::byteswap_array(a.values.data(), a.values.size(), 4);
+    }
+    return batch.line_count() > 0;
   }
-  if (!in.at_end())
-    in.fail("unexpected " + std::to_string(in.size() - in.offset()) + " bytes after the last line");
-  if constexpr (std::endian::native == std::endian::big) {
-    io::byteswap_array(lines.positions.data(), lines.positions.size(), 4);
-    for (Attribute& a : lines.attributes) io::byteswap_array(a.values.data(), a.values.size(), 4);
-  }
-  return lines;
+
+ private:
+  io::BinaryReader in_;
+  uint32_t line_count_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_binlines(const std::string& path, const ReadOptions& options) {
+  return std::make_unique<BinlinesReader>(path, options);
 }
 
 void write_binlines(const LineSet& lines, const std::string& path, const WriteOptions& options) {

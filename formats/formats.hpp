@@ -1,17 +1,21 @@
 #pragma once
-// Per-format entry points. Readers take the file path; writers write to the path given (the
-// registry hands them a temporary name and renames it when they return).
+// Per-format entry points. Readers take the file path: formats that can be read piece by piece
+// open a LineReader (lines/line_reader.hpp), the others read the whole file. Writers write to the
+// path given (the registry hands them a temporary name and renames it when they return).
 
 #include <string>
 
+#include <memory>
+
 #include "formats/registry.hpp"
+#include "lines/line_reader.hpp"
 
 namespace linebake::formats {
 
 LineSet read_obj(const std::string& path, const ReadOptions& options);
 void write_obj(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
-LineSet read_binlines(const std::string& path, const ReadOptions& options);
+std::unique_ptr<LineReader> open_binlines(const std::string& path, const ReadOptions& options);
 void write_binlines(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options);
@@ -22,7 +26,8 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
 
 LineSet read_netcdf(const std::string& path, const ReadOptions& options);
 
-LineSet read_hdf5(const std::string& path, const ReadOptions& options);
+// The plain layout, or the line set of a linebake asset cache (/lines).
+std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions& options);
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 LineSet read_trk(const std::string& path, const ReadOptions& options);

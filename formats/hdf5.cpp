@@ -4,11 +4,18 @@
 //   /attributes/<name> N floats (vertex attributes; '/', '%' and a leading '.' as %XX)
 //   /line_attributes/<name> L floats
 //   root string attributes: linebake_version and the line set's metadata.
+// A linebake asset cache holds the same layout under /lines (docs/cache.md) and reads as its line
+// set. Lines are read in batches: hyperslabs of the point and attribute datasets.
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <functional>
+#include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
 #include "core/h5.hpp"
+#include "core/hash.hpp"
 #include "formats/formats.hpp"
 
 namespace linebake::formats {
@@ -16,23 +23,6 @@ namespace linebake::formats {
 namespace {
 
 using h5::Handle;
-
-template <typename T>
-std::vector<T> read_dataset(const std::string& path, hid_t file, const std::string& name,
-                            hid_t memory_type, size_t expected_elements) {
-  Handle dataset(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (!dataset.valid()) throw InputError(path, "dataset " + name, "missing");
-  hsize_t total = 1;
-  for (hsize_t d : h5::shape_of(dataset)) total *= d;
-  if (expected_elements != SIZE_MAX && total != expected_elements)
-    throw InputError(
-        path, "dataset " + name,
-        std::to_string(total) + " values, expected " + std::to_string(expected_elements));
-  std::vector<T> values(total);
-  if (total > 0 && H5Dread(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
-    throw InputError(path, "dataset " + name, "cannot read (wrong type or corrupt data)");
-  return values;
-}
 
 void write_string_attribute(const std::string& path, hid_t object, const std::string& name,
                             const std::string& value) {
@@ -56,56 +46,190 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
 
 }  // namespace
 
-LineSet read_hdf5(const std::string& path, const ReadOptions& options) {
-  h5::init();
-  if (H5Fis_hdf5(path.c_str()) <= 0) throw InputError(path, "", "not an HDF5 file (or unreadable)");
-  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!file.valid()) throw InputError(path, "", "cannot open HDF5 file");
+namespace {
 
-  LineSet lines;
-  {
-    Handle dataset(H5Dopen2(file, "/points", H5P_DEFAULT), H5Dclose);
-    if (!dataset.valid()) throw InputError(path, "dataset /points", "missing");
-    const std::vector<hsize_t> dims = h5::shape_of(dataset);
+class Hdf5Reader : public LineReader {
+ public:
+  Hdf5Reader(const std::string& path, const ReadOptions& options)
+      : path_(path), progress_(options.progress) {
+    h5::init();
+    if (H5Fis_hdf5(path.c_str()) <= 0)
+      throw InputError(path, "", "not an HDF5 file (or unreadable)");
+    file_ = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!file_.valid()) throw InputError(path, "", "cannot open HDF5 file");
+    if (H5Aexists(file_, "linebake_cache_format") > 0) {
+      prefix_ = "/lines";
+      std::string metadata;
+      Handle group(H5Oopen(file_, "/lines", H5P_DEFAULT), H5Oclose);
+      if (!group.valid()) throw InputError(path, "group /lines", "missing");
+      if (h5::read_string_attribute(group, "metadata", metadata)) {
+        try {
+          header_.metadata =
+              nlohmann::json::parse(metadata).get<std::map<std::string, std::string>>();
+        } catch (const std::exception& e) {
+          throw InputError(path, "group /lines", std::string("bad metadata: ") + e.what());
+        }
+      }
+    }
+    points_ = open(prefix_ + "/points");
+    const std::vector<hsize_t> dims = h5::shape_of(points_.dataset);
     if (dims.size() != 2 || dims[1] != 3)
-      throw InputError(path, "dataset /points", "expected shape N x 3");
+      throw InputError(path, "dataset " + points_.name, "expected shape N x 3");
+    const uint64_t n = dims[0];
+    read_offsets(n);
+    for (const std::string& name : h5::group_members(file_, prefix_ + "/attributes")) {
+      attributes_.push_back(open(prefix_ + "/attributes/" + name, n));
+      header_.attributes.push_back({h5::decode_link_name(name), {}});
+    }
+    for (const std::string& name : h5::group_members(file_, prefix_ + "/line_attributes")) {
+      line_attributes_.push_back(open(prefix_ + "/line_attributes/" + name, offsets_.size() - 1));
+      header_.line_attributes.push_back({h5::decode_link_name(name), {}});
+    }
   }
-  lines.positions = read_dataset<float>(path, file, "/points", H5T_NATIVE_FLOAT, SIZE_MAX);
-  const size_t n = lines.point_count();
-  if (options.progress) options.progress(1, 3);
-  if (H5Lexists(file, "/line_offsets", H5P_DEFAULT) > 0) {
-    lines.line_offsets =
-        read_dataset<uint64_t>(path, file, "/line_offsets", H5T_NATIVE_UINT64, SIZE_MAX);
-    if (lines.line_offsets.empty() || lines.line_offsets.front() != 0 ||
-        lines.line_offsets.back() != n)
-      throw InputError(path, "dataset /line_offsets",
-                       "must start at 0 and end at the point count " + std::to_string(n));
-    for (size_t i = 1; i < lines.line_offsets.size(); ++i)
-      if (lines.line_offsets[i] < lines.line_offsets[i - 1])
-        throw InputError(path, "dataset /line_offsets", "decreases at index " + std::to_string(i));
-  } else if (H5Lexists(file, "/line_lengths", H5P_DEFAULT) > 0) {
-    const auto lengths =
-        read_dataset<uint64_t>(path, file, "/line_lengths", H5T_NATIVE_UINT64, SIZE_MAX);
-    lines.line_offsets.assign(1, 0);
-    for (uint64_t length : lengths)
-      lines.line_offsets.push_back(lines.line_offsets.back() + length);
-    if (lines.line_offsets.back() != n)
-      throw InputError(path, "dataset /line_lengths",
-                       "lengths sum to " + std::to_string(lines.line_offsets.back()) +
-                           ", not the point count " + std::to_string(n));
-  } else {
-    throw InputError(path, "dataset /line_offsets", "missing (and no /line_lengths)");
+
+  bool next(LineSet& batch, uint64_t max_points) override {
+    copy_lines(header_, 0, 0, batch);
+    const size_t count = offsets_.size() - 1;
+    if (lines_read_ >= count) return false;
+    const uint64_t first = lines_read_, p0 = offsets_[first];
+    size_t end = size_t(std::upper_bound(offsets_.begin() + std::ptrdiff_t(first + 1),
+                                         offsets_.end(), p0 + max_points) -
+                        offsets_.begin()) -
+                 1;
+    end = std::max<size_t>(end, first + 1);
+    const uint64_t p1 = offsets_[end];
+    batch.positions.resize(3 * (p1 - p0));
+    read(points_, p0, p1 - p0, batch.positions.data());
+    batch.line_offsets.resize(end - first + 1);
+    for (size_t l = first; l <= end; ++l) batch.line_offsets[l - first] = offsets_[l] - p0;
+    for (size_t a = 0; a < attributes_.size(); ++a) {
+      batch.attributes[a].values.resize(p1 - p0);
+      read(attributes_[a], p0, p1 - p0, batch.attributes[a].values.data());
+    }
+    for (size_t a = 0; a < line_attributes_.size(); ++a) {
+      batch.line_attributes[a].values.resize(end - first);
+      read(line_attributes_[a], first, end - first, batch.line_attributes[a].values.data());
+    }
+    lines_read_ = end;
+    if (progress_) progress_(p1, offsets_.back());
+    if (lines_read_ == count) {  // every row was read once, in order: check the stored hashes
+      verify(points_);
+      for (Data& d : attributes_) verify(d);
+      for (Data& d : line_attributes_) verify(d);
+    }
+    return true;
   }
-  for (const std::string& name : h5::group_members(file, "/attributes"))
-    lines.attributes.push_back(
-        {h5::decode_link_name(name),
-         read_dataset<float>(path, file, "/attributes/" + name, H5T_NATIVE_FLOAT, n)});
-  for (const std::string& name : h5::group_members(file, "/line_attributes"))
-    lines.line_attributes.push_back(
-        {h5::decode_link_name(name), read_dataset<float>(path, file, "/line_attributes/" + name,
-                                                         H5T_NATIVE_FLOAT, lines.line_count())});
-  if (options.progress) options.progress(3, 3);
-  return lines;
+
+ private:
+  // A dataset read front to back; `hash` is set when the file stores one to check it against.
+  struct Data {
+    std::string name;
+    Handle dataset;
+    std::string stored_hash;
+    std::unique_ptr<Hasher> hash;
+  };
+
+  Data open(const std::string& name, uint64_t expected = UINT64_MAX) const {
+    Data d;
+    d.name = name;
+    // A chunk cache large enough that a chunk cut by one batch is still there for the next.
+    Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
+    H5Pset_chunk_cache(dapl, 521, size_t{16} << 20, 1.0);
+    d.dataset = Handle(H5Dopen2(file_, name.c_str(), dapl), H5Dclose);
+    if (!d.dataset.valid()) throw InputError(path_, "dataset " + name, "missing");
+    hsize_t total = 1;
+    for (hsize_t v : h5::shape_of(d.dataset)) total *= v;
+    if (expected != UINT64_MAX && total != expected)
+      throw InputError(path_, "dataset " + name,
+                       std::to_string(total) + " values, expected " + std::to_string(expected));
+    Handle type(H5Dget_type(d.dataset), H5Tclose);
+    if (H5Tget_class(type) != H5T_FLOAT && H5Tget_class(type) != H5T_INTEGER)
+      throw InputError(path_, "dataset " + name, "not numeric");
+    // The cache's hash covers the stored float32 bytes, which are what a float32 read returns.
+    if (H5Tget_size(type) == 4 && H5Tget_class(type) == H5T_FLOAT &&
+        h5::read_string_attribute(d.dataset, "xxh3_128", d.stored_hash))
+      d.hash = std::make_unique<Hasher>();
+    return d;
+  }
+
+  void read(Data& d, uint64_t first, uint64_t count, float* out) {
+    if (count == 0) return;
+    const std::vector<hsize_t> dims = h5::shape_of(d.dataset);
+    const hsize_t columns = dims.size() == 2 ? dims[1] : 1;
+    const hsize_t start[2] = {first, 0}, extent[2] = {count, columns};
+    Handle file_space(H5Dget_space(d.dataset), H5Sclose);
+    H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
+    Handle memory_space(H5Screate_simple(int(dims.size()), extent, nullptr), H5Sclose);
+    if (H5Dread(d.dataset, H5T_NATIVE_FLOAT, memory_space, file_space, H5P_DEFAULT, out) < 0)
+      throw InputError(path_, "dataset " + d.name,
+                       "cannot read rows " + std::to_string(first) + ".." +
+                           std::to_string(first + count) + " (wrong type or corrupt data)");
+    if (d.hash) d.hash->update(out, count * columns * sizeof(float));
+  }
+
+  void verify(Data& d) const {
+    if (d.hash && d.hash->hex() != d.stored_hash)
+      throw InputError(path_, "dataset " + d.name, "checksum mismatch: the data is corrupt");
+  }
+
+  void read_offsets(uint64_t points) {
+    const std::string offsets = prefix_ + "/line_offsets", lengths = prefix_ + "/line_lengths";
+    if (H5Lexists(file_, offsets.c_str(), H5P_DEFAULT) > 0) {
+      offsets_ = read_whole(offsets);
+      if (offsets_.empty() || offsets_.front() != 0 || offsets_.back() != points)
+        throw InputError(path_, "dataset " + offsets,
+                         "must start at 0 and end at the point count " + std::to_string(points));
+      for (size_t i = 1; i < offsets_.size(); ++i)
+        if (offsets_[i] < offsets_[i - 1])
+          throw InputError(path_, "dataset " + offsets, "decreases at index " + std::to_string(i));
+    } else if (prefix_.empty() && H5Lexists(file_, lengths.c_str(), H5P_DEFAULT) > 0) {
+      const std::vector<uint64_t> line_lengths = read_whole(lengths);
+      offsets_.assign(1, 0);
+      for (uint64_t length : line_lengths) offsets_.push_back(offsets_.back() + length);
+      if (offsets_.back() != points)
+        throw InputError(path_, "dataset " + lengths,
+                         "lengths sum to " + std::to_string(offsets_.back()) +
+                             ", not the point count " + std::to_string(points));
+    } else {
+      throw InputError(path_, "dataset " + offsets, "missing (and no /line_lengths)");
+    }
+  }
+
+  std::vector<uint64_t> read_whole(const std::string& name) const {
+    Handle dataset(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!dataset.valid()) throw InputError(path_, "dataset " + name, "missing");
+    hsize_t total = 1;
+    for (hsize_t d : h5::shape_of(dataset)) total *= d;
+    // Each value takes at least a bit of the file: a larger count is a corrupt header.
+    struct stat st {};
+    if (::stat(path_.c_str(), &st) == 0 && total / 8 > uint64_t(st.st_size) + 1024)
+      throw InputError(path_, "dataset " + name,
+                       std::to_string(total) + " values cannot fit a file of " +
+                           std::to_string(st.st_size) + " bytes");
+    std::vector<uint64_t> values(total);
+    if (total > 0 &&
+        H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+      throw InputError(path_, "dataset " + name, "cannot read (wrong type or corrupt data)");
+    std::string stored;
+    if (h5::read_string_attribute(dataset, "xxh3_128", stored) &&
+        stored != hash_bytes(values.data(), values.size() * sizeof(uint64_t)))
+      throw InputError(path_, "dataset " + name, "checksum mismatch: the data is corrupt");
+    return values;
+  }
+
+  std::string path_;
+  ProgressFn progress_;
+  Handle file_;
+  std::string prefix_;
+  std::vector<uint64_t> offsets_;
+  Data points_;
+  std::vector<Data> attributes_, line_attributes_;
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions& options) {
+  return std::make_unique<Hdf5Reader>(path, options);
 }
 
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options) {

@@ -71,40 +71,51 @@ std::string source_format_name(const std::string& source, const ReadOptions& opt
   return format_info(resolve_format(source, options.format)).name;
 }
 
-LineSet read_line_set(const std::string& source, const ReadOptions& options) {
+std::unique_ptr<LineReader> open_line_reader(const std::string& source,
+                                             const ReadOptions& options) {
   if (synth::is_synth_source(source))
-    return synth::generate(synth::parse_synth_source(source), options.progress);
+    return synth::open_generator(synth::parse_synth_source(source), options.progress);
   const Format format = resolve_format(source, options.format);
-  LineSet lines;
+  std::unique_ptr<LineReader> reader;
+  const auto whole = [](LineSet lines) {
+    return std::make_unique<MemoryLineReader>(std::move(lines));
+  };
   switch (format) {
     case Format::obj:
-      lines = formats::read_obj(source, options);
+      reader = whole(formats::read_obj(source, options));
       break;
     case Format::binlines:
-      lines = formats::read_binlines(source, options);
+      reader = formats::open_binlines(source, options);
       break;
     case Format::vtk:
-      lines = formats::read_vtk_legacy(source, options);
+      reader = whole(formats::read_vtk_legacy(source, options));
       break;
     case Format::vtp:
-      lines = formats::read_vtp(source, options);
+      reader = whole(formats::read_vtp(source, options));
       break;
     case Format::netcdf:
-      lines = formats::read_netcdf(source, options);
+      reader = whole(formats::read_netcdf(source, options));
       break;
     case Format::hdf5:
-      lines = formats::read_hdf5(source, options);
+      reader = formats::open_hdf5(source, options);
       break;
     case Format::trk:
-      lines = formats::read_trk(source, options);
+      reader = whole(formats::read_trk(source, options));
       break;
     case Format::tck:
-      lines = formats::read_tck(source, options);
+      reader = whole(formats::read_tck(source, options));
       break;
     case Format::csv:
-      lines = formats::read_csv(source, options);
+      reader = whole(formats::read_csv(source, options));
       break;
   }
+  return reader;
+}
+
+LineSet read_line_set(const std::string& source, const ReadOptions& options) {
+  const std::unique_ptr<LineReader> reader = open_line_reader(source, options);
+  LineSet lines = read_all(*reader);
+  if (synth::is_synth_source(source)) return lines;
   // An empty file, or one whose lines were all filtered out, is almost always a mistake.
   if (lines.line_count() == 0) throw InputError(source, "", "no lines in the file");
   lines.metadata.emplace("source", source);

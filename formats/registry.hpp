@@ -2,11 +2,13 @@
 // Reading and writing line sets by file name: the format comes from the extension unless the
 // caller names it. "synth:<name>?scale=..&seed=.." sources are readable wherever a file is.
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "core/progress.hpp"
+#include "lines/line_reader.hpp"
 #include "lines/line_set.hpp"
 
 namespace linebake {
@@ -46,7 +48,13 @@ struct WriteOptions {
   ProgressFn progress;
 };
 
-// Throws InputError (with file and place) on malformed input, Error on unsupported requests.
+// Opens a source for reading in batches of whole lines (lines/line_reader.hpp). Formats that
+// cannot be read piece by piece (OBJ, VTK, VTP) are read whole here and served from memory.
+// The header's metadata does not yet hold "source" (read_line_set adds it).
+std::unique_ptr<LineReader> open_line_reader(const std::string& source,
+                                             const ReadOptions& options = {});
+// The whole line set. Throws InputError (with file and place) on malformed input, Error on
+// unsupported requests.
 LineSet read_line_set(const std::string& source, const ReadOptions& options = {});
 // Format name of a source, as read_line_set would choose it ("synth" for synthetic sources).
 std::string source_format_name(const std::string& source, const ReadOptions& options = {});

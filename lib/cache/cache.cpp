@@ -4,6 +4,8 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <tbb/info.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,9 +21,6 @@ using h5::Handle;
 
 namespace {
 
-constexpr unsigned kLz4Filter = 32004;    // registered id of the HDF5 LZ4 filter
-constexpr unsigned kBloscFilter = 32001;  // registered id of the HDF5 Blosc filter
-constexpr unsigned kBloscZstd = 5;        // Blosc's compressor code for zstd
 constexpr const char* kHashAttribute = "xxh3_128";
 constexpr const char* kFormatAttribute = "linebake_cache_format";
 constexpr const char* kFormatVersion = "1";
@@ -80,28 +79,6 @@ void require_filter(unsigned id, const char* name, const char* package) {
 }
 
 }  // namespace
-
-Compression parse_compression(const std::string& name) {
-  if (name == "none") return Compression::None;
-  if (name == "deflate") return Compression::Deflate;
-  if (name == "lz4") return Compression::Lz4;
-  if (name == "blosc-zstd") return Compression::BloscZstd;
-  throw Error("unknown compression '" + name + "' (none | deflate | lz4 | blosc-zstd)");
-}
-
-const char* to_string(Compression compression) {
-  switch (compression) {
-    case Compression::None:
-      return "none";
-    case Compression::Deflate:
-      return "deflate";
-    case Compression::Lz4:
-      return "lz4";
-    case Compression::BloscZstd:
-      return "blosc-zstd";
-  }
-  return "none";
-}
 
 std::string utc_now_iso8601() {
   const std::time_t now = std::time(nullptr);
@@ -214,63 +191,228 @@ void CacheWriter::write_provenance(const std::string& group, const Provenance& p
   write_attribute(group, "provenance", to_json(provenance).dump());
 }
 
-template <class T>
-uint64_t CacheWriter::write(const std::string& dataset, const T* data, uint64_t rows,
-                            uint64_t columns) {
-  return write_raw(dataset, native_type<T>(), data, sizeof(T), rows, columns);
+// ---- streamed datasets ----
+
+struct DatasetStream::State {
+  CacheWriter* writer = nullptr;
+  std::string name;
+  Handle dataset;
+  hid_t type = -1;
+  size_t element = 0;
+  int rank = 1;
+  uint64_t rows = 0, columns = 1, row_bytes = 0;
+  bool chunked = false;
+  uint64_t chunk_rows = 0;
+  ChunkCodec codec;
+  uint64_t written = 0;       // rows appended so far
+  std::vector<char> pending;  // rows of the chunk not yet full
+  std::vector<char> tail;     // the dataset's last chunk, padded with zeros
+  Hasher hash;
+  bool closed = false;
+
+  uint64_t chunk_bytes() const { return chunk_rows * row_bytes; }
+  [[noreturn]] void fail(const std::string& message) const {
+    throw OutputError(writer->path(), "dataset " + name + ": " + message);
+  }
+  void write_contiguous(const char* data, uint64_t count);
+  void write_chunks(const std::vector<std::pair<uint64_t, const char*>>& jobs);
+};
+
+void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
+  const hsize_t start[2] = {written, 0}, extent[2] = {count, columns};
+  Handle file_space(H5Dget_space(dataset), H5Sclose);
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
+  Handle memory_space(H5Screate_simple(rank, extent, nullptr), H5Sclose);
+  if (H5Dwrite(dataset, type, memory_space, file_space, H5P_DEFAULT, data) < 0)
+    fail("cannot write (" + h5::last_error() + ")");
+  writer->add_progress(count * row_bytes);
 }
 
-uint64_t CacheWriter::write_raw(const std::string& dataset, hid_t type, const void* data,
-                                size_t element, uint64_t rows, uint64_t columns) {
+// Encodes the chunks on the TBB workers and stores them in order from one thread at a time
+// (HDF5 is not thread-safe): a pipeline whose ordered last stage overlaps the writes with the
+// encoding of the chunks behind them.
+void DatasetStream::State::write_chunks(const std::vector<std::pair<uint64_t, const char*>>& jobs) {
+  if (jobs.empty()) return;
+  struct Slot {
+    std::vector<char> out, scratch;
+  };
+  const size_t tokens = 2 * size_t(tbb::this_task_arena::max_concurrency()) + 1;
+  thread_local std::vector<Slot> slots;  // kept between calls: no fresh pages per chunk
+  if (slots.size() < tokens) slots.resize(tokens);
+  struct Item {
+    size_t job;
+    Slot* slot;
+  };
+  size_t next = 0;
+  const uint64_t bytes = chunk_bytes();
+  Slot* const slot_base = slots.data();
+  tbb::parallel_pipeline(
+      tokens, tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
+                                           [&](tbb::flow_control& control) -> Item {
+                                             if (next == jobs.size()) {
+                                               control.stop();
+                                               return {};
+                                             }
+                                             const size_t job = next++;
+                                             return {job, slot_base + job % tokens};
+                                           }) &
+                  tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
+                                               [&](Item item) {
+                                                 encode_chunk(codec, jobs[item.job].second, bytes,
+                                                              item.slot->out, item.slot->scratch);
+                                                 return item;
+                                               }) &
+                  tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+                    const hsize_t offset[2] = {jobs[item.job].first * chunk_rows, 0};
+                    const std::vector<char>& out = item.slot->out;
+                    if (H5Dwrite_chunk(dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
+                      fail("cannot write chunk " + std::to_string(jobs[item.job].first) + " (" +
+                           h5::last_error() + ")");
+                    writer->add_progress(bytes);
+                  }));
+}
+
+DatasetStream::DatasetStream(std::unique_ptr<State> state) : state_(std::move(state)) {}
+DatasetStream::DatasetStream(DatasetStream&&) noexcept = default;
+DatasetStream& DatasetStream::operator=(DatasetStream&&) noexcept = default;
+DatasetStream::~DatasetStream() = default;
+
+const std::string& DatasetStream::name() const {
+  return state_->name;
+}
+uint64_t DatasetStream::rows() const {
+  return state_->rows;
+}
+uint64_t DatasetStream::rows_written() const {
+  return state_->written;
+}
+
+void DatasetStream::append_raw(const void* data, size_t element, uint64_t rows) {
+  State& s = *state_;
+  if (s.closed) s.fail("append after close");
+  if (element != s.element) s.fail("appended values of the wrong type");
+  if (rows > s.rows - s.written)
+    s.fail(std::to_string(s.written + rows) + " rows, more than the " + std::to_string(s.rows) +
+           " it was created with");
+  if (rows == 0) return;
+  const char* p = static_cast<const char*>(data);
+  s.hash.update(p, rows * s.row_bytes);
+  if (!s.chunked) {
+    s.write_contiguous(p, rows);
+    s.written += rows;
+    return;
+  }
+  // Full chunks are encoded straight from the caller's rows; only a chunk's head or tail that
+  // arrives in another call is staged. HDF5 stores edge chunks whole, filled with zeros.
+  std::vector<std::pair<uint64_t, const char*>> jobs;
+  uint64_t left = rows;
+  bool pending_sent = false;
+  if (!s.pending.empty()) {
+    const uint64_t have = s.pending.size() / s.row_bytes;
+    const uint64_t take = std::min(left, s.chunk_rows - have);
+    s.pending.insert(s.pending.end(), p, p + take * s.row_bytes);
+    p += take * s.row_bytes;
+    left -= take;
+    s.written += take;
+    if (have + take == s.chunk_rows || s.written == s.rows) {
+      s.pending.resize(s.chunk_bytes(), 0);
+      jobs.emplace_back((s.written - 1) / s.chunk_rows, s.pending.data());
+      pending_sent = true;
+    }
+  }
+  while (left >= s.chunk_rows) {
+    jobs.emplace_back(s.written / s.chunk_rows, p);
+    p += s.chunk_bytes();
+    left -= s.chunk_rows;
+    s.written += s.chunk_rows;
+  }
+  if (left > 0) {  // the pending buffer is empty or already sent: stage into the other one
+    s.tail.assign(p, p + left * s.row_bytes);
+    s.written += left;
+    if (s.written == s.rows) {
+      s.tail.resize(s.chunk_bytes(), 0);
+      jobs.emplace_back((s.written - 1) / s.chunk_rows, s.tail.data());
+    }
+  }
+  s.write_chunks(jobs);
+  if (pending_sent) s.pending.clear();
+  if (left > 0) {
+    if (s.written == s.rows)
+      s.tail.clear();
+    else
+      s.pending.swap(s.tail);
+  }
+}
+
+uint64_t DatasetStream::close() {
+  State& s = *state_;
+  if (s.closed) s.fail("closed twice");
+  if (s.written != s.rows)
+    s.fail("only " + std::to_string(s.written) + " of " + std::to_string(s.rows) +
+           " rows were written");
+  if (!h5::write_string_attribute(s.dataset, kHashAttribute, s.hash.hex()))
+    s.fail("cannot write its hash");
+  s.closed = true;
+  const uint64_t stored = H5Dget_storage_size(s.dataset);
+  s.dataset.reset();
+  return stored;
+}
+
+template <class T>
+DatasetStream CacheWriter::stream(const std::string& dataset, uint64_t rows, uint64_t columns) {
+  return open_stream(dataset, native_type<T>(), sizeof(T), rows, columns);
+}
+
+DatasetStream CacheWriter::open_stream(const std::string& dataset, hid_t type, size_t element,
+                                       uint64_t rows, uint64_t columns) {
   const size_t slash = dataset.find_last_of('/');
   if (slash > 0) create_group(dataset.substr(0, slash));
-  const int rank = columns ? 2 : 1;
-  const hsize_t dims[2] = {rows, columns ? columns : 1};
-  const uint64_t row_bytes = element * (columns ? columns : 1);
-  const uint64_t bytes = rows * row_bytes;
-  Handle space(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+  auto s = std::make_unique<DatasetStream::State>();
+  s->writer = this;
+  s->name = dataset;
+  s->type = type;
+  s->element = element;
+  s->rank = columns ? 2 : 1;
+  s->rows = rows;
+  s->columns = columns ? columns : 1;
+  s->row_bytes = element * s->columns;
+  const hsize_t dims[2] = {rows, s->columns};
+  Handle space(H5Screate_simple(s->rank, dims, nullptr), H5Sclose);
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  const bool compressed = compression_ != Compression::None && rows > 0;
-  if (compressed) {
+  s->chunked = compression_ != Compression::None && rows > 0;
+  if (s->chunked) {
     // About 1 MiB per chunk: large enough for the codecs, small enough for HDF5's chunk cache.
-    const hsize_t chunk[2] = {std::clamp<hsize_t>((1 << 20) / row_bytes, 1, rows), dims[1]};
-    H5Pset_chunk(dcpl, rank, chunk);
+    s->chunk_rows = std::clamp<hsize_t>((1 << 20) / s->row_bytes, 1, rows);
+    const hsize_t chunk[2] = {s->chunk_rows, s->columns};
+    s->codec = {compression_, level_, element};
+    H5Pset_chunk(dcpl, s->rank, chunk);
     H5Pset_shuffle(dcpl);
     if (compression_ == Compression::Deflate) {
-      H5Pset_deflate(dcpl, level_ < 0 ? 4 : unsigned(level_));
+      H5Pset_deflate(dcpl, unsigned(s->codec.deflate_level()));
     } else if (compression_ == Compression::Lz4) {
       H5Pset_filter(dcpl, kLz4Filter, H5Z_FLAG_MANDATORY, 0, nullptr);
     } else {
       // Blosc's own shuffle is off: HDF5's shuffle above already did it.
-      const unsigned cd[7] = {0, 0, 0, 0, unsigned(level_ < 0 ? 5 : level_), 0, kBloscZstd};
+      const unsigned cd[7] = {0, 0, 0, 0, unsigned(s->codec.blosc_level()), 0, kBloscZstd};
       H5Pset_filter(dcpl, kBloscFilter, H5Z_FLAG_MANDATORY, 7, cd);
     }
     H5Pset_fletcher32(dcpl);
+    s->pending.reserve(s->chunk_bytes());
   } else {
     H5Pset_layout(dcpl, H5D_CONTIGUOUS);
     H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY);
   }
-  Handle d(H5Dcreate2(h5_, dataset.c_str(), file_type(type), space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
-           H5Dclose);
-  if (!d.valid())
+  s->dataset = Handle(
+      H5Dcreate2(h5_, dataset.c_str(), file_type(type), space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+      H5Dclose);
+  if (!s->dataset.valid())
     throw OutputError(path(), "cannot create dataset " + dataset + " (" + h5::last_error() + ")");
-  // Written in slabs of about 64 MiB so a terminal can show progress.
-  const uint64_t slab_rows = std::max<uint64_t>(1, (uint64_t{64} << 20) / row_bytes);
-  for (uint64_t first = 0; first < rows; first += slab_rows) {
-    const hsize_t start[2] = {first, 0};
-    const hsize_t count[2] = {std::min(slab_rows, rows - first), dims[1]};
-    Handle file_space(H5Dget_space(d), H5Sclose);
-    H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, count, nullptr);
-    Handle memory_space(H5Screate_simple(rank, count, nullptr), H5Sclose);
-    const auto* bytes_at = static_cast<const unsigned char*>(data) + first * row_bytes;
-    if (H5Dwrite(d, type, memory_space, file_space, H5P_DEFAULT, bytes_at) < 0)
-      throw OutputError(path(), "cannot write dataset " + dataset + " (" + h5::last_error() + ")");
-    progress_done_ += count[0] * row_bytes;
-    if (progress_) progress_(progress_done_, progress_total_);
-  }
-  if (!h5::write_string_attribute(d, kHashAttribute, hash_bytes(data, bytes)))
-    throw OutputError(path(), "cannot write the hash of " + dataset);
-  return H5Dget_storage_size(d);
+  return DatasetStream(std::move(s));
+}
+
+void CacheWriter::add_progress(uint64_t bytes) {
+  progress_done_ += bytes;
+  if (progress_) progress_(progress_done_, progress_total_);
 }
 
 void CacheWriter::commit() {
@@ -279,14 +421,14 @@ void CacheWriter::commit() {
   file_.commit();
 }
 
-template uint64_t CacheWriter::write(const std::string&, const float*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const double*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const uint8_t*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const int16_t*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const uint16_t*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const int32_t*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const uint32_t*, uint64_t, uint64_t);
-template uint64_t CacheWriter::write(const std::string&, const uint64_t*, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<float>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<double>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<uint8_t>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<int16_t>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<uint16_t>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<int32_t>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<uint32_t>(const std::string&, uint64_t, uint64_t);
+template DatasetStream CacheWriter::stream<uint64_t>(const std::string&, uint64_t, uint64_t);
 
 // ---- reader ----
 
@@ -415,6 +557,50 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
   }
   return out;
 }
+
+std::vector<uint64_t> CacheReader::shape(const std::string& dataset) const {
+  if (!exists(dataset)) throw InputError(path_, "dataset " + dataset, "missing");
+  Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!d.valid()) throw InputError(path_, "dataset " + dataset, "cannot open: " + h5::last_error());
+  const std::vector<hsize_t> dims = h5::shape_of(d);
+  return {dims.begin(), dims.end()};
+}
+
+template <class T>
+void CacheReader::read_rows(const std::string& dataset, uint64_t first, uint64_t count,
+                            T* out) const {
+  const std::string where = "dataset " + dataset;
+  if (!exists(dataset)) throw InputError(path_, where, "missing");
+  // A chunk cache large enough that a chunk cut by one slab is still there for the next.
+  Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
+  H5Pset_chunk_cache(dapl, 521, size_t{16} << 20, 1.0);
+  Handle d(H5Dopen2(h5_, dataset.c_str(), dapl), H5Dclose);
+  if (!d.valid()) throw InputError(path_, where, "cannot open: " + h5::last_error());
+  const std::vector<hsize_t> dims = h5::shape_of(d);
+  if (dims.empty() || dims.size() > 2 || first + count > dims[0])
+    throw InputError(path_, where,
+                     "rows " + std::to_string(first) + ".." + std::to_string(first + count) +
+                         " are past its shape");
+  Handle stored_type(H5Dget_type(d), H5Tclose);
+  if (H5Tget_size(stored_type) != sizeof(T) ||
+      H5Tget_class(stored_type) != H5Tget_class(native_type<T>()))
+    throw InputError(path_, where, "stored with an unexpected type");
+  if (count == 0) return;
+  const hsize_t start[2] = {first, 0}, extent[2] = {count, dims.size() == 2 ? dims[1] : 1};
+  Handle file_space(H5Dget_space(d), H5Sclose);
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
+  Handle memory_space(H5Screate_simple(int(dims.size()), extent, nullptr), H5Sclose);
+  if (H5Dread(d, native_type<T>(), memory_space, file_space, H5P_DEFAULT, out) < 0)
+    throw InputError(path_, where,
+                     "cannot read rows " + std::to_string(first) + ".." +
+                         std::to_string(first + count) + ": " + h5::last_error() +
+                         " (corrupt or truncated data)");
+}
+
+template void CacheReader::read_rows(const std::string&, uint64_t, uint64_t, float*) const;
+template void CacheReader::read_rows(const std::string&, uint64_t, uint64_t, uint32_t*) const;
+template void CacheReader::read_rows(const std::string&, uint64_t, uint64_t, uint64_t*) const;
+template void CacheReader::read_rows(const std::string&, uint64_t, uint64_t, uint8_t*) const;
 
 template Array<float> CacheReader::read(const std::string&, size_t) const;
 template Array<double> CacheReader::read(const std::string&, size_t) const;

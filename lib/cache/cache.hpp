@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "cache/chunk_codec.hpp"
 #include "core/array.hpp"
 #include "core/atomic_file.hpp"
 #include "core/h5.hpp"
@@ -21,10 +22,6 @@
 #include "core/progress.hpp"
 
 namespace linebake {
-
-enum class Compression { None, Deflate, Lz4, BloscZstd };
-Compression parse_compression(const std::string& name);  // none | deflate | lz4 | blosc-zstd
-const char* to_string(Compression compression);
 
 // What a cached step was built from, with what, and what it cost.
 struct Provenance {
@@ -48,6 +45,40 @@ std::string utc_now_iso8601();
 using h5::decode_link_name;
 using h5::encode_link_name;
 
+class CacheWriter;
+
+// One dataset of the cache, written front to back in rows: how every dataset of a bake is
+// written, so no stage needs its whole output in memory. Compressed datasets are chunked
+// (about 1 MiB per chunk); each full chunk of the appended rows is encoded on the TBB workers
+// (chunk_codec.hpp) and stored with H5Dwrite_chunk in chunk order, while the rows of a chunk not
+// yet full wait in a buffer. Uncompressed datasets are contiguous and written in place. The
+// dataset's XXH3-128 hash is computed as the rows arrive. The bytes stored do not depend on how
+// the rows are split across append calls, nor on the thread count.
+class DatasetStream {
+ public:
+  DatasetStream(DatasetStream&&) noexcept;
+  DatasetStream& operator=(DatasetStream&&) noexcept;
+  ~DatasetStream();
+
+  template <class T>
+  void append(const T* data, uint64_t rows) {
+    append_raw(data, sizeof(T), rows);
+  }
+  // Writes the last partial chunk and the hash; OutputError unless every row arrived. Returns the
+  // bytes the dataset takes on disk.
+  uint64_t close();
+  const std::string& name() const;
+  uint64_t rows() const;
+  uint64_t rows_written() const;
+
+ private:
+  friend class CacheWriter;
+  struct State;
+  explicit DatasetStream(std::unique_ptr<State> state);
+  void append_raw(const void* data, size_t element, uint64_t rows);
+  std::unique_ptr<State> state_;
+};
+
 class CacheWriter {
  public:
   // Creates the file under a temporary name beside `path`; commit() renames it.
@@ -57,6 +88,7 @@ class CacheWriter {
   CacheWriter& operator=(const CacheWriter&) = delete;
 
   const std::string& path() const { return file_.final_path(); }
+  const std::string& temp_path() const { return file_.temp_path(); }
   Compression compression() const { return compression_; }
   // Total bytes the caller is going to write, for progress; 0: unknown.
   void set_progress(ProgressFn progress, uint64_t total_bytes);
@@ -64,17 +96,26 @@ class CacheWriter {
   void create_group(const std::string& group);
   // Copies a group, as stored, from another cache file (an asset that did not change).
   void copy_group(const std::string& source_path, const std::string& group);
-  // A 1-D (columns = 0) or 2-D dataset of `rows` x `columns`. Returns the bytes it takes on disk.
+  // A 1-D (columns = 0) or 2-D dataset of `rows` x `columns` of T, to be appended row by row.
   template <class T>
-  uint64_t write(const std::string& dataset, const T* data, uint64_t rows, uint64_t columns = 0);
+  DatasetStream stream(const std::string& dataset, uint64_t rows, uint64_t columns = 0);
+  // A whole dataset at once. Returns the bytes it takes on disk.
+  template <class T>
+  uint64_t write(const std::string& dataset, const T* data, uint64_t rows, uint64_t columns = 0) {
+    DatasetStream s = stream<T>(dataset, rows, columns);
+    s.append(data, rows);
+    return s.close();
+  }
   void write_attribute(const std::string& object, const std::string& name,
                        const std::string& value);
   void write_provenance(const std::string& group, const Provenance& provenance);
   void commit();
 
  private:
-  uint64_t write_raw(const std::string& dataset, hid_t type, const void* data, size_t element,
-                     uint64_t rows, uint64_t columns);
+  friend class DatasetStream;
+  DatasetStream open_stream(const std::string& dataset, hid_t type, size_t element, uint64_t rows,
+                            uint64_t columns);
+  void add_progress(uint64_t bytes);
   AtomicFile file_;
   h5::Handle h5_;
   Compression compression_;
@@ -103,6 +144,13 @@ class CacheReader {
   // dataset, a wrong size, a failed checksum or a read error.
   template <class T>
   Array<T> read(const std::string& dataset, size_t expected = SIZE_MAX) const;
+  // Rows [first, first + count) of a dataset of T into `out` (count x columns values), for
+  // readers that go through a large dataset in pieces. Verifies nothing: the whole-dataset hash
+  // needs every row (a caller that reads them all in order can hash them itself).
+  template <class T>
+  void read_rows(const std::string& dataset, uint64_t first, uint64_t count, T* out) const;
+  // Shape of a dataset (rows, and columns for 2-D ones); InputError when missing.
+  std::vector<uint64_t> shape(const std::string& dataset) const;
   // Elements stored in the dataset (rows x columns).
   uint64_t stored_bytes(const std::string& dataset) const;
 

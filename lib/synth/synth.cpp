@@ -138,57 +138,88 @@ GeneratedLine generate_line(const Recipe& recipe, const DataSetSpec& spec, uint6
   return line;
 }
 
-}  // namespace
+// Lines are integrated 2048 at a time in parallel (each from its own seeded generator, so the
+// lines do not depend on the thread count) and handed out in index order until the segment
+// budget is met; the last line is cut to fit.
+class Generator : public LineReader {
+ public:
+  Generator(const SynthParams& params, ProgressFn progress)
+      : params_(params), spec_(find_data_set(params.name)), progress_(std::move(progress)) {
+    if (!(params.scale > 0 && params.scale <= kMaxScale))
+      throw Error("synthetic scale must be in (0, " + std::to_string(int(kMaxScale)) + "], got " +
+                  std::to_string(params.scale));
+    recipe_ = make_recipe(spec_, params.seed);
+    recipe_.integration.adaptive = params.adaptive;
+    target_ = static_cast<uint64_t>(
+        std::llround(params.scale * static_cast<double>(spec_.paper_segments)));
+    header_.metadata["source"] = "synth:" + spec_.name;
+    header_.metadata["synth.scale"] = std::to_string(params.scale);
+    header_.metadata["synth.seed"] = std::to_string(params.seed);
+    header_.metadata["synth.step"] = params.adaptive ? "adaptive" : "fixed";
+    header_.metadata["synth.description"] = spec_.description;
+    header_.attributes.push_back({spec_.attribute, {}});
+  }
 
-LineSet generate(const SynthParams& params, const ProgressFn& progress) {
-  const DataSetSpec& spec = find_data_set(params.name);
-  if (!(params.scale > 0 && params.scale <= 4))
-    throw Error("synthetic scale must be in (0, 4], got " + std::to_string(params.scale));
-  Recipe recipe = make_recipe(spec, params.seed);
-  recipe.integration.adaptive = params.adaptive;
-  const auto target =
-      static_cast<uint64_t>(std::llround(params.scale * static_cast<double>(spec.paper_segments)));
-
-  LineSet lines;
-  lines.metadata["source"] = "synth:" + spec.name;
-  lines.metadata["synth.scale"] = std::to_string(params.scale);
-  lines.metadata["synth.seed"] = std::to_string(params.seed);
-  lines.metadata["synth.step"] = params.adaptive ? "adaptive" : "fixed";
-  lines.metadata["synth.description"] = spec.description;
-  const uint64_t expected_points = target + target / recipe.mean_points + 16;
-  lines.positions.reserve(3 * expected_points);
-  std::vector<float> attribute;
-  attribute.reserve(expected_points);
-
-  uint64_t segments = 0, next_index = 0;
-  constexpr size_t kBatch = 2048;
-  std::vector<GeneratedLine> batch(kBatch);
-  while (segments < target) {
-    tbb::parallel_for(size_t{0}, kBatch, [&](size_t i) {
-      batch[i] = generate_line(recipe, spec, params.seed, next_index + i);
-    });
-    next_index += kBatch;
-    for (GeneratedLine& line : batch) {
+  bool next(LineSet& batch, uint64_t max_points) override {
+    copy_lines(header_, 0, 0, batch);
+    std::vector<float>& attribute = batch.attributes[0].values;
+    const bool derived = spec_.attribute == "curvature";
+    while (segments_ < target_) {
+      if (queued_ == queue_.size()) refill();
+      GeneratedLine& line = queue_[queued_];
       const uint64_t n = line.xyz.size() / 3;
-      if (n < 2 || segments >= target) continue;
-      const uint64_t take = std::min<uint64_t>(n, target - segments + 1);
-      lines.positions.insert(lines.positions.end(), line.xyz.begin(),
+      if (n < 2) {
+        ++queued_;
+        continue;
+      }
+      const uint64_t take = std::min<uint64_t>(n, target_ - segments_ + 1);
+      if (batch.line_count() > 0 && batch.point_count() + take > max_points) break;
+      batch.positions.insert(batch.positions.end(), line.xyz.begin(),
                              line.xyz.begin() + static_cast<std::ptrdiff_t>(3 * take));
-      if (!line.attribute.empty())
+      if (!derived)
         attribute.insert(attribute.end(), line.attribute.begin(),
                          line.attribute.begin() + static_cast<std::ptrdiff_t>(take));
-      lines.end_line();
-      segments += take - 1;
+      batch.end_line();
+      segments_ += take - 1;
+      ++queued_;
+      ++lines_read_;
     }
-    if (progress) progress(segments, target);
-    if (next_index > 64 * (target + 1)) throw Error("synthetic generation made no progress");
+    if (derived && batch.line_count() > 0)
+      batch.attributes[0].values = derive_attribute(batch, "curvature").values;
+    if (progress_) progress_(segments_, target_);
+    return batch.line_count() > 0;
   }
-  if (spec.attribute == "curvature") {
-    lines.attributes.push_back(derive_attribute(lines, "curvature"));
-  } else {
-    lines.attributes.push_back({spec.attribute, std::move(attribute)});
+
+ private:
+  void refill() {
+    constexpr size_t kBatch = 2048;
+    if (next_index_ > 64 * (target_ + 1)) throw Error("synthetic generation made no progress");
+    queue_.resize(kBatch);
+    tbb::parallel_for(size_t{0}, kBatch, [&](size_t i) {
+      queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
+    });
+    next_index_ += kBatch;
+    queued_ = 0;
   }
-  return lines;
+
+  SynthParams params_;
+  const DataSetSpec& spec_;
+  ProgressFn progress_;
+  Recipe recipe_;
+  uint64_t target_ = 0, segments_ = 0, next_index_ = 0;
+  std::vector<GeneratedLine> queue_;
+  size_t queued_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_generator(const SynthParams& params, const ProgressFn& progress) {
+  return std::make_unique<Generator>(params, progress);
+}
+
+LineSet generate(const SynthParams& params, const ProgressFn& progress) {
+  Generator generator(params, progress);
+  return read_all(generator);
 }
 
 }  // namespace linebake::synth

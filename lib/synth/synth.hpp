@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "core/progress.hpp"
+#include "lines/line_reader.hpp"
 #include "lines/line_set.hpp"
 
 namespace linebake::synth {
@@ -21,9 +22,12 @@ struct DataSetSpec {
 const std::vector<DataSetSpec>& data_sets();
 const DataSetSpec& find_data_set(const std::string& name);  // throws Error when unknown
 
+// The largest scale: 100 x clouds is 3.96e9 segments, generated and baked batch by batch.
+constexpr double kMaxScale = 100;
+
 struct SynthParams {
   std::string name;
-  double scale = 1.0;  // fraction of the paper's size, (0, 4]
+  double scale = 1.0;  // fraction of the paper's size, (0, kMaxScale]
   uint64_t seed = 1;
   bool adaptive = false;  // adaptive RK4 step instead of the fixed one
 };
@@ -36,5 +40,9 @@ SynthParams parse_synth_source(const std::string& source);
 // count equals round(scale * paper_segments) exactly: lines are taken in seed order until the
 // budget is met, and the last one is cut to fit.
 LineSet generate(const SynthParams& params, const ProgressFn& progress = {});
+// The same lines, batch by batch (lines/line_reader.hpp), in bounded memory: generated 2048 at a
+// time. Progress counts segments.
+std::unique_ptr<LineReader> open_generator(const SynthParams& params,
+                                           const ProgressFn& progress = {});
 
 }  // namespace linebake::synth

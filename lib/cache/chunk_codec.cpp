@@ -1,0 +1,363 @@
+#include "cache/chunk_codec.hpp"
+
+#include <blosc.h>
+#include <lz4.h>
+#include <zlib.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "core/error.hpp"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace linebake {
+
+Compression parse_compression(const std::string& name) {
+  if (name == "none") return Compression::None;
+  if (name == "deflate") return Compression::Deflate;
+  if (name == "lz4") return Compression::Lz4;
+  if (name == "blosc-zstd") return Compression::BloscZstd;
+  throw Error("unknown compression '" + name + "' (none | deflate | lz4 | blosc-zstd)");
+}
+
+const char* to_string(Compression compression) {
+  switch (compression) {
+    case Compression::None:
+      return "none";
+    case Compression::Deflate:
+      return "deflate";
+    case Compression::Lz4:
+      return "lz4";
+    case Compression::BloscZstd:
+      return "blosc-zstd";
+  }
+  return "none";
+}
+
+namespace {
+
+void put_be32(char* at, uint32_t v) {
+  for (int i = 0; i < 4; ++i) at[i] = char(v >> (24 - 8 * i));
+}
+void put_be64(char* at, uint64_t v) {
+  for (int i = 0; i < 8; ++i) at[i] = char(v >> (56 - 8 * i));
+}
+uint32_t get_be32(const char* at) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v = v << 8 | uint8_t(at[i]);
+  return v;
+}
+uint64_t get_be64(const char* at) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = v << 8 | uint8_t(at[i]);
+  return v;
+}
+
+// Elements [first, n) of the generic transposition: out[k * n + i] = in[i * size + k].
+void shuffle_scalar(const uint8_t* in, size_t n, size_t size, size_t first, uint8_t* out) {
+  for (size_t i = first; i < n; ++i)
+    for (size_t k = 0; k < size; ++k) out[k * n + i] = in[i * size + k];
+}
+void unshuffle_scalar(const uint8_t* in, size_t n, size_t size, size_t first, uint8_t* out) {
+  for (size_t i = first; i < n; ++i)
+    for (size_t k = 0; k < size; ++k) out[i * size + k] = in[k * n + i];
+}
+
+#if defined(__SSE2__)
+// 16 elements per step, transposed with byte unpacks (SSE2, part of every x86-64): three rounds
+// of interleaving bring byte k of the 16 elements together, a 64-bit unpack finishes the rows.
+size_t shuffle4_sse2(const uint8_t* in, size_t n, uint8_t* out) {
+  const size_t blocks = n / 16;
+  for (size_t b = 0; b < blocks; ++b) {
+    const auto* src = reinterpret_cast<const __m128i*>(in + 64 * b);
+    const __m128i v0 = _mm_loadu_si128(src), v1 = _mm_loadu_si128(src + 1);
+    const __m128i v2 = _mm_loadu_si128(src + 2), v3 = _mm_loadu_si128(src + 3);
+    const __m128i t0 = _mm_unpacklo_epi8(v0, v1), t1 = _mm_unpackhi_epi8(v0, v1);
+    const __m128i t2 = _mm_unpacklo_epi8(v2, v3), t3 = _mm_unpackhi_epi8(v2, v3);
+    const __m128i u0 = _mm_unpacklo_epi8(t0, t1), u1 = _mm_unpackhi_epi8(t0, t1);
+    const __m128i u2 = _mm_unpacklo_epi8(t2, t3), u3 = _mm_unpackhi_epi8(t2, t3);
+    const __m128i w0 = _mm_unpacklo_epi8(u0, u1), w1 = _mm_unpackhi_epi8(u0, u1);
+    const __m128i w2 = _mm_unpacklo_epi8(u2, u3), w3 = _mm_unpackhi_epi8(u2, u3);
+    uint8_t* dst = out + 16 * b;
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst), _mm_unpacklo_epi64(w0, w2));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + n), _mm_unpackhi_epi64(w0, w2));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + 2 * n), _mm_unpacklo_epi64(w1, w3));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + 3 * n), _mm_unpackhi_epi64(w1, w3));
+  }
+  return 16 * blocks;
+}
+
+size_t unshuffle4_sse2(const uint8_t* in, size_t n, uint8_t* out) {
+  const size_t blocks = n / 16;
+  for (size_t b = 0; b < blocks; ++b) {
+    const uint8_t* src = in + 16 * b;
+    const __m128i o0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src));
+    const __m128i o1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + n));
+    const __m128i o2 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + 2 * n));
+    const __m128i o3 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + 3 * n));
+    const __m128i p0 = _mm_unpacklo_epi8(o0, o1), p1 = _mm_unpackhi_epi8(o0, o1);
+    const __m128i p2 = _mm_unpacklo_epi8(o2, o3), p3 = _mm_unpackhi_epi8(o2, o3);
+    auto* dst = reinterpret_cast<__m128i*>(out + 64 * b);
+    _mm_storeu_si128(dst, _mm_unpacklo_epi16(p0, p2));
+    _mm_storeu_si128(dst + 1, _mm_unpackhi_epi16(p0, p2));
+    _mm_storeu_si128(dst + 2, _mm_unpacklo_epi16(p1, p3));
+    _mm_storeu_si128(dst + 3, _mm_unpackhi_epi16(p1, p3));
+  }
+  return 16 * blocks;
+}
+
+size_t shuffle2_sse2(const uint8_t* in, size_t n, uint8_t* out) {
+  const size_t blocks = n / 16;
+  for (size_t b = 0; b < blocks; ++b) {
+    const auto* src = reinterpret_cast<const __m128i*>(in + 32 * b);
+    const __m128i v0 = _mm_loadu_si128(src), v1 = _mm_loadu_si128(src + 1);
+    const __m128i t0 = _mm_unpacklo_epi8(v0, v1), t1 = _mm_unpackhi_epi8(v0, v1);
+    const __m128i u0 = _mm_unpacklo_epi8(t0, t1), u1 = _mm_unpackhi_epi8(t0, t1);
+    const __m128i w0 = _mm_unpacklo_epi8(u0, u1), w1 = _mm_unpackhi_epi8(u0, u1);
+    uint8_t* dst = out + 16 * b;
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst), _mm_unpacklo_epi8(w0, w1));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + n), _mm_unpackhi_epi8(w0, w1));
+  }
+  return 16 * blocks;
+}
+
+size_t unshuffle2_sse2(const uint8_t* in, size_t n, uint8_t* out) {
+  const size_t blocks = n / 16;
+  for (size_t b = 0; b < blocks; ++b) {
+    const uint8_t* src = in + 16 * b;
+    const __m128i o0 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src));
+    const __m128i o1 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + n));
+    auto* dst = reinterpret_cast<__m128i*>(out + 32 * b);
+    _mm_storeu_si128(dst, _mm_unpacklo_epi8(o0, o1));
+    _mm_storeu_si128(dst + 1, _mm_unpackhi_epi8(o0, o1));
+  }
+  return 16 * blocks;
+}
+#endif
+
+// Which pipeline steps a chunk went through: shuffle (bit 0), codec (bit 1), fletcher32 (bit 2).
+constexpr unsigned kShuffleBit = 1, kCodecBit = 2, kFletcherBit = 4;
+
+void encode_codec(const ChunkCodec& codec, const char* in, size_t bytes, std::vector<char>& out) {
+  switch (codec.compression) {
+    case Compression::Lz4: {
+      // One block: the plugin's default block size (1 GiB) exceeds any chunk of ours.
+      if (bytes > size_t(LZ4_MAX_INPUT_SIZE)) throw Error("lz4: chunk too large");
+      out.resize(16 + size_t(LZ4_compressBound(int(bytes))));
+      put_be64(out.data(), bytes);
+      put_be32(out.data() + 8, uint32_t(bytes));
+      int stored =
+          bytes ? LZ4_compress_default(in, out.data() + 16, int(bytes), int(out.size() - 16)) : 0;
+      if (stored <= 0 || size_t(stored) >= bytes) {
+        stored = int(bytes);
+        std::memcpy(out.data() + 16, in, bytes);
+      }
+      put_be32(out.data() + 12, uint32_t(stored));
+      out.resize(16 + size_t(stored));
+      return;
+    }
+    case Compression::Deflate: {
+      uLongf stored = compressBound(uLong(bytes));
+      out.resize(stored);
+      if (compress2(reinterpret_cast<Bytef*>(out.data()), &stored,
+                    reinterpret_cast<const Bytef*>(in), uLong(bytes),
+                    codec.deflate_level()) != Z_OK)
+        throw Error("deflate: compression failed");
+      out.resize(stored);
+      return;
+    }
+    case Compression::BloscZstd: {
+      out.resize(bytes + BLOSC_MAX_OVERHEAD);
+      // HDF5's shuffle already ran, so Blosc's own is off (the plugin's cd_values say the same).
+      const int stored = blosc_compress_ctx(codec.blosc_level(), BLOSC_NOSHUFFLE,
+                                            std::clamp<size_t>(codec.element_size, 1, 255), bytes,
+                                            in, out.data(), out.size(), "zstd", 0, 1);
+      if (stored <= 0) throw Error("blosc-zstd: compression failed (is zstd in this Blosc?)");
+      out.resize(size_t(stored));
+      return;
+    }
+    case Compression::None:
+      out.assign(in, in + bytes);
+      return;
+  }
+}
+
+void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t raw_bytes,
+                  std::vector<char>& out) {
+  out.resize(raw_bytes);
+  switch (codec.compression) {
+    case Compression::Lz4: {
+      if (bytes < 12) throw Error("lz4: stored chunk shorter than its header");
+      const uint64_t original = get_be64(in);
+      uint64_t block = get_be32(in + 8);
+      if (original != raw_bytes)
+        throw Error("lz4: header says " + std::to_string(original) + " bytes, expected " +
+                    std::to_string(raw_bytes));
+      if (block == 0 && original > 0) throw Error("lz4: block size 0");
+      size_t read = 12, written = 0;
+      while (written < original) {
+        const size_t this_block = size_t(std::min<uint64_t>(block, original - written));
+        if (read + 4 > bytes) throw Error("lz4: stored chunk ends inside a block header");
+        const size_t stored = get_be32(in + read);
+        read += 4;
+        if (stored > bytes - read) throw Error("lz4: block runs past the stored chunk");
+        if (stored == this_block) {
+          std::memcpy(out.data() + written, in + read, stored);
+        } else {
+          const int n =
+              LZ4_decompress_safe(in + read, out.data() + written, int(stored), int(this_block));
+          if (n != int(this_block)) throw Error("lz4: corrupt block");
+        }
+        read += stored;
+        written += this_block;
+      }
+      return;
+    }
+    case Compression::Deflate: {
+      uLongf n = uLongf(raw_bytes);
+      if (uncompress(reinterpret_cast<Bytef*>(out.data()), &n, reinterpret_cast<const Bytef*>(in),
+                     uLong(bytes)) != Z_OK ||
+          n != raw_bytes)
+        throw Error("deflate: corrupt stream");
+      return;
+    }
+    case Compression::BloscZstd: {
+      size_t nbytes = 0;
+      if (bytes < BLOSC_MIN_HEADER_LENGTH || blosc_cbuffer_validate(in, bytes, &nbytes) < 0 ||
+          nbytes != raw_bytes)
+        throw Error("blosc: corrupt frame header");
+      if (blosc_decompress_ctx(in, out.data(), raw_bytes, 1) != int(raw_bytes))
+        throw Error("blosc: corrupt frame");
+      return;
+    }
+    case Compression::None:
+      if (bytes != raw_bytes) throw Error("stored chunk has the wrong size");
+      std::memcpy(out.data(), in, bytes);
+      return;
+  }
+}
+
+}  // namespace
+
+void shuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_bytes) {
+  const auto* in = static_cast<const uint8_t*>(in_bytes);
+  auto* out = static_cast<uint8_t*>(out_bytes);
+  const size_t n = size ? bytes / size : 0;
+  if (size <= 1 || n <= 1) {  // as HDF5: nothing to shuffle
+    std::memcpy(out, in, bytes);
+    return;
+  }
+  size_t done = 0;
+#if defined(__SSE2__)
+  if (size == 4) done = shuffle4_sse2(in, n, out);
+  if (size == 2) done = shuffle2_sse2(in, n, out);
+#endif
+  shuffle_scalar(in, n, size, done, out);
+  std::memcpy(out + n * size, in + n * size, bytes - n * size);  // leftover bytes stay last
+}
+
+void unshuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_bytes) {
+  const auto* in = static_cast<const uint8_t*>(in_bytes);
+  auto* out = static_cast<uint8_t*>(out_bytes);
+  const size_t n = size ? bytes / size : 0;
+  if (size <= 1 || n <= 1) {
+    std::memcpy(out, in, bytes);
+    return;
+  }
+  size_t done = 0;
+#if defined(__SSE2__)
+  if (size == 4) done = unshuffle4_sse2(in, n, out);
+  if (size == 2) done = unshuffle2_sse2(in, n, out);
+#endif
+  unshuffle_scalar(in, n, size, done, out);
+  std::memcpy(out + n * size, in + n * size, bytes - n * size);
+}
+
+// HDF5 folds both sums to 16 bits every 360 words; the folds keep each sum's value modulo 65535
+// and never turn a positive sum into 0. So the result is the exact sums modulo 65535, written
+// 0xffff instead of 0 once any word was non-zero: the same value, computed here with 64-bit sums
+// reduced every 2^16 words, which leaves the inner loop two dependent adds per word.
+uint32_t fletcher32(const void* data, size_t bytes) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  size_t words = bytes / 2;
+  uint64_t sum1 = 0, sum2 = 0, any = 0;
+  while (words) {
+    const size_t n = std::min<size_t>(words, size_t{1} << 16);
+    words -= n;
+    for (size_t i = 0; i < n; ++i, p += 2) {
+      const uint32_t word = uint32_t(p[0]) << 8 | p[1];
+      any |= word;
+      sum1 += word;
+      sum2 += sum1;
+    }
+    sum1 %= 65535;
+    sum2 %= 65535;
+  }
+  if (bytes % 2) {
+    const uint32_t word = uint32_t(*p) << 8;
+    any |= word;
+    sum1 += word;
+    sum2 += sum1;
+    sum1 %= 65535;
+    sum2 %= 65535;
+  }
+  if (!any) return 0;
+  const uint32_t s1 = sum1 ? uint32_t(sum1) : 0xffff, s2 = sum2 ? uint32_t(sum2) : 0xffff;
+  return s2 << 16 | s1;
+}
+
+void encode_chunk(const ChunkCodec& codec, const void* raw, size_t bytes, std::vector<char>& out,
+                  std::vector<char>& scratch) {
+  if (codec.compression == Compression::None) {
+    out.assign(static_cast<const char*>(raw), static_cast<const char*>(raw) + bytes);
+    return;
+  }
+  scratch.resize(bytes);
+  shuffle_bytes(raw, bytes, codec.element_size, scratch.data());
+  encode_codec(codec, scratch.data(), bytes, out);
+  const uint32_t sum = fletcher32(out.data(), out.size());
+  const size_t at = out.size();
+  out.resize(at + 4);
+  for (int i = 0; i < 4; ++i) out[at + size_t(i)] = char(sum >> (8 * i));  // little endian
+}
+
+void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* stored_bytes,
+                  size_t bytes, size_t raw_bytes, std::vector<char>& out,
+                  std::vector<char>& scratch) {
+  const char* stored = static_cast<const char*>(stored_bytes);
+  if (codec.compression == Compression::None) {
+    decode_codec(codec, stored, bytes, raw_bytes, out);
+    return;
+  }
+  size_t payload = bytes;
+  if (!(filter_mask & kFletcherBit)) {
+    if (bytes < 4) throw Error("stored chunk shorter than its checksum");
+    payload = bytes - 4;
+    uint32_t expected = 0;
+    for (int i = 0; i < 4; ++i)
+      expected |= uint32_t(uint8_t(stored[payload + size_t(i)])) << (8 * i);
+    const uint32_t sum = fletcher32(stored, payload);
+    // HDF5 before 1.6.3 stored the checksum byte-reversed; HDF5 accepts both, so do we.
+    const uint32_t reversed =
+        (sum & 0xff) << 24 | (sum & 0xff00) << 8 | (sum >> 8 & 0xff00) | sum >> 24;
+    if (expected != sum && expected != reversed)
+      throw Error("Fletcher-32 checksum mismatch: the stored chunk is corrupt");
+  }
+  const char* data = stored;
+  if (!(filter_mask & kCodecBit)) {
+    decode_codec(codec, stored, payload, raw_bytes, scratch);
+    data = scratch.data();
+  } else if (payload != raw_bytes) {
+    throw Error("stored chunk has the wrong size");
+  }
+  out.resize(raw_bytes);
+  if (!(filter_mask & kShuffleBit))
+    unshuffle_bytes(data, raw_bytes, codec.element_size, out.data());
+  else
+    std::memcpy(out.data(), data, raw_bytes);
+}
+
+}  // namespace linebake

@@ -1,0 +1,273 @@
+// The cache's own filter pipeline (chunk_codec) against HDF5's: chunks linebake encodes read back
+// through stock HDF5's filtered path, chunks HDF5's filters wrote decode with linebake's code,
+// and a dataset streamed in uneven pieces stores the same chunks as one written whole.
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <filesystem>
+#include <numeric>
+#include <random>
+
+#include "cache/cache.hpp"
+#include "cache/chunk_codec.hpp"
+#include "core/error.hpp"
+#include "core/h5.hpp"
+#include "test_util.hpp"
+
+namespace linebake {
+namespace {
+
+using h5::Handle;
+
+// HDF5's H5_checksum_fletcher32 (H5checksum.c) as written there: sums folded every 360 words.
+uint32_t fletcher32_as_hdf5_writes_it(const uint8_t* data, size_t bytes) {
+  size_t len = bytes / 2;
+  uint32_t sum1 = 0, sum2 = 0;
+  while (len) {
+    size_t tlen = len > 360 ? 360 : len;
+    len -= tlen;
+    do {
+      sum1 += uint32_t(uint16_t(data[0]) << 8) | uint16_t(data[1]);
+      data += 2;
+      sum2 += sum1;
+    } while (--tlen);
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+    sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  if (bytes % 2) {
+    sum1 += uint32_t(uint16_t(*data) << 8);
+    sum2 += sum1;
+    sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+    sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  }
+  sum1 = (sum1 & 0xffff) + (sum1 >> 16);
+  sum2 = (sum2 & 0xffff) + (sum2 >> 16);
+  return (sum2 << 16) | sum1;
+}
+
+std::vector<uint8_t> random_bytes(size_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<uint8_t> v(n);
+  for (auto& b : v) b = uint8_t(rng());
+  return v;
+}
+
+TEST(ChunkCodec, Fletcher32EqualsHdf5sFoldedSums) {
+  for (size_t n : {0, 1, 2, 3, 719, 720, 721, 1000, 65536 * 2 + 3, 1 << 20}) {
+    const auto data = random_bytes(n, uint32_t(n));
+    EXPECT_EQ(fletcher32(data.data(), n), fletcher32_as_hdf5_writes_it(data.data(), n)) << n;
+  }
+  // The edge cases of the folding: all zero, and sums that are multiples of 65535.
+  const std::vector<uint8_t> zeros(1000, 0), ones(1000, 0xff);
+  EXPECT_EQ(fletcher32(zeros.data(), 1000), 0u);
+  EXPECT_EQ(fletcher32(ones.data(), 1000), fletcher32_as_hdf5_writes_it(ones.data(), 1000));
+  EXPECT_EQ(fletcher32(ones.data(), 1), fletcher32_as_hdf5_writes_it(ones.data(), 1));
+}
+
+TEST(ChunkCodec, ShuffleIsHdf5sByteTransposeAndInverts) {
+  for (size_t size : {1, 2, 3, 4, 8}) {
+    for (size_t n : {0, 1, 7, 16, 17, 31, 1000, 4099}) {
+      const size_t bytes = n * size + (size > 1 ? 1 : 0);  // a leftover byte stays last
+      const auto in = random_bytes(bytes, uint32_t(size * 100000 + n));
+      std::vector<uint8_t> out(bytes), back(bytes);
+      shuffle_bytes(in.data(), bytes, size, out.data());
+      const size_t elements = bytes / size;
+      if (elements > 1 && size > 1) {
+        for (size_t i = 0; i < elements; ++i)
+          for (size_t k = 0; k < size; ++k)
+            ASSERT_EQ(out[k * elements + i], in[i * size + k]) << size << " " << n;
+        EXPECT_EQ(out.back(), in.back());
+      } else {
+        EXPECT_EQ(out, in);
+      }
+      unshuffle_bytes(out.data(), bytes, size, back.data());
+      EXPECT_EQ(back, in) << size << " " << n;
+    }
+  }
+}
+
+// Floats with structure (a codec has something to find) and noise (so it cannot find all).
+std::vector<float> sample_values(size_t n) {
+  std::vector<float> v(n);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> noise(-1, 1);
+  for (size_t i = 0; i < n; ++i) v[i] = float(i % 977) * 0.25f + noise(rng);
+  return v;
+}
+
+const Compression kCodecs[] = {Compression::Lz4, Compression::Deflate, Compression::BloscZstd};
+
+class ChunkCodecHdf5 : public ::testing::TestWithParam<Compression> {};
+
+// linebake writes (its codec, H5Dwrite_chunk); HDF5 reads with its own filters and plugins.
+TEST_P(ChunkCodecHdf5, StockHdf5ReadsWhatLinebakeEncodes) {
+  test::TempDir dir;
+  const std::string path = dir.file("c.lbc.h5");
+  const size_t rows = 300001;  // 3 columns: 3.4 MiB, so several chunks and a padded edge chunk
+  const std::vector<float> values = sample_values(rows * 3);
+  {
+    CacheWriter writer(path, GetParam());
+    writer.write("/data", values.data(), rows, 3);
+    writer.commit();
+  }
+  // Plain HDF5 C API from here: no linebake code reads the file.
+  h5::init();  // registers the plugin directory, as HDF5_PLUGIN_PATH would
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  ASSERT_TRUE(file.valid());
+  Handle d(H5Dopen2(file, "/data", H5P_DEFAULT), H5Dclose);
+  ASSERT_TRUE(d.valid());
+  Handle dcpl(H5Dget_create_plist(d), H5Pclose);
+  EXPECT_EQ(H5Pget_nfilters(dcpl), 3);
+  hsize_t chunks = 0;
+  Handle space(H5Dget_space(d), H5Sclose);
+  ASSERT_GE(H5Dget_num_chunks(d, space, &chunks), 0);
+  EXPECT_GT(chunks, 3u);
+  std::vector<float> read(values.size(), -1.0f);
+  ASSERT_GE(H5Dread(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, read.data()), 0);
+  EXPECT_EQ(read, values);
+  EXPECT_LT(H5Dget_storage_size(d), values.size() * sizeof(float));  // it did compress
+}
+
+// HDF5 writes with its filter pipeline; linebake's decoder reads the raw chunks.
+TEST_P(ChunkCodecHdf5, LinebakeDecodesWhatHdf5sFiltersStore) {
+  test::TempDir dir;
+  const std::string path = dir.file("h.h5");
+  const size_t rows = 100000, chunk_rows = 8192;
+  const std::vector<float> values = sample_values(rows);
+  h5::init();
+  {
+    Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    const hsize_t dims[1] = {rows}, chunk[1] = {chunk_rows};
+    Handle space(H5Screate_simple(1, dims, nullptr), H5Sclose);
+    Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    H5Pset_chunk(dcpl, 1, chunk);
+    H5Pset_shuffle(dcpl);
+    if (GetParam() == Compression::Deflate) {
+      H5Pset_deflate(dcpl, 4);
+    } else if (GetParam() == Compression::Lz4) {
+      H5Pset_filter(dcpl, kLz4Filter, H5Z_FLAG_MANDATORY, 0, nullptr);
+    } else {
+      const unsigned cd[7] = {0, 0, 0, 0, 5, 0, kBloscZstd};
+      H5Pset_filter(dcpl, kBloscFilter, H5Z_FLAG_MANDATORY, 7, cd);
+    }
+    H5Pset_fletcher32(dcpl);
+    Handle d(H5Dcreate2(file, "/data", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+             H5Dclose);
+    ASSERT_TRUE(d.valid());
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  }
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  Handle d(H5Dopen2(file, "/data", H5P_DEFAULT), H5Dclose);
+  const ChunkCodec codec{GetParam(), -1, sizeof(float)};
+  std::vector<char> stored, raw, scratch;
+  for (size_t c = 0; c * chunk_rows < rows; ++c) {
+    const hsize_t offset[1] = {c * chunk_rows};
+    hsize_t bytes = 0;
+    ASSERT_GE(H5Dget_chunk_storage_size(d, offset, &bytes), 0);
+    stored.resize(bytes);
+    uint32_t mask = 0;
+    ASSERT_GE(H5Dread_chunk(d, H5P_DEFAULT, offset, &mask, stored.data()), 0);
+    decode_chunk(codec, mask, stored.data(), stored.size(), chunk_rows * sizeof(float), raw,
+                 scratch);
+    const size_t n = std::min(chunk_rows, rows - c * chunk_rows);
+    ASSERT_EQ(std::memcmp(raw.data(), values.data() + c * chunk_rows, n * sizeof(float)), 0) << c;
+  }
+  // A flipped byte fails the checksum, with a message saying so.
+  const hsize_t first[1] = {0};
+  hsize_t bytes = 0;
+  H5Dget_chunk_storage_size(d, first, &bytes);
+  stored.resize(bytes);
+  uint32_t mask = 0;
+  H5Dread_chunk(d, H5P_DEFAULT, first, &mask, stored.data());
+  stored[stored.size() / 2] ^= 0x10;
+  try {
+    decode_chunk(codec, mask, stored.data(), stored.size(), chunk_rows * sizeof(float), raw,
+                 scratch);
+    FAIL() << "corrupt chunk decoded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("Fletcher-32"), std::string::npos) << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Codecs, ChunkCodecHdf5, ::testing::ValuesIn(kCodecs),
+                         [](const auto& param_info) {
+                           std::string name = to_string(param_info.param);
+                           std::erase(name, '-');
+                           return name;
+                         });
+
+// The raw bytes of every chunk of a dataset, as stored.
+std::vector<std::vector<char>> stored_chunks(const std::string& path, const std::string& name) {
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  Handle d(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle space(H5Dget_space(d), H5Sclose);
+  hsize_t count = 0;
+  H5Dget_num_chunks(d, space, &count);
+  std::vector<std::vector<char>> chunks;
+  for (hsize_t i = 0; i < count; ++i) {
+    hsize_t offset[2] = {0, 0}, size = 0;
+    unsigned mask = 0;
+    haddr_t address = 0;
+    H5Dget_chunk_info(d, space, i, offset, &mask, &address, &size);
+    std::vector<char> bytes(size);
+    uint32_t read_mask = 0;
+    H5Dread_chunk(d, H5P_DEFAULT, offset, &read_mask, bytes.data());
+    chunks.push_back(std::move(bytes));
+  }
+  return chunks;
+}
+
+TEST(DatasetStream, UnevenAppendsStoreTheSameChunksAndHash) {
+  test::TempDir dir;
+  const size_t rows = 250000;
+  std::vector<uint32_t> values(rows * 2);
+  std::iota(values.begin(), values.end(), 17u);
+  for (Compression c : {Compression::Lz4, Compression::None}) {
+    const std::string whole = dir.file("whole.h5"), pieces = dir.file("pieces.h5");
+    {
+      CacheWriter w(whole, c);
+      w.write("/v", values.data(), rows, 2);
+      w.commit();
+    }
+    {
+      CacheWriter w(pieces, c);
+      DatasetStream s = w.stream<uint32_t>("/v", rows, 2);
+      size_t at = 0;
+      for (size_t step : {1, 3, 131072, 7, 65536, 100000}) {
+        const size_t n = std::min(step, rows - at);
+        s.append(values.data() + 2 * at, n);
+        at += n;
+      }
+      s.append(values.data() + 2 * at, rows - at);
+      s.close();
+      w.commit();
+    }
+    const CacheReader a(whole), b(pieces);
+    EXPECT_EQ(a.attribute("/v", "xxh3_128"), b.attribute("/v", "xxh3_128"));
+    const Array<uint32_t> back = b.read<uint32_t>("/v", rows * 2);  // verifies the hash
+    EXPECT_TRUE(std::equal(back.begin(), back.end(), values.begin()));
+    if (c != Compression::None) {
+      EXPECT_EQ(stored_chunks(whole, "/v"), stored_chunks(pieces, "/v"));
+    }
+  }
+}
+
+TEST(DatasetStream, MissingRowsAndOverrunsAreErrorsNamingTheDataset) {
+  test::TempDir dir;
+  CacheWriter w(dir.file("x.lbc.h5"), Compression::Lz4);
+  const std::vector<float> v(10, 1.0f);
+  DatasetStream s = w.stream<float>("/group/d", 10);
+  s.append(v.data(), 4);
+  EXPECT_THROW(s.append(v.data(), 7), OutputError);
+  try {
+    s.close();
+    FAIL();
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/group/d: only 4 of 10 rows"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace linebake
