@@ -6,6 +6,8 @@
 #include "cache/cache.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
 
@@ -18,6 +20,7 @@ Command add_bake(CLI::App& app) {
     std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";
     std::vector<float> attribute_range;
     std::string grid = "auto", embree_geometry = "linear", embree_quality = "medium";
+    std::string memory_budget;
     bool json = false;
   };
   auto args = std::make_shared<Args>();
@@ -84,6 +87,9 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--compression-level", o.compression_level,
                   "Codec level: deflate 1-9 (default 4), blosc-zstd 1-9 (default 5)")
       ->check(CLI::Range(1, 9));
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
+                  "unlimited (default: half of physical memory)");
   sub->add_flag("--force", o.force, "Rebuild every step even if the cache is up to date");
   sub->add_flag("--json", args->json, "Print the report as JSON");
   return [args] {
@@ -98,12 +104,20 @@ Command add_bake(CLI::App& app) {
     if (args->attribute_range.size() == 2)
       options.tubes.attribute_range =
           std::array<float, 2>{args->attribute_range[0], args->attribute_range[1]};
+    if (args->memory_budget == "unlimited")
+      options.memory_budget = BakeOptions::kUnlimited;
+    else if (!args->memory_budget.empty())
+      options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
+    install_interrupt_handlers();
     const BakeResult result = bake(options);
     for (const std::string& note : result.notes) std::cerr << "linebake: " << note << "\n";
     for (const BakeStep& step : result.steps)
       std::cerr << "linebake: " << step.step << ": "
                 << (step.built ? "built" : "up to date, reused") << "\n";
     if (!result.written) std::cerr << "linebake: " << result.cache << " is up to date\n";
+    for (const BakeStage& stage : result.stages)
+      std::cerr << "linebake: stage " << stage.name << ": " << stage.wall_s << " s wall, "
+                << stage.cpu_s << " s CPU, peak RSS " << format_bytes(stage.peak_rss_bytes) << "\n";
     const CacheReader cache(result.cache, false);
     const std::vector<CacheSummary> summary{summarize_cache(cache)};
     if (args->json)

@@ -5,6 +5,7 @@
 
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
@@ -29,6 +30,9 @@ int main(int argc, char** argv) {
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
     return kOk;
+  } catch (const linebake::Interrupted& e) {
+    std::cerr << "linebake: " << e.what() << "; temporary files removed, nothing written\n";
+    return 128 + e.signal();
   } catch (const linebake::InputError& e) {
     std::cerr << "linebake: error: " << e.what() << "\n";
     return kInput;

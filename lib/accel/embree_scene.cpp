@@ -220,6 +220,73 @@ const char* to_string(BuildQuality q) {
   return "?";
 }
 
+uint64_t curve_part_limit(const EmbreeOptions& options) {
+  return std::min<uint64_t>(options.max_primitives_per_scene, 0xFFFFFFFFull / 4);
+}
+
+void CurvePartPlanner::add(uint64_t line_points) {
+  const uint64_t segments = line_points > 1 ? line_points - 1 : 0;
+  if (segments > limit_)
+    throw Error("Embree: line " + std::to_string(line_) + " has more segments than fit a scene");
+  if (open_.segments + segments > limit_) {
+    if (open_.segments > 0) parts_.push_back(open_);
+    open_ = {line_, line_, point_, 0, 0};
+  }
+  open_.end_line = ++line_;
+  open_.points += line_points;
+  open_.segments += segments;
+  point_ += line_points;
+}
+
+std::vector<CurvePart> CurvePartPlanner::finish() {
+  if (open_.segments > 0) parts_.push_back(open_);
+  open_ = {line_, line_, point_, 0, 0};
+  return std::move(parts_);
+}
+
+uint64_t curve_vertices(const CurvePart& part, EmbreeGeometry geometry) {
+  return geometry == EmbreeGeometry::BezierCurve ? 4 * part.segments : part.points;
+}
+
+void prepare_curves(const LineSet& lines, size_t first, size_t end, uint64_t point_base,
+                    uint64_t segment_base, float radius, EmbreeGeometry geometry,
+                    const CurveOutput& out) {
+  const bool linear = geometry != EmbreeGeometry::BezierCurve;
+  const auto point = [&](uint64_t p) {
+    return glm::vec3(lines.positions[3 * p], lines.positions[3 * p + 1],
+                     lines.positions[3 * p + 2]);
+  };
+  const auto put = [&](uint64_t v, glm::vec3 x) {
+    float* o = out.vertices + 4 * v;
+    o[0] = x.x, o[1] = x.y, o[2] = x.z, o[3] = radius;
+  };
+  const uint64_t first_point = lines.line_offsets[first];
+  if (linear)
+    for (uint64_t p = first_point; p < lines.line_offsets[end]; ++p) put(p - first_point, point(p));
+  uint64_t s = 0;
+  for (size_t l = first; l < end; ++l) {
+    const uint64_t begin = lines.line_offsets[l], stop = lines.line_offsets[l + 1];
+    for (uint64_t p = begin; p + 1 < stop; ++p, ++s) {
+      if (linear) {
+        out.indices[s] = uint32_t(point_base + (p - first_point));
+        out.flags[s] = uint8_t((p > begin ? RTC_CURVE_FLAG_NEIGHBOR_LEFT : 0) |
+                               (p + 2 < stop ? RTC_CURVE_FLAG_NEIGHBOR_RIGHT : 0));
+      } else {
+        // Catmull-Rom through p0 p1 p2 p3 as the Bezier b0 b1 b2 b3 of the span p1 -> p2;
+        // at a line's ends the missing neighbour is the end point itself.
+        const glm::vec3 p1 = point(p), p2 = point(p + 1);
+        const glm::vec3 p0 = p > begin ? point(p - 1) : p1;
+        const glm::vec3 p3 = p + 2 < stop ? point(p + 2) : p2;
+        out.indices[s] = uint32_t(4 * (segment_base + s));
+        put(4 * s, p1);
+        put(4 * s + 1, p1 + (p2 - p0) / 6.0f);
+        put(4 * s + 2, p2 - (p3 - p1) / 6.0f);
+        put(4 * s + 3, p2);
+      }
+    }
+  }
+}
+
 EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
                                     const std::string& attribute, const EmbreeOptions& options) {
   if (options.geometry == EmbreeGeometry::Triangles)
@@ -231,68 +298,29 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
   state->stats.geometry = options.geometry;
   const auto start = std::chrono::steady_clock::now();
   state->set_attribute(lines, attribute);
-  // Linear curves and capsules share one layout: a vertex per point, a segment indexes its first.
   const bool linear = options.geometry != EmbreeGeometry::BezierCurve;
-  const uint64_t limit = std::min<uint64_t>(options.max_primitives_per_scene, 0xFFFFFFFFull / 4);
-  // Lines into parts of at most `limit` segments.
-  size_t line = 0;
-  while (line < lines.line_count()) {
+  CurvePartPlanner planner(curve_part_limit(options));
+  for (size_t l = 0; l < lines.line_count(); ++l) planner.add(lines.line_size(l));
+  for (const CurvePart& plan : planner.finish()) {
     Part part;
-    const size_t first_line = line;
-    part.first_point = lines.line_offsets[line];
-    while (line < lines.line_count()) {
-      const uint64_t segments = lines.line_size(line) > 1 ? lines.line_size(line) - 1 : 0;
-      if (segments > limit)
-        throw Error("Embree: line " + std::to_string(line) + " has more segments than fit a scene");
-      if (part.primitives + segments > limit) break;
-      part.primitives += segments;
-      ++line;
-    }
-    const uint64_t points = lines.line_offsets[line] - part.first_point;
-    const uint64_t vertex_count = linear ? points : 4 * part.primitives;
+    part.primitives = plan.segments;
+    part.first_point = plan.first_point;
+    const uint64_t vertex_count = curve_vertices(plan, options.geometry);
     part.vertices = Array<float>(4 * (vertex_count + 1));  // + one padding vertex
     part.indices = Array<uint32_t>(part.primitives);
     part.segment_point = Array<uint32_t>(part.primitives);
     if (linear) part.flags = Array<uint8_t>(part.primitives);
-    const auto point = [&](uint64_t p) {
-      return glm::vec3(lines.positions[3 * p], lines.positions[3 * p + 1],
-                       lines.positions[3 * p + 2]);
-    };
-    const auto put = [&](uint64_t v, glm::vec3 x) {
-      float* out = part.vertices.data() + 4 * v;
-      out[0] = x.x, out[1] = x.y, out[2] = x.z, out[3] = radius;
-    };
-    if (linear)
-      for (uint64_t p = 0; p < points; ++p) put(p, point(part.first_point + p));
+    prepare_curves(lines, plan.first_line, plan.end_line, 0, 0, radius, options.geometry,
+                   {part.vertices.data(), part.indices.data(), part.flags.data()});
     uint64_t s = 0;
-    for (size_t l = first_line; l < line; ++l) {
-      const uint64_t begin = lines.line_offsets[l], end = lines.line_offsets[l + 1];
-      for (uint64_t p = begin; p + 1 < end; ++p, ++s) {
-        const uint32_t local = uint32_t(p - part.first_point);
-        part.segment_point[s] = local;
-        if (linear) {
-          part.indices[s] = local;
-          part.flags[s] = uint8_t((p > begin ? RTC_CURVE_FLAG_NEIGHBOR_LEFT : 0) |
-                                  (p + 2 < end ? RTC_CURVE_FLAG_NEIGHBOR_RIGHT : 0));
-        } else {
-          // Catmull-Rom through p0 p1 p2 p3 as the Bezier b0 b1 b2 b3 of the span p1 -> p2;
-          // at a line's ends the missing neighbour is the end point itself.
-          const glm::vec3 p1 = point(p), p2 = point(p + 1);
-          const glm::vec3 p0 = p > begin ? point(p - 1) : p1;
-          const glm::vec3 p3 = p + 2 < end ? point(p + 2) : p2;
-          part.indices[s] = uint32_t(4 * s);
-          put(4 * s, p1);
-          put(4 * s + 1, p1 + (p2 - p0) / 6.0f);
-          put(4 * s + 2, p2 - (p3 - p1) / 6.0f);
-          put(4 * s + 3, p2);
-        }
-      }
-    }
+    for (size_t l = plan.first_line; l < plan.end_line; ++l)
+      for (uint64_t p = lines.line_offsets[l]; p + 1 < lines.line_offsets[l + 1]; ++p, ++s)
+        part.segment_point[s] = uint32_t(p - part.first_point);
     std::memset(part.vertices.data() + 4 * vertex_count, 0, 16);
     part.chain = {part.vertices.data(), part.indices.data(), part.flags.data()};
     state->stats.primitives += part.primitives;
     state->stats.buffer_bytes += part.vertices.bytes() + part.indices.bytes() + part.flags.bytes();
-    if (part.primitives > 0) state->parts.push_back(std::move(part));
+    state->parts.push_back(std::move(part));
   }
   state->stats.prepare_s = seconds_since(start);
   state->create_device();

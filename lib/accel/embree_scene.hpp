@@ -68,6 +68,43 @@ struct PreparedCurves {
   Array<uint8_t> flags;     // RTC_CURVE_FLAG_NEIGHBOR_LEFT / _RIGHT (linear curves, capsules)
 };
 
+// Curves are cut into parts of consecutive lines, each at most `limit` segments (Embree's
+// primitive ids are 32-bit); lines without segments join the open part, parts without segments
+// are left out. The plan needs only the lines' point counts, so it can be made batch by batch.
+struct CurvePart {
+  uint64_t first_line = 0, end_line = 0;  // lines [first_line, end_line)
+  uint64_t first_point = 0, points = 0;   // the lines' points
+  uint64_t segments = 0;
+};
+// The segment limit per part for these options (max_primitives_per_scene, at most 2^30 - 1).
+uint64_t curve_part_limit(const EmbreeOptions& options);
+class CurvePartPlanner {
+ public:
+  explicit CurvePartPlanner(uint64_t limit) : limit_(limit) {}
+  void add(uint64_t line_points);  // the next line; throws Error when it alone exceeds the limit
+  std::vector<CurvePart> finish();
+
+ private:
+  uint64_t limit_, line_ = 0, point_ = 0;
+  CurvePart open_;
+  std::vector<CurvePart> parts_;
+};
+// Vertices of a part as prepared (without the padding vertex): a point each for linear curves
+// and capsules, four per segment for Bezier curves.
+uint64_t curve_vertices(const CurvePart& part, EmbreeGeometry geometry);
+
+// Where prepare_curves writes: the first vertex (FLOAT4), index and flag of its lines.
+struct CurveOutput {
+  float* vertices = nullptr;
+  uint32_t* indices = nullptr;
+  uint8_t* flags = nullptr;  // linear curves and capsules only
+};
+// Embree's input buffers for lines [first, end) of `lines`, which start at point `point_base`
+// and segment `segment_base` of their part (the values the indices take).
+void prepare_curves(const LineSet& lines, size_t first, size_t end, uint64_t point_base,
+                    uint64_t segment_base, float radius, EmbreeGeometry geometry,
+                    const CurveOutput& out);
+
 class EmbreeScene {
  public:
   // Curves over the line set with one world-space radius; `attribute` names the vertex

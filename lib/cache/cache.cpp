@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/info.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
@@ -103,7 +104,9 @@ nlohmann::json to_json(const Provenance& p) {
             {"rss_before_bytes", p.build.rss_before},
             {"peak_rss_bytes", p.build.peak_rss},
             {"peak_is_step_local", p.build.peak_is_step_local},
-            {"threads", p.threads}}},
+            {"threads", p.threads},
+            {"memory_budget_bytes", p.memory_budget},
+            {"spill_bytes", p.spill_bytes}}},
           {"memory_bytes", p.memory_bytes},
           {"disk_bytes", p.disk_bytes},
           {"compression", p.compression}};
@@ -125,6 +128,8 @@ Provenance provenance_from_json(const nlohmann::json& j) {
   p.build.peak_rss = b.at("peak_rss_bytes");
   p.build.peak_is_step_local = b.at("peak_is_step_local");
   p.threads = b.value("threads", uint64_t{0});
+  p.memory_budget = b.value("memory_budget_bytes", uint64_t{0});
+  p.spill_bytes = b.value("spill_bytes", uint64_t{0});
   p.memory_bytes = j.at("memory_bytes");
   p.disk_bytes = j.at("disk_bytes");
   p.compression = j.value("compression", "");
@@ -144,6 +149,16 @@ CacheWriter::CacheWriter(const std::string& path, Compression compression, int l
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   // Page-aligned datasets from 4 KiB up, so uncompressed ones can be viewed in a mapping.
   H5Pset_alignment(fapl, 4096, 4096);
+  // HDF5's metadata cache may grow to 32 MiB by default; chunk indices written in order need
+  // far less, and the bake's memory budget counts every byte.
+  H5AC_cache_config_t mdc{};
+  mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  if (H5Pget_mdc_config(fapl, &mdc) >= 0) {
+    mdc.max_size = std::min<size_t>(mdc.max_size, size_t{4} << 20);
+    mdc.min_size = std::min(mdc.min_size, mdc.max_size);
+    mdc.initial_size = std::min(mdc.initial_size, mdc.max_size);
+    H5Pset_mdc_config(fapl, &mdc);
+  }
   h5_ = Handle(H5Fcreate(file_.temp_path().c_str(), H5F_ACC_TRUNC, fcpl, fapl), H5Fclose);
   if (!h5_.valid()) throw OutputError(path, "cannot create (" + h5::last_error() + ")");
   write_attribute("/", kFormatAttribute, kFormatVersion);
@@ -233,19 +248,19 @@ void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
 // encoding of the chunks behind them.
 void DatasetStream::State::write_chunks(const std::vector<std::pair<uint64_t, const char*>>& jobs) {
   if (jobs.empty()) return;
-  struct Slot {
-    std::vector<char> out, scratch;
-  };
   const size_t tokens = 2 * size_t(tbb::this_task_arena::max_concurrency()) + 1;
-  thread_local std::vector<Slot> slots;  // kept between calls: no fresh pages per chunk
+  // Kept between calls, so chunks do not touch fresh pages: the encoded chunks in flight (one
+  // per pipeline token) and each thread's shuffle buffer.
+  thread_local std::vector<std::vector<char>> slots;
+  static tbb::enumerable_thread_specific<std::vector<char>> scratch;
   if (slots.size() < tokens) slots.resize(tokens);
   struct Item {
     size_t job;
-    Slot* slot;
+    std::vector<char>* slot;
   };
   size_t next = 0;
   const uint64_t bytes = chunk_bytes();
-  Slot* const slot_base = slots.data();
+  std::vector<char>* const slot_base = slots.data();
   tbb::parallel_pipeline(
       tokens, tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
                                            [&](tbb::flow_control& control) -> Item {
@@ -259,12 +274,12 @@ void DatasetStream::State::write_chunks(const std::vector<std::pair<uint64_t, co
                   tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
                                                [&](Item item) {
                                                  encode_chunk(codec, jobs[item.job].second, bytes,
-                                                              item.slot->out, item.slot->scratch);
+                                                              *item.slot, scratch.local());
                                                  return item;
                                                }) &
                   tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
                     const hsize_t offset[2] = {jobs[item.job].first * chunk_rows, 0};
-                    const std::vector<char>& out = item.slot->out;
+                    const std::vector<char>& out = *item.slot;
                     if (H5Dwrite_chunk(dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
                       fail("cannot write chunk " + std::to_string(jobs[item.job].first) + " (" +
                            h5::last_error() + ")");
@@ -397,7 +412,6 @@ DatasetStream CacheWriter::open_stream(const std::string& dataset, hid_t type, s
       H5Pset_filter(dcpl, kBloscFilter, H5Z_FLAG_MANDATORY, 7, cd);
     }
     H5Pset_fletcher32(dcpl);
-    s->pending.reserve(s->chunk_bytes());
   } else {
     H5Pset_layout(dcpl, H5D_CONTIGUOUS);
     H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY);
@@ -413,6 +427,17 @@ DatasetStream CacheWriter::open_stream(const std::string& dataset, hid_t type, s
 void CacheWriter::add_progress(uint64_t bytes) {
   progress_done_ += bytes;
   if (progress_) progress_(progress_done_, progress_total_);
+}
+
+bool CacheWriter::has_group(const std::string& group) const {
+  size_t at = 0;
+  while ((at = group.find('/', at + 1)) != std::string::npos)
+    if (H5Lexists(h5_, group.substr(0, at).c_str(), H5P_DEFAULT) <= 0) return false;
+  return H5Lexists(h5_, group.c_str(), H5P_DEFAULT) > 0;
+}
+
+void CacheWriter::flush() {
+  if (H5Fflush(h5_, H5F_SCOPE_GLOBAL) < 0) throw OutputError(path(), "cannot flush");
 }
 
 void CacheWriter::commit() {

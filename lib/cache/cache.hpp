@@ -37,6 +37,8 @@ struct Provenance {
   uint64_t memory_bytes = 0;  // the representation in memory
   uint64_t disk_bytes = 0;    // its datasets as stored
   std::string compression;
+  uint64_t memory_budget = 0;  // the bake's budget (0: unlimited)
+  uint64_t spill_bytes = 0;    // what the step wrote to temporary files beside the cache
 };
 nlohmann::json to_json(const Provenance& provenance);
 Provenance provenance_from_json(const nlohmann::json& json);
@@ -109,6 +111,9 @@ class CacheWriter {
   void write_attribute(const std::string& object, const std::string& name,
                        const std::string& value);
   void write_provenance(const std::string& group, const Provenance& provenance);
+  bool has_group(const std::string& group) const;
+  // Writes what HDF5 holds in memory to the temporary file, so it can be read while open.
+  void flush();
   void commit();
 
  private:

@@ -1,5 +1,6 @@
 #include "cache/embree_store.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "core/error.hpp"
@@ -30,6 +31,87 @@ void store_embree(CacheWriter& cache, const StoredCurves& curves, Provenance pro
   cache.write_attribute(kEmbreeGroup, "curves", description.dump());
   provenance.disk_bytes = disk;
   cache.write_provenance(kEmbreeGroup, provenance);
+}
+
+EmbreeStoreWriter::EmbreeStoreWriter(CacheWriter& cache, std::vector<CurvePart> parts,
+                                     EmbreeGeometry geometry, float radius, std::string attribute)
+    : cache_(cache),
+      parts_(std::move(parts)),
+      geometry_(geometry),
+      radius_(radius),
+      attribute_(std::move(attribute)) {
+  cache.create_group(kEmbreeGroup);
+}
+
+void EmbreeStoreWriter::open_part() {
+  const CurvePart& part = parts_[part_];
+  const std::string g = part_group(part_);
+  cache_.create_group(g);
+  // + one zero padding vertex for Embree's 16-byte loads
+  vertices_.emplace(cache_.stream<float>(g + "/vertices", curve_vertices(part, geometry_) + 1, 4));
+  indices_.emplace(cache_.stream<uint32_t>(g + "/indices", part.segments));
+  if (geometry_ != EmbreeGeometry::BezierCurve)
+    flags_.emplace(cache_.stream<uint8_t>(g + "/flags", part.segments));
+  part_points_ = part_segments_ = 0;
+  open_ = true;
+}
+
+void EmbreeStoreWriter::close_part() {
+  const float padding[4] = {0, 0, 0, 0};
+  vertices_->append(padding, 1);
+  disk_ += vertices_->close() + indices_->close();
+  if (flags_) disk_ += flags_->close();
+  const CurvePart& part = parts_[part_];
+  buffer_bytes_ +=
+      (curve_vertices(part, geometry_) + 1) * 16 + part.segments * 4 + (flags_ ? part.segments : 0);
+  vertices_.reset();
+  indices_.reset();
+  flags_.reset();
+  open_ = false;
+  ++part_;
+}
+
+void EmbreeStoreWriter::append(const LineSet& batch) {
+  const uint64_t first = line_, end = line_ + batch.line_count();
+  while (part_ < parts_.size() && parts_[part_].first_line < end) {
+    const CurvePart& part = parts_[part_];
+    const uint64_t from = std::max(first, part.first_line), to = std::min(end, part.end_line);
+    if (!open_) open_part();
+    const size_t l0 = size_t(from - first), l1 = size_t(to - first);
+    const uint64_t points = batch.line_offsets[l1] - batch.line_offsets[l0];
+    uint64_t segments = 0;
+    for (size_t l = l0; l < l1; ++l)
+      segments += batch.line_size(l) > 1 ? batch.line_size(l) - 1 : 0;
+    const uint64_t vertices = geometry_ == EmbreeGeometry::BezierCurve ? 4 * segments : points;
+    vertex_buffer_.resize(4 * vertices);
+    index_buffer_.resize(segments);
+    flag_buffer_.resize(flags_ ? segments : 0);
+    prepare_curves(batch, l0, l1, part_points_, part_segments_, radius_, geometry_,
+                   {vertex_buffer_.data(), index_buffer_.data(), flag_buffer_.data()});
+    vertices_->append(vertex_buffer_.data(), vertices);
+    indices_->append(index_buffer_.data(), segments);
+    if (flags_) flags_->append(flag_buffer_.data(), segments);
+    part_points_ += points;
+    part_segments_ += segments;
+    if (to == part.end_line)
+      close_part();
+    else
+      break;
+  }
+  line_ = end;
+}
+
+void EmbreeStoreWriter::close(Provenance provenance) {
+  if (open_ || part_ != parts_.size())
+    throw OutputError(cache_.path(),
+                      "Embree buffers: the lines ended inside part " + std::to_string(part_));
+  const nlohmann::json description = {{"geometry", to_string(geometry_)},
+                                      {"radius", radius_},
+                                      {"attribute", attribute_},
+                                      {"parts", parts_.size()}};
+  cache_.write_attribute(kEmbreeGroup, "curves", description.dump());
+  provenance.disk_bytes = disk_;
+  cache_.write_provenance(kEmbreeGroup, provenance);
 }
 
 StoredCurves load_embree(const CacheReader& cache) {

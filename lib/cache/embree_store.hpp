@@ -3,6 +3,7 @@
 // BVHs cannot be serialised, so the cache keeps what a rebuild needs, and the provenance keeps
 // what the build cost (prepare and commit time, BVH bytes from Embree's memory monitor).
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,5 +24,36 @@ struct StoredCurves {
 // Writes the buffers and the provenance; fills provenance.disk_bytes.
 void store_embree(CacheWriter& cache, const StoredCurves& curves, Provenance provenance);
 StoredCurves load_embree(const CacheReader& cache);
+
+// Writes the buffers part by part as a streamed bake prepares them from its batches of lines.
+class EmbreeStoreWriter {
+ public:
+  EmbreeStoreWriter(CacheWriter& cache, std::vector<CurvePart> parts, EmbreeGeometry geometry,
+                    float radius, std::string attribute);
+  // The batch's lines; they continue the previous batch's.
+  void append(const LineSet& batch);
+  // Writes the description and the provenance (disk_bytes filled in).
+  void close(Provenance provenance);
+  // Bytes of the buffers in memory, as a scene would hold them.
+  uint64_t buffer_bytes() const { return buffer_bytes_; }
+
+ private:
+  void open_part();
+  void close_part();
+  CacheWriter& cache_;
+  std::vector<CurvePart> parts_;
+  EmbreeGeometry geometry_;
+  float radius_;
+  std::string attribute_;
+  size_t part_ = 0;  // the part being written
+  bool open_ = false;
+  uint64_t part_points_ = 0, part_segments_ = 0;  // written into the open part
+  uint64_t line_ = 0;                             // the next line
+  std::optional<DatasetStream> vertices_, indices_, flags_;
+  std::vector<float> vertex_buffer_;
+  std::vector<uint32_t> index_buffer_;
+  std::vector<uint8_t> flag_buffer_;
+  uint64_t disk_ = 0, buffer_bytes_ = 0;
+};
 
 }  // namespace linebake

@@ -2,23 +2,54 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "lines/line_reader.hpp"
 
 namespace linebake {
 
-std::string content_hash(const LineSet& lines) {
-  Hasher h;
-  h.update(uint64_t{lines.positions.size()});
-  h.update(lines.positions.data(), lines.positions.size() * sizeof(float));
-  h.update(uint64_t{lines.line_offsets.size()});
-  h.update(lines.line_offsets.data(), lines.line_offsets.size() * sizeof(uint64_t));
-  for (const auto* group : {&lines.attributes, &lines.line_attributes}) {
-    h.update(uint64_t{group->size()});
-    for (const Attribute& a : *group) {
-      h.update(a.name);
-      h.update(uint64_t{a.values.size()});
-      h.update(a.values.data(), a.values.size() * sizeof(float));
-    }
+LineContentHash::LineContentHash(const LineSet& header) {
+  names_ = {"positions", "line_offsets"};
+  for (const Attribute& a : header.attributes) names_.push_back(a.name);
+  for (const Attribute& a : header.line_attributes) names_.push_back(a.name);
+  vertex_attributes_ = header.attributes.size();
+  for (size_t i = 0; i < names_.size(); ++i) arrays_.push_back(std::make_unique<Hasher>());
+  counts_.assign(names_.size(), 0);
+  const uint64_t zero = 0;  // the offsets start at 0
+  arrays_[1]->update(&zero, sizeof zero);
+  counts_[1] = 1;
+}
+
+LineContentHash::~LineContentHash() = default;
+
+void LineContentHash::add(const LineSet& batch) {
+  const auto put = [&](size_t i, const void* data, size_t count, size_t size) {
+    arrays_[i]->update(data, count * size);
+    counts_[i] += count;
+  };
+  put(0, batch.positions.data(), batch.positions.size(), sizeof(float));
+  for (size_t l = 1; l < batch.line_offsets.size(); ++l) {
+    const uint64_t offset = points_ + batch.line_offsets[l];
+    put(1, &offset, 1, sizeof offset);
   }
+  points_ += batch.point_count();
+  for (size_t a = 0; a < batch.attributes.size(); ++a)
+    put(2 + a, batch.attributes[a].values.data(), batch.attributes[a].values.size(), sizeof(float));
+  for (size_t a = 0; a < batch.line_attributes.size(); ++a)
+    put(2 + vertex_attributes_ + a, batch.line_attributes[a].values.data(),
+        batch.line_attributes[a].values.size(), sizeof(float));
+}
+
+std::string LineContentHash::hex() const {
+  Hasher h;
+  h.update(std::string_view("linebake line set 2"));
+  h.update(uint64_t{vertex_attributes_}).update(uint64_t{names_.size() - 2 - vertex_attributes_});
+  for (size_t i = 0; i < names_.size(); ++i)
+    h.update(names_[i]).update(counts_[i]).update(arrays_[i]->hex());
+  return h.hex();
+}
+
+std::string content_hash(const LineSet& lines) {
+  LineContentHash h(lines);
+  h.add(lines);
   return h.hex();
 }
 
@@ -26,21 +57,106 @@ uint64_t line_set_bytes(const LineSet& lines) {
   return compute_stats(lines).total_bytes();
 }
 
-void store_lines(CacheWriter& cache, const LineSet& lines, Provenance provenance) {
+nlohmann::json to_json(const LineSetStats& s) {
+  const auto ranges = [](const std::vector<std::pair<std::string, ValueRange>>& list) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const auto& [name, r] : list)
+      j.push_back({{"name", name},
+                   {"min", r.min},
+                   {"max", r.max},
+                   {"finite", r.finite},
+                   {"nonfinite", r.nonfinite}});
+    return j;
+  };
+  nlohmann::json j = {{"lines", s.lines},
+                      {"points", s.points},
+                      {"segments", s.segments},
+                      {"largest_line", s.largest_line},
+                      {"attribute_ranges", ranges(s.attribute_ranges)},
+                      {"line_attribute_ranges", ranges(s.line_attribute_ranges)}};
+  j["bounds"] = s.bounds.empty ? nlohmann::json(nullptr)
+                               : nlohmann::json{{"min", s.bounds.min}, {"max", s.bounds.max}};
+  return j;
+}
+
+LineSetStats line_stats_from_json(const nlohmann::json& j, const std::string& cache) {
+  LineSetStats s;
+  try {
+    s.lines = j.at("lines");
+    s.points = j.at("points");
+    s.segments = j.at("segments");
+    s.largest_line = j.at("largest_line");
+    if (!j.at("bounds").is_null()) {
+      s.bounds.min = j.at("bounds").at("min");
+      s.bounds.max = j.at("bounds").at("max");
+      s.bounds.empty = false;
+    }
+    const auto ranges = [](const nlohmann::json& list) {
+      std::vector<std::pair<std::string, ValueRange>> out;
+      for (const auto& r : list)
+        out.emplace_back(r.at("name"),
+                         ValueRange{r.at("min"), r.at("max"), r.at("nonfinite"), r.at("finite")});
+      return out;
+    };
+    s.attribute_ranges = ranges(j.at("attribute_ranges"));
+    s.line_attribute_ranges = ranges(j.at("line_attribute_ranges"));
+  } catch (const std::exception& e) {
+    throw InputError(cache, "group /lines",
+                     std::string("provenance lacks line statistics: ") + e.what());
+  }
+  s.position_bytes = 12 * s.points;
+  s.offset_bytes = 8 * (s.lines + 1);
+  s.attribute_bytes =
+      4 * (s.points * s.attribute_ranges.size() + s.lines * s.line_attribute_ranges.size());
+  return s;
+}
+
+LineStoreWriter::LineStoreWriter(CacheWriter& cache, const LineSet& header,
+                                 const LineSetStats& stats)
+    : cache_(cache),
+      stats_(stats),
+      points_(cache.stream<float>("/lines/points", stats.points, 3)),
+      offsets_(cache.stream<uint64_t>("/lines/line_offsets", stats.lines + 1)) {
   cache.create_group("/lines");
-  uint64_t disk = cache.write("/lines/points", lines.positions.data(), lines.point_count(), 3);
-  disk += cache.write("/lines/line_offsets", lines.line_offsets.data(), lines.line_offsets.size());
-  for (const Attribute& a : lines.attributes)
-    disk += cache.write("/lines/attributes/" + encode_link_name(a.name), a.values.data(),
-                        a.values.size());
-  for (const Attribute& a : lines.line_attributes)
-    disk += cache.write("/lines/line_attributes/" + encode_link_name(a.name), a.values.data(),
-                        a.values.size());
-  nlohmann::json metadata = lines.metadata;
-  cache.write_attribute("/lines", "metadata", metadata.dump());
+  for (const Attribute& a : header.attributes)
+    attributes_.push_back(
+        cache.stream<float>("/lines/attributes/" + encode_link_name(a.name), stats.points));
+  for (const Attribute& a : header.line_attributes)
+    line_attributes_.push_back(
+        cache.stream<float>("/lines/line_attributes/" + encode_link_name(a.name), stats.lines));
+  const uint64_t zero = 0;
+  offsets_.append(&zero, 1);
+}
+
+void LineStoreWriter::append(const LineSet& batch) {
+  points_.append(batch.positions.data(), batch.point_count());
+  std::vector<uint64_t> offsets(batch.line_count());
+  for (size_t l = 0; l < offsets.size(); ++l)
+    offsets[l] = points_written_ + batch.line_offsets[l + 1];
+  offsets_.append(offsets.data(), offsets.size());
+  points_written_ += batch.point_count();
+  for (size_t a = 0; a < attributes_.size(); ++a)
+    attributes_[a].append(batch.attributes[a].values.data(), batch.attributes[a].values.size());
+  for (size_t a = 0; a < line_attributes_.size(); ++a)
+    line_attributes_[a].append(batch.line_attributes[a].values.data(),
+                               batch.line_attributes[a].values.size());
+}
+
+void LineStoreWriter::close(const std::map<std::string, std::string>& metadata,
+                            Provenance provenance) {
+  uint64_t disk = points_.close() + offsets_.close();
+  for (DatasetStream& s : attributes_) disk += s.close();
+  for (DatasetStream& s : line_attributes_) disk += s.close();
+  cache_.write_attribute("/lines", "metadata", nlohmann::json(metadata).dump());
   provenance.disk_bytes = disk;
-  provenance.memory_bytes = line_set_bytes(lines);
-  cache.write_provenance("/lines", provenance);
+  provenance.memory_bytes = stats_.total_bytes();
+  cache_.write_provenance("/lines", provenance);
+}
+
+void store_lines(CacheWriter& cache, const LineSet& lines, Provenance provenance) {
+  LineStoreWriter writer(cache, header_of(lines), compute_stats(lines));
+  writer.append(lines);
+  writer.close(lines.metadata, std::move(provenance));
 }
 
 template <class T>

@@ -1,19 +1,59 @@
 #pragma once
-// The line set in the cache: group /lines (docs/cache.md).
+// The line set in the cache: group /lines (docs/cache.md), written whole or batch by batch.
 
+#include <map>
+#include <memory>
 #include <string>
 
 #include "cache/cache.hpp"
+#include "core/hash.hpp"
 #include "lines/line_set.hpp"
 
 namespace linebake {
 
 // XXH3-128 over every array and attribute name of a line set: the input hash of the assets
-// built from it. Metadata is excluded.
+// built from it. Metadata is excluded. Each array is hashed on its own and the digests are
+// hashed together with the names and counts, so the hash can be computed batch by batch.
+class LineContentHash {
+ public:
+  explicit LineContentHash(const LineSet& header);
+  ~LineContentHash();
+  void add(const LineSet& batch);
+  std::string hex() const;
+
+ private:
+  std::vector<std::string> names_;  // "positions", "line_offsets", then the attributes
+  std::vector<std::unique_ptr<Hasher>> arrays_;
+  std::vector<uint64_t> counts_;
+  uint64_t points_ = 0;
+  size_t vertex_attributes_ = 0;
+};
 std::string content_hash(const LineSet& lines);
 
 // Bytes the line set's datasets take in memory.
 uint64_t line_set_bytes(const LineSet& lines);
+
+// The figures of a line set that later steps need without reading it again (bounds, attribute
+// ranges, counts), as kept in the /lines provenance `stats`.
+nlohmann::json to_json(const LineSetStats& stats);
+// Throws InputError naming the cache when the JSON lacks a field.
+LineSetStats line_stats_from_json(const nlohmann::json& json, const std::string& cache);
+
+// /lines written batch by batch; the datasets are created with the sizes in `stats`.
+class LineStoreWriter {
+ public:
+  LineStoreWriter(CacheWriter& cache, const LineSet& header, const LineSetStats& stats);
+  void append(const LineSet& batch);
+  // Writes the metadata and the provenance, with disk_bytes and memory_bytes filled in.
+  void close(const std::map<std::string, std::string>& metadata, Provenance provenance);
+
+ private:
+  CacheWriter& cache_;
+  LineSetStats stats_;
+  DatasetStream points_, offsets_;
+  std::vector<DatasetStream> attributes_, line_attributes_;
+  uint64_t points_written_ = 0;
+};
 
 // Writes /lines with its metadata and provenance; fills provenance.disk_bytes.
 void store_lines(CacheWriter& cache, const LineSet& lines, Provenance provenance);

@@ -1,6 +1,7 @@
 #include "cache/tube_store.hpp"
 
 #include <cstdio>
+#include <optional>
 
 #include "core/error.hpp"
 
@@ -10,6 +11,124 @@ static std::string chunk_group(size_t c) {
   char name[32];
   std::snprintf(name, sizeof name, "/chunk_%06zu", c);
   return kTubesGroup + std::string(name);
+}
+
+static nlohmann::json describe(const TubeMesh& mesh, size_t chunks) {
+  return {{"sides", mesh.sides},
+          {"radius", mesh.radius},
+          {"caps", mesh.caps},
+          {"normals", to_string(mesh.normals)},
+          {"attribute", mesh.attribute},
+          {"attribute_range", mesh.attribute_range},
+          {"lines_dropped", mesh.lines_dropped},
+          {"points_skipped", mesh.points_skipped},
+          {"chunks", chunks}};
+}
+
+struct TubeStoreSink::State {
+  CacheWriter* cache = nullptr;
+  bool float_normals = true, attribute = false;
+  // The open chunk's datasets.
+  std::optional<DatasetStream> positions, normals, attribute_values, indices;
+  TubeChunkPlan plan;
+  size_t chunks = 0;
+  uint64_t disk = 0, memory = 0;
+  // The staging buffers of the piece being written, kept between pieces.
+  std::vector<float> positions_buffer, normals_buffer;
+  std::vector<int16_t> oct_buffer;
+  std::vector<uint16_t> attribute_buffer;
+  std::vector<uint32_t> index_buffer;
+  uint64_t piece_vertices = 0, piece_indices = 0, staging_peak = 0;
+};
+
+TubeStoreSink::TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh)
+    : state_(std::make_unique<State>()) {
+  state_->cache = &cache;
+  state_->float_normals = mesh.normals == NormalEncoding::Float32;
+  state_->attribute = !mesh.attribute.empty();
+  cache.create_group(kTubesGroup);
+}
+
+TubeStoreSink::~TubeStoreSink() = default;
+
+void TubeStoreSink::begin_chunk(size_t c, const TubeChunkPlan& plan) {
+  State& s = *state_;
+  const std::string g = chunk_group(c);
+  s.cache->create_group(g);
+  s.plan = plan;
+  s.chunks = c + 1;
+  s.positions.emplace(s.cache->stream<float>(g + "/positions", plan.vertices, 3));
+  s.normals.emplace(s.float_normals
+                        ? s.cache->stream<float>(g + "/normals", plan.vertices, 3)
+                        : s.cache->stream<int16_t>(g + "/normals_oct", plan.vertices, 2));
+  if (s.attribute)
+    s.attribute_values.emplace(s.cache->stream<uint16_t>(g + "/attribute", plan.vertices));
+  s.indices.emplace(s.cache->stream<uint32_t>(g + "/indices", plan.indices / 3, 3));
+}
+
+TubeOutput TubeStoreSink::reserve(size_t c, uint64_t vertices, uint64_t indices) {
+  State& s = *state_;
+  (void)c;
+  s.piece_vertices = vertices;
+  s.piece_indices = indices;
+  s.positions_buffer.resize(3 * vertices);
+  s.index_buffer.resize(indices);
+  TubeOutput out;
+  out.positions = s.positions_buffer.data();
+  out.indices = s.index_buffer.data();
+  if (s.float_normals) {
+    s.normals_buffer.resize(3 * vertices);
+    out.normals = s.normals_buffer.data();
+  } else {
+    s.oct_buffer.resize(2 * vertices);
+    out.normals_oct = s.oct_buffer.data();
+  }
+  if (s.attribute) {
+    s.attribute_buffer.resize(vertices);
+    out.attribute = s.attribute_buffer.data();
+  }
+  const uint64_t staged =
+      vertices * (12 + (s.float_normals ? 12 : 4) + (s.attribute ? 2 : 0)) + indices * 4;
+  s.staging_peak = std::max(s.staging_peak, staged);
+  return out;
+}
+
+void TubeStoreSink::written(size_t c) {
+  State& s = *state_;
+  (void)c;
+  s.positions->append(s.positions_buffer.data(), s.piece_vertices);
+  if (s.float_normals)
+    s.normals->append(s.normals_buffer.data(), s.piece_vertices);
+  else
+    s.normals->append(s.oct_buffer.data(), s.piece_vertices);
+  if (s.attribute) s.attribute_values->append(s.attribute_buffer.data(), s.piece_vertices);
+  s.indices->append(s.index_buffer.data(), s.piece_indices / 3);
+}
+
+void TubeStoreSink::end_chunk(size_t c) {
+  State& s = *state_;
+  const std::string g = chunk_group(c);
+  s.disk += s.positions->close() + s.normals->close() + s.indices->close();
+  if (s.attribute_values) s.disk += s.attribute_values->close();
+  s.memory += s.plan.vertices * (12 + (s.float_normals ? 12 : 4) + (s.attribute ? 2 : 0)) +
+              s.plan.indices * 4;
+  s.positions.reset();
+  s.normals.reset();
+  s.attribute_values.reset();
+  s.indices.reset();
+  s.cache->write_attribute(g, "lines", nlohmann::json{s.plan.first_line, s.plan.line_count}.dump());
+}
+
+void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
+  State& s = *state_;
+  s.cache->write_attribute(kTubesGroup, "mesh", describe(mesh, s.chunks).dump());
+  provenance.disk_bytes = s.disk;
+  provenance.memory_bytes = s.memory;
+  s.cache->write_provenance(kTubesGroup, provenance);
+}
+
+uint64_t TubeStoreSink::staging_bytes() const {
+  return state_->staging_peak;
 }
 
 void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance) {
@@ -25,20 +144,11 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
       disk += cache.write(g + "/normals", chunk.normals.data(), v, 3);
     else
       disk += cache.write(g + "/normals_oct", chunk.normals_oct.data(), v, 2);
-    if (!chunk.attribute.empty()) disk += cache.write(g + "/attribute", chunk.attribute.data(), v);
+    if (!mesh.attribute.empty()) disk += cache.write(g + "/attribute", chunk.attribute.data(), v);
     disk += cache.write(g + "/indices", chunk.indices.data(), chunk.triangle_count(), 3);
     cache.write_attribute(g, "lines", nlohmann::json{chunk.first_line, chunk.line_count}.dump());
   }
-  const nlohmann::json description = {{"sides", mesh.sides},
-                                      {"radius", mesh.radius},
-                                      {"caps", mesh.caps},
-                                      {"normals", to_string(mesh.normals)},
-                                      {"attribute", mesh.attribute},
-                                      {"attribute_range", mesh.attribute_range},
-                                      {"lines_dropped", mesh.lines_dropped},
-                                      {"points_skipped", mesh.points_skipped},
-                                      {"chunks", mesh.chunks.size()}};
-  cache.write_attribute(kTubesGroup, "mesh", description.dump());
+  cache.write_attribute(kTubesGroup, "mesh", describe(mesh, mesh.chunks.size()).dump());
   provenance.disk_bytes = disk;
   provenance.memory_bytes = mesh.bytes();
   cache.write_provenance(kTubesGroup, provenance);

@@ -1,7 +1,10 @@
 #pragma once
 // The tube mesh in the cache: group /assets/tubes, one subgroup per chunk (docs/cache.md).
 
+#include <memory>
+
 #include "cache/cache.hpp"
+#include "tubes/tube_builder.hpp"
 #include "tubes/tube_mesh.hpp"
 
 namespace linebake {
@@ -10,6 +13,28 @@ constexpr const char* kTubesGroup = "/assets/tubes";
 
 // Writes the mesh and its provenance; fills provenance.disk_bytes and memory_bytes.
 void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance);
+
+// Writes a streamed tube build (TubeStreamBuilder) straight into the cache, chunk by chunk: the
+// builder writes into staging buffers, which are appended to the chunk's datasets.
+class TubeStoreSink : public TubeSink {
+ public:
+  // `mesh`: the builder's description (which arrays the chunks have).
+  TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh);
+  ~TubeStoreSink() override;
+  void begin_chunk(size_t chunk, const TubeChunkPlan& plan) override;
+  TubeOutput reserve(size_t chunk, uint64_t vertices, uint64_t indices) override;
+  void written(size_t chunk) override;
+  void end_chunk(size_t chunk) override;
+  // After the last chunk: the mesh description and the provenance (disk and memory bytes filled
+  // in from what was written).
+  void close(const TubeMesh& description, Provenance provenance);
+  // Bytes of the staging buffers at their largest.
+  uint64_t staging_bytes() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 // Loads the mesh; uncompressed chunks are views of the mapped file.
 TubeMesh load_tubes(const CacheReader& cache);
 

@@ -11,15 +11,18 @@
 
 namespace linebake {
 
-namespace {
-std::string unique_suffix() {
+std::string temporary_name(const std::string& path) {
   static std::atomic<unsigned> counter{0};
-  return ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  char host[256] = "host";
+  if (::gethostname(host, sizeof host - 1) != 0) std::strcpy(host, "host");
+  host[sizeof host - 1] = '\0';
+  for (char* c = host; *c; ++c)
+    if (*c == '/' || *c == '.') *c = '_';
+  return path + ".tmp-" + host + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
 }
-}  // namespace
 
 AtomicFile::AtomicFile(std::string final_path)
-    : final_path_(std::move(final_path)), temp_path_(final_path_ + unique_suffix()) {}
+    : final_path_(std::move(final_path)), temp_path_(temporary_name(final_path_)) {}
 
 AtomicFile::~AtomicFile() {
   if (!committed_) std::remove(temp_path_.c_str());

@@ -26,6 +26,10 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// `<path>.tmp-<host>-<pid>-<n>`: a name no other process, here or on another host sharing the
+// file system, uses at the same time.
+std::string temporary_name(const std::string& path);
+
 // Writes `bytes` to `path` through an AtomicFile. Throws OutputError.
 void write_file_atomically(const std::string& path, const std::string& bytes);
 

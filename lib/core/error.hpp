@@ -35,6 +35,12 @@ class OutputError : public Error {
   OutputError(const std::string& file, const std::string& message) : Error(file + ": " + message) {}
 };
 
+// Work that does not fit the memory budget (core/memory_budget.hpp): refused before it starts.
+class BudgetExceeded : public Error {
+ public:
+  using Error::Error;
+};
+
 inline std::string at_line(uint64_t line) {
   return "line " + std::to_string(line);
 }

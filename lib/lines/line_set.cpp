@@ -76,35 +76,76 @@ Bounds compute_bounds(const LineSet& lines) {
 
 ValueRange compute_range(std::span<const float> values) {
   ValueRange r;
-  bool first = true;
   for (float v : values) {
     if (!std::isfinite(v)) {
       ++r.nonfinite;
       continue;
     }
-    if (first || v < r.min) r.min = v;
-    if (first || v > r.max) r.max = v;
-    first = false;
+    if (r.finite == 0 || v < r.min) r.min = v;
+    if (r.finite == 0 || v > r.max) r.max = v;
+    ++r.finite;
   }
   return r;
 }
 
+ValueRange merge(const ValueRange& a, const ValueRange& b) {
+  if (a.finite == 0) return {b.min, b.max, a.nonfinite + b.nonfinite, b.finite};
+  if (b.finite == 0) return {a.min, a.max, a.nonfinite + b.nonfinite, a.finite};
+  return {std::min(a.min, b.min), std::max(a.max, b.max), a.nonfinite + b.nonfinite,
+          a.finite + b.finite};
+}
+
+namespace {
+const ValueRange* find_range(const std::vector<std::pair<std::string, ValueRange>>& list,
+                             const std::string& name) {
+  for (const auto& [n, r] : list)
+    if (n == name) return &r;
+  return nullptr;
+}
+}  // namespace
+
+const ValueRange* LineSetStats::attribute_range(const std::string& name) const {
+  return find_range(attribute_ranges, name);
+}
+const ValueRange* LineSetStats::line_attribute_range(const std::string& name) const {
+  return find_range(line_attribute_ranges, name);
+}
+
+LineStatsBuilder::LineStatsBuilder(const LineSet& header) {
+  for (const Attribute& a : header.attributes)
+    stats_.attribute_ranges.emplace_back(a.name, ValueRange{});
+  for (const Attribute& a : header.line_attributes)
+    stats_.line_attribute_ranges.emplace_back(a.name, ValueRange{});
+  stats_.offset_bytes = sizeof(uint64_t);  // the leading 0
+}
+
+void LineStatsBuilder::add(const LineSet& batch) {
+  LineSetStats& s = stats_;
+  s.lines += batch.line_count();
+  s.points += batch.point_count();
+  s.segments += batch.segment_count();
+  for (size_t l = 0; l < batch.line_count(); ++l)
+    s.largest_line = std::max(s.largest_line, batch.line_size(l));
+  include_points(s.bounds, std::span<const float>(batch.positions.data(), 3 * batch.point_count()));
+  s.position_bytes += batch.positions.size() * sizeof(float);
+  s.offset_bytes += batch.line_count() * sizeof(uint64_t);
+  for (size_t a = 0; a < batch.attributes.size(); ++a) {
+    s.attribute_ranges[a].second =
+        merge(s.attribute_ranges[a].second, compute_range(batch.attributes[a].values));
+    s.attribute_bytes += batch.attributes[a].values.size() * sizeof(float);
+  }
+  for (size_t a = 0; a < batch.line_attributes.size(); ++a) {
+    s.line_attribute_ranges[a].second =
+        merge(s.line_attribute_ranges[a].second, compute_range(batch.line_attributes[a].values));
+    s.attribute_bytes += batch.line_attributes[a].values.size() * sizeof(float);
+  }
+}
+
 LineSetStats compute_stats(const LineSet& lines) {
-  LineSetStats s;
-  s.lines = lines.line_count();
-  s.points = lines.point_count();
-  s.segments = lines.segment_count();
-  s.bounds = compute_bounds(lines);
-  s.position_bytes = lines.positions.size() * sizeof(float);
+  LineStatsBuilder builder(lines);
+  builder.add(lines);
+  LineSetStats s = builder.stats();
   s.offset_bytes = lines.line_offsets.size() * sizeof(uint64_t);
-  for (const Attribute& a : lines.attributes) {
-    s.attribute_ranges.emplace_back(a.name, compute_range(a.values));
-    s.attribute_bytes += a.values.size() * sizeof(float);
-  }
-  for (const Attribute& a : lines.line_attributes) {
-    s.line_attribute_ranges.emplace_back(a.name, compute_range(a.values));
-    s.attribute_bytes += a.values.size() * sizeof(float);
-  }
   return s;
 }
 

@@ -54,11 +54,14 @@ Bounds compute_bounds(const LineSet& lines);
 void include_points(Bounds& bounds, std::span<const float> xyz);
 
 struct ValueRange {
-  float min = 0;
+  float min = 0;  // 0 when no value is finite
   float max = 0;
   uint64_t nonfinite = 0;  // NaN or Inf values, excluded from min/max
+  uint64_t finite = 0;
 };
 ValueRange compute_range(std::span<const float> values);
+// The range of the values of both.
+ValueRange merge(const ValueRange& a, const ValueRange& b);
 
 // Sizes and counts: the "LS" (segments) and "LM" (line model bytes) columns of the paper's
 // Table 1.
@@ -72,8 +75,23 @@ struct LineSetStats {
   uint64_t position_bytes = 0;
   uint64_t offset_bytes = 0;
   uint64_t attribute_bytes = 0;  // vertex and line attributes
+  uint64_t largest_line = 0;     // points of the longest line
   uint64_t total_bytes() const { return position_bytes + offset_bytes + attribute_bytes; }
+  const ValueRange* attribute_range(const std::string& name) const;
+  const ValueRange* line_attribute_range(const std::string& name) const;
 };
 LineSetStats compute_stats(const LineSet& lines);
+
+// The same figures over a line set given batch by batch (lines/line_reader.hpp), whatever the
+// batches: counts add up, bounds and ranges merge.
+class LineStatsBuilder {
+ public:
+  explicit LineStatsBuilder(const LineSet& header);  // names of the attributes, in order
+  void add(const LineSet& batch);
+  const LineSetStats& stats() const { return stats_; }
+
+ private:
+  LineSetStats stats_;
+};
 
 }  // namespace linebake

@@ -1,8 +1,11 @@
 #include "pipeline/bake.hpp"
 
+#include <sys/stat.h>
 #include <tbb/info.h>
 
+#include <chrono>
 #include <filesystem>
+#include <functional>
 
 #include "accel/capsule_segments.hpp"
 #include "cache/embree_store.hpp"
@@ -12,6 +15,10 @@
 #include "cache/voxel_store.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
+#include "core/measure.hpp"
+#include "core/memory_budget.hpp"
+#include "lines/line_spool.hpp"
 #include "render/vulkan/rt_scene.hpp"
 #include "synth/synth.hpp"
 
@@ -19,7 +26,9 @@ namespace linebake {
 namespace {
 
 // Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
-constexpr uint64_t kLinesVersion = 1;
+// Version 2: the content hash is computed per array (batch by batch), and the provenance keeps
+// the line statistics later steps need.
+constexpr uint64_t kLinesVersion = 2;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
 constexpr uint64_t kEmbreeVersion = 1;
@@ -137,26 +146,19 @@ static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
   return lines.attributes.empty() ? "" : lines.attributes[0].name;
 }
 
-// Builds the BLAS and TLAS on the ray tracing device, serialises the BLAS into `out` and the
-// figures into the provenance.
-static void build_rtx_step(vk::Context& context, const BakeOptions& options, const LineSet& lines,
+// The rtx step: BLAS built on the ray tracing device over the tube mesh (triangles; read back
+// from the cache being written, or the old one) or over capsules (the whole line set), then
+// serialised into `out` with the figures in the provenance.
+static void build_rtx_step(vk::Context& context, const BakeOptions& options,
+                           const std::function<LineSet()>& whole_lines,
+                           const std::function<std::optional<TubeMesh>()>& tubes,
                            const std::string& lines_hash, const std::string& tubes_step_key,
-                           const TubeMesh& built_tubes, const CacheReader* old, StoredRtx& out,
-                           Provenance& p) {
+                           StoredRtx& out, Provenance& p) {
   std::optional<vk::RtScene> scene;
-  TubeMesh loaded_tubes;
+  std::optional<TubeMesh> mesh;
   CapsuleSegments capsules;
   if (options.rtx.geometry == "triangles") {
-    const bool built_now =
-        std::find(options.assets.begin(), options.assets.end(), "tubes") != options.assets.end();
-    const TubeMesh* mesh = built_now && !built_tubes.chunks.empty() ? &built_tubes : nullptr;
-    if (!mesh && old) {
-      const auto previous = old->provenance("/assets/tubes");
-      if (previous && previous->key == tubes_step_key) {
-        loaded_tubes = load_tubes(*old);
-        mesh = &loaded_tubes;
-      }
-    }
+    mesh = tubes();
     if (!mesh)
       throw Error(
           "rtx: triangle BLAS are built over the tube mesh; bake --assets tubes,rtx (with the "
@@ -164,6 +166,7 @@ static void build_rtx_step(vk::Context& context, const BakeOptions& options, con
     scene.emplace(context, *mesh);
     out.source = tubes_step_key;
   } else {
+    const LineSet lines = whole_lines();
     const float radius = world_radius(lines, options.tubes);
     const std::string attribute = curve_attribute(lines, options.tubes);
     capsules = build_capsule_segments(lines, radius, attribute);
@@ -193,11 +196,95 @@ static void build_rtx_step(vk::Context& context, const BakeOptions& options, con
                 " error(s); last: " + context.last_validation_error());
 }
 
+namespace {
+
+bool contains(const std::vector<std::string>& list, const std::string& item) {
+  return std::find(list.begin(), list.end(), item) != list.end();
+}
+
+// Wall and CPU time of a step that runs in pieces inside shared passes, and the peak resident
+// memory of the passes it ran in.
+struct StepClock {
+  double wall_s = 0, cpu_s = 0;
+  uint64_t peak_rss = 0, rss_before = UINT64_MAX;
+  template <class F>
+  void run(F&& f) {
+    const auto start = std::chrono::steady_clock::now();
+    const double cpu = process_cpu_seconds();
+    rss_before = std::min(rss_before, current_rss_bytes());
+    f();
+    wall_s += seconds_since(start);
+    cpu_s += process_cpu_seconds() - cpu;
+  }
+  StepFigures figures() const {
+    StepFigures f;
+    f.wall_s = wall_s;
+    f.cpu_s = cpu_s;
+    f.rss_before = rss_before == UINT64_MAX ? 0 : rss_before;
+    f.peak_rss = peak_rss;
+    f.peak_is_step_local = true;
+    return f;
+  }
+};
+
+// A pass over the data: its time and its resident high-water mark (reset at its start).
+class Stage {
+ public:
+  Stage(BakeResult& result, std::string name, std::vector<StepClock*> clocks)
+      : result_(result), clocks_(std::move(clocks)) {
+    stage_.name = std::move(name);
+  }
+  ~Stage() {
+    const StepFigures f = meter_.stop();
+    stage_.wall_s = f.wall_s;
+    stage_.cpu_s = f.cpu_s;
+    stage_.peak_rss_bytes = f.peak_rss;
+    for (StepClock* c : clocks_) c->peak_rss = std::max(c->peak_rss, f.peak_rss);
+    result_.stages.push_back(stage_);
+  }
+
+ private:
+  BakeResult& result_;
+  std::vector<StepClock*> clocks_;
+  BakeStage stage_;
+  StepMeter meter_;
+};
+
+// How the budget is shared between the stages of a bake (see budget_plan()).
+struct BudgetPlan {
+  uint64_t batch_points = 0;   // points per batch
+  uint64_t batch_bytes = 0;    // what a batch costs in all the steps that see it
+  uint64_t voxel_records = 0;  // chord records held in memory before they spill
+  uint64_t voxel_merge = 0;    // one voxel range's merge
+  uint64_t voxel_chords = 0;   // merged chords held before they spill
+  uint64_t whole_lines = 0;    // a line set a format could not stream
+};
+
+// Bytes a batch costs per point in the steps that see it: the line data several times over
+// (as read, as repaired, as read back), the tube staging, the voxel walk's records (about two
+// chords per segment, twice: per block and sorted), Embree's buffers.
+uint64_t cost_per_point(const BakeOptions& o, const LineSet& header, bool tubes, bool voxels,
+                        bool embree) {
+  const uint64_t line_bytes = 12 + 4 * header.attributes.size() + 8;
+  uint64_t cost = 3 * line_bytes;
+  if (tubes) {
+    const bool attribute = o.tubes.attribute != "none" &&
+                           (!header.attributes.empty() || !header.line_attributes.empty());
+    cost += uint64_t(o.tubes.sides) * tube_vertex_bytes(o.tubes.normals, attribute) +
+            uint64_t(o.tubes.sides) * 6 * 4;
+  }
+  if (voxels) cost += 2 * 2 * 20 + 64;
+  if (embree) cost += o.embree.geometry == EmbreeGeometry::BezierCurve ? 69 : 21;
+  return cost;
+}
+
+}  // namespace
+
 BakeResult bake(const BakeOptions& options_in) {
+  const auto bake_start = std::chrono::steady_clock::now();
   BakeOptions options = options_in;
   for (const std::string& asset : options.assets)
-    if (std::find(bakeable_assets().begin(), bakeable_assets().end(), asset) ==
-        bakeable_assets().end())
+    if (!contains(bakeable_assets(), asset))
       throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree, rtx)");
   // Build order: rtx needs the tubes of this run.
   std::stable_sort(
@@ -212,7 +299,7 @@ BakeResult bake(const BakeOptions& options_in) {
   // Ray tracing needs its device before anything is read: the BLAS belong to it (its driver UUID
   // is part of the step's key), and a device without ray tracing fails here, in one line.
   std::optional<vk::Context> rt_context;
-  if (std::find(options.assets.begin(), options.assets.end(), "rtx") != options.assets.end()) {
+  if (contains(options.assets, "rtx")) {
     vk::ContextOptions co;
     co.device = options.rtx.device;
     co.validation = options.rtx.validation;
@@ -225,6 +312,12 @@ BakeResult bake(const BakeOptions& options_in) {
   }
   BakeResult result;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
+  const uint64_t budget_bytes =
+      options.memory_budget == BakeOptions::kDefaultBudget ? default_memory_budget()
+      : options.memory_budget == BakeOptions::kUnlimited   ? 0
+                                                           : options.memory_budget;
+  MemoryBudget budget(budget_bytes);
+  result.memory_budget_bytes = budget_bytes;
 
   const std::string source = source_hash(options.input);
   const std::string format = options.format ? format_info(*options.format).name : "auto";
@@ -246,69 +339,140 @@ BakeResult bake(const BakeOptions& options_in) {
     return old ? old->provenance(group) : std::nullopt;
   };
 
-  // Lines: reuse when the same input was read the same way.
-  LineSet lines;
-  bool lines_loaded = false;
+  // Which steps run: the lines when their key changed, an asset when its key did.
   BakeStep lines_step{"lines", false, {}};
   const auto old_lines = old_provenance("/lines");
-  const bool reuse_lines = !options.force && old_lines && old_lines->key == lines_key;
-  const auto load_or_read = [&] {
-    if (lines_loaded) return;
-    lines_loaded = true;
-    if (reuse_lines) {
-      lines = load_lines(*old);
-      return;
+  const bool reuse_lines = !options.force && old_lines && old_lines->key == lines_key &&
+                           old_lines->stats.contains("bounds");
+  lines_step.built = !reuse_lines;
+  if (reuse_lines) lines_step.provenance = *old_lines;
+
+  // Reading: the input once (into the spool), or the old cache's /lines.
+  std::optional<LineSpool> spool;
+  LineSet header;
+  LineSetStats stats;
+  std::string lines_hash;
+  StepClock lines_clock;
+  // HDF5's caches, TBB, the allocator's slack, the datasets' pending chunks.
+  if (!budget.unlimited()) {
+    if (budget.available() < (uint64_t{32} << 20))
+      throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
+                           " is less than the process already holds (" +
+                           format_bytes(budget.baseline()) + ") plus 32 MiB to work in");
+    // Measured: about 20 MiB at the least (encoded chunks in flight, HDF5's own structures).
+    budget.reserve(
+        std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
+        "the bake's fixed buffers");
+  }
+  std::unique_ptr<LineReader> input;
+  uint64_t batch_points = uint64_t{1} << 21;
+  const auto plan_batches = [&](const LineSet& h) {
+    const uint64_t per_point =
+        cost_per_point(options, h, contains(options.assets, "tubes"),
+                       contains(options.assets, "voxels"), contains(options.assets, "embree"));
+    if (!budget.unlimited()) {
+      batch_points =
+          std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
+      budget.reserve(batch_points * per_point,
+                     "one batch of " + std::to_string(batch_points) + " points through every step");
     }
-    StepMeter meter;
-    {
+    result.batch_points = batch_points;
+    return per_point;
+  };
+
+  if (!reuse_lines) {
+    Stage stage(result, "read", {&lines_clock});
+    lines_clock.run([&] {
       TerminalProgress progress("reading " + options.input);
       ReadOptions read;
       read.format = options.format;
       if (options.progress) read.progress = progress.callback();
-      lines = read_line_set(options.input, read);
-    }
-    const ValidationReport report = validate(lines, options.on_invalid, options.input);
-    if (!report.clean()) result.notes.push_back(options.input + ": " + report.summary());
-    Provenance& p = lines_step.provenance;
-    p.build = meter.stop();
-    p.step = "lines";
-    p.key = lines_key;
-    p.input_hash = source;
-    p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
-    const LineSetStats stats = compute_stats(lines);
-    p.stats = {{"content_hash", content_hash(lines)},
-               {"lines", stats.lines},
-               {"points", stats.points},
-               {"segments", stats.segments}};
-    p.created = utc_now_iso8601();
-    p.threads = threads();
-    p.compression = to_string(options.compression);
-    lines_step.built = true;
+      input = open_line_reader(options.input, read);
+      ValidationReport total;
+      std::optional<LineSet> whole;
+      if (!input->streams()) {
+        // A format that cannot stream is in memory whole already: repair it whole (attribute
+        // arrays of the wrong length are dropped before any batch is cut), then serve batches.
+        whole = input->take_whole();
+        const uint64_t bytes = line_set_bytes(*whole);
+        if (!budget.unlimited() && bytes > budget.available() / 2)
+          throw BudgetExceeded(options.input + ": this format is read whole; its " +
+                               std::to_string(whole->point_count()) + " points take " +
+                               format_bytes(bytes) + ", more than half of what --memory-budget " +
+                               format_bytes(budget.total()) +
+                               " leaves; convert it to .binlines or .h5, which stream");
+        total = validate(*whole, options.on_invalid, options.input);
+        input = MemoryLineReader::view(*whole);
+      }
+      header = header_of(input->header());
+      if (!synth::is_synth_source(options.input)) header.metadata.emplace("source", options.input);
+      const uint64_t per_point = plan_batches(header);
+      LineStatsBuilder builder(header);
+      LineContentHash hash(header);
+      spool.emplace(result.cache, header);
+      LineSet batch;
+      uint64_t line_base = 0;
+      while (input->next(batch, batch_points)) {
+        throw_if_interrupted();
+        if (!whole) {
+          const std::string where = options.input + " (lines " + std::to_string(line_base) + ".." +
+                                    std::to_string(line_base + batch.line_count() - 1) + ")";
+          const ValidationReport r = validate(batch, options.on_invalid, where);
+          total.invalid_points += r.invalid_points;
+          total.repeated_points += r.repeated_points;
+          total.short_lines += r.short_lines;
+          total.nonfinite_attribute_values += r.nonfinite_attribute_values;
+          total.lines_split += r.lines_split;
+          total.lines_dropped += r.lines_dropped;
+          total.points_dropped += r.points_dropped;
+          total.repaired |= r.repaired;
+        }
+        line_base += batch.line_count();
+        for (size_t l = 0; l < batch.line_count(); ++l)
+          if (!budget.unlimited() && batch.line_size(l) * per_point > budget.available() / 2)
+            throw BudgetExceeded(
+                options.input + ": line " + std::to_string(builder.stats().lines + l) + " has " +
+                std::to_string(batch.line_size(l)) + " points; baking it needs about " +
+                format_bytes(batch.line_size(l) * per_point) + ", more than the memory budget of " +
+                format_bytes(budget.total()) + " leaves for one batch (" +
+                format_bytes(budget.available() / 2) + "); raise --memory-budget");
+        builder.add(batch);
+        hash.add(batch);
+        spool->append(batch);
+      }
+      input.reset();
+      whole.reset();
+      stats = builder.stats();
+      if (stats.lines == 0) throw InputError(options.input, "", "no lines in the file");
+      if (!total.clean()) result.notes.push_back(options.input + ": " + total.summary());
+      lines_hash = hash.hex();
+      result.spill_peak_bytes = spool->bytes();
+    });
+  } else {
+    header = header_of(open_line_reader(result.cache)->header());
+    stats = line_stats_from_json(old_lines->stats, result.cache);
+    lines_hash = old_lines->stats.value("content_hash", "");
+    plan_batches(header);
+  }
+  // Replays the line set: from the spool, or the old cache's /lines.
+  const auto replay = [&]() -> std::unique_ptr<LineReader> {
+    if (spool) return spool->replay();
+    return open_line_reader(result.cache);
   };
-  if (!reuse_lines) load_or_read();
-  const std::string lines_hash =
-      reuse_lines ? old_lines->stats.value("content_hash", "")
-                  : lines_step.provenance.stats["content_hash"].get<std::string>();
-  lines_step.provenance = reuse_lines ? *old_lines : lines_step.provenance;
 
   // Assets: reuse on an equal key, else build.
+  const std::string tubes_step_key =
+      tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
   std::vector<BakeStep> asset_steps;
-  TubeMesh tubes;
-  VoxelGrid voxels;
-  StoredCurves curves;
-  StoredRtx rtx;
   for (const std::string& asset : options.assets) {
     BakeStep step{asset, false, {}};
-    const bool is_tubes = asset == "tubes", is_voxels = asset == "voxels";
-    const bool is_rtx = asset == "rtx";
-    const std::string tubes_step_key =
-        tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
-    std::string key = is_tubes    ? tubes_step_key
-                      : is_voxels ? voxels_key(lines_hash, options.voxels, options.compression,
-                                               options.compression_level)
-                                  : embree_key(lines_hash, options.embree, options.tubes,
-                                               options.compression, options.compression_level);
-    if (is_rtx) {
+    std::string key =
+        asset == "tubes" ? tubes_step_key
+        : asset == "voxels"
+            ? voxels_key(lines_hash, options.voxels, options.compression, options.compression_level)
+            : embree_key(lines_hash, options.embree, options.tubes, options.compression,
+                         options.compression_level);
+    if (asset == "rtx") {
       const vk::DeviceInfo& device = rt_context->info();
       key = key_of({"rtx", std::to_string(kRtxVersion), tubes_step_key, to_json(options.rtx).dump(),
                     device.name, vk::to_hex(device.driver_uuid), to_string(options.compression),
@@ -317,89 +481,17 @@ BakeResult bake(const BakeOptions& options_in) {
     const auto previous = old_provenance("/assets/" + asset);
     if (!options.force && previous && previous->key == key) {
       step.provenance = *previous;
-      asset_steps.push_back(std::move(step));
-      continue;
-    }
-    load_or_read();
-    Provenance& p = step.provenance;
-    StepMeter meter;
-    {
-      TerminalProgress progress("building " + asset);
-      const ProgressFn callback = options.progress ? progress.callback() : ProgressFn{};
-      if (is_tubes) {
-        tubes = build_tubes(lines, options.tubes, callback);
-      } else if (is_rtx) {
-        build_rtx_step(*rt_context, options, lines, lines_hash, tubes_step_key, tubes, old.get(),
-                       rtx, p);
-      } else if (is_voxels) {
-        voxels = voxelize(lines, options.voxels, callback);
-      } else {
-        curves.geometry = options.embree.geometry;
-        curves.radius = world_radius(lines, options.tubes);
-        curves.attribute = curve_attribute(lines, options.tubes);
-        const EmbreeScene scene =
-            EmbreeScene::from_lines(lines, curves.radius, curves.attribute, options.embree);
-        curves.parts = scene.prepared_curves();
-        const BvhStats& b = scene.stats();
-        p.stats = {{"geometry", to_string(b.geometry)},
-                   {"quality", to_string(options.embree.quality)},
-                   {"primitives", b.primitives},
-                   {"parts", b.parts},
-                   {"instanced", b.instanced},
-                   {"radius_world", curves.radius},
-                   {"attribute", curves.attribute},
-                   {"prepare_s", b.prepare_s},
-                   {"commit_s", b.commit_s},
-                   {"buffer_bytes", b.buffer_bytes},
-                   {"bvh_bytes", b.bvh_bytes},
-                   {"bvh_peak_bytes", b.bvh_peak_bytes}};
-        // What ray tracing needs resident: the prepared buffers and the BVH.
-        p.memory_bytes = b.buffer_bytes + b.bvh_bytes;
-      }
-    }
-    p.build = meter.stop();
-    if (is_tubes) {
-      p.parameters = to_json(options.tubes);
-      p.stats = {{"chunks", tubes.chunks.size()},        {"vertices", tubes.vertex_count()},
-                 {"triangles", tubes.triangle_count()},  {"radius_world", tubes.radius},
-                 {"attribute", tubes.attribute},         {"attribute_range", tubes.attribute_range},
-                 {"lines_dropped", tubes.lines_dropped}, {"points_skipped", tubes.points_skipped}};
-      p.memory_bytes = tubes.bytes();
-      if (tubes.lines_dropped)
-        result.notes.push_back("tubes: " + std::to_string(tubes.lines_dropped) +
-                               " lines with fewer than two distinct points have no tube");
-    } else if (is_rtx) {
-      p.parameters = to_json(options.rtx);
-    } else if (!is_voxels) {
-      p.parameters = to_json(options.embree, options.tubes);
     } else {
-      p.parameters = to_json(options.voxels);
-      p.stats = {{"resolution", voxels.resolution},
-                 {"quantization", voxels.quantization},
-                 {"chords", voxels.chord_count()},
-                 {"voxels_occupied", voxels.voxels_occupied},
-                 {"chords_dropped", voxels.chords_dropped},
-                 {"voxels_overflowed", voxels.voxels_overflowed},
-                 {"max_error_voxels", voxels.max_error},
-                 {"mean_error_voxels", voxels.mean_error},
-                 {"bytes_with_density", voxels.bytes()}};
-      p.memory_bytes = voxels.representation_bytes();
-      if (voxels.chords_dropped)
-        result.notes.push_back("voxels: " + std::to_string(voxels.chords_dropped) +
-                               " chords dropped in " + std::to_string(voxels.voxels_overflowed) +
-                               " voxels over the cap of " +
-                               std::to_string(voxels.max_chords_per_voxel) + " per voxel");
+      step.built = true;
+      step.provenance.key = key;
     }
-    p.step = asset;
-    p.key = key;
-    p.input_hash = lines_hash;
-    p.created = utc_now_iso8601();
-    p.threads = threads();
-    p.compression = to_string(options.compression);
-    step.built = true;
     asset_steps.push_back(std::move(step));
   }
-
+  const auto building = [&](const std::string& asset) {
+    for (const BakeStep& s : asset_steps)
+      if (s.step == asset) return s.built;
+    return false;
+  };
   bool anything_built = lines_step.built;
   for (const BakeStep& s : asset_steps) anything_built |= s.built;
   // Assets in the old cache that were not asked for this time are kept if still valid for
@@ -407,51 +499,301 @@ BakeResult bake(const BakeOptions& options_in) {
   std::vector<std::string> kept;
   if (old) {
     for (const std::string& name : old->assets()) {
-      if (std::find(options.assets.begin(), options.assets.end(), name) != options.assets.end())
-        continue;
+      if (contains(options.assets, name)) continue;
       const auto p = old->provenance("/assets/" + name);
       if (p && p->input_hash == lines_hash) kept.push_back(name);
     }
   }
-  if (anything_built) {
-    CacheWriter writer(result.cache, options.compression, options.compression_level);
-    TerminalProgress progress("writing " + result.cache);
-    uint64_t total = lines_step.built ? line_set_bytes(lines) : 0;
-    for (const BakeStep& s : asset_steps)
-      if (s.built)
-        total += s.step == "embree" ? s.provenance.stats.value("buffer_bytes", uint64_t{0})
-                 : s.step == "rtx"  ? s.provenance.stats.value("serialized_bytes", uint64_t{0})
-                                    : s.provenance.memory_bytes;
-    if (options.progress) writer.set_progress(progress.callback(), total);
-    if (lines_step.built) {
-      store_lines(writer, lines, lines_step.provenance);
-    } else {
-      writer.copy_group(result.cache, "/lines");
-    }
-    for (const BakeStep& s : asset_steps) {
-      if (!s.built)
-        writer.copy_group(result.cache, "/assets/" + s.step);
-      else if (s.step == "tubes")
-        store_tubes(writer, tubes, s.provenance);
-      else if (s.step == "voxels")
-        store_voxels(writer, voxels, s.provenance);
-      else if (s.step == "rtx")
-        store_rtx(writer, rtx, s.provenance);
-      else
-        store_embree(writer, curves, s.provenance);
-    }
-    for (const std::string& name : kept) writer.copy_group(result.cache, "/assets/" + name);
-    old.reset();
-    writer.commit();
-    result.written = true;
-    // Read back what was stored, so the report shows the stored figures (disk bytes).
-    CacheReader stored(result.cache, false);
-    if (auto p = stored.provenance("/lines")) lines_step.provenance = *p;
-    for (BakeStep& s : asset_steps)
-      if (auto p = stored.provenance("/assets/" + s.step)) s.provenance = *p;
+  if (!anything_built) {
+    result.steps.push_back(std::move(lines_step));
+    for (BakeStep& s : asset_steps) result.steps.push_back(std::move(s));
+    result.wall_s = seconds_since(bake_start);
+    return result;
   }
+
+  BudgetPlan plan;
+  plan.batch_points = batch_points;
+
+  const auto finish_provenance = [&](Provenance& p, const std::string& step,
+                                     const StepClock& clock) {
+    p.build = clock.figures();
+    p.step = step;
+    p.created = utc_now_iso8601();
+    p.threads = threads();
+    p.compression = to_string(options.compression);
+    p.memory_budget = budget_bytes;
+  };
+
+  CacheWriter writer(result.cache, options.compression, options.compression_level);
+  // Tubes and Embree parts need the whole set's line sizes before their datasets exist: a
+  // first pass writes /lines and makes those plans.
+  std::optional<TubeStreamBuilder> tubes;
+  std::optional<CurvePartPlanner> embree_parts;
+  StepClock tubes_clock, voxels_clock, embree_clock;
+  StoredCurves curves;  // the Embree step's description
+  if (building("tubes")) tubes.emplace(header, stats, options.tubes);
+  if (building("embree")) {
+    curves.geometry = options.embree.geometry;
+    curves.radius = world_radius(stats.bounds, options.tubes);
+    if (options.tubes.attribute != "none")
+      curves.attribute = !options.tubes.attribute.empty() ? options.tubes.attribute
+                         : header.attributes.empty()      ? ""
+                                                          : header.attributes[0].name;
+    if (options.embree.geometry == EmbreeGeometry::Triangles)
+      throw Error("Embree: triangles are built from a tube mesh, not from lines");
+    if (!(curves.radius > 0)) throw Error("Embree: the curve radius must be positive");
+    if (options.embree.max_primitives_per_scene == 0)
+      throw Error("Embree: max primitives per scene is 0");
+    embree_parts.emplace(curve_part_limit(options.embree));
+  }
+  if (lines_step.built || tubes || embree_parts) {
+    Stage stage(result, "lines", {&lines_clock, &tubes_clock, &embree_clock});
+    TerminalProgress progress(lines_step.built ? "writing /lines" : "planning");
+    std::optional<LineStoreWriter> store;
+    if (lines_step.built) store.emplace(writer, header, stats);
+    std::unique_ptr<LineReader> reader = replay();
+    LineSet batch;
+    while (reader->next(batch, batch_points)) {
+      throw_if_interrupted();
+      if (store) lines_clock.run([&] { store->append(batch); });
+      if (tubes) tubes_clock.run([&] { tubes->plan(batch); });
+      if (embree_parts)
+        embree_clock.run([&] {
+          for (size_t l = 0; l < batch.line_count(); ++l) embree_parts->add(batch.line_size(l));
+        });
+      if (options.progress) progress.update(reader->lines_read(), stats.lines);
+    }
+    if (store) {
+      Provenance& p = lines_step.provenance;
+      finish_provenance(p, "lines", lines_clock);
+      p.key = lines_key;
+      p.input_hash = source;
+      p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
+      p.stats = to_json(stats);
+      p.stats["content_hash"] = lines_hash;
+      p.spill_bytes = spool ? spool->bytes() : 0;
+      store->close(header.metadata, p);
+    }
+  }
+  if (!lines_step.built) writer.copy_group(result.cache, "/lines");
+  for (const BakeStep& s : asset_steps)
+    if (!s.built) writer.copy_group(result.cache, "/assets/" + s.step);
+
+  // The build pass: every asset from the same batches.
+  std::optional<TubeStoreSink> tube_sink;
+  std::optional<VoxelStreamBuilder> voxels;
+  std::optional<EmbreeStoreWriter> embree_writer;
+  if (tubes) {
+    tubes_clock.run([&] {
+      tubes->finish_plan();
+      tube_sink.emplace(writer, tubes->description());
+    });
+  }
+  if (tubes && !budget.unlimited())
+    budget.reserve(stats.lines * sizeof(uint64_t), "the tube plan (8 bytes per line)");
+  std::optional<VoxelGrid> voxel_placement;
+  if (building("voxels")) {
+    // The grid's placement first: its density mip levels stay in memory through the merge.
+    voxel_placement = VoxelStreamBuilder(header, stats, options.voxels).description();
+    const uint64_t level1 = voxel_placement->voxel_count() / 8 * 4 + (uint64_t{2} << 20);
+    if (!budget.unlimited()) budget.reserve(level1, "the voxel grid's density mip levels");
+  }
+  // The budget's shares, for what follows the batches: the voxel records held before they
+  // spill, one voxel range's merge, the merged chords held before they spill.
+  if (budget.unlimited()) {
+    plan.voxel_records = plan.voxel_chords = UINT64_MAX;
+    plan.voxel_merge = uint64_t{1} << 30;
+  } else {
+    const uint64_t left = budget.available();
+    plan.voxel_records = left / 100 * 35;
+    plan.voxel_merge = left / 100 * 25;
+    plan.voxel_chords = left / 100 * 12;
+  }
+
+  if (voxel_placement) {
+    VoxelMemory memory;
+    memory.spill_near = result.cache;
+    memory.records_bytes = plan.voxel_records;
+    memory.merge_bytes = plan.voxel_merge;
+    voxels_clock.run([&] { voxels.emplace(header, stats, options.voxels, memory); });
+  }
+  if (embree_parts)
+    embree_clock.run([&] {
+      embree_writer.emplace(writer, embree_parts->finish(), curves.geometry, curves.radius,
+                            curves.attribute);
+    });
+  if (tubes || voxels || embree_writer) {
+    Stage stage(result, "build", {&tubes_clock, &voxels_clock, &embree_clock});
+    std::string what;
+    for (const char* name : {"tubes", "voxels", "embree"})
+      if (building(name)) what += std::string(what.empty() ? "" : ", ") + name;
+    TerminalProgress progress("building " + what);
+    std::unique_ptr<LineReader> reader = replay();
+    LineSet batch;
+    while (reader->next(batch, batch_points)) {
+      throw_if_interrupted();
+      if (tubes) tubes_clock.run([&] { tubes->build(batch, *tube_sink); });
+      if (voxels) voxels_clock.run([&] { voxels->add(batch); });
+      if (embree_writer) embree_clock.run([&] { embree_writer->append(batch); });
+      if (options.progress) progress.update(reader->lines_read(), stats.lines);
+    }
+  }
+  if (tubes) {
+    BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
+                                   [](const BakeStep& s) { return s.step == "tubes"; });
+    Provenance& p = step.provenance;
+    const TubeMesh& mesh = tubes->description();
+    finish_provenance(p, "tubes", tubes_clock);
+    p.input_hash = lines_hash;
+    p.parameters = to_json(options.tubes);
+    uint64_t vertices = 0, indices = 0;
+    for (const TubeChunkPlan& c : tubes->finish_plan())
+      vertices += c.vertices, indices += c.indices;
+    p.stats = {{"chunks", tubes->finish_plan().size()},
+               {"vertices", vertices},
+               {"triangles", indices / 3},
+               {"radius_world", mesh.radius},
+               {"attribute", mesh.attribute},
+               {"attribute_range", mesh.attribute_range},
+               {"lines_dropped", mesh.lines_dropped},
+               {"points_skipped", mesh.points_skipped}};
+    tube_sink->close(mesh, p);
+    tube_sink.reset();  // its staging buffers go before the voxel merge
+    if (mesh.lines_dropped)
+      result.notes.push_back("tubes: " + std::to_string(mesh.lines_dropped) +
+                             " lines with fewer than two distinct points have no tube");
+  }
+  if (voxels) {
+    Stage stage(result, "voxel merge", {&voxels_clock});
+    TerminalProgress progress("merging voxels");
+    VoxelStoreSink sink(writer, plan.voxel_chords);
+    voxels_clock.run(
+        [&] { voxels->finish(sink, options.progress ? progress.callback() : ProgressFn{}); });
+    BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
+                                   [](const BakeStep& s) { return s.step == "voxels"; });
+    Provenance& p = step.provenance;
+    const VoxelGrid& g = voxels->description();
+    finish_provenance(p, "voxels", voxels_clock);
+    p.input_hash = lines_hash;
+    p.parameters = to_json(options.voxels);
+    p.spill_bytes = voxels->spilled_bytes() + sink.spilled_bytes();
+    p.stats = {{"resolution", g.resolution},
+               {"quantization", g.quantization},
+               {"chords", sink.chord_count()},
+               {"bytes_with_density", sink.memory_with_density()},
+               {"voxels_occupied", g.voxels_occupied},
+               {"chords_dropped", g.chords_dropped},
+               {"voxels_overflowed", g.voxels_overflowed},
+               {"max_error_voxels", g.max_error},
+               {"mean_error_voxels", g.mean_error},
+               {"records_in_memory_bytes", voxels->peak_record_bytes()},
+               {"records_spilled_bytes", voxels->spilled_bytes()},
+               {"chords_spilled_bytes", sink.spilled_bytes()}};
+    result.spill_peak_bytes =
+        std::max(result.spill_peak_bytes, voxels->spilled_bytes() + sink.spilled_bytes());
+    sink.close(p);
+    if (g.chords_dropped)
+      result.notes.push_back("voxels: " + std::to_string(g.chords_dropped) + " chords dropped in " +
+                             std::to_string(g.voxels_overflowed) + " voxels over the cap of " +
+                             std::to_string(g.max_chords_per_voxel) + " per voxel");
+    voxels.reset();
+  }
+  if (embree_writer) {
+    BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
+                                   [](const BakeStep& s) { return s.step == "embree"; });
+    Provenance& p = step.provenance;
+    finish_provenance(p, "embree", embree_clock);
+    p.input_hash = lines_hash;
+    p.parameters = to_json(options.embree, options.tubes);
+    p.stats = {{"geometry", to_string(options.embree.geometry)},
+               {"quality", to_string(options.embree.quality)},
+               {"radius_world", curves.radius},
+               {"attribute", curves.attribute},
+               {"prepare_s", embree_clock.wall_s},
+               {"buffer_bytes", embree_writer->buffer_bytes()}};
+    p.memory_bytes = embree_writer->buffer_bytes();
+    // The BVH is built and measured where it fits the budget: the line set, the buffers and
+    // Embree's BVH (about the buffers' size again for linear curves) in memory at once.
+    const uint64_t needed = stats.total_bytes() + 3 * embree_writer->buffer_bytes();
+    if (budget.unlimited() || needed <= budget.available()) {
+      Stage stage(result, "embree bvh", {&embree_clock});
+      const LineSet whole = read_all(*replay());
+      const EmbreeScene scene =
+          EmbreeScene::from_lines(whole, curves.radius, curves.attribute, options.embree);
+      const BvhStats& b = scene.stats();
+      p.stats["primitives"] = b.primitives;
+      p.stats["parts"] = b.parts;
+      p.stats["instanced"] = b.instanced;
+      p.stats["commit_s"] = b.commit_s;
+      p.stats["bvh_bytes"] = b.bvh_bytes;
+      p.stats["bvh_peak_bytes"] = b.bvh_peak_bytes;
+      // What ray tracing needs resident: the prepared buffers and the BVH.
+      p.memory_bytes = b.buffer_bytes + b.bvh_bytes;
+    } else {
+      p.stats["bvh"] = "not built at bake: the line set, buffers and BVH need about " +
+                       format_bytes(needed) + ", the memory budget leaves " +
+                       format_bytes(budget.available()) + "; render builds it";
+      result.notes.push_back("embree: " + p.stats["bvh"].get<std::string>());
+    }
+    embree_writer->close(p);
+  }
+  // Ray tracing, last: its BLAS are built over the tubes just written (or copied), or over
+  // capsules of the whole line set.
+  if (building("rtx")) {
+    BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
+                                   [](const BakeStep& s) { return s.step == "rtx"; });
+    Provenance& p = step.provenance;
+    StepClock rtx_clock;
+    StoredRtx rtx;
+    Stage stage(result, "rtx", {&rtx_clock});
+    rtx_clock.run([&] {
+      const auto whole_lines = [&] { return read_all(*replay()); };
+      const auto tube_mesh = [&]() -> std::optional<TubeMesh> {
+        if (!building("tubes")) {
+          const auto previous = old_provenance("/assets/tubes");
+          if (!previous || previous->key != tubes_step_key) return std::nullopt;
+          if (!writer.has_group("/assets/tubes")) writer.copy_group(result.cache, "/assets/tubes");
+        }
+        writer.flush();
+        return load_tubes(CacheReader(writer.temp_path(), false));
+      };
+      build_rtx_step(*rt_context, options, whole_lines, tube_mesh, lines_hash, tubes_step_key, rtx,
+                     p);
+    });
+    const nlohmann::json figures = p.stats;
+    const uint64_t resident = p.memory_bytes;
+    finish_provenance(p, "rtx", rtx_clock);
+    p.stats = figures;
+    p.memory_bytes = resident;
+    p.input_hash = lines_hash;
+    p.parameters = to_json(options.rtx);
+    store_rtx(writer, rtx, p);
+  }
+  spool.reset();
+  // Assets that did not change, and kept ones, as stored.
+  for (const BakeStep& s : asset_steps)
+    if (!s.built && !writer.has_group("/assets/" + s.step))
+      writer.copy_group(result.cache, "/assets/" + s.step);
+  for (const std::string& name : kept)
+    if (!writer.has_group("/assets/" + name)) writer.copy_group(result.cache, "/assets/" + name);
+  old.reset();
+  {
+    Stage stage(result, "commit", {});
+    writer.commit();
+  }
+  result.written = true;
+  // Read back what was stored, so the report shows the stored figures (disk bytes).
+  CacheReader stored(result.cache, false);
+  if (auto p = stored.provenance("/lines")) lines_step.provenance = *p;
+  for (BakeStep& s : asset_steps)
+    if (auto p = stored.provenance("/assets/" + s.step)) s.provenance = *p;
   result.steps.push_back(std::move(lines_step));
   for (BakeStep& s : asset_steps) result.steps.push_back(std::move(s));
+  for (const BakeStage& stage : result.stages)
+    result.peak_rss_bytes = std::max(result.peak_rss_bytes, stage.peak_rss_bytes);
+  struct stat st {};
+  if (::stat(result.cache.c_str(), &st) == 0) result.bytes_written = uint64_t(st.st_size);
+  result.wall_s = seconds_since(bake_start);
   return result;
 }
 

@@ -1,6 +1,11 @@
 #pragma once
 // bake: input -> line set -> assets, into one cache file. A step whose input and parameters
 // are unchanged (same provenance key) is reused from the existing cache, not rebuilt.
+//
+// The bake streams: the input is read once in batches of whole lines, kept in a spill file, and
+// read from there by the passes that write /lines and plan the tube chunks, then build every
+// asset batch by batch straight into the cache. Memory is bounded by a budget (the whole
+// process's resident memory); the cache's bytes do not depend on it, nor on the thread count.
 
 #include <string>
 #include <vector>
@@ -44,6 +49,18 @@ struct BakeOptions {
   int compression_level = -1;  // codec default
   bool force = false;          // rebuild every step
   bool progress = true;        // terminal progress bars (drawn only on a TTY)
+  // The process's resident memory at most, in bytes: kDefaultBudget is half of physical memory,
+  // kUnlimited holds everything in memory that fits.
+  uint64_t memory_budget = kDefaultBudget;
+  static constexpr uint64_t kDefaultBudget = 0;
+  static constexpr uint64_t kUnlimited = UINT64_MAX;
+};
+
+// One pass of a bake over the data, as measured.
+struct BakeStage {
+  std::string name;  // "read", "lines", "build", "voxel merge", ...
+  double wall_s = 0, cpu_s = 0;
+  uint64_t peak_rss_bytes = 0;  // the process's high-water mark during the stage
 };
 
 struct BakeStep {
@@ -57,6 +74,13 @@ struct BakeResult {
   bool written = false;  // false: everything was up to date, the file was not touched
   std::vector<BakeStep> steps;
   std::vector<std::string> notes;  // validation repairs, dropped lines
+  std::vector<BakeStage> stages;
+  uint64_t memory_budget_bytes = 0;  // 0: unlimited
+  uint64_t peak_rss_bytes = 0;       // the whole bake's resident high-water mark
+  uint64_t batch_points = 0;         // points per batch the budget allowed
+  uint64_t spill_peak_bytes = 0;     // temporary files beside the cache, at their largest
+  uint64_t bytes_written = 0;        // the cache file's size
+  double wall_s = 0;
 };
 
 std::string default_cache_path(const std::string& input);

@@ -6,18 +6,9 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake {
-
-std::string format_bytes(uint64_t bytes) {
-  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
-  double value = double(bytes);
-  int unit = 0;
-  while (value >= 1024 && unit < 4) value /= 1024, ++unit;
-  char text[32];
-  std::snprintf(text, sizeof text, unit == 0 ? "%.0f %s" : "%.2f %s", value, units[unit]);
-  return text;
-}
 
 CacheSummary summarize_cache(const CacheReader& cache) {
   CacheSummary s;

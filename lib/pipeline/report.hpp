@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cache/cache.hpp"
+#include "core/memory_budget.hpp"  // format_bytes
 
 namespace linebake {
 
@@ -26,8 +27,5 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
 nlohmann::json report_json(const std::vector<CacheSummary>& caches);
 std::string report_markdown(const std::vector<CacheSummary>& caches);
 std::string report_text(const std::vector<CacheSummary>& caches);
-
-// "1.23 GiB", "35.3 MiB", "512 KiB", "12 B".
-std::string format_bytes(uint64_t bytes);
 
 }  // namespace linebake

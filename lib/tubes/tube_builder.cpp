@@ -61,110 +61,115 @@ struct Layout {
   }
 };
 
-// Where a line's vertices and indices go in its chunk.
-struct Placement {
-  uint64_t kept_points = 0;  // 0: the line is dropped
-  uint64_t chunk = 0;
-  uint64_t vertex_base = 0;
-  uint64_t index_base = 0;
-};
-
-struct ChunkPlan {
-  uint64_t first_line = 0, line_count = 0, vertices = 0, indices = 0;
-};
-
-// Greedy cut at line boundaries: a chunk takes lines until the next one would exceed the index
-// limit, 2^32 vertices or the byte budget. Dropped lines join the chunk that is open.
-std::vector<ChunkPlan> plan_chunks(std::vector<Placement>& placement, const Layout& layout,
-                                   const TubeOptions& options) {
-  std::vector<ChunkPlan> plans;
-  const auto fits = [&](uint64_t v, uint64_t i) {
-    return i <= options.max_chunk_indices && v <= (uint64_t{1} << 32) &&
-           v * layout.vertex_bytes + i * 4 <= options.max_chunk_bytes;
-  };
-  for (size_t l = 0; l < placement.size(); ++l) {
-    Placement& place = placement[l];
-    if (plans.empty()) plans.push_back({});
-    if (place.kept_points) {
-      const uint64_t v = layout.vertices(place.kept_points), i = layout.indices(place.kept_points);
-      if (!fits(v, i))
-        throw Error("tubes: line " + std::to_string(l) + " alone needs " + std::to_string(i) +
-                    " indices and " + std::to_string(v * layout.vertex_bytes + i * 4) +
-                    " bytes, more than one chunk may hold");
-      if (!fits(plans.back().vertices + v, plans.back().indices + i)) {
-        plans.back().line_count = l - plans.back().first_line;
-        plans.push_back({l, 0, 0, 0});
-      }
-      place.vertex_base = plans.back().vertices;
-      place.index_base = plans.back().indices;
-      plans.back().vertices += v;
-      plans.back().indices += i;
-    }
-    place.chunk = plans.size() - 1;
-  }
-  if (!plans.empty()) plans.back().line_count = placement.size() - plans.back().first_line;
-  return plans;
-}
-
 // Per-thread scratch for one line: kept points, their source indices and frames.
 struct Scratch {
   std::vector<uint64_t> source;
   std::vector<vec3> p, t, n;
 };
 
-class Builder {
- public:
-  Builder(const LineSet& lines, const TubeOptions& options, TubeMesh& mesh)
-      : lines_(lines), options_(options), mesh_(mesh) {}
-  void build(const ProgressFn& progress);
-
- private:
-  void resolve_attributes();
-  void compute_frames(Scratch& s) const;
-  void write_line(size_t line, Scratch& scratch) const;
-
-  const LineSet& lines_;
-  const TubeOptions& options_;
-  TubeMesh& mesh_;
-  Layout layout_;
-  float min_distance_ = 0;
-  const std::vector<float>* attribute_ = nullptr;
-  bool attribute_per_line_ = false;
-  const std::vector<float>* radius_values_ = nullptr;
-  float radius_max_ = 1;
-  std::vector<Placement> placement_;
-  std::vector<float> cos_, sin_;
+// Where one line's mesh goes: its first vertex and index in the output piece, and its first
+// vertex in the chunk (what the index values count from).
+struct LinePlacement {
+  uint64_t vertex = 0, index = 0, chunk_vertex = 0;
 };
 
-void Builder::resolve_attributes() {
-  const std::string& name = options_.attribute;
+}  // namespace
+
+struct TubeStreamBuilder::State {
+  TubeOptions options;
+  TubeMesh mesh;  // the description; chunks stay empty
+  Layout layout;
+  float min_distance = 0;
+  int attribute = -1;  // index into the vertex (or line) attributes, -1: none
+  bool attribute_per_line = false;
+  int radius_attribute = -1;
+  float radius_max = 1;
+  std::array<float, 32> cos{}, sin{};
+  // Plan: kept points per line (0: dropped), the chunks, and the open chunk's running sizes.
+  std::vector<uint64_t> kept;
+  std::vector<TubeChunkPlan> chunks;
+  bool planned = false;
+  // Build: the next line, its chunk, and where in that chunk the next line starts.
+  uint64_t next_line = 0;
+  size_t chunk = 0;
+  bool chunk_open = false;
+  uint64_t chunk_vertices = 0, chunk_indices = 0;
+  std::vector<LinePlacement> placement;  // per line of the batch
+
+  void resolve_attributes(const LineSet& header, const LineSetStats& stats);
+  void add_to_plan(uint64_t line, uint64_t kept_points);
+  void compute_frames(Scratch& s) const;
+  void write_line(const LineSet& batch, size_t line, const LinePlacement& place,
+                  const TubeOutput& out, Scratch& scratch) const;
+};
+
+namespace {
+
+int index_of(const std::vector<Attribute>& list, const std::string& name) {
+  for (size_t i = 0; i < list.size(); ++i)
+    if (list[i].name == name) return int(i);
+  return -1;
+}
+
+}  // namespace
+
+void TubeStreamBuilder::State::resolve_attributes(const LineSet& header,
+                                                  const LineSetStats& stats) {
+  const std::string& name = options.attribute;
   if (name != "none") {
-    const Attribute* a = name.empty()
-                             ? (lines_.attributes.empty() ? nullptr : &lines_.attributes[0])
-                             : lines_.find_attribute(name);
-    const Attribute* la = a || name.empty() ? nullptr : lines_.find_line_attribute(name);
-    if (!name.empty() && !a && !la) throw Error("tubes: no attribute named '" + name + "'");
-    if (a || la) {
-      const Attribute& chosen = a ? *a : *la;
-      attribute_ = &chosen.values;
-      attribute_per_line_ = la != nullptr;
-      mesh_.attribute = chosen.name;
-      if (options_.attribute_range) {
-        mesh_.attribute_range = *options_.attribute_range;
+    const int vertex =
+        name.empty() ? (header.attributes.empty() ? -1 : 0) : index_of(header.attributes, name);
+    const int line = vertex >= 0 || name.empty() ? -1 : index_of(header.line_attributes, name);
+    if (!name.empty() && vertex < 0 && line < 0)
+      throw Error("tubes: no attribute named '" + name + "'");
+    if (vertex >= 0 || line >= 0) {
+      attribute = vertex >= 0 ? vertex : line;
+      attribute_per_line = line >= 0;
+      mesh.attribute = attribute_per_line ? header.line_attributes[size_t(line)].name
+                                          : header.attributes[size_t(vertex)].name;
+      if (options.attribute_range) {
+        mesh.attribute_range = *options.attribute_range;
       } else {
-        const ValueRange r = compute_range(chosen.values);
-        mesh_.attribute_range = {r.min, r.max};
+        const ValueRange* r = attribute_per_line ? stats.line_attribute_range(mesh.attribute)
+                                                 : stats.attribute_range(mesh.attribute);
+        mesh.attribute_range = {r ? r->min : 0.0f, r ? r->max : 0.0f};
       }
     }
   }
-  if (!options_.radius_attribute.empty()) {
-    const Attribute* r = lines_.find_attribute(options_.radius_attribute);
-    if (!r) throw Error("tubes: no vertex attribute named '" + options_.radius_attribute + "'");
-    radius_values_ = &r->values;
-    radius_max_ = compute_range(r->values).max;
-    if (!(radius_max_ > 0))
-      throw Error("tubes: radius attribute '" + r->name + "' has no positive value");
+  if (!options.radius_attribute.empty()) {
+    radius_attribute = index_of(header.attributes, options.radius_attribute);
+    if (radius_attribute < 0)
+      throw Error("tubes: no vertex attribute named '" + options.radius_attribute + "'");
+    const ValueRange* r = stats.attribute_range(options.radius_attribute);
+    radius_max = r ? r->max : 0.0f;
+    if (!(radius_max > 0))
+      throw Error("tubes: radius attribute '" + options.radius_attribute +
+                  "' has no positive value");
   }
+}
+
+// Greedy cut at line boundaries: a chunk takes lines until the next one would exceed the index
+// limit, 2^32 vertices or the byte budget. Dropped lines join the chunk that is open.
+void TubeStreamBuilder::State::add_to_plan(uint64_t line, uint64_t kept_points) {
+  const auto fits = [&](uint64_t v, uint64_t i) {
+    return i <= options.max_chunk_indices && v <= (uint64_t{1} << 32) &&
+           v * layout.vertex_bytes + i * 4 <= options.max_chunk_bytes;
+  };
+  if (chunks.empty()) chunks.push_back({});
+  if (kept_points) {
+    const uint64_t v = layout.vertices(kept_points), i = layout.indices(kept_points);
+    if (!fits(v, i))
+      throw Error("tubes: line " + std::to_string(line) + " alone needs " + std::to_string(i) +
+                  " indices and " + std::to_string(v * layout.vertex_bytes + i * 4) +
+                  " bytes, more than one chunk may hold");
+    if (!fits(chunks.back().vertices + v, chunks.back().indices + i)) {
+      chunks.back().line_count = line - chunks.back().first_line;
+      chunks.push_back({line, 0, 0, 0});
+    }
+    chunks.back().vertices += v;
+    chunks.back().indices += i;
+  }
+  kept.push_back(kept_points);
 }
 
 // Tangents bisect the unit directions of the two segments at a point (one-sided at the ends;
@@ -173,7 +178,7 @@ void Builder::resolve_attributes() {
 // the serial chain from point to point carries only the two reflections (renormalised every 32
 // steps against float drift); projecting onto the tangent's plane and normalising happen off
 // the chain, where they overlap across points instead of adding to its latency.
-void Builder::compute_frames(Scratch& s) const {
+void TubeStreamBuilder::State::compute_frames(Scratch& s) const {
   const size_t m = s.p.size();
   s.t.resize(m);
   s.n.resize(m);
@@ -213,25 +218,24 @@ void Builder::compute_frames(Scratch& s) const {
   }
 }
 
-void Builder::write_line(size_t line, Scratch& s) const {
-  const Placement& place = placement_[line];
-  if (!place.kept_points) return;
+void TubeStreamBuilder::State::write_line(const LineSet& batch, size_t line,
+                                          const LinePlacement& place, const TubeOutput& out,
+                                          Scratch& s) const {
   s.source.clear();
   s.p.clear();
-  for_each_kept_point(lines_, line, min_distance_, [&](uint64_t i, vec3 p) {
+  for_each_kept_point(batch, line, min_distance, [&](uint64_t i, vec3 p) {
     s.source.push_back(i);
     s.p.push_back(p);
   });
   compute_frames(s);
 
-  TubeChunk& chunk = mesh_.chunks[place.chunk];
-  const uint64_t n = layout_.sides;
+  const uint64_t n = layout.sides;
   const size_t m = s.p.size();
-  const uint64_t v0 = place.vertex_base;
-  float* pos = chunk.positions.data() + 3 * v0;
-  float* nrm = chunk.normals.empty() ? nullptr : chunk.normals.data() + 3 * v0;
-  int16_t* oct = chunk.normals_oct.empty() ? nullptr : chunk.normals_oct.data() + 2 * v0;
-  uint16_t* attr = chunk.attribute.empty() ? nullptr : chunk.attribute.data() + v0;
+  const uint64_t v0 = place.vertex;
+  float* pos = out.positions + 3 * v0;
+  float* nrm = out.normals ? out.normals + 3 * v0 : nullptr;
+  int16_t* oct = out.normals_oct ? out.normals_oct + 2 * v0 : nullptr;
+  uint16_t* attr = out.attribute ? out.attribute + v0 : nullptr;
   const auto emit = [&](vec3 p, vec3 normal, uint16_t a) {
     *pos++ = p.x, *pos++ = p.y, *pos++ = p.z;
     if (nrm) *nrm++ = normal.x, *nrm++ = normal.y, *nrm++ = normal.z;
@@ -241,15 +245,19 @@ void Builder::write_line(size_t line, Scratch& s) const {
     }
     if (attr) *attr++ = a;
   };
-  const uint16_t line_value = attribute_ && attribute_per_line_
-                                  ? to_unorm16((*attribute_)[line], mesh_.attribute_range)
+  const std::vector<float>* attribute_values =
+      attribute < 0        ? nullptr
+      : attribute_per_line ? &batch.line_attributes[size_t(attribute)].values
+                           : &batch.attributes[size_t(attribute)].values;
+  const std::vector<float>* radius_values =
+      radius_attribute < 0 ? nullptr : &batch.attributes[size_t(radius_attribute)].values;
+  const uint16_t line_value = attribute_values && attribute_per_line
+                                  ? to_unorm16((*attribute_values)[line], mesh.attribute_range)
                                   : 0;
   // Locals, not members: the float stores below could alias them and force reloads.
-  const float radius = mesh_.radius, radius_max = radius_max_;
-  const std::array<float, 2> range = mesh_.attribute_range;
-  std::array<float, 32> cos_j, sin_j;
-  std::copy(cos_.begin(), cos_.end(), cos_j.begin());
-  std::copy(sin_.begin(), sin_.end(), sin_j.begin());
+  const float radius = mesh.radius, radius_maximum = radius_max;
+  const std::array<float, 2> range = mesh.attribute_range;
+  const std::array<float, 32> cos_j = cos, sin_j = sin;
   // Scalar components, not vec3 copies: GCC spills 12-byte structs through the stack here and
   // the partial reloads stall store forwarding (measured: ~15% of the build).
   for (size_t i = 0; i < m; ++i) {
@@ -258,9 +266,9 @@ void Builder::write_line(size_t line, Scratch& s) const {
     const float nx = s.n[i].x, ny = s.n[i].y, nz = s.n[i].z;
     const float bx = ty * nz - tz * ny, by = tz * nx - tx * nz, bz = tx * ny - ty * nx;
     float r = radius;
-    if (radius_values_) {
-      const float v = (*radius_values_)[s.source[i]];
-      r *= v > 0 && std::isfinite(v) ? v / radius_max : 0.01f;
+    if (radius_values) {
+      const float v = (*radius_values)[s.source[i]];
+      r *= v > 0 && std::isfinite(v) ? v / radius_maximum : 0.01f;
     }
     for (uint64_t j = 0; j < n; ++j) {
       const float c = cos_j[j], sn = sin_j[j];
@@ -278,21 +286,23 @@ void Builder::write_line(size_t line, Scratch& s) const {
     }
     if (attr) {
       const uint16_t a =
-          attribute_per_line_ ? line_value : to_unorm16((*attribute_)[s.source[i]], range);
+          attribute_per_line ? line_value : to_unorm16((*attribute_values)[s.source[i]], range);
       for (uint64_t j = 0; j < n; ++j) *attr++ = a;
     }
   }
-  if (layout_.caps) {
-    const uint16_t a_first = attr ? chunk.attribute[v0] : 0;
-    const uint16_t a_last = attr ? chunk.attribute[v0 + (m - 1) * n] : 0;
+  if (layout.caps) {
+    const uint16_t a_first = attr ? out.attribute[v0] : 0;
+    const uint16_t a_last = attr ? out.attribute[v0 + (m - 1) * n] : 0;
     emit(s.p[0], -s.t[0], a_first);
     emit(s.p[m - 1], s.t[m - 1], a_last);
   }
 
-  // Two triangles per segment and ring index; winding makes the normals point outwards.
-  uint32_t* idx = chunk.indices.data() + place.index_base;
+  // Two triangles per segment and ring index; winding makes the normals point outwards. Index
+  // values count from the chunk's first vertex.
+  uint32_t* idx = out.indices + place.index;
+  const uint64_t c0 = place.chunk_vertex;
   for (uint64_t i = 0; i + 1 < m; ++i) {
-    const uint64_t ring = v0 + i * n, next = ring + n;
+    const uint64_t ring = c0 + i * n, next = ring + n;
     for (uint64_t j = 0; j < n; ++j) {
       const uint64_t j1 = j + 1 == n ? 0 : j + 1;
       const uint32_t a = uint32_t(ring + j), b = uint32_t(ring + j1);
@@ -301,8 +311,8 @@ void Builder::write_line(size_t line, Scratch& s) const {
       *idx++ = a, *idx++ = c, *idx++ = d;
     }
   }
-  if (layout_.caps) {
-    const uint64_t first = v0, last = v0 + (m - 1) * n, centre = v0 + m * n;
+  if (layout.caps) {
+    const uint64_t first = c0, last = c0 + (m - 1) * n, centre = c0 + m * n;
     for (uint64_t j = 0; j < n; ++j) {
       const uint64_t j1 = j + 1 == n ? 0 : j + 1;
       *idx++ = uint32_t(centre), *idx++ = uint32_t(first + j1), *idx++ = uint32_t(first + j);
@@ -314,86 +324,194 @@ void Builder::write_line(size_t line, Scratch& s) const {
   }
 }
 
-}  // namespace
+float world_radius(const Bounds& bounds, const TubeOptions& options) {
+  return options.radius_absolute ? options.radius : options.radius * bounds.diagonal();
+}
 
 float world_radius(const LineSet& lines, const TubeOptions& options) {
-  return options.radius_absolute ? options.radius
-                                 : options.radius * compute_bounds(lines).diagonal();
+  return world_radius(compute_bounds(lines), options);
+}
+
+TubeStreamBuilder::TubeStreamBuilder(const LineSet& header, const LineSetStats& stats,
+                                     const TubeOptions& options)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.options = options;
+  if (options.sides < 3 || options.sides > 32)
+    throw Error("tubes: sides must be 3..32, got " + std::to_string(options.sides));
+  if (!(options.radius > 0) || !std::isfinite(options.radius))
+    throw Error("tubes: radius must be positive");
+  s.mesh.sides = options.sides;
+  s.mesh.caps = options.caps;
+  s.mesh.normals = options.normals;
+  s.mesh.radius = world_radius(stats.bounds, options);
+  if (!(s.mesh.radius > 0)) throw Error("tubes: the data has no extent, use an absolute radius");
+  s.min_distance = options.min_point_distance * stats.bounds.diagonal();
+  s.resolve_attributes(header, stats);
+  s.layout = {uint64_t(options.sides), options.caps,
+              tube_vertex_bytes(options.normals, s.attribute >= 0)};
+  for (int j = 0; j < options.sides; ++j) {
+    const double angle = 2 * std::numbers::pi * j / options.sides;
+    s.cos[size_t(j)] = float(std::cos(angle));
+    s.sin[size_t(j)] = float(std::sin(angle));
+  }
+  s.kept.reserve(stats.lines);
+}
+
+TubeStreamBuilder::~TubeStreamBuilder() = default;
+
+void TubeStreamBuilder::plan(const LineSet& batch) {
+  State& s = *state_;
+  const size_t count = batch.line_count();
+  std::vector<uint64_t> kept(count);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 256), [&](auto range) {
+    for (size_t l = range.begin(); l != range.end(); ++l) {
+      uint64_t k = 0;
+      for_each_kept_point(batch, l, s.min_distance, [&](uint64_t, vec3) { ++k; });
+      kept[l] = k >= 2 ? k : 0;
+    }
+  });
+  for (size_t l = 0; l < count; ++l) {
+    s.add_to_plan(s.kept.size(), kept[l]);
+    s.mesh.lines_dropped += kept[l] == 0;
+    s.mesh.points_skipped += batch.line_size(l) - kept[l];  // with the points of dropped lines
+  }
+}
+
+const std::vector<TubeChunkPlan>& TubeStreamBuilder::finish_plan() {
+  State& s = *state_;
+  if (s.kept.empty() || s.mesh.lines_dropped == s.kept.size())
+    throw Error("tubes: no line has two distinct points");
+  s.chunks.back().line_count = s.kept.size() - s.chunks.back().first_line;
+  s.planned = true;
+  return s.chunks;
+}
+
+const TubeMesh& TubeStreamBuilder::description() const {
+  return state_->mesh;
+}
+
+uint64_t TubeStreamBuilder::vertex_bytes() const {
+  return state_->layout.vertex_bytes;
+}
+
+uint64_t TubeStreamBuilder::output_bytes(uint64_t first_line, uint64_t line_count) const {
+  const State& s = *state_;
+  uint64_t bytes = 0;
+  for (uint64_t l = first_line; l < first_line + line_count && l < s.kept.size(); ++l)
+    if (s.kept[l])
+      bytes +=
+          s.layout.vertices(s.kept[l]) * s.layout.vertex_bytes + s.layout.indices(s.kept[l]) * 4;
+  return bytes;
+}
+
+// The batch's lines in runs of one chunk: each run asks the sink for its memory, the lines
+// write their own precomputed ranges in parallel (so the bytes do not depend on the schedule),
+// and the run is handed over.
+void TubeStreamBuilder::build(const LineSet& batch, TubeSink& sink) {
+  State& s = *state_;
+  if (!s.planned) throw Error("tubes: build() before finish_plan()");
+  const size_t count = batch.line_count();
+  if (s.next_line + count > s.kept.size())
+    throw Error("tubes: the build pass sees more lines than the plan");
+  size_t line = 0;
+  while (line < count) {
+    // Lines before the next chunk's first belong to the open chunk.
+    while (!s.chunk_open || (s.chunk + 1 < s.chunks.size() &&
+                             s.next_line + line >= s.chunks[s.chunk + 1].first_line)) {
+      if (s.chunk_open) {
+        sink.end_chunk(s.chunk);
+        ++s.chunk;
+      }
+      sink.begin_chunk(s.chunk, s.chunks[s.chunk]);
+      s.chunk_open = true;
+      s.chunk_vertices = s.chunk_indices = 0;
+    }
+    const TubeChunkPlan& plan = s.chunks[s.chunk];
+    const size_t end =
+        size_t(std::min<uint64_t>(count, plan.first_line + plan.line_count - s.next_line));
+    s.placement.resize(end - line);
+    uint64_t vertices = 0, indices = 0;
+    for (size_t l = line; l < end; ++l) {
+      const uint64_t k = s.kept[s.next_line + l];
+      s.placement[l - line] = {vertices, indices, s.chunk_vertices + vertices};
+      if (k) {
+        vertices += s.layout.vertices(k);
+        indices += s.layout.indices(k);
+      }
+    }
+    if (vertices > 0) {
+      const TubeOutput out = sink.reserve(s.chunk, vertices, indices);
+      tbb::parallel_for(tbb::blocked_range<size_t>(line, end, 64), [&](auto range) {
+        Scratch scratch;
+        for (size_t l = range.begin(); l != range.end(); ++l)
+          if (s.kept[s.next_line + l]) s.write_line(batch, l, s.placement[l - line], out, scratch);
+      });
+      sink.written(s.chunk);
+    }
+    s.chunk_vertices += vertices;
+    s.chunk_indices += indices;
+    line = end;
+  }
+  s.next_line += count;
+  if (s.next_line == s.kept.size() && s.chunk_open) {
+    sink.end_chunk(s.chunk);
+    s.chunk_open = false;
+  }
 }
 
 namespace {
 
-void Builder::build(const ProgressFn& progress) {
-  if (options_.sides < 3 || options_.sides > 32)
-    throw Error("tubes: sides must be 3..32, got " + std::to_string(options_.sides));
-  if (!(options_.radius > 0) || !std::isfinite(options_.radius))
-    throw Error("tubes: radius must be positive");
-  const float diagonal = compute_bounds(lines_).diagonal();
-  mesh_.sides = options_.sides;
-  mesh_.caps = options_.caps;
-  mesh_.normals = options_.normals;
-  mesh_.radius = world_radius(lines_, options_);
-  if (!(mesh_.radius > 0)) throw Error("tubes: the data has no extent, use an absolute radius");
-  min_distance_ = options_.min_point_distance * diagonal;
-  resolve_attributes();
-  layout_ = {uint64_t(options_.sides), options_.caps,
-             tube_vertex_bytes(options_.normals, attribute_ != nullptr)};
-  for (int j = 0; j < options_.sides; ++j) {
-    const double angle = 2 * std::numbers::pi * j / options_.sides;
-    cos_.push_back(float(std::cos(angle)));
-    sin_.push_back(float(std::sin(angle)));
-  }
-
-  const size_t line_count = lines_.line_count();
-  placement_.assign(line_count, {});
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, line_count, 256), [&](auto range) {
-    for (size_t l = range.begin(); l != range.end(); ++l) {
-      uint64_t kept = 0;
-      for_each_kept_point(lines_, l, min_distance_, [&](uint64_t, vec3) { ++kept; });
-      placement_[l].kept_points = kept >= 2 ? kept : 0;
-    }
-  });
-  uint64_t kept_total = 0;
-  for (const Placement& p : placement_) {
-    kept_total += p.kept_points;
-    mesh_.lines_dropped += p.kept_points == 0;
-  }
-  const std::vector<ChunkPlan> plans = plan_chunks(placement_, layout_, options_);
-  if (mesh_.lines_dropped == line_count) throw Error("tubes: no line has two distinct points");
-  mesh_.points_skipped = lines_.point_count() - kept_total;  // includes points of dropped lines
-
-  mesh_.chunks.resize(plans.size());
-  for (size_t c = 0; c < plans.size(); ++c) {
+// Builds into the mesh's own arrays: the sink hands out memory inside each chunk.
+class MeshSink : public TubeSink {
+ public:
+  MeshSink(TubeMesh& mesh, bool has_attribute) : mesh_(mesh), has_attribute_(has_attribute) {}
+  void begin_chunk(size_t c, const TubeChunkPlan& plan) override {
+    if (mesh_.chunks.size() <= c) mesh_.chunks.resize(c + 1);
     TubeChunk& chunk = mesh_.chunks[c];
-    chunk.first_line = plans[c].first_line;
-    chunk.line_count = plans[c].line_count;
-    chunk.positions = Array<float>(3 * plans[c].vertices);
-    if (options_.normals == NormalEncoding::Float32)
-      chunk.normals = Array<float>(3 * plans[c].vertices);
+    chunk.first_line = plan.first_line;
+    chunk.line_count = plan.line_count;
+    chunk.positions = Array<float>(3 * plan.vertices);
+    if (mesh_.normals == NormalEncoding::Float32)
+      chunk.normals = Array<float>(3 * plan.vertices);
     else
-      chunk.normals_oct = Array<int16_t>(2 * plans[c].vertices);
-    if (attribute_) chunk.attribute = Array<uint16_t>(plans[c].vertices);
-    chunk.indices = Array<uint32_t>(plans[c].indices);
+      chunk.normals_oct = Array<int16_t>(2 * plan.vertices);
+    if (has_attribute_) chunk.attribute = Array<uint16_t>(plan.vertices);
+    chunk.indices = Array<uint32_t>(plan.indices);
+    vertices_ = indices_ = 0;
   }
+  TubeOutput reserve(size_t c, uint64_t vertices, uint64_t indices) override {
+    TubeChunk& chunk = mesh_.chunks[c];
+    TubeOutput out;
+    out.positions = chunk.positions.data() + 3 * vertices_;
+    if (!chunk.normals.empty()) out.normals = chunk.normals.data() + 3 * vertices_;
+    if (!chunk.normals_oct.empty()) out.normals_oct = chunk.normals_oct.data() + 2 * vertices_;
+    if (!chunk.attribute.empty()) out.attribute = chunk.attribute.data() + vertices_;
+    out.indices = chunk.indices.data() + indices_;
+    vertices_ += vertices;
+    indices_ += indices;
+    return out;
+  }
+  void written(size_t) override {}
+  void end_chunk(size_t) override {}
 
-  // Every line writes its own precomputed range: the bytes do not depend on the schedule.
-  // Batches let the calling thread report progress between them.
-  const size_t batches = std::clamp<size_t>(line_count / 4096, 1, 64);
-  for (size_t b = 0; b < batches; ++b) {
-    const size_t begin = line_count * b / batches, end = line_count * (b + 1) / batches;
-    tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 64), [&](auto range) {
-      Scratch scratch;
-      for (size_t l = range.begin(); l != range.end(); ++l) write_line(l, scratch);
-    });
-    if (progress) progress(end, line_count);
-  }
-}
+ private:
+  TubeMesh& mesh_;
+  bool has_attribute_;
+  uint64_t vertices_ = 0, indices_ = 0;
+};
 
 }  // namespace
 
+// The whole line set as one batch: nothing is copied, and build() runs every line in parallel.
 TubeMesh build_tubes(const LineSet& lines, const TubeOptions& options, const ProgressFn& progress) {
-  TubeMesh mesh;
-  Builder(lines, options, mesh).build(progress);
+  TubeStreamBuilder builder(lines, compute_stats(lines), options);
+  builder.plan(lines);
+  builder.finish_plan();
+  TubeMesh mesh = builder.description();
+  MeshSink sink(mesh, !mesh.attribute.empty());
+  builder.build(lines, sink);
+  if (progress) progress(lines.line_count(), lines.line_count());
   return mesh;
 }
 

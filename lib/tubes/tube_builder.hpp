@@ -1,11 +1,14 @@
 #pragma once
 // Line set -> tube mesh (techniques.md section 10), multithreaded with byte-identical output
-// for any thread count.
+// for any thread count, whole (build_tubes) or batch by batch (TubeStreamBuilder) with the same
+// bytes.
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/progress.hpp"
 #include "lines/line_set.hpp"
@@ -35,9 +38,60 @@ struct TubeOptions {
 
 // The tube radius in world units: options.radius x the bounding-box diagonal, or as given.
 float world_radius(const LineSet& lines, const TubeOptions& options);
+float world_radius(const Bounds& bounds, const TubeOptions& options);
 
 // Throws linebake::Error for options out of range or a line too large for one chunk.
 TubeMesh build_tubes(const LineSet& lines, const TubeOptions& options,
                      const ProgressFn& progress = {});
+
+// Lines [first_line, first_line + line_count) make one chunk of `vertices` and `indices`.
+struct TubeChunkPlan {
+  uint64_t first_line = 0, line_count = 0, vertices = 0, indices = 0;
+};
+
+// Where the next `vertices` vertices and `indices` indices of a chunk are to be written; the
+// arrays a chunk does not have (normals or normals_oct, attribute) are null.
+struct TubeOutput {
+  float* positions = nullptr;
+  float* normals = nullptr;
+  int16_t* normals_oct = nullptr;
+  uint16_t* attribute = nullptr;
+  uint32_t* indices = nullptr;
+};
+
+// Receives a streamed build's mesh chunk by chunk, each chunk front to back.
+class TubeSink {
+ public:
+  virtual ~TubeSink() = default;
+  virtual void begin_chunk(size_t chunk, const TubeChunkPlan& plan) = 0;
+  // Memory for the chunk's next vertices and indices, valid until written().
+  virtual TubeOutput reserve(size_t chunk, uint64_t vertices, uint64_t indices) = 0;
+  // The reserved memory holds the data.
+  virtual void written(size_t chunk) = 0;
+  virtual void end_chunk(size_t chunk) = 0;
+};
+
+// The tube build over a line set given batch by batch (lines/line_reader.hpp), in two passes
+// over the same batches: plan() decides which points take part and where the chunks end,
+// build() makes the rings and triangles. The global choices (radius, attribute range) come
+// from the line set's statistics, so the mesh equals build_tubes' for any batches.
+class TubeStreamBuilder {
+ public:
+  TubeStreamBuilder(const LineSet& header, const LineSetStats& stats, const TubeOptions& options);
+  ~TubeStreamBuilder();
+  void plan(const LineSet& batch);
+  // After the last plan(): the chunks. Throws Error when no line has two distinct points.
+  const std::vector<TubeChunkPlan>& finish_plan();
+  void build(const LineSet& batch, TubeSink& sink);
+  // The mesh without its chunks: sides, radius, attribute, dropped lines, skipped points.
+  const TubeMesh& description() const;
+  // Vertex and index bytes of the lines in a batch (what build() asks the sink for).
+  uint64_t output_bytes(uint64_t first_line, uint64_t line_count) const;
+  uint64_t vertex_bytes() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 }  // namespace linebake

@@ -11,6 +11,8 @@
 #include <regex>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
+#include "core/spill_file.hpp"
 
 namespace linebake {
 namespace {
@@ -63,72 +65,116 @@ struct Record {
   float weight;
 };
 
-// A fixed run of lines walked by one task. Fixed by the data, not the thread count, so sums
-// over a block (error, and the order of records) are the same for any number of threads.
+__extension__ typedef unsigned __int128 uint128;
+// Error sums in fixed point (2^-32 voxel): integer sums do not depend on the order of the
+// blocks, so the mean is the same for any batches and thread count.
+constexpr double kErrorScale = 4294967296.0;
+
+// A run of lines walked by one task, cut every kSegmentsPerBlock segments.
 struct Block {
   size_t first_line = 0, end_line = 0;
   std::vector<Record> records;
-  double error_max = 0, error_sum = 0;
+  double error_max = 0;
+  uint128 error_sum = 0;
   uint64_t error_samples = 0;
 };
 
-class Voxelizer {
- public:
-  Voxelizer(const LineSet& lines, const VoxelOptions& options, VoxelGrid& grid)
-      : lines_(lines), options_(options), grid_(grid) {}
-  void build(const ProgressFn& progress);
+// One batch's records, sorted (stably) by unit: a unit is a range of 2^unit_shift voxels.
+// `start[u]` is where unit u begins among the run's records; the records sit in memory or in
+// the spill file from `file_offset`.
+struct Run {
+  std::vector<uint32_t> start;
+  std::vector<Record> records;
+  bool spilled = false;
+  uint64_t file_offset = 0;
+};
 
- private:
-  void place_grid();
+// Per-thread counters for the voxels of one unit.
+struct UnitScratch {
+  std::vector<uint32_t> n, distinct, last_line, cursor, room;
+  std::vector<float> density;
+  void resize(uint64_t voxels) {
+    n.assign(voxels, 0);
+    distinct.assign(voxels, 0);
+    last_line.assign(voxels, 0xFFFFFFFFu);
+    density.assign(voxels, 0.0f);
+    cursor.resize(voxels);
+    room.resize(voxels);
+  }
+};
+
+}  // namespace
+
+struct VoxelStreamBuilder::State {
+  VoxelOptions options;
+  VoxelMemory memory;
+  VoxelGrid grid;  // placement and statistics; no arrays
+  int attribute = -1;
+  uint64_t lines_seen = 0;
+  // Units of the grid, and what the runs hold.
+  uint32_t unit_shift = 0;
+  uint64_t units = 0;
+  std::vector<Run> runs;
+  std::vector<uint64_t> unit_records;  // over all runs
+  uint64_t held_bytes = 0, peak_held_bytes = 0;
+  std::unique_ptr<SpillFile> spill;
+  // Error statistics over all blocks.
+  double error_max = 0;
+  uint128 error_sum = 0;
+  uint64_t error_samples = 0;
+  // Scratch kept between batches, so pages are touched once.
+  std::vector<Block> blocks;
+  std::vector<uint32_t> block_counts;
+
+  void place_grid(const LineSetStats& stats);
   template <class Emit>
-  void walk(size_t line, std::vector<Vec>& path, Emit&& emit) const;
+  void walk(const LineSet& lines, size_t line, std::vector<Vec>& path, Emit&& emit) const;
   void emit(const Piece& piece, uint32_t line, Block& block) const;
-  Vec to_grid(uint64_t point) const {
+  Vec to_grid(const LineSet& lines, uint64_t point) const {
     Vec g{};
     for (int k = 0; k < 3; ++k)
-      g[k] = (double(lines_.positions[3 * point + k]) - grid_.origin[k]) / grid_.voxel_size;
+      g[k] = (double(lines.positions[3 * point + k]) - grid.origin[k]) / grid.voxel_size;
     return g;
   }
-  float attribute_at(uint64_t point) const { return attribute_ ? (*attribute_)[point] : 0.0f; }
   uint8_t to_unorm8(float v) const {
-    const float lo = grid_.attribute_range[0], span = grid_.attribute_range[1] - lo;
+    const float lo = grid.attribute_range[0], span = grid.attribute_range[1] - lo;
     if (!(span > 0) || !std::isfinite(v)) return 0;
     return uint8_t(std::clamp((v - lo) / span, 0.0f, 1.0f) * 255 + 0.5f);
   }
-
-  const LineSet& lines_;
-  const VoxelOptions& options_;
-  VoxelGrid& grid_;
-  const std::vector<float>* attribute_ = nullptr;
+  void keep_run(Run run);
+  void spill_held_runs();
+  // Records of units [u0, u1) from every run, run after run, into `out`; `base[r]` is where
+  // run r's part starts in `out`.
+  void gather(uint64_t u0, uint64_t u1, std::vector<Record>& out, std::vector<uint64_t>& base);
 };
 
-void Voxelizer::place_grid() {
-  const Bounds b = compute_bounds(lines_);
+void VoxelStreamBuilder::State::place_grid(const LineSetStats& stats) {
+  const Bounds& b = stats.bounds;
   if (b.empty) throw Error("voxels: the line set has no finite point");
   std::array<double, 3> extent{};
   for (int k = 0; k < 3; ++k) extent[k] = std::max(double(b.max[k]) - b.min[k], 0.0);
   const double longest = std::max({extent[0], extent[1], extent[2]});
   const double span = longest > 0 ? longest : 1.0;
   // No padding: points on the upper bound belong to the last voxel (cells are clamped).
-  for (int k = 0; k < 3; ++k) grid_.origin[k] = b.min[k];
-  if (options_.resolution) {
-    const auto& r = *options_.resolution;
+  for (int k = 0; k < 3; ++k) grid.origin[k] = b.min[k];
+  if (options.resolution) {
+    const auto& r = *options.resolution;
     double h = 0;
     for (int k = 0; k < 3; ++k) {
       if (r[k] == 0 || r[k] > 4096) throw Error("voxels: resolution per axis must be 1..4096");
       h = std::max(h, extent[k] / r[k]);
     }
-    grid_.voxel_size = float(h > 0 ? h : 1.0);
-    grid_.resolution = r;
+    grid.voxel_size = float(h > 0 ? h : 1.0);
+    grid.resolution = r;
   } else {
     const uint32_t longest_res =
-        options_.grid ? options_.grid : automatic_grid_resolution(lines_.segment_count());
+        options.grid ? options.grid : automatic_grid_resolution(stats.segments);
     if (longest_res == 0 || longest_res > 4096)
       throw Error("voxels: grid resolution must be 1..4096");
-    grid_.voxel_size = float(span / longest_res);
+    grid.voxel_size = float(span / longest_res);
     for (int k = 0; k < 3; ++k)
-      grid_.resolution[k] = std::clamp<uint32_t>(
-          uint32_t(std::ceil(extent[k] / grid_.voxel_size - 1e-6)), 1, longest_res);
+      grid.resolution[k] = std::clamp<uint32_t>(
+          uint32_t(std::ceil(extent[k] / grid.voxel_size - 1e-6)), 1, longest_res);
   }
 }
 
@@ -137,13 +183,17 @@ void Voxelizer::place_grid() {
 // or its last point). Pieces shorter than 1e-9 voxels (a line crossing an edge or corner) are
 // not emitted.
 template <class Emit>
-void Voxelizer::walk(size_t line, std::vector<Vec>& path, Emit&& emit) const {
-  const uint64_t first = lines_.line_offsets[line], last = lines_.line_offsets[line + 1];
+void VoxelStreamBuilder::State::walk(const LineSet& lines, size_t line, std::vector<Vec>& path,
+                                     Emit&& emit_piece) const {
+  const uint64_t first = lines.line_offsets[line], last = lines.line_offsets[line + 1];
   if (last - first < 2) return;
-  const auto& res = grid_.resolution;
+  const std::vector<float>* values =
+      attribute >= 0 ? &lines.attributes[size_t(attribute)].values : nullptr;
+  const auto attribute_at = [&](uint64_t point) { return values ? (*values)[point] : 0.0f; };
+  const auto& res = grid.resolution;
   Piece piece;
   piece.path = &path;
-  const Vec start = to_grid(first);
+  const Vec start = to_grid(lines, first);
   for (int k = 0; k < 3; ++k)
     piece.cell[k] = std::clamp<int64_t>(int64_t(std::floor(start[k])), 0, int64_t(res[k]) - 1);
   piece.entry = start;
@@ -157,8 +207,8 @@ void Voxelizer::walk(size_t line, std::vector<Vec>& path, Emit&& emit) const {
     piece.exit_attribute = exit_attribute;
     if (piece.length > 1e-9) {
       piece.voxel =
-          grid_.index(uint32_t(piece.cell[0]), uint32_t(piece.cell[1]), uint32_t(piece.cell[2]));
-      emit(piece);
+          grid.index(uint32_t(piece.cell[0]), uint32_t(piece.cell[1]), uint32_t(piece.cell[2]));
+      emit_piece(piece);
     }
   };
   const auto extend = [&](const Vec& p) {
@@ -169,7 +219,7 @@ void Voxelizer::walk(size_t line, std::vector<Vec>& path, Emit&& emit) const {
   };
   Vec a = start;
   for (uint64_t i = first; i + 1 < last; ++i) {
-    const Vec b = to_grid(i + 1);
+    const Vec b = to_grid(lines, i + 1);
     const Vec d{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
     const float attribute_a = attribute_at(i), attribute_b = attribute_at(i + 1);
     double t = 0;
@@ -207,8 +257,8 @@ void Voxelizer::walk(size_t line, std::vector<Vec>& path, Emit&& emit) const {
 
 // Quantises and packs one chord, and measures it: the decoded chord sampled at five points
 // against the polyline inside the voxel (quantisation and straightening error together).
-void Voxelizer::emit(const Piece& p, uint32_t line, Block& block) const {
-  const uint32_t q = grid_.quantization;
+void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, Block& block) const {
+  const uint32_t q = grid.quantization;
   std::array<float, 3> entry{}, exit{};
   for (int k = 0; k < 3; ++k) {
     entry[k] = float(std::clamp(p.entry[k] - double(p.cell[k]), 0.0, 1.0));
@@ -218,7 +268,7 @@ void Voxelizer::emit(const Piece& p, uint32_t line, Block& block) const {
   const ChordEnd end = quantise_end(exit, p.exit_face, q);
   const uint8_t a0 = to_unorm8(p.entry_attribute), a1 = to_unorm8(p.exit_attribute);
   const auto words = pack_chord(start, end, line, a0, a1, q);
-  const float weight = float(p.length) * (attribute_ ? (float(a0) + float(a1)) / 510.0f : 1.0f);
+  const float weight = float(p.length) * (attribute >= 0 ? (float(a0) + float(a1)) / 510.0f : 1.0f);
   block.records.push_back({uint32_t(p.voxel), line, words[0], words[1], weight});
 
   const std::array<float, 3> s = decode_end(start, q), e = decode_end(end, q);
@@ -226,187 +276,339 @@ void Voxelizer::emit(const Piece& p, uint32_t line, Block& block) const {
   for (size_t i = 0; i < samples.size(); ++i)
     for (int k = 0; k < 3; ++k)
       samples[i][k] = double(p.cell[k]) + s[k] + (e[k] - s[k]) * (double(i) / 4.0);
-  double error_max = block.error_max, error_sum = block.error_sum;
+  double largest = block.error_max;
+  uint128 sum = block.error_sum;
   for (const double d : distances_to_path(samples, *p.path)) {
-    error_max = std::max(error_max, d);
-    error_sum += d;
+    largest = std::max(largest, d);
+    sum += uint128(std::llround(d * kErrorScale));
   }
-  block.error_max = error_max;
-  block.error_sum = error_sum;
+  block.error_max = largest;
+  block.error_sum = sum;
   block.error_samples += samples.size();
 }
 
-void Voxelizer::build(const ProgressFn& progress) {
-  const uint32_t q = options_.quantization;
+void VoxelStreamBuilder::State::keep_run(Run run) {
+  const uint64_t bytes = run.records.size() * sizeof(Record);
+  if (!spill && held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
+    spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
+    spill_held_runs();
+  }
+  if (spill) {
+    run.file_offset = spill->append(run.records.data(), bytes);
+    run.spilled = true;
+    run.records = {};
+  } else {
+    held_bytes += bytes;
+    peak_held_bytes = std::max(peak_held_bytes, held_bytes);
+  }
+  runs.push_back(std::move(run));
+}
+
+void VoxelStreamBuilder::State::spill_held_runs() {
+  for (Run& r : runs) {
+    if (r.spilled) continue;
+    r.file_offset = spill->append(r.records.data(), r.records.size() * sizeof(Record));
+    r.spilled = true;
+    std::vector<Record>().swap(r.records);
+  }
+  held_bytes = 0;
+}
+
+void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Record>& out,
+                                       std::vector<uint64_t>& base) {
+  uint64_t total = 0;
+  base.resize(runs.size());
+  for (size_t r = 0; r < runs.size(); ++r) {
+    base[r] = total;
+    total += runs[r].start[u1] - runs[r].start[u0];
+  }
+  out.resize(total);
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const Run& run = runs[r];
+    const uint64_t first = run.start[u0], count = run.start[u1] - first;
+    if (count == 0) continue;
+    if (run.spilled)
+      spill->read(run.file_offset + first * sizeof(Record), out.data() + base[r],
+                  count * sizeof(Record));
+    else
+      std::copy_n(run.records.data() + first, count, out.data() + base[r]);
+  }
+}
+
+VoxelStreamBuilder::VoxelStreamBuilder(const LineSet& header, const LineSetStats& stats,
+                                       const VoxelOptions& options, VoxelMemory memory)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.options = options;
+  s.memory = std::move(memory);
+  const uint32_t q = options.quantization;
   if (q != 16 && q != 32 && q != 64) throw Error("voxels: quantisation must be 16, 32 or 64");
-  if (options_.max_chords_per_voxel == 0 || options_.max_chords_per_voxel > 65535)
+  if (options.max_chords_per_voxel == 0 || options.max_chords_per_voxel > 65535)
     throw Error("voxels: the chord cap per voxel must be 1..65535");
-  grid_.quantization = q;
-  grid_.max_chords_per_voxel = options_.max_chords_per_voxel;
-  grid_.segments = lines_.segment_count();
-  if (options_.attribute != "none") {
-    const Attribute* a = options_.attribute.empty()
-                             ? (lines_.attributes.empty() ? nullptr : &lines_.attributes[0])
-                             : lines_.find_attribute(options_.attribute);
-    if (!options_.attribute.empty() && !a)
-      throw Error("voxels: no vertex attribute named '" + options_.attribute + "'");
-    if (a) {
-      attribute_ = &a->values;
-      grid_.attribute = a->name;
-      if (options_.attribute_range) {
-        grid_.attribute_range = *options_.attribute_range;
+  s.grid.quantization = q;
+  s.grid.max_chords_per_voxel = options.max_chords_per_voxel;
+  s.grid.segments = stats.segments;
+  if (options.attribute != "none") {
+    int index = -1;
+    if (options.attribute.empty()) {
+      index = header.attributes.empty() ? -1 : 0;
+    } else {
+      for (size_t i = 0; i < header.attributes.size(); ++i)
+        if (header.attributes[i].name == options.attribute) index = int(i);
+      if (index < 0) throw Error("voxels: no vertex attribute named '" + options.attribute + "'");
+    }
+    if (index >= 0) {
+      s.attribute = index;
+      s.grid.attribute = header.attributes[size_t(index)].name;
+      if (options.attribute_range) {
+        s.grid.attribute_range = *options.attribute_range;
       } else {
-        const ValueRange r = compute_range(a->values);
-        grid_.attribute_range = {r.min, r.max};
+        const ValueRange* r = stats.attribute_range(s.grid.attribute);
+        s.grid.attribute_range = {r ? r->min : 0.0f, r ? r->max : 0.0f};
       }
     }
   }
-  place_grid();
-  const uint64_t voxels = grid_.voxel_count();
-  const size_t line_count = lines_.line_count();
+  s.place_grid(stats);
+  const uint64_t voxels = s.grid.voxel_count();
   if (voxels >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 voxels; use a coarser grid");
-  if (line_count >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 lines");
+  if (stats.lines >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 lines");
+  // At most 4096 units: small enough per-run tables, fine enough to split the merge.
+  s.unit_shift = uint32_t(std::max(0, int(std::bit_width(voxels - 1)) - 12));
+  s.units = ((voxels - 1) >> s.unit_shift) + 1;
+  s.unit_records.assign(s.units, 0);
+}
 
-  // 1. Walk every line once; each block of lines collects its chords and its error figures.
-  std::vector<Block> blocks;
-  {
-    constexpr uint64_t kSegmentsPerBlock = 1 << 16;
-    size_t first = 0;
-    while (first < line_count) {
-      size_t end = first;
-      const uint64_t begin_point = lines_.line_offsets[first];
-      while (end < line_count &&
-             (end == first || lines_.line_offsets[end] - begin_point < kSegmentsPerBlock))
-        ++end;
-      blocks.push_back({first, end, {}, 0, 0, 0});
-      first = end;
-    }
-  }
-  std::atomic<size_t> blocks_done{0};
-  const size_t progress_groups = std::clamp<size_t>(blocks.size() / 8, 1, 32);
-  for (size_t g = 0; g < progress_groups; ++g) {
-    const size_t begin = blocks.size() * g / progress_groups;
-    const size_t end = blocks.size() * (g + 1) / progress_groups;
-    tbb::parallel_for(size_t{begin}, end, [&](size_t b) {
-      Block& block = blocks[b];
-      block.records.reserve(
-          2 * (lines_.line_offsets[block.end_line] - lines_.line_offsets[block.first_line]));
-      std::vector<Vec> path;
-      for (size_t l = block.first_line; l != block.end_line; ++l)
-        walk(l, path, [&](const Piece& p) { emit(p, uint32_t(l), block); });
-      blocks_done.fetch_add(1, std::memory_order_relaxed);
-    });
-    if (progress) progress(blocks_done.load(), 2 * blocks.size());
-  }
+VoxelStreamBuilder::~VoxelStreamBuilder() = default;
 
-  // 2. Each block sorts its records stably into buckets of consecutive voxels, small enough
-  // that a bucket's per-voxel counters stay in cache. In place (through a per-thread scratch
-  // buffer), so no second copy of all records is ever allocated.
-  const uint32_t bucket_shift =
-      uint32_t(std::max(0, int(std::bit_width(voxels)) - 10));  // at most 1024 buckets
-  const uint64_t bucket_count = ((voxels - 1) >> bucket_shift) + 1;
-  // bucket_ranges[b * (bucket_count + 1) + k]: where bucket k starts in block b's records.
-  std::vector<uint32_t> bucket_ranges(blocks.size() * (bucket_count + 1), 0);
-  tbb::enumerable_thread_specific<std::vector<Record>> scratch;
-  tbb::parallel_for(size_t{0}, blocks.size(), [&](size_t b) {
-    std::vector<Record>& records = blocks[b].records;
-    if (records.size() > 0xFFFFFFFFull)
-      throw Error("voxels: more than 2^32 chords; use a coarser grid");
-    uint32_t* start = bucket_ranges.data() + b * (bucket_count + 1);
-    for (const Record& r : records) ++start[(r.voxel >> bucket_shift) + 1];
-    for (uint64_t k = 0; k < bucket_count; ++k) start[k + 1] += start[k];
-    std::vector<Record>& sorted = scratch.local();
-    sorted.resize(records.size());
-    std::vector<uint32_t> cursor(start, start + bucket_count);
-    for (const Record& r : records) sorted[cursor[r.voxel >> bucket_shift]++] = r;
-    std::copy(sorted.begin(), sorted.end(), records.begin());
+const VoxelGrid& VoxelStreamBuilder::description() const {
+  return state_->grid;
+}
+uint64_t VoxelStreamBuilder::spilled_bytes() const {
+  return state_->spill ? state_->spill->size() : 0;
+}
+uint64_t VoxelStreamBuilder::peak_record_bytes() const {
+  return state_->peak_held_bytes;
+}
+
+// 1. Walk: blocks of lines in parallel, each collecting its chords and error figures.
+// 2. A stable counting sort of the batch's records by unit, scattered block by block in
+//    parallel, makes the batch's run.
+void VoxelStreamBuilder::add(const LineSet& batch) {
+  State& s = *state_;
+  const size_t line_count = batch.line_count();
+  if (line_count == 0) return;
+  constexpr uint64_t kSegmentsPerBlock = 1 << 16;
+  size_t used = 0;
+  for (size_t first = 0; first < line_count; ++used) {
+    size_t end = first;
+    const uint64_t begin_point = batch.line_offsets[first];
+    while (end < line_count &&
+           (end == first || batch.line_offsets[end] - begin_point < kSegmentsPerBlock))
+      ++end;
+    if (s.blocks.size() <= used) s.blocks.emplace_back();
+    Block& block = s.blocks[used];
+    block.first_line = first;
+    block.end_line = end;
+    block.records.clear();
+    block.error_max = 0;
+    block.error_sum = 0;
+    block.error_samples = 0;
+    first = end;
+  }
+  const uint64_t base_line = s.lines_seen;
+  tbb::parallel_for(size_t{0}, used, [&](size_t b) {
+    Block& block = s.blocks[b];
+    std::vector<Vec> path;
+    for (size_t l = block.first_line; l != block.end_line; ++l)
+      s.walk(batch, l, path, [&](const Piece& p) { s.emit(p, uint32_t(base_line + l), block); });
   });
-  scratch.clear();
-  const auto for_each_record = [&](uint64_t k, auto&& body) {
-    for (size_t b = 0; b < blocks.size(); ++b) {
-      const uint32_t* start = bucket_ranges.data() + b * (bucket_count + 1);
-      const Record* records = blocks[b].records.data();
-      for (uint32_t i = start[k]; i != start[k + 1]; ++i) body(records[i]);
-    }
-  };
-  uint64_t total = 0;
-  for (const Block& block : blocks) total += block.records.size();
-  if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
+  s.lines_seen += line_count;
 
-  // 3. Per bucket: chords per voxel, density, distinct lines and the cap; then, once every
-  // bucket knows how many chords it keeps, the offsets and the chords themselves.
-  const uint32_t cap = options_.max_chords_per_voxel;
-  const uint64_t bucket_span = uint64_t(1) << bucket_shift;
-  grid_.density.emplace_back(voxels);
-  grid_.line_counts = Array<uint8_t>(voxels);
-  grid_.offsets = Array<uint32_t>(voxels + 1);
-  struct BucketStats {
+  const uint64_t units = s.units;
+  s.block_counts.assign(used * (units + 1), 0);
+  tbb::parallel_for(size_t{0}, used, [&](size_t b) {
+    uint32_t* counts = s.block_counts.data() + b * (units + 1);
+    for (const Record& r : s.blocks[b].records) ++counts[r.voxel >> s.unit_shift];
+  });
+  Run run;
+  run.start.assign(units + 1, 0);
+  uint64_t total = 0;
+  // Turn the counts into each block's first position per unit: unit-major, then block order.
+  for (uint64_t u = 0; u < units; ++u) {
+    run.start[u] = uint32_t(total);
+    for (size_t b = 0; b < used; ++b) {
+      uint32_t& c = s.block_counts[b * (units + 1) + u];
+      const uint32_t n = c;
+      c = uint32_t(total);
+      total += n;
+    }
+    s.unit_records[u] += total - run.start[u];
+  }
+  if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords in one batch");
+  run.start[units] = uint32_t(total);
+  run.records.resize(total);
+  tbb::parallel_for(size_t{0}, used, [&](size_t b) {
+    uint32_t* cursor = s.block_counts.data() + b * (units + 1);
+    for (const Record& r : s.blocks[b].records) run.records[cursor[r.voxel >> s.unit_shift]++] = r;
+  });
+  for (size_t b = 0; b < used; ++b) {
+    const Block& block = s.blocks[b];
+    s.error_max = std::max(s.error_max, block.error_max);
+    s.error_sum += block.error_sum;
+    s.error_samples += block.error_samples;
+  }
+  s.keep_run(std::move(run));
+}
+
+// 3. Merge, one range of whole units at a time: per voxel the chord count, density, distinct
+//    lines and the cap; then, once every unit of the range knows how many chords it keeps, the
+//    offsets and the chords themselves. Units run in parallel; each reads its records run by
+//    run, so a voxel's chords stay in line order.
+void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
+  State& s = *state_;
+  VoxelGrid& grid = s.grid;
+  sink.begin(grid);
+  s.blocks.clear();
+  s.blocks.shrink_to_fit();
+  const uint64_t voxels = grid.voxel_count(), units = s.units;
+  const uint64_t unit_span = uint64_t(1) << s.unit_shift;
+  const uint32_t cap = grid.max_chords_per_voxel;
+  // Per record: itself and at most one kept chord; per voxel: the output arrays.
+  constexpr uint64_t kRecordCost = sizeof(Record) + 8, kVoxelCost = 4 + 1 + 4 + 16;
+  const uint64_t budget = std::max<uint64_t>(s.memory.merge_bytes, 1);
+  const std::array<uint32_t, 3> coarse = grid.level_resolution(1);
+  Array<float> level1(static_cast<uint64_t>(coarse[0]) * coarse[1] * coarse[2]);
+  std::fill(level1.begin(), level1.end(), 0.0f);
+  std::vector<Record> records;
+  std::vector<uint64_t> base;
+  std::vector<uint32_t> offsets, chords;
+  std::vector<uint8_t> line_counts;
+  std::vector<float> density;
+  tbb::enumerable_thread_specific<UnitScratch> scratch;
+  struct UnitStats {
     uint64_t kept = 0, occupied = 0, overflowed = 0, dropped = 0;
   };
-  std::vector<BucketStats> bucket_stats(bucket_count);
-  tbb::parallel_for(uint64_t{0}, bucket_count, [&](uint64_t k) {
-    const uint64_t base = k << bucket_shift;
-    const uint64_t span = std::min(bucket_span, voxels - base);
-    std::vector<uint32_t> n(span, 0), distinct(span, 0), last_line(span, 0xFFFFFFFFu);
-    std::vector<float> density(span, 0.0f);
-    for_each_record(k, [&](const Record& r) {
-      const uint64_t v = r.voxel - base;
-      ++n[v];
-      density[v] += r.weight;
-      if (last_line[v] != r.line) ++distinct[v], last_line[v] = r.line;
-    });
-    BucketStats& s = bucket_stats[k];
-    for (uint64_t v = 0; v < span; ++v) {
-      grid_.density[0][base + v] = density[v];
-      grid_.line_counts[base + v] = uint8_t(std::min<uint32_t>(distinct[v], 255));
-      const uint32_t kept = std::min(n[v], cap);
-      grid_.offsets[base + v] = kept;  // a count for now; the start once every bucket is done
-      s.kept += kept;
-      s.occupied += n[v] > 0;
-      s.overflowed += n[v] > cap;
-      s.dropped += n[v] - kept;
+  std::vector<UnitStats> unit_stats;
+  uint64_t chords_before = 0;
+  for (uint64_t u0 = 0; u0 < units;) {
+    throw_if_interrupted();
+    uint64_t u1 = u0, cost = 0;
+    while (u1 < units) {
+      const uint64_t v = std::min(unit_span, voxels - (u1 << s.unit_shift));
+      const uint64_t c = s.unit_records[u1] * kRecordCost + v * kVoxelCost;
+      if (u1 > u0 && cost + c > budget) break;
+      cost += c;
+      ++u1;
     }
-  });
-  std::vector<uint64_t> kept_start(bucket_count + 1, 0);
-  for (uint64_t k = 0; k < bucket_count; ++k) {
-    kept_start[k + 1] = kept_start[k] + bucket_stats[k].kept;
-    grid_.voxels_occupied += bucket_stats[k].occupied;
-    grid_.voxels_overflowed += bucket_stats[k].overflowed;
-    grid_.chords_dropped += bucket_stats[k].dropped;
+    if (cost > 2 * budget)
+      throw BudgetExceeded("voxels: " + std::to_string(s.unit_records[u0]) +
+                           " chords fall into voxels " + std::to_string(u0 << s.unit_shift) + ".." +
+                           std::to_string(std::min(voxels, u1 << s.unit_shift)) +
+                           ", more than the memory budget leaves for merging (" +
+                           std::to_string(budget >> 20) +
+                           " MiB); use a coarser grid or a larger --memory-budget");
+    s.gather(u0, u1, records, base);
+    const uint64_t v0 = u0 << s.unit_shift, v1 = std::min(voxels, u1 << s.unit_shift);
+    offsets.resize(v1 - v0);
+    line_counts.resize(v1 - v0);
+    density.resize(v1 - v0);
+    unit_stats.assign(u1 - u0, {});
+    const auto for_each_record = [&](uint64_t u, auto&& body) {
+      for (size_t r = 0; r < s.runs.size(); ++r) {
+        const Run& run = s.runs[r];
+        const Record* first = records.data() + base[r] + (run.start[u] - run.start[u0]);
+        const Record* last = first + (run.start[u + 1] - run.start[u]);
+        for (const Record* p = first; p != last; ++p) body(*p);
+      }
+    };
+    tbb::parallel_for(u0, u1, [&](uint64_t u) {
+      const uint64_t first_voxel = u << s.unit_shift;
+      const uint64_t span = std::min(unit_span, voxels - first_voxel);
+      UnitScratch& t = scratch.local();
+      t.resize(span);
+      for_each_record(u, [&](const Record& r) {
+        const uint64_t v = r.voxel - first_voxel;
+        ++t.n[v];
+        t.density[v] += r.weight;
+        if (t.last_line[v] != r.line) ++t.distinct[v], t.last_line[v] = r.line;
+      });
+      UnitStats& us = unit_stats[u - u0];
+      for (uint64_t v = 0; v < span; ++v) {
+        const uint64_t at = first_voxel + v - v0;
+        density[at] = t.density[v];
+        line_counts[at] = uint8_t(std::min<uint32_t>(t.distinct[v], 255));
+        const uint32_t kept = std::min(t.n[v], cap);
+        offsets[at] = kept;  // a count for now; the start once every unit is counted
+        us.kept += kept;
+        us.occupied += t.n[v] > 0;
+        us.overflowed += t.n[v] > cap;
+        us.dropped += t.n[v] - kept;
+      }
+    });
+    std::vector<uint64_t> kept_start(u1 - u0 + 1, 0);
+    for (uint64_t k = 0; k < u1 - u0; ++k) {
+      kept_start[k + 1] = kept_start[k] + unit_stats[k].kept;
+      grid.voxels_occupied += unit_stats[k].occupied;
+      grid.voxels_overflowed += unit_stats[k].overflowed;
+      grid.chords_dropped += unit_stats[k].dropped;
+    }
+    const uint64_t range_chords = kept_start.back();
+    if (chords_before + range_chords > 0xFFFFFFFFull)
+      throw Error("voxels: more than 2^32 chords; use a coarser grid");
+    chords.resize(2 * range_chords);
+    tbb::parallel_for(u0, u1, [&](uint64_t u) {
+      const uint64_t first_voxel = u << s.unit_shift;
+      const uint64_t span = std::min(unit_span, voxels - first_voxel);
+      UnitScratch& t = scratch.local();
+      t.resize(span);
+      // Per voxel: where its next kept chord goes and how many more it keeps.
+      uint64_t running = kept_start[u - u0];
+      for (uint64_t v = 0; v < span; ++v) {
+        uint32_t& o = offsets[first_voxel + v - v0];
+        t.room[v] = o;
+        t.cursor[v] = uint32_t(running);
+        o = uint32_t(chords_before + running);
+        running += t.room[v];
+      }
+      for_each_record(u, [&](const Record& r) {
+        const uint64_t v = r.voxel - first_voxel;
+        if (t.room[v] == 0) return;  // over the cap: the first chords in canonical order stay
+        --t.room[v];
+        const uint64_t at = 2 * uint64_t(t.cursor[v]++);
+        chords[at] = r.word0;
+        chords[at + 1] = r.word1;
+      });
+    });
+    sink.voxels(v0, v1 - v0, offsets.data(), line_counts.data(), density.data(), chords.data(),
+                range_chords);
+    // Level 1 of the density mips, summed in voxel order: for every coarse voxel the same
+    // additions in the same order as the 2x2x2 loop of the levels above it.
+    const auto& r = grid.resolution;
+    for (uint64_t v = v0; v < v1; ++v) {
+      const uint64_t x = v % r[0], y = (v / r[0]) % r[1], z = v / (uint64_t(r[0]) * r[1]);
+      level1[((z / 2) * coarse[1] + y / 2) * coarse[0] + x / 2] += density[v - v0];
+    }
+    chords_before += range_chords;
+    if (progress) progress(v1, voxels);
+    u0 = u1;
   }
-  grid_.offsets[voxels] = uint32_t(kept_start[bucket_count]);
-  grid_.chords = Array<uint32_t>(2 * kept_start[bucket_count]);
-  tbb::parallel_for(uint64_t{0}, bucket_count, [&](uint64_t k) {
-    const uint64_t base = k << bucket_shift;
-    const uint64_t span = std::min(bucket_span, voxels - base);
-    // Per voxel: where its next kept chord goes and how many more it keeps.
-    std::vector<uint32_t> cursor(span), room(span);
-    uint32_t running = uint32_t(kept_start[k]);
-    for (uint64_t v = 0; v < span; ++v) {
-      room[v] = grid_.offsets[base + v];
-      cursor[v] = grid_.offsets[base + v] = running;
-      running += room[v];
-    }
-    for_each_record(k, [&](const Record& r) {
-      const uint64_t v = r.voxel - base;
-      if (room[v] == 0) return;  // over the cap: the first chords in canonical order stay
-      --room[v];
-      const uint64_t at = 2 * uint64_t(cursor[v]++);
-      grid_.chords[at] = r.word0;
-      grid_.chords[at + 1] = r.word1;
-    });
-  });
-  for (Block& block : blocks) std::vector<Record>().swap(block.records);
+  s.runs.clear();
+  s.spill.reset();
+  for (float& d : level1) d /= 8;
+
   // Density mip levels: 2x2x2 means (missing children count as empty) down to one voxel.
-  while (true) {
-    const size_t level = grid_.density.size() - 1;
-    const auto fine = grid_.level_resolution(level), coarse = grid_.level_resolution(level + 1);
+  std::vector<Array<float>> levels;
+  const bool single = grid.resolution[0] == 1 && grid.resolution[1] == 1 && grid.resolution[2] == 1;
+  if (!single) levels.push_back(std::move(level1));
+  while (!levels.empty()) {
+    const size_t level = levels.size();  // levels[level - 1] is mip level `level`
+    const auto fine = grid.level_resolution(level), next = grid.level_resolution(level + 1);
     if (fine[0] == 1 && fine[1] == 1 && fine[2] == 1) break;
-    Array<float> next(static_cast<uint64_t>(coarse[0]) * coarse[1] * coarse[2]);
-    const Array<float>& src = grid_.density[level];
-    tbb::parallel_for(uint32_t{0}, coarse[2], [&](uint32_t z) {
-      for (uint32_t y = 0; y < coarse[1]; ++y)
-        for (uint32_t x = 0; x < coarse[0]; ++x) {
+    Array<float> out(static_cast<uint64_t>(next[0]) * next[1] * next[2]);
+    const Array<float>& src = levels.back();
+    tbb::parallel_for(uint32_t{0}, next[2], [&](uint32_t z) {
+      for (uint32_t y = 0; y < next[1]; ++y)
+        for (uint32_t x = 0; x < next[0]; ++x) {
           float sum = 0;
           for (uint32_t dz = 0; dz < 2; ++dz)
             for (uint32_t dy = 0; dy < 2; ++dy)
@@ -415,21 +617,56 @@ void Voxelizer::build(const ProgressFn& progress) {
                 if (fx < fine[0] && fy < fine[1] && fz < fine[2])
                   sum += src[(uint64_t(fz) * fine[1] + fy) * fine[0] + fx];
               }
-          next[(uint64_t(z) * coarse[1] + y) * coarse[0] + x] = sum / 8;
+          out[(uint64_t(z) * next[1] + y) * next[0] + x] = sum / 8;
         }
     });
-    grid_.density.push_back(std::move(next));
+    levels.push_back(std::move(out));
+  }
+  grid.max_error = s.error_max;
+  grid.mean_error =
+      s.error_samples ? double(s.error_sum) / kErrorScale / double(s.error_samples) : 0.0;
+  sink.end(grid, uint32_t(chords_before), std::move(levels));
+}
+
+namespace {
+
+// Collects a streamed build into a VoxelGrid's own arrays.
+class GridSink : public VoxelSink {
+ public:
+  explicit GridSink(VoxelGrid& grid) : grid_(grid) {}
+  void begin(const VoxelGrid& grid) override {
+    grid_ = grid;
+    const uint64_t voxels = grid.voxel_count();
+    grid_.offsets = Array<uint32_t>(voxels + 1);
+    grid_.line_counts = Array<uint8_t>(voxels);
+    grid_.density.clear();
+    grid_.density.emplace_back(voxels);
+  }
+  void voxels(uint64_t first, uint64_t count, const uint32_t* offsets, const uint8_t* line_counts,
+              const float* density, const uint32_t* chords, uint64_t chord_count) override {
+    std::copy_n(offsets, count, grid_.offsets.data() + first);
+    std::copy_n(line_counts, count, grid_.line_counts.data() + first);
+    std::copy_n(density, count, grid_.density[0].data() + first);
+    chords_.insert(chords_.end(), chords, chords + 2 * chord_count);
+  }
+  void end(const VoxelGrid& grid, uint32_t chord_count, std::vector<Array<float>> coarse) override {
+    Array<uint32_t> offsets = std::move(grid_.offsets);
+    Array<uint8_t> line_counts = std::move(grid_.line_counts);
+    std::vector<Array<float>> density = std::move(grid_.density);
+    grid_ = grid;
+    grid_.offsets = std::move(offsets);
+    grid_.offsets[grid.voxel_count()] = chord_count;
+    grid_.line_counts = std::move(line_counts);
+    grid_.density = std::move(density);
+    for (Array<float>& level : coarse) grid_.density.push_back(std::move(level));
+    grid_.chords = Array<uint32_t>(chords_.size());
+    std::copy(chords_.begin(), chords_.end(), grid_.chords.begin());
   }
 
-  double sum = 0;
-  uint64_t samples = 0;
-  for (const Block& block : blocks) {
-    grid_.max_error = std::max(grid_.max_error, block.error_max);
-    sum += block.error_sum;
-    samples += block.error_samples;
-  }
-  grid_.mean_error = samples ? sum / double(samples) : 0.0;
-}
+ private:
+  VoxelGrid& grid_;
+  std::vector<uint32_t> chords_;
+};
 
 }  // namespace
 
@@ -457,8 +694,13 @@ void parse_grid(const std::string& text, VoxelOptions& options) {
 }
 
 VoxelGrid voxelize(const LineSet& lines, const VoxelOptions& options, const ProgressFn& progress) {
+  VoxelStreamBuilder builder(lines, compute_stats(lines), options);
+  builder.add(lines);
+  if (progress) progress(1, 2);
   VoxelGrid grid;
-  Voxelizer(lines, options, grid).build(progress);
+  GridSink sink(grid);
+  builder.finish(sink);
+  if (progress) progress(2, 2);
   return grid;
 }
 

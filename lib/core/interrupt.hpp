@@ -1,0 +1,29 @@
+#pragma once
+// Ctrl-C, SIGTERM (a scheduler's end of job) and SIGHUP stop long work at its next safe point:
+// the first signal sets a flag that loops check between batches, chunks, frames and steps;
+// throwing Interrupted unwinds the stack, so every temporary and spill file is removed by the
+// object that owns it. A second signal ends the process at once.
+
+#include <string>
+
+#include "core/error.hpp"
+
+namespace linebake {
+
+class Interrupted : public Error {
+ public:
+  explicit Interrupted(int signal);
+  int signal() const { return signal_; }
+
+ private:
+  int signal_;
+};
+
+// Installs the handlers (idempotent). Commands that write call it; tests need not.
+void install_interrupt_handlers();
+// The signal that asked to stop, or 0.
+int interrupt_signal();
+// Throws Interrupted when a signal asked to stop.
+void throw_if_interrupted();
+
+}  // namespace linebake

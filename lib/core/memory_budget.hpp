@@ -1,0 +1,42 @@
+#pragma once
+// Memory as a budget: the most resident memory a command may use, the process's own included.
+// Stages size their batches and buffers from what the budget leaves, and refuse work that cannot
+// fit with the figures, instead of being killed by the kernel.
+
+#include <cstdint>
+#include <string>
+
+namespace linebake {
+
+// "2G", "1.5GiB", "512M", "64k", "4096": binary units (K, M, G, T = 2^10, 2^20, 2^30, 2^40),
+// with or without "iB"/"B". Throws Error on anything else.
+uint64_t parse_size(const std::string& text);
+// "1.50 GiB", "512.00 MiB", "17 B": binary units, two decimals.
+std::string format_bytes(uint64_t bytes);
+// Physical memory of the machine (or of the cgroup, when that is smaller).
+uint64_t physical_memory_bytes();
+// The default budget: half of physical memory.
+uint64_t default_memory_budget();
+
+class MemoryBudget {
+ public:
+  // `total`: the process's whole budget; 0 means unlimited. What the process already holds when
+  // the budget starts is counted as used.
+  explicit MemoryBudget(uint64_t total);
+
+  bool unlimited() const { return total_ == 0; }
+  uint64_t total() const { return total_; }
+  uint64_t baseline() const { return baseline_; }  // resident bytes when the budget started
+  uint64_t reserved() const { return reserved_; }
+  // What is left for work: total less the baseline and the reservations (UINT64_MAX when
+  // unlimited).
+  uint64_t available() const;
+  // Takes `bytes` for `what`; throws BudgetExceeded naming `what`, the bytes and the budget.
+  void reserve(uint64_t bytes, const std::string& what);
+  void release(uint64_t bytes);
+
+ private:
+  uint64_t total_ = 0, baseline_ = 0, reserved_ = 0;
+};
+
+}  // namespace linebake

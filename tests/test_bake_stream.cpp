@@ -1,0 +1,187 @@
+// The streamed bake: the same cache bytes for any memory budget and thread count, spill files
+// used and removed, budgets too small for one line refused before anything is written.
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
+#include "cache/cache.hpp"
+#include "core/error.hpp"
+#include "core/measure.hpp"
+#include "formats/registry.hpp"
+#include "pipeline/bake.hpp"
+#include "synth/synth.hpp"
+#include "test_util.hpp"
+
+namespace linebake {
+namespace {
+
+using test::TempDir;
+
+// Every dataset of a cache with its stored XXH3-128 (the hash of its bytes).
+std::map<std::string, std::string> dataset_hashes(const std::string& path) {
+  const CacheReader cache(path);
+  std::map<std::string, std::string> out;
+  std::vector<std::string> groups{"/"};
+  while (!groups.empty()) {
+    const std::string g = groups.back();
+    groups.pop_back();
+    for (const std::string& name : cache.members(g)) {
+      const std::string child = (g == "/" ? "" : g) + "/" + name;
+      if (auto hash = cache.attribute(child, "xxh3_128"))
+        out[child] = *hash;
+      else
+        groups.push_back(child);
+    }
+  }
+  return out;
+}
+
+// A budget of `working` bytes on top of what this process holds now: the test process alone is
+// larger than a 16 or 64 MiB budget. The bake keeps at least 24 MiB of it for fixed buffers
+// (encoded chunks in flight, HDF5), so 40 MiB leaves it 16 MiB to work in, 88 MiB leaves 64.
+uint64_t working_budget(uint64_t working) {
+  return current_rss_bytes() + working;
+}
+
+BakeOptions streamed_options(const std::string& input, const std::string& cache, uint64_t budget) {
+  BakeOptions o;
+  o.input = input;
+  o.cache = cache;
+  o.assets = {"tubes", "voxels", "embree"};
+  o.tubes.max_chunk_bytes = 1 << 20;  // several tube chunks, so batches cross chunk boundaries
+  o.voxels.grid = 64;
+  o.memory_budget = budget;
+  o.progress = false;
+  return o;
+}
+
+TEST(BakeStream, SameDatasetsForEveryBudgetAndThreadCount) {
+  TempDir dir;
+  // 175k segments of turbulence in a 256^3 grid: small enough for a test, large enough for many
+  // batches and for its chords (~4 MB of records) to spill where 16 MiB is all there is.
+  const std::string input = dir.file("t.binlines");
+  write_line_set(synth::generate({"turbulence", 0.01, 3, false}), input);
+  std::map<std::string, std::string> reference;
+  struct Run {
+    uint64_t working;  // 0: unlimited
+    int threads;
+  };
+  for (const Run run :
+       {Run{0, 2}, Run{40 << 20, 2}, Run{88 << 20, 2}, Run{40 << 20, 1}, Run{0, 1}}) {
+    tbb::global_control threads(tbb::global_control::max_allowed_parallelism, size_t(run.threads));
+    const std::string cache =
+        dir.file("c" + std::to_string(run.working) + "-" + std::to_string(run.threads) + ".lbc.h5");
+    BakeOptions o = streamed_options(
+        input, cache, run.working ? working_budget(run.working) : BakeOptions::kUnlimited);
+    o.voxels.grid = 256;
+    const BakeResult result = bake(o);
+    const auto hashes = dataset_hashes(cache);
+    ASSERT_GT(hashes.size(), 20u);
+    if (reference.empty()) {
+      reference = hashes;
+      continue;
+    }
+    EXPECT_EQ(hashes, reference) << run.working << " bytes, " << run.threads << " threads";
+    if (run.working == 40u << 20) {
+      // A small budget really does cut the work: many batches, and the voxel records spill.
+      EXPECT_LT(result.batch_points, 100000u);
+      const CacheReader c(cache, false);
+      EXPECT_GT(c.provenance("/assets/voxels")->spill_bytes, 0u);
+      EXPECT_EQ(c.provenance("/assets/voxels")->memory_budget, result.memory_budget_bytes);
+    }
+  }
+  // Nothing but the caches and the input is left in the directory.
+  for (const std::string& name : dir.entries())
+    EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
+}
+
+TEST(BakeStream, EqualsTheWholeBuildersOutput) {
+  TempDir dir;
+  const LineSet lines = synth::generate({"aneurysm", 0.005, 1, false});
+  const std::string input = dir.file("a.binlines");
+  write_line_set(lines, input);
+  BakeOptions o = streamed_options(input, dir.file("a.lbc.h5"), working_budget(40 << 20));
+  bake(o);
+  const CacheReader cache(o.cache);
+  // The streamed tubes and voxels equal the in-memory builders' on the whole line set.
+  const TubeMesh mesh = build_tubes(lines, o.tubes);
+  ASSERT_EQ(cache.members("/assets/tubes").size(), mesh.chunks.size());
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) {
+    char name[64];
+    std::snprintf(name, sizeof name, "/assets/tubes/chunk_%06zu/positions", c);
+    const Array<float> positions = cache.read<float>(name);
+    ASSERT_EQ(positions.size(), mesh.chunks[c].positions.size());
+    EXPECT_TRUE(std::equal(positions.begin(), positions.end(), mesh.chunks[c].positions.begin()));
+  }
+  const VoxelGrid grid = voxelize(lines, o.voxels);
+  const Array<uint32_t> chords = cache.read<uint32_t>("/assets/voxels/chords");
+  ASSERT_EQ(chords.size(), grid.chords.size());
+  EXPECT_TRUE(std::equal(chords.begin(), chords.end(), grid.chords.begin()));
+  const Array<float> density = cache.read<float>("/assets/voxels/density_1");
+  ASSERT_EQ(density.size(), grid.density[1].size());
+  EXPECT_TRUE(std::equal(density.begin(), density.end(), grid.density[1].begin()));
+}
+
+TEST(BakeStream, ABudgetTooSmallForOneLineFailsNamingTheLineAndLeavesNothing) {
+  TempDir dir;
+  LineSet lines;
+  for (int i = 0; i < 20; ++i) lines.append_point(float(i), 0, 0);  // a short line
+  lines.end_line();
+  for (int i = 0; i < 400000; ++i)  // a long one: 400k points, ~150 MB to bake
+    lines.append_point(float(i % 1000), float(i / 1000), float(i % 7));
+  lines.end_line();
+  const std::string input = dir.file("long.binlines");
+  write_line_set(lines, input);
+  BakeOptions o = streamed_options(input, dir.file("long.lbc.h5"), working_budget(40 << 20));
+  try {
+    bake(o);
+    FAIL() << "baked";
+  } catch (const BudgetExceeded& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("line 1 has 400000 points"), std::string::npos) << message;
+    EXPECT_NE(message.find("memory budget"), std::string::npos) << message;
+  }
+  EXPECT_EQ(dir.entries(), std::vector<std::string>{"long.binlines"});
+}
+
+TEST(BakeStream, SpillFilesAreRemovedAfterAFailure) {
+  TempDir dir;
+  const std::string input = dir.file("c.binlines");
+  write_line_set(synth::generate({"convection", 0.01, 3, false}), input);
+  // Cut the file in the middle of a line: the read fails after many batches were spooled.
+  std::filesystem::resize_file(input, std::filesystem::file_size(input) / 2);
+  BakeOptions o = streamed_options(input, dir.file("c.lbc.h5"), working_budget(40 << 20));
+  EXPECT_THROW(bake(o), InputError);
+  EXPECT_EQ(dir.entries(), std::vector<std::string>{"c.binlines"});
+}
+
+TEST(BakeStream, ReusedLinesStreamFromTheOldCache) {
+  TempDir dir;
+  const std::string input = dir.file("c.binlines");
+  write_line_set(synth::generate({"convection", 0.005, 2, false}), input);
+  BakeOptions o = streamed_options(input, dir.file("c.lbc.h5"), working_budget(40 << 20));
+  o.assets = {"tubes"};
+  bake(o);
+  // Voxels added later: /lines is reused, read back in batches from the cache itself.
+  o.assets = {"voxels"};
+  const BakeResult second = bake(o);
+  ASSERT_EQ(second.steps.size(), 2u);
+  EXPECT_FALSE(second.steps[0].built);
+  EXPECT_TRUE(second.steps[1].built);
+  const CacheReader cache(o.cache);
+  std::vector<std::string> assets = cache.assets();
+  std::sort(assets.begin(), assets.end());
+  EXPECT_EQ(assets, (std::vector<std::string>{"tubes", "voxels"}));
+  BakeOptions whole = streamed_options(input, dir.file("w.lbc.h5"), BakeOptions::kUnlimited);
+  whole.assets = {"tubes", "voxels"};
+  bake(whole);
+  const auto a = dataset_hashes(o.cache), b = dataset_hashes(whole.cache);
+  EXPECT_EQ(a, b);
+}
+
+}  // namespace
+}  // namespace linebake
