@@ -24,16 +24,16 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
 LineSet read_vtp(const std::string& path, const ReadOptions& options);
 void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
-LineSet read_netcdf(const std::string& path, const ReadOptions& options);
+std::unique_ptr<LineReader> open_netcdf(const std::string& path, const ReadOptions& options);
 
 // The plain layout, or the line set of a linebake asset cache (/lines).
 std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions& options);
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
-LineSet read_trk(const std::string& path, const ReadOptions& options);
-LineSet read_tck(const std::string& path, const ReadOptions& options);
+std::unique_ptr<LineReader> open_trk(const std::string& path, const ReadOptions& options);
+std::unique_ptr<LineReader> open_tck(const std::string& path, const ReadOptions& options);
 
-LineSet read_csv(const std::string& path, const ReadOptions& options);
+std::unique_ptr<LineReader> open_csv(const std::string& path, const ReadOptions& options);
 void write_csv(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 }  // namespace linebake::formats

@@ -93,7 +93,7 @@ class Hdf5Reader : public LineReader {
     if (lines_read_ >= count) return false;
     const uint64_t first = lines_read_, p0 = offsets_[first];
     size_t end = size_t(std::upper_bound(offsets_.begin() + std::ptrdiff_t(first + 1),
-                                         offsets_.end(), p0 + max_points) -
+                                         offsets_.end(), saturating_add(p0, max_points)) -
                         offsets_.begin()) -
                  1;
     end = std::max<size_t>(end, first + 1);

@@ -125,116 +125,186 @@ bool invalid(double value, const std::optional<double>& fill) {
   return !std::isfinite(value) || std::fabs(value) >= 1e20 || (fill && value == *fill);
 }
 
-}  // namespace
+// Lines are read in batches: multidimensional arrays as hyperslabs of whole rows (lines of the
+// file), contiguous ragged arrays as ranges of observations (the counts are read at open).
+class NetcdfReader : public LineReader {
+ public:
+  NetcdfReader(const std::string& path, const ReadOptions& options)
+      : nc_(path), progress_(options.progress) {
+    vars_ = variables(nc_);
+    const bool cf = lower(text_attribute(nc_, NC_GLOBAL, "featureType")) == "trajectory";
 
-LineSet read_netcdf(const std::string& path, const ReadOptions& options) {
-  Nc nc(path);
-  const std::vector<Variable> vars = variables(nc);
-  const bool cf = lower(text_attribute(nc, NC_GLOBAL, "featureType")) == "trajectory";
-
-  // Contiguous ragged: a count variable with sample_dimension.
-  const Variable* counts = nullptr;
-  int sample_dim = -1;
-  for (const Variable& v : vars) {
-    const std::string sample = text_attribute(nc, v.id, "sample_dimension");
-    if (sample.empty()) continue;
-    counts = &v;
-    if (nc_inq_dimid(nc.id, sample.c_str(), &sample_dim) != NC_NOERR)
-      throw InputError(path, "variable " + v.name,
-                       "sample_dimension '" + sample + "' does not exist");
-  }
-
-  // Candidate position/attribute variables and the line layout.
-  std::vector<const Variable*> candidates;
-  size_t line_count = 0, max_points = 0;
-  if (counts) {
-    for (const Variable& v : vars)
-      if (v.dims.size() == 1 && v.dims[0] == sample_dim && &v != counts) candidates.push_back(&v);
-    line_count = counts->shape.empty() ? 1 : counts->shape[0];
-  } else {
-    // The shape every trajectory variable shares: (1 x) lines x points.
-    std::vector<size_t> best;
-    for (const Variable& v : vars) {
-      std::vector<size_t> s = v.shape;
-      while (s.size() > 2 && s.front() == 1) s.erase(s.begin());
-      if (s.size() == 2 && s[0] * s[1] > (best.empty() ? 0 : best[0] * best[1])) best = s;
+    // Contiguous ragged: a count variable with sample_dimension.
+    int sample_dim = -1;
+    for (const Variable& v : vars_) {
+      const std::string sample = text_attribute(nc_, v.id, "sample_dimension");
+      if (sample.empty()) continue;
+      counts_ = &v;
+      if (nc_inq_dimid(nc_.id, sample.c_str(), &sample_dim) != NC_NOERR)
+        throw InputError(path, "variable " + v.name,
+                         "sample_dimension '" + sample + "' does not exist");
     }
-    if (best.empty())
-      throw InputError(path, "",
-                       std::string("no trajectory variables (expected ") +
-                           (cf ? "x(trajectory, obs)" : "(1 x) trajectory x time arrays") +
-                           " or a ragged count variable with sample_dimension)");
-    line_count = best[0];
-    max_points = best[1];
-    for (const Variable& v : vars) {
-      std::vector<size_t> s = v.shape;
-      while (s.size() > 2 && s.front() == 1) s.erase(s.begin());
-      if (s == best) candidates.push_back(&v);
-    }
-  }
-  const Variable* axes[3];
-  for (int axis = 0; axis < 3; ++axis) axes[axis] = find_axis(nc, candidates, axis);
-  if (!axes[0] || !axes[1])
-    throw InputError(path, "", "cannot find x/longitude and y/latitude variables");
 
-  std::vector<std::vector<double>> position_values(3);
-  for (int axis = 0; axis < 3; ++axis)
-    if (axes[axis]) position_values[axis] = read_all(nc, *axes[axis]);
-  std::vector<const Variable*> attribute_vars;
-  for (const Variable* v : candidates)
-    if (v != axes[0] && v != axes[1] && v != axes[2]) attribute_vars.push_back(v);
-  std::vector<std::vector<double>> attribute_values;
-  for (const Variable* v : attribute_vars) attribute_values.push_back(read_all(nc, *v));
-  if (options.progress) options.progress(1, 2);
-
-  // Observation ranges per line.
-  std::vector<std::pair<size_t, size_t>> ranges;  // [begin, end) into the flat arrays
-  if (counts) {
-    std::vector<double> n = read_all(nc, *counts);
-    size_t at = 0;
-    const size_t total = position_values[0].size();
-    for (size_t i = 0; i < n.size(); ++i) {
-      if (!(n[i] >= 0) || at + static_cast<size_t>(n[i]) > total)
-        throw InputError(path, "variable " + counts->name + ", index " + std::to_string(i),
-                         "count runs past the " + std::to_string(total) + " observations");
-      ranges.emplace_back(at, at + static_cast<size_t>(n[i]));
-      at += static_cast<size_t>(n[i]);
-    }
-  } else {
-    for (size_t i = 0; i < line_count; ++i)
-      ranges.emplace_back(i * max_points, (i + 1) * max_points);
-  }
-
-  LineSet lines;
-  lines.attributes.resize(attribute_vars.size());
-  for (size_t a = 0; a < attribute_vars.size(); ++a)
-    lines.attributes[a].name = attribute_vars[a]->name;
-  for (const auto& [begin, end] : ranges) {
-    const size_t first = lines.point_count();
-    for (size_t i = begin; i < end; ++i) {
-      bool bad = false;
-      for (int axis = 0; axis < 3; ++axis)
-        if (axes[axis] && invalid(position_values[axis][i], axes[axis]->fill)) bad = true;
-      if (bad) break;  // an invalid value ends the line
-      lines.append_point(static_cast<float>(position_values[0][i]),
-                         static_cast<float>(position_values[1][i]),
-                         axes[2] ? static_cast<float>(position_values[2][i]) : 0.0f);
-      for (size_t a = 0; a < attribute_vars.size(); ++a) {
-        const double v = attribute_values[a][i];
-        lines.attributes[a].values.push_back(
-            attribute_vars[a]->fill && v == *attribute_vars[a]->fill ? NAN : static_cast<float>(v));
+    // Candidate position/attribute variables and the line layout.
+    std::vector<const Variable*> candidates;
+    if (counts_) {
+      for (const Variable& v : vars_)
+        if (v.dims.size() == 1 && v.dims[0] == sample_dim && &v != counts_)
+          candidates.push_back(&v);
+    } else {
+      // The shape every trajectory variable shares: (1 x) lines x points.
+      std::vector<size_t> best;
+      for (const Variable& v : vars_) {
+        std::vector<size_t> s = v.shape;
+        while (s.size() > 2 && s.front() == 1) s.erase(s.begin());
+        if (s.size() == 2 && s[0] * s[1] > (best.empty() ? 0 : best[0] * best[1])) best = s;
+      }
+      if (best.empty())
+        throw InputError(path, "",
+                         std::string("no trajectory variables (expected ") +
+                             (cf ? "x(trajectory, obs)" : "(1 x) trajectory x time arrays") +
+                             " or a ragged count variable with sample_dimension)");
+      line_count_ = best[0];
+      row_points_ = best[1];
+      for (const Variable& v : vars_) {
+        std::vector<size_t> s = v.shape;
+        while (s.size() > 2 && s.front() == 1) s.erase(s.begin());
+        if (s == best) candidates.push_back(&v);
       }
     }
-    if (lines.point_count() > first) lines.end_line();
+    for (int axis = 0; axis < 3; ++axis) axes_[axis] = find_axis(nc_, candidates, axis);
+    if (!axes_[0] || !axes_[1])
+      throw InputError(path, "", "cannot find x/longitude and y/latitude variables");
+    for (const Variable* v : candidates)
+      if (v != axes_[0] && v != axes_[1] && v != axes_[2]) attribute_vars_.push_back(v);
+    for (const Variable* v : attribute_vars_) header_.attributes.push_back({v->name, {}});
+
+    if (counts_) {
+      // Observation ranges per line: [offsets_[i], offsets_[i + 1]).
+      const std::vector<double> n = read_all(nc_, *counts_);
+      size_t total = 1;
+      for (size_t s : axes_[0]->shape) total *= s;
+      size_t at = 0;
+      offsets_.reserve(n.size() + 1);
+      offsets_.push_back(0);
+      for (size_t i = 0; i < n.size(); ++i) {
+        if (!(n[i] >= 0) || at + static_cast<size_t>(n[i]) > total)
+          throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
+                           "count runs past the " + std::to_string(total) + " observations");
+        at += static_cast<size_t>(n[i]);
+        offsets_.push_back(at);
+      }
+      line_count_ = n.size();
+    }
+
+    header_.metadata["netcdf.layout"] = counts_ ? "cf-contiguous-ragged"
+                                        : cf    ? "cf-multidimensional"
+                                                : "lagranto";
+    for (int axis = 0; axis < 3; ++axis)
+      header_.metadata[std::string("netcdf.") + "xyz"[axis]] =
+          axes_[axis] ? axes_[axis]->name : "(none: 0)";
   }
-  lines.metadata["netcdf.layout"] = counts ? "cf-contiguous-ragged"
-                                    : cf   ? "cf-multidimensional"
-                                           : "lagranto";
-  for (int axis = 0; axis < 3; ++axis)
-    lines.metadata[std::string("netcdf.") + "xyz"[axis]] =
-        axes[axis] ? axes[axis]->name : "(none: 0)";
-  if (options.progress) options.progress(2, 2);
-  return lines;
+
+  bool next(LineSet& batch, uint64_t max_points) override {
+    copy_lines(header_, 0, 0, batch);
+    while (file_line_ < line_count_) {
+      if (batch.line_count() > 0 && batch.point_count() >= max_points) break;
+      const uint64_t room = max_points - batch.point_count();
+      // File lines [file_line_, end) hold at most `room` points together (at least one line).
+      size_t end;
+      if (counts_) {
+        const uint64_t p0 = offsets_[file_line_];
+        const uint64_t limit = room > UINT64_MAX - p0 ? UINT64_MAX : p0 + room;
+        end = size_t(std::upper_bound(offsets_.begin() + std::ptrdiff_t(file_line_ + 1),
+                                      offsets_.end(), limit) -
+                     offsets_.begin()) -
+              1;
+      } else {
+        end = file_line_ + size_t(std::min<uint64_t>(room / row_points_, line_count_ - file_line_));
+      }
+      if (end == file_line_) {
+        if (batch.line_count() > 0) break;
+        end = file_line_ + 1;  // a line larger than max_points comes alone
+      }
+      read_lines(file_line_, end, batch);
+      file_line_ = end;
+    }
+    if (progress_) progress_(file_line_, line_count_);
+    lines_read_ += batch.line_count();
+    return batch.line_count() > 0;
+  }
+
+ private:
+  // Reads file lines [first, end) of every variable and appends their valid points to `batch`.
+  void read_lines(size_t first, size_t end, LineSet& batch) {
+    const size_t begin_value = counts_ ? offsets_[first] : 0;  // of the values read
+    for (int axis = 0; axis < 3; ++axis)
+      if (axes_[axis]) read_rows(*axes_[axis], first, end - first, position_values_[axis]);
+    attribute_values_.resize(attribute_vars_.size());
+    for (size_t a = 0; a < attribute_vars_.size(); ++a)
+      read_rows(*attribute_vars_[a], first, end - first, attribute_values_[a]);
+    for (size_t line = first; line < end; ++line) {
+      const size_t begin = counts_ ? offsets_[line] - begin_value : (line - first) * row_points_;
+      const size_t stop = counts_ ? offsets_[line + 1] - begin_value : begin + row_points_;
+      const size_t start_points = batch.point_count();
+      for (size_t i = begin; i < stop; ++i) {
+        bool bad = false;
+        for (int axis = 0; axis < 3; ++axis)
+          if (axes_[axis] && invalid(position_values_[axis][i], axes_[axis]->fill)) bad = true;
+        if (bad) break;  // an invalid value ends the line
+        batch.append_point(static_cast<float>(position_values_[0][i]),
+                           static_cast<float>(position_values_[1][i]),
+                           axes_[2] ? static_cast<float>(position_values_[2][i]) : 0.0f);
+        for (size_t a = 0; a < attribute_vars_.size(); ++a) {
+          const double v = attribute_values_[a][i];
+          batch.attributes[a].values.push_back(
+              attribute_vars_[a]->fill && v == *attribute_vars_[a]->fill ? NAN
+                                                                         : static_cast<float>(v));
+        }
+      }
+      if (batch.point_count() > start_points) batch.end_line();
+    }
+  }
+
+  // Values of `v` for file lines [first, first + count): a range of observations (ragged) or of
+  // rows of the (1 x) lines x points array.
+  void read_rows(const Variable& v, size_t first, size_t count, std::vector<double>& out) {
+    std::vector<size_t> start(v.shape.size(), 0), extent(v.shape.size(), 1);
+    size_t total = 0;
+    if (counts_) {
+      start[0] = offsets_[first];
+      extent[0] = total = offsets_[first + count] - offsets_[first];
+    } else {
+      const size_t line_dim = v.shape.size() - 2;
+      start[line_dim] = first;
+      extent[line_dim] = count;
+      extent[line_dim + 1] = row_points_;
+      total = count * row_points_;
+    }
+    out.resize(total);
+    if (total == 0) return;
+    nc_.check(nc_get_vara_double(nc_.id, v.id, start.data(), extent.data(), out.data()),
+              "variable " + v.name);
+  }
+
+  Nc nc_;
+  ProgressFn progress_;
+  std::vector<Variable> vars_;
+  const Variable* counts_ = nullptr;  // the ragged count variable, if any
+  const Variable* axes_[3] = {nullptr, nullptr, nullptr};
+  std::vector<const Variable*> attribute_vars_;
+  size_t line_count_ = 0;          // lines of the file (some may read as no line)
+  size_t row_points_ = 0;          // multidimensional: points per row
+  std::vector<uint64_t> offsets_;  // ragged: first observation of each line, and the total
+  size_t file_line_ = 0;           // first file line of the next batch
+  std::vector<double> position_values_[3];
+  std::vector<std::vector<double>> attribute_values_;
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_netcdf(const std::string& path, const ReadOptions& options) {
+  return std::make_unique<NetcdfReader>(path, options);
 }
 
 }  // namespace linebake::formats

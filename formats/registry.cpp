@@ -94,19 +94,19 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
       reader = whole(formats::read_vtp(source, options));
       break;
     case Format::netcdf:
-      reader = whole(formats::read_netcdf(source, options));
+      reader = formats::open_netcdf(source, options);
       break;
     case Format::hdf5:
       reader = formats::open_hdf5(source, options);
       break;
     case Format::trk:
-      reader = whole(formats::read_trk(source, options));
+      reader = formats::open_trk(source, options);
       break;
     case Format::tck:
-      reader = whole(formats::read_tck(source, options));
+      reader = formats::open_tck(source, options);
       break;
     case Format::csv:
-      reader = whole(formats::read_csv(source, options));
+      reader = formats::open_csv(source, options);
       break;
   }
   return reader;

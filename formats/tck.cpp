@@ -1,7 +1,9 @@
 // MRtrix .tck: a text header starting "mrtrix tracks", `key: value` lines (datatype, file,
 // count, ...), ending with END; at the `file: . OFFSET` byte offset, xyz triplets in the given
 // datatype (Float32LE/BE, Float64LE/BE). A NaN triplet ends a streamline, an Inf triplet the
-// file. Header keys go into the metadata as tck.<key>.
+// file. Header keys go into the metadata as tck.<key>. Streamlines are read in batches: a
+// streamline's end is only known at its NaN triplet, so one that does not fit the batch it
+// started in is carried, as far as it was read, into the next.
 
 #include <cmath>
 
@@ -10,89 +12,110 @@
 
 namespace linebake::formats {
 
-LineSet read_tck(const std::string& path, const ReadOptions& options) {
-  LineSet lines;
-  std::string datatype;
-  uint64_t data_offset = 0;
-  int64_t declared_count = -1;
-  {
-    io::TextReader header(path);
-    std::string_view line;
-    if (!header.next(line) || io::trim(line) != "mrtrix tracks")
-      throw InputError(path, at_line(1), "not an MRtrix .tck file (no 'mrtrix tracks' line)");
-    bool ended = false;
-    while (header.next(line)) {
-      line = io::trim(line);
-      if (line == "END") {
-        ended = true;
+namespace {
+
+class TckReader : public LineReader {
+ public:
+  TckReader(const std::string& path, const ReadOptions& options) : in_(path, options.progress) {
+    std::string datatype;
+    uint64_t data_offset = 0;
+    {
+      io::TextReader header(path);
+      std::string_view line;
+      if (!header.next(line) || io::trim(line) != "mrtrix tracks")
+        throw InputError(path, at_line(1), "not an MRtrix .tck file (no 'mrtrix tracks' line)");
+      bool ended = false;
+      while (header.next(line)) {
+        line = io::trim(line);
+        if (line == "END") {
+          ended = true;
+          break;
+        }
+        const size_t colon = line.find(':');
+        if (colon == std::string_view::npos) header.fail("expected 'key: value'");
+        const std::string key(io::trim(line.substr(0, colon)));
+        const std::string value(io::trim(line.substr(colon + 1)));
+        if (key == "datatype") {
+          datatype = value;
+        } else if (key == "file") {
+          const auto parts = io::split_whitespace(value);
+          if (parts.size() != 2 || parts[0] != "." || !io::parse_uint64(parts[1], data_offset))
+            header.fail("expected 'file: . OFFSET' (data in the same file)");
+        } else if (key == "count") {
+          if (!io::parse_int64(value, declared_count_)) header.fail("bad count '" + value + "'");
+        }
+        header_.metadata["tck." + key] = value;
+        if (header.offset() > (1u << 20)) header.fail("header longer than 1 MiB without END");
+      }
+      if (!ended) throw InputError(path, "header", "no END line");
+    }
+    bool big = false;
+    if (datatype == "Float32LE")
+      size_ = 4;
+    else if (datatype == "Float32BE")
+      size_ = 4, big = true;
+    else if (datatype == "Float64LE")
+      size_ = 8;
+    else if (datatype == "Float64BE")
+      size_ = 8, big = true;
+    else
+      throw InputError(path, "header", "unsupported datatype '" + datatype + "'");
+    if (data_offset == 0) throw InputError(path, "header", "no 'file: . OFFSET' entry");
+    in_.seek(data_offset);
+    swap_ = big != (std::endian::native == std::endian::big);
+  }
+
+  bool next(LineSet& batch, uint64_t max_points) override {
+    copy_lines(header_, 0, 0, batch);
+    while (!finished_) {
+      // The open streamline no longer fits beside the batch's: it goes on in the next batch.
+      if (batch.line_count() > 0 && batch.point_count() + open_.size() / 3 > max_points) break;
+      if (in_.at_end()) in_.fail("file ends without the Inf end-of-file triplet (truncated?)");
+      double xyz[3];
+      for (double& v : xyz) {
+        if (size_ == 4) {
+          v = in_.read_value<float>("point", swap_);
+        } else {
+          v = in_.read_value<double>("point", swap_);
+        }
+      }
+      if (std::isinf(xyz[0]) && std::isinf(xyz[1]) && std::isinf(xyz[2])) {
+        finished_ = true;
+        if (!open_.empty()) in_.fail("the last streamline is not closed by a NaN triplet");
+        const uint64_t total = lines_read_ + batch.line_count();
+        if (declared_count_ >= 0 && static_cast<uint64_t>(declared_count_) != total)
+          throw InputError(in_.path(), "header",
+                           "count says " + std::to_string(declared_count_) +
+                               " streamlines, the data holds " + std::to_string(total));
         break;
       }
-      const size_t colon = line.find(':');
-      if (colon == std::string_view::npos) header.fail("expected 'key: value'");
-      const std::string key(io::trim(line.substr(0, colon)));
-      const std::string value(io::trim(line.substr(colon + 1)));
-      if (key == "datatype") {
-        datatype = value;
-      } else if (key == "file") {
-        const auto parts = io::split_whitespace(value);
-        if (parts.size() != 2 || parts[0] != "." || !io::parse_uint64(parts[1], data_offset))
-          header.fail("expected 'file: . OFFSET' (data in the same file)");
-      } else if (key == "count") {
-        if (!io::parse_int64(value, declared_count)) header.fail("bad count '" + value + "'");
+      if (std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2])) {
+        batch.positions.insert(batch.positions.end(), open_.begin(), open_.end());
+        batch.end_line();
+        open_.clear();
+        if (batch.point_count() >= max_points) break;
+        continue;
       }
-      lines.metadata["tck." + key] = value;
-      if (header.offset() > (1u << 20)) header.fail("header longer than 1 MiB without END");
+      open_.insert(open_.end(), {static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
+                                 static_cast<float>(xyz[2])});
     }
-    if (!ended) throw InputError(path, "header", "no END line");
+    lines_read_ += batch.line_count();
+    return batch.line_count() > 0;
   }
-  size_t size = 0;
-  bool big = false;
-  if (datatype == "Float32LE")
-    size = 4;
-  else if (datatype == "Float32BE")
-    size = 4, big = true;
-  else if (datatype == "Float64LE")
-    size = 8;
-  else if (datatype == "Float64BE")
-    size = 8, big = true;
-  else
-    throw InputError(path, "header", "unsupported datatype '" + datatype + "'");
-  if (data_offset == 0) throw InputError(path, "header", "no 'file: . OFFSET' entry");
 
-  io::BinaryReader in(path, options.progress);
-  in.seek(data_offset);
-  const bool swap = big != (std::endian::native == std::endian::big);
-  bool finished = false;
-  uint64_t open_points = 0;
-  while (!in.at_end()) {
-    double xyz[3];
-    for (double& v : xyz) {
-      if (size == 4) {
-        v = in.read_value<float>("point", swap);
-      } else {
-        v = in.read_value<double>("point", swap);
-      }
-    }
-    if (std::isinf(xyz[0]) && std::isinf(xyz[1]) && std::isinf(xyz[2])) {
-      finished = true;
-      break;
-    }
-    if (std::isnan(xyz[0]) && std::isnan(xyz[1]) && std::isnan(xyz[2])) {
-      lines.end_line();
-      open_points = 0;
-      continue;
-    }
-    lines.append_point(static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
-                       static_cast<float>(xyz[2]));
-    ++open_points;
-  }
-  if (!finished) in.fail("file ends without the Inf end-of-file triplet (truncated?)");
-  if (open_points > 0) in.fail("the last streamline is not closed by a NaN triplet");
-  if (declared_count >= 0 && static_cast<uint64_t>(declared_count) != lines.line_count())
-    throw InputError(path, "header",
-                     "count says " + std::to_string(declared_count) +
-                         " streamlines, the data holds " + std::to_string(lines.line_count()));
-  return lines;
+ private:
+  io::BinaryReader in_;
+  int64_t declared_count_ = -1;
+  size_t size_ = 0;
+  bool swap_ = false;
+  bool finished_ = false;
+  std::vector<float> open_;  // xyz of the streamline read so far, not yet closed by NaN
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_tck(const std::string& path, const ReadOptions& options) {
+  return std::make_unique<TckReader>(path, options);
 }
 
 }  // namespace linebake::formats

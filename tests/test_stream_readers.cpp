@@ -1,2 +1,673 @@
 // Streamed readers (lines/line_reader.hpp): every batch split gives the line set the whole read
-// gives. Filled in by the streaming readers' work.
+// gives, and malformed files fail with the same message however small the batches.
+
+#include <gtest/gtest.h>
+#include <netcdf.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <optional>
+
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "lines/line_reader.hpp"
+#include "test_util.hpp"
+
+using namespace linebake;
+using linebake::test::TempDir;
+using linebake::test::write_bytes;
+using linebake::test::write_text;
+
+namespace {
+
+const uint64_t kBatchSizes[] = {
+    1, 2, 3, 7, uint64_t{1} << 20, std::numeric_limits<uint64_t>::max()};
+
+// ---------------------------------------------------------------------------------------------
+// Checks
+
+// Reads `path` whole, then batch by batch at every size of kBatchSizes: the header is known
+// before the first batch, batches of more than one line respect max_points, lines_read() counts
+// the lines handed out, and the batches together are the whole read.
+void expect_streams_like_whole(const std::string& path) {
+  SCOPED_TRACE(path);
+  const LineSet whole = read_line_set(path);
+  std::map<std::string, std::string> header_metadata = whole.metadata;
+  header_metadata.erase("source");
+  for (uint64_t max_points : kBatchSizes) {
+    SCOPED_TRACE("max_points " + std::to_string(max_points));
+    const std::unique_ptr<LineReader> reader = open_line_reader(path);
+    EXPECT_TRUE(reader->streams());
+    const LineSet& header = reader->header();
+    EXPECT_EQ(header.metadata, header_metadata);
+    ASSERT_EQ(header.attributes.size(), whole.attributes.size());
+    for (size_t a = 0; a < header.attributes.size(); ++a) {
+      EXPECT_EQ(header.attributes[a].name, whole.attributes[a].name);
+      EXPECT_TRUE(header.attributes[a].values.empty());
+    }
+    ASSERT_EQ(header.line_attributes.size(), whole.line_attributes.size());
+    for (size_t a = 0; a < header.line_attributes.size(); ++a)
+      EXPECT_EQ(header.line_attributes[a].name, whole.line_attributes[a].name);
+
+    LineSet all = header_of(header);
+    LineSet batch;
+    uint64_t lines = 0, batches = 0;
+    while (reader->next(batch, max_points)) {
+      ++batches;
+      ASSERT_GT(batch.line_count(), 0u);
+      ASSERT_EQ(batch.line_offsets.front(), 0u);
+      ASSERT_EQ(batch.line_offsets.back(), batch.point_count());
+      for (const Attribute& a : batch.attributes) ASSERT_EQ(a.values.size(), batch.point_count());
+      for (const Attribute& a : batch.line_attributes)
+        ASSERT_EQ(a.values.size(), batch.line_count());
+      if (batch.line_count() > 1) {
+        EXPECT_LE(batch.point_count(), max_points);
+      }
+      lines += batch.line_count();
+      EXPECT_EQ(reader->lines_read(), lines);
+      append_lines(all, batch);
+    }
+    EXPECT_EQ(batch.line_count(), 0u);
+    EXPECT_FALSE(reader->next(batch, max_points));  // stays at the end
+    EXPECT_TRUE(all.same_data(whole));
+    EXPECT_EQ(reader->lines_read(), whole.line_count());
+    if (max_points == 1) {  // one point per batch: every line that has points comes alone
+      uint64_t nonempty = 0;
+      for (size_t l = 0; l < whole.line_count(); ++l) nonempty += whole.line_size(l) > 0;
+      EXPECT_GE(batches, nonempty);
+    }
+  }
+}
+
+struct Failure {
+  std::string message;  // empty: no InputError
+  uint64_t batches = 0;
+};
+
+Failure read_whole(const std::string& path) {
+  try {
+    read_line_set(path);
+  } catch (const InputError& e) {
+    return {e.what(), 0};
+  }
+  return {};
+}
+
+Failure read_streamed(const std::string& path, uint64_t max_points) {
+  Failure f;
+  try {
+    const std::unique_ptr<LineReader> reader = open_line_reader(path);
+    LineSet batch;
+    while (reader->next(batch, max_points)) ++f.batches;
+  } catch (const InputError& e) {
+    f.message = e.what();
+  }
+  return f;
+}
+
+// The whole read fails with a message naming the file and holding `expected`; streamed in small
+// batches, the read fails with the very same message, after `min_batches` batches or more.
+void expect_same_failure(const std::string& path, const std::string& expected,
+                         uint64_t min_batches = 0) {
+  SCOPED_TRACE(path);
+  const Failure whole = read_whole(path);
+  ASSERT_FALSE(whole.message.empty()) << "expected an error mentioning '" << expected << "'";
+  EXPECT_NE(whole.message.find(path), std::string::npos) << whole.message;
+  EXPECT_NE(whole.message.find(expected), std::string::npos)
+      << "expected '" << expected << "' in: " << whole.message;
+  for (uint64_t max_points : {1, 2, 3}) {
+    const Failure streamed = read_streamed(path, max_points);
+    EXPECT_EQ(streamed.message, whole.message) << "max_points " << max_points;
+    EXPECT_GE(streamed.batches, min_batches) << "max_points " << max_points;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// File builders
+
+// Appends values in the requested byte order.
+class Bytes {
+ public:
+  explicit Bytes(bool big_endian) : big_(big_endian) {}
+  template <typename T>
+  Bytes& put(T v) {
+    unsigned char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    if (big_ != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+    data.insert(data.end(), b, b + sizeof(T));
+    return *this;
+  }
+  Bytes& text(const std::string& s, size_t width) {
+    std::vector<unsigned char> field(width, 0);
+    std::memcpy(field.data(), s.data(), std::min(width, s.size()));
+    data.insert(data.end(), field.begin(), field.end());
+    return *this;
+  }
+  std::vector<unsigned char> data;
+
+ private:
+  bool big_;
+};
+
+using Point = std::array<double, 3>;
+using Polyline = std::vector<Point>;
+
+// Lines of the given sizes with distinct, not round, coordinates.
+std::vector<Polyline> polylines(const std::vector<size_t>& sizes) {
+  std::vector<Polyline> lines;
+  for (size_t l = 0; l < sizes.size(); ++l) {
+    Polyline line;
+    for (size_t i = 0; i < sizes[l]; ++i)
+      line.push_back({double(l) + 0.1 * double(i), -1.0 / double(i + 3), 1e3 * double(l)});
+    lines.push_back(line);
+  }
+  return lines;
+}
+
+struct TckOptions {
+  bool big = false;
+  bool doubles = false;
+  std::optional<int64_t> count;  // the header's count entry, if any
+  bool close_last = true;        // a NaN triplet after the last line
+  bool finished = true;          // the Inf triplet at the end
+};
+
+std::vector<unsigned char> tck_bytes(const std::vector<Polyline>& lines, const TckOptions& o) {
+  const std::string type = std::string(o.doubles ? "Float64" : "Float32") + (o.big ? "BE" : "LE");
+  std::string header = "mrtrix tracks\ndatatype: " + type + "\nstep_size: 0.5\n";
+  if (o.count) header += "count: " + std::to_string(*o.count) + "\n";
+  header += "file: . 256\nEND\n";
+  header.resize(256, ' ');
+  Bytes b(o.big);
+  b.data.assign(header.begin(), header.end());
+  auto put = [&](double x, double y, double z) {
+    for (double v : {x, y, z})
+      o.doubles ? (void)b.put<double>(v) : (void)b.put<float>(static_cast<float>(v));
+  };
+  for (size_t l = 0; l < lines.size(); ++l) {
+    for (const Point& p : lines[l]) put(p[0], p[1], p[2]);
+    if (o.close_last || l + 1 < lines.size()) put(NAN, NAN, NAN);
+  }
+  if (o.finished) put(INFINITY, INFINITY, INFINITY);
+  return b.data;
+}
+
+struct TrkOptions {
+  bool big = false;
+  std::vector<std::string> scalars;     // names ("" for an unnamed one)
+  std::vector<std::string> properties;  // names ("" for an unnamed one)
+  bool write_count = true;              // n_count = the line count, else 0 (read to the end)
+};
+
+// Scalars of point i of line l are l + i / 8 + s, properties l * 10 + p.
+std::vector<unsigned char> trk_bytes(const std::vector<Polyline>& lines, const TrkOptions& o) {
+  Bytes b(o.big);
+  b.text("TRACK", 6);
+  b.put<int16_t>(10).put<int16_t>(20).put<int16_t>(30);
+  b.put<float>(1.5f).put<float>(1.25f).put<float>(2.0f);
+  b.put<float>(0).put<float>(0).put<float>(0);
+  b.put<int16_t>(static_cast<int16_t>(o.scalars.size()));
+  for (size_t i = 0; i < 10; ++i) b.text(i < o.scalars.size() ? o.scalars[i] : "", 20);
+  b.put<int16_t>(static_cast<int16_t>(o.properties.size()));
+  for (size_t i = 0; i < 10; ++i) b.text(i < o.properties.size() ? o.properties[i] : "", 20);
+  for (int i = 0; i < 16; ++i) b.put<float>(i % 5 == 0 ? 2.0f : 0.5f * float(i));
+  b.text("", 444).text("RAS", 4).text("", 4);
+  for (int i = 0; i < 6; ++i) b.put<float>(0);
+  b.text("", 2).text("", 6);
+  b.put<int32_t>(o.write_count ? static_cast<int32_t>(lines.size()) : 0);
+  b.put<int32_t>(2).put<int32_t>(1000);
+  EXPECT_EQ(b.data.size(), 1000u);
+  for (size_t l = 0; l < lines.size(); ++l) {
+    b.put<int32_t>(static_cast<int32_t>(lines[l].size()));
+    for (size_t i = 0; i < lines[l].size(); ++i) {
+      for (double v : lines[l][i]) b.put<float>(static_cast<float>(v));
+      for (size_t s = 0; s < o.scalars.size(); ++s)
+        b.put<float>(float(l) + float(i) / 8.0f + float(s));
+    }
+    for (size_t p = 0; p < o.properties.size(); ++p) b.put<float>(float(l) * 10.0f + float(p));
+  }
+  return b.data;
+}
+
+void nc_ok(int status) {
+  ASSERT_EQ(status, NC_NOERR) << nc_strerror(status);
+}
+
+// Lagranto style (1 x trajectory x time) or CF multidimensional ((1 x 1 x) trajectory x obs):
+// `x` holds lines x points values; invalid values cut lines (-999 is lon's fill value).
+void write_multidimensional(const std::string& path, bool cf, size_t lines, size_t points,
+                            const std::vector<double>& x) {
+  int nc, d[4], lon, lat, p, t, u;
+  nc_ok(nc_create(path.c_str(), NC_CLOBBER | (cf ? NC_NETCDF4 : 0), &nc));
+  int ndims = 3;
+  if (cf) {
+    nc_ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+    nc_ok(nc_def_dim(nc, "member", 1, &d[0]));
+    nc_ok(nc_def_dim(nc, "run", 1, &d[1]));
+    nc_ok(nc_def_dim(nc, "trajectory", lines, &d[2]));
+    nc_ok(nc_def_dim(nc, "obs", points, &d[3]));
+    ndims = 4;
+  } else {
+    nc_ok(nc_def_dim(nc, "ensemble", 1, &d[0]));
+    nc_ok(nc_def_dim(nc, "trajectory", lines, &d[1]));
+    nc_ok(nc_def_dim(nc, "time", points, &d[2]));
+  }
+  nc_ok(nc_def_var(nc, "lon", NC_DOUBLE, ndims, d, &lon));
+  nc_ok(nc_def_var(nc, "lat", NC_FLOAT, ndims, d, &lat));
+  nc_ok(nc_def_var(nc, "p", NC_FLOAT, ndims, d, &p));
+  nc_ok(nc_def_var(nc, "T", NC_FLOAT, ndims, d, &t));
+  nc_ok(nc_def_var(nc, "QV", NC_INT, ndims, d, &u));
+  const double fill = -999.0;
+  nc_ok(nc_put_att_double(nc, lon, "_FillValue", NC_DOUBLE, 1, &fill));
+  const int qv_fill = -1;
+  nc_ok(nc_put_att_int(nc, u, "missing_value", NC_INT, 1, &qv_fill));
+  nc_ok(nc_enddef(nc));
+  std::vector<double> y(x.size()), z(x.size()), temperature(x.size());
+  std::vector<int> qv(x.size());
+  for (size_t i = 0; i < x.size(); ++i) {
+    y[i] = 45.0 + 1.0 / double(i + 1);
+    z[i] = 900.0 - double(i) * 7.5;
+    temperature[i] = 280.0 - 0.3 * double(i);
+    qv[i] = i % 4 == 3 ? -1 : int(i);  // fills become NaN attribute values
+  }
+  nc_ok(nc_put_var_double(nc, lon, x.data()));
+  nc_ok(nc_put_var_double(nc, lat, y.data()));
+  nc_ok(nc_put_var_double(nc, p, z.data()));
+  nc_ok(nc_put_var_double(nc, t, temperature.data()));
+  nc_ok(nc_put_var_int(nc, u, qv.data()));
+  nc_ok(nc_close(nc));
+}
+
+// CF contiguous ragged arrays: per-line counts, then observations back to back; no z variable
+// when !with_z.
+void write_ragged(const std::string& path, const std::vector<int>& counts,
+                  const std::vector<double>& x, bool with_z) {
+  int nc, traj, obs, count, lon, lat, alt, speed;
+  nc_ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+  nc_ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  nc_ok(nc_def_dim(nc, "trajectory", counts.size(), &traj));
+  nc_ok(nc_def_dim(nc, "obs", x.size(), &obs));
+  nc_ok(nc_def_var(nc, "n", NC_INT, 1, &traj, &count));
+  nc_ok(nc_put_att_text(nc, count, "sample_dimension", 3, "obs"));
+  nc_ok(nc_def_var(nc, "a", NC_DOUBLE, 1, &obs, &lon));
+  nc_ok(nc_put_att_text(nc, lon, "axis", 1, "X"));
+  nc_ok(nc_def_var(nc, "lat", NC_FLOAT, 1, &obs, &lat));
+  if (with_z) nc_ok(nc_def_var(nc, "depth", NC_FLOAT, 1, &obs, &alt));
+  nc_ok(nc_def_var(nc, "speed", NC_FLOAT, 1, &obs, &speed));
+  const float fill = 9999.0f;
+  nc_ok(nc_put_att_float(nc, speed, "_FillValue", NC_FLOAT, 1, &fill));
+  nc_ok(nc_enddef(nc));
+  nc_ok(nc_put_var_int(nc, count, counts.data()));
+  std::vector<double> y(x.size()), z(x.size()), s(x.size());
+  for (size_t i = 0; i < x.size(); ++i) {
+    y[i] = -10.0 + double(i) / 3.0;
+    z[i] = double(i % 5);
+    s[i] = i % 6 == 5 ? 9999.0 : 0.5 + double(i);
+  }
+  nc_ok(nc_put_var_double(nc, lon, x.data()));
+  nc_ok(nc_put_var_double(nc, lat, y.data()));
+  if (with_z) nc_ok(nc_put_var_double(nc, alt, z.data()));
+  nc_ok(nc_put_var_double(nc, speed, s.data()));
+  nc_ok(nc_close(nc));
+}
+
+// x values 0.25, 1.25, ... for lines x points, with `cuts` (flat index, value) applied.
+std::vector<double> grid_x(size_t lines, size_t points,
+                           const std::vector<std::pair<size_t, double>>& cuts) {
+  std::vector<double> x(lines * points);
+  for (size_t i = 0; i < x.size(); ++i) x[i] = 0.25 + double(i);
+  for (const auto& [at, value] : cuts) x[at] = value;
+  return x;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The files read both ways
+
+struct Case {
+  const char* name;
+  std::function<std::string(const TempDir&)> write;  // writes the file, returns its path
+  friend void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+};
+
+std::vector<Case> cases() {
+  std::vector<Case> list;
+  // MRtrix .tck in every datatype; lines of 1 to 12 points.
+  const std::vector<size_t> tck_sizes = {2, 3, 1, 12, 5, 1, 1, 8, 4};
+  for (bool big : {false, true})
+    for (bool doubles : {false, true}) {
+      static const char* names[2][2] = {{"tck_float32le", "tck_float64le"},
+                                        {"tck_float32be", "tck_float64be"}};
+      list.push_back({names[big][doubles], [=](const TempDir& dir) {
+                        const std::string path = dir.file("a.tck");
+                        TckOptions o;
+                        o.big = big;
+                        o.doubles = doubles;
+                        o.count = int64_t(tck_sizes.size());
+                        write_bytes(path, tck_bytes(polylines(tck_sizes), o));
+                        return path;
+                      }});
+    }
+  // Empty streamlines (NaN right after NaN, and first), no count entry.
+  list.push_back({"tck_empty_streamlines_no_count", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.tck");
+                    write_bytes(path, tck_bytes(polylines({0, 3, 0, 0, 2, 9, 0, 1}), {}));
+                    return path;
+                  }});
+  list.push_back({"tck_one_long_streamline", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.tck");
+                    TckOptions o;
+                    o.count = 1;
+                    write_bytes(path, tck_bytes(polylines({40}), o));
+                    return path;
+                  }});
+
+  // TrackVis .trk.
+  const std::vector<size_t> trk_sizes = {2, 3, 1, 11, 5, 1, 6, 2};
+  for (bool big : {false, true})
+    list.push_back({big ? "trk_big_endian_scalars_properties" : "trk_little_scalars_properties",
+                    [=](const TempDir& dir) {
+                      const std::string path = dir.file("a.trk");
+                      TrkOptions o;
+                      o.big = big;
+                      o.scalars = {"fa", "md", "curvature"};
+                      o.properties = {"length", "cluster"};
+                      write_bytes(path, trk_bytes(polylines(trk_sizes), o));
+                      return path;
+                    }});
+  list.push_back({"trk_no_count_read_to_end", [=](const TempDir& dir) {
+                    const std::string path = dir.file("a.trk");
+                    TrkOptions o;
+                    o.write_count = false;
+                    o.scalars = {"", "named"};  // the first becomes scalar_0
+                    o.properties = {""};        // property_0
+                    write_bytes(path, trk_bytes(polylines(trk_sizes), o));
+                    return path;
+                  }});
+  list.push_back({"trk_plain_with_empty_streamlines", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.trk");
+                    write_bytes(path, trk_bytes(polylines({0, 4, 0, 1, 9}), {}));
+                    return path;
+                  }});
+
+  // CSV.
+  list.push_back({"csv_with_attributes", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.csv");
+                    std::string text = "line_id,x,y,z,speed,temp\n";
+                    const size_t sizes[] = {3, 1, 9, 2, 2, 7, 1, 4};
+                    for (size_t l = 0; l < std::size(sizes); ++l)
+                      for (size_t i = 0; i < sizes[l]; ++i)
+                        text += std::to_string(l) + "," + std::to_string(0.1 * double(i)) + "," +
+                                std::to_string(l) + ".5,-" + std::to_string(i) + "e-3," +
+                                std::to_string(i * l) + ",nan\n";
+                    write_text(path, text);
+                    return path;
+                  }});
+  list.push_back(
+      {"csv_unordered_ids_crlf_blank_rows_no_final_newline", [](const TempDir& dir) {
+         const std::string path = dir.file("a.csv");
+         write_text(path,
+                    "line_id, x, y, z\r\n"
+                    "7, 0, 0, 0\r\n7, 1, 0, 0\r\n\r\n7, 2, 0, 0\r\n"
+                    "-3, 5, 5, 5\r\n"
+                    "100, 1e-3, 2.5, -0\r\n100, 1, 1, 1\r\n  \r\n"
+                    "6, 0, 1, 2\r\n5, 3, 4, 5\r\n5, 6, 7, 8\r\n5, 9, 10, 11\r\n5, 12, 13, 14\r\n"
+                    "8, inf, -inf, 1");
+         return path;
+       }});
+  list.push_back({"csv_ids_in_any_order", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.csv");
+                    std::string text = "line_id,x,y,z\n";
+                    int row = 0;
+                    for (int id : {1, 3, 2, 5, 4, 0, 7, -1, 9, 8, 6}) {
+                      for (int i = 0; i <= id % 4; ++i, ++row)
+                        text += std::to_string(id) + "," + std::to_string(row) + ",0,1\n";
+                    }
+                    write_text(path, text);
+                    return path;
+                  }});
+  list.push_back({"csv_one_long_line", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.csv");
+                    std::string text = "line_id,x,y,z,w\n";
+                    for (int i = 0; i < 30; ++i)
+                      text += "42," + std::to_string(i) + ",1,2," + std::to_string(-i) + "\n";
+                    write_text(path, text);
+                    return path;
+                  }});
+
+  // NetCDF, both multidimensional layouts and contiguous ragged arrays.
+  list.push_back({"netcdf_lagranto_fill_values", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.nc");
+                    // 7 lines x 5 points: line 1 is cut after 2 points, line 3 has an invalid
+                    // first point (no line), line 4 ends at a NaN, line 6 at 1e20.
+                    write_multidimensional(
+                        path, false, 7, 5,
+                        grid_x(7, 5, {{7, -999.0}, {15, -999.0}, {22, NAN}, {33, 1e20}}));
+                    return path;
+                  }});
+  list.push_back({"netcdf_cf_multidimensional_4d", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.nc");
+                    // 9 lines x 4 points; lines 0 and 8 invalid from their first point.
+                    write_multidimensional(
+                        path, true, 9, 4,
+                        grid_x(9, 4, {{0, -999.0}, {6, INFINITY}, {13, -2e25}, {32, NAN}}));
+                    return path;
+                  }});
+  list.push_back({"netcdf_one_point_rows", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.nc");
+                    write_multidimensional(path, false, 5, 1, grid_x(5, 1, {{2, -999.0}}));
+                    return path;
+                  }});
+  list.push_back({"netcdf_ragged", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.nc");
+                    const std::vector<int> counts = {2, 0, 3, 10, 1, 0, 4, 1, 6};
+                    // Line 3 ends at a NaN after 4 points; line 6 has an invalid first point.
+                    std::vector<double> x(27);
+                    for (size_t i = 0; i < x.size(); ++i) x[i] = double(i) * 1.5;
+                    x[9] = NAN;
+                    x[16] = 1e21;
+                    write_ragged(path, counts, x, true);
+                    return path;
+                  }});
+  list.push_back({"netcdf_ragged_no_z", [](const TempDir& dir) {
+                    const std::string path = dir.file("a.nc");
+                    std::vector<double> x(12);
+                    for (size_t i = 0; i < x.size(); ++i) x[i] = -double(i);
+                    write_ragged(path, {1, 1, 5, 0, 2, 3}, x, false);
+                    return path;
+                  }});
+  return list;
+}
+
+class StreamReader : public ::testing::TestWithParam<Case> {};
+
+}  // namespace
+
+TEST_P(StreamReader, BatchesMakeTheWholeRead) {
+  TempDir dir;
+  expect_streams_like_whole(GetParam().write(dir));
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, StreamReader, ::testing::ValuesIn(cases()),
+                         [](const auto& param_info) { return std::string(param_info.param.name); });
+
+// The batches hold what the file says (not only what the whole read says).
+TEST(StreamReaderContent, TckTrkCsvNetcdfValues) {
+  TempDir dir;
+  LineSet batch;
+
+  write_bytes(dir.file("a.tck"), tck_bytes(polylines({2, 0, 3}), {}));
+  auto reader = open_line_reader(dir.file("a.tck"));
+  EXPECT_EQ(reader->header().metadata.at("tck.step_size"), "0.5");
+  ASSERT_TRUE(reader->next(batch, 3));  // 2 points, an empty streamline; 3 more do not fit
+  EXPECT_EQ(batch.line_offsets, (std::vector<uint64_t>{0, 2, 2}));
+  EXPECT_EQ(batch.positions[3], 0.1f);
+  ASSERT_TRUE(reader->next(batch, 3));
+  EXPECT_EQ(batch.line_offsets, (std::vector<uint64_t>{0, 3}));
+  EXPECT_EQ(batch.positions[8], 2000.0f);
+  EXPECT_FALSE(reader->next(batch, 3));
+
+  TrkOptions o;
+  o.scalars = {"fa"};
+  o.properties = {"", "b"};
+  write_bytes(dir.file("a.trk"), trk_bytes(polylines({1, 2}), o));
+  reader = open_line_reader(dir.file("a.trk"));
+  EXPECT_EQ(reader->header().metadata.at("trk.voxel_order"), "RAS");
+  EXPECT_EQ(reader->header().line_attributes[0].name, "property_0");
+  ASSERT_TRUE(reader->next(batch, 2));
+  EXPECT_EQ(batch.line_offsets, (std::vector<uint64_t>{0, 1}));
+  ASSERT_TRUE(reader->next(batch, 2));
+  EXPECT_EQ(batch.attributes[0].values, (std::vector<float>{1.0f, 1.125f}));
+  EXPECT_EQ(batch.line_attributes[1].values, (std::vector<float>{11.0f}));
+  EXPECT_FALSE(reader->next(batch, 2));
+
+  write_text(dir.file("a.csv"), "line_id,x,y,z,v\n3,1,2,3,4\n3,5,6,7,8\n1,0,0,0,9\n");
+  reader = open_line_reader(dir.file("a.csv"));
+  EXPECT_EQ(reader->header().attributes[0].name, "v");
+  ASSERT_TRUE(reader->next(batch, 1));  // the first line, larger than 1 point, alone
+  EXPECT_EQ(batch.positions, (std::vector<float>{1, 2, 3, 5, 6, 7}));
+  EXPECT_EQ(reader->lines_read(), 1u);
+  ASSERT_TRUE(reader->next(batch, 1));
+  EXPECT_EQ(batch.attributes[0].values, (std::vector<float>{9}));
+  EXPECT_FALSE(reader->next(batch, 1));
+
+  write_ragged(dir.file("a.nc"), {2, 0, 1}, {1, 2, 3}, true);
+  reader = open_line_reader(dir.file("a.nc"));
+  EXPECT_EQ(reader->header().metadata.at("netcdf.layout"), "cf-contiguous-ragged");
+  EXPECT_EQ(reader->header().metadata.at("netcdf.x"), "a");
+  EXPECT_EQ(reader->header().metadata.at("netcdf.z"), "depth");
+  ASSERT_TRUE(reader->next(batch, 3));
+  EXPECT_EQ(batch.line_offsets, (std::vector<uint64_t>{0, 2, 3}));
+  EXPECT_EQ(batch.positions, (std::vector<float>{1, -10, 0, 2, float(-10.0 + 1.0 / 3.0), 1, 3,
+                                                 float(-10.0 + 2.0 / 3.0), 2}));
+  EXPECT_FALSE(reader->next(batch, 3));
+}
+
+// A file with a header and no lines: no batch, and read_line_set's "no lines in the file".
+TEST(StreamReaderContent, NoLines) {
+  TempDir dir;
+  write_text(dir.file("a.csv"), "line_id,x,y,z\n\n");
+  write_bytes(dir.file("a.tck"), tck_bytes({}, {}));
+  write_bytes(dir.file("a.trk"), trk_bytes({}, {}));
+  write_multidimensional(dir.file("a.nc"), false, 2, 2, grid_x(2, 2, {{0, NAN}, {2, -999.0}}));
+  for (const char* name : {"a.csv", "a.tck", "a.trk", "a.nc"}) {
+    SCOPED_TRACE(name);
+    auto reader = open_line_reader(dir.file(name));
+    LineSet batch;
+    EXPECT_FALSE(reader->next(batch, 1));
+    EXPECT_EQ(batch.line_count(), 0u);
+    EXPECT_EQ(reader->lines_read(), 0u);
+    const Failure f = read_whole(dir.file(name));
+    EXPECT_NE(f.message.find("no lines in the file"), std::string::npos) << f.message;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Malformed files fail the same way streamed in small batches
+
+TEST(StreamReaderMalformed, Tck) {
+  TempDir dir;
+  const auto lines = polylines({2, 3, 1, 4});
+  TckOptions o;
+  o.count = 7;  // the header disagrees with the data: found at the end
+  write_bytes(dir.file("count.tck"), tck_bytes(lines, o));
+  expect_same_failure(dir.file("count.tck"), "header: count says 7 streamlines, the data holds 4",
+                      2);
+  o = {};
+  o.finished = false;
+  write_bytes(dir.file("unfinished.tck"), tck_bytes(lines, o));
+  expect_same_failure(dir.file("unfinished.tck"),
+                      "file ends without the Inf end-of-file triplet (truncated?)", 2);
+  o = {};
+  o.close_last = false;
+  write_bytes(dir.file("open.tck"), tck_bytes(lines, o));
+  expect_same_failure(dir.file("open.tck"), "the last streamline is not closed by a NaN triplet",
+                      2);
+  auto bytes = tck_bytes(lines, {});
+  bytes.resize(bytes.size() - 14);  // in the middle of a triplet
+  write_bytes(dir.file("cut.tck"), bytes);
+  expect_same_failure(dir.file("cut.tck"), "file truncated while reading point", 2);
+  write_text(dir.file("type.tck"), "mrtrix tracks\ndatatype: Int16LE\nfile: . 40\nEND\n");
+  expect_same_failure(dir.file("type.tck"), "header: unsupported datatype 'Int16LE'");
+  write_text(dir.file("end.tck"), "mrtrix tracks\ndatatype: Float32LE\nfile: . 40\n");
+  expect_same_failure(dir.file("end.tck"), "header: no END line");
+}
+
+TEST(StreamReaderMalformed, Trk) {
+  TempDir dir;
+  TrkOptions o;
+  o.scalars = {"fa"};
+  o.properties = {"length"};
+  const auto lines = polylines({2, 3, 1, 4});
+  auto bytes = trk_bytes(lines, o);
+  bytes.insert(bytes.end(), {1, 2, 3, 4, 5});
+  write_bytes(dir.file("trailing.trk"), bytes);
+  expect_same_failure(dir.file("trailing.trk"),
+                      ": unexpected 5 bytes after 4 streamlines (n_count)", 2);
+  bytes = trk_bytes(lines, o);
+  bytes.resize(bytes.size() - 6);
+  write_bytes(dir.file("cut.trk"), bytes);
+  expect_same_failure(dir.file("cut.trk"), "streamline 3 claims 4 points, more than the file holds",
+                      2);
+  bytes = trk_bytes(lines, o);
+  const size_t third = 1000 + (4 + 2 * 16 + 4) + (4 + 3 * 16 + 4);
+  const int32_t negative = -2;
+  std::memcpy(bytes.data() + third, &negative, 4);
+  write_bytes(dir.file("negative.trk"), bytes);
+  expect_same_failure(
+      dir.file("negative.trk"),
+      "byte offset " + std::to_string(third) + ": negative point count in streamline 2",
+      1);  // found while filling the batch after the first
+  bytes = trk_bytes(lines, o);
+  bytes[996] = 7;
+  write_bytes(dir.file("hdr.trk"), bytes);
+  expect_same_failure(dir.file("hdr.trk"), "byte offset 996: hdr_size is");
+}
+
+TEST(StreamReaderMalformed, Csv) {
+  TempDir dir;
+  std::string rows = "line_id,x,y,z,a\n";
+  for (int l = 0; l < 4; ++l)
+    for (int i = 0; i < 3; ++i) rows += std::to_string(l) + ",0,0,0,1\n";
+  write_text(dir.file("order.csv"), rows + "9,0,0,0,1\n2,1,1,1,1\n");
+  expect_same_failure(dir.file("order.csv"), "line 15: rows of line 2 are not consecutive", 3);
+  // Line 3 comes back after ids around it (1, 2, 4, 5, 6) were read in another order.
+  write_text(dir.file("back.csv"),
+             "line_id,x,y,z\n1,0,0,0\n3,0,0,0\n2,0,0,0\n5,0,0,0\n4,0,0,0\n6,0,0,0\n3,1,1,1\n");
+  expect_same_failure(dir.file("back.csv"), "line 8: rows of line 3 are not consecutive", 1);
+  write_text(dir.file("coordinate.csv"), rows + "4,1,abc,1,1\n");
+  expect_same_failure(dir.file("coordinate.csv"), "line 14: bad coordinate 'abc'", 3);
+  write_text(dir.file("columns.csv"), rows + "4,1,1,1\n");
+  expect_same_failure(dir.file("columns.csv"), "line 14: 4 columns, the header has 5", 3);
+  write_text(dir.file("value.csv"), rows + "4,1,1,1,x\n");
+  expect_same_failure(dir.file("value.csv"), "line 14: bad value 'x'", 3);
+  write_text(dir.file("id.csv"), rows + "four,1,1,1,1\n");
+  expect_same_failure(dir.file("id.csv"), "line 14: bad line_id 'four'", 3);
+  write_text(dir.file("header.csv"), "line_id,x,z,y\n0,0,0,0\n");
+  expect_same_failure(dir.file("header.csv"), "line 1: header column 3 is 'z', expected 'y'");
+}
+
+TEST(StreamReaderMalformed, Netcdf) {
+  TempDir dir;
+  // The third line's count runs past the 5 observations.
+  write_ragged(dir.file("counts.nc"), {2, 1, 4, 1}, {0, 1, 2, 3, 4}, true);
+  expect_same_failure(dir.file("counts.nc"),
+                      "variable n, index 2: count runs past the 5 observations");
+  write_ragged(dir.file("negative.nc"), {2, -1}, {0, 1, 2}, true);
+  expect_same_failure(dir.file("negative.nc"), "variable n, index 1: count runs past");
+  int nc, d;
+  nc_ok(nc_create(dir.file("none.nc").c_str(), NC_CLOBBER, &nc));
+  nc_ok(nc_def_dim(nc, "n", 3, &d));
+  int v;
+  nc_ok(nc_def_var(nc, "lon", NC_FLOAT, 1, &d, &v));
+  nc_ok(nc_close(nc));
+  expect_same_failure(dir.file("none.nc"), "no trajectory variables");
+  write_text(dir.file("text.nc"), "not netcdf");
+  expect_same_failure(dir.file("text.nc"), "cannot open as NetCDF");
+}

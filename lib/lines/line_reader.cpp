@@ -86,7 +86,7 @@ bool MemoryLineReader::next(LineSet& batch, uint64_t max_points) {
   // The last line whose end stays within max_points of the batch's first point (at least one).
   const auto begin = lines_->line_offsets.begin() + std::ptrdiff_t(lines_read_ + 1);
   const auto end = lines_->line_offsets.begin() + std::ptrdiff_t(count + 1);
-  size_t last = size_t(std::upper_bound(begin, end, first_point + max_points) -
+  size_t last = size_t(std::upper_bound(begin, end, saturating_add(first_point, max_points)) -
                        lines_->line_offsets.begin()) -
                 1;
   last = std::max<size_t>(last, lines_read_ + 1);

@@ -59,6 +59,11 @@ class MemoryLineReader : public LineReader {
   bool streams_ = false;
 };
 
+// a + b, or UINT64_MAX where that overflows (max_points may be "no limit").
+inline uint64_t saturating_add(uint64_t a, uint64_t b) {
+  return a > UINT64_MAX - b ? UINT64_MAX : a + b;
+}
+
 // A copy of the header of `lines`: attribute names and metadata, no values.
 LineSet header_of(const LineSet& lines);
 // Lines [first, end) of `lines` as a batch (cleared first; offsets from 0).
