@@ -168,6 +168,7 @@ TEST(BakeStream, ReusedLinesStreamFromTheOldCache) {
   bake(o);
   // Voxels added later: /lines is reused, read back in batches from the cache itself.
   o.assets = {"voxels"};
+  o.memory_budget = working_budget(40 << 20);  // this process has grown since the first bake
   const BakeResult second = bake(o);
   ASSERT_EQ(second.steps.size(), 2u);
   EXPECT_FALSE(second.steps[0].built);
