@@ -61,10 +61,10 @@ BakeOptions streamed_options(const std::string& input, const std::string& cache,
 
 TEST(BakeStream, SameDatasetsForEveryBudgetAndThreadCount) {
   TempDir dir;
-  // 175k segments of turbulence in a 256^3 grid: small enough for a test, large enough for many
-  // batches and for its chords (~4 MB of records) to spill where 16 MiB is all there is.
-  const std::string input = dir.file("t.binlines");
-  write_line_set(synth::generate({"turbulence", 0.01, 3, false}), input);
+  // 792k segments of clouds in a 160-voxel grid: small enough for a test, large enough for many
+  // batches and for its chord records (~10 MB) to spill where 16 MiB is all there is.
+  const std::string input = dir.file("k.binlines");
+  write_line_set(synth::generate({"clouds", 0.02, 3, false}), input);
   std::map<std::string, std::string> reference;
   struct Run {
     uint64_t working;  // 0: unlimited
@@ -77,7 +77,7 @@ TEST(BakeStream, SameDatasetsForEveryBudgetAndThreadCount) {
         dir.file("c" + std::to_string(run.working) + "-" + std::to_string(run.threads) + ".lbc.h5");
     BakeOptions o = streamed_options(
         input, cache, run.working ? working_budget(run.working) : BakeOptions::kUnlimited);
-    o.voxels.grid = 256;
+    o.voxels.grid = 160;
     const BakeResult result = bake(o);
     const auto hashes = dataset_hashes(cache);
     ASSERT_GT(hashes.size(), 20u);

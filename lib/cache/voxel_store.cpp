@@ -3,7 +3,6 @@
 #include <optional>
 
 #include "core/error.hpp"
-#include "core/spill_file.hpp"
 
 namespace linebake {
 
@@ -44,27 +43,24 @@ void store_voxels(CacheWriter& cache, const VoxelGrid& g, Provenance provenance)
 
 struct VoxelStoreSink::State {
   CacheWriter* cache = nullptr;
-  uint64_t chord_memory_bytes = 0;
-  std::optional<DatasetStream> offsets, line_counts, density;
-  std::vector<uint32_t> chords;  // in memory until they exceed chord_memory_bytes
-  std::unique_ptr<SpillFile> spill;
-  uint64_t chord_words = 0, disk = 0, memory = 0, spilled = 0, memory_with_density = 0;
+  std::optional<DatasetStream> offsets, chords, line_counts, density;
+  uint64_t chord_count = 0, disk = 0, memory = 0, memory_with_density = 0;
 };
 
-VoxelStoreSink::VoxelStoreSink(CacheWriter& cache, uint64_t chord_memory_bytes)
-    : state_(std::make_unique<State>()) {
+VoxelStoreSink::VoxelStoreSink(CacheWriter& cache) : state_(std::make_unique<State>()) {
   state_->cache = &cache;
-  state_->chord_memory_bytes = chord_memory_bytes;
 }
 
 VoxelStoreSink::~VoxelStoreSink() = default;
 
-void VoxelStoreSink::begin(const VoxelGrid& g) {
+void VoxelStoreSink::begin(const VoxelGrid& g, uint64_t chord_count) {
   State& s = *state_;
   s.cache->create_group(kVoxelsGroup);
   const std::string base = kVoxelsGroup;
   const uint64_t voxels = g.voxel_count();
+  s.chord_count = chord_count;
   s.offsets.emplace(s.cache->stream<uint32_t>(base + "/offsets", voxels + 1));
+  s.chords.emplace(s.cache->stream<uint32_t>(base + "/chords", chord_count, 2));
   s.line_counts.emplace(s.cache->stream<uint8_t>(base + "/line_counts", voxels));
   s.density.emplace(s.cache->stream<float>(density_name(0), voxels));
 }
@@ -74,45 +70,16 @@ void VoxelStoreSink::voxels(uint64_t, uint64_t count, const uint32_t* offsets,
                             const uint32_t* chords, uint64_t chord_count) {
   State& s = *state_;
   s.offsets->append(offsets, count);
+  s.chords->append(chords, chord_count);
   s.line_counts->append(line_counts, count);
   s.density->append(density, count);
-  const uint64_t words = 2 * chord_count;
-  if (!s.spill && (s.chords.size() + words) * 4 > s.chord_memory_bytes) {
-    s.spill = std::make_unique<SpillFile>(s.cache->path(), "chords-spill");
-    s.spill->append(s.chords.data(), s.chords.size() * 4);
-    std::vector<uint32_t>().swap(s.chords);
-  }
-  if (s.spill)
-    s.spill->append(chords, words * 4);
-  else
-    s.chords.insert(s.chords.end(), chords, chords + words);
-  s.chord_words += words;
 }
 
 void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
                          std::vector<Array<float>> coarse) {
   State& s = *state_;
-  const std::string base = kVoxelsGroup;
   s.offsets->append(&chord_count, 1);
-  s.disk += s.offsets->close() + s.line_counts->close() + s.density->close();
-  DatasetStream chords = s.cache->stream<uint32_t>(base + "/chords", chord_count, 2);
-  if (s.spill) {
-    // Back from the spill file in pieces of about 64 MiB.
-    std::vector<uint32_t> piece;
-    constexpr uint64_t kPiece = uint64_t{16} << 20;  // words
-    for (uint64_t at = 0; at < s.chord_words; at += kPiece) {
-      const uint64_t n = std::min(kPiece, s.chord_words - at);
-      piece.resize(n);
-      s.spill->read(at * 4, piece.data(), n * 4);
-      chords.append(piece.data(), n / 2);
-    }
-    s.spilled = s.spill->size();
-    s.spill.reset();
-  } else {
-    chords.append(s.chords.data(), s.chords.size() / 2);
-    std::vector<uint32_t>().swap(s.chords);
-  }
-  s.disk += chords.close();
+  s.disk += s.offsets->close() + s.chords->close() + s.line_counts->close() + s.density->close();
   for (size_t level = 0; level < coarse.size(); ++level)
     s.disk += s.cache->write(density_name(level + 1), coarse[level].data(), coarse[level].size());
   s.cache->write_attribute(kVoxelsGroup, "grid", describe(g, coarse.size() + 1).dump());
@@ -121,22 +88,18 @@ void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
   for (const Array<float>& level : coarse) s.memory_with_density += level.bytes();
 }
 
-uint64_t VoxelStoreSink::chord_count() const {
-  return state_->chord_words / 2;
-}
-
-uint64_t VoxelStoreSink::memory_with_density() const {
-  return state_->memory_with_density;
-}
-
 void VoxelStoreSink::close(Provenance provenance) {
   provenance.disk_bytes = state_->disk;
   provenance.memory_bytes = state_->memory;
   state_->cache->write_provenance(kVoxelsGroup, provenance);
 }
 
-uint64_t VoxelStoreSink::spilled_bytes() const {
-  return state_->spilled;
+uint64_t VoxelStoreSink::chord_count() const {
+  return state_->chord_count;
+}
+
+uint64_t VoxelStoreSink::memory_with_density() const {
+  return state_->memory_with_density;
 }
 
 VoxelGrid load_voxels(const CacheReader& cache) {

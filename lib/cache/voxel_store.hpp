@@ -16,21 +16,18 @@ constexpr const char* kVoxelsGroup = "/assets/voxels";
 void store_voxels(CacheWriter& cache, const VoxelGrid& grid, Provenance provenance);
 VoxelGrid load_voxels(const CacheReader& cache);
 
-// Writes a streamed voxel build (VoxelStreamBuilder) into the cache as it merges. The chords'
-// count is known only at the end, so they wait in memory up to `chord_memory_bytes` and in a
-// spill file beside the cache past it, and go into their dataset last.
+// Writes a streamed voxel build (VoxelStreamBuilder) into the cache as it merges.
 class VoxelStoreSink : public VoxelSink {
  public:
-  VoxelStoreSink(CacheWriter& cache, uint64_t chord_memory_bytes);
+  explicit VoxelStoreSink(CacheWriter& cache);
   ~VoxelStoreSink() override;
-  void begin(const VoxelGrid& grid) override;
+  void begin(const VoxelGrid& grid, uint64_t chord_count) override;
   void voxels(uint64_t first, uint64_t count, const uint32_t* offsets, const uint8_t* line_counts,
               const float* density, const uint32_t* chords, uint64_t chord_count) override;
   void end(const VoxelGrid& grid, uint32_t chord_count,
            std::vector<Array<float>> coarse_density) override;
   // Writes the provenance (disk and memory bytes filled in); call after the builder's finish().
   void close(Provenance provenance);
-  uint64_t spilled_bytes() const;
   uint64_t chord_count() const;
   // Bytes of every array in memory: offsets, chords, line counts and the density levels.
   uint64_t memory_with_density() const;

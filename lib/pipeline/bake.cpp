@@ -256,7 +256,6 @@ struct BudgetPlan {
   uint64_t batch_bytes = 0;    // what a batch costs in all the steps that see it
   uint64_t voxel_records = 0;  // chord records held in memory before they spill
   uint64_t voxel_merge = 0;    // one voxel range's merge
-  uint64_t voxel_chords = 0;   // merged chords held before they spill
   uint64_t whole_lines = 0;    // a line set a format could not stream
 };
 
@@ -595,19 +594,24 @@ BakeResult bake(const BakeOptions& options_in) {
   if (building("voxels")) {
     // The grid's placement first: its density mip levels stay in memory through the merge.
     voxel_placement = VoxelStreamBuilder(header, stats, options.voxels).description();
-    const uint64_t level1 = voxel_placement->voxel_count() / 8 * 4 + (uint64_t{2} << 20);
-    if (!budget.unlimited()) budget.reserve(level1, "the voxel grid's density mip levels");
+    const uint64_t voxel_count = voxel_placement->voxel_count();
+    // A chord count per voxel (1 or 2 bytes), density level 1 (4 bytes per 8 voxels) and below.
+    const uint64_t bytes = voxel_count * (options.voxels.max_chords_per_voxel > 255 ? 2 : 1) +
+                           voxel_count / 8 * 4 * 8 / 7 + (uint64_t{2} << 20);
+    if (!budget.unlimited())
+      budget.reserve(bytes,
+                     "the voxel grid's chord counts and density mip levels (" +
+                         std::to_string(voxel_count) + " voxels)");
   }
   // The budget's shares, for what follows the batches: the voxel records held before they
-  // spill, one voxel range's merge, the merged chords held before they spill.
+  // spill, and one voxel range's merge.
   if (budget.unlimited()) {
-    plan.voxel_records = plan.voxel_chords = UINT64_MAX;
+    plan.voxel_records = UINT64_MAX;
     plan.voxel_merge = uint64_t{1} << 30;
   } else {
     const uint64_t left = budget.available();
-    plan.voxel_records = left / 100 * 35;
-    plan.voxel_merge = left / 100 * 25;
-    plan.voxel_chords = left / 100 * 12;
+    plan.voxel_records = left / 100 * 40;
+    plan.voxel_merge = left / 100 * 30;
   }
 
   if (voxel_placement) {
@@ -666,7 +670,7 @@ BakeResult bake(const BakeOptions& options_in) {
   if (voxels) {
     Stage stage(result, "voxel merge", {&voxels_clock});
     TerminalProgress progress("merging voxels");
-    VoxelStoreSink sink(writer, plan.voxel_chords);
+    VoxelStoreSink sink(writer);
     voxels_clock.run(
         [&] { voxels->finish(sink, options.progress ? progress.callback() : ProgressFn{}); });
     BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
@@ -676,7 +680,7 @@ BakeResult bake(const BakeOptions& options_in) {
     finish_provenance(p, "voxels", voxels_clock);
     p.input_hash = lines_hash;
     p.parameters = to_json(options.voxels);
-    p.spill_bytes = voxels->spilled_bytes() + sink.spilled_bytes();
+    p.spill_bytes = voxels->spilled_bytes();
     p.stats = {{"resolution", g.resolution},
                {"quantization", g.quantization},
                {"chords", sink.chord_count()},
@@ -687,10 +691,8 @@ BakeResult bake(const BakeOptions& options_in) {
                {"max_error_voxels", g.max_error},
                {"mean_error_voxels", g.mean_error},
                {"records_in_memory_bytes", voxels->peak_record_bytes()},
-               {"records_spilled_bytes", voxels->spilled_bytes()},
-               {"chords_spilled_bytes", sink.spilled_bytes()}};
-    result.spill_peak_bytes =
-        std::max(result.spill_peak_bytes, voxels->spilled_bytes() + sink.spilled_bytes());
+               {"records_spilled_bytes", voxels->spilled_bytes()}};
+    result.spill_peak_bytes = std::max(result.spill_peak_bytes, voxels->spilled_bytes());
     sink.close(p);
     if (g.chords_dropped)
       result.notes.push_back("voxels: " + std::to_string(g.chords_dropped) + " chords dropped in " +

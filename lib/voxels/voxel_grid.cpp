@@ -10,17 +10,6 @@ static uint32_t bits_of(uint32_t quantization) {
   return uint32_t(std::countr_zero(quantization));
 }
 
-std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, uint32_t line,
-                                   uint8_t attribute_start, uint8_t attribute_end,
-                                   uint32_t quantization) {
-  const uint32_t b = bits_of(quantization);
-  uint32_t w0 = start.face | end.face << 3;
-  w0 |= start.u << 6 | start.v << (6 + b) | end.u << (6 + 2 * b) | end.v << (6 + 3 * b);
-  uint32_t w1 = (line & 31) | uint32_t(attribute_start) << 5 | uint32_t(attribute_end) << 13;
-  w1 |= start.w << 21 | end.w << 26;
-  return {w0, w1};
-}
-
 DecodedChord unpack_chord(uint32_t w0, uint32_t w1, uint32_t quantization) {
   const uint32_t b = bits_of(quantization), mask = quantization - 1;
   DecodedChord c;
@@ -34,26 +23,6 @@ DecodedChord unpack_chord(uint32_t w0, uint32_t w1, uint32_t quantization) {
   c.attribute_start = uint8_t((w1 >> 5) & 255);
   c.attribute_end = uint8_t((w1 >> 13) & 255);
   return c;
-}
-
-static uint32_t cell(float x, uint32_t levels) {
-  const float scaled = std::floor(x * float(levels));
-  return uint32_t(std::clamp(scaled, 0.0f, float(levels - 1)));
-}
-
-ChordEnd quantise_end(const std::array<float, 3>& local, uint32_t face, uint32_t quantization) {
-  ChordEnd e;
-  e.face = face;
-  if (face == kInteriorFace) {
-    e.u = cell(local[0], quantization);
-    e.v = cell(local[1], quantization);
-    e.w = cell(local[2], interior_levels(quantization));
-    return e;
-  }
-  const uint32_t axis = face / 2;
-  e.u = cell(local[axis == 0 ? 1 : 0], quantization);
-  e.v = cell(local[axis == 2 ? 1 : 2], quantization);
-  return e;
 }
 
 std::array<uint32_t, 3> VoxelGrid::level_resolution(size_t level) const {

@@ -5,7 +5,10 @@
 // each endpoint quantised to a Q x Q cell of the voxel face it lies on (or, for a line end inside
 // the voxel, to a cell of the voxel interior), packed in two uint32 words.
 
+#include <algorithm>
 #include <array>
+#include <bit>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -39,9 +42,17 @@ struct DecodedChord {
 inline uint32_t interior_levels(uint32_t quantization) {
   return quantization < 32 ? quantization : 32;
 }
-std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, uint32_t line,
-                                   uint8_t attribute_start, uint8_t attribute_end,
-                                   uint32_t quantization);
+// Inline: the voxelizer packs one chord per stay of a line in a voxel (10^8 for a large set).
+inline std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end,
+                                          uint32_t line, uint8_t attribute_start,
+                                          uint8_t attribute_end, uint32_t quantization) {
+  const uint32_t b = uint32_t(std::countr_zero(quantization));
+  uint32_t w0 = start.face | end.face << 3;
+  w0 |= start.u << 6 | start.v << (6 + b) | end.u << (6 + 2 * b) | end.v << (6 + 3 * b);
+  uint32_t w1 = (line & 31) | uint32_t(attribute_start) << 5 | uint32_t(attribute_end) << 13;
+  w1 |= start.w << 21 | end.w << 26;
+  return {w0, w1};
+}
 // Decodes at cell centres ((q + 0.5) / Q), which halves the quantisation bias.
 DecodedChord unpack_chord(uint32_t word0, uint32_t word1, uint32_t quantization);
 // One end, decoded the same way (voxel-local coordinates in [0, 1]).
@@ -58,7 +69,25 @@ inline std::array<float, 3> decode_end(const ChordEnd& e, uint32_t quantization)
   return p;
 }
 // Voxel-local point -> quantised end on the given face (or kInteriorFace).
-ChordEnd quantise_end(const std::array<float, 3>& local, uint32_t face, uint32_t quantization);
+inline uint32_t quantise_cell(float x, uint32_t levels) {
+  const float scaled = std::floor(x * float(levels));
+  return uint32_t(std::clamp(scaled, 0.0f, float(levels - 1)));
+}
+inline ChordEnd quantise_end(const std::array<float, 3>& local, uint32_t face,
+                             uint32_t quantization) {
+  ChordEnd e;
+  e.face = face;
+  if (face == kInteriorFace) {
+    e.u = quantise_cell(local[0], quantization);
+    e.v = quantise_cell(local[1], quantization);
+    e.w = quantise_cell(local[2], interior_levels(quantization));
+    return e;
+  }
+  const uint32_t axis = face / 2;
+  e.u = quantise_cell(local[axis == 0 ? 1 : 0], quantization);
+  e.v = quantise_cell(local[axis == 2 ? 1 : 2], quantization);
+  return e;
+}
 
 struct VoxelGrid {
   std::array<uint32_t, 3> resolution{};  // voxels per axis

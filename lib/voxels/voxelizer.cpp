@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <atomic>
@@ -116,7 +117,7 @@ struct VoxelStreamBuilder::State {
   uint64_t units = 0;
   std::vector<Run> runs;
   std::vector<uint64_t> unit_records;  // over all runs
-  uint64_t held_bytes = 0, peak_held_bytes = 0;
+  uint64_t held_bytes = 0, peak_held_bytes = 0, spilled_bytes = 0;
   std::unique_ptr<SpillFile> spill;
   // Error statistics over all blocks.
   double error_max = 0;
@@ -125,6 +126,11 @@ struct VoxelStreamBuilder::State {
   // Scratch kept between batches, so pages are touched once.
   std::vector<Block> blocks;
   std::vector<uint32_t> block_counts;
+  std::vector<Record> sorted;  // a batch's run before it is kept or spilled
+  // Chords per voxel, saturating at the cap: the kept chords' count before the merge, so the
+  // chords go straight to their place in the output.
+  std::vector<uint8_t> counts8;
+  std::vector<uint16_t> counts16;
 
   void place_grid(const LineSetStats& stats);
   template <class Emit>
@@ -143,9 +149,10 @@ struct VoxelStreamBuilder::State {
   }
   void keep_run(Run run);
   void spill_held_runs();
-  // Records of units [u0, u1) from every run, run after run, into `out`; `base[r]` is where
-  // run r's part starts in `out`.
-  void gather(uint64_t u0, uint64_t u1, std::vector<Record>& out, std::vector<uint64_t>& base);
+  // The records of units [u0, u1) of every run: `first[r]` points at run r's record start[u0],
+  // in its memory or, for a spilled run, read back into `buffer`.
+  void gather(uint64_t u0, uint64_t u1, std::vector<Record>& buffer,
+              std::vector<const Record*>& first);
 };
 
 void VoxelStreamBuilder::State::place_grid(const LineSetStats& stats) {
@@ -280,24 +287,26 @@ void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, Block& block
   uint128 sum = block.error_sum;
   for (const double d : distances_to_path(samples, *p.path)) {
     largest = std::max(largest, d);
-    sum += uint128(std::llround(d * kErrorScale));
+    sum += uint128(uint64_t(d * kErrorScale + 0.5));
   }
   block.error_max = largest;
   block.error_sum = sum;
   block.error_samples += samples.size();
 }
 
+// A run stays in memory (it owns its records) until the held runs would pass the budget's
+// share; from then on every run goes to the spill file, straight from the reused sort buffer.
 void VoxelStreamBuilder::State::keep_run(Run run) {
-  const uint64_t bytes = run.records.size() * sizeof(Record);
+  const uint64_t bytes = sorted.size() * sizeof(Record);
   if (!spill && held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
     spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
     spill_held_runs();
   }
   if (spill) {
-    run.file_offset = spill->append(run.records.data(), bytes);
+    run.file_offset = spill->append(sorted.data(), bytes);
     run.spilled = true;
-    run.records = {};
   } else {
+    run.records.swap(sorted);
     held_bytes += bytes;
     peak_held_bytes = std::max(peak_held_bytes, held_bytes);
   }
@@ -314,24 +323,26 @@ void VoxelStreamBuilder::State::spill_held_runs() {
   held_bytes = 0;
 }
 
-void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Record>& out,
-                                       std::vector<uint64_t>& base) {
-  uint64_t total = 0;
-  base.resize(runs.size());
-  for (size_t r = 0; r < runs.size(); ++r) {
-    base[r] = total;
-    total += runs[r].start[u1] - runs[r].start[u0];
-  }
-  out.resize(total);
+void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Record>& buffer,
+                                       std::vector<const Record*>& first) {
+  uint64_t spilled = 0;
+  for (const Run& run : runs)
+    if (run.spilled) spilled += run.start[u1] - run.start[u0];
+  buffer.resize(spilled);
+  first.resize(runs.size());
+  uint64_t at = 0;
   for (size_t r = 0; r < runs.size(); ++r) {
     const Run& run = runs[r];
-    const uint64_t first = run.start[u0], count = run.start[u1] - first;
-    if (count == 0) continue;
-    if (run.spilled)
-      spill->read(run.file_offset + first * sizeof(Record), out.data() + base[r],
+    const uint64_t begin = run.start[u0], count = run.start[u1] - begin;
+    if (!run.spilled) {
+      first[r] = run.records.data() + begin;
+      continue;
+    }
+    first[r] = buffer.data() + at;
+    if (count)
+      spill->read(run.file_offset + begin * sizeof(Record), buffer.data() + at,
                   count * sizeof(Record));
-    else
-      std::copy_n(run.records.data() + first, count, out.data() + base[r]);
+    at += count;
   }
 }
 
@@ -376,6 +387,10 @@ VoxelStreamBuilder::VoxelStreamBuilder(const LineSet& header, const LineSetStats
   s.unit_shift = uint32_t(std::max(0, int(std::bit_width(voxels - 1)) - 12));
   s.units = ((voxels - 1) >> s.unit_shift) + 1;
   s.unit_records.assign(s.units, 0);
+  if (options.max_chords_per_voxel > 255)
+    s.counts16.assign(voxels, 0);
+  else
+    s.counts8.assign(voxels, 0);
 }
 
 VoxelStreamBuilder::~VoxelStreamBuilder() = default;
@@ -384,7 +399,7 @@ const VoxelGrid& VoxelStreamBuilder::description() const {
   return state_->grid;
 }
 uint64_t VoxelStreamBuilder::spilled_bytes() const {
-  return state_->spill ? state_->spill->size() : 0;
+  return state_->spill ? state_->spill->size() : state_->spilled_bytes;
 }
 uint64_t VoxelStreamBuilder::peak_record_bytes() const {
   return state_->peak_held_bytes;
@@ -410,6 +425,7 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
     block.first_line = first;
     block.end_line = end;
     block.records.clear();
+    block.records.reserve(2 * (batch.line_offsets[end] - begin_point));
     block.error_max = 0;
     block.error_sum = 0;
     block.error_samples = 0;
@@ -446,10 +462,23 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
   }
   if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords in one batch");
   run.start[units] = uint32_t(total);
-  run.records.resize(total);
+  s.sorted.resize(total);
   tbb::parallel_for(size_t{0}, used, [&](size_t b) {
     uint32_t* cursor = s.block_counts.data() + b * (units + 1);
-    for (const Record& r : s.blocks[b].records) run.records[cursor[r.voxel >> s.unit_shift]++] = r;
+    for (const Record& r : s.blocks[b].records) s.sorted[cursor[r.voxel >> s.unit_shift]++] = r;
+  });
+  // Count per voxel, unit by unit in parallel (units own disjoint voxels).
+  const uint32_t cap = s.grid.max_chords_per_voxel;
+  tbb::parallel_for(uint64_t{0}, units, [&](uint64_t u) {
+    const Record* first = s.sorted.data() + run.start[u];
+    const Record* last = s.sorted.data() + run.start[u + 1];
+    if (!s.counts16.empty()) {
+      for (const Record* r = first; r != last; ++r)
+        if (s.counts16[r->voxel] < cap) ++s.counts16[r->voxel];
+    } else {
+      for (const Record* r = first; r != last; ++r)
+        if (s.counts8[r->voxel] < cap) ++s.counts8[r->voxel];
+    }
   });
   for (size_t b = 0; b < used; ++b) {
     const Block& block = s.blocks[b];
@@ -467,7 +496,18 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
 void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
   State& s = *state_;
   VoxelGrid& grid = s.grid;
-  sink.begin(grid);
+  const uint64_t kept_total = tbb::parallel_reduce(
+      tbb::blocked_range<uint64_t>(0, grid.voxel_count(), uint64_t{1} << 16), uint64_t{0},
+      [&](const tbb::blocked_range<uint64_t>& range, uint64_t sum) {
+        for (uint64_t v = range.begin(); v != range.end(); ++v)
+          sum += s.counts16.empty() ? s.counts8[v] : s.counts16[v];
+        return sum;
+      },
+      std::plus<uint64_t>());
+  std::vector<uint8_t>().swap(s.counts8);
+  std::vector<uint16_t>().swap(s.counts16);
+  if (kept_total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
+  sink.begin(grid, kept_total);
   s.blocks.clear();
   s.blocks.shrink_to_fit();
   const uint64_t voxels = grid.voxel_count(), units = s.units;
@@ -475,12 +515,13 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
   const uint32_t cap = grid.max_chords_per_voxel;
   // Per record: itself and at most one kept chord; per voxel: the output arrays.
   constexpr uint64_t kRecordCost = sizeof(Record) + 8, kVoxelCost = 4 + 1 + 4 + 16;
-  const uint64_t budget = std::max<uint64_t>(s.memory.merge_bytes, 1);
+  // Large ranges gain nothing (the units run in parallel either way) and touch fresh pages.
+  const uint64_t budget = std::clamp<uint64_t>(s.memory.merge_bytes, 1, uint64_t{256} << 20);
   const std::array<uint32_t, 3> coarse = grid.level_resolution(1);
   Array<float> level1(static_cast<uint64_t>(coarse[0]) * coarse[1] * coarse[2]);
   std::fill(level1.begin(), level1.end(), 0.0f);
   std::vector<Record> records;
-  std::vector<uint64_t> base;
+  std::vector<const Record*> first_record;
   std::vector<uint32_t> offsets, chords;
   std::vector<uint8_t> line_counts;
   std::vector<float> density;
@@ -495,7 +536,9 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     uint64_t u1 = u0, cost = 0;
     while (u1 < units) {
       const uint64_t v = std::min(unit_span, voxels - (u1 << s.unit_shift));
-      const uint64_t c = s.unit_records[u1] * kRecordCost + v * kVoxelCost;
+      const uint64_t c =
+          s.unit_records[u1] * (s.spill ? kRecordCost : kRecordCost - sizeof(Record)) +
+          v * kVoxelCost;
       if (u1 > u0 && cost + c > budget) break;
       cost += c;
       ++u1;
@@ -507,7 +550,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
                            ", more than the memory budget leaves for merging (" +
                            std::to_string(budget >> 20) +
                            " MiB); use a coarser grid or a larger --memory-budget");
-    s.gather(u0, u1, records, base);
+    s.gather(u0, u1, records, first_record);
     const uint64_t v0 = u0 << s.unit_shift, v1 = std::min(voxels, u1 << s.unit_shift);
     offsets.resize(v1 - v0);
     line_counts.resize(v1 - v0);
@@ -516,7 +559,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     const auto for_each_record = [&](uint64_t u, auto&& body) {
       for (size_t r = 0; r < s.runs.size(); ++r) {
         const Run& run = s.runs[r];
-        const Record* first = records.data() + base[r] + (run.start[u] - run.start[u0]);
+        const Record* first = first_record[r] + (run.start[u] - run.start[u0]);
         const Record* last = first + (run.start[u + 1] - run.start[u]);
         for (const Record* p = first; p != last; ++p) body(*p);
       }
@@ -584,15 +627,20 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     // Level 1 of the density mips, summed in voxel order: for every coarse voxel the same
     // additions in the same order as the 2x2x2 loop of the levels above it.
     const auto& r = grid.resolution;
+    uint64_t x = v0 % r[0], y = (v0 / r[0]) % r[1], z = v0 / (uint64_t(r[0]) * r[1]);
     for (uint64_t v = v0; v < v1; ++v) {
-      const uint64_t x = v % r[0], y = (v / r[0]) % r[1], z = v / (uint64_t(r[0]) * r[1]);
       level1[((z / 2) * coarse[1] + y / 2) * coarse[0] + x / 2] += density[v - v0];
+      if (++x == r[0]) {
+        x = 0;
+        if (++y == r[1]) y = 0, ++z;
+      }
     }
     chords_before += range_chords;
     if (progress) progress(v1, voxels);
     u0 = u1;
   }
   s.runs.clear();
+  if (s.spill) s.spilled_bytes = s.spill->size();
   s.spill.reset();
   for (float& d : level1) d /= 8;
 
@@ -634,20 +682,23 @@ namespace {
 class GridSink : public VoxelSink {
  public:
   explicit GridSink(VoxelGrid& grid) : grid_(grid) {}
-  void begin(const VoxelGrid& grid) override {
+  void begin(const VoxelGrid& grid, uint64_t chord_count) override {
     grid_ = grid;
     const uint64_t voxels = grid.voxel_count();
     grid_.offsets = Array<uint32_t>(voxels + 1);
     grid_.line_counts = Array<uint8_t>(voxels);
     grid_.density.clear();
     grid_.density.emplace_back(voxels);
+    chords_ = Array<uint32_t>(2 * chord_count);
+    written_ = 0;
   }
   void voxels(uint64_t first, uint64_t count, const uint32_t* offsets, const uint8_t* line_counts,
               const float* density, const uint32_t* chords, uint64_t chord_count) override {
     std::copy_n(offsets, count, grid_.offsets.data() + first);
     std::copy_n(line_counts, count, grid_.line_counts.data() + first);
     std::copy_n(density, count, grid_.density[0].data() + first);
-    chords_.insert(chords_.end(), chords, chords + 2 * chord_count);
+    std::copy_n(chords, 2 * chord_count, chords_.data() + written_);
+    written_ += 2 * chord_count;
   }
   void end(const VoxelGrid& grid, uint32_t chord_count, std::vector<Array<float>> coarse) override {
     Array<uint32_t> offsets = std::move(grid_.offsets);
@@ -659,13 +710,13 @@ class GridSink : public VoxelSink {
     grid_.line_counts = std::move(line_counts);
     grid_.density = std::move(density);
     for (Array<float>& level : coarse) grid_.density.push_back(std::move(level));
-    grid_.chords = Array<uint32_t>(chords_.size());
-    std::copy(chords_.begin(), chords_.end(), grid_.chords.begin());
+    grid_.chords = std::move(chords_);
   }
 
  private:
   VoxelGrid& grid_;
-  std::vector<uint32_t> chords_;
+  Array<uint32_t> chords_;
+  uint64_t written_ = 0;
 };
 
 }  // namespace

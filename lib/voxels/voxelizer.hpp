@@ -45,8 +45,8 @@ VoxelGrid voxelize(const LineSet& lines, const VoxelOptions& options,
 class VoxelSink {
  public:
   virtual ~VoxelSink() = default;
-  // The grid's placement and sizes (no arrays, no statistics yet).
-  virtual void begin(const VoxelGrid& grid) = 0;
+  // The grid's placement and sizes (no arrays, no statistics yet) and how many chords it keeps.
+  virtual void begin(const VoxelGrid& grid, uint64_t chord_count) = 0;
   // Voxels [first, first + count): where their chords start among all the grid's chords, their
   // distinct lines and density_0; then their chords (2 words each), in order.
   virtual void voxels(uint64_t first, uint64_t count, const uint32_t* offsets,
@@ -58,9 +58,10 @@ class VoxelSink {
                    std::vector<Array<float>> coarse_density) = 0;
 };
 
-// Memory a streamed build may hold. Chord records (20 bytes each) stay in memory up to
-// `records_bytes` and go to a spill file beside `spill_near` past it; the merge takes ranges of
-// voxels whose records, chords and per-voxel arrays fit `merge_bytes`.
+// Memory a streamed build may hold, besides a chord count per voxel (1 byte; 2 with a cap above
+// 255). Chord records (20 bytes each) stay in memory up to `records_bytes` and go to a spill
+// file beside `spill_near` past it; the merge takes ranges of voxels whose records, chords and
+// per-voxel arrays fit `merge_bytes`.
 struct VoxelMemory {
   std::string spill_near;  // "" : never spill
   uint64_t records_bytes = UINT64_MAX;
