@@ -43,9 +43,9 @@ inline uint32_t interior_levels(uint32_t quantization) {
   return quantization < 32 ? quantization : 32;
 }
 // Inline: the voxelizer packs one chord per stay of a line in a voxel (10^8 for a large set).
-inline std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end,
-                                          uint32_t line, uint8_t attribute_start,
-                                          uint8_t attribute_end, uint32_t quantization) {
+inline std::array<uint32_t, 2> pack_chord(const ChordEnd& start, const ChordEnd& end, uint32_t line,
+                                          uint8_t attribute_start, uint8_t attribute_end,
+                                          uint32_t quantization) {
   const uint32_t b = uint32_t(std::countr_zero(quantization));
   uint32_t w0 = start.face | end.face << 3;
   w0 |= start.u << 6 | start.v << (6 + b) | end.u << (6 + 2 * b) | end.v << (6 + 3 * b);
