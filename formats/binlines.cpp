@@ -5,6 +5,7 @@
 // byte length and that many bytes of name, then the lines as in version 1. The public LineVis
 // loader reads only version 1; write version 1 for it.
 
+#include "core/atomic_file.hpp"
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
 
@@ -87,6 +88,64 @@ class BinlinesReader : public LineReader {
 
 std::unique_ptr<LineReader> open_binlines(const std::string& path, const ReadOptions& options) {
   return std::make_unique<BinlinesReader>(path, options);
+}
+
+namespace {
+
+class BinlinesWriter : public LineWriter {
+ public:
+  BinlinesWriter(const std::string& path, const LineSet& header, const WriteOptions& options)
+      : file_(path), out_(file_.temp_path()), options_(options) {
+    if (options.binlines_version != 1 && options.binlines_version != 2)
+      throw Error(".binlines version must be 1 or 2");
+    attributes_ = header.attributes.size();
+    out_.write_value<uint32_t>(options.binlines_version);
+    out_.write_value<uint32_t>(0);  // the line count, filled in by close()
+    out_.write_value<uint32_t>(static_cast<uint32_t>(attributes_));
+    if (options.binlines_version == 2)
+      for (const Attribute& a : header.attributes) {
+        out_.write_value<uint32_t>(static_cast<uint32_t>(a.name.size()));
+        out_.write(a.name);
+      }
+  }
+
+  void write(const LineSet& batch) override {
+    if (batch.attributes.size() != attributes_)
+      throw Error("binlines: a batch with " + std::to_string(batch.attributes.size()) +
+                  " attributes, the header has " + std::to_string(attributes_));
+    for (size_t line = 0; line < batch.line_count(); ++line) {
+      const uint64_t begin = batch.line_offsets[line], n = batch.line_size(line);
+      if (n > UINT32_MAX) throw Error(".binlines lines hold at most 2^32-1 points");
+      if (lines_ == UINT32_MAX) throw Error(".binlines holds at most 2^32-1 lines");
+      out_.write_value<uint32_t>(static_cast<uint32_t>(n));
+      out_.write(batch.positions.data() + 3 * begin, 12 * n);
+      for (const Attribute& a : batch.attributes) out_.write(a.values.data() + begin, 4 * n);
+      ++lines_;
+    }
+  }
+
+  void close() override {
+    const uint32_t count = static_cast<uint32_t>(lines_);
+    out_.patch(4, &count, sizeof count);
+    out_.close();
+    file_.commit();
+  }
+  bool streams() const override { return true; }
+
+ private:
+  AtomicFile file_;
+  io::Writer out_;
+  WriteOptions options_;
+  size_t attributes_ = 0;
+  uint64_t lines_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<LineWriter> open_binlines_writer(const std::string& path, const LineSet& header,
+                                                 const WriteOptions& options) {
+  static_assert(std::endian::native == std::endian::little, "writer assumes little endian");
+  return std::make_unique<BinlinesWriter>(path, header, options);
 }
 
 void write_binlines(const LineSet& lines, const std::string& path, const WriteOptions& options) {

@@ -16,6 +16,9 @@ LineSet read_obj(const std::string& path, const ReadOptions& options);
 void write_obj(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 std::unique_ptr<LineReader> open_binlines(const std::string& path, const ReadOptions& options);
+// Writes batch by batch through a temporary file; the header's line count is filled in at close.
+std::unique_ptr<LineWriter> open_binlines_writer(const std::string& path, const LineSet& header,
+                                                 const WriteOptions& options);
 void write_binlines(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options);

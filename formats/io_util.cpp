@@ -255,6 +255,12 @@ void Writer::write(const void* data, size_t bytes) {
     throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
 }
 
+void Writer::patch(uint64_t offset, const void* data, size_t bytes) {
+  if (std::fflush(f_) != 0 || std::fseek(f_, static_cast<long>(offset), SEEK_SET) != 0 ||
+      std::fwrite(data, 1, bytes, f_) != bytes || std::fseek(f_, 0, SEEK_END) != 0)
+    throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+}
+
 void Writer::close() {
   const bool ok = std::fflush(f_) == 0 && !std::ferror(f_);
   std::fclose(f_);

@@ -172,6 +172,9 @@ class Writer {
     if (swap) v = byteswap_value(v);
     write(&v, sizeof(T));
   }
+  // Overwrites `bytes` at `offset` (a header field known only at the end), then goes on
+  // appending.
+  void patch(uint64_t offset, const void* data, size_t bytes);
   void close();  // flushes; throws OutputError on failure
 
  private:

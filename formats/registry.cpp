@@ -150,4 +150,31 @@ void write_line_set(const LineSet& lines, const std::string& path, const WriteOp
   file.commit();
 }
 
+namespace {
+
+class CollectingWriter : public LineWriter {
+ public:
+  CollectingWriter(std::string path, const LineSet& header, WriteOptions options)
+      : path_(std::move(path)), lines_(header_of(header)), options_(std::move(options)) {
+    resolve_output_format(path_, options_.format);  // refuse an unwritable format up front
+  }
+  void write(const LineSet& batch) override { append_lines(lines_, batch); }
+  void close() override { write_line_set(lines_, path_, options_); }
+  bool streams() const override { return false; }
+
+ private:
+  std::string path_;
+  LineSet lines_;
+  WriteOptions options_;
+};
+
+}  // namespace
+
+std::unique_ptr<LineWriter> open_line_writer(const std::string& path, const LineSet& header,
+                                             const WriteOptions& options) {
+  if (resolve_output_format(path, options.format) == Format::binlines)
+    return formats::open_binlines_writer(path, header, options);
+  return std::make_unique<CollectingWriter>(path, header, options);
+}
+
 }  // namespace linebake

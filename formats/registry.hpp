@@ -63,4 +63,19 @@ std::string source_format_name(const std::string& source, const ReadOptions& opt
 void write_line_set(const LineSet& lines, const std::string& path,
                     const WriteOptions& options = {});
 
+// A line set written batch by batch (the batches of a LineReader). .binlines is written as the
+// batches come, in bounded memory; the other formats collect the batches and write at close().
+// Nothing appears under `path` before close() succeeds.
+class LineWriter {
+ public:
+  virtual ~LineWriter() = default;
+  virtual void write(const LineSet& batch) = 0;
+  virtual void close() = 0;
+  // True when the format is written as the batches come.
+  virtual bool streams() const = 0;
+};
+// `header`: attribute names and metadata (as LineReader::header()).
+std::unique_ptr<LineWriter> open_line_writer(const std::string& path, const LineSet& header,
+                                             const WriteOptions& options = {});
+
 }  // namespace linebake

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -18,19 +19,21 @@
 #include "commands.hpp"
 #include "core/array.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
+#include "pipeline/bake.hpp"
 #include "tubes/tube_builder.hpp"
 #include "voxels/voxelizer.hpp"
 
 namespace linebake::cli {
 namespace {
 
-// Best-of-n memcpy bandwidth (bytes written per second) over pre-touched 1 GiB buffers, with the
-// copy split over all threads like the builders split their work.
-double memcpy_bandwidth(int repeats) {
-  const size_t bytes = size_t{1} << 30;
+// Best-of-n memcpy bandwidth (bytes written per second) over pre-touched buffers (1 GiB unless
+// told), with the copy split over all threads like the builders split their work.
+double memcpy_bandwidth(int repeats, size_t bytes = size_t{1} << 30) {
   Array<unsigned char> src(bytes), dst(bytes);
   std::memset(src.data(), 1, bytes);
   std::memset(dst.data(), 0, bytes);
@@ -52,6 +55,10 @@ struct BenchArgs {
   int sides = 3, repeat = 3, threads = 0;
   uint32_t quantization = 32;
   bool json = false;
+  // bake
+  std::vector<std::string> assets{"tubes", "voxels"};
+  std::string memory_budget, compression = "lz4", output;
+  bool keep = false;
 };
 
 LineSet load(const BenchArgs& args) {
@@ -286,14 +293,103 @@ void bench_tubes(const BenchArgs& args) {
             << " GiB\n";
 }
 
+// A whole bake, as `linebake bake` runs it (forced, so every step builds), per stage: wall and
+// CPU time and the resident high-water mark; then the bytes written per second against the
+// machine's memcpy bandwidth from the same run (over 256 MiB buffers, measured after the bakes
+// so it does not count in their memory).
+void bench_bake(const BenchArgs& args) {
+  BakeOptions options;
+  options.input = args.input;
+  options.assets = args.assets;
+  options.compression = parse_compression(args.compression);
+  options.force = true;
+  options.progress = !args.json;
+  if (args.memory_budget == "unlimited")
+    options.memory_budget = BakeOptions::kUnlimited;
+  else if (!args.memory_budget.empty())
+    options.memory_budget = std::max<uint64_t>(parse_size(args.memory_budget), 1);
+  options.cache =
+      args.output.empty()
+          ? std::filesystem::path(default_cache_path(args.input)).stem().string() + ".bench.lbc.h5"
+          : args.output;
+  install_interrupt_handlers();
+  std::vector<BakeResult> runs;
+  for (int r = 0; r < args.repeat; ++r) {
+    std::filesystem::remove(options.cache);
+    runs.push_back(bake(options));
+  }
+  const double bandwidth = memcpy_bandwidth(5, size_t{256} << 20);
+  if (!args.keep) std::filesystem::remove(options.cache);
+  std::vector<double> walls;
+  for (const BakeResult& r : runs) walls.push_back(r.wall_s);
+  std::sort(walls.begin(), walls.end());
+  const double median = walls[walls.size() / 2];
+  // The run whose wall time is the median is the one reported in detail.
+  const BakeResult& run = *std::find_if(runs.begin(), runs.end(),
+                                        [&](const BakeResult& r) { return r.wall_s == median; });
+  const size_t threads =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  uint64_t segments = 0;
+  for (const BakeStep& step : run.steps)
+    if (step.step == "lines") segments = step.provenance.stats.value("segments", uint64_t{0});
+  nlohmann::json stages = nlohmann::json::array();
+  for (const BakeStage& s : run.stages)
+    stages.push_back({{"stage", s.name},
+                      {"wall_s", s.wall_s},
+                      {"cpu_s", s.cpu_s},
+                      {"peak_rss_bytes", s.peak_rss_bytes}});
+  const double written = double(run.bytes_written) / run.wall_s;
+  const nlohmann::json out = {{"step", "bake"},
+                              {"input", args.input},
+                              {"assets", args.assets},
+                              {"compression", args.compression},
+                              {"threads", threads},
+                              {"segments", segments},
+                              {"memory_budget_bytes", run.memory_budget_bytes},
+                              {"batch_points", run.batch_points},
+                              {"runs_s", walls},
+                              {"median_s", median},
+                              {"stages", stages},
+                              {"peak_rss_bytes", run.peak_rss_bytes},
+                              {"spill_peak_bytes", run.spill_peak_bytes},
+                              {"bytes_written", run.bytes_written},
+                              {"written_MBps", written / 1e6},
+                              {"memcpy_GBps", bandwidth / 1e9}};
+  if (args.json) {
+    std::cout << out.dump(2) << "\n";
+    return;
+  }
+  std::cout << std::fixed << std::setprecision(2) << "bake: " << args.input << ", " << segments
+            << " segments, assets ";
+  for (size_t i = 0; i < args.assets.size(); ++i) std::cout << (i ? "," : "") << args.assets[i];
+  std::cout << ", " << args.compression << ", " << threads << " threads, budget "
+            << (run.memory_budget_bytes ? format_bytes(run.memory_budget_bytes) : "unlimited")
+            << "\n  runs (s):        ";
+  for (double t : walls) std::cout << t << " ";
+  std::cout << "(median " << median << " s reported)\n";
+  for (const BakeStage& s : run.stages)
+    std::cout << "  " << std::left << std::setw(16) << (s.name + ":") << std::right << std::setw(7)
+              << s.wall_s << " s wall, " << std::setw(7) << s.cpu_s << " s CPU, peak RSS "
+              << format_bytes(s.peak_rss_bytes) << "\n";
+  std::cout << "  peak RSS:        " << format_bytes(run.peak_rss_bytes) << " (budget "
+            << (run.memory_budget_bytes ? format_bytes(run.memory_budget_bytes) : "unlimited")
+            << ", " << run.batch_points << " points per batch)\n"
+            << "  spill files:     " << format_bytes(run.spill_peak_bytes) << " at their largest\n"
+            << "  written:         " << format_bytes(run.bytes_written) << " at "
+            << std::setprecision(0) << written / 1e6 << " MB/s\n"
+            << "  memcpy:          " << std::setprecision(2) << bandwidth / 1e9
+            << " GB/s (same run, " << threads << " threads)\n";
+}
+
 }  // namespace
 
 Command add_bench(CLI::App& app) {
-  auto* sub = app.add_subcommand("bench", "Benchmark a build step (tubes, voxels, embree)");
+  auto* sub =
+      app.add_subcommand("bench", "Benchmark a build step (tubes, voxels, embree) or a whole bake");
   auto args = std::make_shared<BenchArgs>();
   sub->add_option("step", args->step, "Step to measure")
       ->required()
-      ->check(CLI::IsMember({"tubes", "voxels", "embree"}));
+      ->check(CLI::IsMember({"tubes", "voxels", "embree", "bake"}));
   sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
   sub->add_option("--grid", args->grid, "voxels: auto, N or NxNxN (default 512)");
   sub->add_option("--quantization", args->quantization, "voxels: 16 | 32 (default) | 64")
@@ -308,13 +404,26 @@ Command add_bench(CLI::App& app) {
       ->check(CLI::Range(1, 100));
   sub->add_option("--threads", args->threads, "Worker threads (default: all cores)")
       ->check(CLI::Range(0, 1024));
+  sub->add_option("--assets", args->assets, "bake: assets to build (default tubes,voxels)")
+      ->delimiter(',');
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "bake: resident memory the bake may use, e.g. 2G; unlimited (default: half of "
+                  "physical memory)");
+  sub->add_option("--compression", args->compression,
+                  "bake: none | deflate | lz4 (default) | blosc-zstd")
+      ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
+  sub->add_option("-o,--output", args->output,
+                  "bake: the cache to write (default <input name>.bench.lbc.h5, removed after)");
+  sub->add_flag("--keep", args->keep, "bake: keep the cache");
   sub->add_flag("--json", args->json, "Print the figures as JSON");
   return [args] {
     std::unique_ptr<tbb::global_control> limit;
     if (args->threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     size_t(args->threads));
-    if (args->step == "voxels")
+    if (args->step == "bake")
+      bench_bake(*args);
+    else if (args->step == "voxels")
       bench_voxels(*args);
     else if (args->step == "embree")
       bench_embree(*args);

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "synth/synth.hpp"
@@ -24,28 +25,38 @@ Command add_synth(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"aneurysm", "convection", "turbulence", "clouds"}));
   sub->add_option("-o,--output", args->output, "Output file (any writable format)")->required();
-  sub->add_option("--scale", args->params.scale, "Fraction of the paper's size (default 1.0)")
-      ->check(CLI::Range(1e-6, 4.0));
+  sub->add_option("--scale", args->params.scale,
+                  "Fraction of the paper's size (default 1.0; up to 100, generated and written "
+                  "batch by batch to .binlines)")
+      ->check(CLI::Range(1e-6, synth::kMaxScale));
   sub->add_option("--seed", args->params.seed, "Random seed (default 1)");
   sub->add_flag("--adaptive", args->adaptive, "Adaptive RK4 step (default: fixed step)");
   sub->add_option("--to", args->to, "Output format, overriding the extension");
   return [args] {
     args->params.adaptive = args->adaptive;
     const auto start = std::chrono::steady_clock::now();
-    LineSet lines;
-    {
-      TerminalProgress progress("generating " + args->params.name);
-      lines = synth::generate(args->params, progress.callback());
-    }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::cerr << "linebake: " << args->params.name << ": " << lines.line_count() << " lines, "
-              << lines.segment_count() << " segments in " << seconds << " s\n";
     WriteOptions write;
     if (!args->to.empty()) write.format = parse_format(args->to);
-    TerminalProgress progress("writing");
-    write.progress = progress.callback();
-    write_line_set(lines, args->output, write);
+    install_interrupt_handlers();
+    // Generated batch by batch; .binlines is written as the batches come, so any scale fits in
+    // memory. Other formats collect the line set first.
+    TerminalProgress progress("generating " + args->params.name);
+    const std::unique_ptr<LineReader> generator =
+        synth::open_generator(args->params, progress.callback());
+    const std::unique_ptr<LineWriter> writer =
+        open_line_writer(args->output, generator->header(), write);
+    LineSet batch;
+    uint64_t segments = 0;
+    while (generator->next(batch, uint64_t{1} << 20)) {
+      throw_if_interrupted();
+      segments += batch.segment_count();
+      writer->write(batch);
+    }
+    writer->close();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::cerr << "linebake: " << args->params.name << ": " << generator->lines_read() << " lines, "
+              << segments << " segments in " << seconds << " s\n";
   };
 }
 
