@@ -263,7 +263,7 @@ struct BudgetPlan {
 
 // Bytes a batch costs per point in the steps that see it: the line data several times over
 // (as read, as repaired, as read back), the tube staging, the voxel walk's records (about two
-// chords per segment, twice: per block and sorted), Embree's buffers.
+// chords per segment, 16 bytes each, twice: per block and sorted), Embree's buffers.
 uint64_t cost_per_point(const BakeOptions& o, const LineSet& header, bool tubes, bool voxels,
                         bool embree) {
   const uint64_t line_bytes = 12 + 4 * header.attributes.size() + 8;
@@ -274,7 +274,7 @@ uint64_t cost_per_point(const BakeOptions& o, const LineSet& header, bool tubes,
     cost += uint64_t(o.tubes.sides) * tube_vertex_bytes(o.tubes.normals, attribute) +
             uint64_t(o.tubes.sides) * 6 * 4;
   }
-  if (voxels) cost += 2 * 2 * 20 + 64;
+  if (voxels) cost += 2 * 2 * 16 + 64;
   if (embree) cost += o.embree.geometry == EmbreeGeometry::BezierCurve ? 69 : 21;
   return cost;
 }
@@ -610,9 +610,11 @@ BakeResult bake(const BakeOptions& options_in) {
     plan.voxel_records = UINT64_MAX;
     plan.voxel_merge = uint64_t{1} << 30;
   } else {
+    // The merge needs little beyond what the records already hold (256 MiB covers any range);
+    // the rest goes to keeping records in memory instead of spilling them.
     const uint64_t left = budget.available();
-    plan.voxel_records = left / 100 * 40;
-    plan.voxel_merge = left / 100 * 30;
+    plan.voxel_merge = std::min<uint64_t>(left / 4, uint64_t{256} << 20);
+    plan.voxel_records = left - plan.voxel_merge - left / 20;
   }
 
   if (voxel_placement) {

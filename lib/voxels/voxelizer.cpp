@@ -94,10 +94,55 @@ struct Piece {
 // A chord on its way to its voxel. Records are made in line order and along each line, and
 // every later step moves them stably, so a voxel's chords end up in the canonical order (line
 // id, then along the line) without a sort.
+// 16 bytes: the line id is not kept. Bit 31 of word1 (free in the chord layout) marks a line's
+// first chord in its voxel, which is all the distinct-line count needs; it is cleared on output.
 struct Record {
-  uint32_t voxel, line;
+  uint32_t voxel;
   uint32_t word0, word1;
   float weight;
+};
+constexpr uint32_t kFirstOfLine = 1u << 31;
+
+// The voxels one line has reached so far (open addressing; cleared per line in the time its
+// entries took to insert).
+class VoxelSet {
+ public:
+  // True when `voxel` was not in the set.
+  bool insert(uint32_t voxel) {
+    if (2 * (used_.size() + 1) > slots_.size()) grow();
+    size_t i = slot_of(voxel);
+    while (slots_[i] != kEmpty) {
+      if (slots_[i] == voxel) return false;
+      i = (i + 1) & (slots_.size() - 1);
+    }
+    slots_[i] = voxel;
+    used_.push_back(uint32_t(i));
+    return true;
+  }
+  void clear() {
+    for (uint32_t i : used_) slots_[i] = kEmpty;
+    used_.clear();
+  }
+
+ private:
+  static constexpr uint32_t kEmpty = 0xFFFFFFFFu;  // no voxel has this index
+  size_t slot_of(uint32_t voxel) const {
+    return size_t((uint64_t(voxel) * 0x9E3779B97F4A7C15ull) >> 32) & (slots_.size() - 1);
+  }
+  void grow() {
+    std::vector<uint32_t> old = std::move(slots_);
+    slots_.assign(std::max<size_t>(64, 2 * old.size()), kEmpty);
+    used_.clear();
+    for (uint32_t v : old)
+      if (v != kEmpty) {
+        size_t i = slot_of(v);
+        while (slots_[i] != kEmpty) i = (i + 1) & (slots_.size() - 1);
+        slots_[i] = v;
+        used_.push_back(uint32_t(i));
+      }
+  }
+  std::vector<uint32_t> slots_;
+  std::vector<uint32_t> used_;
 };
 
 __extension__ typedef unsigned __int128 uint128;
@@ -109,6 +154,7 @@ constexpr double kErrorScale = 4294967296.0;
 struct Block {
   size_t first_line = 0, end_line = 0;
   std::vector<Record> records;
+  VoxelSet visited;
   double error_max = 0;
   uint128 error_sum = 0;
   uint64_t error_samples = 0;
@@ -126,12 +172,11 @@ struct Run {
 
 // Per-thread counters for the voxels of one unit.
 struct UnitScratch {
-  std::vector<uint32_t> n, distinct, last_line, cursor, room;
+  std::vector<uint32_t> n, distinct, cursor, room;
   std::vector<float> density;
   void resize(uint64_t voxels) {
     n.assign(voxels, 0);
     distinct.assign(voxels, 0);
-    last_line.assign(voxels, 0xFFFFFFFFu);
     density.assign(voxels, 0.0f);
     cursor.resize(voxels);
     room.resize(voxels);
@@ -169,7 +214,7 @@ struct VoxelStreamBuilder::State {
   void place_grid(const LineSetStats& stats);
   template <class Emit>
   void walk(const LineSet& lines, size_t line, std::vector<Vec>& path, Emit&& emit) const;
-  void emit(const Piece& piece, uint32_t line, Block& block) const;
+  void emit(const Piece& piece, uint32_t line, bool first_in_voxel, Block& block) const;
   Vec to_grid(const LineSet& lines, uint64_t point) const {
     Vec g{};
     for (int k = 0; k < 3; ++k)
@@ -182,7 +227,6 @@ struct VoxelStreamBuilder::State {
     return uint8_t(std::clamp((v - lo) / span, 0.0f, 1.0f) * 255 + 0.5f);
   }
   void keep_run(Run run);
-  void spill_held_runs();
   // The records of units [u0, u1) of every run: `first[r]` points at run r's record start[u0],
   // in its memory or, for a spilled run, read back into `buffer`.
   void gather(uint64_t u0, uint64_t u1, std::vector<Record>& buffer,
@@ -298,7 +342,8 @@ void VoxelStreamBuilder::State::walk(const LineSet& lines, size_t line, std::vec
 
 // Quantises and packs one chord, and measures it: the decoded chord sampled at five points
 // against the polyline inside the voxel (quantisation and straightening error together).
-void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, Block& block) const {
+void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, bool first_in_voxel,
+                                     Block& block) const {
   const uint32_t q = grid.quantization;
   std::array<float, 3> entry{}, exit{};
   for (int k = 0; k < 3; ++k) {
@@ -310,7 +355,8 @@ void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, Block& block
   const uint8_t a0 = to_unorm8(p.entry_attribute), a1 = to_unorm8(p.exit_attribute);
   const auto words = pack_chord(start, end, line, a0, a1, q);
   const float weight = float(p.length) * (attribute >= 0 ? (float(a0) + float(a1)) / 510.0f : 1.0f);
-  block.records.push_back({uint32_t(p.voxel), line, words[0], words[1], weight});
+  block.records.push_back(
+      {uint32_t(p.voxel), words[0], words[1] | (first_in_voxel ? kFirstOfLine : 0), weight});
 
   const std::array<float, 3> s = decode_end(start, q), e = decode_end(end, q);
   Samples samples;
@@ -334,15 +380,13 @@ void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, Block& block
   block.error_samples += 5;
 }
 
-// A run stays in memory (it owns its records) until the held runs would pass the budget's
-// share; from then on every run goes to the spill file, straight from the reused sort buffer.
+// A run stays in memory (it owns its records) while the held runs fit the budget's share; a run
+// that would pass it goes to the spill file, straight from the reused sort buffer. Runs in
+// memory and in the file mix freely: the merge reads each where it is.
 void VoxelStreamBuilder::State::keep_run(Run run) {
   const uint64_t bytes = sorted.size() * sizeof(Record);
-  if (!spill && held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
-    spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
-    spill_held_runs();
-  }
-  if (spill) {
+  if (held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
+    if (!spill) spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
     run.file_offset = spill->append(sorted.data(), bytes);
     run.spilled = true;
   } else {
@@ -351,16 +395,6 @@ void VoxelStreamBuilder::State::keep_run(Run run) {
     peak_held_bytes = std::max(peak_held_bytes, held_bytes);
   }
   runs.push_back(std::move(run));
-}
-
-void VoxelStreamBuilder::State::spill_held_runs() {
-  for (Run& r : runs) {
-    if (r.spilled) continue;
-    r.file_offset = spill->append(r.records.data(), r.records.size() * sizeof(Record));
-    r.spilled = true;
-    std::vector<Record>().swap(r.records);
-  }
-  held_bytes = 0;
 }
 
 void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Record>& buffer,
@@ -475,8 +509,12 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
   tbb::parallel_for(size_t{0}, used, [&](size_t b) {
     Block& block = s.blocks[b];
     std::vector<Vec> path;
-    for (size_t l = block.first_line; l != block.end_line; ++l)
-      s.walk(batch, l, path, [&](const Piece& p) { s.emit(p, uint32_t(base_line + l), block); });
+    for (size_t l = block.first_line; l != block.end_line; ++l) {
+      block.visited.clear();
+      s.walk(batch, l, path, [&](const Piece& p) {
+        s.emit(p, uint32_t(base_line + l), block.visited.insert(uint32_t(p.voxel)), block);
+      });
+    }
   });
   s.lines_seen += line_count;
 
@@ -613,7 +651,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
         const uint64_t v = r.voxel - first_voxel;
         ++t.n[v];
         t.density[v] += r.weight;
-        if (t.last_line[v] != r.line) ++t.distinct[v], t.last_line[v] = r.line;
+        t.distinct[v] += r.word1 >> 31;
       });
       UnitStats& us = unit_stats[u - u0];
       for (uint64_t v = 0; v < span; ++v) {
@@ -659,7 +697,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
         --t.room[v];
         const uint64_t at = 2 * uint64_t(t.cursor[v]++);
         chords[at] = r.word0;
-        chords[at + 1] = r.word1;
+        chords[at + 1] = r.word1 & ~kFirstOfLine;
       });
     });
     sink.voxels(v0, v1 - v0, offsets.data(), line_counts.data(), density.data(), chords.data(),

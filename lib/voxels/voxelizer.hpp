@@ -59,7 +59,7 @@ class VoxelSink {
 };
 
 // Memory a streamed build may hold, besides a chord count per voxel (1 byte; 2 with a cap above
-// 255). Chord records (20 bytes each) stay in memory up to `records_bytes` and go to a spill
+// 255). Chord records (16 bytes each) stay in memory up to `records_bytes` and go to a spill
 // file beside `spill_near` past it; the merge takes ranges of voxels whose records, chords and
 // per-voxel arrays fit `merge_bytes`.
 struct VoxelMemory {
