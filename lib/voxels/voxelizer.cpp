@@ -165,7 +165,7 @@ struct Block {
 // the spill file from `file_offset`.
 struct Run {
   std::vector<uint32_t> start;
-  std::vector<Record> records;
+  Array<Record> records;  // uninitialised, huge pages: a run is written once, in full
   bool spilled = false;
   uint64_t file_offset = 0;
 };
@@ -205,7 +205,7 @@ struct VoxelStreamBuilder::State {
   // Scratch kept between batches, so pages are touched once.
   std::vector<Block> blocks;
   std::vector<uint32_t> block_counts;
-  std::vector<Record> sorted;  // a batch's run before it is kept or spilled
+  Array<Record> spill_buffer;  // a run on its way to the spill file, reused
   // Chords per voxel, saturating at the cap: the kept chords' count before the merge, so the
   // chords go straight to their place in the output.
   std::vector<uint8_t> counts8;
@@ -226,7 +226,8 @@ struct VoxelStreamBuilder::State {
     if (!(span > 0) || !std::isfinite(v)) return 0;
     return uint8_t(std::clamp((v - lo) / span, 0.0f, 1.0f) * 255 + 0.5f);
   }
-  void keep_run(Run run);
+  Record* place_run(Run& run, uint64_t count);
+  void keep_run(Run run, uint64_t count);
   // The records of units [u0, u1) of every run: `first[r]` points at run r's record start[u0],
   // in its memory or, for a spilled run, read back into `buffer`.
   void gather(uint64_t u0, uint64_t u1, std::vector<Record>& buffer,
@@ -381,19 +382,24 @@ void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, bool first_i
 }
 
 // A run stays in memory (it owns its records) while the held runs fit the budget's share; a run
-// that would pass it goes to the spill file, straight from the reused sort buffer. Runs in
-// memory and in the file mix freely: the merge reads each where it is.
-void VoxelStreamBuilder::State::keep_run(Run run) {
-  const uint64_t bytes = sorted.size() * sizeof(Record);
+// that would pass it goes to the spill file from a reused buffer. Runs in memory and in the file
+// mix freely: the merge reads each where it is. Returns where the run's records are to be put.
+Record* VoxelStreamBuilder::State::place_run(Run& run, uint64_t count) {
+  const uint64_t bytes = count * sizeof(Record);
   if (held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
     if (!spill) spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
-    run.file_offset = spill->append(sorted.data(), bytes);
     run.spilled = true;
-  } else {
-    run.records.swap(sorted);
-    held_bytes += bytes;
-    peak_held_bytes = std::max(peak_held_bytes, held_bytes);
+    if (spill_buffer.size() < count) spill_buffer = Array<Record>(count);
+    return spill_buffer.data();
   }
+  run.records = Array<Record>(count);
+  held_bytes += bytes;
+  peak_held_bytes = std::max(peak_held_bytes, held_bytes);
+  return run.records.data();
+}
+
+void VoxelStreamBuilder::State::keep_run(Run run, uint64_t count) {
+  if (run.spilled) run.file_offset = spill->append(spill_buffer.data(), count * sizeof(Record));
   runs.push_back(std::move(run));
 }
 
@@ -540,16 +546,16 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
   }
   if (total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords in one batch");
   run.start[units] = uint32_t(total);
-  s.sorted.resize(total);
+  Record* const sorted = s.place_run(run, total);
   tbb::parallel_for(size_t{0}, used, [&](size_t b) {
     uint32_t* cursor = s.block_counts.data() + b * (units + 1);
-    for (const Record& r : s.blocks[b].records) s.sorted[cursor[r.voxel >> s.unit_shift]++] = r;
+    for (const Record& r : s.blocks[b].records) sorted[cursor[r.voxel >> s.unit_shift]++] = r;
   });
   // Count per voxel, unit by unit in parallel (units own disjoint voxels).
   const uint32_t cap = s.grid.max_chords_per_voxel;
   tbb::parallel_for(uint64_t{0}, units, [&](uint64_t u) {
-    const Record* first = s.sorted.data() + run.start[u];
-    const Record* last = s.sorted.data() + run.start[u + 1];
+    const Record* first = sorted + run.start[u];
+    const Record* last = sorted + run.start[u + 1];
     if (!s.counts16.empty()) {
       for (const Record* r = first; r != last; ++r)
         if (s.counts16[r->voxel] < cap) ++s.counts16[r->voxel];
@@ -564,7 +570,7 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
     s.error_sum += block.error_sum;
     s.error_samples += block.error_samples;
   }
-  s.keep_run(std::move(run));
+  s.keep_run(std::move(run), total);
 }
 
 // 3. Merge, one range of whole units at a time: per voxel the chord count, density, distinct
