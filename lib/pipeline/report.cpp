@@ -148,7 +148,11 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
           << seconds(p.build.cpu_s) << " s CPU, " << p.threads << " threads\n"
           << "    peak RSS      " << format_bytes(p.build.peak_rss) << " (process held "
           << format_bytes(p.build.rss_before) << " before"
-          << (p.build.peak_is_step_local ? "" : "; peak since process start") << ")\n";
+          << (p.build.peak_is_step_local ? "" : "; peak since process start") << "; budget "
+          << (p.memory_budget ? format_bytes(p.memory_budget) : std::string("unlimited"))
+          << ")\n";
+      if (p.spill_bytes)
+        out << "    spilled       " << format_bytes(p.spill_bytes) << " to a temporary file\n";
       for (const auto& [key, value] : p.stats.items())
         out << "    " << key << std::string(key.size() < 14 ? 14 - key.size() : 1, ' ')
             << value.dump() << "\n";
