@@ -230,23 +230,25 @@ struct DatasetStream::State {
     throw OutputError(writer->path(), "dataset " + name + ": " + message);
   }
   void write_contiguous(const char* data, uint64_t count);
-  void write_chunks(const std::vector<std::pair<uint64_t, const char*>>& jobs);
+  // Stages an append: full chunks become jobs pointing at the caller's rows, a head or tail
+  // goes to the pending buffers. settle() updates those buffers once the jobs are written.
+  struct Job {
+    State* stream;
+    uint64_t chunk;
+    const char* data;
+  };
+  void prepare(const char* data, uint64_t rows, std::vector<Job>& jobs);
+  void settle();
+  bool pending_sent = false;
+  uint64_t staged_left = 0;
 };
 
-void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
-  const hsize_t start[2] = {written, 0}, extent[2] = {count, columns};
-  Handle file_space(H5Dget_space(dataset), H5Sclose);
-  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
-  Handle memory_space(H5Screate_simple(rank, extent, nullptr), H5Sclose);
-  if (H5Dwrite(dataset, type, memory_space, file_space, H5P_DEFAULT, data) < 0)
-    fail("cannot write (" + h5::last_error() + ")");
-  writer->add_progress(count * row_bytes);
-}
+namespace {
 
 // Encodes the chunks on the TBB workers and stores them in order from one thread at a time
-// (HDF5 is not thread-safe): a pipeline whose ordered last stage overlaps the writes with the
-// encoding of the chunks behind them.
-void DatasetStream::State::write_chunks(const std::vector<std::pair<uint64_t, const char*>>& jobs) {
+// (HDF5 is not thread-safe): a pipeline whose ordered last stage hashes and writes each chunk
+// while the chunks behind it are encoded. Chunks of several datasets share one pipeline.
+void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
   if (jobs.empty()) return;
   const size_t tokens = 2 * size_t(tbb::this_task_arena::max_concurrency()) + 1;
   // Kept between calls, so chunks do not touch fresh pages: the encoded chunks in flight (one
@@ -259,32 +261,51 @@ void DatasetStream::State::write_chunks(const std::vector<std::pair<uint64_t, co
     std::vector<char>* slot;
   };
   size_t next = 0;
-  const uint64_t bytes = chunk_bytes();
   std::vector<char>* const slot_base = slots.data();
   tbb::parallel_pipeline(
-      tokens, tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
-                                           [&](tbb::flow_control& control) -> Item {
-                                             if (next == jobs.size()) {
-                                               control.stop();
-                                               return {};
-                                             }
-                                             const size_t job = next++;
-                                             return {job, slot_base + job % tokens};
-                                           }) &
-                  tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
-                                               [&](Item item) {
-                                                 encode_chunk(codec, jobs[item.job].second, bytes,
-                                                              *item.slot, scratch.local());
-                                                 return item;
-                                               }) &
-                  tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
-                    const hsize_t offset[2] = {jobs[item.job].first * chunk_rows, 0};
-                    const std::vector<char>& out = *item.slot;
-                    if (H5Dwrite_chunk(dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
-                      fail("cannot write chunk " + std::to_string(jobs[item.job].first) + " (" +
-                           h5::last_error() + ")");
-                    writer->add_progress(bytes);
-                  }));
+      tokens,
+      tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
+                                   [&](tbb::flow_control& control) -> Item {
+                                     if (next == jobs.size()) {
+                                       control.stop();
+                                       return {};
+                                     }
+                                     const size_t job = next++;
+                                     return {job, slot_base + job % tokens};
+                                   }) &
+          tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
+                                       [&](Item item) {
+                                         const auto& j = jobs[item.job];
+                                         encode_chunk(j.stream->codec, j.data,
+                                                      j.stream->chunk_bytes(), *item.slot,
+                                                      scratch.local());
+                                         return item;
+                                       }) &
+          tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+            const auto& j = jobs[item.job];
+            DatasetStream::State& s = *j.stream;
+            // The hash covers the rows, not the zeros that pad the dataset's last chunk.
+            const uint64_t first_row = j.chunk * s.chunk_rows;
+            s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
+            const hsize_t offset[2] = {first_row, 0};
+            const std::vector<char>& out = *item.slot;
+            if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
+              s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() +
+                     ")");
+            s.writer->add_progress(s.chunk_bytes());
+          }));
+}
+
+}  // namespace
+
+void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
+  const hsize_t start[2] = {written, 0}, extent[2] = {count, columns};
+  Handle file_space(H5Dget_space(dataset), H5Sclose);
+  H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
+  Handle memory_space(H5Screate_simple(rank, extent, nullptr), H5Sclose);
+  if (H5Dwrite(dataset, type, memory_space, file_space, H5P_DEFAULT, data) < 0)
+    fail("cannot write (" + h5::last_error() + ")");
+  writer->add_progress(count * row_bytes);
 }
 
 DatasetStream::DatasetStream(std::unique_ptr<State> state) : state_(std::move(state)) {}
@@ -302,61 +323,84 @@ uint64_t DatasetStream::rows_written() const {
   return state_->written;
 }
 
-void DatasetStream::append_raw(const void* data, size_t element, uint64_t rows) {
-  State& s = *state_;
+void DatasetStream::State::prepare(const char* p, uint64_t count, std::vector<Job>& jobs) {
+  // Full chunks are encoded straight from the caller's rows; only a chunk's head or tail that
+  // arrives in another call is staged. HDF5 stores edge chunks whole, filled with zeros.
+  uint64_t left = count;
+  pending_sent = false;
+  if (!pending.empty()) {
+    const uint64_t have = pending.size() / row_bytes;
+    const uint64_t take = std::min(left, chunk_rows - have);
+    pending.insert(pending.end(), p, p + take * row_bytes);
+    p += take * row_bytes;
+    left -= take;
+    written += take;
+    if (have + take == chunk_rows || written == rows) {
+      pending.resize(chunk_bytes(), 0);
+      jobs.push_back({this, (written - 1) / chunk_rows, pending.data()});
+      pending_sent = true;
+    }
+  }
+  while (left >= chunk_rows) {
+    jobs.push_back({this, written / chunk_rows, p});
+    p += chunk_bytes();
+    left -= chunk_rows;
+    written += chunk_rows;
+  }
+  staged_left = left;
+  if (left > 0) {  // the pending buffer is empty or already sent: stage into the other one
+    tail.assign(p, p + left * row_bytes);
+    written += left;
+    if (written == rows) {
+      tail.resize(chunk_bytes(), 0);
+      jobs.push_back({this, (written - 1) / chunk_rows, tail.data()});
+    }
+  }
+}
+
+void DatasetStream::State::settle() {
+  if (pending_sent) pending.clear();
+  if (staged_left > 0) {
+    if (written == rows)
+      tail.clear();
+    else
+      pending.swap(tail);
+  }
+  pending_sent = false;
+  staged_left = 0;
+}
+
+void DatasetStream::check_append(size_t element, uint64_t rows) const {
+  const State& s = *state_;
   if (s.closed) s.fail("append after close");
   if (element != s.element) s.fail("appended values of the wrong type");
   if (rows > s.rows - s.written)
     s.fail(std::to_string(s.written + rows) + " rows, more than the " + std::to_string(s.rows) +
            " it was created with");
-  if (rows == 0) return;
-  const char* p = static_cast<const char*>(data);
-  s.hash.update(p, rows * s.row_bytes);
-  if (!s.chunked) {
-    s.write_contiguous(p, rows);
-    s.written += rows;
-    return;
-  }
-  // Full chunks are encoded straight from the caller's rows; only a chunk's head or tail that
-  // arrives in another call is staged. HDF5 stores edge chunks whole, filled with zeros.
-  std::vector<std::pair<uint64_t, const char*>> jobs;
-  uint64_t left = rows;
-  bool pending_sent = false;
-  if (!s.pending.empty()) {
-    const uint64_t have = s.pending.size() / s.row_bytes;
-    const uint64_t take = std::min(left, s.chunk_rows - have);
-    s.pending.insert(s.pending.end(), p, p + take * s.row_bytes);
-    p += take * s.row_bytes;
-    left -= take;
-    s.written += take;
-    if (have + take == s.chunk_rows || s.written == s.rows) {
-      s.pending.resize(s.chunk_bytes(), 0);
-      jobs.emplace_back((s.written - 1) / s.chunk_rows, s.pending.data());
-      pending_sent = true;
+}
+
+void DatasetStream::append_raw(const void* data, size_t element, uint64_t rows) {
+  append_together({{this, data, element, rows}});
+}
+
+void append_together(std::span<const StreamAppend> appends) {
+  std::vector<DatasetStream::State::Job> jobs;
+  for (const StreamAppend& a : appends) {
+    a.stream->check_append(a.element, a.rows);
+    DatasetStream::State& s = *a.stream->state_;
+    if (a.rows == 0) continue;
+    const char* p = static_cast<const char*>(a.data);
+    if (!s.chunked) {
+      s.hash.update(p, a.rows * s.row_bytes);
+      s.write_contiguous(p, a.rows);
+      s.written += a.rows;
+      continue;
     }
+    s.prepare(p, a.rows, jobs);
   }
-  while (left >= s.chunk_rows) {
-    jobs.emplace_back(s.written / s.chunk_rows, p);
-    p += s.chunk_bytes();
-    left -= s.chunk_rows;
-    s.written += s.chunk_rows;
-  }
-  if (left > 0) {  // the pending buffer is empty or already sent: stage into the other one
-    s.tail.assign(p, p + left * s.row_bytes);
-    s.written += left;
-    if (s.written == s.rows) {
-      s.tail.resize(s.chunk_bytes(), 0);
-      jobs.emplace_back((s.written - 1) / s.chunk_rows, s.tail.data());
-    }
-  }
-  s.write_chunks(jobs);
-  if (pending_sent) s.pending.clear();
-  if (left > 0) {
-    if (s.written == s.rows)
-      s.tail.clear();
-    else
-      s.pending.swap(s.tail);
-  }
+  write_chunks(jobs);
+  for (const StreamAppend& a : appends)
+    if (a.rows && a.stream->state_->chunked) a.stream->state_->settle();
 }
 
 uint64_t DatasetStream::close() {

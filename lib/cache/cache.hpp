@@ -8,6 +8,8 @@
 #include <hdf5.h>
 
 #include <cstdint>
+#include <initializer_list>
+#include <span>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -48,6 +50,25 @@ using h5::decode_link_name;
 using h5::encode_link_name;
 
 class CacheWriter;
+class DatasetStream;
+
+// One append of `rows` rows of `element`-byte values (see append_together).
+struct StreamAppend {
+  DatasetStream* stream;
+  const void* data;
+  size_t element;
+  uint64_t rows;
+};
+// Appends to several datasets at once: their chunks are encoded in one pipeline, so the writes
+// of one dataset overlap the encoding of the next (a tube chunk's four arrays, for one).
+void append_together(std::span<const StreamAppend> appends);
+inline void append_together(std::initializer_list<StreamAppend> appends) {
+  append_together(std::span<const StreamAppend>(appends.begin(), appends.size()));
+}
+template <class T>
+StreamAppend rows_of(DatasetStream& stream, const T* data, uint64_t rows) {
+  return {&stream, data, sizeof(T), rows};
+}
 
 // One dataset of the cache, written front to back in rows: how every dataset of a bake is
 // written, so no stage needs its whole output in memory. Compressed datasets are chunked
@@ -73,9 +94,12 @@ class DatasetStream {
   uint64_t rows() const;
   uint64_t rows_written() const;
 
+  struct State;
+
  private:
   friend class CacheWriter;
-  struct State;
+  friend void append_together(std::span<const StreamAppend> appends);
+  void check_append(size_t element, uint64_t rows) const;
   explicit DatasetStream(std::unique_ptr<State> state);
   void append_raw(const void* data, size_t element, uint64_t rows);
   std::unique_ptr<State> state_;
@@ -94,6 +118,8 @@ class CacheWriter {
   Compression compression() const { return compression_; }
   // Total bytes the caller is going to write, for progress; 0: unknown.
   void set_progress(ProgressFn progress, uint64_t total_bytes);
+  // Counts written bytes towards that progress (the datasets' streams call it).
+  void add_progress(uint64_t bytes);
 
   void create_group(const std::string& group);
   // Copies a group, as stored, from another cache file (an asset that did not change).
@@ -120,7 +146,6 @@ class CacheWriter {
   friend class DatasetStream;
   DatasetStream open_stream(const std::string& dataset, hid_t type, size_t element, uint64_t rows,
                             uint64_t columns);
-  void add_progress(uint64_t bytes);
   AtomicFile file_;
   h5::Handle h5_;
   Compression compression_;

@@ -129,17 +129,19 @@ LineStoreWriter::LineStoreWriter(CacheWriter& cache, const LineSet& header,
 }
 
 void LineStoreWriter::append(const LineSet& batch) {
-  points_.append(batch.positions.data(), batch.point_count());
-  std::vector<uint64_t> offsets(batch.line_count());
-  for (size_t l = 0; l < offsets.size(); ++l)
-    offsets[l] = points_written_ + batch.line_offsets[l + 1];
-  offsets_.append(offsets.data(), offsets.size());
+  offsets_buffer_.resize(batch.line_count());
+  for (size_t l = 0; l < offsets_buffer_.size(); ++l)
+    offsets_buffer_[l] = points_written_ + batch.line_offsets[l + 1];
   points_written_ += batch.point_count();
+  std::vector<StreamAppend> appends{rows_of(points_, batch.positions.data(), batch.point_count()),
+                                    rows_of(offsets_, offsets_buffer_.data(), batch.line_count())};
   for (size_t a = 0; a < attributes_.size(); ++a)
-    attributes_[a].append(batch.attributes[a].values.data(), batch.attributes[a].values.size());
+    appends.push_back(rows_of(attributes_[a], batch.attributes[a].values.data(),
+                              batch.attributes[a].values.size()));
   for (size_t a = 0; a < line_attributes_.size(); ++a)
-    line_attributes_[a].append(batch.line_attributes[a].values.data(),
-                               batch.line_attributes[a].values.size());
+    appends.push_back(rows_of(line_attributes_[a], batch.line_attributes[a].values.data(),
+                              batch.line_attributes[a].values.size()));
+  append_together(appends);
 }
 
 void LineStoreWriter::close(const std::map<std::string, std::string>& metadata,

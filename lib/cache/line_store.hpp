@@ -53,6 +53,7 @@ class LineStoreWriter {
   DatasetStream points_, offsets_;
   std::vector<DatasetStream> attributes_, line_attributes_;
   uint64_t points_written_ = 0;
+  std::vector<uint64_t> offsets_buffer_;
 };
 
 // Writes /lines with its metadata and provenance; fills provenance.disk_bytes.

@@ -96,13 +96,17 @@ TubeOutput TubeStoreSink::reserve(size_t c, uint64_t vertices, uint64_t indices)
 void TubeStoreSink::written(size_t c) {
   State& s = *state_;
   (void)c;
-  s.positions->append(s.positions_buffer.data(), s.piece_vertices);
-  if (s.float_normals)
-    s.normals->append(s.normals_buffer.data(), s.piece_vertices);
+  if (s.attribute)
+    append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
+                     s.float_normals ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
+                                     : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
+                     rows_of(*s.attribute_values, s.attribute_buffer.data(), s.piece_vertices),
+                     rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
   else
-    s.normals->append(s.oct_buffer.data(), s.piece_vertices);
-  if (s.attribute) s.attribute_values->append(s.attribute_buffer.data(), s.piece_vertices);
-  s.indices->append(s.index_buffer.data(), s.piece_indices / 3);
+    append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
+                     s.float_normals ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
+                                     : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
+                     rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
 }
 
 void TubeStoreSink::end_chunk(size_t c) {

@@ -69,10 +69,8 @@ void VoxelStoreSink::voxels(uint64_t, uint64_t count, const uint32_t* offsets,
                             const uint8_t* line_counts, const float* density,
                             const uint32_t* chords, uint64_t chord_count) {
   State& s = *state_;
-  s.offsets->append(offsets, count);
-  s.chords->append(chords, chord_count);
-  s.line_counts->append(line_counts, count);
-  s.density->append(density, count);
+  append_together({rows_of(*s.offsets, offsets, count), rows_of(*s.chords, chords, chord_count),
+                   rows_of(*s.line_counts, line_counts, count), rows_of(*s.density, density, count)});
 }
 
 void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
