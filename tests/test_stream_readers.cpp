@@ -132,29 +132,7 @@ void expect_same_failure(const std::string& path, const std::string& expected,
 // ---------------------------------------------------------------------------------------------
 // File builders
 
-// Appends values in the requested byte order.
-class Bytes {
- public:
-  explicit Bytes(bool big_endian) : big_(big_endian) {}
-  template <typename T>
-  Bytes& put(T v) {
-    unsigned char b[sizeof(T)];
-    std::memcpy(b, &v, sizeof(T));
-    if (big_ != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
-    data.insert(data.end(), b, b + sizeof(T));
-    return *this;
-  }
-  Bytes& text(const std::string& s, size_t width) {
-    std::vector<unsigned char> field(width, 0);
-    std::memcpy(field.data(), s.data(), std::min(width, s.size()));
-    data.insert(data.end(), field.begin(), field.end());
-    return *this;
-  }
-  std::vector<unsigned char> data;
-
- private:
-  bool big_;
-};
+using test::Bytes;
 
 using Point = std::array<double, 3>;
 using Polyline = std::vector<Point>;

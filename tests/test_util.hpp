@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -46,6 +49,30 @@ inline void write_bytes(const std::string& path, const std::vector<unsigned char
       .write(reinterpret_cast<const char*>(bytes.data()),
              static_cast<std::streamsize>(bytes.size()));
 }
+
+// Appends values in the requested byte order (for binary test files).
+class Bytes {
+ public:
+  explicit Bytes(bool big_endian) : big_(big_endian) {}
+  template <typename T>
+  Bytes& put(T v) {
+    unsigned char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    if (big_ != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+    data.insert(data.end(), b, b + sizeof(T));
+    return *this;
+  }
+  Bytes& text(const std::string& s, size_t width) {
+    std::vector<unsigned char> field(width, 0);
+    std::memcpy(field.data(), s.data(), std::min(width, s.size()));
+    data.insert(data.end(), field.begin(), field.end());
+    return *this;
+  }
+  std::vector<unsigned char> data;
+
+ private:
+  bool big_;
+};
 
 // Three lines with values that text formats get wrong when they round: 1/3, 0.1, denormals,
 // large and negative values, and an attribute name with a space.

@@ -264,36 +264,30 @@ void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
   std::vector<char>* const slot_base = slots.data();
   tbb::parallel_pipeline(
       tokens,
-      tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
-                                   [&](tbb::flow_control& control) -> Item {
-                                     if (next == jobs.size()) {
-                                       control.stop();
-                                       return {};
-                                     }
-                                     const size_t job = next++;
-                                     return {job, slot_base + job % tokens};
-                                   }) &
-          tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
-                                       [&](Item item) {
-                                         const auto& j = jobs[item.job];
-                                         encode_chunk(j.stream->codec, j.data,
-                                                      j.stream->chunk_bytes(), *item.slot,
-                                                      scratch.local());
-                                         return item;
-                                       }) &
-          tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
-            const auto& j = jobs[item.job];
-            DatasetStream::State& s = *j.stream;
-            // The hash covers the rows, not the zeros that pad the dataset's last chunk.
-            const uint64_t first_row = j.chunk * s.chunk_rows;
-            s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
-            const hsize_t offset[2] = {first_row, 0};
-            const std::vector<char>& out = *item.slot;
-            if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
-              s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() +
-                     ")");
-            s.writer->add_progress(s.chunk_bytes());
-          }));
+      tbb::make_filter<
+          void, Item>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& control) -> Item {
+        if (next == jobs.size()) {
+          control.stop();
+          return {};
+        }
+        const size_t job = next++;
+        return {job, slot_base + job % tokens};
+      }) & tbb::make_filter<Item, Item>(tbb::filter_mode::parallel, [&](Item item) {
+        const auto& j = jobs[item.job];
+        encode_chunk(j.stream->codec, j.data, j.stream->chunk_bytes(), *item.slot, scratch.local());
+        return item;
+      }) & tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+        const auto& j = jobs[item.job];
+        DatasetStream::State& s = *j.stream;
+        // The hash covers the rows, not the zeros that pad the dataset's last chunk.
+        const uint64_t first_row = j.chunk * s.chunk_rows;
+        s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
+        const hsize_t offset[2] = {first_row, 0};
+        const std::vector<char>& out = *item.slot;
+        if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
+          s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() + ")");
+        s.writer->add_progress(s.chunk_bytes());
+      }));
 }
 
 }  // namespace

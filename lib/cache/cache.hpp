@@ -9,10 +9,10 @@
 
 #include <cstdint>
 #include <initializer_list>
-#include <span>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 

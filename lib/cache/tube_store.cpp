@@ -98,14 +98,16 @@ void TubeStoreSink::written(size_t c) {
   (void)c;
   if (s.attribute)
     append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
-                     s.float_normals ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
-                                     : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
+                     s.float_normals
+                         ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
+                         : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
                      rows_of(*s.attribute_values, s.attribute_buffer.data(), s.piece_vertices),
                      rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
   else
     append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
-                     s.float_normals ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
-                                     : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
+                     s.float_normals
+                         ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
+                         : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
                      rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
 }
 

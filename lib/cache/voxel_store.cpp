@@ -70,7 +70,8 @@ void VoxelStoreSink::voxels(uint64_t, uint64_t count, const uint32_t* offsets,
                             const uint32_t* chords, uint64_t chord_count) {
   State& s = *state_;
   append_together({rows_of(*s.offsets, offsets, count), rows_of(*s.chords, chords, chord_count),
-                   rows_of(*s.line_counts, line_counts, count), rows_of(*s.density, density, count)});
+                   rows_of(*s.line_counts, line_counts, count),
+                   rows_of(*s.density, density, count)});
 }
 
 void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
