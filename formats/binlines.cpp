@@ -110,6 +110,10 @@ class BinlinesWriter : public LineWriter {
   }
 
   void write(const LineSet& batch) override {
+    file_.write_with([&] { write_lines(batch); });
+  }
+
+  void write_lines(const LineSet& batch) {
     if (batch.attributes.size() != attributes_)
       throw Error("binlines: a batch with " + std::to_string(batch.attributes.size()) +
                   " attributes, the header has " + std::to_string(attributes_));
@@ -125,9 +129,11 @@ class BinlinesWriter : public LineWriter {
   }
 
   void close() override {
-    const uint32_t count = static_cast<uint32_t>(lines_);
-    out_.patch(4, &count, sizeof count);
-    out_.close();
+    file_.write_with([&] {
+      const uint32_t count = static_cast<uint32_t>(lines_);
+      out_.patch(4, &count, sizeof count);
+      out_.close();
+    });
     file_.commit();
   }
   bool streams() const override { return true; }

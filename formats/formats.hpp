@@ -3,9 +3,8 @@
 // open a LineReader (lines/line_reader.hpp), the others read the whole file. Writers write to the
 // path given (the registry hands them a temporary name and renames it when they return).
 
-#include <string>
-
 #include <memory>
+#include <string>
 
 #include "formats/registry.hpp"
 #include "lines/line_reader.hpp"

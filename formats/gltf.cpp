@@ -293,11 +293,19 @@ void write_glb(const std::string& path, const TubeMesh* tubes, const LineSet* li
 
   AtomicFile file(path);
   {
+    const auto failed = [&](const char* what) {
+      return OutputError(path, std::string(what) +
+                                   (errno ? std::string(": ") + std::strerror(errno) : "") + " (" +
+                                   file.temp_path() + ")");
+    };
+    errno = 0;
     std::ofstream out(file.temp_path(), std::ios::binary);
-    if (!out) throw OutputError(path, "cannot create");
+    if (!out) throw failed("cannot create");
     tinygltf::TinyGLTF writer;
     if (!writer.WriteGltfSceneToStream(&model, out, false, true) || !out.flush())
-      throw OutputError(path, "write failed");
+      throw failed("write failed");
+    out.close();
+    if (!out) throw failed("write failed");
   }
   file.commit();
 }

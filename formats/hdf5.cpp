@@ -37,11 +37,12 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
   Handle dataset(
       H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
       H5Dclose);
-  if (!dataset.valid()) throw OutputError(path, "cannot create dataset " + name);
+  if (!dataset.valid())
+    throw OutputError(path, "cannot create dataset " + name + ": " + h5::last_error());
   hsize_t total = 1;
   for (hsize_t d : dims) total *= d;
   if (total > 0 && H5Dwrite(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
-    throw OutputError(path, "cannot write dataset " + name);
+    throw OutputError(path, "cannot write dataset " + name + ": " + h5::last_error());
 }
 
 }  // namespace
@@ -235,7 +236,9 @@ std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options) {
   h5::init();
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
-  Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, H5P_DEFAULT), H5Fclose);
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG);  // an error path closes everything in the file
+  Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl), H5Fclose);
   if (!file.valid()) throw OutputError(path, "cannot create HDF5 file");
   write_string_attribute(path, file, "linebake_version", LINEBAKE_VERSION);
   for (const auto& [key, value] : lines.metadata) write_string_attribute(path, file, key, value);
@@ -257,7 +260,9 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
   };
   write_group("attributes", lines.attributes);
   write_group("line_attributes", lines.line_attributes);
-  if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0) throw OutputError(path, "flush failed");
+  if (H5Fflush(file, H5F_SCOPE_GLOBAL) < 0)
+    throw OutputError(path, "write failed: " + h5::last_error());
+  if (H5Fclose(file.release()) < 0) throw OutputError(path, "write failed: " + h5::last_error());
   if (options.progress) options.progress(3, 3);
 }
 

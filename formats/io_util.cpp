@@ -1,9 +1,15 @@
 #include "formats/io_util.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+
+#include "core/interrupt.hpp"
 
 namespace linebake::io {
 
@@ -241,31 +247,56 @@ void append_float(std::string& out, float v) {
 }
 
 Writer::Writer(const std::string& path) : path_(path) {
-  f_ = std::fopen(path.c_str(), "wb");
-  if (!f_) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
-  std::setvbuf(f_, nullptr, _IOFBF, 1 << 20);
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+  buffer_.reserve(1 << 20);
 }
 
 Writer::~Writer() {
-  if (f_) std::fclose(f_);
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void Writer::flush() {
+  const char* p = buffer_.data();
+  size_t left = buffer_.size();
+  while (left > 0) {
+    const ssize_t n = ::pwrite(fd_, p, left, off_t(offset_));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      throw OutputError(path_,
+                        std::string("write failed: ") + std::strerror(n < 0 ? errno : ENOSPC));
+    p += n;
+    left -= size_t(n);
+    offset_ += uint64_t(n);
+  }
+  buffer_.clear();
+  throw_if_interrupted();
 }
 
 void Writer::write(const void* data, size_t bytes) {
-  if (bytes && std::fwrite(data, 1, bytes, f_) != bytes)
-    throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+  const char* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    const size_t room = buffer_.capacity() - buffer_.size();
+    const size_t n = std::min(room, bytes);
+    buffer_.insert(buffer_.end(), p, p + n);
+    p += n;
+    bytes -= n;
+    if (buffer_.size() == buffer_.capacity()) flush();
+  }
 }
 
 void Writer::patch(uint64_t offset, const void* data, size_t bytes) {
-  if (std::fflush(f_) != 0 || std::fseek(f_, static_cast<long>(offset), SEEK_SET) != 0 ||
-      std::fwrite(data, 1, bytes, f_) != bytes || std::fseek(f_, 0, SEEK_END) != 0)
+  flush();
+  if (::pwrite(fd_, data, bytes, off_t(offset)) != ssize_t(bytes))
     throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
 }
 
 void Writer::close() {
-  const bool ok = std::fflush(f_) == 0 && !std::ferror(f_);
-  std::fclose(f_);
-  f_ = nullptr;
-  if (!ok) throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+  flush();
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0)
+    throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
 }
 
 }  // namespace linebake::io

@@ -160,11 +160,15 @@ bool append_components(std::vector<Attribute>& target, const std::string& name,
 // Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
 void append_float(std::string& out, float v);
 
-// Buffered binary/text writer over an AtomicFile's temporary path.
+// Buffered binary/text writer over an AtomicFile's temporary path, on POSIX write(2): a write
+// error (a full disk, a quota) is an OutputError with the system's reason, and a pending
+// interruption (core/interrupt.hpp) stops the writer at its next 1 MiB.
 class Writer {
  public:
   explicit Writer(const std::string& path);
   ~Writer();
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
   void write(const void* data, size_t bytes);
   void write(std::string_view text) { write(text.data(), text.size()); }
   template <typename T>
@@ -178,8 +182,11 @@ class Writer {
   void close();  // flushes; throws OutputError on failure
 
  private:
+  void flush();
   std::string path_;
-  std::FILE* f_ = nullptr;
+  int fd_ = -1;
+  std::vector<char> buffer_;
+  uint64_t offset_ = 0;  // where the buffer starts in the file
 };
 
 }  // namespace linebake::io

@@ -125,28 +125,30 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
 void write_line_set(const LineSet& lines, const std::string& path, const WriteOptions& options) {
   const Format format = resolve_output_format(path, options.format);
   AtomicFile file(path);
-  switch (format) {
-    case Format::obj:
-      formats::write_obj(lines, file.temp_path(), options);
-      break;
-    case Format::binlines:
-      formats::write_binlines(lines, file.temp_path(), options);
-      break;
-    case Format::vtk:
-      formats::write_vtk_legacy(lines, file.temp_path(), options);
-      break;
-    case Format::vtp:
-      formats::write_vtp(lines, file.temp_path(), options);
-      break;
-    case Format::hdf5:
-      formats::write_hdf5(lines, file.temp_path(), options);
-      break;
-    case Format::csv:
-      formats::write_csv(lines, file.temp_path(), options);
-      break;
-    default:
-      throw Error("unsupported output format");
-  }
+  file.write_with([&] {
+    switch (format) {
+      case Format::obj:
+        formats::write_obj(lines, file.temp_path(), options);
+        break;
+      case Format::binlines:
+        formats::write_binlines(lines, file.temp_path(), options);
+        break;
+      case Format::vtk:
+        formats::write_vtk_legacy(lines, file.temp_path(), options);
+        break;
+      case Format::vtp:
+        formats::write_vtp(lines, file.temp_path(), options);
+        break;
+      case Format::hdf5:
+        formats::write_hdf5(lines, file.temp_path(), options);
+        break;
+      case Format::csv:
+        formats::write_csv(lines, file.temp_path(), options);
+        break;
+      default:
+        throw Error("unsupported output format");
+    }
+  });
   file.commit();
 }
 

@@ -1,12 +1,17 @@
 #include "formats/vdb.hpp"
 
 #include <openvdb/io/File.h>
+#include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <ostream>
+#include <streambuf>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake {
 
@@ -64,8 +69,35 @@ void write_vdb(const std::string& path, const VoxelGrid& g) {
     out.write(grids, meta);
     out.close();
   } catch (const std::exception& e) {
-    throw OutputError(path, std::string("OpenVDB: ") + e.what());
+    throw OutputError(path, std::string("OpenVDB: ") + e.what() + " (" + file.temp_path() + ")");
   }
+  // OpenVDB does not check its stream after writing: a full disk leaves a short file without an
+  // error. The same grids serialised into a counting stream give the size the file must have
+  // (a non-seekable archive writes the same bytes, only its offsets are left unpatched).
+  struct Counter : std::streambuf {
+    uint64_t bytes = 0;
+    int_type overflow(int_type c) override {
+      ++bytes;
+      return traits_type::not_eof(c);
+    }
+    std::streamsize xsputn(const char*, std::streamsize n) override {
+      bytes += uint64_t(n);
+      return n;
+    }
+  } counter;
+  {
+    std::ostream sink(&counter);
+    openvdb::io::Stream stream(sink);
+    stream.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
+    stream.write(grids, meta);
+  }
+  std::error_code ec;
+  const uint64_t written = std::filesystem::file_size(file.temp_path(), ec);
+  if (ec || written != counter.bytes)
+    throw OutputError(path, "write failed: " + std::to_string(ec ? 0 : written) + " of " +
+                                std::to_string(counter.bytes) + " bytes reached the file (" +
+                                format_bytes(free_bytes_for(path)) + " free there) (" +
+                                file.temp_path() + ")");
   file.commit();
 }
 

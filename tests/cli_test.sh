@@ -46,10 +46,11 @@ check "info of a synth source" bash -c "'$bin' info 'synth:aneurysm?scale=0.002&
 
 # every writable format and back gives the same bytes
 for ext in obj vtk h5 csv vtp binlines; do
-  check "convert to $ext" "$bin" convert "$tmp/c.binlines" "$tmp/c.$ext"
-  check "convert back from $ext" "$bin" convert "$tmp/c.$ext" "$tmp/back-$ext.binlines"
+  check "convert to $ext" "$bin" convert "$tmp/c.binlines" "$tmp/c2.$ext"
+  check "convert back from $ext" "$bin" convert "$tmp/c2.$ext" "$tmp/back-$ext.binlines"
   check "$ext round trip is exact" cmp "$tmp/c.binlines" "$tmp/back-$ext.binlines"
 done
+check "convert X X is refused, X unchanged" bash -c "cp '$tmp/c.binlines' '$tmp/same.binlines'; '$bin' convert '$tmp/same.binlines' '$tmp/same.binlines' 2> '$tmp/same.err'; [ \$? -eq 3 ] && grep -q 'never replaces its input' '$tmp/same.err' && cmp '$tmp/c.binlines' '$tmp/same.binlines'"
 check "vtk ascii round trip" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/a.vtk' --ascii && '$bin' convert '$tmp/a.vtk' '$tmp/a.binlines' && cmp '$tmp/c.binlines' '$tmp/a.binlines'"
 check "format override" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/c.data' --to hdf5 && '$bin' info '$tmp/c.data' --from hdf5 | grep -q 495000"
 check "derive" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/d.h5' --derive segment_length,line_length && '$bin' info '$tmp/d.h5' | grep -q 'line attr.  line_length'"
@@ -86,7 +87,7 @@ head -c 3000 "$tmp/c.lbc.h5" > "$tmp/trunc.lbc.h5"
 check "truncated cache exits 2" exit_code 2 "$bin" export "$tmp/trunc.lbc.h5" --glb "$tmp/t.glb"
 check "truncated cache error names the file" bash -c "'$bin' report '$tmp/trunc.lbc.h5' 2>&1 | grep -q 'trunc.lbc.h5'"
 check "no glb after a bad cache" test ! -e "$tmp/t.glb"
-check "report of a non-cache exits 2" exit_code 2 "$bin" report "$tmp/c.h5"
+check "report of a non-cache exits 2" exit_code 2 "$bin" report "$tmp/c2.h5"
 check "unknown asset" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/u.lbc.h5" --assets voxels2
 check "bake voxels next to tubes" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate --assets tubes,voxels --grid 96 --quantization 16 2>&1 >/dev/null | tr '\\n' ' ' | grep -q 'tubes: up to date, reused linebake: voxels: built'"
 check "report has the VRC column" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep -q '96x6x96 Q16'"

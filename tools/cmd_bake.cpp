@@ -90,7 +90,15 @@ Command add_bake(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
                   "unlimited (default: half of physical memory)");
-  sub->add_flag("--force", o.force, "Rebuild every step even if the cache is up to date");
+  sub->add_flag("--force", o.force,
+                "Rebuild every step even if the cache is up to date; replace an output file "
+                "that is not a linebake cache");
+  sub->add_flag(
+      "--no-space-check", [&o](int64_t) { o.space_check = false; },
+      "Bake even when the estimated output does not fit the free space");
+  sub->add_flag("--dry-run", o.dry_run,
+                "Read the input and print what the bake would write and the free space; "
+                "write nothing");
   sub->add_flag("--json", args->json, "Print the report as JSON");
   return [args] {
     BakeOptions options = args->options;
@@ -108,8 +116,17 @@ Command add_bake(CLI::App& app) {
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
-    install_interrupt_handlers();
     const BakeResult result = bake(options);
+    if (options.dry_run) {
+      const BakeEstimate& e = result.estimate;
+      std::cout << "would write " << result.cache << ": about " << format_bytes(e.total() - e.spill)
+                << " (lines " << format_bytes(e.lines);
+      for (const std::string& a : options.assets)
+        if (e.step(a)) std::cout << ", " << a << " " << format_bytes(e.step(a));
+      std::cout << "), temporary spill files about " << format_bytes(e.spill) << "; "
+                << format_bytes(result.free_bytes) << " free there\n";
+      return;
+    }
     for (const std::string& note : result.notes) std::cerr << "linebake: " << note << "\n";
     for (const BakeStep& step : result.steps)
       std::cerr << "linebake: " << step.step << ": "

@@ -312,7 +312,6 @@ void bench_bake(const BenchArgs& args) {
       args.output.empty()
           ? std::filesystem::path(default_cache_path(args.input)).stem().string() + ".bench.lbc.h5"
           : args.output;
-  install_interrupt_handlers();
   std::vector<BakeResult> runs;
   for (int r = 0; r < args.repeat; ++r) {
     std::filesystem::remove(options.cache);

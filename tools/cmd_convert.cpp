@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "lines/derived.hpp"
@@ -40,6 +41,7 @@ Command add_convert(CLI::App& app) {
       ->check(CLI::IsMember({"appended", "appended-base64", "base64", "ascii"}));
   sub->add_flag("--no-compress", args->no_compress, "vtp: no zlib compression");
   return [args] {
+    refuse_input_as_output(args->output, {args->input});
     ReadOptions read;
     if (!args->from.empty()) read.format = parse_format(args->from);
     WriteOptions write;

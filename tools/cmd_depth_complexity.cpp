@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "render/ray_tracer.hpp"
@@ -73,7 +74,7 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)");
   sub->add_option("--device", args->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
-  return [args] {
+  const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
     if (args->output.empty() && args->stats.empty())
       throw Error("depth-complexity: nothing to write; give -o and/or --stats");
@@ -104,6 +105,7 @@ Command add_depth_complexity(CLI::App& app) {
     }
     TerminalProgress progress("depth-complexity");
     for (size_t i = 0; i < plan.frames.size(); ++i) {
+      throw_if_interrupted();  // between frames: finished frames are kept
       const Camera& camera = plan.cameras[size_t(plan.frames[i])];
       std::vector<uint32_t> counts;
       double seconds = 0;
@@ -133,6 +135,13 @@ Command add_depth_complexity(CLI::App& app) {
                   << ", mean over covered pixels " << entry["mean_covered"] << "\n";
     }
     if (!args->stats.empty()) write_file_atomically(args->stats, stats.dump(2) + "\n");
+  };
+  // Every output of the command (an image and its --stats, each frame, both exports) is
+  // renamed into place at the end, or none is: a failure or an interruption leaves nothing.
+  return [body] {
+    OutputGroup outputs;
+    body();
+    outputs.commit();
   };
 }
 

@@ -7,6 +7,7 @@
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "formats/gltf.hpp"
 #include "formats/vdb.hpp"
@@ -40,9 +41,11 @@ Command add_export(CLI::App& app) {
       ->check(CLI::Range(0, 10));
   sub->add_flag("--lines", args->lines, "Add the raw lines as LINE_STRIP primitives");
   sub->add_flag("--no-tubes", args->no_tubes, "Leave the tube mesh out (with --lines)");
-  return [args] {
+  const auto body = [args] {
     if (args->glb.empty() && args->vdb.empty())
       throw Error("nothing to export: give --glb or --vdb");
+    for (const std::string& out : {args->glb, args->vdb})
+      if (!out.empty()) refuse_input_as_output(out, {args->cache});
     const CacheReader cache(args->cache);
     if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
     if (args->glb.empty()) return;
@@ -53,6 +56,13 @@ Command add_export(CLI::App& app) {
     if (args->lines) lines = load_lines(cache);
     write_glb(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
               args->gltf);
+  };
+  // Every output of the command (an image and its --stats, each frame, both exports) is
+  // renamed into place at the end, or none is: a failure or an interruption leaves nothing.
+  return [body] {
+    OutputGroup outputs;
+    body();
+    outputs.commit();
   };
 }
 

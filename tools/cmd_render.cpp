@@ -18,6 +18,7 @@
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "curve_defaults.hpp"
 #include "flight_plan.hpp"
@@ -113,6 +114,7 @@ void render_raster(const Args& args, const CacheReader& cache, const TransferFun
   }
   TerminalProgress progress("render");
   for (size_t i = 0; i < frames.size(); ++i) {
+    throw_if_interrupted();  // between frames: finished frames are kept
     const vk::RasterFrame frame = renderer.render(cameras[size_t(frames[i])], tf, o);
     if (context.validation_errors() > 0)
       throw Error("Vulkan validation: " + std::to_string(context.validation_errors()) +
@@ -219,6 +221,7 @@ void render_vrc(const Args& args, const CacheReader& cache, const TransferFuncti
   if (gpu) stats["device"] = context->info().name;
   TerminalProgress progress("render");
   for (size_t i = 0; i < plan.frames.size(); ++i) {
+    throw_if_interrupted();  // between frames: finished frames are kept
     const Camera& c = plan.cameras[size_t(plan.frames[i])];
     const VrcFrame frame =
         gpu ? caster->render(c, tf, o) : cast_voxel_frame(grid, occupancy, c, tf, o);
@@ -342,6 +345,7 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
                           {"frames", nlohmann::json::array()}};
   TerminalProgress progress("render");
   for (size_t i = 0; i < plan.frames.size(); ++i) {
+    throw_if_interrupted();  // between frames: finished frames are kept
     const Camera& c = plan.cameras[size_t(plan.frames[i])];
     const vk::RtFrame frame = renderer.render(*scene, c, tf, o);
     if (context->validation_errors() > 0)
@@ -496,7 +500,7 @@ Command add_render(CLI::App& app) {
                 "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");
   sub->add_flag("--early-termination", args->early,
                 "Stop compositing at opacity 0.99 (never for ground truth)");
-  return [args] {
+  const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
     const bool reference = args->technique == "reference";
     if (args->early && args->technique != "embree" && args->technique != "ll" &&
@@ -583,6 +587,7 @@ Command add_render(CLI::App& app) {
                             {"frames", nlohmann::json::array()}};
     TerminalProgress progress("render");
     for (size_t i = 0; i < frames.size(); ++i) {
+      throw_if_interrupted();  // between frames: finished frames are kept
       const Frame frame = trace_frame(*scene, cameras[frames[i]], tf, trace);
       write_image(frame.image, frame_path(args->output, frames[i], numbered), args->png_bits);
       if (!args->depth_image.empty())
@@ -595,6 +600,13 @@ Command add_render(CLI::App& app) {
                   << " s, depth complexity max " << frame.stats.max_depth_complexity << "\n";
     }
     if (!args->stats.empty()) write_file_atomically(args->stats, stats.dump(2) + "\n");
+  };
+  // Every output of the command (an image and its --stats, each frame, both exports) is
+  // renamed into place at the end, or none is: a failure or an interruption leaves nothing.
+  return [body] {
+    OutputGroup outputs;
+    body();
+    outputs.commit();
   };
 }
 

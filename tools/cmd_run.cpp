@@ -17,6 +17,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 #include "pipeline/evaluation_report.hpp"
 #include "pipeline/html_report.hpp"
 #include "pipeline/pipeline.hpp"
@@ -50,13 +51,26 @@ int run_child(const std::vector<std::string>& args, const std::string& stdout_fi
   if (!stdout_file.empty())
     posix_spawn_file_actions_addopen(&actions, 1, partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
                                      0644);
+  // The step runs in its own process group, so a Ctrl-C at the terminal reaches only this
+  // process, which passes it on once: the step stops at its next safe point and cleans up.
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+  posix_spawnattr_setpgroup(&attributes, 0);
   pid_t pid = 0;
-  const int spawned = posix_spawn(&pid, self.c_str(), &actions, nullptr, argv.data(), environ);
+  const int spawned = posix_spawn(&pid, self.c_str(), &actions, &attributes, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attributes);
   if (spawned != 0) throw Error("run: cannot start linebake again (" + self + ")");
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
+  bool passed_on = false;
+  while (waitpid(pid, &status, 0) < 0) {
     if (errno != EINTR) throw Error("run: waitpid failed");
+    if (interrupt_signal() && !passed_on) {
+      ::kill(pid, interrupt_signal());
+      passed_on = true;
+    }
+  }
   const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   if (!stdout_file.empty()) {
     if (code == 0)
@@ -154,7 +168,12 @@ Command add_run(CLI::App& app) {
       for (const std::string& o : s.outputs)
         std::filesystem::create_directories(std::filesystem::path(o).parent_path());
       std::cerr << "linebake: run: " << s.id << "\n";
+      throw_if_interrupted();
       const int code = run_child(s.args, s.stdout_file);
+      if (interrupt_signal())
+        throw Interrupted(interrupt_signal(),
+                          "at step " + s.id + "; the " + std::to_string(ran) +
+                              " step(s) finished before it are kept and reused by the next run");
       if (code != 0)
         throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
                     "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);

@@ -37,7 +37,6 @@ Command add_synth(CLI::App& app) {
     const auto start = std::chrono::steady_clock::now();
     WriteOptions write;
     if (!args->to.empty()) write.format = parse_format(args->to);
-    install_interrupt_handlers();
     // Generated batch by batch; .binlines is written as the batches come, so any scale fits in
     // memory. Other formats collect the line set first.
     TerminalProgress progress("generating " + args->params.name);

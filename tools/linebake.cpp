@@ -5,10 +5,12 @@
 
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/h5.hpp"
 #include "core/interrupt.hpp"
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
+  linebake::h5::init();  // before anything else touches HDF5 (see h5::init)
   CLI::App app{"linebake " LINEBAKE_VERSION ": assets, exports and renders for large 3D line sets",
                "linebake"};
   app.set_version_flag("--version", LINEBAKE_VERSION);
@@ -26,12 +28,15 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kOk : kUsage;
   }
+  // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
+  // temporary files (core/interrupt.hpp).
+  linebake::install_interrupt_handlers();
   try {
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
     return kOk;
   } catch (const linebake::Interrupted& e) {
-    std::cerr << "linebake: " << e.what() << "; temporary files removed, nothing written\n";
+    std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";
     return 128 + e.signal();
   } catch (const linebake::InputError& e) {
     std::cerr << "linebake: error: " << e.what() << "\n";

@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 
 namespace linebake {
 
@@ -109,6 +110,7 @@ nlohmann::json to_json(const Provenance& p) {
             {"spill_bytes", p.spill_bytes}}},
           {"memory_bytes", p.memory_bytes},
           {"disk_bytes", p.disk_bytes},
+          {"estimated_disk_bytes", p.estimated_disk_bytes},
           {"compression", p.compression}};
 }
 
@@ -132,6 +134,7 @@ Provenance provenance_from_json(const nlohmann::json& j) {
   p.spill_bytes = b.value("spill_bytes", uint64_t{0});
   p.memory_bytes = j.at("memory_bytes");
   p.disk_bytes = j.at("disk_bytes");
+  p.estimated_disk_bytes = j.value("estimated_disk_bytes", uint64_t{0});
   p.compression = j.value("compression", "");
   return p;
 }
@@ -147,6 +150,10 @@ CacheWriter::CacheWriter(const std::string& path, Compression compression, int l
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   H5Pset_link_creation_order(fcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  // Closing the file closes every object still open in it: an error path that leaves a dataset
+  // open must not keep the file open until HDF5's shutdown at exit, which then flushes it to a
+  // full disk (and crashes in 1.10).
+  H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG);
   // Page-aligned datasets from 4 KiB up, so uncompressed ones can be viewed in a mapping.
   H5Pset_alignment(fapl, 4096, 4096);
   // HDF5's metadata cache may grow to 32 MiB by default; chunk indices written in order need
@@ -378,6 +385,7 @@ void DatasetStream::append_raw(const void* data, size_t element, uint64_t rows) 
 }
 
 void append_together(std::span<const StreamAppend> appends) {
+  throw_if_interrupted();  // a safe point: every chunk before it is written, none half
   std::vector<DatasetStream::State::Job> jobs;
   for (const StreamAppend& a : appends) {
     a.stream->check_append(a.element, a.rows);
@@ -479,8 +487,12 @@ void CacheWriter::flush() {
 }
 
 void CacheWriter::commit() {
-  if (H5Fflush(h5_, H5F_SCOPE_GLOBAL) < 0) throw OutputError(path(), "cannot flush");
-  h5_.reset();
+  if (H5Fflush(h5_, H5F_SCOPE_GLOBAL) < 0)
+    throw OutputError(path(), "cannot write: " + h5::last_error() + " (" + temp_path() + ")");
+  // Closing writes what HDF5 still holds; a failure here is a failed write, not a cache.
+  const hid_t id = h5_.release();
+  if (H5Fclose(id) < 0)
+    throw OutputError(path(), "cannot write: " + h5::last_error() + " (" + temp_path() + ")");
   file_.commit();
 }
 
@@ -494,6 +506,13 @@ template DatasetStream CacheWriter::stream<uint32_t>(const std::string&, uint64_
 template DatasetStream CacheWriter::stream<uint64_t>(const std::string&, uint64_t, uint64_t);
 
 // ---- reader ----
+
+bool is_linebake_cache(const std::string& path) {
+  h5::init();
+  if (H5Fis_hdf5(path.c_str()) <= 0) return false;
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  return file.valid() && H5Aexists(file, kFormatAttribute) > 0;
+}
 
 CacheReader::CacheReader(const std::string& path, bool verify) : path_(path), verify_(verify) {
   h5::init();

@@ -39,8 +39,9 @@ struct Provenance {
   uint64_t memory_bytes = 0;  // the representation in memory
   uint64_t disk_bytes = 0;    // its datasets as stored
   std::string compression;
-  uint64_t memory_budget = 0;  // the bake's budget (0: unlimited)
-  uint64_t spill_bytes = 0;    // what the step wrote to temporary files beside the cache
+  uint64_t memory_budget = 0;         // the bake's budget (0: unlimited)
+  uint64_t spill_bytes = 0;           // what the step wrote to temporary files beside the cache
+  uint64_t estimated_disk_bytes = 0;  // what the bake expected disk_bytes to be (0: no estimate)
 };
 nlohmann::json to_json(const Provenance& provenance);
 Provenance provenance_from_json(const nlohmann::json& json);
@@ -153,6 +154,9 @@ class CacheWriter {
   ProgressFn progress_;
   uint64_t progress_total_ = 0, progress_done_ = 0;
 };
+
+// True when `path` is an HDF5 file with linebake's cache attribute at its root (any version).
+bool is_linebake_cache(const std::string& path);
 
 class CacheReader {
  public:

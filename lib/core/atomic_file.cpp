@@ -1,48 +1,223 @@
 #include "core/atomic_file.hpp"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <mutex>
 
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake {
+namespace {
 
-std::string temporary_name(const std::string& path) {
-  static std::atomic<unsigned> counter{0};
+std::string host_name() {
   char host[256] = "host";
   if (::gethostname(host, sizeof host - 1) != 0) std::strcpy(host, "host");
   host[sizeof host - 1] = '\0';
   for (char* c = host; *c; ++c)
-    if (*c == '/' || *c == '.') *c = '_';
-  return path + ".tmp-" + host + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+    if (*c == '/' || *c == '.' || *c == '-') *c = '_';
+  return host;
+}
+
+std::mutex notify_mutex;
+std::function<void(const std::string&)> notify_handler;
+
+}  // namespace
+
+void notify(const std::string& message) {
+  std::lock_guard<std::mutex> lock(notify_mutex);
+  if (notify_handler)
+    notify_handler(message);
+  else
+    std::cerr << "linebake: " << message << "\n";
+}
+
+void set_notify_handler(std::function<void(const std::string&)> handler) {
+  std::lock_guard<std::mutex> lock(notify_mutex);
+  notify_handler = std::move(handler);
+}
+
+std::string temporary_name(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  return path + ".tmp-" + host_name() + "-" + std::to_string(::getpid()) + "-" +
+         std::to_string(counter++);
+}
+
+uint64_t remove_stale_temporaries(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const std::string name = target.filename().string();
+  const std::string marker = ".tmp-" + host_name() + "-";
+  uint64_t bytes = 0, files = 0;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string file = entry.path().filename().string();
+    if (file.compare(0, name.size() + 1, name + ".") != 0) continue;
+    const size_t at = file.find(marker, name.size());
+    if (at == std::string::npos) continue;
+    // Between the marker and the next '-': the writer's pid.
+    const size_t pid_begin = at + marker.size(), pid_end = file.find('-', pid_begin);
+    if (pid_end == std::string::npos) continue;
+    long pid = 0;
+    try {
+      pid = std::stol(file.substr(pid_begin, pid_end - pid_begin));
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (pid <= 0 || pid == ::getpid() || ::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;
+    const uint64_t size = entry.is_regular_file(ec) ? uint64_t(entry.file_size(ec)) : 0;
+    if (fs::remove(entry.path(), ec)) {
+      bytes += size;
+      ++files;
+    }
+  }
+  if (files)
+    notify("removed " + std::to_string(files) + " temporary file(s) of " + path + " (" +
+           format_bytes(bytes) + ") left by a process that no longer runs");
+  return bytes;
+}
+
+void refuse_input_as_output(const std::string& output, const std::vector<std::string>& inputs) {
+  struct stat out {};
+  if (::stat(output.c_str(), &out) != 0) return;  // a new file
+  for (const std::string& input : inputs) {
+    struct stat in {};
+    if (::stat(input.c_str(), &in) == 0 && in.st_dev == out.st_dev && in.st_ino == out.st_ino)
+      throw OutputError(
+          output, "is the input " + input + " of this command; an output never replaces its input");
+  }
+}
+
+uint64_t free_bytes_for(const std::string& path) {
+  const std::filesystem::path p(path);
+  const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
+  struct statvfs fs {};
+  if (::statvfs(dir.c_str(), &fs) != 0) return UINT64_MAX;  // unknown: do not refuse
+  return uint64_t(fs.f_bavail) * uint64_t(fs.f_frsize);
+}
+
+void sync_file(const std::string& path, const std::string& name) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw OutputError(name, std::string("cannot open to sync: ") + std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  if (rc != 0)
+    throw OutputError(name, std::string("cannot write to disk (fsync): ") + std::strerror(error) +
+                                (path == name ? "" : " (" + path + ")"));
+}
+
+void sync_directory_of(const std::string& path, const std::string& name) {
+  const std::filesystem::path p(path);
+  const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;  // some file systems do not open directories; the rename stands
+  const int rc = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  // EINVAL: the file system cannot sync directories (the rename is already as durable as it
+  // gets there).
+  if (rc != 0 && error != EINVAL)
+    throw OutputError(name, std::string("cannot write the directory entry to disk (fsync): ") +
+                                std::strerror(error));
 }
 
 AtomicFile::AtomicFile(std::string final_path)
-    : final_path_(std::move(final_path)), temp_path_(temporary_name(final_path_)) {}
+    : final_path_(std::move(final_path)), temp_path_(temporary_name(final_path_)) {
+  remove_stale_temporaries(final_path_);
+}
 
 AtomicFile::~AtomicFile() {
   if (!committed_) std::remove(temp_path_.c_str());
 }
 
+namespace {
+thread_local OutputGroup* open_group = nullptr;
+}
+
+OutputGroup::OutputGroup() : previous_(open_group) {
+  open_group = this;
+}
+
+OutputGroup::~OutputGroup() {
+  open_group = previous_;
+  if (!committed_)
+    for (const File& f : files_) std::remove(f.temp.c_str());
+}
+
+void OutputGroup::commit() {
+  open_group = previous_;
+  committed_ = true;
+  size_t renamed = 0;
+  for (const File& f : files_) {
+    if (std::rename(f.temp.c_str(), f.final.c_str()) != 0) {
+      const int error = errno;
+      for (size_t i = renamed + 1; i < files_.size(); ++i) std::remove(files_[i].temp.c_str());
+      std::remove(f.temp.c_str());
+      throw OutputError(f.final, std::string("cannot rename the temporary file: ") +
+                                     std::strerror(error) + " (" + f.temp + ")");
+    }
+    ++renamed;
+  }
+  for (const File& f : files_) sync_directory_of(f.final, f.final);
+}
+
 void AtomicFile::commit() {
+  sync_file(temp_path_, final_path_);
+  if (open_group) {
+    open_group->files_.push_back({temp_path_, final_path_});
+    committed_ = true;
+    return;
+  }
   if (std::rename(temp_path_.c_str(), final_path_.c_str()) != 0) {
-    throw OutputError(final_path_,
-                      std::string("cannot rename temporary file: ") + std::strerror(errno));
+    throw OutputError(final_path_, std::string("cannot rename the temporary file: ") +
+                                       std::strerror(errno) + " (" + temp_path_ + ")");
   }
   committed_ = true;
+  sync_directory_of(final_path_, final_path_);
+}
+
+void AtomicFile::write_with(const std::function<void()>& write) const {
+  try {
+    write();
+  } catch (const OutputError& e) {
+    if (e.file() != temp_path_) throw;
+    throw OutputError(final_path_, e.detail() + " (" + temp_path_ + ")");
+  }
 }
 
 void write_file_atomically(const std::string& path, const std::string& bytes) {
   AtomicFile file(path);
-  std::FILE* f = std::fopen(file.temp_path().c_str(), "wb");
-  if (!f) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  if (std::fclose(f) != 0 || !written)
-    throw OutputError(path, std::string("cannot write: ") + std::strerror(errno));
+  const int fd = ::open(file.temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));
+  const char* p = bytes.data();
+  size_t left = bytes.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, p, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : ENOSPC;
+      ::close(fd);
+      throw OutputError(path, std::string("cannot write: ") + std::strerror(error) + " (" +
+                                  file.temp_path() + ")");
+    }
+    p += n;
+    left -= size_t(n);
+  }
+  if (::close(fd) != 0)
+    throw OutputError(
+        path, std::string("cannot write: ") + std::strerror(errno) + " (" + file.temp_path() + ")");
   file.commit();
 }
 

@@ -1,13 +1,21 @@
 #pragma once
 // Outputs are written under a temporary name beside the target and renamed when complete, so a
-// failed or interrupted write never leaves a half-written file under the final name.
+// failed or interrupted write never leaves a half-written file under the final name. The commit
+// is durable: the temporary file is flushed to disk before the rename and the directory after
+// it, so a power cut after "done" leaves the old file or the new one, never an empty or torn
+// one. Temporary names carry the host and the process id: a writer removes the temporaries of
+// its output that a dead process on the same host left behind.
 
+#include <cstdint>
+#include <functional>
 #include <string>
+#include <vector>
 
 namespace linebake {
 
 class AtomicFile {
  public:
+  // Removes stale temporaries of `final_path` first (see remove_stale_temporaries).
   explicit AtomicFile(std::string final_path);
   ~AtomicFile();  // removes the temporary file unless commit() succeeded
   AtomicFile(const AtomicFile&) = delete;
@@ -17,8 +25,12 @@ class AtomicFile {
   const std::string& temp_path() const { return temp_path_; }
   const std::string& final_path() const { return final_path_; }
 
-  // Renames the temporary file to the final name. Throws OutputError on failure.
+  // fsync, rename to the final name, fsync the directory. Throws OutputError naming the final
+  // path (the temporary one in parentheses).
   void commit();
+  // Runs `write` (which writes temp_path()); an OutputError it throws about the temporary file
+  // is thrown again naming the final path, the temporary one in parentheses.
+  void write_with(const std::function<void()>& write) const;
 
  private:
   std::string final_path_;
@@ -26,11 +38,55 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// Outputs of one command that stand or fall together (an image and its --stats, every frame of
+// a flight). While a group is open on this thread, AtomicFile::commit() only syncs its temporary
+// file and hands it over; the group's commit() renames them all, and a group that ends without
+// commit() (an error, an interruption) removes them all, so a failed command leaves nothing.
+class OutputGroup {
+ public:
+  OutputGroup();
+  ~OutputGroup();
+  OutputGroup(const OutputGroup&) = delete;
+  OutputGroup& operator=(const OutputGroup&) = delete;
+  void commit();
+
+ private:
+  friend class AtomicFile;
+  struct File {
+    std::string temp, final;
+  };
+  std::vector<File> files_;
+  OutputGroup* previous_ = nullptr;
+  bool committed_ = false;
+};
+
+// Writes `bytes` to `path` through an AtomicFile. Throws OutputError.
+void write_file_atomically(const std::string& path, const std::string& bytes);
+
 // `<path>.tmp-<host>-<pid>-<n>`: a name no other process, here or on another host sharing the
 // file system, uses at the same time.
 std::string temporary_name(const std::string& path);
 
-// Writes `bytes` to `path` through an AtomicFile. Throws OutputError.
-void write_file_atomically(const std::string& path, const std::string& bytes);
+// Removes files beside `path` named `<name>.tmp-<host>-<pid>-<n>` or `<name>.<tag>.tmp-<host>-
+// <pid>-<n>` (temporaries and spill files of that output) whose process is gone, on this host
+// only: a process on another host may still be writing. Reports what it removed through
+// notify() and returns the bytes.
+uint64_t remove_stale_temporaries(const std::string& path);
+
+// Throws OutputError when `output` is one of `inputs` (the same file, whatever the path):
+// an output never replaces an input of its command.
+void refuse_input_as_output(const std::string& output, const std::vector<std::string>& inputs);
+// Bytes free for this user on the file system that holds `path` (or would: its directory).
+uint64_t free_bytes_for(const std::string& path);
+
+// Fixes a file's bytes on disk (fsync); throws OutputError naming `name` on failure.
+void sync_file(const std::string& path, const std::string& name);
+// Fixes a directory entry (after a rename) on disk.
+void sync_directory_of(const std::string& path, const std::string& name);
+
+// Messages the library has for the user that are not errors (stale files removed). The
+// default prints "linebake: MESSAGE" to stderr.
+void notify(const std::string& message);
+void set_notify_handler(std::function<void(const std::string&)> handler);
 
 }  // namespace linebake

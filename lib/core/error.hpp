@@ -32,7 +32,13 @@ class InputError : public Error {
 // An output that could not be written.
 class OutputError : public Error {
  public:
-  OutputError(const std::string& file, const std::string& message) : Error(file + ": " + message) {}
+  OutputError(const std::string& file, const std::string& message)
+      : Error(file + ": " + message), file_(file), detail_(message) {}
+  const std::string& file() const { return file_; }
+  const std::string& detail() const { return detail_; }
+
+ private:
+  std::string file_, detail_;
 };
 
 // Work that does not fit the memory budget (core/memory_budget.hpp): refused before it starts.

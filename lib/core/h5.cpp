@@ -11,6 +11,10 @@ namespace linebake::h5 {
 void init() {
   static std::once_flag once;
   std::call_once(once, [] {
+    // No cleanup at exit: linebake closes its files itself, and HDF5 1.10's atexit cleanup
+    // crashes on a file whose close failed (a full disk): HDFFV-11052, fixed only after 1.10.
+    // Must come before any other HDF5 call, so main() calls init() first.
+    H5dont_atexit();
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
     // Debian installs filter plugins here (hdf5-filter-plugin, hdf5-filter-plugin-blosc-serial);
     // HDF5's compiled-in default (/usr/local/hdf5/lib/plugin) is not it. HDF5_PLUGIN_PATH, when
@@ -33,6 +37,17 @@ std::string last_error() {
     return 0;
   };
   H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, innermost, &message);
+  // A failed write describes itself at length ("file write failed: time = ..., filename = ...,
+  // errno = 28, error message = 'No space left on device', buf = ..."): keep the reason.
+  const std::string key = "error message = '";
+  const size_t at = message.find(key);
+  if (at != std::string::npos) {
+    const size_t end = message.find('\'', at + key.size());
+    message = message.substr(at + key.size(),
+                             end == std::string::npos ? std::string::npos : end - at - key.size());
+  }
+  for (char& c : message)
+    if (c == '\n' || c == '\r') c = ' ';
   return message;
 }
 

@@ -19,12 +19,17 @@ void on_signal(int signal) {
 
 }  // namespace
 
-Interrupted::Interrupted(int signal)
-    : Error(std::string("interrupted by ") + (signal == SIGINT    ? "SIGINT (Ctrl-C)"
-                                              : signal == SIGTERM ? "SIGTERM"
-                                              : signal == SIGHUP
-                                                  ? "SIGHUP"
-                                                  : "signal " + std::to_string(signal))),
+namespace {
+std::string signal_name(int signal) {
+  if (signal == SIGINT) return "SIGINT (Ctrl-C)";
+  if (signal == SIGTERM) return "SIGTERM";
+  if (signal == SIGHUP) return "SIGHUP";
+  return "signal " + std::to_string(signal);
+}
+}  // namespace
+
+Interrupted::Interrupted(int signal, const std::string& where)
+    : Error("interrupted by " + signal_name(signal) + (where.empty() ? "" : " " + where)),
       signal_(signal) {}
 
 void install_interrupt_handlers() {

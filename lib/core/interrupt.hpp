@@ -12,7 +12,8 @@ namespace linebake {
 
 class Interrupted : public Error {
  public:
-  explicit Interrupted(int signal);
+  // `where`: what was interrupted and what was kept, for the user.
+  explicit Interrupted(int signal, const std::string& where = "");
   int signal() const { return signal_; }
 
  private:

@@ -47,14 +47,28 @@ struct BakeOptions {
   RtxOptions rtx;
   Compression compression = Compression::Lz4;
   int compression_level = -1;  // codec default
-  bool force = false;          // rebuild every step
+  bool force = false;          // rebuild every step; replace an output file that is not a cache
   bool progress = true;        // terminal progress bars (drawn only on a TTY)
+  bool space_check = true;     // refuse up front when the output's file system is too full
+  bool dry_run = false;        // read the input, print the estimates, write nothing
   // The process's resident memory at most, in bytes: kDefaultBudget is half of physical memory,
   // kUnlimited holds everything in memory that fits.
   uint64_t memory_budget = kDefaultBudget;
   static constexpr uint64_t kDefaultBudget = 0;
   static constexpr uint64_t kUnlimited = UINT64_MAX;
 };
+
+// What a bake expects to write, from the line set's statistics and the options: each step's
+// datasets as stored, and the temporary spill files beside the cache at their largest.
+struct BakeEstimate {
+  uint64_t lines = 0, tubes = 0, voxels = 0, embree = 0;
+  uint64_t spill = 0;
+  uint64_t total() const { return lines + tubes + voxels + embree + spill; }
+  uint64_t step(const std::string& name) const;
+};
+// `records_in_memory`: the chord records the budget keeps in memory (the rest spill).
+BakeEstimate estimate_bake(const LineSetStats& stats, const LineSet& header,
+                           const BakeOptions& options, uint64_t records_in_memory);
 
 // One pass of a bake over the data, as measured.
 struct BakeStage {
@@ -81,6 +95,8 @@ struct BakeResult {
   uint64_t spill_peak_bytes = 0;     // temporary files beside the cache, at their largest
   uint64_t bytes_written = 0;        // the cache file's size
   double wall_s = 0;
+  BakeEstimate estimate;    // before the build (dry runs stop there)
+  uint64_t free_bytes = 0;  // on the cache's file system when it was checked
 };
 
 std::string default_cache_path(const std::string& input);

@@ -143,14 +143,16 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
     for (const Provenance& p : c.assets) {
       out << "  " << p.step << "\n"
           << "    size          " << format_bytes(p.memory_bytes) << " in memory, "
-          << format_bytes(p.disk_bytes) << " on disk (" << p.compression << ")\n"
+          << format_bytes(p.disk_bytes) << " on disk (" << p.compression
+          << (p.estimated_disk_bytes ? ", estimated " + format_bytes(p.estimated_disk_bytes)
+                                     : std::string())
+          << ")\n"
           << "    build         " << seconds(p.build.wall_s) << " s wall, "
           << seconds(p.build.cpu_s) << " s CPU, " << p.threads << " threads\n"
           << "    peak RSS      " << format_bytes(p.build.peak_rss) << " (process held "
           << format_bytes(p.build.rss_before) << " before"
           << (p.build.peak_is_step_local ? "" : "; peak since process start") << "; budget "
-          << (p.memory_budget ? format_bytes(p.memory_budget) : std::string("unlimited"))
-          << ")\n";
+          << (p.memory_budget ? format_bytes(p.memory_budget) : std::string("unlimited")) << ")\n";
       if (p.spill_bytes)
         out << "    spilled       " << format_bytes(p.spill_bytes) << " to a temporary file\n";
       for (const auto& [key, value] : p.stats.items())
