@@ -78,9 +78,9 @@ void MemoryBudget::reserve(uint64_t bytes, const std::string& what) {
   if (!unlimited() && bytes > available())
     throw BudgetExceeded(what + " needs about " + format_bytes(bytes) + ", more than the " +
                          format_bytes(available()) + " the memory budget of " +
-                         format_bytes(total_) + " leaves (the process holds " +
-                         format_bytes(baseline_ + reserved_) +
-                         "); raise --memory-budget or ask for less");
+                         format_bytes(total_) + " leaves (the process held " +
+                         format_bytes(baseline_) + " at the start, the work's other buffers take " +
+                         format_bytes(reserved_) + "); raise --memory-budget or ask for less");
   reserved_ += bytes;
 }
 

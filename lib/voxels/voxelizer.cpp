@@ -461,16 +461,17 @@ VoxelStreamBuilder::VoxelStreamBuilder(const LineSet& header, const LineSetStats
   }
   s.place_grid(stats);
   const uint64_t voxels = s.grid.voxel_count();
-  if (voxels >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 voxels; use a coarser grid");
+  if (voxels >= 0xFFFFFFFFull) {
+    const auto& r = s.grid.resolution;
+    throw BudgetExceeded("voxels: the grid is " + std::to_string(r[0]) + " x " + std::to_string(r[1]) +
+                         " x " + std::to_string(r[2]) + " = " + std::to_string(voxels) +
+                         " voxels, more than the 2^32 - 1 a grid may hold; use a coarser --grid");
+  }
   if (stats.lines >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 lines");
   // At most 4096 units: small enough per-run tables, fine enough to split the merge.
   s.unit_shift = uint32_t(std::max(0, int(std::bit_width(voxels - 1)) - 12));
   s.units = ((voxels - 1) >> s.unit_shift) + 1;
   s.unit_records.assign(s.units, 0);
-  if (options.max_chords_per_voxel > 255)
-    s.counts16.assign(voxels, 0);
-  else
-    s.counts8.assign(voxels, 0);
 }
 
 VoxelStreamBuilder::~VoxelStreamBuilder() = default;
@@ -492,6 +493,14 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
   State& s = *state_;
   const size_t line_count = batch.line_count();
   if (line_count == 0) return;
+  // The per-voxel counts are allocated by the first batch, not by the constructor: a builder made
+  // only to learn the grid's placement (estimates, budgets) touches no per-voxel memory.
+  if (s.counts8.empty() && s.counts16.empty()) {
+    if (s.grid.max_chords_per_voxel > 255)
+      s.counts16.assign(s.grid.voxel_count(), 0);
+    else
+      s.counts8.assign(s.grid.voxel_count(), 0);
+  }
   constexpr uint64_t kSegmentsPerBlock = 1 << 16;
   size_t used = 0;
   for (size_t first = 0; first < line_count; ++used) {
@@ -583,6 +592,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
   const uint64_t kept_total = tbb::parallel_reduce(
       tbb::blocked_range<uint64_t>(0, grid.voxel_count(), uint64_t{1} << 16), uint64_t{0},
       [&](const tbb::blocked_range<uint64_t>& range, uint64_t sum) {
+        if (s.counts8.empty() && s.counts16.empty()) return sum;  // no batch came
         for (uint64_t v = range.begin(); v != range.end(); ++v)
           sum += s.counts16.empty() ? s.counts8[v] : s.counts16[v];
         return sum;

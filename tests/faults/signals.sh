@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# Interruption and overwrite tests (issue 27): SIGINT/SIGTERM stop a bake cleanly, a killed bake's
+# temporaries are removed by the next one, an interrupted pipeline continues where it stopped,
+# outputs never replace inputs or foreign files, builds too large for the memory budget are
+# refused at once, and a render keeps reading a cache that a bake replaces under it.
+set -u
+bin="$1"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+passed=0
+failed=0
+check() {  # check NAME COMMAND...: passes when the command succeeds
+  local name="$1"
+  shift
+  if "$@" >"$tmp/out" 2>"$tmp/err"; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
+    echo "FAIL: $name"
+    sed 's/^/  out: /' "$tmp/out" | head -20
+    sed 's/^/  err: /' "$tmp/err" | head -20
+  fi
+}
+no_temporaries() { ! ls -a "$1" | grep -q 'tmp-'; }
+export -f no_temporaries
+
+pipes="$(cd "$(dirname "$0")/../../pipelines" && pwd)"
+cd "$tmp" || exit 1
+"$bin" synth clouds --scale 0.1 -o k.binlines 2>/dev/null
+"$bin" synth aneurysm --scale 0.01 -o a.binlines 2>/dev/null
+
+# Starts a bake of k.binlines into $1 and sends signal $2 once its temporary file exists.
+interrupt_bake() {
+  local out="$1" signal="$2"
+  "$bin" bake k.binlines -o "$out" --assets tubes,voxels --grid 128 --memory-budget 256M \
+    >/dev/null 2>"$out.err" &
+  local pid=$!
+  for _ in $(seq 500); do ls | grep -q "^$out.*tmp-" && break; sleep 0.01; done
+  sleep 0.3
+  kill "-$signal" "$pid"
+  wait "$pid"
+}
+export bin
+export -f interrupt_bake
+
+check "SIGTERM during a bake: exit 143, no cache, no temporary" bash -c "
+  interrupt_bake t.lbc.h5 TERM; rc=\$?
+  [ \$rc -eq 143 ] && grep -q 'interrupted by SIGTERM' t.lbc.h5.err && [ ! -e t.lbc.h5 ] && no_temporaries ."
+check "SIGHUP during a bake: exit 129" bash -c "
+  interrupt_bake h.lbc.h5 HUP; [ \$? -eq 129 ] && [ ! -e h.lbc.h5 ] && no_temporaries ."
+check "kill -9 leaves temporaries; the next bake removes them and leaves only the cache" bash -c "
+  interrupt_bake x.lbc.h5 KILL; [ \$? -eq 137 ] && ls | grep -q 'x.lbc.h5.*tmp-' || exit 1
+  '$bin' bake k.binlines -o x.lbc.h5 --assets tubes,voxels --grid 128 > /dev/null 2> second.err &&
+  grep -q 'removed [0-9]* temporary file(s) of x.lbc.h5' second.err && [ -e x.lbc.h5 ] && no_temporaries ."
+
+# An interrupted pipeline keeps its finished steps and goes on from the interrupted one.
+check "SIGINT during run: exit 130, finished steps kept; the next run reuses them" bash -c "
+  '$bin' run '$pipes/ci.json' -o ci > run.out 2> run.err & pid=\$!
+  for _ in \$(seq 1000); do grep -q 'run: render/' run.err 2>/dev/null && break; sleep 0.02; done
+  kill -INT \$pid; wait \$pid; rc=\$?
+  [ \$rc -eq 130 ] && grep -q 'interrupted by SIGINT (Ctrl-C) at step' run.err || exit 1
+  no_temporaries ci && [ -e ci/aneurysm.lbc.h5 ] || exit 1
+  '$bin' run '$pipes/ci.json' -o ci > /dev/null 2> rerun.err && grep -Eq '[1-9][0-9]* reused' rerun.err"
+
+# Outputs never replace inputs; foreign files only under --force.
+sum() { sha256sum "$1" | cut -d' ' -f1; }
+export -f sum
+check "bake X -o X is refused, X unchanged (exit 3)" bash -c "
+  before=\$(sum a.binlines); '$bin' bake a.binlines -o a.binlines 2> e; [ \$? -eq 3 ] &&
+  grep -q 'never replaces its input' e && [ \"\$(sum a.binlines)\" = \"\$before\" ]"
+check "bake -o onto a file that is not a cache is refused, the file unchanged" bash -c "
+  echo precious > notes.txt; before=\$(sum notes.txt); '$bin' bake a.binlines -o notes.txt 2> e
+  [ \$? -eq 3 ] && grep -q 'is not a linebake cache; --force replaces it' e &&
+  [ \"\$(sum notes.txt)\" = \"\$before\" ]"
+check "... and --force replaces it" bash -c "
+  '$bin' bake a.binlines -o notes.txt --force > /dev/null 2>&1 && '$bin' report notes.txt > /dev/null"
+check "convert X X is refused" bash -c "
+  cp a.binlines b.binlines; '$bin' convert b.binlines b.binlines 2> e; [ \$? -eq 3 ] && cmp a.binlines b.binlines"
+check "export over its own cache is refused" bash -c "
+  '$bin' bake a.binlines -o e.lbc.h5 > /dev/null 2>&1; cp e.lbc.h5 e.before
+  '$bin' export e.lbc.h5 --glb e.lbc.h5 2> e; [ \$? -eq 3 ] && cmp e.lbc.h5 e.before"
+
+# Sizes the options decide are estimated before the memory is spent.
+check "bake --grid 4000 beyond the budget: refused within a second, with the estimate" bash -c "
+  start=\$(date +%s%N); '$bin' bake a.binlines -o g.lbc.h5 --assets voxels --grid 4000 --memory-budget 1G 2> e
+  rc=\$?; ms=\$(( (\$(date +%s%N) - start) / 1000000 ))
+  [ \$rc -eq 4 ] && [ \$ms -lt 1000 ] && grep -q 'voxels) needs about' e && [ ! -e g.lbc.h5 ] && no_temporaries ."
+check "a render frame beyond the budget is refused before rendering" bash -c "
+  '$bin' render e.lbc.h5 --technique ll --size 16384x16384 -o big.png 2> e
+  [ \$? -eq 4 ] && grep -q 'needs about 130.00 GiB' e && [ ! -e big.png ]"
+check "bake --dry-run prints the estimate and writes nothing" bash -c "
+  '$bin' bake a.binlines -o d.lbc.h5 --assets tubes,voxels --dry-run > d.out && grep -q 'would write d.lbc.h5: about' d.out &&
+  grep -q 'free there' d.out && [ ! -e d.lbc.h5 ] && no_temporaries ."
+check "the report compares the estimate with what was written" bash -c "
+  '$bin' report e.lbc.h5 | grep -q 'on disk (lz4, estimated '"
+
+# A reader keeps the cache it opened while a bake replaces it (POSIX rename).
+check "render finishes on the old cache while bake replaces it" bash -c "
+  '$bin' bake k.binlines -o live.lbc.h5 > /dev/null 2>&1
+  '$bin' render live.lbc.h5 --technique reference --frames all --frame-count 12 --size 96x64 -o live.png > /dev/null 2> render.err & pid=\$!
+  sleep 0.2; '$bin' bake k.binlines -o live.lbc.h5 --tube-sides 4 > /dev/null 2>&1 || exit 1
+  wait \$pid && [ \$(ls live_*.png | wc -l) -eq 12 ]"
+
+echo "signals: $passed passed, $failed failed"
+[ "$failed" -eq 0 ]
