@@ -48,6 +48,7 @@ Command add_depth_complexity(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "depth-complexity", "Depth-complexity images and statistics of a flight (fragments/pixel)");
   struct Args {
+    std::string memory_budget;
     std::string cache, output, stats, tf = "semi", flight = "orbit-zoom", frames, size = "1280x720",
                                       on = "gpu", device;
     int frame = 0, frame_count = 64;
@@ -72,10 +73,15 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
       ->check(CLI::IsMember({"all"}));
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)");
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "Refuse a frame whose estimated memory exceeds this (default: half of physical "
+                  "memory)");
   sub->add_option("--device", args->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
+    check_frame_memory("depth-complexity", args->size, uint64_t(width) * uint64_t(height), 0, 0, 0,
+                       args->memory_budget);
     if (args->output.empty() && args->stats.empty())
       throw Error("depth-complexity: nothing to write; give -o and/or --stats");
     const TransferFunction tf = resolve_transfer_function(args->tf);

@@ -16,7 +16,6 @@
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
 #include "commands.hpp"
-#include "core/memory_budget.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
@@ -383,28 +382,6 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
 }
 }  // namespace
 
-// The memory one frame takes, estimated before it is spent: the image as floats, its 8-bit or
-// float output, depth-complexity counts, and the technique's per-pixel storage (on lavapipe and
-// integrated GPUs device memory is host memory too). Errs high; the default fragment capacity of
-// ll grows on overflow, so its figure is where it starts.
-uint64_t frame_memory_estimate(const std::string& technique, uint64_t pixels, uint64_t capacity,
-                               int layers, int moments) {
-  uint64_t bytes = pixels * (16 + 16 + 4);
-  if (technique == "ll")
-    bytes += (capacity ? capacity : 20 * pixels) * 24 + pixels * 4;
-  else if (technique == "mlab" || technique == "mlabdb")
-    bytes += pixels * uint64_t(layers ? layers : technique == "mlab" ? 8 : 4) * 16;
-  else if (technique == "dp")
-    bytes += pixels * (2 * 4 + 16);
-  else if (technique == "mboit")
-    bytes += pixels * (uint64_t(moments + 1) * 4 + 16);
-  else if (technique == "wboit")
-    bytes += pixels * 32;
-  else
-    bytes += pixels * 16;
-  return bytes;
-}
-
 Command add_render(CLI::App& app) {
   auto* sub = app.add_subcommand("render", "Render frames of a flight from an asset cache");
   struct Args {
@@ -529,19 +506,8 @@ Command add_render(CLI::App& app) {
                   "physical memory)");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
-    {
-      const uint64_t budget = args->memory_budget.empty() ? default_memory_budget()
-                                                          : linebake::parse_size(args->memory_budget);
-      const uint64_t frame =
-          frame_memory_estimate(args->technique, uint64_t(width) * uint64_t(height),
-                                args->capacity, args->layers, args->moments);
-      if (frame > budget)
-        throw BudgetExceeded("render: a " + args->size + " " + args->technique +
-                             " frame needs about " + format_bytes(frame) +
-                             ", more than the memory budget of " + format_bytes(budget) +
-                             "; lower --size" + (args->technique == "ll" ? " or --capacity" : "") +
-                             ", or raise --memory-budget");
-    }
+    check_frame_memory(args->technique, args->size, uint64_t(width) * uint64_t(height),
+                       args->capacity, args->layers, args->moments, args->memory_budget);
     const bool reference = args->technique == "reference";
     if (args->early && args->technique != "embree" && args->technique != "ll" &&
         args->technique != "vrc" && args->technique != "rtx")

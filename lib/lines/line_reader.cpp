@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 
 namespace linebake {
 
@@ -59,7 +60,10 @@ LineSet read_all(LineReader& reader) {
   if (std::optional<LineSet> whole = reader.take_whole()) return std::move(*whole);
   LineSet lines = header_of(reader.header());
   LineSet batch;
-  while (reader.next(batch, uint64_t{1} << 22)) append_lines(lines, batch);
+  while (reader.next(batch, uint64_t{1} << 22)) {
+    throw_if_interrupted();  // reading a large file whole stops between batches on Ctrl-C
+    append_lines(lines, batch);
+  }
   return lines;
 }
 

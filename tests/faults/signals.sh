@@ -87,7 +87,7 @@ check "bake --grid 4000 beyond the budget: refused within a second, with the est
   [ \$rc -eq 4 ] && [ \$ms -lt 1000 ] && grep -q 'voxels) needs about' e && [ ! -e g.lbc.h5 ] && no_temporaries ."
 check "a render frame beyond the budget is refused before rendering" bash -c "
   '$bin' render e.lbc.h5 --technique ll --size 16384x16384 -o big.png 2> e
-  [ \$? -eq 4 ] && grep -q 'needs about 130.00 GiB' e && [ ! -e big.png ]"
+  [ \$? -eq 4 ] && grep -q \"a 16384x16384 ll frame needs about 130.00 GiB\" e && [ ! -e big.png ]"
 check "bake --dry-run prints the estimate and writes nothing" bash -c "
   '$bin' bake a.binlines -o d.lbc.h5 --assets tubes,voxels --dry-run > d.out && grep -q 'would write d.lbc.h5: about' d.out &&
   grep -q 'free there' d.out && [ ! -e d.lbc.h5 ] && no_temporaries ."
