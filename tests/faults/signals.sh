@@ -5,22 +5,8 @@
 # refused at once, and a render keeps reading a cache that a bake replaces under it.
 set -u
 bin="$1"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-passed=0
-failed=0
-check() {  # check NAME COMMAND...: passes when the command succeeds
-  local name="$1"
-  shift
-  if "$@" >"$tmp/out" 2>"$tmp/err"; then
-    passed=$((passed + 1))
-  else
-    failed=$((failed + 1))
-    echo "FAIL: $name"
-    sed 's/^/  out: /' "$tmp/out" | head -20
-    sed 's/^/  err: /' "$tmp/err" | head -20
-  fi
-}
+# shellcheck source=tests/check.sh
+source "$(dirname "$0")/../check.sh"
 no_temporaries() { ! ls -a "$1" | grep -q 'tmp-'; }
 export -f no_temporaries
 
