@@ -127,7 +127,8 @@ class Hdf5Reader : public LineReader {
     std::string name;
     Handle dataset;
     std::string stored_hash;
-    std::unique_ptr<Hasher> hash;
+    std::unique_ptr<BlockHasher> hash;
+    std::unique_ptr<Hasher> flat_hash;  // caches before the block hash
   };
 
   Data open(const std::string& name, uint64_t expected = UINT64_MAX) const {
@@ -147,9 +148,12 @@ class Hdf5Reader : public LineReader {
     if (H5Tget_class(type) != H5T_FLOAT && H5Tget_class(type) != H5T_INTEGER)
       throw InputError(path_, "dataset " + name, "not numeric");
     // The cache's hash covers the stored float32 bytes, which are what a float32 read returns.
-    if (H5Tget_size(type) == 4 && H5Tget_class(type) == H5T_FLOAT &&
-        h5::read_string_attribute(d.dataset, "xxh3_128", d.stored_hash))
-      d.hash = std::make_unique<Hasher>();
+    if (H5Tget_size(type) == 4 && H5Tget_class(type) == H5T_FLOAT) {
+      if (h5::read_string_attribute(d.dataset, "xxh3_128_blocks", d.stored_hash))
+        d.hash = std::make_unique<BlockHasher>();
+      else if (h5::read_string_attribute(d.dataset, "xxh3_128", d.stored_hash))
+        d.flat_hash = std::make_unique<Hasher>();
+    }
     return d;
   }
 
@@ -166,10 +170,12 @@ class Hdf5Reader : public LineReader {
                        "cannot read rows " + std::to_string(first) + ".." +
                            std::to_string(first + count) + " (wrong type or corrupt data)");
     if (d.hash) d.hash->update(out, count * columns * sizeof(float));
+    if (d.flat_hash) d.flat_hash->update(out, count * columns * sizeof(float));
   }
 
   void verify(Data& d) const {
-    if (d.hash && d.hash->hex() != d.stored_hash)
+    if ((d.hash && d.hash->hex() != d.stored_hash) ||
+        (d.flat_hash && d.flat_hash->hex() != d.stored_hash))
       throw InputError(path_, "dataset " + d.name, "checksum mismatch: the data is corrupt");
   }
 
@@ -212,8 +218,11 @@ class Hdf5Reader : public LineReader {
         H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
       throw InputError(path_, "dataset " + name, "cannot read (wrong type or corrupt data)");
     std::string stored;
-    if (h5::read_string_attribute(dataset, "xxh3_128", stored) &&
-        stored != hash_bytes(values.data(), values.size() * sizeof(uint64_t)))
+    const size_t bytes = values.size() * sizeof(uint64_t);
+    if ((h5::read_string_attribute(dataset, "xxh3_128_blocks", stored) &&
+         stored != BlockHasher().update(values.data(), bytes).hex()) ||
+        (h5::read_string_attribute(dataset, "xxh3_128", stored) &&
+         stored != hash_bytes(values.data(), bytes)))
       throw InputError(path_, "dataset " + name, "checksum mismatch: the data is corrupt");
     return values;
   }

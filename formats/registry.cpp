@@ -1,7 +1,10 @@
 #include "formats/registry.hpp"
 
 #include <algorithm>
+#include <glob.h>
+
 #include <cctype>
+#include <set>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -110,6 +113,109 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
       break;
   }
   return reader;
+}
+
+std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns) {
+  std::vector<std::string> paths;
+  for (const std::string& pattern : patterns) {
+    if (synth::is_synth_source(pattern) ||
+        pattern.find_first_of("*?[") == std::string::npos) {  // a plain path, checked on open
+      paths.push_back(pattern);
+      continue;
+    }
+    glob_t g{};
+    const int rc = ::glob(pattern.c_str(), 0, nullptr, &g);
+    if (rc == 0)
+      for (size_t i = 0; i < g.gl_pathc; ++i) paths.emplace_back(g.gl_pathv[i]);
+    globfree(&g);
+    if (rc == GLOB_NOMATCH) throw InputError(pattern, "", "no file matches this pattern");
+    if (rc != 0) throw InputError(pattern, "", "cannot expand this pattern (out of memory)");
+  }
+  std::sort(paths.begin(), paths.end());
+  for (size_t i = 1; i < paths.size(); ++i)
+    if (paths[i] == paths[i - 1])
+      throw InputError(paths[i], "", "named twice among the inputs");
+  if (paths.size() > 1)
+    for (const std::string& p : paths)
+      if (synth::is_synth_source(p))
+        throw Error("a synth: source cannot be combined with other inputs");
+  return paths;
+}
+
+namespace {
+
+std::string attribute_list(const std::vector<Attribute>& attributes) {
+  std::string s = "[";
+  for (const Attribute& a : attributes) s += (s.size() > 1 ? ", " : "") + a.name;
+  return s + "]";
+}
+
+// Files one after the other; each opened when the one before it is done.
+class MultiFileReader final : public LineReader {
+ public:
+  MultiFileReader(std::vector<std::string> sources, ReadOptions options)
+      : sources_(std::move(sources)), options_(std::move(options)) {
+    open(0);
+    header_ = header_of(current_->header());
+  }
+  bool next(LineSet& batch, uint64_t max_points) override {
+    while (true) {
+      if (current_->next(batch, max_points)) {
+        lines_read_ += batch.line_count();
+        return true;
+      }
+      if (file_ + 1 == sources_.size()) return false;
+      open(file_ + 1);
+    }
+  }
+  uint64_t largest_line_hint() const override { return current_->largest_line_hint(); }
+
+ private:
+  void open(size_t file) {
+    file_ = file;
+    current_ = open_line_reader(sources_[file], options_);
+    if (!current_->streams()) {
+      // Read whole (OBJ, VTK, VTP): batches are cut from it, so its arrays must agree.
+      LineSet whole = *current_->take_whole();
+      for (const auto* list : {&whole.attributes, &whole.line_attributes})
+        for (const Attribute& a : *list) {
+          const size_t want = list == &whole.attributes ? whole.point_count() : whole.line_count();
+          if (a.values.size() != want)
+            throw InputError(sources_[file], "attribute " + a.name,
+                             std::to_string(a.values.size()) + " values for " +
+                                 std::to_string(want) + (list == &whole.attributes ? " points" : " lines"));
+        }
+      current_ = std::make_unique<MemoryLineReader>(std::move(whole), true);
+    }
+    if (file == 0) return;
+    const LineSet& h = current_->header();
+    const auto names = [](const std::vector<Attribute>& list) {
+      std::vector<std::string> n;
+      for (const Attribute& a : list) n.push_back(a.name);
+      return n;
+    };
+    if (names(h.attributes) != names(header_.attributes) ||
+        names(h.line_attributes) != names(header_.line_attributes))
+      throw InputError(sources_[file], "",
+                       "its attributes " + attribute_list(h.attributes) + ", line attributes " +
+                           attribute_list(h.line_attributes) + " differ from the first input's (" +
+                           sources_[0] + ": " + attribute_list(header_.attributes) + ", " +
+                           attribute_list(header_.line_attributes) +
+                           "); every file of one line set needs the same attributes");
+  }
+  std::vector<std::string> sources_;
+  ReadOptions options_;
+  size_t file_ = 0;
+  std::unique_ptr<LineReader> current_;
+};
+
+}  // namespace
+
+std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
+                                             const ReadOptions& options) {
+  if (sources.empty()) throw Error("no input");
+  if (sources.size() == 1) return open_line_reader(sources[0], options);
+  return std::make_unique<MultiFileReader>(sources, options);
 }
 
 LineSet read_line_set(const std::string& source, const ReadOptions& options) {

@@ -53,6 +53,15 @@ struct WriteOptions {
 // The header's metadata does not yet hold "source" (read_line_set adds it).
 std::unique_ptr<LineReader> open_line_reader(const std::string& source,
                                              const ReadOptions& options = {});
+// Input paths as given on a command line: each a path or a glob(7) pattern ('run/*.vtp'),
+// expanded, then all sorted byte-wise: the order in which several files make one line set.
+// A pattern that matches nothing, or a file named twice, is an InputError.
+std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns);
+// Several files read as one line set, one after the other (batches never span two files). Every
+// file must carry the first file's attributes, by name and in order: InputError naming the file
+// otherwise. Files that cannot stream (OBJ, VTK, VTP) are read whole when their turn comes.
+std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
+                                             const ReadOptions& options = {});
 // The whole line set. Throws InputError (with file and place) on malformed input, Error on
 // unsupported requests.
 LineSet read_line_set(const std::string& source, const ReadOptions& options = {});

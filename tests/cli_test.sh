@@ -164,7 +164,7 @@ check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q
 
 # The streamed bake: the same datasets for any budget, stock HDF5 reads every codec, budgets
 # too small refused, spill files gone after Ctrl-C
-hashes() { h5dump -A "$1" | grep -A12 'ATTRIBUTE "xxh3_128"' | grep '(0):'; }
+hashes() { h5dump -A "$1" | grep -A12 'ATTRIBUTE "xxh3_128_blocks"' | grep '(0):'; }
 export -f hashes
 check "bake with a small budget" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/small.lbc.h5' --assets tubes,voxels,embree --grid 96 --chunk-bytes 1000000 --memory-budget 100M > /dev/null 2> '$tmp/small.err' && grep -q 'stage build' '$tmp/small.err'"
 check "bake unlimited" "$bin" bake "$tmp/c.binlines" -o "$tmp/big.lbc.h5" --assets tubes,voxels,embree --grid 96 --chunk-bytes 1000000 --memory-budget unlimited

@@ -31,7 +31,7 @@ std::map<std::string, std::string> dataset_hashes(const std::string& path) {
     groups.pop_back();
     for (const std::string& name : cache.members(g)) {
       const std::string child = (g == "/" ? "" : g) + "/" + name;
-      if (auto hash = cache.attribute(child, "xxh3_128"))
+      if (auto hash = cache.attribute(child, "xxh3_128_blocks"))
         out[child] = *hash;
       else
         groups.push_back(child);
@@ -182,6 +182,77 @@ TEST(BakeStream, ReusedLinesStreamFromTheOldCache) {
   bake(whole);
   const auto a = dataset_hashes(o.cache), b = dataset_hashes(whole.cache);
   EXPECT_EQ(a, b);
+}
+
+}  // namespace
+}  // namespace linebake
+
+namespace linebake {
+namespace {
+
+// The lines of `lines` from `first` to `end` as a line set of their own.
+LineSet slice(const LineSet& lines, size_t first, size_t end) {
+  LineSet part = header_of(lines);
+  copy_lines(lines, first, end, part);
+  return part;
+}
+
+TEST(BakeMultiFile, SeveralFilesBakeAsTheirConcatenationInSortedOrder) {
+  TempDir dir;
+  const LineSet lines = synth::generate({"convection", 0.01, 2, false});
+  ASSERT_GT(lines.line_count(), 30u);
+  const std::string whole = dir.file("whole.binlines");
+  write_line_set(lines, whole);
+  // Three parts whose sorted names are their order in the set; one of them in another format.
+  const size_t n = lines.line_count();
+  std::filesystem::create_directories(dir.file("run"));
+  write_line_set(slice(lines, 0, n / 3), dir.file("run/part_0.binlines"));
+  write_line_set(slice(lines, n / 3, n / 2), dir.file("run/part_1.h5"));
+  write_line_set(slice(lines, n / 2, n), dir.file("run/part_2.binlines"));
+
+  BakeOptions one = streamed_options(whole, dir.file("whole.lbc.h5"), BakeOptions::kUnlimited);
+  bake(one);
+  BakeOptions many = streamed_options("", dir.file("many.lbc.h5"), working_budget(40 << 20));
+  // Given out of order, as a pattern and a path: expanded and sorted.
+  many.inputs = expand_inputs({dir.file("run/part_2.binlines"), dir.file("run/part_[01].*")});
+  ASSERT_EQ(many.inputs.size(), 3u);
+  EXPECT_EQ(many.inputs[0], dir.file("run/part_0.binlines"));
+  const BakeResult result = bake(many);
+
+  // The same datasets as the one-file bake, /lines included.
+  EXPECT_EQ(dataset_hashes(many.cache), dataset_hashes(one.cache));
+  const CacheReader cache(many.cache, false);
+  const Provenance p = *cache.provenance("/lines");
+  EXPECT_EQ(p.parameters.at("files").size(), 3u);
+  EXPECT_EQ(p.stats.at("lines").get<uint64_t>(), n);
+  BakeOptions again = many;
+  again.progress = false;
+  EXPECT_FALSE(bake(again).written);  // unchanged files: nothing rebuilt
+  EXPECT_TRUE(result.written);
+}
+
+TEST(BakeMultiFile, MismatchedAttributesEmptyPatternsAndAMissingOutputAreErrors) {
+  TempDir dir;
+  LineSet a = synth::generate({"convection", 0.005, 1, false});
+  write_line_set(a, dir.file("a_0.binlines"));
+  a.attributes.at(0).name = "other";
+  write_line_set(a, dir.file("a_1.binlines"));
+  BakeOptions o = streamed_options("", dir.file("c.lbc.h5"), BakeOptions::kUnlimited);
+  o.inputs = expand_inputs({dir.file("a_*.binlines")});
+  try {
+    bake(o);
+    FAIL() << "attributes differ";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("a_1.binlines"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("other"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(o.cache));
+  for (const std::string& name : dir.entries())
+    EXPECT_EQ(name.find(".tmp-"), std::string::npos) << name;
+  EXPECT_THROW(expand_inputs({dir.file("nothing_*.vtp")}), InputError);
+  EXPECT_THROW(expand_inputs({dir.file("a_0.binlines"), dir.file("a_0.*")}), InputError);
+  o.cache.clear();
+  EXPECT_THROW(bake(o), Error);
 }
 
 }  // namespace

@@ -21,12 +21,17 @@ Command add_bake(CLI::App& app) {
     std::vector<float> attribute_range;
     std::string grid = "auto", embree_geometry = "linear", embree_quality = "medium";
     std::string memory_budget;
+    std::vector<std::string> inputs;
     bool json = false;
   };
   auto args = std::make_shared<Args>();
   BakeOptions& o = args->options;
-  sub->add_option("input", o.input, "Input file, or synth:<name>?scale=..&seed=..")->required();
-  sub->add_option("-o,--output", o.cache, "Cache file (default: <input name>.lbc.h5)");
+  sub->add_option("input", args->inputs,
+                  "Input file, or synth:<name>?scale=..&seed=..; several files or quoted glob "
+                  "patterns ('run/*.vtp') make one line set, in sorted path order")
+      ->required();
+  sub->add_option("-o,--output", o.cache,
+                  "Cache file (default: <input name>.lbc.h5; required with several inputs)");
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(CLI::IsMember({"reject", "repair"}));
@@ -102,6 +107,8 @@ Command add_bake(CLI::App& app) {
   sub->add_flag("--json", args->json, "Print the report as JSON");
   return [args] {
     BakeOptions options = args->options;
+    options.inputs = expand_inputs(args->inputs);
+    options.input = options.inputs.size() == 1 ? options.inputs[0] : "";
     if (!args->from.empty()) options.format = parse_format(args->from);
     options.on_invalid = parse_invalid_policy(args->on_invalid);
     options.compression = parse_compression(args->compression);

@@ -23,7 +23,10 @@ using h5::Handle;
 
 namespace {
 
-constexpr const char* kHashAttribute = "xxh3_128";
+// XXH3-128 of the dataset's bytes in 1 MiB blocks (BlockHasher); earlier caches carry the
+// flat XXH3-128 as `xxh3_128`, still verified.
+constexpr const char* kHashAttribute = "xxh3_128_blocks";
+constexpr const char* kFlatHashAttribute = "xxh3_128";
 constexpr const char* kFormatAttribute = "linebake_cache_format";
 constexpr const char* kFormatVersion = "1";
 
@@ -229,7 +232,7 @@ struct DatasetStream::State {
   uint64_t written = 0;       // rows appended so far
   std::vector<char> pending;  // rows of the chunk not yet full
   std::vector<char> tail;     // the dataset's last chunk, padded with zeros
-  Hasher hash;
+  BlockHasher hash;
   bool closed = false;
 
   uint64_t chunk_bytes() const { return chunk_rows * row_bytes; }
@@ -632,9 +635,14 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
   }
   if (verify_) {
     std::string stored;
-    if (!h5::read_string_attribute(d, kHashAttribute, stored))
+    std::string computed;
+    if (h5::read_string_attribute(d, kHashAttribute, stored))
+      computed = BlockHasher().update(out.data(), out.size()).hex();
+    else if (h5::read_string_attribute(d, kFlatHashAttribute, stored))
+      computed = hash_bytes(out.data(), out.size());
+    else
       throw InputError(path_, where, "no stored hash to verify against");
-    if (stored != hash_bytes(out.data(), out.size()))
+    if (stored != computed)
       throw InputError(path_, where, "checksum mismatch: the data is corrupt");
   }
   return out;

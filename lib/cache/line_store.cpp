@@ -11,7 +11,7 @@ LineContentHash::LineContentHash(const LineSet& header) {
   for (const Attribute& a : header.attributes) names_.push_back(a.name);
   for (const Attribute& a : header.line_attributes) names_.push_back(a.name);
   vertex_attributes_ = header.attributes.size();
-  for (size_t i = 0; i < names_.size(); ++i) arrays_.push_back(std::make_unique<Hasher>());
+  for (size_t i = 0; i < names_.size(); ++i) arrays_.push_back(std::make_unique<BlockHasher>());
   counts_.assign(names_.size(), 0);
   const uint64_t zero = 0;  // the offsets start at 0
   arrays_[1]->update(&zero, sizeof zero);
@@ -40,7 +40,7 @@ void LineContentHash::add(const LineSet& batch) {
 
 std::string LineContentHash::hex() const {
   Hasher h;
-  h.update(std::string_view("linebake line set 2"));
+  h.update(std::string_view("linebake line set 3"));
   h.update(uint64_t{vertex_attributes_}).update(uint64_t{names_.size() - 2 - vertex_attributes_});
   for (size_t i = 0; i < names_.size(); ++i)
     h.update(names_[i]).update(counts_[i]).update(arrays_[i]->hex());

@@ -23,7 +23,7 @@ class LineContentHash {
 
  private:
   std::vector<std::string> names_;  // "positions", "line_offsets", then the attributes
-  std::vector<std::unique_ptr<Hasher>> arrays_;
+  std::vector<std::unique_ptr<BlockHasher>> arrays_;
   std::vector<uint64_t> counts_;
   uint64_t points_ = 0;
   size_t vertex_attributes_ = 0;

@@ -2,7 +2,9 @@
 
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <vector>
 
@@ -60,6 +62,150 @@ std::string hash_file(const std::string& path) {
   }
   if (in.bad()) throw InputError(path, "", "read error");
   return hasher.hex();
+}
+
+}  // namespace linebake
+
+namespace linebake {
+
+namespace {
+
+void put_digest(std::string& out, XXH128_hash_t h) {
+  XXH128_canonical_t c;
+  XXH128_canonicalFromHash(&c, h);
+  out.append(reinterpret_cast<const char*>(c.digest), sizeof c.digest);
+}
+
+void put_u64(std::string& out, uint64_t v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+
+uint64_t get_u64(const std::string& in, size_t& at) {
+  if (at + 8 > in.size()) throw Error("block hash piece is truncated");
+  uint64_t v;
+  std::memcpy(&v, in.data() + at, 8);
+  at += 8;
+  return v;
+}
+
+std::string get_bytes(const std::string& in, size_t& at) {
+  const uint64_t n = get_u64(in, at);
+  if (n > in.size() - at) throw Error("block hash piece is truncated");
+  std::string s = in.substr(at, n);
+  at += n;
+  return s;
+}
+
+}  // namespace
+
+struct BlockHasher::State {
+  XXH3_state_t* state = XXH3_createState();
+  ~State() { XXH3_freeState(state); }
+};
+
+BlockHasher::BlockHasher() : block_(std::make_unique<State>()) {
+  XXH3_128bits_reset(block_->state);
+}
+
+BlockHasher::BlockHasher(Piece piece) : BlockHasher() {
+  first_ = next_ = piece.first_byte;
+  piece_ = true;
+}
+BlockHasher::~BlockHasher() = default;
+
+void BlockHasher::finish_block() {
+  put_digest(digests_, XXH3_128bits_digest(block_->state));
+  XXH3_128bits_reset(block_->state);
+  tail_.clear();
+}
+
+BlockHasher& BlockHasher::update(const void* data, size_t bytes) {
+  const char* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    const uint64_t in_block = next_ % kBlockBytes;
+    const size_t take = size_t(std::min<uint64_t>(bytes, kBlockBytes - in_block));
+    // Before the piece's first boundary the block is shared with the piece before: kept raw.
+    const bool head = first_ % kBlockBytes != 0 && next_ / kBlockBytes == first_ / kBlockBytes;
+    if (head) {
+      head_.append(p, take);
+    } else {
+      XXH3_128bits_update(block_->state, p, take);
+      // A block not yet whole may be the next piece's too: kept raw until it is whole.
+      if (piece_ && (in_block + take < kBlockBytes || !tail_.empty())) tail_.append(p, take);
+    }
+    next_ += take;
+    p += take;
+    bytes -= take;
+    if (!head && next_ % kBlockBytes == 0) finish_block();
+  }
+  return *this;
+}
+
+std::string BlockHasher::piece() const {
+  std::string out;
+  put_u64(out, first_);
+  put_u64(out, head_.size());
+  out += head_;
+  put_u64(out, digests_.size());
+  out += digests_;
+  put_u64(out, tail_.size());
+  out += tail_;
+  return out;
+}
+
+std::string BlockHasher::hex() const {
+  if (first_ != 0) throw Error("BlockHasher::hex: the piece does not start the stream");
+  std::string digests = digests_;
+  if (next_ % kBlockBytes != 0) put_digest(digests, XXH3_128bits_digest(block_->state));
+  return to_hex(XXH3_128bits(digests.data(), digests.size()));
+}
+
+std::string combine_block_hashes(const std::vector<std::string>& pieces) {
+  struct Piece {
+    uint64_t first;
+    std::string head, digests, tail;
+  };
+  std::vector<Piece> parsed;
+  for (const std::string& text : pieces) {
+    size_t at = 0;
+    Piece p;
+    p.first = get_u64(text, at);
+    p.head = get_bytes(text, at);
+    p.digests = get_bytes(text, at);
+    p.tail = get_bytes(text, at);
+    if (p.digests.size() % 16) throw Error("block hash piece is damaged");
+    if (!p.head.empty() || !p.digests.empty() || !p.tail.empty()) parsed.push_back(std::move(p));
+  }
+  std::sort(parsed.begin(), parsed.end(),
+            [](const Piece& a, const Piece& b) { return a.first < b.first; });
+  std::string digests, block;  // the whole stream's digests; the block being joined from pieces
+  uint64_t at = 0;
+  const uint64_t B = BlockHasher::kBlockBytes;
+  const auto add_raw = [&](const std::string& bytes) {
+    for (size_t i = 0; i < bytes.size();) {
+      const size_t take = std::min<size_t>(bytes.size() - i, B - block.size());
+      block.append(bytes, i, take);
+      i += take;
+      at += take;
+      if (block.size() == B) {
+        put_digest(digests, XXH3_128bits(block.data(), block.size()));
+        block.clear();
+      }
+    }
+  };
+  for (const Piece& p : parsed) {
+    if (p.first != at)
+      throw Error("block hash pieces leave a gap or overlap at byte " + std::to_string(at));
+    add_raw(p.head);
+    if (!p.digests.empty()) {
+      if (!block.empty()) throw Error("block hash piece is not aligned");
+      digests += p.digests;
+      at += p.digests.size() / 16 * B;
+    }
+    add_raw(p.tail);
+  }
+  if (!block.empty()) put_digest(digests, XXH3_128bits(block.data(), block.size()));
+  return to_hex(XXH3_128bits(digests.data(), digests.size()));
 }
 
 }  // namespace linebake

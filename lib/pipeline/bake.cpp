@@ -29,7 +29,7 @@ namespace {
 // Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
 // Version 2: the content hash is computed per array (batch by batch), and the provenance keeps
 // the line statistics later steps need.
-constexpr uint64_t kLinesVersion = 2;
+constexpr uint64_t kLinesVersion = 3;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
 constexpr uint64_t kEmbreeVersion = 1;
@@ -41,7 +41,14 @@ uint64_t threads() {
 
 // The input's identity: its bytes, or for a synth: source its parameters and the generator
 // version (the generator is part of linebake).
-std::string source_hash(const std::string& input) {
+std::string source_hash(const std::vector<std::string>& inputs) {
+  if (inputs.size() > 1) {
+    Hasher h;
+    h.update(std::string_view("files")).update(uint64_t{inputs.size()});
+    for (const std::string& file : inputs) h.update(std::string_view(hash_file(file)));
+    return h.hex();
+  }
+  const std::string& input = inputs.front();
   if (synth::is_synth_source(input)) {
     const synth::SynthParams p = synth::parse_synth_source(input);
     Hasher h;
@@ -368,6 +375,14 @@ BakeResult bake(const BakeOptions& options_in) {
       throw vk::RayTracingUnsupported(std::string("rtx: ") + e.what());
     }
   }
+  if (options.inputs.empty()) options.inputs = {options.input};
+  const std::vector<std::string>& inputs = options.inputs;
+  if (inputs.size() > 1) {
+    if (options.input.empty())
+      options.input = inputs.front() + " and " + std::to_string(inputs.size() - 1) + " more";
+    if (options.cache.empty())
+      throw Error("several inputs make one line set: name its cache with -o");
+  }
   BakeResult result;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
   const uint64_t budget_bytes =
@@ -377,7 +392,7 @@ BakeResult bake(const BakeOptions& options_in) {
   MemoryBudget budget(budget_bytes);
   result.memory_budget_bytes = budget_bytes;
 
-  const std::string source = source_hash(options.input);
+  const std::string source = source_hash(inputs);
   const std::string format = options.format ? format_info(*options.format).name : "auto";
   const std::string policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
   const std::string lines_key =
@@ -385,7 +400,7 @@ BakeResult bake(const BakeOptions& options_in) {
 
   // The output never replaces the input, and replaces a file that is not a linebake cache only
   // under --force; a damaged cache is rebuilt.
-  if (!synth::is_synth_source(options.input)) refuse_input_as_output(result.cache, {options.input});
+  if (!synth::is_synth_source(options.input)) refuse_input_as_output(result.cache, inputs);
   std::unique_ptr<CacheReader> old;
   if (std::filesystem::exists(result.cache)) {
     if (!options.force && !is_linebake_cache(result.cache))
@@ -449,7 +464,7 @@ BakeResult bake(const BakeOptions& options_in) {
       ReadOptions read;
       read.format = options.format;
       if (options.progress) read.progress = progress.callback();
-      input = open_line_reader(options.input, read);
+      input = open_line_reader(inputs, read);
       ValidationReport total;
       std::optional<LineSet> whole;
       if (!input->streams()) {
@@ -657,6 +672,7 @@ BakeResult bake(const BakeOptions& options_in) {
       p.key = lines_key;
       p.input_hash = source;
       p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
+      if (inputs.size() > 1) p.parameters["files"] = inputs;
       p.stats = to_json(stats);
       p.stats["content_hash"] = lines_hash;
       p.spill_bytes = spool ? spool->bytes() : 0;

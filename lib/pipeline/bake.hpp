@@ -36,6 +36,9 @@ std::string rtx_capsules_source(const std::string& lines_hash, float radius,
 
 struct BakeOptions {
   std::string input;             // file or synth: source
+  // Several files as one line set, in this order (expand_inputs sorts them); `input` is then
+  // only how messages name them. Empty: `input` alone.
+  std::vector<std::string> inputs;
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
   std::string cache;                         // output; default <input stem>.lbc.h5
