@@ -79,6 +79,8 @@ class BinlinesReader : public LineReader {
     return batch.line_count() > 0;
   }
 
+  std::optional<uint64_t> line_count_hint() const override { return line_count_; }
+
  private:
   io::BinaryReader in_;
   uint32_t line_count_ = 0;

@@ -14,6 +14,11 @@
 namespace linebake::cli {
 
 Command add_bake(CLI::App& app) {
+  return add_bake_with(app, [](const BakeOptions& o) { return bake(o); }, true);
+}
+
+Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
+                      bool print) {
   auto* sub = app.add_subcommand("bake", "Build renderable assets (tubes) into an asset cache");
   struct Args {
     BakeOptions options;
@@ -105,7 +110,7 @@ Command add_bake(CLI::App& app) {
                 "Read the input and print what the bake would write and the free space; "
                 "write nothing");
   sub->add_flag("--json", args->json, "Print the report as JSON");
-  return [args] {
+  return [args, run, print] {
     BakeOptions options = args->options;
     options.inputs = expand_inputs(args->inputs);
     options.input = options.inputs.size() == 1 ? options.inputs[0] : "";
@@ -123,7 +128,8 @@ Command add_bake(CLI::App& app) {
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
-    const BakeResult result = bake(options);
+    const BakeResult result = run(options);
+    if (!print) return;
     if (options.dry_run) {
       const BakeEstimate& e = result.estimate;
       std::cout << "would write " << result.cache << ": about " << format_bytes(e.total() - e.spill)

@@ -4,6 +4,11 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 
+namespace linebake {
+struct BakeOptions;
+struct BakeResult;
+}  // namespace linebake
+
 namespace linebake::cli {
 
 // Exit codes (documented in the README).
@@ -21,6 +26,9 @@ Command add_convert(CLI::App& app);
 Command add_synth(CLI::App& app);
 Command add_bench(CLI::App& app);
 Command add_bake(CLI::App& app);
+// bake with another driver (linebake-mpi's); `print`: this process prints the report.
+Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
+                      bool print);
 Command add_report(CLI::App& app);
 Command add_export(CLI::App& app);
 Command add_render(CLI::App& app);

@@ -146,13 +146,28 @@ Provenance provenance_from_json(const nlohmann::json& j) {
 
 CacheWriter::CacheWriter(const std::string& path, Compression compression, int level)
     : file_(path), compression_(compression), level_(level) {
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  open(fapl);
+}
+
+CacheWriter::CacheWriter(const std::string& path, Compression compression, int level,
+                         ParallelWrite parallel)
+    : file_(path, parallel.temp_path, parallel.owner),
+      parallel_(std::move(parallel)),
+      compression_(compression),
+      level_(level) {
+  Handle fapl(H5Pcopy(parallel_->fapl), H5Pclose);
+  open(fapl);
+}
+
+void CacheWriter::open(hid_t fapl) {
+  const std::string& path = file_.final_path();
   h5::init();
-  if (compression == Compression::Lz4) require_filter(kLz4Filter, "lz4", "hdf5-filter-plugin");
-  if (compression == Compression::BloscZstd)
+  if (compression_ == Compression::Lz4) require_filter(kLz4Filter, "lz4", "hdf5-filter-plugin");
+  if (compression_ == Compression::BloscZstd)
     require_filter(kBloscFilter, "blosc-zstd", "hdf5-filter-plugin-blosc-serial");
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   H5Pset_link_creation_order(fcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
-  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   // Closing the file closes every object still open in it: an error path that leaves a dataset
   // open must not keep the file open until HDF5's shutdown at exit, which then flushes it to a
   // full disk (and crashes in 1.10).
@@ -234,6 +249,11 @@ struct DatasetStream::State {
   std::vector<char> tail;     // the dataset's last chunk, padded with zeros
   BlockHasher hash;
   bool closed = false;
+  // Parallel writes: this rank's first row, its rows not yet written, and its piece of the hash.
+  bool parallel = false;
+  uint64_t first_row = 0, flushed = 0;
+  std::vector<char> buffered;
+  std::unique_ptr<BlockHasher> piece;
 
   uint64_t chunk_bytes() const { return chunk_rows * row_bytes; }
   [[noreturn]] void fail(const std::string& message) const {
@@ -315,7 +335,12 @@ void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
 DatasetStream::DatasetStream(std::unique_ptr<State> state) : state_(std::move(state)) {}
 DatasetStream::DatasetStream(DatasetStream&&) noexcept = default;
 DatasetStream& DatasetStream::operator=(DatasetStream&&) noexcept = default;
-DatasetStream::~DatasetStream() = default;
+DatasetStream::~DatasetStream() {
+  if (state_ && state_->parallel && !state_->closed) {  // an error path: forget it
+    auto& list = state_->writer->open_;
+    list.erase(std::remove(list.begin(), list.end(), state_.get()), list.end());
+  }
+}
 
 const std::string& DatasetStream::name() const {
   return state_->name;
@@ -378,9 +403,9 @@ void DatasetStream::check_append(size_t element, uint64_t rows) const {
   const State& s = *state_;
   if (s.closed) s.fail("append after close");
   if (element != s.element) s.fail("appended values of the wrong type");
-  if (rows > s.rows - s.written)
-    s.fail(std::to_string(s.written + rows) + " rows, more than the " + std::to_string(s.rows) +
-           " it was created with");
+  if (rows > s.rows - s.first_row - s.written)
+    s.fail(std::to_string(s.first_row + s.written + rows) + " rows, more than the " +
+           std::to_string(s.rows) + " it was created with");
 }
 
 void DatasetStream::append_raw(const void* data, size_t element, uint64_t rows) {
@@ -395,6 +420,13 @@ void append_together(std::span<const StreamAppend> appends) {
     DatasetStream::State& s = *a.stream->state_;
     if (a.rows == 0) continue;
     const char* p = static_cast<const char*>(a.data);
+    if (s.parallel) {
+      if (!s.piece) s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{0});
+      s.piece->update(p, a.rows * s.row_bytes);
+      s.buffered.insert(s.buffered.end(), p, p + a.rows * s.row_bytes);
+      s.written += a.rows;
+      continue;
+    }
     if (!s.chunked) {
       s.hash.update(p, a.rows * s.row_bytes);
       s.write_contiguous(p, a.rows);
@@ -405,17 +437,47 @@ void append_together(std::span<const StreamAppend> appends) {
   }
   write_chunks(jobs);
   for (const StreamAppend& a : appends)
-    if (a.rows && a.stream->state_->chunked) a.stream->state_->settle();
+    if (a.rows && a.stream->state_->chunked && !a.stream->state_->parallel)
+      a.stream->state_->settle();
+}
+
+void DatasetStream::start_at(uint64_t row) {
+  State& s = *state_;
+  if (!s.parallel) s.fail("start_at on a dataset that is not written in parallel");
+  if (s.written || s.piece) s.fail("start_at after the first append");
+  if (row > s.rows) s.fail("starts past its " + std::to_string(s.rows) + " rows");
+  s.first_row = row;
+  s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{row * s.row_bytes});
 }
 
 uint64_t DatasetStream::close() {
   State& s = *state_;
   if (s.closed) s.fail("closed twice");
-  if (s.written != s.rows)
-    s.fail("only " + std::to_string(s.written) + " of " + std::to_string(s.rows) +
-           " rows were written");
-  if (!h5::write_string_attribute(s.dataset, kHashAttribute, s.hash.hex()))
-    s.fail("cannot write its hash");
+  std::string hash;
+  if (s.parallel) {
+    // Collective: every rank's count and piece of the hash.
+    if (!s.buffered.empty()) s.fail("closed with rows not yet written (write_round)");
+    if (!s.piece) s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{0});
+    const auto pieces = s.writer->parallel_->allgather(s.piece->piece());
+    const auto counts = s.writer->parallel_->allgather(std::to_string(s.written));
+    uint64_t total = 0;
+    for (const std::string& c : counts) total += std::stoull(c);
+    if (total != s.rows)
+      s.fail("the ranks wrote " + std::to_string(total) + " of " + std::to_string(s.rows) + " rows");
+    try {
+      hash = combine_block_hashes(pieces);
+    } catch (const Error& e) {
+      s.fail(std::string("the ranks' rows do not join: ") + e.what());
+    }
+    auto& list = s.writer->open_;
+    list.erase(std::remove(list.begin(), list.end(), &s), list.end());
+  } else {
+    if (s.written != s.rows)
+      s.fail("only " + std::to_string(s.written) + " of " + std::to_string(s.rows) +
+             " rows were written");
+    hash = s.hash.hex();
+  }
+  if (!h5::write_string_attribute(s.dataset, kHashAttribute, hash)) s.fail("cannot write its hash");
   s.closed = true;
   const uint64_t stored = H5Dget_storage_size(s.dataset);
   s.dataset.reset();
@@ -465,11 +527,16 @@ DatasetStream CacheWriter::open_stream(const std::string& dataset, hid_t type, s
     H5Pset_layout(dcpl, H5D_CONTIGUOUS);
     H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY);
   }
+  if (parallel_) H5Pset_fill_time(dcpl, H5D_FILL_TIME_NEVER);  // every row is written
   s->dataset = Handle(
       H5Dcreate2(h5_, dataset.c_str(), file_type(type), space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
       H5Dclose);
   if (!s->dataset.valid())
     throw OutputError(path(), "cannot create dataset " + dataset + " (" + h5::last_error() + ")");
+  if (parallel_) {
+    s->parallel = true;
+    open_.push_back(s.get());
+  }
   return DatasetStream(std::move(s));
 }
 
@@ -487,6 +554,40 @@ bool CacheWriter::has_group(const std::string& group) const {
 
 void CacheWriter::flush() {
   if (H5Fflush(h5_, H5F_SCOPE_GLOBAL) < 0) throw OutputError(path(), "cannot flush");
+}
+
+void CacheWriter::write_round() {
+  if (!parallel_) return;
+  throw_if_interrupted();
+  // Which datasets have rows on any rank: a collective write for those only.
+  std::string mine(open_.size(), '\0');
+  for (size_t i = 0; i < open_.size(); ++i) mine[i] = char(!open_[i]->buffered.empty());
+  const std::vector<std::string> all = parallel_->allgather(mine);
+  for (size_t i = 0; i < open_.size(); ++i) {
+    bool any = false;
+    for (const std::string& rank : all) any |= i < rank.size() && rank[i];
+    if (!any) continue;
+    DatasetStream::State& s = *open_[i];
+    const uint64_t rows = s.buffered.size() / s.row_bytes;
+    Handle file_space(H5Dget_space(s.dataset), H5Sclose);
+    const hsize_t start[2] = {s.first_row + s.flushed, 0}, extent[2] = {rows, s.columns};
+    const hsize_t one[2] = {1, s.columns};
+    Handle memory_space(H5Screate_simple(s.rank, rows ? extent : one, nullptr), H5Sclose);
+    char nothing = 0;
+    if (rows) {
+      H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
+    } else {
+      H5Sselect_none(file_space);
+      H5Sselect_none(memory_space);
+    }
+    if (H5Dwrite(s.dataset, s.type, memory_space, file_space, parallel_->dxpl,
+                 rows ? s.buffered.data() : &nothing) < 0)
+      s.fail("cannot write rows " + std::to_string(start[0]) + ".." +
+             std::to_string(start[0] + rows) + " (" + h5::last_error() + ")");
+    s.flushed += rows;
+    add_progress(rows * s.row_bytes);
+    s.buffered.clear();
+  }
 }
 
 void CacheWriter::commit() {

@@ -11,6 +11,7 @@
 #include <initializer_list>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -53,6 +54,21 @@ using h5::encode_link_name;
 class CacheWriter;
 class DatasetStream;
 
+// A cache written by several processes at once: MPI ranks through parallel HDF5, set up by the
+// caller (linebake-mpi), so that this library itself needs no MPI. Every rank makes the same
+// calls in the same order with the same values. A dataset's rows are one contiguous range per
+// rank, in rank order (DatasetStream::start_at); they are buffered and written by
+// CacheWriter::write_round(), one collective H5Dwrite per dataset that has rows on any rank, in
+// which HDF5 compresses the chunks. Dataset hashes combine every rank's piece (BlockHasher).
+struct ParallelWrite {
+  hid_t fapl = -1;        // file access with the MPI-IO driver (H5Pset_fapl_mpio)
+  hid_t dxpl = -1;        // collective transfer (H5Pset_dxpl_mpio)
+  std::string temp_path;  // the temporary file, the same on every rank
+  bool owner = false;     // this rank renames it on commit (rank 0) or removes it on failure
+  // Every rank's string, in rank order, on every rank (MPI_Allgatherv).
+  std::function<std::vector<std::string>(const std::string&)> allgather;
+};
+
 // One append of `rows` rows of `element`-byte values (see append_together).
 struct StreamAppend {
   DatasetStream* stream;
@@ -94,6 +110,9 @@ class DatasetStream {
   const std::string& name() const;
   uint64_t rows() const;
   uint64_t rows_written() const;
+  // Parallel writes (ParallelWrite): the first row of this rank's range, before its first
+  // append.
+  void start_at(uint64_t row);
 
   struct State;
 
@@ -110,6 +129,9 @@ class CacheWriter {
  public:
   // Creates the file under a temporary name beside `path`; commit() renames it.
   CacheWriter(const std::string& path, Compression compression, int level = -1);
+  // The same file on every rank of a parallel write; collective.
+  CacheWriter(const std::string& path, Compression compression, int level,
+              ParallelWrite parallel);
   ~CacheWriter();
   CacheWriter(const CacheWriter&) = delete;
   CacheWriter& operator=(const CacheWriter&) = delete;
@@ -141,13 +163,21 @@ class CacheWriter {
   bool has_group(const std::string& group) const;
   // Writes what HDF5 holds in memory to the temporary file, so it can be read while open.
   void flush();
+  // Parallel writes: every dataset's buffered rows, collectively (see ParallelWrite).
+  void write_round();
+  bool parallel() const { return parallel_.has_value(); }
+  // Dataset bytes written so far (before compression), by this process.
+  uint64_t bytes_written() const { return progress_done_; }
   void commit();
 
  private:
   friend class DatasetStream;
   DatasetStream open_stream(const std::string& dataset, hid_t type, size_t element, uint64_t rows,
                             uint64_t columns);
+  void open(hid_t fapl);
   AtomicFile file_;
+  std::optional<ParallelWrite> parallel_;
+  std::vector<DatasetStream::State*> open_;  // parallel: datasets not yet closed, in order
   h5::Handle h5_;
   Compression compression_;
   int level_;

@@ -1,6 +1,7 @@
 #include "cache/chunk_codec.hpp"
 
 #include <blosc.h>
+#include <hdf5.h>
 #include <lz4.h>
 #include <zlib.h>
 
@@ -358,6 +359,94 @@ void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* sto
     unshuffle_bytes(data, raw_bytes, codec.element_size, out.data());
   else
     std::memcpy(out.data(), data, raw_bytes);
+}
+
+}  // namespace linebake
+
+// ---- as HDF5 filters ----
+
+namespace linebake {
+namespace {
+
+// One direction of one codec on HDF5's buffer: replaces *buf with the result. 0 on failure, as
+// HDF5 expects (it then reports the filter as failed).
+size_t run_filter(Compression compression, unsigned flags, size_t cd_nelmts,
+                  const unsigned cd_values[], size_t nbytes, size_t* buf_size, void** buf) {
+  try {
+    ChunkCodec codec{compression, -1, 1};
+    if (compression == Compression::BloscZstd) {
+      if (cd_nelmts > 2 && cd_values[2]) codec.element_size = cd_values[2];
+      if (cd_nelmts > 4) codec.level = int(cd_values[4]);
+    }
+    std::vector<char> out;
+    const char* in = static_cast<const char*>(*buf);
+    if (flags & H5Z_FLAG_REVERSE) {
+      size_t raw = 0;
+      if (compression == Compression::Lz4) {
+        if (nbytes < 12) return 0;
+        raw = size_t(get_be64(in));
+      } else {
+        size_t cbytes = 0, blocksize = 0;
+        if (nbytes < BLOSC_MIN_HEADER_LENGTH) return 0;
+        blosc_cbuffer_sizes(in, &raw, &cbytes, &blocksize);
+      }
+      decode_codec(codec, in, nbytes, raw, out);
+    } else {
+      encode_codec(codec, in, nbytes, out);
+    }
+    void* result = H5allocate_memory(out.size(), false);
+    if (!result) return 0;
+    std::memcpy(result, out.data(), out.size());
+    H5free_memory(*buf);
+    *buf = result;
+    *buf_size = out.size();
+    return out.size();
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
+size_t lz4_filter(unsigned flags, size_t n, const unsigned cd[], size_t nbytes, size_t* size,
+                  void** buf) {
+  return run_filter(Compression::Lz4, flags, n, cd, nbytes, size, buf);
+}
+
+size_t blosc_filter(unsigned flags, size_t n, const unsigned cd[], size_t nbytes, size_t* size,
+                    void** buf) {
+  return run_filter(Compression::BloscZstd, flags, n, cd, nbytes, size, buf);
+}
+
+// As the Blosc plugin does: the element size and chunk bytes go into cd_values 2 and 3.
+herr_t blosc_set_local(hid_t dcpl, hid_t type, hid_t) {
+  unsigned flags = 0, cd[7] = {};
+  size_t n = 7;
+  if (H5Pget_filter_by_id2(dcpl, kBloscFilter, &flags, &n, cd, 0, nullptr, nullptr) < 0)
+    return -1;
+  if (n < 4) n = 4;
+  hsize_t chunk[32];
+  const int rank = H5Pget_chunk(dcpl, 32, chunk);
+  if (rank < 0) return -1;
+  const size_t typesize = H5Tget_size(type);
+  hsize_t bytes = typesize;
+  for (int i = 0; i < rank; ++i) bytes *= chunk[i];
+  cd[0] = 2;  // the plugin's filter revision
+  cd[1] = 2;  // Blosc format version
+  cd[2] = unsigned(typesize);
+  cd[3] = unsigned(bytes);
+  return H5Pmodify_filter(dcpl, kBloscFilter, flags, n, cd);
+}
+
+}  // namespace
+
+void register_hdf5_filters() {
+  static const H5Z_class2_t lz4{H5Z_CLASS_T_VERS, H5Z_filter_t(kLz4Filter), 1, 1, "lz4 (linebake)",
+                                nullptr, nullptr, lz4_filter};
+  static const H5Z_class2_t blosc{H5Z_CLASS_T_VERS, H5Z_filter_t(kBloscFilter), 1, 1,
+                                  "blosc (linebake)", nullptr, blosc_set_local, blosc_filter};
+  // Registered over whatever is there: asking H5Zfilter_avail first would load the plugin.
+  if (H5Zregister(&lz4) < 0) throw Error("cannot register the LZ4 filter with HDF5");
+  if (H5Zregister(&blosc) < 0)
+    throw Error("cannot register the Blosc filter with HDF5");
 }
 
 }  // namespace linebake

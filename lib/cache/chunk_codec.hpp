@@ -56,3 +56,13 @@ void unshuffle_bytes(const void* in, size_t bytes, size_t element_size, void* ou
 uint32_t fletcher32(const void* data, size_t bytes);
 
 }  // namespace linebake
+
+namespace linebake {
+
+// Registers linebake's own LZ4 (32004) and Blosc-zstd (32001) codecs as HDF5 filters, for both
+// directions, in place of Debian's plugins: a process whose HDF5 cannot load those plugins uses
+// them (linebake-mpi: the plugins link the serial HDF5, and parallel HDF5 compresses the chunks
+// of a collective write itself). Chunks compress to what the plugins store. Safe to call twice.
+void register_hdf5_filters();
+
+}  // namespace linebake

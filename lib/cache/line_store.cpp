@@ -1,21 +1,41 @@
 #include "cache/line_store.hpp"
 
+#include <cstring>
+
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "lines/line_reader.hpp"
 
 namespace linebake {
 
-LineContentHash::LineContentHash(const LineSet& header) {
-  names_ = {"positions", "line_offsets"};
-  for (const Attribute& a : header.attributes) names_.push_back(a.name);
-  for (const Attribute& a : header.line_attributes) names_.push_back(a.name);
+namespace {
+std::vector<std::string> array_names(const LineSet& header) {
+  std::vector<std::string> names{"positions", "line_offsets"};
+  for (const Attribute& a : header.attributes) names.push_back(a.name);
+  for (const Attribute& a : header.line_attributes) names.push_back(a.name);
+  return names;
+}
+}  // namespace
+
+LineContentHash::LineContentHash(const LineSet& header, const LinePiece& piece) {
+  names_ = array_names(header);
   vertex_attributes_ = header.attributes.size();
-  for (size_t i = 0; i < names_.size(); ++i) arrays_.push_back(std::make_unique<BlockHasher>());
+  for (size_t i = 0; i < names_.size(); ++i) {
+    // Where this piece's bytes of the array start in the whole array.
+    const uint64_t first = i == 0                         ? 12 * piece.first_point
+                           : i == 1                       ? 8 * (piece.first_line + !piece.first)
+                           : i < 2 + vertex_attributes_ ? 4 * piece.first_point
+                                                          : 4 * piece.first_line;
+    arrays_.push_back(piece.shared ? std::make_unique<BlockHasher>(BlockHasher::Piece{first})
+                                   : std::make_unique<BlockHasher>());
+  }
   counts_.assign(names_.size(), 0);
-  const uint64_t zero = 0;  // the offsets start at 0
-  arrays_[1]->update(&zero, sizeof zero);
-  counts_[1] = 1;
+  points_ = piece.first_point;
+  if (piece.first) {
+    const uint64_t zero = 0;  // the offsets start at 0
+    arrays_[1]->update(&zero, sizeof zero);
+    counts_[1] = 1;
+  }
 }
 
 LineContentHash::~LineContentHash() = default;
@@ -38,13 +58,63 @@ void LineContentHash::add(const LineSet& batch) {
         batch.line_attributes[a].values.size(), sizeof(float));
 }
 
-std::string LineContentHash::hex() const {
+std::string LineContentHash::hex_of(const std::vector<std::string>& names,
+                                    size_t vertex_attributes, const std::vector<uint64_t>& counts,
+                                    const std::vector<std::string>& array_hashes) {
   Hasher h;
   h.update(std::string_view("linebake line set 3"));
-  h.update(uint64_t{vertex_attributes_}).update(uint64_t{names_.size() - 2 - vertex_attributes_});
-  for (size_t i = 0; i < names_.size(); ++i)
-    h.update(names_[i]).update(counts_[i]).update(arrays_[i]->hex());
+  h.update(uint64_t{vertex_attributes}).update(uint64_t{names.size() - 2 - vertex_attributes});
+  for (size_t i = 0; i < names.size(); ++i)
+    h.update(names[i]).update(counts[i]).update(array_hashes[i]);
   return h.hex();
+}
+
+std::string LineContentHash::hex() const {
+  std::vector<std::string> hashes;
+  for (const auto& a : arrays_) hashes.push_back(a->hex());
+  return hex_of(names_, vertex_attributes_, counts_, hashes);
+}
+
+// A piece: per array, its value count and its BlockHasher piece, each length-prefixed.
+std::string LineContentHash::piece() const {
+  std::string out;
+  const auto put = [&](uint64_t v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  put(names_.size());
+  for (size_t i = 0; i < names_.size(); ++i) {
+    const std::string p = arrays_[i]->piece();
+    put(counts_[i]);
+    put(p.size());
+    out += p;
+  }
+  return out;
+}
+
+std::string LineContentHash::combine(const LineSet& header,
+                                     const std::vector<std::string>& pieces) {
+  const std::vector<std::string> names = array_names(header);
+  std::vector<uint64_t> counts(names.size(), 0);
+  std::vector<std::vector<std::string>> arrays(names.size());
+  for (const std::string& text : pieces) {
+    size_t at = 0;
+    const auto get = [&] {
+      uint64_t v = 0;
+      if (at + sizeof v > text.size()) throw Error("line content hash piece is truncated");
+      std::memcpy(&v, text.data() + at, sizeof v);
+      at += sizeof v;
+      return v;
+    };
+    if (get() != names.size()) throw Error("line content hash pieces of different line sets");
+    for (size_t i = 0; i < names.size(); ++i) {
+      counts[i] += get();
+      const uint64_t n = get();
+      if (n > text.size() - at) throw Error("line content hash piece is truncated");
+      arrays[i].push_back(text.substr(at, n));
+      at += n;
+    }
+  }
+  std::vector<std::string> hashes;
+  for (const auto& a : arrays) hashes.push_back(combine_block_hashes(a));
+  return hex_of(names, header.attributes.size(), counts, hashes);
 }
 
 std::string content_hash(const LineSet& lines) {
@@ -112,7 +182,7 @@ LineSetStats line_stats_from_json(const nlohmann::json& j, const std::string& ca
 }
 
 LineStoreWriter::LineStoreWriter(CacheWriter& cache, const LineSet& header,
-                                 const LineSetStats& stats)
+                                 const LineSetStats& stats, const LinePiece& piece)
     : cache_(cache),
       stats_(stats),
       points_(cache.stream<float>("/lines/points", stats.points, 3)),
@@ -124,8 +194,17 @@ LineStoreWriter::LineStoreWriter(CacheWriter& cache, const LineSet& header,
   for (const Attribute& a : header.line_attributes)
     line_attributes_.push_back(
         cache.stream<float>("/lines/line_attributes/" + encode_link_name(a.name), stats.lines));
-  const uint64_t zero = 0;
-  offsets_.append(&zero, 1);
+  if (cache.parallel()) {
+    points_.start_at(piece.first_point);
+    offsets_.start_at(piece.first ? 0 : piece.first_line + 1);
+    for (DatasetStream& a : attributes_) a.start_at(piece.first_point);
+    for (DatasetStream& a : line_attributes_) a.start_at(piece.first_line);
+    points_written_ = piece.first_point;
+  }
+  if (piece.first) {
+    const uint64_t zero = 0;
+    offsets_.append(&zero, 1);
+  }
 }
 
 void LineStoreWriter::append(const LineSet& batch) {

@@ -14,9 +14,20 @@ namespace linebake {
 // XXH3-128 over every array and attribute name of a line set: the input hash of the assets
 // built from it. Metadata is excluded. Each array is hashed on its own and the digests are
 // hashed together with the names and counts, so the hash can be computed batch by batch.
+// Where one rank's lines start in the whole line set (parallel writes, ParallelWrite): its
+// first line and point, and whether it holds the very start (the offsets' leading 0).
+struct LinePiece {
+  uint64_t first_line = 0, first_point = 0;
+  bool first = true;
+  bool shared = false;  // one of several: hashes keep what they share with their neighbours
+};
+
 class LineContentHash {
  public:
-  explicit LineContentHash(const LineSet& header);
+  explicit LineContentHash(const LineSet& header, const LinePiece& piece = {});
+  // One rank's share, serialised; combine() makes the whole set's hash from every rank's.
+  std::string piece() const;
+  static std::string combine(const LineSet& header, const std::vector<std::string>& pieces);
   ~LineContentHash();
   void add(const LineSet& batch);
   std::string hex() const;
@@ -26,6 +37,9 @@ class LineContentHash {
   std::vector<std::unique_ptr<BlockHasher>> arrays_;
   std::vector<uint64_t> counts_;
   uint64_t points_ = 0;
+  static std::string hex_of(const std::vector<std::string>& names, size_t vertex_attributes,
+                            const std::vector<uint64_t>& counts,
+                            const std::vector<std::string>& array_hashes);
   size_t vertex_attributes_ = 0;
 };
 std::string content_hash(const LineSet& lines);
@@ -42,7 +56,9 @@ LineSetStats line_stats_from_json(const nlohmann::json& json, const std::string&
 // /lines written batch by batch; the datasets are created with the sizes in `stats`.
 class LineStoreWriter {
  public:
-  LineStoreWriter(CacheWriter& cache, const LineSet& header, const LineSetStats& stats);
+  // `stats`: the whole set's; `piece`: where this rank's lines start (parallel writes).
+  LineStoreWriter(CacheWriter& cache, const LineSet& header, const LineSetStats& stats,
+                  const LinePiece& piece = {});
   void append(const LineSet& batch);
   // Writes the metadata and the provenance, with disk_bytes and memory_bytes filled in.
   void close(const std::map<std::string, std::string>& metadata, Provenance provenance);

@@ -31,6 +31,14 @@ struct TubeStoreSink::State {
   // The open chunk's datasets.
   std::optional<DatasetStream> positions, normals, attribute_values, indices;
   TubeChunkPlan plan;
+  // Parallel writes: every chunk's datasets and plan, open until close().
+  struct Chunk {
+    std::optional<DatasetStream> positions, normals, attribute_values, indices;
+    TubeChunkPlan plan;
+  };
+  std::vector<Chunk> all;
+  void open_chunk(size_t c, const TubeChunkPlan& plan);
+  void close_chunk(size_t c);
   size_t chunks = 0;
   uint64_t disk = 0, memory = 0;
   // The staging buffers of the piece being written, kept between pieces.
@@ -51,19 +59,48 @@ TubeStoreSink::TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh)
 
 TubeStoreSink::~TubeStoreSink() = default;
 
+void TubeStoreSink::State::open_chunk(size_t c, const TubeChunkPlan& chunk_plan) {
+  const std::string g = chunk_group(c);
+  cache->create_group(g);
+  plan = chunk_plan;
+  chunks = c + 1;
+  positions.emplace(cache->stream<float>(g + "/positions", plan.vertices, 3));
+  normals.emplace(float_normals ? cache->stream<float>(g + "/normals", plan.vertices, 3)
+                                : cache->stream<int16_t>(g + "/normals_oct", plan.vertices, 2));
+  if (attribute)
+    attribute_values.emplace(cache->stream<uint16_t>(g + "/attribute", plan.vertices));
+  indices.emplace(cache->stream<uint32_t>(g + "/indices", plan.indices / 3, 3));
+}
+
+TubeStoreSink::TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh,
+                             const std::vector<TubeChunkPlan>& plan, size_t first_chunk,
+                             uint64_t first_vertices, uint64_t first_indices, size_t last_chunk)
+    : TubeStoreSink(cache, mesh) {
+  State& s = *state_;
+  for (size_t c = 0; c < plan.size(); ++c) {
+    s.open_chunk(c, plan[c]);
+    State::Chunk chunk{std::move(s.positions), std::move(s.normals),
+                       std::move(s.attribute_values), std::move(s.indices), plan[c]};
+    if (c >= first_chunk && c <= last_chunk) {
+      const uint64_t v = c == first_chunk ? first_vertices : 0;
+      const uint64_t i = c == first_chunk ? first_indices : 0;
+      chunk.positions->start_at(v);
+      chunk.normals->start_at(v);
+      if (chunk.attribute_values) chunk.attribute_values->start_at(v);
+      chunk.indices->start_at(i / 3);
+    }
+    s.all.push_back(std::move(chunk));
+    s.positions.reset();
+    s.normals.reset();
+    s.attribute_values.reset();
+    s.indices.reset();
+  }
+}
+
 void TubeStoreSink::begin_chunk(size_t c, const TubeChunkPlan& plan) {
   State& s = *state_;
-  const std::string g = chunk_group(c);
-  s.cache->create_group(g);
-  s.plan = plan;
-  s.chunks = c + 1;
-  s.positions.emplace(s.cache->stream<float>(g + "/positions", plan.vertices, 3));
-  s.normals.emplace(s.float_normals
-                        ? s.cache->stream<float>(g + "/normals", plan.vertices, 3)
-                        : s.cache->stream<int16_t>(g + "/normals_oct", plan.vertices, 2));
-  if (s.attribute)
-    s.attribute_values.emplace(s.cache->stream<uint16_t>(g + "/attribute", plan.vertices));
-  s.indices.emplace(s.cache->stream<uint32_t>(g + "/indices", plan.indices / 3, 3));
+  if (!s.all.empty()) return;  // parallel: created up front
+  s.open_chunk(c, plan);
 }
 
 TubeOutput TubeStoreSink::reserve(size_t c, uint64_t vertices, uint64_t indices) {
@@ -95,24 +132,33 @@ TubeOutput TubeStoreSink::reserve(size_t c, uint64_t vertices, uint64_t indices)
 
 void TubeStoreSink::written(size_t c) {
   State& s = *state_;
-  (void)c;
+  auto& positions = s.all.empty() ? s.positions : s.all[c].positions;
+  auto& normals = s.all.empty() ? s.normals : s.all[c].normals;
+  auto& attribute_values = s.all.empty() ? s.attribute_values : s.all[c].attribute_values;
+  auto& indices = s.all.empty() ? s.indices : s.all[c].indices;
   if (s.attribute)
-    append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
+    append_together({rows_of(*positions, s.positions_buffer.data(), s.piece_vertices),
                      s.float_normals
-                         ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
-                         : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
-                     rows_of(*s.attribute_values, s.attribute_buffer.data(), s.piece_vertices),
-                     rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
+                         ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
+                         : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
+                     rows_of(*attribute_values, s.attribute_buffer.data(), s.piece_vertices),
+                     rows_of(*indices, s.index_buffer.data(), s.piece_indices / 3)});
   else
-    append_together({rows_of(*s.positions, s.positions_buffer.data(), s.piece_vertices),
+    append_together({rows_of(*positions, s.positions_buffer.data(), s.piece_vertices),
                      s.float_normals
-                         ? rows_of(*s.normals, s.normals_buffer.data(), s.piece_vertices)
-                         : rows_of(*s.normals, s.oct_buffer.data(), s.piece_vertices),
-                     rows_of(*s.indices, s.index_buffer.data(), s.piece_indices / 3)});
+                         ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
+                         : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
+                     rows_of(*indices, s.index_buffer.data(), s.piece_indices / 3)});
 }
 
 void TubeStoreSink::end_chunk(size_t c) {
   State& s = *state_;
+  if (!s.all.empty()) return;  // parallel: closed together by close()
+  s.close_chunk(c);
+}
+
+void TubeStoreSink::State::close_chunk(size_t c) {
+  State& s = *this;
   const std::string g = chunk_group(c);
   s.disk += s.positions->close() + s.normals->close() + s.indices->close();
   if (s.attribute_values) s.disk += s.attribute_values->close();
@@ -127,6 +173,15 @@ void TubeStoreSink::end_chunk(size_t c) {
 
 void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
   State& s = *state_;
+  for (size_t c = 0; c < s.all.size(); ++c) {
+    s.positions = std::move(s.all[c].positions);
+    s.normals = std::move(s.all[c].normals);
+    s.attribute_values = std::move(s.all[c].attribute_values);
+    s.indices = std::move(s.all[c].indices);
+    s.plan = s.all[c].plan;
+    s.close_chunk(c);
+  }
+  s.all.clear();
   s.cache->write_attribute(kTubesGroup, "mesh", describe(mesh, s.chunks).dump());
   provenance.disk_bytes = s.disk;
   provenance.memory_bytes = s.memory;

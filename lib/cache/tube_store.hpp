@@ -20,6 +20,13 @@ class TubeStoreSink : public TubeSink {
  public:
   // `mesh`: the builder's description (which arrays the chunks have).
   TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh);
+  // Parallel writes (ParallelWrite): every chunk's datasets are created up front from the plan,
+  // on every rank alike, and this rank's rows begin in chunk `first_chunk` after the
+  // `first_vertices` and `first_indices` of the lines before its own (the lower ranks').
+  // `last_chunk`: the chunk of its last line.
+  TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan,
+                size_t first_chunk, uint64_t first_vertices, uint64_t first_indices,
+                size_t last_chunk);
   ~TubeStoreSink() override;
   void begin_chunk(size_t chunk, const TubeChunkPlan& plan) override;
   TubeOutput reserve(size_t chunk, uint64_t vertices, uint64_t indices) override;

@@ -138,8 +138,11 @@ AtomicFile::AtomicFile(std::string final_path)
   remove_stale_temporaries(final_path_);
 }
 
+AtomicFile::AtomicFile(std::string final_path, std::string temp_path, bool owner)
+    : final_path_(std::move(final_path)), temp_path_(std::move(temp_path)), owner_(owner) {}
+
 AtomicFile::~AtomicFile() {
-  if (!committed_) std::remove(temp_path_.c_str());
+  if (!committed_ && owner_) std::remove(temp_path_.c_str());
 }
 
 namespace {
@@ -174,6 +177,10 @@ void OutputGroup::commit() {
 }
 
 void AtomicFile::commit() {
+  if (!owner_) {
+    committed_ = true;
+    return;
+  }
   sync_file(temp_path_, final_path_);
   if (open_group) {
     open_group->files_.push_back({temp_path_, final_path_});

@@ -17,6 +17,9 @@ class AtomicFile {
  public:
   // Removes stale temporaries of `final_path` first (see remove_stale_temporaries).
   explicit AtomicFile(std::string final_path);
+  // A temporary file that several processes write together (MPI ranks): named by one of them;
+  // only the `owner` removes it on failure and renames it on commit().
+  AtomicFile(std::string final_path, std::string temp_path, bool owner);
   ~AtomicFile();  // removes the temporary file unless commit() succeeded
   AtomicFile(const AtomicFile&) = delete;
   AtomicFile& operator=(const AtomicFile&) = delete;
@@ -36,6 +39,7 @@ class AtomicFile {
   std::string final_path_;
   std::string temp_path_;
   bool committed_ = false;
+  bool owner_ = true;
 };
 
 // Outputs of one command that stand or fall together (an image and its --stats, every frame of

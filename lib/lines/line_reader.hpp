@@ -29,6 +29,8 @@ class LineReader {
   // Points of the largest line this reader can know of before reading it (0: unknown); lets a
   // caller refuse an input whose single line does not fit its memory before doing any work.
   virtual uint64_t largest_line_hint() const { return 0; }
+  // The input's line count when its header says it (binlines), before reading the lines.
+  virtual std::optional<uint64_t> line_count_hint() const { return std::nullopt; }
   // The whole line set when it is already in memory (non-streaming readers), moved out; the
   // reader is exhausted afterwards.
   virtual std::optional<LineSet> take_whole() { return std::nullopt; }

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 
+#include "core/error.hpp"
+
 namespace linebake {
 
 float Bounds::diagonal() const {
@@ -139,6 +141,34 @@ void LineStatsBuilder::add(const LineSet& batch) {
         merge(s.line_attribute_ranges[a].second, compute_range(batch.line_attributes[a].values));
     s.attribute_bytes += batch.line_attributes[a].values.size() * sizeof(float);
   }
+}
+
+LineSetStats merge(const LineSetStats& a, const LineSetStats& b) {
+  if (a.attribute_ranges.size() != b.attribute_ranges.size() ||
+      a.line_attribute_ranges.size() != b.line_attribute_ranges.size())
+    throw Error("line set statistics with different attributes cannot merge");
+  LineSetStats s = a;
+  s.lines += b.lines;
+  s.points += b.points;
+  s.segments += b.segments;
+  s.position_bytes += b.position_bytes;
+  s.offset_bytes += b.offset_bytes;
+  s.attribute_bytes += b.attribute_bytes;
+  s.largest_line = std::max(a.largest_line, b.largest_line);
+  if (s.bounds.empty) {
+    s.bounds = b.bounds;
+  } else if (!b.bounds.empty) {
+    for (int k = 0; k < 3; ++k) {
+      s.bounds.min[k] = std::min(s.bounds.min[k], b.bounds.min[k]);
+      s.bounds.max[k] = std::max(s.bounds.max[k], b.bounds.max[k]);
+    }
+  }
+  for (size_t i = 0; i < s.attribute_ranges.size(); ++i)
+    s.attribute_ranges[i].second = merge(a.attribute_ranges[i].second, b.attribute_ranges[i].second);
+  for (size_t i = 0; i < s.line_attribute_ranges.size(); ++i)
+    s.line_attribute_ranges[i].second =
+        merge(a.line_attribute_ranges[i].second, b.line_attribute_ranges[i].second);
+  return s;
 }
 
 LineSetStats compute_stats(const LineSet& lines) {

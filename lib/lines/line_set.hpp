@@ -81,6 +81,9 @@ struct LineSetStats {
   const ValueRange* line_attribute_range(const std::string& name) const;
 };
 LineSetStats compute_stats(const LineSet& lines);
+// The figures of two consecutive parts of one line set (the ranks of an MPI bake): counts and
+// bytes add up, bounds and ranges merge. The attributes must be the same, in the same order.
+LineSetStats merge(const LineSetStats& first, const LineSetStats& second);
 
 // The same figures over a line set given batch by batch (lines/line_reader.hpp), whatever the
 // batches: counts add up, bounds and ranges merge.

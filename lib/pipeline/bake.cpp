@@ -71,6 +71,16 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 
 }  // namespace
 
+LinesIdentity lines_identity(const BakeOptions& options) {
+  LinesIdentity id;
+  id.source_hash =
+      source_hash(options.inputs.empty() ? std::vector<std::string>{options.input} : options.inputs);
+  id.format = options.format ? format_info(*options.format).name : "auto";
+  id.policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
+  id.key = key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy});
+  return id;
+}
+
 const std::vector<std::string>& bakeable_assets() {
   static const std::vector<std::string> assets{"tubes", "voxels", "embree", "rtx"};
   return assets;
@@ -392,11 +402,11 @@ BakeResult bake(const BakeOptions& options_in) {
   MemoryBudget budget(budget_bytes);
   result.memory_budget_bytes = budget_bytes;
 
-  const std::string source = source_hash(inputs);
-  const std::string format = options.format ? format_info(*options.format).name : "auto";
-  const std::string policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
-  const std::string lines_key =
-      key_of({"lines", std::to_string(kLinesVersion), source, format, policy});
+  const LinesIdentity identity = lines_identity(options);
+  const std::string& source = identity.source_hash;
+  const std::string& format = identity.format;
+  const std::string& policy = identity.policy;
+  const std::string& lines_key = identity.key;
 
   // The output never replaces the input, and replaces a file that is not a linebake cache only
   // under --force; a damaged cache is rebuilt.

@@ -103,6 +103,12 @@ struct BakeResult {
 };
 
 std::string default_cache_path(const std::string& input);
+// The /lines step's identity: the inputs' content hash (every file's bytes in order, or a synth
+// source's parameters) and the provenance key made of it, the format and the invalid policy.
+struct LinesIdentity {
+  std::string source_hash, key, format, policy;
+};
+LinesIdentity lines_identity(const BakeOptions& options);
 // Throws InputError (bad input), OutputError (cache not writable) or Error (bad options).
 BakeResult bake(const BakeOptions& options);
 

@@ -360,17 +360,55 @@ TubeStreamBuilder::TubeStreamBuilder(const LineSet& header, const LineSetStats& 
 
 TubeStreamBuilder::~TubeStreamBuilder() = default;
 
-void TubeStreamBuilder::plan(const LineSet& batch) {
-  State& s = *state_;
-  const size_t count = batch.line_count();
-  std::vector<uint64_t> kept(count);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 256), [&](auto range) {
+std::vector<uint64_t> TubeStreamBuilder::kept_points(const LineSet& batch) const {
+  const State& s = *state_;
+  std::vector<uint64_t> kept(batch.line_count());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, kept.size(), 256), [&](auto range) {
     for (size_t l = range.begin(); l != range.end(); ++l) {
       uint64_t k = 0;
       for_each_kept_point(batch, l, s.min_distance, [&](uint64_t, vec3) { ++k; });
       kept[l] = k >= 2 ? k : 0;
     }
   });
+  return kept;
+}
+
+void TubeStreamBuilder::plan_kept(const std::vector<uint64_t>& kept, uint64_t points_skipped) {
+  State& s = *state_;
+  for (const uint64_t k : kept) {
+    s.add_to_plan(s.kept.size(), k);
+    s.mesh.lines_dropped += k == 0;
+  }
+  s.mesh.points_skipped += points_skipped;
+}
+
+TubeStreamBuilder::Position TubeStreamBuilder::position_of(uint64_t line) const {
+  const State& s = *state_;
+  if (!s.planned) throw Error("tubes: position_of() before finish_plan()");
+  Position p;
+  while (p.chunk + 1 < s.chunks.size() && s.chunks[p.chunk + 1].first_line <= line) ++p.chunk;
+  for (uint64_t l = s.chunks[p.chunk].first_line; l < line && l < s.kept.size(); ++l)
+    if (s.kept[l]) {
+      p.vertices += s.layout.vertices(s.kept[l]);
+      p.indices += s.layout.indices(s.kept[l]);
+    }
+  return p;
+}
+
+void TubeStreamBuilder::start_at(uint64_t first_line) {
+  State& s = *state_;
+  const Position p = position_of(first_line);
+  s.next_line = first_line;
+  s.chunk = p.chunk;
+  s.chunk_open = true;  // the chunk was begun by the process before this one
+  s.chunk_vertices = p.vertices;
+  s.chunk_indices = p.indices;
+}
+
+void TubeStreamBuilder::plan(const LineSet& batch) {
+  State& s = *state_;
+  const size_t count = batch.line_count();
+  const std::vector<uint64_t> kept = kept_points(batch);
   for (size_t l = 0; l < count; ++l) {
     s.add_to_plan(s.kept.size(), kept[l]);
     s.mesh.lines_dropped += kept[l] == 0;

@@ -80,6 +80,20 @@ class TubeStreamBuilder {
   TubeStreamBuilder(const LineSet& header, const LineSetStats& stats, const TubeOptions& options);
   ~TubeStreamBuilder();
   void plan(const LineSet& batch);
+  // plan() in two halves, for a line set split over processes (MPI ranks): each counts the
+  // points its lines keep, then every process plans the whole set from all the counts, in line
+  // order, with the points the counts leave out.
+  std::vector<uint64_t> kept_points(const LineSet& batch) const;
+  void plan_kept(const std::vector<uint64_t>& kept, uint64_t points_skipped);
+  // build() then starts at this process's first line instead of line 0.
+  void start_at(uint64_t first_line);
+  // Where a line's vertices and indices start: its chunk, and the vertices and indices of that
+  // chunk's lines before it (after finish_plan()).
+  struct Position {
+    size_t chunk = 0;
+    uint64_t vertices = 0, indices = 0;
+  };
+  Position position_of(uint64_t line) const;
   // After the last plan(): the chunks. Throws Error when no line has two distinct points.
   const std::vector<TubeChunkPlan>& finish_plan();
   void build(const LineSet& batch, TubeSink& sink);

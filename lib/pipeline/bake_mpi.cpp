@@ -1,0 +1,510 @@
+#include "pipeline/bake_mpi.hpp"
+
+#include <hdf5.h>
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <cstring>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <numeric>
+
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/interrupt.hpp"
+#include "core/measure.hpp"
+#include "core/memory_budget.hpp"
+#include "core/progress.hpp"
+#include "lines/line_spool.hpp"
+#include "lines/validate.hpp"
+#include "synth/synth.hpp"
+
+#ifndef H5_HAVE_PARALLEL
+#error "bake_mpi.cpp needs the MPI build of HDF5 (libhdf5-openmpi-dev)"
+#endif
+
+namespace linebake {
+namespace {
+
+// The ranks of one bake and the few collectives it needs.
+struct Ranks {
+  MPI_Comm comm;
+  int rank = 0, size = 1;
+
+  explicit Ranks(MPI_Comm c) : comm(c) {
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+  }
+  std::vector<std::string> allgather(const std::string& mine) const {
+    const int n = int(mine.size());
+    std::vector<int> sizes(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
+    MPI_Allgather(&n, 1, MPI_INT, sizes.data(), 1, MPI_INT, comm);
+    int total = 0;
+    for (int r = 0; r < size; ++r) displs[size_t(r)] = total, total += sizes[size_t(r)];
+    std::string all(size_t(total), '\0');
+    MPI_Allgatherv(mine.data(), n, MPI_CHAR, all.data(), sizes.data(), displs.data(), MPI_CHAR,
+                   comm);
+    std::vector<std::string> out;
+    for (int r = 0; r < size; ++r)
+      out.push_back(all.substr(size_t(displs[size_t(r)]), size_t(sizes[size_t(r)])));
+    return out;
+  }
+  std::string broadcast(std::string text, int root = 0) const {
+    uint64_t n = text.size();
+    MPI_Bcast(&n, 1, MPI_UINT64_T, root, comm);
+    text.resize(n);
+    MPI_Bcast(text.data(), int(n), MPI_CHAR, root, comm);
+    return text;
+  }
+  uint64_t max(uint64_t v) const {
+    uint64_t out = 0;
+    MPI_Allreduce(&v, &out, 1, MPI_UINT64_T, MPI_MAX, comm);
+    return out;
+  }
+  std::vector<uint64_t> sum(std::vector<uint64_t> v) const {
+    MPI_Allreduce(MPI_IN_PLACE, v.data(), int(v.size()), MPI_UINT64_T, MPI_SUM, comm);
+    return v;
+  }
+  // Sum over the ranks before this one.
+  uint64_t exclusive_sum(uint64_t v) const {
+    uint64_t out = 0;
+    MPI_Exscan(&v, &out, 1, MPI_UINT64_T, MPI_SUM, comm);
+    return rank == 0 ? 0 : out;
+  }
+
+  // Runs a step that involves no other rank and agrees on its outcome: an error on any rank is
+  // thrown on every rank, naming the lowest failing rank, with its kind (input, output, other).
+  void agree(const std::function<void()>& step) const {
+    char kind = 0;
+    std::string message;
+    try {
+      step();
+    } catch (const InputError& e) {
+      // The file, the place and the message apart, to be put together again with the rank.
+      const std::string prefix = e.file() + (e.where().empty() ? "" : ": " + e.where()) + ": ";
+      kind = 'i', message = e.file() + '\x1f' + e.where() + '\x1f' +
+                            std::string(e.what()).substr(prefix.size());
+    } catch (const OutputError& e) {
+      kind = 'o', message = e.file() + '\x1f' + e.detail();
+    } catch (const Interrupted& e) {
+      kind = 's', message = std::to_string(e.signal());
+    } catch (const std::exception& e) {
+      kind = 'e', message = e.what();
+    }
+    const std::vector<std::string> all = allgather(kind ? std::string(1, kind) + message : "");
+    for (int r = 0; r < size; ++r) {
+      const std::string& m = all[size_t(r)];
+      if (m.empty()) continue;
+      const std::string rank_name = "rank " + std::to_string(r) + ": ";
+      const std::string text = rank_name + m.substr(1);
+      const auto field = [&](int i) {
+        size_t begin = 1;
+        for (int k = 0; k < i; ++k) begin = m.find('\x1f', begin) + 1;
+        return m.substr(begin, m.find('\x1f', begin) - begin);
+      };
+      switch (m[0]) {
+        case 'i':
+          throw InputError(rank_name + field(0), field(1), field(2));
+        case 'o':
+          throw OutputError(rank_name + field(0), field(1));
+        case 's':
+          throw Interrupted(std::stoi(m.substr(1)));
+        default:
+          throw Error(text);
+      }
+    }
+  }
+};
+
+// One input file's share of this rank: lines [first, end) of it, by the file's own line index.
+struct FileRange {
+  size_t file = 0;
+  uint64_t first = 0, end = 0;
+};
+
+// The lines of a rank's file ranges, one batch at a time; lines of a file before the range are
+// read and skipped (formats read front to back), the file is closed after the range.
+class RangeReader {
+ public:
+  RangeReader(const std::vector<std::string>& files, std::vector<FileRange> ranges,
+              const ReadOptions& read)
+      : files_(files), ranges_(std::move(ranges)), read_(read) {}
+
+  // False at the end. `where`: the file and its lines of the batch, for messages.
+  bool next(LineSet& batch, uint64_t max_points, std::string& where) {
+    while (range_ < ranges_.size()) {
+      const FileRange& r = ranges_[range_];
+      if (!reader_) {
+        reader_ = open_line_reader(files_[r.file], read_);
+        line_ = 0;
+      }
+      LineSet read;
+      if (line_ >= r.end || !reader_->next(read, max_points)) {
+        reader_.reset();
+        ++range_;
+        continue;
+      }
+      const uint64_t first = line_, end = line_ + read.line_count();
+      line_ = end;
+      const uint64_t keep_first = std::max(first, r.first), keep_end = std::min(end, r.end);
+      if (keep_first >= keep_end) continue;
+      batch = header_of(read);
+      copy_lines(read, size_t(keep_first - first), size_t(keep_end - first), batch);
+      where = files_[r.file] + " (lines " + std::to_string(keep_first) + ".." +
+              std::to_string(keep_end - 1) + ")";
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  const std::vector<std::string>& files_;
+  std::vector<FileRange> ranges_;
+  ReadOptions read_;
+  size_t range_ = 0;
+  uint64_t line_ = 0;
+  std::unique_ptr<LineReader> reader_;
+};
+
+// Every rank's share of the inputs: the lines of all files, in order, cut into `ranks` equal
+// ranges of lines; a range covers whole files and parts of the files at its ends.
+std::vector<FileRange> share_of(const std::vector<uint64_t>& lines_per_file, int rank, int ranks) {
+  const uint64_t total = std::accumulate(lines_per_file.begin(), lines_per_file.end(), uint64_t{0});
+  const uint64_t begin = total * uint64_t(rank) / uint64_t(ranks);
+  const uint64_t end = total * uint64_t(rank + 1) / uint64_t(ranks);
+  std::vector<FileRange> out;
+  uint64_t at = 0;
+  for (size_t f = 0; f < lines_per_file.size(); ++f) {
+    const uint64_t file_begin = at, file_end = at + lines_per_file[f];
+    at = file_end;
+    const uint64_t a = std::max(begin, file_begin), b = std::min(end, file_end);
+    if (a < b) out.push_back({f, a - file_begin, b - file_begin});
+  }
+  return out;
+}
+
+nlohmann::json stats_json(const LineSetStats& s) {
+  nlohmann::json j = to_json(s);
+  j["position_bytes"] = s.position_bytes;
+  j["offset_bytes"] = s.offset_bytes;
+  j["attribute_bytes"] = s.attribute_bytes;
+  return j;
+}
+
+LineSetStats stats_from(const std::string& text) {
+  const nlohmann::json j = nlohmann::json::parse(text);
+  LineSetStats s = line_stats_from_json(j, "(rank statistics)");
+  s.position_bytes = j.at("position_bytes");
+  s.offset_bytes = j.at("offset_bytes");
+  s.attribute_bytes = j.at("attribute_bytes");
+  return s;
+}
+
+// A rank's vector of counts, every rank's in rank order, concatenated.
+std::vector<uint64_t> allgather_counts(const Ranks& ranks, const std::vector<uint64_t>& mine) {
+  const std::string bytes(reinterpret_cast<const char*>(mine.data()), mine.size() * 8);
+  std::vector<uint64_t> all;
+  for (const std::string& part : ranks.allgather(bytes)) {
+    const size_t at = all.size();
+    all.resize(at + part.size() / 8);
+    std::memcpy(all.data() + at, part.data(), part.size());
+  }
+  return all;
+}
+
+}  // namespace
+
+BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
+  const auto bake_start = std::chrono::steady_clock::now();
+  const Ranks ranks(comm);
+  BakeOptions options = options_in;
+  if (options.inputs.empty()) options.inputs = {options.input};
+  const std::vector<std::string>& inputs = options.inputs;
+  if (options.input.empty())
+    options.input = inputs.front() + " and " + std::to_string(inputs.size() - 1) + " more";
+  std::sort(options.assets.begin(), options.assets.end());
+  options.assets.erase(std::unique(options.assets.begin(), options.assets.end()),
+                       options.assets.end());
+  for (const std::string& asset : options.assets)
+    if (asset != "tubes")
+      throw Error("linebake-mpi builds /lines and tubes, not " + asset +
+                  "; add it afterwards with the serial linebake bake of the same inputs and -o "
+                  "(it reuses /lines and the tubes)");
+  const bool build_tubes = !options.assets.empty();
+  if (options.dry_run) throw Error("--dry-run: ask the serial linebake bake for the estimate");
+  BakeResult result;
+  result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
+                                       : options.cache;
+  if (result.cache.empty()) throw Error("several inputs make one line set: name its cache with -o");
+  const uint64_t budget_bytes = options.memory_budget == BakeOptions::kDefaultBudget
+                                    ? default_memory_budget() / uint64_t(ranks.size)
+                                : options.memory_budget == BakeOptions::kUnlimited
+                                    ? 0
+                                    : options.memory_budget;
+  result.memory_budget_bytes = budget_bytes;
+  const bool show = options.progress && ranks.rank == 0;
+
+  // Rank 0 checks the output and names the temporary file every rank writes.
+  std::string temp;
+  ranks.agree([&] {
+    if (ranks.rank != 0) return;
+    if (!synth::is_synth_source(inputs[0])) refuse_input_as_output(result.cache, inputs);
+    if (std::filesystem::exists(result.cache) && !options.force &&
+        !is_linebake_cache(result.cache))
+      throw OutputError(result.cache, "exists and is not a linebake cache; --force replaces it");
+    remove_stale_temporaries(result.cache);
+    temp = temporary_name(result.cache);
+  });
+  temp = ranks.broadcast(temp);
+
+  // Lines per file: from the header where the format has it, else by reading the file; the
+  // files are counted round robin.
+  std::vector<uint64_t> lines_per_file(inputs.size(), 0);
+  ReadOptions read;
+  read.format = options.format;
+  LineSet header;
+  ranks.agree([&] {
+    for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
+      auto reader = open_line_reader(inputs[f], read);
+      if (const auto n = reader->line_count_hint()) {
+        lines_per_file[f] = *n;
+        continue;
+      }
+      LineSet batch;
+      while (reader->next(batch, uint64_t{1} << 20)) lines_per_file[f] += batch.line_count();
+    }
+    header = header_of(open_line_reader(inputs[0], read)->header());
+  });
+  lines_per_file = ranks.sum(lines_per_file);
+
+  // Read: this rank's share into its spool, validated batch by batch as the serial bake does.
+  const auto read_start = std::chrono::steady_clock::now();
+  MemoryBudget budget(budget_bytes);
+  const uint64_t batch_points =
+      budget.unlimited() ? uint64_t{1} << 21
+                         : std::clamp<uint64_t>(budget.available() / 4 / 200, 1024, uint64_t{1} << 21);
+  result.batch_points = batch_points;
+  std::optional<LineSpool> spool;
+  LineStatsBuilder local_stats(header);
+  ValidationReport total;
+  const std::string spill_name = result.cache + ".rank" + std::to_string(ranks.rank);
+  ranks.agree([&] {
+    spool.emplace(spill_name, header);
+    RangeReader reader(inputs, share_of(lines_per_file, ranks.rank, ranks.size), read);
+    LineSet batch;
+    std::string where;
+    TerminalProgress progress("reading " + options.input);
+    uint64_t lines_done = 0;
+    const uint64_t lines_total = std::accumulate(lines_per_file.begin(), lines_per_file.end(),
+                                                 uint64_t{0});
+    while (reader.next(batch, batch_points, where)) {
+      throw_if_interrupted();
+      lines_done += batch.line_count();
+      const ValidationReport r = validate(batch, options.on_invalid, where);
+      total.invalid_points += r.invalid_points;
+      total.repeated_points += r.repeated_points;
+      total.short_lines += r.short_lines;
+      total.nonfinite_attribute_values += r.nonfinite_attribute_values;
+      total.lines_split += r.lines_split;
+      total.lines_dropped += r.lines_dropped;
+      total.points_dropped += r.points_dropped;
+      total.repaired |= r.repaired;
+      local_stats.add(batch);
+      spool->append(batch);
+      if (show) progress.update(lines_done * uint64_t(ranks.size), lines_total);
+    }
+  });
+  const double read_s = seconds_since(read_start);
+
+  // The whole set's figures, and where this rank's lines and points start in it.
+  LineSetStats stats;
+  {
+    const auto all = ranks.allgather(stats_json(local_stats.stats()).dump());
+    for (int r = 0; r < ranks.size; ++r) {
+      const LineSetStats s = stats_from(all[size_t(r)]);
+      stats = r == 0 ? s : merge(stats, s);
+    }
+  }
+  if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
+  LinePiece piece;
+  piece.first_line = ranks.exclusive_sum(local_stats.stats().lines);
+  piece.first_point = ranks.exclusive_sum(local_stats.stats().points);
+  piece.first = ranks.rank == 0;
+  piece.shared = true;
+  const uint64_t my_lines = local_stats.stats().lines;
+  const uint64_t rounds = ranks.max(spool->batches());
+  {
+    const auto notes = ranks.allgather(total.clean() ? "" : total.summary());
+    for (int r = 0; r < ranks.size; ++r)
+      if (!notes[size_t(r)].empty())
+        result.notes.push_back("rank " + std::to_string(r) + ": " + notes[size_t(r)]);
+  }
+
+  // From here on every rank writes the same file: an error is that of a collective call, which
+  // the others cannot be told of in time. The failing rank removes the file and ends the job.
+  RankFigures mine;
+  mine.rank = ranks.rank;
+  mine.lines = my_lines;
+  mine.points = local_stats.stats().points;
+  mine.read_s = read_s;
+  const auto build_start = std::chrono::steady_clock::now();
+  StepMeter meter;
+  try {
+    using h5::Handle;
+    Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+    H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL);
+    H5Pset_all_coll_metadata_ops(fapl, true);
+    H5Pset_coll_metadata_write(fapl, true);
+    Handle dxpl(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+    H5Pset_dxpl_mpio(dxpl, H5FD_MPIO_COLLECTIVE);
+    ParallelWrite parallel;
+    parallel.fapl = fapl;
+    parallel.dxpl = dxpl;
+    parallel.temp_path = temp;
+    parallel.owner = ranks.rank == 0;
+    parallel.allgather = [&](const std::string& s) { return ranks.allgather(s); };
+    CacheWriter writer(result.cache, options.compression, options.compression_level, parallel);
+
+    const LinesIdentity identity = lines_identity(options);
+    // Pass 1: /lines, the content hash and the tubes' kept points.
+    LineStoreWriter store(writer, header, stats, piece);
+    LineContentHash hash(header, piece);
+    std::optional<TubeStreamBuilder> tubes;
+    if (build_tubes) tubes.emplace(header, stats, options.tubes);
+    std::vector<uint64_t> kept;
+    uint64_t skipped = 0;
+    {
+      TerminalProgress progress("writing /lines");
+      auto replay = spool->replay();
+      LineSet batch;
+      for (uint64_t round = 0; round < rounds; ++round) {
+        throw_if_interrupted();
+        if (replay->next(batch, UINT64_MAX)) {
+          store.append(batch);
+          hash.add(batch);
+          if (tubes) {
+            const std::vector<uint64_t> k = tubes->kept_points(batch);
+            for (size_t l = 0; l < k.size(); ++l) skipped += batch.line_size(l) - k[l];
+            kept.insert(kept.end(), k.begin(), k.end());
+          }
+        }
+        writer.write_round();
+        if (show) progress.update(round + 1, rounds);
+      }
+    }
+    const std::string lines_hash = LineContentHash::combine(header, ranks.allgather(hash.piece()));
+    // Provenance: rank 0's figures, the same bytes on every rank (attributes are collective).
+    const auto finish = [&](Provenance& p, const std::string& step) {
+      p.step = step;
+      p.created = utc_now_iso8601();
+      p.threads = uint64_t(tbb::info::default_concurrency());
+      p.compression = to_string(options.compression);
+      p.memory_budget = budget_bytes;
+      p.build.wall_s = seconds_since(build_start) + read_s;
+      p.build.peak_rss = peak_rss_bytes();
+    };
+    Provenance lines_p;
+    finish(lines_p, "lines");
+    lines_p.key = identity.key;
+    lines_p.input_hash = identity.source_hash;
+    lines_p.parameters = {
+        {"source", options.input}, {"format", identity.format}, {"on_invalid", identity.policy}};
+    if (inputs.size() > 1) lines_p.parameters["files"] = inputs;
+    lines_p.stats = to_json(stats);
+    lines_p.stats["content_hash"] = lines_hash;
+    lines_p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(lines_p).dump())));
+    std::map<std::string, std::string> metadata = header.metadata;
+    if (!synth::is_synth_source(inputs[0])) metadata.emplace("source", options.input);
+    store.close(metadata, lines_p);
+
+    // Pass 2: the tubes, planned from every rank's kept points.
+    if (tubes) {
+      tubes->plan_kept(allgather_counts(ranks, kept),
+                       ranks.sum(std::vector<uint64_t>{skipped})[0]);
+      const std::vector<TubeChunkPlan>& plan = tubes->finish_plan();
+      const auto first = tubes->position_of(piece.first_line);
+      const auto last = tubes->position_of(piece.first_line + std::max<uint64_t>(my_lines, 1) - 1);
+      TubeStoreSink sink(writer, tubes->description(), plan, first.chunk, first.vertices,
+                         first.indices, my_lines ? last.chunk : 0);
+      if (my_lines) tubes->start_at(piece.first_line);
+      TerminalProgress progress("building tubes");
+      auto replay = spool->replay();
+      LineSet batch;
+      for (uint64_t round = 0; round < rounds; ++round) {
+        throw_if_interrupted();
+        if (replay->next(batch, UINT64_MAX)) tubes->build(batch, sink);
+        writer.write_round();
+        if (show) progress.update(round + 1, rounds);
+      }
+      Provenance p;
+      finish(p, "tubes");
+      p.key = tubes_key(lines_hash, options.tubes, options.compression,
+                        options.compression_level);
+      p.input_hash = lines_hash;
+      p.parameters = to_json(options.tubes);
+      const TubeMesh& mesh = tubes->description();
+      uint64_t vertices = 0, indices = 0;
+      for (const TubeChunkPlan& c : plan) vertices += c.vertices, indices += c.indices;
+      p.stats = {{"chunks", plan.size()},
+                 {"vertices", vertices},
+                 {"triangles", indices / 3},
+                 {"radius_world", mesh.radius},
+                 {"attribute", mesh.attribute},
+                 {"attribute_range", mesh.attribute_range},
+                 {"lines_dropped", mesh.lines_dropped},
+                 {"points_skipped", mesh.points_skipped}};
+      // Every rank's figures, and the imbalance of the build (max / mean).
+      mine.build_s = seconds_since(build_start);
+      mine.bytes = writer.bytes_written();
+      const auto all = ranks.allgather(nlohmann::json{{"rank", mine.rank},
+                                                      {"lines", mine.lines},
+                                                      {"points", mine.points},
+                                                      {"read_s", mine.read_s},
+                                                      {"build_s", mine.build_s},
+                                                      {"bytes", mine.bytes}}
+                                           .dump());
+      nlohmann::json list = nlohmann::json::array();
+      double max_s = 0, sum_s = 0;
+      for (const std::string& r : all) {
+        list.push_back(nlohmann::json::parse(r));
+        const double s = list.back()["read_s"].get<double>() + list.back()["build_s"].get<double>();
+        max_s = std::max(max_s, s);
+        sum_s += s;
+      }
+      p.stats["ranks"] = ranks.size;
+      p.stats["rank_figures"] = list;
+      p.stats["imbalance"] = sum_s > 0 ? max_s / (sum_s / ranks.size) : 1.0;
+      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
+      sink.close(mesh, p);
+      BakeStep step{"tubes", true, p};
+      result.steps.push_back(step);
+    }
+    writer.commit();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "linebake-mpi: rank %d: error: %s; stopping every rank\n", ranks.rank,
+                 e.what());
+    std::remove(temp.c_str());
+    spool.reset();
+    MPI_Abort(comm, e.what()[0] ? 3 : 4);
+  }
+  spool.reset();
+  MPI_Barrier(comm);  // rank 0 has renamed the file
+  result.written = true;
+  result.steps.insert(result.steps.begin(), BakeStep{"lines", true, {}});
+  const StepFigures f = meter.stop();
+  BakeStage stage;
+  stage.name = "build (rank " + std::to_string(ranks.rank) + ")";
+  stage.wall_s = f.wall_s;
+  stage.cpu_s = f.cpu_s;
+  stage.peak_rss_bytes = f.peak_rss;
+  result.stages.push_back(stage);
+  result.peak_rss_bytes = f.peak_rss;
+  result.wall_s = seconds_since(bake_start);
+  return result;
+}
+
+}  // namespace linebake
