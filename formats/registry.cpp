@@ -1,8 +1,8 @@
 #include "formats/registry.hpp"
 
-#include <algorithm>
 #include <glob.h>
 
+#include <algorithm>
 #include <cctype>
 #include <set>
 
@@ -133,8 +133,7 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
   }
   std::sort(paths.begin(), paths.end());
   for (size_t i = 1; i < paths.size(); ++i)
-    if (paths[i] == paths[i - 1])
-      throw InputError(paths[i], "", "named twice among the inputs");
+    if (paths[i] == paths[i - 1]) throw InputError(paths[i], "", "named twice among the inputs");
   if (paths.size() > 1)
     for (const std::string& p : paths)
       if (synth::is_synth_source(p))
@@ -183,7 +182,8 @@ class MultiFileReader final : public LineReader {
           if (a.values.size() != want)
             throw InputError(sources_[file], "attribute " + a.name,
                              std::to_string(a.values.size()) + " values for " +
-                                 std::to_string(want) + (list == &whole.attributes ? " points" : " lines"));
+                                 std::to_string(want) +
+                                 (list == &whole.attributes ? " points" : " lines"));
         }
       current_ = std::make_unique<MemoryLineReader>(std::move(whole), true);
     }

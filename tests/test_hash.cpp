@@ -20,7 +20,8 @@ std::string expected_block_hash(const std::string& bytes) {
   const size_t block = size_t{1} << 20;
   for (size_t at = 0; at < bytes.size(); at += block) {
     XXH128_canonical_t c;
-    XXH128_canonicalFromHash(&c, XXH3_128bits(bytes.data() + at, std::min(block, bytes.size() - at)));
+    XXH128_canonicalFromHash(&c,
+                             XXH3_128bits(bytes.data() + at, std::min(block, bytes.size() - at)));
     digests.append(reinterpret_cast<const char*>(c.digest), 16);
   }
   const XXH128_hash_t h = XXH3_128bits(digests.data(), digests.size());

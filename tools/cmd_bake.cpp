@@ -14,7 +14,8 @@
 namespace linebake::cli {
 
 Command add_bake(CLI::App& app) {
-  return add_bake_with(app, [](const BakeOptions& o) { return bake(o); }, true);
+  return add_bake_with(
+      app, [](const BakeOptions& o) { return bake(o); }, true);
 }
 
 Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,

@@ -27,8 +27,7 @@ Command add_synth(CLI::App& app);
 Command add_bench(CLI::App& app);
 Command add_bake(CLI::App& app);
 // bake with another driver (linebake-mpi's); `print`: this process prints the report.
-Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
-                      bool print);
+Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run, bool print);
 Command add_report(CLI::App& app);
 Command add_export(CLI::App& app);
 Command add_render(CLI::App& app);

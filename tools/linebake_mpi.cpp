@@ -27,8 +27,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", LINEBAKE_VERSION);
   app.require_subcommand(1);
   Command run = add_bake_with(
-      app,
-      [](const linebake::BakeOptions& o) { return linebake::bake_mpi(o, MPI_COMM_WORLD); },
+      app, [](const linebake::BakeOptions& o) { return linebake::bake_mpi(o, MPI_COMM_WORLD); },
       rank == 0);
   int code = kOk;
   try {
@@ -47,7 +46,8 @@ int main(int argc, char** argv) {
   try {
     run();
   } catch (const linebake::Interrupted& e) {
-    if (rank == 0) std::cerr << "linebake-mpi: " << e.what() << "; its temporary files are removed\n";
+    if (rank == 0)
+      std::cerr << "linebake-mpi: " << e.what() << "; its temporary files are removed\n";
     code = 128 + e.signal();
   } catch (const linebake::InputError& e) {
     say(e.what());

@@ -463,7 +463,8 @@ uint64_t DatasetStream::close() {
     uint64_t total = 0;
     for (const std::string& c : counts) total += std::stoull(c);
     if (total != s.rows)
-      s.fail("the ranks wrote " + std::to_string(total) + " of " + std::to_string(s.rows) + " rows");
+      s.fail("the ranks wrote " + std::to_string(total) + " of " + std::to_string(s.rows) +
+             " rows");
     try {
       hash = combine_block_hashes(pieces);
     } catch (const Error& e) {

@@ -8,10 +8,10 @@
 #include <hdf5.h>
 
 #include <cstdint>
+#include <functional>
 #include <initializer_list>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -130,8 +130,7 @@ class CacheWriter {
   // Creates the file under a temporary name beside `path`; commit() renames it.
   CacheWriter(const std::string& path, Compression compression, int level = -1);
   // The same file on every rank of a parallel write; collective.
-  CacheWriter(const std::string& path, Compression compression, int level,
-              ParallelWrite parallel);
+  CacheWriter(const std::string& path, Compression compression, int level, ParallelWrite parallel);
   ~CacheWriter();
   CacheWriter(const CacheWriter&) = delete;
   CacheWriter& operator=(const CacheWriter&) = delete;

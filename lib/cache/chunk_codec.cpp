@@ -420,8 +420,7 @@ size_t blosc_filter(unsigned flags, size_t n, const unsigned cd[], size_t nbytes
 herr_t blosc_set_local(hid_t dcpl, hid_t type, hid_t) {
   unsigned flags = 0, cd[7] = {};
   size_t n = 7;
-  if (H5Pget_filter_by_id2(dcpl, kBloscFilter, &flags, &n, cd, 0, nullptr, nullptr) < 0)
-    return -1;
+  if (H5Pget_filter_by_id2(dcpl, kBloscFilter, &flags, &n, cd, 0, nullptr, nullptr) < 0) return -1;
   if (n < 4) n = 4;
   hsize_t chunk[32];
   const int rank = H5Pget_chunk(dcpl, 32, chunk);
@@ -439,14 +438,20 @@ herr_t blosc_set_local(hid_t dcpl, hid_t type, hid_t) {
 }  // namespace
 
 void register_hdf5_filters() {
-  static const H5Z_class2_t lz4{H5Z_CLASS_T_VERS, H5Z_filter_t(kLz4Filter), 1, 1, "lz4 (linebake)",
-                                nullptr, nullptr, lz4_filter};
-  static const H5Z_class2_t blosc{H5Z_CLASS_T_VERS, H5Z_filter_t(kBloscFilter), 1, 1,
-                                  "blosc (linebake)", nullptr, blosc_set_local, blosc_filter};
+  static const H5Z_class2_t lz4{
+      H5Z_CLASS_T_VERS, H5Z_filter_t(kLz4Filter), 1, 1, "lz4 (linebake)", nullptr, nullptr,
+      lz4_filter};
+  static const H5Z_class2_t blosc{H5Z_CLASS_T_VERS,
+                                  H5Z_filter_t(kBloscFilter),
+                                  1,
+                                  1,
+                                  "blosc (linebake)",
+                                  nullptr,
+                                  blosc_set_local,
+                                  blosc_filter};
   // Registered over whatever is there: asking H5Zfilter_avail first would load the plugin.
   if (H5Zregister(&lz4) < 0) throw Error("cannot register the LZ4 filter with HDF5");
-  if (H5Zregister(&blosc) < 0)
-    throw Error("cannot register the Blosc filter with HDF5");
+  if (H5Zregister(&blosc) < 0) throw Error("cannot register the Blosc filter with HDF5");
 }
 
 }  // namespace linebake

@@ -22,10 +22,10 @@ LineContentHash::LineContentHash(const LineSet& header, const LinePiece& piece) 
   vertex_attributes_ = header.attributes.size();
   for (size_t i = 0; i < names_.size(); ++i) {
     // Where this piece's bytes of the array start in the whole array.
-    const uint64_t first = i == 0                         ? 12 * piece.first_point
-                           : i == 1                       ? 8 * (piece.first_line + !piece.first)
+    const uint64_t first = i == 0                       ? 12 * piece.first_point
+                           : i == 1                     ? 8 * (piece.first_line + !piece.first)
                            : i < 2 + vertex_attributes_ ? 4 * piece.first_point
-                                                          : 4 * piece.first_line;
+                                                        : 4 * piece.first_line;
     arrays_.push_back(piece.shared ? std::make_unique<BlockHasher>(BlockHasher::Piece{first})
                                    : std::make_unique<BlockHasher>());
   }
@@ -58,8 +58,8 @@ void LineContentHash::add(const LineSet& batch) {
         batch.line_attributes[a].values.size(), sizeof(float));
 }
 
-std::string LineContentHash::hex_of(const std::vector<std::string>& names,
-                                    size_t vertex_attributes, const std::vector<uint64_t>& counts,
+std::string LineContentHash::hex_of(const std::vector<std::string>& names, size_t vertex_attributes,
+                                    const std::vector<uint64_t>& counts,
                                     const std::vector<std::string>& array_hashes) {
   Hasher h;
   h.update(std::string_view("linebake line set 3"));

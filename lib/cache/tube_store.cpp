@@ -67,8 +67,7 @@ void TubeStoreSink::State::open_chunk(size_t c, const TubeChunkPlan& chunk_plan)
   positions.emplace(cache->stream<float>(g + "/positions", plan.vertices, 3));
   normals.emplace(float_normals ? cache->stream<float>(g + "/normals", plan.vertices, 3)
                                 : cache->stream<int16_t>(g + "/normals_oct", plan.vertices, 2));
-  if (attribute)
-    attribute_values.emplace(cache->stream<uint16_t>(g + "/attribute", plan.vertices));
+  if (attribute) attribute_values.emplace(cache->stream<uint16_t>(g + "/attribute", plan.vertices));
   indices.emplace(cache->stream<uint32_t>(g + "/indices", plan.indices / 3, 3));
 }
 
@@ -79,8 +78,8 @@ TubeStoreSink::TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh,
   State& s = *state_;
   for (size_t c = 0; c < plan.size(); ++c) {
     s.open_chunk(c, plan[c]);
-    State::Chunk chunk{std::move(s.positions), std::move(s.normals),
-                       std::move(s.attribute_values), std::move(s.indices), plan[c]};
+    State::Chunk chunk{std::move(s.positions), std::move(s.normals), std::move(s.attribute_values),
+                       std::move(s.indices), plan[c]};
     if (c >= first_chunk && c <= last_chunk) {
       const uint64_t v = c == first_chunk ? first_vertices : 0;
       const uint64_t i = c == first_chunk ? first_indices : 0;
@@ -138,16 +137,14 @@ void TubeStoreSink::written(size_t c) {
   auto& indices = s.all.empty() ? s.indices : s.all[c].indices;
   if (s.attribute)
     append_together({rows_of(*positions, s.positions_buffer.data(), s.piece_vertices),
-                     s.float_normals
-                         ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
-                         : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
+                     s.float_normals ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
+                                     : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
                      rows_of(*attribute_values, s.attribute_buffer.data(), s.piece_vertices),
                      rows_of(*indices, s.index_buffer.data(), s.piece_indices / 3)});
   else
     append_together({rows_of(*positions, s.positions_buffer.data(), s.piece_vertices),
-                     s.float_normals
-                         ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
-                         : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
+                     s.float_normals ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
+                                     : rows_of(*normals, s.oct_buffer.data(), s.piece_vertices),
                      rows_of(*indices, s.index_buffer.data(), s.piece_indices / 3)});
 }
 

@@ -62,9 +62,9 @@ class BlockHasher {
   void finish_block();
   uint64_t first_ = 0, next_ = 0;  // stream offsets of the first byte and the next one
   bool piece_ = false;
-  std::string head_;               // bytes before the piece's first block boundary
-  std::string digests_;            // 16 bytes per whole block after that boundary
-  std::string tail_;               // bytes of the block in progress (not yet whole)
+  std::string head_;     // bytes before the piece's first block boundary
+  std::string digests_;  // 16 bytes per whole block after that boundary
+  std::string tail_;     // bytes of the block in progress (not yet whole)
   struct State;
   std::unique_ptr<State> block_;  // the block in progress, hashed as it arrives
 };

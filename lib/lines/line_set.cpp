@@ -164,7 +164,8 @@ LineSetStats merge(const LineSetStats& a, const LineSetStats& b) {
     }
   }
   for (size_t i = 0; i < s.attribute_ranges.size(); ++i)
-    s.attribute_ranges[i].second = merge(a.attribute_ranges[i].second, b.attribute_ranges[i].second);
+    s.attribute_ranges[i].second =
+        merge(a.attribute_ranges[i].second, b.attribute_ranges[i].second);
   for (size_t i = 0; i < s.line_attribute_ranges.size(); ++i)
     s.line_attribute_ranges[i].second =
         merge(a.line_attribute_ranges[i].second, b.line_attribute_ranges[i].second);

@@ -73,8 +73,8 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 
 LinesIdentity lines_identity(const BakeOptions& options) {
   LinesIdentity id;
-  id.source_hash =
-      source_hash(options.inputs.empty() ? std::vector<std::string>{options.input} : options.inputs);
+  id.source_hash = source_hash(options.inputs.empty() ? std::vector<std::string>{options.input}
+                                                      : options.inputs);
   id.format = options.format ? format_info(*options.format).name : "auto";
   id.policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
   id.key = key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy});

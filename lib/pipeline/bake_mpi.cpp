@@ -4,9 +4,9 @@
 #include <tbb/info.h>
 
 #include <algorithm>
-#include <cstring>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <numeric>
@@ -240,8 +240,16 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
                                        : options.cache;
   if (result.cache.empty()) throw Error("several inputs make one line set: name its cache with -o");
+  // The default: half of the node's memory, shared by the ranks on this node.
+  int ranks_on_node = 1;
+  {
+    MPI_Comm node;
+    MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, ranks.rank, MPI_INFO_NULL, &node);
+    MPI_Comm_size(node, &ranks_on_node);
+    MPI_Comm_free(&node);
+  }
   const uint64_t budget_bytes = options.memory_budget == BakeOptions::kDefaultBudget
-                                    ? default_memory_budget() / uint64_t(ranks.size)
+                                    ? default_memory_budget() / uint64_t(ranks_on_node)
                                 : options.memory_budget == BakeOptions::kUnlimited
                                     ? 0
                                     : options.memory_budget;
@@ -253,8 +261,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   ranks.agree([&] {
     if (ranks.rank != 0) return;
     if (!synth::is_synth_source(inputs[0])) refuse_input_as_output(result.cache, inputs);
-    if (std::filesystem::exists(result.cache) && !options.force &&
-        !is_linebake_cache(result.cache))
+    if (std::filesystem::exists(result.cache) && !options.force && !is_linebake_cache(result.cache))
       throw OutputError(result.cache, "exists and is not a linebake cache; --force replaces it");
     remove_stale_temporaries(result.cache);
     temp = temporary_name(result.cache);
@@ -285,8 +292,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const auto read_start = std::chrono::steady_clock::now();
   MemoryBudget budget(budget_bytes);
   const uint64_t batch_points =
-      budget.unlimited() ? uint64_t{1} << 21
-                         : std::clamp<uint64_t>(budget.available() / 4 / 200, 1024, uint64_t{1} << 21);
+      budget.unlimited()
+          ? uint64_t{1} << 21
+          : std::clamp<uint64_t>(budget.available() / 4 / 200, 1024, uint64_t{1} << 21);
   result.batch_points = batch_points;
   std::optional<LineSpool> spool;
   LineStatsBuilder local_stats(header);
@@ -299,8 +307,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     std::string where;
     TerminalProgress progress("reading " + options.input);
     uint64_t lines_done = 0;
-    const uint64_t lines_total = std::accumulate(lines_per_file.begin(), lines_per_file.end(),
-                                                 uint64_t{0});
+    const uint64_t lines_total =
+        std::accumulate(lines_per_file.begin(), lines_per_file.end(), uint64_t{0});
     while (reader.next(batch, batch_points, where)) {
       throw_if_interrupted();
       lines_done += batch.line_count();
@@ -423,8 +431,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
 
     // Pass 2: the tubes, planned from every rank's kept points.
     if (tubes) {
-      tubes->plan_kept(allgather_counts(ranks, kept),
-                       ranks.sum(std::vector<uint64_t>{skipped})[0]);
+      tubes->plan_kept(allgather_counts(ranks, kept), ranks.sum(std::vector<uint64_t>{skipped})[0]);
       const std::vector<TubeChunkPlan>& plan = tubes->finish_plan();
       const auto first = tubes->position_of(piece.first_line);
       const auto last = tubes->position_of(piece.first_line + std::max<uint64_t>(my_lines, 1) - 1);
@@ -442,8 +449,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       }
       Provenance p;
       finish(p, "tubes");
-      p.key = tubes_key(lines_hash, options.tubes, options.compression,
-                        options.compression_level);
+      p.key = tubes_key(lines_hash, options.tubes, options.compression, options.compression_level);
       p.input_hash = lines_hash;
       p.parameters = to_json(options.tubes);
       const TubeMesh& mesh = tubes->description();
@@ -460,13 +466,13 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       // Every rank's figures, and the imbalance of the build (max / mean).
       mine.build_s = seconds_since(build_start);
       mine.bytes = writer.bytes_written();
-      const auto all = ranks.allgather(nlohmann::json{{"rank", mine.rank},
-                                                      {"lines", mine.lines},
-                                                      {"points", mine.points},
-                                                      {"read_s", mine.read_s},
-                                                      {"build_s", mine.build_s},
-                                                      {"bytes", mine.bytes}}
-                                           .dump());
+      const auto all = ranks.allgather(nlohmann::json{
+          {"rank", mine.rank},
+          {"lines", mine.lines},
+          {"points", mine.points},
+          {"read_s", mine.read_s},
+          {"build_s", mine.build_s},
+          {"bytes", mine.bytes}}.dump());
       nlohmann::json list = nlohmann::json::array();
       double max_s = 0, sum_s = 0;
       for (const std::string& r : all) {
