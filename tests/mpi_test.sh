@@ -46,6 +46,15 @@ check "asking linebake-mpi for voxels fails, saying how to get them" bash -c "
   mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --assets voxels > v.txt 2>&1
   [ \$? -ne 0 ] && grep -q 'serial linebake' v.txt && [ ! -e v.lbc.h5 ]"
 
+# More ranks than lines: two lines on three ranks leave one rank with nothing to write.
+printf 'line_id,x,y,z\n0,0,0,0\n0,1,0,0\n0,1,1,0\n1,0,0,1\n1,0,1,1\n1,1,1,2\n' > two.csv
+"$bin" bake two.csv -o two-serial.lbc.h5 >/dev/null 2>&1
+check "three ranks, two lines: the serial bake's datasets" bash -c "
+  mpirun -np 3 '$mpi' bake two.csv -o two-mpi.lbc.h5 > /dev/null &&
+  diff <(h5dump -A two-serial.lbc.h5 | grep -A12 xxh3_128_blocks) \
+       <(h5dump -A two-mpi.lbc.h5 | grep -A12 xxh3_128_blocks) > /dev/null &&
+  [ \$(h5dump -A two-mpi.lbc.h5 | grep -c xxh3_128_blocks) -ge 5 ]"
+
 # Rank 1 of 2 reads the end of the input: part_3 is cut short there.
 mkdir bad
 cp run/* bad/

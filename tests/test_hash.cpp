@@ -89,3 +89,39 @@ TEST(BlockHasher, PiecesCombineToTheWholeStreamsHash) {
 
 }  // namespace
 }  // namespace linebake
+
+namespace linebake {
+namespace {
+
+TEST(BlockHasher, JoiningPiecesInAnyGroupingGivesTheSameHash) {
+  const size_t MiB = size_t{1} << 20;
+  const std::string bytes = random_bytes(4 * MiB + 99, 5);
+  const std::string expected = expected_block_hash(bytes);
+  // Eight pieces, some shorter than a block, joined pairwise as a binomial tree does, and in
+  // another grouping.
+  const std::vector<size_t> cuts = {0,           10,          MiB / 3,     MiB / 3 + 1, 2 * MiB,
+                                    2 * MiB + 7, 3 * MiB - 5, 4 * MiB + 1, bytes.size()};
+  std::vector<std::string> pieces;
+  for (size_t i = 0; i + 1 < cuts.size(); ++i) {
+    BlockHasher p(BlockHasher::Piece{cuts[i]});
+    p.update(bytes.data() + cuts[i], cuts[i + 1] - cuts[i]);
+    pieces.push_back(p.piece());
+  }
+  std::vector<std::string> level = pieces;
+  while (level.size() > 1) {
+    std::vector<std::string> next;
+    for (size_t i = 0; i < level.size(); i += 2)
+      next.push_back(i + 1 < level.size() ? join_block_hash_pieces({level[i], level[i + 1]})
+                                          : level[i]);
+    level = next;
+  }
+  EXPECT_EQ(finish_block_hash(level[0]), expected);
+  const std::string left = join_block_hash_pieces({pieces[0], pieces[1], pieces[2]});
+  const std::string right = join_block_hash_pieces({pieces[3], pieces[4], pieces[5], pieces[6]});
+  EXPECT_EQ(finish_block_hash(join_block_hash_pieces({left, right, pieces[7]})), expected);
+  // A joined piece that does not start the stream cannot be finished.
+  EXPECT_THROW(finish_block_hash(right), Error);
+}
+
+}  // namespace
+}  // namespace linebake

@@ -455,18 +455,21 @@ uint64_t DatasetStream::close() {
   if (s.closed) s.fail("closed twice");
   std::string hash;
   if (s.parallel) {
-    // Collective: every rank's count and piece of the hash.
+    // Collective: the ranks' row counts add up, their pieces of the hash join up a tree.
     if (!s.buffered.empty()) s.fail("closed with rows not yet written (write_round)");
     if (!s.piece) s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{0});
-    const auto pieces = s.writer->parallel_->allgather(s.piece->piece());
-    const auto counts = s.writer->parallel_->allgather(std::to_string(s.written));
-    uint64_t total = 0;
-    for (const std::string& c : counts) total += std::stoull(c);
+    const ParallelWrite& p = *s.writer->parallel_;
+    const uint64_t total = p.sum(s.written);
     if (total != s.rows)
       s.fail("the ranks wrote " + std::to_string(total) + " of " + std::to_string(s.rows) +
              " rows");
     try {
-      hash = combine_block_hashes(pieces);
+      hash = p.reduce(
+          s.piece->piece(),
+          [](const std::string& a, const std::string& b) {
+            return join_block_hash_pieces({a, b});
+          },
+          [](const std::string& whole) { return finish_block_hash(whole); });
     } catch (const Error& e) {
       s.fail(std::string("the ranks' rows do not join: ") + e.what());
     }
@@ -561,13 +564,11 @@ void CacheWriter::write_round() {
   if (!parallel_) return;
   throw_if_interrupted();
   // Which datasets have rows on any rank: a collective write for those only.
-  std::string mine(open_.size(), '\0');
-  for (size_t i = 0; i < open_.size(); ++i) mine[i] = char(!open_[i]->buffered.empty());
-  const std::vector<std::string> all = parallel_->allgather(mine);
+  std::string any(open_.size(), '\0');
+  for (size_t i = 0; i < open_.size(); ++i) any[i] = char(!open_[i]->buffered.empty());
+  parallel_->any(any);
   for (size_t i = 0; i < open_.size(); ++i) {
-    bool any = false;
-    for (const std::string& rank : all) any |= i < rank.size() && rank[i];
-    if (!any) continue;
+    if (!any[i]) continue;
     DatasetStream::State& s = *open_[i];
     const uint64_t rows = s.buffered.size() / s.row_bytes;
     Handle file_space(H5Dget_space(s.dataset), H5Sclose);

@@ -65,8 +65,18 @@ struct ParallelWrite {
   hid_t dxpl = -1;        // collective transfer (H5Pset_dxpl_mpio)
   std::string temp_path;  // the temporary file, the same on every rank
   bool owner = false;     // this rank renames it on commit (rank 0) or removes it on failure
-  // Every rank's string, in rank order, on every rank (MPI_Allgatherv).
-  std::function<std::vector<std::string>(const std::string&)> allgather;
+  // The collectives, none of which sends a rank more than a few of its neighbours' pieces:
+  // the byte-wise OR of every rank's bytes (all of one length), on every rank;
+  std::function<void(std::string& bytes)> any;
+  // the sum over the ranks, on every rank;
+  std::function<uint64_t(uint64_t)> sum;
+  // every rank's string joined in rank order by `join` (associative) up a tree of ranks,
+  // `finish` applied to the whole on one rank, and its result on every rank (an Error thrown by
+  // `finish` is thrown on every rank).
+  using Join = std::function<std::string(const std::string& first, const std::string& second)>;
+  using Finish = std::function<std::string(const std::string& whole)>;
+  std::function<std::string(const std::string& mine, const Join& join, const Finish& finish)>
+      reduce;
 };
 
 // One append of `rows` rows of `element`-byte values (see append_together).

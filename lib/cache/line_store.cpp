@@ -75,46 +75,85 @@ std::string LineContentHash::hex() const {
   return hex_of(names_, vertex_attributes_, counts_, hashes);
 }
 
-// A piece: per array, its value count and its BlockHasher piece, each length-prefixed.
-std::string LineContentHash::piece() const {
-  std::string out;
-  const auto put = [&](uint64_t v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
-  put(names_.size());
-  for (size_t i = 0; i < names_.size(); ++i) {
-    const std::string p = arrays_[i]->piece();
-    put(counts_[i]);
-    put(p.size());
-    out += p;
+namespace {
+
+// A piece's arrays: value counts and block hash pieces.
+struct ArrayPieces {
+  std::vector<uint64_t> counts;
+  std::vector<std::string> pieces;
+};
+
+ArrayPieces parse_pieces(const std::string& text) {
+  ArrayPieces out;
+  size_t at = 0;
+  const auto get = [&] {
+    uint64_t v = 0;
+    if (at + sizeof v > text.size()) throw Error("line content hash piece is truncated");
+    std::memcpy(&v, text.data() + at, sizeof v);
+    at += sizeof v;
+    return v;
+  };
+  const uint64_t arrays = get();
+  for (uint64_t i = 0; i < arrays; ++i) {
+    out.counts.push_back(get());
+    const uint64_t n = get();
+    if (n > text.size() - at) throw Error("line content hash piece is truncated");
+    out.pieces.push_back(text.substr(at, n));
+    at += n;
   }
   return out;
 }
 
+std::string serialise_pieces(const ArrayPieces& a) {
+  std::string out;
+  const auto put = [&](uint64_t v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  put(a.pieces.size());
+  for (size_t i = 0; i < a.pieces.size(); ++i) {
+    put(a.counts[i]);
+    put(a.pieces[i].size());
+    out += a.pieces[i];
+  }
+  return out;
+}
+
+}  // namespace
+
+// A piece: per array, its value count and its BlockHasher piece, each length-prefixed.
+std::string LineContentHash::piece() const {
+  ArrayPieces a;
+  a.counts = counts_;
+  for (const auto& array : arrays_) a.pieces.push_back(array->piece());
+  return serialise_pieces(a);
+}
+
+std::string LineContentHash::join(const std::string& first, const std::string& second) {
+  ArrayPieces a = parse_pieces(first);
+  const ArrayPieces b = parse_pieces(second);
+  if (a.pieces.size() != b.pieces.size())
+    throw Error("line content hash pieces of different line sets");
+  for (size_t i = 0; i < a.pieces.size(); ++i) {
+    a.counts[i] += b.counts[i];
+    a.pieces[i] = join_block_hash_pieces({a.pieces[i], b.pieces[i]});
+  }
+  return serialise_pieces(a);
+}
+
+std::string LineContentHash::finish(const LineSet& header, const std::string& whole) {
+  const std::vector<std::string> names = array_names(header);
+  const ArrayPieces a = parse_pieces(whole);
+  if (a.pieces.size() != names.size())
+    throw Error("line content hash pieces of different line sets");
+  std::vector<std::string> hashes;
+  for (const std::string& p : a.pieces) hashes.push_back(finish_block_hash(p));
+  return hex_of(names, header.attributes.size(), a.counts, hashes);
+}
+
 std::string LineContentHash::combine(const LineSet& header,
                                      const std::vector<std::string>& pieces) {
-  const std::vector<std::string> names = array_names(header);
-  std::vector<uint64_t> counts(names.size(), 0);
-  std::vector<std::vector<std::string>> arrays(names.size());
-  for (const std::string& text : pieces) {
-    size_t at = 0;
-    const auto get = [&] {
-      uint64_t v = 0;
-      if (at + sizeof v > text.size()) throw Error("line content hash piece is truncated");
-      std::memcpy(&v, text.data() + at, sizeof v);
-      at += sizeof v;
-      return v;
-    };
-    if (get() != names.size()) throw Error("line content hash pieces of different line sets");
-    for (size_t i = 0; i < names.size(); ++i) {
-      counts[i] += get();
-      const uint64_t n = get();
-      if (n > text.size() - at) throw Error("line content hash piece is truncated");
-      arrays[i].push_back(text.substr(at, n));
-      at += n;
-    }
-  }
-  std::vector<std::string> hashes;
-  for (const auto& a : arrays) hashes.push_back(combine_block_hashes(a));
-  return hex_of(names, header.attributes.size(), counts, hashes);
+  if (pieces.empty()) throw Error("no line content hash pieces");
+  std::string whole = pieces[0];
+  for (size_t i = 1; i < pieces.size(); ++i) whole = join(whole, pieces[i]);
+  return finish(header, whole);
 }
 
 std::string content_hash(const LineSet& lines) {

@@ -28,6 +28,10 @@ class LineContentHash {
   // One rank's share, serialised; combine() makes the whole set's hash from every rank's.
   std::string piece() const;
   static std::string combine(const LineSet& header, const std::vector<std::string>& pieces);
+  // combine() in steps, for a reduction over a tree of ranks: two adjacent pieces joined (the
+  // first's lines before the second's), and the hash of the joined whole.
+  static std::string join(const std::string& first, const std::string& second);
+  static std::string finish(const LineSet& header, const std::string& whole);
   ~LineContentHash();
   void add(const LineSet& batch);
   std::string hex() const;

@@ -160,52 +160,92 @@ std::string BlockHasher::hex() const {
   return to_hex(XXH3_128bits(digests.data(), digests.size()));
 }
 
-std::string combine_block_hashes(const std::vector<std::string>& pieces) {
-  struct Piece {
-    uint64_t first;
-    std::string head, digests, tail;
-  };
-  std::vector<Piece> parsed;
+namespace {
+
+struct ParsedPiece {
+  uint64_t first = 0;
+  std::string head, digests, tail;
+};
+
+ParsedPiece parse_piece(const std::string& text) {
+  size_t at = 0;
+  ParsedPiece p;
+  p.first = get_u64(text, at);
+  p.head = get_bytes(text, at);
+  p.digests = get_bytes(text, at);
+  p.tail = get_bytes(text, at);
+  if (p.digests.size() % 16) throw Error("block hash piece is damaged");
+  return p;
+}
+
+std::string serialise(const ParsedPiece& p) {
+  std::string out;
+  put_u64(out, p.first);
+  put_u64(out, p.head.size());
+  out += p.head;
+  put_u64(out, p.digests.size());
+  out += p.digests;
+  put_u64(out, p.tail.size());
+  out += p.tail;
+  return out;
+}
+
+}  // namespace
+
+std::string join_block_hash_pieces(const std::vector<std::string>& pieces) {
+  std::vector<ParsedPiece> parsed;
   for (const std::string& text : pieces) {
-    size_t at = 0;
-    Piece p;
-    p.first = get_u64(text, at);
-    p.head = get_bytes(text, at);
-    p.digests = get_bytes(text, at);
-    p.tail = get_bytes(text, at);
-    if (p.digests.size() % 16) throw Error("block hash piece is damaged");
+    ParsedPiece p = parse_piece(text);
     if (!p.head.empty() || !p.digests.empty() || !p.tail.empty()) parsed.push_back(std::move(p));
   }
   std::sort(parsed.begin(), parsed.end(),
-            [](const Piece& a, const Piece& b) { return a.first < b.first; });
-  std::string digests, block;  // the whole stream's digests; the block being joined from pieces
-  uint64_t at = 0;
+            [](const ParsedPiece& a, const ParsedPiece& b) { return a.first < b.first; });
+  ParsedPiece out;
+  if (parsed.empty()) return serialise(out);
+  out.first = parsed.front().first;
   const uint64_t B = BlockHasher::kBlockBytes;
+  std::string block;  // raw bytes since the last block boundary
+  uint64_t at = out.first;
   const auto add_raw = [&](const std::string& bytes) {
     for (size_t i = 0; i < bytes.size();) {
-      const size_t take = std::min<size_t>(bytes.size() - i, B - block.size());
+      const size_t take = std::min<size_t>(bytes.size() - i, B - at % B);
       block.append(bytes, i, take);
       i += take;
       at += take;
-      if (block.size() == B) {
-        put_digest(digests, XXH3_128bits(block.data(), block.size()));
-        block.clear();
-      }
+      if (at % B != 0) continue;
+      if (block.size() == B)  // a whole block: its digest
+        put_digest(out.digests, XXH3_128bits(block.data(), block.size()));
+      else  // the end of a block that began before the joined pieces: theirs to share
+        out.head = block;
+      block.clear();
     }
   };
-  for (const Piece& p : parsed) {
+  for (const ParsedPiece& p : parsed) {
     if (p.first != at)
       throw Error("block hash pieces leave a gap or overlap at byte " + std::to_string(at));
     add_raw(p.head);
     if (!p.digests.empty()) {
-      if (!block.empty()) throw Error("block hash piece is not aligned");
-      digests += p.digests;
+      if (!block.empty() || at % B != 0) throw Error("block hash piece is not aligned");
+      out.digests += p.digests;
       at += p.digests.size() / 16 * B;
     }
     add_raw(p.tail);
   }
-  if (!block.empty()) put_digest(digests, XXH3_128bits(block.data(), block.size()));
+  out.tail = block;
+  return serialise(out);
+}
+
+std::string finish_block_hash(const std::string& piece) {
+  const ParsedPiece p = parse_piece(piece);
+  if (p.first != 0 || !p.head.empty())
+    throw Error("block hash pieces do not start at byte 0 (byte " + std::to_string(p.first) + ")");
+  std::string digests = p.digests;
+  if (!p.tail.empty()) put_digest(digests, XXH3_128bits(p.tail.data(), p.tail.size()));
   return to_hex(XXH3_128bits(digests.data(), digests.size()));
+}
+
+std::string combine_block_hashes(const std::vector<std::string>& pieces) {
+  return finish_block_hash(join_block_hash_pieces(pieces));
 }
 
 }  // namespace linebake

@@ -72,5 +72,9 @@ class BlockHasher {
 // The hash of a stream from its pieces (BlockHasher::piece), given in any order; they must
 // cover the stream from byte 0 without gaps or overlaps (InputError otherwise).
 std::string combine_block_hashes(const std::vector<std::string>& pieces);
+// The same in steps, for a reduction over a tree of ranks: adjacent pieces joined into one
+// piece (associative: ((a b) c) = (a (b c))), and the hash of a piece that is the whole stream.
+std::string join_block_hash_pieces(const std::vector<std::string>& pieces);
+std::string finish_block_hash(const std::string& piece);
 
 }  // namespace linebake

@@ -53,6 +53,63 @@ struct Ranks {
       out.push_back(all.substr(size_t(displs[size_t(r)]), size_t(sizes[size_t(r)])));
     return out;
   }
+  void any(std::string& bytes) const {
+    MPI_Allreduce(MPI_IN_PLACE, bytes.data(), int(bytes.size()), MPI_BYTE, MPI_BOR, comm);
+  }
+  uint64_t sum(uint64_t v) const {
+    uint64_t out = 0;
+    MPI_Allreduce(&v, &out, 1, MPI_UINT64_T, MPI_SUM, comm);
+    return out;
+  }
+  void send(const std::string& text, int to) const {
+    const uint64_t n = text.size();
+    MPI_Send(&n, 1, MPI_UINT64_T, to, 0, comm);
+    MPI_Send(text.data(), int(n), MPI_CHAR, to, 1, comm);
+  }
+  std::string receive(int from) const {
+    uint64_t n = 0;
+    MPI_Recv(&n, 1, MPI_UINT64_T, from, 0, comm, MPI_STATUS_IGNORE);
+    std::string text(n, '\0');
+    MPI_Recv(text.data(), int(n), MPI_CHAR, from, 1, comm, MPI_STATUS_IGNORE);
+    return text;
+  }
+  // A binomial tree in rank order: at each level a rank takes the joined pieces of the ranks
+  // after it, so rank 0 ends with every piece joined in order; what `finish` makes of that goes
+  // to every rank, or its error does.
+  std::string reduce(std::string mine, const ParallelWrite::Join& join,
+                     const ParallelWrite::Finish& finish) const {
+    for (int step = 1; step < size; step <<= 1) {
+      if (rank % (2 * step) == 0) {
+        if (rank + step < size) mine = join(mine, receive(rank + step));
+      } else {
+        send(mine, rank - step);
+        break;
+      }
+    }
+    std::string result;
+    if (rank == 0) {
+      try {
+        result = '+' + finish(mine);
+      } catch (const std::exception& e) {
+        result = std::string("-") + e.what();
+      }
+    }
+    result = broadcast(result);
+    if (result.empty() || result[0] != '+') throw Error(result.empty() ? "" : result.substr(1));
+    return result.substr(1);
+  }
+  // Every rank's values, in rank order, on rank 0 (empty elsewhere).
+  std::vector<uint64_t> gather(const std::vector<uint64_t>& mine) const {
+    const int n = int(mine.size());
+    std::vector<int> counts(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
+    MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
+    int total = 0;
+    for (int r = 0; r < size; ++r) displs[size_t(r)] = total, total += counts[size_t(r)];
+    std::vector<uint64_t> all(rank == 0 ? size_t(total) : 0);
+    MPI_Gatherv(mine.data(), n, MPI_UINT64_T, all.data(), counts.data(), displs.data(),
+                MPI_UINT64_T, 0, comm);
+    return all;
+  }
   std::string broadcast(std::string text, int root = 0) const {
     uint64_t n = text.size();
     MPI_Bcast(&n, 1, MPI_UINT64_T, root, comm);
@@ -204,18 +261,6 @@ LineSetStats stats_from(const std::string& text) {
   return s;
 }
 
-// A rank's vector of counts, every rank's in rank order, concatenated.
-std::vector<uint64_t> allgather_counts(const Ranks& ranks, const std::vector<uint64_t>& mine) {
-  const std::string bytes(reinterpret_cast<const char*>(mine.data()), mine.size() * 8);
-  std::vector<uint64_t> all;
-  for (const std::string& part : ranks.allgather(bytes)) {
-    const size_t at = all.size();
-    all.resize(at + part.size() / 8);
-    std::memcpy(all.data() + at, part.data(), part.size());
-  }
-  return all;
-}
-
 }  // namespace
 
 BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
@@ -330,13 +375,12 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
 
   // The whole set's figures, and where this rank's lines and points start in it.
   LineSetStats stats;
-  {
-    const auto all = ranks.allgather(stats_json(local_stats.stats()).dump());
-    for (int r = 0; r < ranks.size; ++r) {
-      const LineSetStats s = stats_from(all[size_t(r)]);
-      stats = r == 0 ? s : merge(stats, s);
-    }
-  }
+  stats = stats_from(ranks.reduce(
+      stats_json(local_stats.stats()).dump(),
+      [](const std::string& a, const std::string& b) {
+        return stats_json(merge(stats_from(a), stats_from(b))).dump();
+      },
+      [](const std::string& whole) { return whole; }));
   if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
   LinePiece piece;
   piece.first_line = ranks.exclusive_sum(local_stats.stats().lines);
@@ -374,7 +418,12 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     parallel.dxpl = dxpl;
     parallel.temp_path = temp;
     parallel.owner = ranks.rank == 0;
-    parallel.allgather = [&](const std::string& s) { return ranks.allgather(s); };
+    parallel.any = [&](std::string& bytes) { ranks.any(bytes); };
+    parallel.sum = [&](uint64_t v) { return ranks.sum(v); };
+    parallel.reduce = [&](const std::string& piece_here, const ParallelWrite::Join& join,
+                          const ParallelWrite::Finish& finish) {
+      return ranks.reduce(piece_here, join, finish);
+    };
     CacheWriter writer(result.cache, options.compression, options.compression_level, parallel);
 
     const LinesIdentity identity = lines_identity(options);
@@ -404,7 +453,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         if (show) progress.update(round + 1, rounds);
       }
     }
-    const std::string lines_hash = LineContentHash::combine(header, ranks.allgather(hash.piece()));
+    const std::string lines_hash = ranks.reduce(
+        hash.piece(), LineContentHash::join,
+        [&](const std::string& whole) { return LineContentHash::finish(header, whole); });
     // Provenance: rank 0's figures, the same bytes on every rank (attributes are collective).
     const auto finish = [&](Provenance& p, const std::string& step) {
       p.step = step;
@@ -431,13 +482,44 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
 
     // Pass 2: the tubes, planned from every rank's kept points.
     if (tubes) {
-      tubes->plan_kept(allgather_counts(ranks, kept), ranks.sum(std::vector<uint64_t>{skipped})[0]);
-      const std::vector<TubeChunkPlan>& plan = tubes->finish_plan();
-      const auto first = tubes->position_of(piece.first_line);
-      const auto last = tubes->position_of(piece.first_line + std::max<uint64_t>(my_lines, 1) - 1);
-      TubeStoreSink sink(writer, tubes->description(), plan, first.chunk, first.vertices,
-                         first.indices, my_lines ? last.chunk : 0);
-      if (my_lines) tubes->start_at(piece.first_line);
+      // Rank 0 plans the chunks from every rank's kept points (the one copy of 8 bytes per
+      // line) and tells each rank where its rows start; the plan itself is a few chunks.
+      const std::vector<uint64_t> all_kept = ranks.gather(kept);
+      const std::vector<uint64_t> firsts = ranks.gather({piece.first_line, my_lines});
+      std::string plan_bytes, error;
+      std::vector<uint64_t> places;  // per rank: first chunk, vertices, indices, last chunk
+      uint64_t totals[3] = {stats.lines, 0, 0};  // lines, dropped, skipped
+      const uint64_t skipped_all = ranks.sum(skipped);
+      if (ranks.rank == 0) {
+        try {
+          tubes->plan_kept(all_kept, skipped_all);
+          const std::vector<TubeChunkPlan>& chunks = tubes->finish_plan();
+          plan_bytes.assign(reinterpret_cast<const char*>(chunks.data()),
+                            chunks.size() * sizeof(TubeChunkPlan));
+          for (int r = 0; r < ranks.size; ++r) {
+            const uint64_t first = firsts[2 * size_t(r)], count = firsts[2 * size_t(r) + 1];
+            const auto p = tubes->position_of(first);
+            places.insert(places.end(), {p.chunk, p.vertices, p.indices,
+                                         count ? tubes->position_of(first + count - 1).chunk : 0});
+          }
+          totals[1] = tubes->description().lines_dropped;
+          totals[2] = tubes->description().points_skipped;
+        } catch (const std::exception& e) {
+          error = e.what();
+        }
+      }
+      error = ranks.broadcast(error);
+      if (!error.empty()) throw Error(error);  // every rank alike: no line has two points
+      plan_bytes = ranks.broadcast(plan_bytes);
+      MPI_Bcast(totals, 3, MPI_UINT64_T, 0, comm);
+      uint64_t place[4] = {};
+      MPI_Scatter(places.data(), 4, MPI_UINT64_T, place, 4, MPI_UINT64_T, 0, comm);
+      std::vector<TubeChunkPlan> plan(plan_bytes.size() / sizeof(TubeChunkPlan));
+      std::memcpy(plan.data(), plan_bytes.data(), plan_bytes.size());
+      tubes->adopt_plan(plan, totals[0], totals[1], totals[2], std::move(kept), piece.first_line,
+                        {size_t(place[0]), place[1], place[2]});
+      TubeStoreSink sink(writer, tubes->description(), plan, size_t(place[0]), place[1], place[2],
+                         my_lines ? size_t(place[3]) : 0);
       TerminalProgress progress("building tubes");
       auto replay = spool->replay();
       LineSet batch;

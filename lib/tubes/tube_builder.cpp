@@ -7,6 +7,7 @@
 #include <cmath>
 #include <glm/glm.hpp>
 #include <numbers>
+#include <optional>
 
 #include "core/error.hpp"
 
@@ -89,6 +90,12 @@ struct TubeStreamBuilder::State {
   std::vector<uint64_t> kept;
   std::vector<TubeChunkPlan> chunks;
   bool planned = false;
+  // A process building part of the set (adopt_plan) holds the kept points of its lines only:
+  // kept[0] is line kept_base; total_lines counts the whole set's.
+  uint64_t kept_base = 0;
+  std::optional<uint64_t> adopted_lines;
+  uint64_t total_lines() const { return adopted_lines ? *adopted_lines : kept.size(); }
+  uint64_t kept_of(uint64_t line) const { return kept[line - kept_base]; }
   // Build: the next line, its chunk, and where in that chunk the next line starts.
   uint64_t next_line = 0;
   size_t chunk = 0;
@@ -395,6 +402,25 @@ TubeStreamBuilder::Position TubeStreamBuilder::position_of(uint64_t line) const 
   return p;
 }
 
+void TubeStreamBuilder::adopt_plan(std::vector<TubeChunkPlan> chunks, uint64_t total_lines,
+                                   uint64_t lines_dropped, uint64_t points_skipped,
+                                   std::vector<uint64_t> kept, uint64_t first_line,
+                                   const Position& start) {
+  State& s = *state_;
+  s.chunks = std::move(chunks);
+  s.adopted_lines = total_lines;
+  s.mesh.lines_dropped = lines_dropped;
+  s.mesh.points_skipped = points_skipped;
+  s.kept = std::move(kept);
+  s.kept_base = first_line;
+  s.planned = true;
+  s.next_line = first_line;
+  s.chunk = start.chunk;
+  s.chunk_open = true;  // begun by the process before this one, or begun here at its start
+  s.chunk_vertices = start.vertices;
+  s.chunk_indices = start.indices;
+}
+
 void TubeStreamBuilder::start_at(uint64_t first_line) {
   State& s = *state_;
   const Position p = position_of(first_line);
@@ -450,7 +476,7 @@ void TubeStreamBuilder::build(const LineSet& batch, TubeSink& sink) {
   State& s = *state_;
   if (!s.planned) throw Error("tubes: build() before finish_plan()");
   const size_t count = batch.line_count();
-  if (s.next_line + count > s.kept.size())
+  if (s.next_line + count > s.kept_base + s.kept.size())
     throw Error("tubes: the build pass sees more lines than the plan");
   size_t line = 0;
   while (line < count) {
@@ -471,7 +497,7 @@ void TubeStreamBuilder::build(const LineSet& batch, TubeSink& sink) {
     s.placement.resize(end - line);
     uint64_t vertices = 0, indices = 0;
     for (size_t l = line; l < end; ++l) {
-      const uint64_t k = s.kept[s.next_line + l];
+      const uint64_t k = s.kept_of(s.next_line + l);
       s.placement[l - line] = {vertices, indices, s.chunk_vertices + vertices};
       if (k) {
         vertices += s.layout.vertices(k);
@@ -483,7 +509,8 @@ void TubeStreamBuilder::build(const LineSet& batch, TubeSink& sink) {
       tbb::parallel_for(tbb::blocked_range<size_t>(line, end, 64), [&](auto range) {
         Scratch scratch;
         for (size_t l = range.begin(); l != range.end(); ++l)
-          if (s.kept[s.next_line + l]) s.write_line(batch, l, s.placement[l - line], out, scratch);
+          if (s.kept_of(s.next_line + l))
+            s.write_line(batch, l, s.placement[l - line], out, scratch);
       });
       sink.written(s.chunk);
     }
@@ -492,7 +519,7 @@ void TubeStreamBuilder::build(const LineSet& batch, TubeSink& sink) {
     line = end;
   }
   s.next_line += count;
-  if (s.next_line == s.kept.size() && s.chunk_open) {
+  if (s.next_line == s.total_lines() && s.chunk_open) {
     sink.end_chunk(s.chunk);
     s.chunk_open = false;
   }

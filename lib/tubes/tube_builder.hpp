@@ -94,6 +94,13 @@ class TubeStreamBuilder {
     uint64_t vertices = 0, indices = 0;
   };
   Position position_of(uint64_t line) const;
+  // Instead of planning: the plan one process made (finish_plan() there, with the whole set's
+  // dropped lines and skipped points), and the kept points of this process's lines only, from
+  // `first_line`, whose build() starts at `start` (position_of(first_line) there). Only the
+  // planning process holds 8 bytes per line of the whole set.
+  void adopt_plan(std::vector<TubeChunkPlan> chunks, uint64_t total_lines, uint64_t lines_dropped,
+                  uint64_t points_skipped, std::vector<uint64_t> kept, uint64_t first_line,
+                  const Position& start);
   // After the last plan(): the chunks. Throws Error when no line has two distinct points.
   const std::vector<TubeChunkPlan>& finish_plan();
   void build(const LineSet& batch, TubeSink& sink);
