@@ -1,5 +1,6 @@
 // linebake-mpi: `bake` on MPI ranks, writing one cache through parallel HDF5 (docs/mpi.md).
 // Run as `mpirun -np N linebake-mpi bake INPUT... -o CACHE`; the options are linebake bake's.
+#include <malloc.h>
 #include <mpi.h>
 
 #include <cstdio>
@@ -14,6 +15,11 @@
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
+  // HDF5's collective filtered writes allocate and free a buffer per chunk (1 MiB): above glibc's
+  // mmap threshold each one is a fresh mapping, its pages faulted in and zeroed again. Kept in
+  // the heap instead, they are reused (clouds at scale 0.25 on one rank: about 20 % faster).
+  mallopt(M_MMAP_THRESHOLD, 64 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
   int provided = 0;
   // TBB's workers never call MPI: only the main thread does.
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
