@@ -568,6 +568,9 @@ void CacheWriter::write_round() {
   for (size_t i = 0; i < open_.size(); ++i) any[i] = char(!open_[i]->buffered.empty());
   parallel_->any(any);
   for (size_t i = 0; i < open_.size(); ++i) {
+    // A dataset this rank sent nothing this round is most likely done with here (a tube chunk
+    // left behind): its buffer goes, so only the datasets in use hold one.
+    if (open_[i]->buffered.empty()) std::vector<char>().swap(open_[i]->buffered);
     if (!any[i]) continue;
     DatasetStream::State& s = *open_[i];
     const uint64_t rows = s.buffered.size() / s.row_bytes;
