@@ -65,6 +65,10 @@ check "three ranks, two lines: the serial bake's datasets" bash -c "
        <(h5dump -A two-mpi.lbc.h5 | grep -A12 xxh3_128_blocks) > /dev/null &&
   [ \$(h5dump -A two-mpi.lbc.h5 | grep -c xxh3_128_blocks) -ge 5 ]"
 
+check "one file: the serial bake finds the MPI cache up to date (same identity)" bash -c "
+  mpirun -np 2 '$mpi' bake run/part_0.binlines -o one.lbc.h5 > /dev/null &&
+  '$bin' bake run/part_0.binlines -o one.lbc.h5 2>&1 | grep -q 'is up to date'"
+
 # Rank 1 of 2 reads the end of the input: part_3 is cut short there.
 mkdir bad
 cp run/* bad/

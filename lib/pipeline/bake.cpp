@@ -39,13 +39,17 @@ uint64_t threads() {
   return static_cast<uint64_t>(tbb::info::default_concurrency());
 }
 
-// The input's identity: its bytes, or for a synth: source its parameters and the generator
-// version (the generator is part of linebake).
-std::string source_hash(const std::vector<std::string>& inputs) {
+// The input's identity: its bytes (each file's hash, from `file_hashes` where given), or for a
+// synth: source its parameters and the generator version (the generator is part of linebake).
+std::string source_hash(const std::vector<std::string>& inputs,
+                        const std::vector<std::string>& file_hashes) {
+  const auto file_hash = [&](size_t i) {
+    return file_hashes.empty() ? hash_file(inputs[i]) : file_hashes.at(i);
+  };
   if (inputs.size() > 1) {
     Hasher h;
     h.update(std::string_view("files")).update(uint64_t{inputs.size()});
-    for (const std::string& file : inputs) h.update(std::string_view(hash_file(file)));
+    for (size_t i = 0; i < inputs.size(); ++i) h.update(std::string_view(file_hash(i)));
     return h.hex();
   }
   const std::string& input = inputs.front();
@@ -60,7 +64,7 @@ std::string source_hash(const std::vector<std::string>& inputs) {
         .update(std::string_view(LINEBAKE_VERSION));
     return h.hex();
   }
-  return hash_file(input);
+  return file_hash(0);
 }
 
 std::string key_of(std::initializer_list<std::string_view> parts) {
@@ -71,10 +75,12 @@ std::string key_of(std::initializer_list<std::string_view> parts) {
 
 }  // namespace
 
-LinesIdentity lines_identity(const BakeOptions& options) {
+LinesIdentity lines_identity(const BakeOptions& options,
+                             const std::vector<std::string>& file_hashes) {
   LinesIdentity id;
-  id.source_hash = source_hash(options.inputs.empty() ? std::vector<std::string>{options.input}
-                                                      : options.inputs);
+  id.source_hash =
+      source_hash(options.inputs.empty() ? std::vector<std::string>{options.input} : options.inputs,
+                  file_hashes);
   id.format = options.format ? format_info(*options.format).name : "auto";
   id.policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
   id.key = key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy});

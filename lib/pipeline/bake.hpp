@@ -35,7 +35,7 @@ std::string rtx_capsules_source(const std::string& lines_hash, float radius,
                                 const std::string& attribute);
 
 struct BakeOptions {
-  std::string input;             // file or synth: source
+  std::string input;  // file or synth: source
   // Several files as one line set, in this order (expand_inputs sorts them); `input` is then
   // only how messages name them. Empty: `input` alone.
   std::vector<std::string> inputs;
@@ -108,7 +108,10 @@ std::string default_cache_path(const std::string& input);
 struct LinesIdentity {
   std::string source_hash, key, format, policy;
 };
-LinesIdentity lines_identity(const BakeOptions& options);
+// `file_hashes`: hash_file() of each input, in order, where the caller has them already
+// (linebake-mpi hashes the files on several ranks); empty: computed here.
+LinesIdentity lines_identity(const BakeOptions& options,
+                             const std::vector<std::string>& file_hashes = {});
 // Throws InputError (bad input), OutputError (cache not writable) or Error (bad options).
 BakeResult bake(const BakeOptions& options);
 

@@ -15,6 +15,7 @@
 #include "cache/tube_store.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/interrupt.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
@@ -316,11 +317,15 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   // Lines per file: from the header where the format has it, else by reading the file; the
   // files are counted round robin.
   std::vector<uint64_t> lines_per_file(inputs.size(), 0);
+  std::string my_hashes;  // "index hash\n" for the files this rank hashed
   ReadOptions read;
   read.format = options.format;
   LineSet header;
   ranks.agree([&] {
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
+      // The input's identity is its files' bytes: each file hashed by one rank.
+      if (!synth::is_synth_source(inputs[f]))
+        my_hashes += std::to_string(f) + " " + hash_file(inputs[f]) + "\n";
       auto reader = open_line_reader(inputs[f], read);
       if (const auto n = reader->line_count_hint()) {
         lines_per_file[f] = *n;
@@ -332,6 +337,19 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     header = header_of(open_line_reader(inputs[0], read)->header());
   });
   lines_per_file = ranks.sum(lines_per_file);
+  std::vector<std::string> file_hashes;
+  if (!synth::is_synth_source(inputs[0])) {
+    file_hashes.resize(inputs.size());
+    for (const std::string& part : ranks.allgather(my_hashes)) {
+      size_t at = 0;
+      while (at < part.size()) {
+        const size_t space = part.find(' ', at), end = part.find('\n', at);
+        file_hashes[std::stoull(part.substr(at, space - at))] =
+            part.substr(space + 1, end - space - 1);
+        at = end + 1;
+      }
+    }
+  }
 
   // Read: this rank's share into its spool, validated batch by batch as the serial bake does.
   const auto read_start = std::chrono::steady_clock::now();
@@ -426,7 +444,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     };
     CacheWriter writer(result.cache, options.compression, options.compression_level, parallel);
 
-    const LinesIdentity identity = lines_identity(options);
+    const LinesIdentity identity = lines_identity(options, file_hashes);
     // Pass 1: /lines, the content hash and the tubes' kept points.
     LineStoreWriter store(writer, header, stats, piece);
     LineContentHash hash(header, piece);
