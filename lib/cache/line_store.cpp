@@ -148,14 +148,6 @@ std::string LineContentHash::finish(const LineSet& header, const std::string& wh
   return hex_of(names, header.attributes.size(), a.counts, hashes);
 }
 
-std::string LineContentHash::combine(const LineSet& header,
-                                     const std::vector<std::string>& pieces) {
-  if (pieces.empty()) throw Error("no line content hash pieces");
-  std::string whole = pieces[0];
-  for (size_t i = 1; i < pieces.size(); ++i) whole = join(whole, pieces[i]);
-  return finish(header, whole);
-}
-
 std::string content_hash(const LineSet& lines) {
   LineContentHash h(lines);
   h.add(lines);

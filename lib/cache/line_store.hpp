@@ -25,11 +25,10 @@ struct LinePiece {
 class LineContentHash {
  public:
   explicit LineContentHash(const LineSet& header, const LinePiece& piece = {});
-  // One rank's share, serialised; combine() makes the whole set's hash from every rank's.
+  // One rank's share, serialised. join() and finish() make the whole set's hash from every
+  // rank's up a tree of ranks: two adjacent pieces joined (the first's lines before the
+  // second's), and the hash of the joined whole.
   std::string piece() const;
-  static std::string combine(const LineSet& header, const std::vector<std::string>& pieces);
-  // combine() in steps, for a reduction over a tree of ranks: two adjacent pieces joined (the
-  // first's lines before the second's), and the hash of the joined whole.
   static std::string join(const std::string& first, const std::string& second);
   static std::string finish(const LineSet& header, const std::string& whole);
   ~LineContentHash();

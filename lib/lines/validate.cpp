@@ -98,6 +98,17 @@ std::vector<float> gather(const std::vector<float>& values, const std::vector<In
 
 }  // namespace
 
+void ValidationReport::add(const ValidationReport& r) {
+  invalid_points += r.invalid_points;
+  repeated_points += r.repeated_points;
+  short_lines += r.short_lines;
+  nonfinite_attribute_values += r.nonfinite_attribute_values;
+  lines_split += r.lines_split;
+  lines_dropped += r.lines_dropped;
+  points_dropped += r.points_dropped;
+  repaired |= r.repaired;
+}
+
 bool ValidationReport::clean() const {
   return invalid_points == 0 && repeated_points == 0 && short_lines == 0 && bad_offsets == 0 &&
          attribute_length_mismatches.empty();

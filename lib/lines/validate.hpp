@@ -33,6 +33,8 @@ struct ValidationReport {
   uint64_t attributes_dropped = 0;
   bool repaired = false;
 
+  // Adds the counts of a report on another batch of the same line set (a streamed read).
+  void add(const ValidationReport& batch);
   // True when nothing needs repair (nonfinite attribute values do not count).
   bool clean() const;
   std::string summary() const;  // one line, counts of every non-zero category

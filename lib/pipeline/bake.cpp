@@ -87,6 +87,21 @@ LinesIdentity lines_identity(const BakeOptions& options,
   return id;
 }
 
+uint64_t cost_per_point(const BakeOptions& o, const LineSet& header, bool tubes, bool voxels,
+                        bool embree) {
+  const uint64_t line_bytes = 12 + 4 * header.attributes.size() + 8;
+  uint64_t cost = 3 * line_bytes;
+  if (tubes) {
+    const bool attribute = o.tubes.attribute != "none" &&
+                           (!header.attributes.empty() || !header.line_attributes.empty());
+    cost += uint64_t(o.tubes.sides) * tube_vertex_bytes(o.tubes.normals, attribute) +
+            uint64_t(o.tubes.sides) * 6 * 4;
+  }
+  if (voxels) cost += 2 * 2 * 16 + 64;
+  if (embree) cost += o.embree.geometry == EmbreeGeometry::BezierCurve ? 69 : 21;
+  return cost;
+}
+
 const std::vector<std::string>& bakeable_assets() {
   static const std::vector<std::string> assets{"tubes", "voxels", "embree", "rtx"};
   return assets;
@@ -287,20 +302,6 @@ struct BudgetPlan {
 // Bytes a batch costs per point in the steps that see it: the line data several times over
 // (as read, as repaired, as read back), the tube staging, the voxel walk's records (about two
 // chords per segment, 16 bytes each, twice: per block and sorted), Embree's buffers.
-uint64_t cost_per_point(const BakeOptions& o, const LineSet& header, bool tubes, bool voxels,
-                        bool embree) {
-  const uint64_t line_bytes = 12 + 4 * header.attributes.size() + 8;
-  uint64_t cost = 3 * line_bytes;
-  if (tubes) {
-    const bool attribute = o.tubes.attribute != "none" &&
-                           (!header.attributes.empty() || !header.line_attributes.empty());
-    cost += uint64_t(o.tubes.sides) * tube_vertex_bytes(o.tubes.normals, attribute) +
-            uint64_t(o.tubes.sides) * 6 * 4;
-  }
-  if (voxels) cost += 2 * 2 * 16 + 64;
-  if (embree) cost += o.embree.geometry == EmbreeGeometry::BezierCurve ? 69 : 21;
-  return cost;
-}
 
 }  // namespace
 
@@ -510,15 +511,7 @@ BakeResult bake(const BakeOptions& options_in) {
         if (!whole) {
           const std::string where = options.input + " (lines " + std::to_string(line_base) + ".." +
                                     std::to_string(line_base + batch.line_count() - 1) + ")";
-          const ValidationReport r = validate(batch, options.on_invalid, where);
-          total.invalid_points += r.invalid_points;
-          total.repeated_points += r.repeated_points;
-          total.short_lines += r.short_lines;
-          total.nonfinite_attribute_values += r.nonfinite_attribute_values;
-          total.lines_split += r.lines_split;
-          total.lines_dropped += r.lines_dropped;
-          total.points_dropped += r.points_dropped;
-          total.repaired |= r.repaired;
+          total.add(validate(batch, options.on_invalid, where));
         }
         line_base += batch.line_count();
         for (size_t l = 0; l < batch.line_count(); ++l)

@@ -108,6 +108,11 @@ std::string default_cache_path(const std::string& input);
 struct LinesIdentity {
   std::string source_hash, key, format, policy;
 };
+// Bytes of memory one input point costs while it passes through the asset builders (the line
+// set's arrays, the tube rings and triangles, voxel records, Embree buffers): what sets the
+// batch size within a memory budget.
+uint64_t cost_per_point(const BakeOptions& options, const LineSet& header, bool tubes, bool voxels,
+                        bool embree);
 // `file_hashes`: hash_file() of each input, in order, where the caller has them already
 // (linebake-mpi hashes the files on several ranks); empty: computed here.
 LinesIdentity lines_identity(const BakeOptions& options,

@@ -354,10 +354,12 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   // Read: this rank's share into its spool, validated batch by batch as the serial bake does.
   const auto read_start = std::chrono::steady_clock::now();
   MemoryBudget budget(budget_bytes);
+  // As the serial bake sizes its batches: a quarter of the budget through the builders.
+  const uint64_t per_point = cost_per_point(options, header, build_tubes, false, false);
   const uint64_t batch_points =
       budget.unlimited()
           ? uint64_t{1} << 21
-          : std::clamp<uint64_t>(budget.available() / 4 / 200, 1024, uint64_t{1} << 21);
+          : std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
   result.batch_points = batch_points;
   std::optional<LineSpool> spool;
   LineStatsBuilder local_stats(header);
@@ -375,15 +377,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     while (reader.next(batch, batch_points, where)) {
       throw_if_interrupted();
       lines_done += batch.line_count();
-      const ValidationReport r = validate(batch, options.on_invalid, where);
-      total.invalid_points += r.invalid_points;
-      total.repeated_points += r.repeated_points;
-      total.short_lines += r.short_lines;
-      total.nonfinite_attribute_values += r.nonfinite_attribute_values;
-      total.lines_split += r.lines_split;
-      total.lines_dropped += r.lines_dropped;
-      total.points_dropped += r.points_dropped;
-      total.repaired |= r.repaired;
+      total.add(validate(batch, options.on_invalid, where));
       local_stats.add(batch);
       spool->append(batch);
       if (show) progress.update(lines_done * uint64_t(ranks.size), lines_total);

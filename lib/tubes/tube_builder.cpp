@@ -421,16 +421,6 @@ void TubeStreamBuilder::adopt_plan(std::vector<TubeChunkPlan> chunks, uint64_t t
   s.chunk_indices = start.indices;
 }
 
-void TubeStreamBuilder::start_at(uint64_t first_line) {
-  State& s = *state_;
-  const Position p = position_of(first_line);
-  s.next_line = first_line;
-  s.chunk = p.chunk;
-  s.chunk_open = true;  // the chunk was begun by the process before this one
-  s.chunk_vertices = p.vertices;
-  s.chunk_indices = p.indices;
-}
-
 void TubeStreamBuilder::plan(const LineSet& batch) {
   State& s = *state_;
   const size_t count = batch.line_count();

@@ -81,12 +81,10 @@ class TubeStreamBuilder {
   ~TubeStreamBuilder();
   void plan(const LineSet& batch);
   // plan() in two halves, for a line set split over processes (MPI ranks): each counts the
-  // points its lines keep, then every process plans the whole set from all the counts, in line
-  // order, with the points the counts leave out.
+  // points its lines keep, then one process plans the whole set from all the counts, in line
+  // order, with the points the counts leave out; the others adopt its plan (adopt_plan).
   std::vector<uint64_t> kept_points(const LineSet& batch) const;
   void plan_kept(const std::vector<uint64_t>& kept, uint64_t points_skipped);
-  // build() then starts at this process's first line instead of line 0.
-  void start_at(uint64_t first_line);
   // Where a line's vertices and indices start: its chunk, and the vertices and indices of that
   // chunk's lines before it (after finish_plan()).
   struct Position {
