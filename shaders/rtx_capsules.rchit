@@ -1,24 +1,17 @@
 #version 460
-// Closest hit on a capsule: shaded with the exact normal and the attribute interpolated along
-// the segment, as the CPU tracer does for Embree's capsules.
+// Closest hit on a capsule (`--hits stepping`): the one nearest front crossing.
 
 #include "rtx_common.glsl"
 #include "shading.glsl"
+#include "rtx_capsule_surface.glsl"
 
 layout(location = 0) rayPayloadInEXT Payload payload;
-hitAttributeEXT vec4 hit;
+hitAttributeEXT vec4 hit;  // outward normal xyz, position along the segment
 
 void main() {
-  Chunk c = chunks[gl_InstanceCustomIndexEXT];
-  const uint first = c.indices.v[gl_PrimitiveID] >> 2u;
-  float value = 0.0;
-  if (c.has_attribute != 0u) {
-    const float a0 = c.positions.v[4u * first + 3u], a1 = c.positions.v[4u * first + 7u];
-    value = a0 + hit.w * (a1 - a0);
-  }
-  const vec4 base = transfer_function(value);
-  const vec3 x = gl_WorldRayOriginEXT + gl_HitTEXT * gl_WorldRayDirectionEXT;
-  payload.t = gl_HitTEXT;
-  payload.colour = vec4(shade(x, hit.xyz, base.rgb), base.a);
-  payload.kind = kFrontHit;
+  payload.count = 1u;
+  payload.t[0] = gl_HitTEXT;
+  payload.chunk[0] = uint(gl_InstanceCustomIndexEXT);
+  payload.primitive[0] = uint(gl_PrimitiveID);
+  payload.colour[0] = capsule_surface(hit);
 }

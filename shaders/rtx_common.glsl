@@ -15,8 +15,8 @@ layout(set = 0, binding = 1, std140) uniform RtUniforms {
   vec4 background;  // linear rgb
   vec4 ranges;      // stored attribute decode lo, hi; transfer-function range lo, hi
   uvec4 size;       // width, height, early termination, max iterations per pixel
-  uvec4 tf_counts;  // colour points, opacity points, 0, 0
-  vec4 params;      // termination alpha, capsule radius, 0, 0
+  uvec4 tf_counts;  // colour points, opacity points, hit collection (0 filter, 1 stepping), 0
+  vec4 params;      // termination alpha, capsule radius, capsules (1) or triangles (0), 0
   vec4 colours[kMaxTfPoints];    // x, sRGB r, g, b
   vec4 opacities[kMaxTfPoints];  // x, opacity
 } frame;
@@ -42,10 +42,20 @@ struct Chunk {
 };
 layout(set = 0, binding = 2, std430) readonly buffer Chunks { Chunk chunks[]; };
 
-// What a trace returns to the ray generation loop.
-const uint kMiss = 0u, kFrontHit = 1u, kBackHit = 2u;
+// What a trace returns to the ray generation loop: a window of hits in (t, chunk, primitive)
+// order. With `--hits filter` (default) the any-hit shaders fill up to kWindowHits of the hits
+// after `after_*` (the previous window's last) and set `overflow` when more lay beyond; with
+// `--hits stepping` the closest-hit shaders return the one nearest hit (count 1) and the miss
+// shader count 0.
+const uint kWindowHits = 8u;
+const uint kBackHit = 0x80000000u;  // flag in chunk[]: a back hit (counted, not composited)
 struct Payload {
-  vec4 colour;  // shaded linear rgb, opacity
-  float t;
-  uint kind;
+  vec4 colour[kWindowHits];  // shaded linear rgb, opacity (front hits)
+  float t[kWindowHits];
+  uint chunk[kWindowHits];  // gl_InstanceCustomIndexEXT, | kBackHit
+  uint primitive[kWindowHits];
+  uint count;
+  uint overflow;
+  float after_t;
+  uint after_chunk, after_primitive;
 };

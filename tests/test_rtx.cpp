@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <iostream>
 #include <random>
 
 #include "accel/capsule_chain.hpp"
@@ -327,6 +328,21 @@ TEST(Rtx, MatchesTheReferenceOnARayTracingDevice) {
   const vk::RtFrame frame = renderer.render(scene, camera, tf, o);
   EXPECT_GE(psnr(reference.image, frame.image), 45.0);
   EXPECT_EQ(frame.stats.truncated_pixels, 0u);
+  // Every front hit the reference composites, found by the any-hit windows (float against the
+  // reference's double distances can move a grazing hit in or out: a few per mille).
+  const double front = double(reference.stats.counters.hits);
+  EXPECT_NEAR(double(frame.stats.hits), front, 0.005 * front);
+  EXPECT_NEAR(double(frame.stats.max_depth_complexity),
+              double(reference.stats.max_depth_complexity), 1.0);
+  // Stepping from just past each hit is the older way; report what it loses beside it.
+  vk::RtOptions stepping = o;
+  stepping.hits = vk::RtHits::Stepping;
+  const vk::RtFrame stepped = renderer.render(scene, camera, tf, stepping);
+  std::cout << "rtx filter: " << psnr(reference.image, frame.image) << " dB, " << frame.stats.hits
+            << " front hits, " << frame.stats.gpu_ms
+            << " ms; stepping: " << psnr(reference.image, stepped.image) << " dB, "
+            << stepped.stats.hits << " front hits, " << stepped.stats.gpu_ms
+            << " ms; reference: " << reference.stats.counters.hits << " front hits\n";
   // Serialised and loaded back: the same image.
   const auto blobs = scene.serialize();
   vk::RtScene loaded(ctx, mesh);

@@ -329,6 +329,7 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
   o.width = width, o.height = height;
   o.early_termination = args.early;
   o.max_iterations = uint32_t(args.max_iterations);
+  o.hits = vk::parse_rt_hits(args.hits);
   const FlightPlan plan =
       plan_flight(args.flight, args.frame_count, args.frame, args.frames, bounds, width, height);
   const bool numbered = plan.frames.size() > 1;
@@ -342,6 +343,7 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
                           {"rebuild_reason", rebuild_reason},
                           {"early_termination", o.early_termination},
                           {"max_iterations", o.max_iterations},
+                          {"hit_collection", vk::to_string(o.hits)},
                           {"frames", nlohmann::json::array()}};
   TerminalProgress progress("render");
   for (size_t i = 0; i < plan.frames.size(); ++i) {
@@ -366,6 +368,7 @@ void render_rtx(const Args& args, const CacheReader& cache, const TransferFuncti
                                  {"fov", c.fov_y_degrees}}},
                                {"hits", s.hits},
                                {"back_hits", s.back_hits},
+                               {"seam_hits", s.seam_hits},
                                {"traces", s.traces},
                                {"truncated_pixels", s.truncated_pixels},
                                {"depth_complexity", {{"max", s.max_depth_complexity}}},
@@ -494,8 +497,9 @@ Command add_render(CLI::App& app) {
   sub->add_option("--depth-complexity", args->depth_image,
                   "16-bit grey PNG of front hits per pixel");
   sub->add_option("--hits", args->hits,
-                  "How hits are found: filter (one traversal, default) | stepping (closest-hit "
-                  "queries from just past the last hit)")
+                  "embree, rtx: how hits are found: filter (every hit, collected by a filter or "
+                  "any-hit shader; default) | stepping (closest-hit queries from just past the "
+                  "last hit)")
       ->check(CLI::IsMember({"filter", "stepping"}));
   sub->add_flag("--packets", args->packets,
                 "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");

@@ -27,8 +27,9 @@ struct RtUniforms {
 
 // Binding 0 the TLAS, 1 uniforms, 2 chunk table, 3 output, 4 hit counts, 5 counters.
 constexpr uint32_t kBindings = 6;
-constexpr VkShaderStageFlags kHitStages =
-    VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR;
+constexpr VkShaderStageFlags kHitStages = VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR |
+                                          VK_SHADER_STAGE_ANY_HIT_BIT_KHR |
+                                          VK_SHADER_STAGE_INTERSECTION_BIT_KHR;
 
 uint64_t align_up(uint64_t value, uint64_t alignment) {
   return alignment > 1 ? (value + alignment - 1) / alignment * alignment : value;
@@ -75,7 +76,7 @@ struct RtRenderer::State {
     const VkShaderStageFlags stages[kBindings] = {
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR | kHitStages | VK_SHADER_STAGE_MISS_BIT_KHR,
-        kHitStages,
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR | kHitStages,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR};
@@ -110,20 +111,23 @@ struct RtRenderer::State {
 
   void create_pipeline() {
     VkDevice d = ctx.device();
-    const char* names[] = {"rtx.rgen", "rtx.rmiss", "rtx_triangles.rchit", "rtx_capsules.rint",
-                           "rtx_capsules.rchit"};
+    const char* names[] = {
+        "rtx.rgen",          "rtx.rmiss",          "rtx_triangles.rchit", "rtx_triangles.rahit",
+        "rtx_capsules.rint", "rtx_capsules.rchit", "rtx_capsules.rahit"};
     const VkShaderStageFlagBits kinds[] = {
-        VK_SHADER_STAGE_RAYGEN_BIT_KHR, VK_SHADER_STAGE_MISS_BIT_KHR,
-        VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, VK_SHADER_STAGE_INTERSECTION_BIT_KHR,
-        VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR};
-    std::array<VkPipelineShaderStageCreateInfo, 5> stages{};
+        VK_SHADER_STAGE_RAYGEN_BIT_KHR,       VK_SHADER_STAGE_MISS_BIT_KHR,
+        VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR,  VK_SHADER_STAGE_ANY_HIT_BIT_KHR,
+        VK_SHADER_STAGE_INTERSECTION_BIT_KHR, VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR,
+        VK_SHADER_STAGE_ANY_HIT_BIT_KHR};
+    std::array<VkPipelineShaderStageCreateInfo, 7> stages{};
     for (size_t i = 0; i < stages.size(); ++i) {
       stages[i] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
       stages[i].stage = kinds[i];
       stages[i].module = create_shader_module(d, names[i]);
       stages[i].pName = "main";
     }
-    // Groups: 0 ray generation, 1 miss, 2 triangles hit group, 3 capsules hit group.
+    // Groups: 0 ray generation, 1 miss, 2 triangles hit group, 3 capsules hit group. The ray
+    // flags pick closest hit (stepping) or any hit (filter) within a group.
     std::array<VkRayTracingShaderGroupCreateInfoKHR, 4> groups{};
     for (auto& g : groups) {
       g = {VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR};
@@ -135,9 +139,11 @@ struct RtRenderer::State {
     groups[1].generalShader = 1;
     groups[2].type = VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR;
     groups[2].closestHitShader = 2;
+    groups[2].anyHitShader = 3;
     groups[3].type = VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR;
-    groups[3].intersectionShader = 3;
-    groups[3].closestHitShader = 4;
+    groups[3].intersectionShader = 4;
+    groups[3].closestHitShader = 5;
+    groups[3].anyHitShader = 6;
     VkRayTracingPipelineCreateInfoKHR create{
         VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR};
     create.stageCount = uint32_t(stages.size());
@@ -216,6 +222,16 @@ struct RtRenderer::State {
   }
 };
 
+RtHits parse_rt_hits(const std::string& name) {
+  if (name == "filter") return RtHits::Filter;
+  if (name == "stepping") return RtHits::Stepping;
+  throw Error("unknown rtx hit collection '" + name + "' (filter, stepping)");
+}
+
+const char* to_string(RtHits hits) {
+  return hits == RtHits::Filter ? "filter" : "stepping";
+}
+
 RtRenderer::RtRenderer(Context& context) : state_(std::make_unique<State>(context)) {
   State& s = *state_;
   if (!context.ray_tracing())
@@ -257,7 +273,9 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
   u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = o.max_iterations;
   u.params[0] = float(o.termination_alpha), u.params[1] = scene.capsule_radius();
+  u.params[2] = scene.geometry() == RtGeometry::Capsules ? 1.0f : 0.0f;
   write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
+  u.tf_counts[2] = o.hits == RtHits::Stepping ? 1u : 0u;
   std::memcpy(s.uniforms.mapped, &u, sizeof u);
   std::memset(s.counters.mapped, 0, 16);
   s.ctx.submit([&](VkCommandBuffer cmd) {
@@ -290,6 +308,7 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   frame.stats.back_hits = c[0];
   frame.stats.truncated_pixels = c[1];
   frame.stats.traces = c[2];
+  frame.stats.seam_hits = c[3];
   frame.stats.frame_bytes = pixels * (16 + 4);
   frame.stats.seconds = seconds_since(start);
   return frame;
