@@ -21,6 +21,7 @@
 #include "pipeline/report.hpp"
 #include "render/overlay_text.hpp"
 #include "render/vulkan/presenter.hpp"
+#include "techniques/technique.hpp"
 #include "view_sources.hpp"
 
 namespace linebake::cli {
@@ -101,6 +102,10 @@ class Viewer {
       context_options.device = options.device;
       context_options.validation = options.validation;
       context_options.swapchain = true;
+      // Ray tracing too where the device has it, so rtx can be viewed.
+      TechniqueOptions rtx;
+      rtx.device = options.device;
+      context_options.ray_tracing = !technique_unavailable(find_technique("rtx"), rtx);
       uint32_t count = 0;
       const char** names = glfwGetRequiredInstanceExtensions(&count);
       if (!names) throw Error("view: GLFW found no Vulkan window support on this display");
@@ -374,7 +379,8 @@ Command add_view(CLI::App& app) {
       ->check(CLI::ExistingFile);
   sub->add_option("--technique", options->technique,
                   "First technique (default ll); T cycles: reference embree opaque dp ll mlab "
-                  "mlabdb mboit wboit vrc vrc-gpu");
+                  "mlabdb mboit wboit vrc vrc-gpu rtx (rtx where the device ray traces; "
+                  "elsewhere the status line says why not)");
   sub->add_option("--tf", options->tf, "First transfer function (default semi); F cycles presets");
   sub->add_option("--size", *size_text, "Window size WxH (default 1280x720)");
   sub->add_option("--flight", options->flight,

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 
 namespace linebake {
 
@@ -54,6 +55,16 @@ StoredRtx load_rtx(const CacheReader& cache) {
     r.blobs.emplace_back(blob.data(), blob.data() + blob.size());
   }
   return r;
+}
+
+std::string rtx_capsules_source(const std::string& lines_hash, float radius,
+                                const std::string& attribute) {
+  Hasher h;
+  for (std::string_view part :
+       {std::string_view("capsules"), std::string_view(lines_hash),
+        std::string_view(std::to_string(radius)), std::string_view(attribute)})
+    h.update(part);
+  return h.hex();
 }
 
 }  // namespace linebake

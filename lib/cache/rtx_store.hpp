@@ -29,4 +29,9 @@ void store_rtx(CacheWriter& cache, const StoredRtx& rtx, Provenance provenance);
 // InputError naming the group or dataset when the description or a blob is missing or damaged.
 StoredRtx load_rtx(const CacheReader& cache);
 
+// The source string of capsule BLAS (StoredRtx::source): the lines' content hash, the radius
+// and the attribute.
+std::string rtx_capsules_source(const std::string& lines_hash, float radius,
+                                const std::string& attribute);
+
 }  // namespace linebake

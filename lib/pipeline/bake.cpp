@@ -173,11 +173,6 @@ nlohmann::json to_json(const RtxOptions& r) {
   return {{"geometry", r.geometry}, {"compaction", r.compaction}};
 }
 
-std::string rtx_capsules_source(const std::string& lines_hash, float radius,
-                                const std::string& attribute) {
-  return key_of({"capsules", lines_hash, std::to_string(radius), attribute});
-}
-
 // The attribute the tubes colour by, for the curves: "" = the first, "none" = none.
 static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
   if (t.attribute == "none") return "";

@@ -30,9 +30,6 @@ struct RtxOptions {
   bool validation = false;
 };
 nlohmann::json to_json(const RtxOptions& rtx);
-// The source string of capsule BLAS (StoredRtx::source): lines, radius and attribute.
-std::string rtx_capsules_source(const std::string& lines_hash, float radius,
-                                const std::string& attribute);
 
 struct BakeOptions {
   std::string input;  // file or synth: source

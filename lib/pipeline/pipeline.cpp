@@ -12,6 +12,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "techniques/technique.hpp"
 
 namespace linebake {
 namespace {
@@ -172,6 +173,11 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
                        "transfer_functions}");
     }
     if (pt.technique.empty()) throw InputError(file, where + ".technique", "missing");
+    try {
+      find_technique(pt.technique);
+    } catch (const Error& e) {
+      throw InputError(file, t.is_string() ? where : where + ".technique", e.what());
+    }
     if (pt.label.empty()) pt.label = pt.technique;
     if (!safe_name(pt.label))
       throw InputError(file, where + ".label", "a name of letters, digits, '-', '_' or '.'");
@@ -319,6 +325,7 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
     for (const std::string& tf : p.transfer_functions) {
       std::string reference_key, reference_skip;
       for (const PipelineTechnique& t : p.techniques) {
+        const TechniqueInfo& info = find_technique(t.technique).info;
         PipelineStep render;
         render.id = "render/" + d.name + "/" + t.label + "/" + tf;
         render.kind = "render";
@@ -355,11 +362,11 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         else if (!listed(t.only_transfer_functions, tf))
           render.skip_reason = "left out of this pipeline for " + tf + " (it runs with " +
                                joined(t.only_transfer_functions) + ")";
-        else if (t.technique == "rtx" && !context.ray_tracing)
+        else if (info.ray_tracing && !context.ray_tracing)
           render.skip_reason = "no Vulkan device with ray tracing";
-        else if (t.technique != "embree" && t.technique != "reference" && !context.vulkan &&
-                 !(t.technique == "vrc" &&
-                   std::find(t.options.begin(), t.options.end(), "gpu") == t.options.end()))
+        else if (!context.vulkan && (info.vulkan || (t.technique == "vrc" &&
+                                                     std::find(t.options.begin(), t.options.end(),
+                                                               "gpu") != t.options.end())))
           render.skip_reason = "no Vulkan device";
         steps.push_back(render);
         if (t.label == p.reference) {

@@ -1,5 +1,6 @@
 #pragma once
-// The radius and attribute of curves and capsules over the lines, shared by `render` and `view`.
+// The radius and attribute of curves and capsules over the lines, shared by embree and rtx
+// (lib/techniques).
 
 #include <optional>
 #include <string>
@@ -8,7 +9,7 @@
 #include "cache/cache.hpp"
 #include "lines/line_set.hpp"
 
-namespace linebake::cli {
+namespace linebake {
 
 // The flags, else the cached tubes' (from their provenance), else 0.001 x the diagonal and the
 // first vertex attribute.
@@ -16,4 +17,4 @@ std::pair<float, std::string> curve_defaults(float radius, std::string attribute
                                              const std::optional<Provenance>& tube_provenance,
                                              const LineSet& lines);
 
-}  // namespace linebake::cli
+}  // namespace linebake

@@ -1,8 +1,8 @@
-#include "curve_defaults.hpp"
+#include "techniques/curve_defaults.hpp"
 
 #include "tubes/tube_builder.hpp"
 
-namespace linebake::cli {
+namespace linebake {
 
 std::pair<float, std::string> curve_defaults(float radius, std::string attribute,
                                              const std::optional<Provenance>& tube_provenance,
@@ -16,4 +16,4 @@ std::pair<float, std::string> curve_defaults(float radius, std::string attribute
   return {radius, attribute};
 }
 
-}  // namespace linebake::cli
+}  // namespace linebake

@@ -1,0 +1,120 @@
+// embree and reference: the CPU ray tracer over Embree curves built from the cached lines (or
+// from bake's prepared buffers when they are these curves), or over the cached tube mesh.
+
+#include "accel/embree_scene.hpp"
+#include "cache/embree_store.hpp"
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
+#include "render/ray_tracer.hpp"
+#include "techniques/curve_defaults.hpp"
+#include "techniques/families.hpp"
+
+namespace linebake {
+namespace {
+
+nlohmann::json to_json(const BvhStats& s) {
+  return {{"geometry", to_string(s.geometry)},
+          {"primitives", s.primitives},
+          {"parts", s.parts},
+          {"instanced", s.instanced},
+          {"prepare_s", s.prepare_s},
+          {"commit_s", s.commit_s},
+          {"buffer_bytes", s.buffer_bytes},
+          {"bvh_bytes", s.bvh_bytes},
+          {"bvh_peak_bytes", s.bvh_peak_bytes}};
+}
+
+class CpuTracing : public PreparedTechnique {
+ public:
+  CpuTracing(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
+             const TechniqueOptions& o) {
+    const bool has_tubes = cache.exists("/assets/tubes");
+    EmbreeOptions options;
+    options.quality = parse_build_quality(o.quality);
+    if (info.name == "reference") {
+      if (!has_tubes)
+        throw Error(cache_name +
+                    ": the reference renders the tube mesh; bake --assets tubes first");
+      tubes_ = load_tubes(cache);
+      scene_.emplace(EmbreeScene::from_tubes(tubes_, options));
+    } else {
+      // The curves take the cached tubes' radius and attribute, from their provenance.
+      lines_ = load_lines(cache);
+      options.geometry = parse_embree_geometry(o.geometry);
+      const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
+      const auto [radius, attribute] =
+          curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
+      // Bake's prepared buffers, when they are these curves, spare the preparation.
+      std::optional<StoredCurves> stored;
+      if (cache.exists(kEmbreeGroup)) {
+        stored = load_embree(cache);
+        if (stored->geometry != options.geometry || stored->radius != radius ||
+            stored->attribute != attribute)
+          stored.reset();
+      }
+      if (stored)
+        scene_.emplace(
+            EmbreeScene::from_prepared(lines_, std::move(stored->parts), attribute, options));
+      else
+        scene_.emplace(EmbreeScene::from_lines(lines_, radius, attribute, options));
+      from_cache_ = stored.has_value();
+    }
+    trace_.width = o.width, trace_.height = o.height;
+    trace_.early_termination = o.early_termination;
+    trace_.collection = parse_hit_collection(o.hits);
+    trace_.packets = o.packets;
+    if (trace_.packets && trace_.collection != HitCollection::Filter)
+      throw Error("--packets: packets collect hits with the filter, not by stepping");
+  }
+
+  TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                        int height) override {
+    trace_.width = width, trace_.height = height;
+    Frame frame = trace_frame(*scene_, camera, tf, trace_);
+    const FrameStats& s = frame.stats;
+    TechniqueFrame out;
+    out.image = std::move(frame.image);
+    out.depth_complexity = std::move(frame.depth_complexity);
+    out.seconds = s.seconds;
+    out.frame_bytes = s.frame_bytes;
+    out.stats = {{"front_hits", s.counters.hits},
+                 {"composited_hits", s.counters.composited},
+                 {"duplicate_hits_removed", s.counters.duplicates},
+                 {"back_hits_rejected", s.counters.back_hits},
+                 {"depth_complexity",
+                  {{"max", s.max_depth_complexity},
+                   {"mean", s.mean_depth_complexity},
+                   {"mean_covered", s.mean_covered_depth_complexity}}},
+                 {"frame_bytes", s.frame_bytes}};
+    out.note = "depth complexity max " + std::to_string(s.max_depth_complexity);
+    return out;
+  }
+
+  Bounds bounds() const override { return scene_->bounds(); }
+
+  nlohmann::json stats() const override {
+    return {{"hit_collection", to_string(trace_.collection)},
+            {"packets", trace_.packets},
+            {"bvh", to_json(scene_->stats())},
+            {"bvh_from_cached_buffers", from_cache_}};
+  }
+
+ private:
+  LineSet lines_;   // the scene shares these (curves) ...
+  TubeMesh tubes_;  // ... or this (reference)
+  std::optional<EmbreeScene> scene_;
+  bool from_cache_ = false;
+  TraceOptions trace_;
+};
+
+}  // namespace
+
+std::unique_ptr<PreparedTechnique> prepare_cpu_tracing(const TechniqueInfo& info,
+                                                       const CacheReader& cache,
+                                                       const std::string& cache_name,
+                                                       const TechniqueOptions& options) {
+  return std::make_unique<CpuTracing>(info, cache, cache_name, options);
+}
+
+}  // namespace linebake

@@ -1,0 +1,112 @@
+// The Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit): the cached
+// tube mesh drawn headless by vk::RasterRenderer.
+
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
+#include "render/vulkan/raster_renderer.hpp"
+#include "techniques/families.hpp"
+
+namespace linebake {
+namespace {
+
+class Raster : public PreparedTechnique {
+ public:
+  Raster(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
+         const TechniqueOptions& o)
+      : context_(o, false) {
+    if (!cache.exists("/assets/tubes"))
+      throw Error(cache_name +
+                  ": the Vulkan techniques draw the tube mesh; bake --assets tubes first");
+    tubes_ = load_tubes(cache);
+    renderer_ = std::make_unique<vk::RasterRenderer>(*context_, tubes_);
+    options_.technique = vk::parse_raster_technique(info.name);
+    options_.width = o.width, options_.height = o.height;
+    options_.sort = vk::parse_list_sort(o.sort);
+    options_.capacity = o.capacity;
+    options_.early_termination = o.early_termination;
+    options_.max_layers = o.max_layers;
+    options_.layers = o.layers;
+    options_.tau_alpha = o.tau_alpha, options_.tau_opaque = o.tau_opaque;
+    options_.mboit_beta = o.beta;
+    options_.moment_basis = vk::parse_moment_basis(o.moment_basis);
+    options_.moments = o.moments;
+    if (o.moment_bias >= 0) options_.mboit_bias = o.moment_bias;
+    options_.wboit_weight = o.wboit_weight;
+    options_.interlock = o.interlock;
+  }
+
+  TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                        int height) override {
+    options_.width = width, options_.height = height;
+    vk::RasterFrame frame = renderer_->render(camera, tf, options_);
+    context_.check_validation();
+    const vk::RasterStats& s = frame.stats;
+    TechniqueFrame out;
+    out.image = std::move(frame.image);
+    out.depth_complexity = std::move(frame.depth_complexity);
+    out.seconds = s.seconds;
+    out.frame_bytes = s.frame_bytes;
+    nlohmann::json passes = nlohmann::json::object();
+    for (const auto& [name, ms] : s.pass_ms) {
+      passes[name] = ms;
+      out.gpu_ms[name] = ms;
+    }
+    out.stats = {
+        {"gpu_ms", passes},
+        {"fragments", s.fragments},
+        {"node_capacity", s.capacity},
+        {"regrows", s.regrows},
+        {"depth_complexity", {{"max", s.max_depth_complexity}, {"mean", s.mean_depth_complexity}}},
+        {"frame_bytes", s.frame_bytes}};
+    if (s.layers > 0) {
+      out.stats["layers"] = s.layers;
+      if (options_.technique == vk::RasterTechnique::DepthPeeling)
+        out.stats["layers_capped"] = s.layers_capped;
+    }
+    if (!s.critical_section.empty()) out.stats["critical_section"] = s.critical_section;
+    if (s.layers_capped)
+      out.warnings.push_back("needs " + std::to_string(s.max_depth_complexity) +
+                             " layers; dp peeled " + std::to_string(s.layers) + " (--max-layers)");
+    out.note = "on " + context_->info().name;
+    return out;
+  }
+
+  Bounds bounds() const override { return compute_bounds(tubes_); }
+
+  nlohmann::json stats() const override {
+    nlohmann::json j = {{"device", context_->info().name},
+                        {"driver", context_->info().driver},
+                        {"mesh_bytes", renderer_->mesh_bytes()}};
+    const vk::RasterOptions& o = options_;
+    if (o.technique == vk::RasterTechnique::LinkedLists) j["sort"] = vk::to_string(o.sort);
+    if (o.technique == vk::RasterTechnique::MlabBuckets)
+      j["tau"] = {{"alpha", o.tau_alpha}, {"opaque", o.tau_opaque}};
+    if (o.technique == vk::RasterTechnique::Mboit) {
+      j["beta"] = o.mboit_beta;
+      j["moments"] = {
+          {"basis", vk::to_string(o.moment_basis)},
+          {"count", o.moments},
+          {"bias", o.mboit_bias.value_or(vk::default_moment_bias(o.moment_basis, o.moments))}};
+    }
+    return j;
+  }
+
+  std::string device() const override { return context_->info().name; }
+
+ private:
+  ContextHolder context_;
+  TubeMesh tubes_;
+  std::unique_ptr<vk::RasterRenderer> renderer_;
+  vk::RasterOptions options_;
+};
+
+}  // namespace
+
+std::unique_ptr<PreparedTechnique> prepare_raster(const TechniqueInfo& info,
+                                                  const CacheReader& cache,
+                                                  const std::string& cache_name,
+                                                  const TechniqueOptions& options) {
+  return std::make_unique<Raster>(info, cache, cache_name, options);
+}
+
+}  // namespace linebake

@@ -1,0 +1,131 @@
+// The table of techniques (technique.hpp). Order: the ground truth, CPU ray tracing, the
+// rasterisation techniques from opaque to approximate, voxel ray casting, GPU ray tracing.
+
+#include <algorithm>
+
+#include "core/error.hpp"
+#include "render/vulkan/context.hpp"
+#include "techniques/families.hpp"
+
+namespace linebake {
+
+double TechniqueFrame::total_gpu_ms() const {
+  double total = 0;
+  for (const auto& [pass, ms] : gpu_ms) total += ms;
+  return total;
+}
+
+const std::vector<Technique>& techniques() {
+  using A = std::vector<std::string>;
+  static const std::vector<Technique> table = {
+      {{"reference", "exact: CPU ray tracing (Embree) of the cached tube mesh, every hit in order",
+        A{"tubes"}, false, false, true},
+       prepare_cpu_tracing},
+      {{"embree", "CPU ray tracing (Embree) of curves over the lines, every hit in order (OSP)",
+        A{"lines"}, false, false, true},
+       prepare_cpu_tracing},
+      {{"opaque", "Vulkan: the tube mesh depth-tested, opacity ignored", A{"tubes"}, true, false,
+        false},
+       prepare_raster},
+      {{"dp", "Vulkan: depth peeling, one pass per layer (exact up to --max-layers)", A{"tubes"},
+        true, false, true},
+       prepare_raster},
+      {{"ll", "Vulkan: per-pixel linked lists, sorted and blended (exact)", A{"tubes"}, true, false,
+        true},
+       prepare_raster},
+      {{"mlab", "Vulkan: multi-layer alpha blending, k nodes per pixel", A{"tubes"}, true, false,
+        false},
+       prepare_raster},
+      {{"mlabdb", "Vulkan: MLAB with depth buckets", A{"tubes"}, true, false, false},
+       prepare_raster},
+      {{"mboit", "Vulkan: moment-based OIT", A{"tubes"}, true, false, false}, prepare_raster},
+      {{"wboit", "Vulkan: weighted blended OIT", A{"tubes"}, true, false, false}, prepare_raster},
+      {{"vrc", "voxel ray casting of the voxel line grid, CPU or Vulkan compute (--on gpu)",
+        A{"voxels"}, false, false, false},
+       prepare_vrc},
+      {{"rtx", "Vulkan ray tracing of the tube mesh (or capsules), every hit in order", A{"tubes"},
+        true, true, true},
+       prepare_rtx},
+  };
+  return table;
+}
+
+std::vector<std::string> technique_names() {
+  std::vector<std::string> names;
+  for (const Technique& t : techniques()) names.push_back(t.info.name);
+  return names;
+}
+
+const Technique& find_technique(const std::string& name) {
+  for (const Technique& t : techniques())
+    if (t.info.name == name) return t;
+  std::string known;
+  for (const std::string& n : technique_names()) known += (known.empty() ? "" : ", ") + n;
+  throw Error("unknown technique '" + name + "' (" + known + ")");
+}
+
+std::optional<std::string> technique_unavailable(const Technique& technique,
+                                                 const TechniqueOptions& options,
+                                                 const CacheReader* cache) {
+  const TechniqueInfo& info = technique.info;
+  if (cache)
+    for (const std::string& asset : info.assets) {
+      const std::string group = asset == "lines" ? "/lines" : "/assets/" + asset;
+      if (!cache->exists(group))
+        return "the cache has no " + asset + " (bake --assets " + asset + ")";
+    }
+  const bool vulkan = info.vulkan || (info.name == "vrc" && options.on == "gpu");
+  if (!vulkan) return std::nullopt;
+  if (options.context) {
+    if (info.ray_tracing && !options.context->ray_tracing())
+      return "the window's Vulkan context (" + options.context->info().name +
+             ") was made without ray tracing";
+    return std::nullopt;
+  }
+  std::vector<vk::DeviceInfo> devices;
+  try {
+    devices = vk::list_devices();
+  } catch (const Error& e) {
+    return std::string(e.what());
+  }
+  // The device a Context would pick: the named one, else a discrete GPU, else the first.
+  auto named = [&](const vk::DeviceInfo& d) {
+    return options.device.empty() ? d.type == VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU
+                                  : d.name.find(options.device) != std::string::npos;
+  };
+  auto chosen = std::find_if(devices.begin(), devices.end(), named);
+  if (chosen == devices.end() && options.device.empty() && !devices.empty())
+    chosen = devices.begin();
+  if (chosen == devices.end())
+    return options.device.empty() ? "no Vulkan device"
+                                  : "no Vulkan device named '" + options.device + "'";
+  if (info.ray_tracing && !chosen->ray_tracing)
+    return "ray tracing is not supported on this device (" + chosen->name +
+           "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure";
+  return std::nullopt;
+}
+
+ContextHolder::ContextHolder(const TechniqueOptions& options, bool ray_tracing) {
+  if (options.context) {
+    if (ray_tracing && !options.context->ray_tracing())
+      throw vk::RayTracingUnsupported("the window's Vulkan context (" +
+                                      options.context->info().name +
+                                      ") was made without ray tracing");
+    context_ = options.context;
+    return;
+  }
+  vk::ContextOptions co;
+  co.device = options.device;
+  co.validation = options.validation;
+  co.ray_tracing = ray_tracing;
+  owned_ = std::make_unique<vk::Context>(co);
+  context_ = owned_.get();
+}
+
+void ContextHolder::check_validation() const {
+  if (context_->validation_errors() > 0)
+    throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +
+                " error(s); last: " + context_->last_validation_error());
+}
+
+}  // namespace linebake

@@ -1,0 +1,150 @@
+// rtx: Vulkan ray tracing. The BLAS come from the cache's /assets/rtx when they were serialised
+// on this driver from the same geometry; otherwise (or with rebuild) they are built here, and
+// the stats say which and why.
+
+#include "accel/capsule_segments.hpp"
+#include "cache/line_store.hpp"
+#include "cache/rtx_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
+#include "render/vulkan/rt_renderer.hpp"
+#include "render/vulkan/rt_scene.hpp"
+#include "techniques/curve_defaults.hpp"
+#include "techniques/families.hpp"
+
+namespace linebake {
+namespace {
+
+class Rtx : public PreparedTechnique {
+ public:
+  Rtx(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
+      : context_(make_context(o)) {
+    // The geometry: the option, else what the cache's BLAS were built over, else triangles.
+    std::optional<StoredRtx> stored;
+    if (cache.exists(kRtxGroup)) stored = load_rtx(cache);
+    const std::string geometry = !o.rt_geometry.empty() ? o.rt_geometry
+                                 : stored               ? stored->geometry
+                                                        : "triangles";
+    const bool has_tubes = cache.exists("/assets/tubes");
+    const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
+    std::string source;
+    if (geometry == "triangles") {
+      if (!has_tubes)
+        throw Error(cache_name +
+                    ": rtx traces the tube mesh's triangles; bake --assets tubes first "
+                    "(or --rt-geometry capsules)");
+      tubes_ = load_tubes(cache);
+      bounds_ = compute_bounds(tubes_);
+      scene_.emplace(*context_, tubes_);
+      source = tube_provenance ? tube_provenance->key : "";
+    } else if (geometry == "capsules") {
+      lines_ = load_lines(cache);
+      const auto [radius, attribute] =
+          curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
+      capsules_ = build_capsule_segments(lines_, radius, attribute);
+      bounds_ = compute_bounds(lines_);
+      for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
+      scene_.emplace(*context_, capsules_);
+      const auto lines_provenance = cache.provenance("/lines");
+      source = rtx_capsules_source(
+          lines_provenance ? lines_provenance->stats.value("content_hash", "") : "", radius,
+          attribute);
+    } else {
+      throw Error("rtx: --rt-geometry triangles or capsules, not '" + geometry + "'");
+    }
+    // Cached BLAS, else a build.
+    if (o.rebuild)
+      rebuild_reason_ = "--rebuild";
+    else if (!stored)
+      rebuild_reason_ = "the cache has no serialised BLAS (bake --assets rtx)";
+    else if (stored->geometry != geometry)
+      rebuild_reason_ = "the cached BLAS are over " + stored->geometry + ", not " + geometry;
+    else if (stored->source != source)
+      rebuild_reason_ = "the cached BLAS were built from other " +
+                        std::string(geometry == "triangles" ? "tubes" : "capsules");
+    else if (auto problem = scene_->load(stored->blobs))
+      rebuild_reason_ = *problem;
+    if (!rebuild_reason_.empty()) {
+      if (stored && !o.rebuild)
+        warnings.push_back("rtx: cached BLAS not used (" + rebuild_reason_ + "); rebuilding");
+      scene_->build(o.compaction);
+    }
+    renderer_.emplace(*context_);
+    options_.width = o.width, options_.height = o.height;
+    options_.early_termination = o.early_termination;
+    options_.max_iterations = uint32_t(o.max_iterations);
+    options_.hits = vk::parse_rt_hits(o.hits);
+  }
+
+  TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                        int height) override {
+    options_.width = width, options_.height = height;
+    vk::RtFrame frame = renderer_->render(*scene_, camera, tf, options_);
+    context_.check_validation();
+    const vk::RtStats& s = frame.stats;
+    TechniqueFrame out;
+    out.image = std::move(frame.image);
+    out.depth_complexity = std::move(frame.depth_complexity);
+    out.seconds = s.seconds;
+    out.frame_bytes = s.frame_bytes;
+    out.gpu_ms["trace"] = s.gpu_ms;
+    out.stats = {{"gpu_ms", s.gpu_ms},
+                 {"hits", s.hits},
+                 {"back_hits", s.back_hits},
+                 {"seam_hits", s.seam_hits},
+                 {"traces", s.traces},
+                 {"truncated_pixels", s.truncated_pixels},
+                 {"depth_complexity", {{"max", s.max_depth_complexity}}},
+                 {"frame_bytes", s.frame_bytes}};
+    if (s.truncated_pixels > 0)
+      out.warnings.push_back(std::to_string(s.truncated_pixels) +
+                             " pixels stopped at --max-iterations " +
+                             std::to_string(options_.max_iterations));
+    out.note = "GPU " + std::to_string(s.gpu_ms) + " ms";
+    return out;
+  }
+
+  Bounds bounds() const override { return bounds_; }
+
+  nlohmann::json stats() const override {
+    return {{"device", context_->info().name},
+            {"driver", context_->info().driver},
+            {"acceleration_structures", vk::to_json(scene_->figures())},
+            {"blas_source", rebuild_reason_.empty() ? "cache" : "built"},
+            {"rebuild_reason", rebuild_reason_},
+            {"early_termination", options_.early_termination},
+            {"max_iterations", options_.max_iterations},
+            {"hit_collection", vk::to_string(options_.hits)}};
+  }
+
+  std::string device() const override { return context_->info().name; }
+
+ private:
+  static ContextHolder make_context(const TechniqueOptions& o) {
+    try {
+      return ContextHolder(o, true);
+    } catch (const vk::RayTracingUnsupported& e) {
+      throw vk::RayTracingUnsupported(std::string("rtx: ") + e.what());
+    }
+  }
+
+  ContextHolder context_;
+  TubeMesh tubes_;
+  LineSet lines_;
+  CapsuleSegments capsules_;
+  Bounds bounds_;
+  std::optional<vk::RtScene> scene_;
+  std::optional<vk::RtRenderer> renderer_;
+  vk::RtOptions options_;
+  std::string rebuild_reason_;
+};
+
+}  // namespace
+
+std::unique_ptr<PreparedTechnique> prepare_rtx(const TechniqueInfo&, const CacheReader& cache,
+                                               const std::string& cache_name,
+                                               const TechniqueOptions& options) {
+  return std::make_unique<Rtx>(cache, cache_name, options);
+}
+
+}  // namespace linebake

@@ -1,0 +1,116 @@
+#pragma once
+// The rendering techniques of the paper as one table that every command iterates (`render`,
+// `view`, `bench render`, the pipeline planner), in the spirit of bgfx's renderer table: a
+// technique says which cached assets it reads and what it needs of the machine, prepares its
+// scene from a cache once, then renders cameras into frames with their statistics. The drivers
+// themselves live in lib/render (CPU) and lib/render/vulkan (GPU); a family file here adapts
+// them (cpu_tracing.cpp, raster.cpp, vrc.cpp, rtx.cpp). A new technique is its driver, its
+// shaders and one line in registry.cpp.
+
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cache/cache.hpp"
+#include "lines/line_set.hpp"
+#include "render/camera.hpp"
+#include "render/image.hpp"
+#include "render/transfer_function.hpp"
+
+namespace linebake {
+
+namespace vk {
+class Context;
+}
+
+struct TechniqueInfo {
+  std::string name;                 // as on the command line
+  std::string summary;              // one line
+  std::vector<std::string> assets;  // cache groups it reads: "lines", "tubes", "voxels"
+  bool vulkan = false;              // needs a Vulkan device (vrc: only with on = "gpu")
+  bool ray_tracing = false;         // needs VK_KHR_ray_tracing_pipeline
+  bool exact = false;               // every hit composited in order (the ground truth's class)
+};
+
+// Every knob of every technique, with the command line's defaults; a technique reads its own.
+struct TechniqueOptions {
+  int width = 1280, height = 720;  // what the flight frames (each frame gives its own size)
+  bool early_termination = false;  // embree, ll, rtx (vrc: see vrc_early_termination)
+  // Vulkan: the device (part of its name; empty: a discrete GPU, else the first), the Khronos
+  // validation layer, or a context to share (the viewer's window); validation errors fail a frame.
+  std::string device;
+  bool validation = false;
+  vk::Context* context = nullptr;
+  // embree, reference (CPU ray tracing) and rtx
+  std::string hits = "filter";  // filter | stepping
+  std::string geometry = "linear", quality = "medium";
+  bool packets = false;
+  float radius = 0;       // curves: world units (0: the cached tubes', else 0.001 x diagonal)
+  std::string attribute;  // curves: vertex attribute (empty: the tubes', else the first)
+  // raster techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit)
+  std::string sort = "heap";
+  uint64_t capacity = 0;
+  int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
+  double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1, moment_bias = -1;
+  std::string moment_basis = "power";
+  bool interlock = true;
+  // vrc
+  std::string on = "cpu";  // cpu | gpu
+  bool vrc_early_termination = true, skip_empty_space = true;
+  // rtx
+  std::string rt_geometry;  // triangles | capsules (empty: what the cached BLAS were built over)
+  bool rebuild = false, compaction = true;
+  int max_iterations = 1024;
+};
+
+struct TechniqueFrame {
+  Image image;  // linear RGB, background included
+  std::vector<uint32_t> depth_complexity;
+  double seconds = 0;                    // wall, readback included
+  std::map<std::string, double> gpu_ms;  // per pass, GPU timestamps (empty on the CPU)
+  uint64_t frame_bytes = 0;              // the technique's per-frame buffers
+  nlohmann::json stats;                  // the technique's own per-frame `--stats` fields
+  std::vector<std::string> warnings;     // for stderr ("needs 31 layers; dp peeled 20")
+  std::string note;                      // for the per-frame progress line
+  double total_gpu_ms() const;
+};
+
+class PreparedTechnique {
+ public:
+  virtual ~PreparedTechnique() = default;
+  // One frame of `width` x `height` (the viewer's window may change it between frames).
+  virtual TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                                int height) = 0;
+  // The box the flight frames (the same for every technique over one cache's tubes).
+  virtual Bounds bounds() const = 0;
+  // The technique's own `--stats` header fields (device, BVH or grid figures, options in force).
+  virtual nlohmann::json stats() const = 0;
+  // The Vulkan device's name, "" on the CPU.
+  virtual std::string device() const { return ""; }
+  // What preparing decided that a user should hear of (rtx: "cached BLAS not used (...)").
+  std::vector<std::string> warnings;
+};
+
+struct Technique {
+  TechniqueInfo info;
+  // Loads what it needs from the cache (`cache_name` names it in errors) and builds its scene.
+  std::unique_ptr<PreparedTechnique> (*prepare)(const TechniqueInfo& info, const CacheReader& cache,
+                                                const std::string& cache_name,
+                                                const TechniqueOptions& options) = nullptr;
+};
+
+// Every technique, in the order the commands list them.
+const std::vector<Technique>& techniques();
+std::vector<std::string> technique_names();
+// Throws Error naming the techniques when `name` is none of them.
+const Technique& find_technique(const std::string& name);
+// Why this machine cannot run the technique with these options (no Vulkan device, no device with
+// ray tracing, a missing asset in `cache` when one is given), or nullopt.
+std::optional<std::string> technique_unavailable(const Technique& technique,
+                                                 const TechniqueOptions& options,
+                                                 const CacheReader* cache = nullptr);
+
+}  // namespace linebake

@@ -1,0 +1,115 @@
+// vrc: voxel ray casting of the cached voxel line grid, on the CPU (TBB) or with Vulkan compute.
+// The flight frames the cached tube mesh's bounds when there is one (so frames compare with the
+// reference's), else the lines' widened by the radius.
+
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
+#include "core/error.hpp"
+#include "render/voxel_ray_caster.hpp"
+#include "render/vulkan/voxel_caster.hpp"
+#include "techniques/families.hpp"
+#include "voxels/occupancy.hpp"
+
+namespace linebake {
+namespace {
+
+class Vrc : public PreparedTechnique {
+ public:
+  Vrc(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o) {
+    if (!cache.exists(kVoxelsGroup))
+      throw Error(cache_name + ": vrc ray casts the voxel line grid; bake --assets voxels first");
+    grid_ = load_voxels(cache);
+    options_.width = o.width, options_.height = o.height;
+    options_.early_termination = o.vrc_early_termination;
+    options_.skip_empty_space = o.skip_empty_space;
+    const auto tube_provenance =
+        cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
+    options_.radius = o.radius;
+    if (!(options_.radius > 0) && tube_provenance &&
+        tube_provenance->stats.contains("radius_world"))
+      options_.radius = tube_provenance->stats["radius_world"].get<double>();
+    radius_ = vrc_radius(grid_, options_.radius);  // what the casters use
+    if (tube_provenance) {
+      bounds_ = compute_bounds(load_tubes(cache));
+    } else {
+      bounds_ = compute_bounds(load_lines(cache));
+      for (size_t k = 0; k < 3; ++k) {
+        bounds_.min[k] -= float(radius_);
+        bounds_.max[k] += float(radius_);
+      }
+    }
+    occupancy_ = build_occupancy(grid_);
+    if (o.on == "gpu") {
+      context_.emplace(o, false);
+      caster_.emplace(**context_, grid_, occupancy_);
+    } else if (o.on != "cpu") {
+      throw Error("vrc: --on cpu or gpu, not '" + o.on + "'");
+    }
+  }
+
+  TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                        int height) override {
+    options_.width = width, options_.height = height;
+    VrcFrame frame = caster_ ? caster_->render(camera, tf, options_)
+                             : cast_voxel_frame(grid_, occupancy_, camera, tf, options_);
+    if (context_) context_->check_validation();
+    const VrcStats& s = frame.stats;
+    TechniqueFrame out;
+    out.image = std::move(frame.image);
+    out.depth_complexity = std::move(frame.depth_complexity);
+    out.seconds = s.seconds;
+    out.frame_bytes = s.frame_bytes;
+    out.stats = {{"hits", s.hits},
+                 {"depth_complexity", {{"max", s.max_depth_complexity}}},
+                 {"voxels_visited", s.voxels_visited},
+                 {"cells_skipped", s.cells_skipped},
+                 {"chords_tested", s.chords_tested},
+                 {"frame_bytes", s.frame_bytes}};
+    if (caster_) {
+      out.stats["gpu_ms"] = caster_->last_gpu_ms();
+      out.gpu_ms["cast"] = caster_->last_gpu_ms();
+    }
+    return out;
+  }
+
+  Bounds bounds() const override { return bounds_; }
+
+  nlohmann::json stats() const override {
+    nlohmann::json j = {{"on", caster_ ? "gpu" : "cpu"},
+                        {"grid",
+                         {{"resolution", grid_.resolution},
+                          {"quantization", grid_.quantization},
+                          {"voxel_size", grid_.voxel_size},
+                          {"representation_bytes", grid_.representation_bytes()}}},
+                        {"occupancy_levels", occupancy_.levels()},
+                        {"occupancy_bytes", occupancy_.bytes()},
+                        {"radius", radius_},
+                        {"radius_clamped", options_.radius > grid_.voxel_size},
+                        {"early_termination", options_.early_termination},
+                        {"skip_empty_space", options_.skip_empty_space}};
+    if (context_) j["device"] = (*context_)->info().name;
+    return j;
+  }
+
+  std::string device() const override { return context_ ? (*context_)->info().name : ""; }
+
+ private:
+  std::optional<ContextHolder> context_;
+  VoxelGrid grid_;
+  OccupancyPyramid occupancy_;
+  VrcOptions options_;
+  double radius_ = 0;
+  Bounds bounds_;
+  std::optional<vk::VoxelCaster> caster_;
+};
+
+}  // namespace
+
+std::unique_ptr<PreparedTechnique> prepare_vrc(const TechniqueInfo&, const CacheReader& cache,
+                                               const std::string& cache_name,
+                                               const TechniqueOptions& options) {
+  return std::make_unique<Vrc>(cache, cache_name, options);
+}
+
+}  // namespace linebake
