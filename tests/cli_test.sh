@@ -140,6 +140,23 @@ check "vrc --no-skip gives the same image" bash -c "'$bin' render '$tmp/t.lbc.h5
 check "--on is a vrc option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --on gpu --size 32x24 -o "$tmp/x.png"
 check "rtx on lavapipe: one clear line, exit 4" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique rtx --size 32x24 -o '$tmp/rtx.png' 2> '$tmp/rtx.err'; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/rtx.err') -eq 1 ] && grep -q 'not supported on this device' '$tmp/rtx.err' && [ ! -e '$tmp/rtx.png' ]"
 check "bake --assets rtx on lavapipe: one clear line, exit 4, the cache untouched" bash -c "cp '$tmp/t.lbc.h5' '$tmp/before.h5'; '$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,voxels,rtx 2> '$tmp/bakertx.err' > /dev/null; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/bakertx.err') -eq 1 ] && grep -q 'rtx: ray tracing is not supported on this device' '$tmp/bakertx.err' && cmp '$tmp/t.lbc.h5' '$tmp/before.h5'"
+check "bench render --json: per technique GPU passes, wall, memory, PSNR against the reference" python3 -c "
+import json, subprocess
+j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'reference,ll,vrc,rtx', '--frames', '2', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
+assert j['size'] == [64, 48] and j['frames'] == 2 and len(j['runs']) == 1, j
+run = j['runs'][0]
+assert run['cache'] == 't' and run['segments'] == 495000, run
+rows = {r['technique']: r for r in run['rows']}
+assert list(rows) == ['reference', 'll', 'vrc', 'rtx'] and all(r['transfer_function'] == 'semi' for r in rows.values()), rows
+ll = rows['ll']
+assert ll['frames'] == 2 and 'llvmpipe' in ll['device'] and ll['frame_bytes'] > 0, ll
+assert 0 < ll['gpu_ms']['median'] <= ll['gpu_ms']['max'] and {'gather', 'resolve'} <= set(ll['passes']), ll
+assert ll['psnr_db'] >= 50 and ll['ssim'] > 0.99, ll  # exact against exact
+vrc = rows['vrc']
+assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'] > 0 and 10 < vrc['psnr_db'] < 60, vrc
+assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
+assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
+check "bench render: a Markdown table, unknown techniques refused before any work" bash -c "'$bin' bench render '$tmp/t.lbc.h5' --techniques wboit --frames 1 --size 32x24 2>/dev/null | grep -q '^| t (495,000) | semi | wboit | llvmpipe' && '$bin' bench render '$tmp/t.lbc.h5' --techniques wbiot 2> '$tmp/bench.err'; [ \$? -ne 0 ] && grep -q \"unknown technique 'wbiot'\" '$tmp/bench.err'"
 check "--rt-geometry is an rtx option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step

@@ -1,5 +1,6 @@
 // linebake bench <step>: speed of a build step against the machine's own memory bandwidth,
-// measured in the same run. Targets are checked and printed, never asserted in tests.
+// measured in the same run, or of the rendering techniques (bench render, bench_render.cpp).
+// Targets are checked and printed, never asserted in tests.
 
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -16,6 +17,7 @@
 
 #include "accel/capsule_chain.hpp"
 #include "accel/embree_scene.hpp"
+#include "bench_render.hpp"
 #include "commands.hpp"
 #include "core/array.hpp"
 #include "core/error.hpp"
@@ -384,11 +386,30 @@ void bench_bake(const BenchArgs& args) {
 
 Command add_bench(CLI::App& app) {
   auto* sub =
-      app.add_subcommand("bench", "Benchmark a build step (tubes, voxels, embree) or a whole bake");
+      app.add_subcommand("bench",
+                         "Benchmark a build step (tubes, voxels, embree), a whole bake, or the "
+                         "rendering techniques on caches (render CACHE...)");
   auto args = std::make_shared<BenchArgs>();
+  auto render = std::make_shared<BenchRenderArgs>();
   sub->add_option("step", args->step, "Step to measure")
       ->required()
-      ->check(CLI::IsMember({"tubes", "voxels", "embree", "bake"}));
+      ->check(CLI::IsMember({"tubes", "voxels", "embree", "bake", "render"}));
+  sub->add_option("caches", render->caches, "render: asset caches (.lbc.h5)");
+  sub->add_option("--techniques", render->techniques,
+                  "render: techniques (default: every one; those this machine cannot run are "
+                  "listed as skipped, with the reason)")
+      ->delimiter(',');
+  sub->add_option("--tf", render->transfer_functions,
+                  "render: transfer functions (default semi): opaque, semi, transparent, FILE.json")
+      ->delimiter(',');
+  sub->add_option("--frames", render->frames, "render: frames of the orbit-zoom flight (default 8)")
+      ->check(CLI::Range(1, 100000));
+  sub->add_option("--size", render->size, "render: image size WxH (default 1920x1080)");
+  sub->add_option("--device", render->device, "render: Vulkan device, part of its name");
+  sub->add_option("--max-seconds", render->max_seconds,
+                  "render: per technique and transfer function, stop after the frame that passes "
+                  "this many seconds (dp on large sets); default: render every frame")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
   sub->add_option("--grid", args->grid, "voxels: auto, N or NxNxN (default 512)");
   sub->add_option("--quantization", args->quantization, "voxels: 16 | 32 (default) | 64")
@@ -415,12 +436,17 @@ Command add_bench(CLI::App& app) {
                   "bake: the cache to write (default <input name>.bench.lbc.h5, removed after)");
   sub->add_flag("--keep", args->keep, "bake: keep the cache");
   sub->add_flag("--json", args->json, "Print the figures as JSON");
-  return [args] {
+  return [args, render] {
     std::unique_ptr<tbb::global_control> limit;
     if (args->threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     size_t(args->threads));
-    if (args->step == "bake")
+    if (args->step == "render") {
+      render->json = args->json;
+      bench_render(*render);
+    } else if (!render->caches.empty()) {
+      throw Error("bench " + args->step + ": caches are for bench render (use --input)");
+    } else if (args->step == "bake")
       bench_bake(*args);
     else if (args->step == "voxels")
       bench_voxels(*args);

@@ -213,6 +213,18 @@ Context::Context(const ContextOptions& options) {
     info_.fragment_shader_interlock =
         info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
     ray_tracing_ = options.ray_tracing;
+    // Integrated and CPU devices share their memory with the host: no staging copy there.
+    staging_piece_bytes_ = std::max<uint64_t>(options.staging_piece_bytes / 4 * 4, 4);
+    if (!options.force_staging && (info_.type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU ||
+                                   info_.type == VK_PHYSICAL_DEVICE_TYPE_CPU)) {
+      VkPhysicalDeviceMemoryProperties memory;
+      vkGetPhysicalDeviceMemoryProperties(physical_, &memory);
+      const VkMemoryPropertyFlags shared = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT |
+                                           VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                           VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+      for (uint32_t i = 0; i < memory.memoryTypeCount; ++i)
+        in_place_uploads_ |= (memory.memoryTypes[i].propertyFlags & shared) == shared;
+    }
 
     // The features enabled: a chain built from the end.
     std::vector<const char*> device_extensions;
@@ -325,10 +337,23 @@ Buffer Context::create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host
   if (usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) alloc.pNext = &flags;
   alloc.allocationSize = req.size;
   try {
-    alloc.memoryTypeIndex =
-        memory_type(req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
-                                                           VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
-                                                     : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    const VkMemoryPropertyFlags host =
+        VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+    if (!host_visible) {
+      alloc.memoryTypeIndex = memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+    } else {
+      // Device-local memory the host can write where uploads go in place (lavapipe, integrated
+      // GPUs); else host-cached where offered, as results are read back by the CPU.
+      const VkMemoryPropertyFlags preferred =
+          in_place_uploads_ && (usage & VK_BUFFER_USAGE_TRANSFER_SRC_BIT) == 0
+              ? host | VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT
+              : host | VK_MEMORY_PROPERTY_HOST_CACHED_BIT;
+      try {
+        alloc.memoryTypeIndex = memory_type(req.memoryTypeBits, preferred);
+      } catch (const Error&) {
+        alloc.memoryTypeIndex = memory_type(req.memoryTypeBits, host);
+      }
+    }
     const VkResult r = vkAllocateMemory(device_, &alloc, nullptr, &b.memory);
     if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
       throw Error("Vulkan: out of memory allocating " + std::to_string(b.size) + " bytes on " +
@@ -350,23 +375,37 @@ VkDeviceAddress Context::address(const Buffer& b) const {
   return vkGetBufferDeviceAddress(device_, &info);
 }
 
-Buffer Context::upload(const void* data, uint64_t bytes, VkBufferUsageFlags usage) {
+Buffer Context::create_filled(uint64_t bytes, VkBufferUsageFlags usage, const Filler& write) {
   const uint64_t size = std::max<uint64_t>((bytes + 3) / 4 * 4, 4);
-  Buffer staging = create_buffer(size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+  if (in_place_uploads_) {
+    Buffer out = create_buffer(size, usage, true);
+    auto* dst = static_cast<uint8_t*>(out.mapped);
+    if (bytes > 0) write(dst, 0, bytes);
+    std::memset(dst + bytes, 0, size - bytes);
+    return out;
+  }
+  const uint64_t piece = std::min(size, staging_piece_bytes_);
+  Buffer staging = create_buffer(piece, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
   Buffer out;
   try {
-    std::memset(staging.mapped, 0, size);
-    if (bytes > 0) std::memcpy(staging.mapped, data, bytes);
     out = create_buffer(size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
-    submit([&](VkCommandBuffer cmd) {
-      const VkBufferCopy region{0, 0, size};
-      vkCmdCopyBuffer(cmd, staging.buffer, out.buffer, 1, &region);
-      VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-      barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-      barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT;
-      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                           0, 1, &barrier, 0, nullptr, 0, nullptr);
-    });
+    auto* dst = static_cast<uint8_t*>(staging.mapped);
+    for (uint64_t offset = 0; offset < size; offset += piece) {
+      const uint64_t count = std::min(piece, size - offset);
+      const uint64_t data = offset < bytes ? std::min(count, bytes - offset) : 0;
+      if (data > 0) write(dst, offset, data);
+      std::memset(dst + data, 0, count - data);
+      submit([&](VkCommandBuffer cmd) {
+        const VkBufferCopy region{0, offset, count};
+        vkCmdCopyBuffer(cmd, staging.buffer, out.buffer, 1, &region);
+        VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+        barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+        barrier.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT;
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, 1, &barrier, 0, nullptr, 0,
+                             nullptr);
+      });
+    }
   } catch (...) {
     destroy(staging);
     destroy(out);
@@ -374,6 +413,12 @@ Buffer Context::upload(const void* data, uint64_t bytes, VkBufferUsageFlags usag
   }
   destroy(staging);
   return out;
+}
+
+Buffer Context::upload(const void* data, uint64_t bytes, VkBufferUsageFlags usage) {
+  return create_filled(bytes, usage, [data](void* dst, uint64_t offset, uint64_t count) {
+    std::memcpy(dst, static_cast<const uint8_t*>(data) + offset, count);
+  });
 }
 
 void Context::destroy(Buffer& b) {

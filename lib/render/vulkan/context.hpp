@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,11 @@ struct ContextOptions {
   // VK_KHR_swapchain on the device.
   std::vector<std::string> instance_extensions;
   bool swapchain = false;
+  // Uploads to device-local memory go through one staging buffer of this many bytes (rounded
+  // down to 4), piece by piece: never a second full copy of the mesh in host memory.
+  uint64_t staging_piece_bytes = uint64_t{64} << 20;
+  // Stage even where device-local memory is host-visible (tests of the staged path on lavapipe).
+  bool force_staging = false;
 };
 
 // The chosen device cannot ray trace (lavapipe, older GPUs): the message is the one line users see.
@@ -77,16 +83,23 @@ class Context {
   uint64_t validation_errors() const { return validation_errors_; }
   const std::string& last_validation_error() const { return last_validation_error_; }
 
-  // Host-visible, coherent buffers: simple and enough for lavapipe and for readbacks; device-
-  // local ones for the large per-frame arrays on GPUs.
+  // Host-visible, coherent buffers (host-cached where the device offers it, for readbacks):
+  // uniforms and results; device-local ones for the large per-frame arrays on GPUs.
   Buffer create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host_visible);
   // With ray tracing enabled: the buffer's device address (it needs
   // VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT; create_buffer allocates such buffers with the
   // device-address flag).
   VkDeviceAddress address(const Buffer& buffer) const;
-  // A device-local buffer holding `bytes` of `data` (through a staging buffer; usage gains
-  // TRANSFER_DST). Sizes round up to 4 bytes.
+  // Writes bytes [offset, offset + count) of a buffer's content to `dst`.
+  using Filler = std::function<void(void* dst, uint64_t offset, uint64_t count)>;
+  // A device-local buffer of `bytes` (rounded up to 4, the padding zero) filled by `write`, piece
+  // by piece through one staging buffer (usage gains TRANSFER_DST), or written in place where
+  // device-local memory is also host-visible (lavapipe, integrated GPUs; see force_staging).
+  Buffer create_filled(uint64_t bytes, VkBufferUsageFlags usage, const Filler& write);
+  // create_filled with a copy of `data`.
   Buffer upload(const void* data, uint64_t bytes, VkBufferUsageFlags usage);
+  // Whether create_filled writes device-local memory in place (no staging copy).
+  bool uploads_in_place() const { return in_place_uploads_; }
   bool ray_tracing() const { return ray_tracing_; }
   void destroy(Buffer& buffer);
   uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags properties) const;
@@ -124,6 +137,8 @@ class Context {
   double timestamp_period_ns_ = 1;
   bool timestamps_ = false;
   bool ray_tracing_ = false;
+  bool in_place_uploads_ = false;
+  uint64_t staging_piece_bytes_ = 0;
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
   std::string last_validation_error_;

@@ -191,25 +191,27 @@ void RasterRenderer::State::upload(const TubeMesh& mesh) {
     if (chunk.triangle_count() == 0) continue;
     ChunkBuffers b;
     const uint64_t n = chunk.vertex_count();
-    b.positions = ctx.create_buffer(chunk.positions.bytes(), vertex, true);
-    std::memcpy(b.positions.mapped, chunk.positions.data(), chunk.positions.bytes());
-    b.normals = ctx.create_buffer(n * 12, vertex, true);
-    auto* normals = static_cast<float*>(b.normals.mapped);
-    for (uint64_t v = 0; v < n; ++v) {
-      if (!chunk.normals.empty()) {
-        for (int k = 0; k < 3; ++k) normals[3 * v + k] = chunk.normals[3 * v + k];
-      } else {
-        const auto d = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
-        for (int k = 0; k < 3; ++k) normals[3 * v + k] = d[size_t(k)];
+    // Device-local, filled piece by piece (Context::create_filled): every pass reads the mesh.
+    b.positions = ctx.upload(chunk.positions.data(), chunk.positions.bytes(), vertex);
+    b.normals = ctx.create_filled(n * 12, vertex, [&](void* dst, uint64_t offset, uint64_t count) {
+      auto* out = static_cast<float*>(dst);
+      for (uint64_t f = offset / 4; f < (offset + count) / 4; ++f) {
+        const uint64_t v = f / 3, k = f % 3;
+        if (!chunk.normals.empty()) {
+          *out++ = chunk.normals[f];
+        } else {
+          const auto d = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
+          *out++ = d[size_t(k)];
+        }
       }
-    }
-    b.attribute = ctx.create_buffer(n * 2, vertex, true);
+    });
     if (chunk.attribute.empty())
-      std::memset(b.attribute.mapped, 0, n * 2);
+      b.attribute = ctx.create_filled(
+          n * 2, vertex, [](void* dst, uint64_t, uint64_t count) { std::memset(dst, 0, count); });
     else
-      std::memcpy(b.attribute.mapped, chunk.attribute.data(), n * 2);
-    b.indices = ctx.create_buffer(chunk.indices.bytes(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT, true);
-    std::memcpy(b.indices.mapped, chunk.indices.data(), chunk.indices.bytes());
+      b.attribute = ctx.upload(chunk.attribute.data(), n * 2, vertex);
+    b.indices =
+        ctx.upload(chunk.indices.data(), chunk.indices.bytes(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
     b.index_count = uint32_t(chunk.indices.size());
     mesh_bytes += b.positions.size + b.normals.size + b.attribute.size + b.indices.size;
     chunks.push_back(b);

@@ -53,12 +53,9 @@ struct VoxelCaster::State {
 
   State(Context& c, const VoxelGrid& g) : ctx(c), grid(g) {}
 
+  // Device-local; Vulkan has no zero-sized buffers: an empty array becomes one unused word.
   Buffer upload(const void* data, uint64_t bytes) {
-    // Vulkan has no zero-sized buffers; an empty array becomes one unused word.
-    Buffer b =
-        ctx.create_buffer(std::max<uint64_t>(bytes, 4), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    if (bytes > 0) std::memcpy(b.mapped, data, bytes);
-    return b;
+    return ctx.upload(data, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   }
 
   void write_descriptors() {

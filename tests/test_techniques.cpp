@@ -1,0 +1,135 @@
+// The technique registry (lib/techniques): what it lists, what each technique needs, why one
+// cannot run here; and the device-local uploads the Vulkan techniques read their meshes from.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <iostream>
+
+#include "core/error.hpp"
+#include "pipeline/bake.hpp"
+#include "render/vulkan/context.hpp"
+#include "render/vulkan/raster_renderer.hpp"
+#include "render/vulkan/voxel_caster.hpp"
+#include "synth/synth.hpp"
+#include "techniques/technique.hpp"
+#include "test_util.hpp"
+#include "tubes/tube_builder.hpp"
+#include "voxels/occupancy.hpp"
+#include "voxels/voxelizer.hpp"
+
+namespace linebake {
+namespace {
+
+using test::TempDir;
+
+TEST(Techniques, TheRegistryListsEveryTechniqueWithItsAssets) {
+  const std::vector<std::string> expected{"reference", "embree", "opaque", "dp",  "ll", "mlab",
+                                          "mlabdb",    "mboit",  "wboit",  "vrc", "rtx"};
+  EXPECT_EQ(technique_names(), expected);
+  for (const Technique& t : techniques()) {
+    const std::string asset = t.info.name == "embree" ? "lines"
+                              : t.info.name == "vrc"  ? "voxels"
+                                                      : "tubes";
+    EXPECT_EQ(t.info.assets, std::vector<std::string>{asset}) << t.info.name;
+    const bool cpu = t.info.name == "reference" || t.info.name == "embree" || t.info.name == "vrc";
+    EXPECT_EQ(t.info.vulkan, !cpu) << t.info.name;
+    EXPECT_EQ(t.info.ray_tracing, t.info.name == "rtx") << t.info.name;
+    EXPECT_NE(t.prepare, nullptr) << t.info.name;
+    EXPECT_FALSE(t.info.summary.empty()) << t.info.name;
+  }
+  // The exact ones composite every hit in order.
+  for (const char* exact : {"reference", "embree", "dp", "ll", "rtx"})
+    EXPECT_TRUE(find_technique(exact).info.exact) << exact;
+  for (const char* approximate : {"opaque", "mlab", "mlabdb", "mboit", "wboit", "vrc"})
+    EXPECT_FALSE(find_technique(approximate).info.exact) << approximate;
+  try {
+    find_technique("embre");
+    ADD_FAILURE() << "an unknown name was found";
+  } catch (const Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("'embre'"), std::string::npos) << message;
+    EXPECT_NE(message.find("embree"), std::string::npos) << message;
+  }
+}
+
+TEST(Techniques, SayWhyTheyCannotRunHere) {
+  TempDir dir;
+  BakeOptions o;
+  o.input = "synth:aneurysm?scale=0.002";
+  o.cache = dir.file("tubes-only.lbc.h5");
+  o.assets = {"tubes"};
+  o.progress = false;
+  bake(o);
+  const CacheReader cache(o.cache);
+  TechniqueOptions options;
+  EXPECT_EQ(technique_unavailable(find_technique("ll"), options, &cache), std::nullopt);
+  EXPECT_EQ(technique_unavailable(find_technique("embree"), options, &cache), std::nullopt);
+  const auto vrc = technique_unavailable(find_technique("vrc"), options, &cache);
+  ASSERT_TRUE(vrc.has_value());
+  EXPECT_EQ(*vrc, "the cache has no voxels (bake --assets voxels)");
+  options.device = "no such device";
+  const auto ll = technique_unavailable(find_technique("ll"), options, nullptr);
+  ASSERT_TRUE(ll.has_value());
+  EXPECT_EQ(*ll, "no Vulkan device named 'no such device'");
+  // CPU techniques need no device at all.
+  EXPECT_EQ(technique_unavailable(find_technique("reference"), options, nullptr), std::nullopt);
+  options.device.clear();
+  bool ray_tracing = false;
+  for (const vk::DeviceInfo& d : vk::list_devices()) ray_tracing |= d.ray_tracing;
+  const auto rtx = technique_unavailable(find_technique("rtx"), options, &cache);
+  if (ray_tracing)
+    EXPECT_EQ(rtx, std::nullopt);
+  else
+    EXPECT_NE(rtx.value_or("").find("ray tracing is not supported on this device"),
+              std::string::npos)
+        << rtx.value_or("");
+  // A prepared technique renders what the command line renders: a frame of the asked size.
+  const Technique& ll_technique = find_technique("ll");
+  auto prepared = ll_technique.prepare(ll_technique.info, cache, o.cache, options);
+  const Camera camera = frame_bounds(prepared->bounds(), 40.0 / 30.0, 30, 20);
+  const TechniqueFrame frame = prepared->render(camera, transfer_function_preset("semi"), 40, 30);
+  EXPECT_EQ(frame.image.width, 40);
+  EXPECT_EQ(frame.image.height, 30);
+  EXPECT_TRUE(frame.gpu_ms.count("gather")) << frame.stats.dump();
+  EXPECT_GT(frame.total_gpu_ms(), 0);
+}
+
+// Device-local buffers filled through a staging buffer in small pieces (as on a discrete GPU)
+// give the same images as lavapipe's in-place writes.
+TEST(Techniques, StagingInPiecesGivesIdenticalImages) {
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.002"));
+  TubeOptions to;
+  to.normals = NormalEncoding::Oct16;  // the decoding path of the upload, piece by piece
+  const TubeMesh mesh = build_tubes(lines, to);
+  VoxelOptions vo;
+  vo.grid = 32;
+  const VoxelGrid grid = voxelize(lines, vo);
+  const OccupancyPyramid occupancy = build_occupancy(grid);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const Camera camera = frame_bounds(compute_bounds(mesh), 64.0 / 48.0, 30, 20);
+  vk::ContextOptions staged_options;
+  staged_options.force_staging = true;
+  staged_options.staging_piece_bytes = 1000;  // many pieces, none a multiple of a vertex
+  vk::Context in_place, staged(staged_options);
+  EXPECT_FALSE(staged.uploads_in_place());
+  std::cout << "lavapipe uploads in place: " << in_place.uploads_in_place() << "\n";
+  vk::RasterOptions ro;
+  ro.width = 64, ro.height = 48;
+  for (auto technique : {vk::RasterTechnique::LinkedLists, vk::RasterTechnique::Opaque}) {
+    ro.technique = technique;
+    vk::RasterRenderer a(in_place, mesh), b(staged, mesh);
+    const vk::RasterFrame fa = a.render(camera, tf, ro), fb = b.render(camera, tf, ro);
+    EXPECT_EQ(fa.image.pixels, fb.image.pixels) << vk::to_string(technique);
+    const auto [lo, hi] = std::minmax_element(fa.image.pixels.begin(), fa.image.pixels.end());
+    EXPECT_GT(*hi - *lo, 0.1f) << "the tubes are in the picture";
+  }
+  VrcOptions vrc;
+  vrc.width = 64, vrc.height = 48;
+  vk::VoxelCaster a(in_place, grid, occupancy), b(staged, grid, occupancy);
+  EXPECT_EQ(a.render(camera, tf, vrc).image.pixels, b.render(camera, tf, vrc).image.pixels);
+  EXPECT_EQ(in_place.validation_errors() + staged.validation_errors(), 0u);
+}
+
+}  // namespace
+}  // namespace linebake

@@ -1,0 +1,258 @@
+// linebake bench render CACHE...: every technique of the registry (or those asked for) on every
+// cache and transfer function over an N-frame flight: GPU time per pass and in total (median and
+// max over the frames), wall time per frame, per-frame memory, the device, and PSNR/SSIM of
+// frame 0 against the reference, rendered once per camera. A Markdown table, or JSON.
+
+#include "bench_render.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/interrupt.hpp"
+#include "core/measure.hpp"
+#include "flight_plan.hpp"
+#include "metrics/image_metrics.hpp"
+#include "render/image.hpp"
+#include "techniques/technique.hpp"
+
+namespace linebake::cli {
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double maximum(const std::vector<double>& v) {
+  return v.empty() ? 0 : *std::max_element(v.begin(), v.end());
+}
+
+nlohmann::json spread(const std::vector<double>& v) {
+  return {{"median", median(v)}, {"max", maximum(v)}};
+}
+
+std::string camera_key(const Camera& c) {
+  char text[256];
+  std::snprintf(text, sizeof text, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g", c.eye.x, c.eye.y, c.eye.z,
+                c.target.x, c.target.y, c.target.z, c.fov_y_degrees);
+  return text;
+}
+
+// The reference's frame 0 per camera (techniques frame their own bounds: curves and voxels can
+// differ from the tube mesh), rendered when first asked for.
+class ReferenceFrames {
+ public:
+  ReferenceFrames(const CacheReader& cache, const std::string& name, const TechniqueOptions& o)
+      : cache_(cache), name_(name), options_(o) {}
+  const Image& at(const Camera& camera, const TransferFunction& tf, int width, int height) {
+    const std::string key = camera_key(camera) + " " + tf.name;
+    auto found = images_.find(key);
+    if (found != images_.end()) return found->second;
+    if (!prepared_) {
+      const Technique& reference = find_technique("reference");
+      prepared_ = reference.prepare(reference.info, cache_, name_, options_);
+    }
+    Image image = display_encoded(prepared_->render(camera, tf, width, height).image);
+    return images_.emplace(key, std::move(image)).first->second;
+  }
+
+ private:
+  const CacheReader& cache_;
+  std::string name_;
+  TechniqueOptions options_;
+  std::unique_ptr<PreparedTechnique> prepared_;
+  std::map<std::string, Image> images_;
+};
+
+// One technique on one cache with one transfer function.
+nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique,
+                         const CacheReader& cache, const std::string& cache_name,
+                         const TransferFunction& tf, const TechniqueOptions& options,
+                         ReferenceFrames& references) {
+  nlohmann::json row = {{"technique", technique.info.name}, {"transfer_function", tf.name}};
+  if (auto reason = technique_unavailable(technique, options, &cache)) {
+    row["skipped"] = *reason;
+    return row;
+  }
+  try {
+    const auto start = std::chrono::steady_clock::now();
+    std::unique_ptr<PreparedTechnique> prepared =
+        technique.prepare(technique.info, cache, cache_name, options);
+    row["prepare_s"] = seconds_since(start);
+    row["device"] = prepared->device().empty() ? "CPU" : prepared->device();
+    const nlohmann::json header = prepared->stats();
+    if (header.contains("mesh_bytes")) row["mesh_bytes"] = header["mesh_bytes"];
+    const FlightPlan plan = plan_flight("orbit-zoom", args.frames, 0, "all", prepared->bounds(),
+                                        options.width, options.height);
+    std::vector<double> gpu, wall;
+    std::map<std::string, std::vector<double>> passes;
+    uint64_t frame_bytes = 0;
+    nlohmann::json layers = nlohmann::json::array();
+    bool capped = false;
+    const auto frames_start = std::chrono::steady_clock::now();
+    for (int f : plan.frames) {
+      throw_if_interrupted();
+      const Camera& camera = plan.cameras[size_t(f)];
+      const TechniqueFrame frame = prepared->render(camera, tf, options.width, options.height);
+      wall.push_back(frame.seconds);
+      if (!frame.gpu_ms.empty()) gpu.push_back(frame.total_gpu_ms());
+      for (const auto& [pass, ms] : frame.gpu_ms) passes[pass].push_back(ms);
+      frame_bytes = std::max(frame_bytes, frame.frame_bytes);
+      if (frame.stats.contains("critical_section"))
+        row["critical_section"] = frame.stats["critical_section"];
+      if (technique.info.name == "dp" && frame.stats.contains("layers")) {
+        layers.push_back(frame.stats["layers"]);
+        capped = capped || frame.stats.value("layers_capped", false);
+      }
+      if (f == 0 && technique.info.name != "reference") {
+        const Image& truth = references.at(camera, tf, options.width, options.height);
+        const Image image = display_encoded(frame.image);
+        row["psnr_db"] = psnr(image, truth);
+        row["ssim"] = ssim(image, truth);
+      }
+      if (args.max_seconds > 0 && seconds_since(frames_start) > args.max_seconds &&
+          f + 1 < args.frames) {
+        row["stopped"] = "after " + std::to_string(f + 1) + " of " + std::to_string(args.frames) +
+                         " frames (--max-seconds " + std::to_string(args.max_seconds) + ")";
+        break;
+      }
+    }
+    row["frames"] = wall.size();
+    row["wall_s"] = spread(wall);
+    if (!gpu.empty()) {
+      row["gpu_ms"] = spread(gpu);
+      nlohmann::json p = nlohmann::json::object();
+      for (const auto& [pass, ms] : passes) p[pass] = spread(ms);
+      row["passes"] = p;
+    }
+    row["frame_bytes"] = frame_bytes;
+    if (!layers.empty()) {
+      row["dp_layers"] = layers;
+      row["dp_layers_capped"] = capped;
+    }
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    row["failed"] = e.what();
+  }
+  return row;
+}
+
+std::string fixed(double v, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+std::string with_commas(uint64_t v) {
+  std::string digits = std::to_string(v), out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return out;
+}
+
+void print_markdown(const nlohmann::json& result) {
+  std::cout << "| cache (segments) | tf | technique | device | frames | GPU ms median | GPU ms max "
+               "| wall ms median | frame MiB | PSNR dB | SSIM | passes, median ms | notes |\n"
+               "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|\n";
+  for (const auto& run : result["runs"]) {
+    const std::string set = run["cache"].get<std::string>() + " (" +
+                            with_commas(run.value("segments", uint64_t{0})) + ")";
+    for (const auto& r : run["rows"]) {
+      std::cout << "| " << set << " | " << r["transfer_function"].get<std::string>() << " | "
+                << r["technique"].get<std::string>() << " | ";
+      if (r.contains("skipped") || r.contains("failed")) {
+        std::cout << r.value("device", "") << " | | | | | | | | | "
+                  << (r.contains("skipped") ? "skipped: " + r["skipped"].get<std::string>()
+                                            : "failed: " + r["failed"].get<std::string>())
+                  << " |\n";
+        continue;
+      }
+      std::string passes, notes;
+      if (r.contains("passes"))
+        for (const auto& [pass, s] : r["passes"].items())
+          passes += (passes.empty() ? "" : ", ") + pass + " " + fixed(s["median"], 1);
+      if (r.contains("critical_section")) notes += r["critical_section"].get<std::string>();
+      if (r.contains("dp_layers")) {
+        std::vector<double> l;
+        for (const auto& v : r["dp_layers"]) l.push_back(v.get<double>());
+        notes += "layers " + fixed(median(l), 0) + " median, " + fixed(maximum(l), 0) + " max" +
+                 (r["dp_layers_capped"].get<bool>() ? " (capped by --max-layers)" : "");
+      }
+      if (r.contains("stopped"))
+        notes += (notes.empty() ? "" : "; ") + r["stopped"].get<std::string>();
+      const bool gpu = r.contains("gpu_ms");
+      std::cout << r["device"].get<std::string>() << " | " << r["frames"].get<int>() << " | "
+                << (gpu ? fixed(r["gpu_ms"]["median"], 1) : "") << " | "
+                << (gpu ? fixed(r["gpu_ms"]["max"], 1) : "") << " | "
+                << fixed(1000 * r["wall_s"]["median"].get<double>(), 1) << " | "
+                << fixed(r["frame_bytes"].get<double>() / (1 << 20), 1) << " | "
+                << (r.contains("psnr_db") ? fixed(r["psnr_db"], 1) : "") << " | "
+                << (r.contains("ssim") ? fixed(r["ssim"], 4) : "") << " | " << passes << " | "
+                << notes << " |\n";
+    }
+  }
+}
+
+}  // namespace
+
+void bench_render(const BenchRenderArgs& args) {
+  if (args.caches.empty()) throw Error("bench render: name at least one cache");
+  std::vector<std::string> names = args.techniques;
+  if (names.empty()) names = technique_names();
+  for (const std::string& name : names) find_technique(name);  // unknown names fail first
+  for (const std::string& path : args.caches)
+    if (!std::filesystem::is_regular_file(path)) throw InputError(path, "", "no such cache file");
+  std::vector<TransferFunction> tfs;
+  for (const std::string& name : args.transfer_functions)
+    tfs.push_back(resolve_transfer_function(name));
+  const auto [width, height] = parse_size(args.size);
+  TechniqueOptions options;
+  options.width = width, options.height = height;
+  options.device = args.device;
+  nlohmann::json result = {{"size", {width, height}},
+                           {"frames", args.frames},
+                           {"flight", "orbit-zoom"},
+                           {"runs", nlohmann::json::array()}};
+  for (const std::string& path : args.caches) {
+    const CacheReader cache(path);
+    nlohmann::json run = {{"cache", std::filesystem::path(path).stem().stem().string()},
+                          {"path", path},
+                          {"rows", nlohmann::json::array()}};
+    if (const auto lines = cache.provenance("/lines"))
+      run["segments"] = lines->stats.value("segments", uint64_t{0});
+    ReferenceFrames references(cache, path, options);
+    for (const TransferFunction& tf : tfs)
+      for (const std::string& name : names) {
+        const nlohmann::json row =
+            bench_one(args, find_technique(name), cache, path, tf, options, references);
+        std::cerr << "bench render: " << run["cache"].get<std::string>() << " " << tf.name << " "
+                  << name << ": "
+                  << (row.contains("skipped")  ? "skipped, " + row["skipped"].get<std::string>()
+                      : row.contains("failed") ? "failed, " + row["failed"].get<std::string>()
+                      : row.contains("gpu_ms")
+                          ? "GPU " + fixed(row["gpu_ms"]["median"], 1) + " ms median"
+                          : "wall " + fixed(row["wall_s"]["median"], 3) + " s median")
+                  << "\n";
+        run["rows"].push_back(row);
+      }
+    result["runs"].push_back(std::move(run));
+  }
+  if (args.json)
+    std::cout << result.dump(2) << "\n";
+  else
+    print_markdown(result);
+}
+
+}  // namespace linebake::cli

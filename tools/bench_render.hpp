@@ -1,0 +1,21 @@
+#pragma once
+// `linebake bench render`: the techniques of the registry timed and compared on caches.
+
+#include <string>
+#include <vector>
+
+namespace linebake::cli {
+
+struct BenchRenderArgs {
+  std::vector<std::string> caches;
+  std::vector<std::string> techniques;  // empty: every technique of the registry
+  std::vector<std::string> transfer_functions{"semi"};
+  int frames = 8;
+  std::string size = "1920x1080", device;
+  double max_seconds = 0;  // per technique and transfer function: stop after the frame past it
+  bool json = false;
+};
+
+void bench_render(const BenchRenderArgs& args);
+
+}  // namespace linebake::cli
