@@ -12,6 +12,7 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -20,6 +21,7 @@
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render/image.hpp"
+#include "render/vulkan/context.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -73,6 +75,8 @@ class ReferenceFrames {
   std::map<std::string, Image> images_;
 };
 
+std::string fixed(double v, int digits);
+
 // One technique on one cache with one transfer function.
 nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique,
                          const CacheReader& cache, const std::string& cache_name,
@@ -122,7 +126,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
       if (args.max_seconds > 0 && seconds_since(frames_start) > args.max_seconds &&
           f + 1 < args.frames) {
         row["stopped"] = "after " + std::to_string(f + 1) + " of " + std::to_string(args.frames) +
-                         " frames (--max-seconds " + std::to_string(args.max_seconds) + ")";
+                         " frames (--max-seconds " +
+                         fixed(args.max_seconds, args.max_seconds < 10 ? 1 : 0) + ")";
         break;
       }
     }
@@ -145,6 +150,10 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
     row["failed"] = e.what();
   }
   return row;
+}
+
+std::string technique_of(const std::string& name) {
+  return name == "vrc-gpu" ? "vrc" : name;
 }
 
 std::string fixed(double v, int digits) {
@@ -209,9 +218,14 @@ void print_markdown(const nlohmann::json& result) {
 
 void bench_render(const BenchRenderArgs& args) {
   if (args.caches.empty()) throw Error("bench render: name at least one cache");
+  // The registry's names, and vrc-gpu for vrc on Vulkan compute (as the viewer names it).
   std::vector<std::string> names = args.techniques;
-  if (names.empty()) names = technique_names();
-  for (const std::string& name : names) find_technique(name);  // unknown names fail first
+  if (names.empty())
+    for (const std::string& name : technique_names()) {
+      names.push_back(name);
+      if (name == "vrc") names.push_back("vrc-gpu");
+    }
+  for (const std::string& name : names) find_technique(technique_of(name));  // fail first
   for (const std::string& path : args.caches)
     if (!std::filesystem::is_regular_file(path)) throw InputError(path, "", "no such cache file");
   std::vector<TransferFunction> tfs;
@@ -221,6 +235,20 @@ void bench_render(const BenchRenderArgs& args) {
   TechniqueOptions options;
   options.width = width, options.height = height;
   options.device = args.device;
+  // One Vulkan context for every technique, with ray tracing where the device has it: a context
+  // per technique costs an instance each, and NVIDIA's driver refused new instances after about
+  // thirty in one process (H100, driver 580).
+  std::optional<vk::Context> context;
+  const bool vulkan = std::any_of(names.begin(), names.end(), [](const std::string& name) {
+    return name == "vrc-gpu" || find_technique(name).info.vulkan;
+  });
+  if (vulkan && !technique_unavailable(find_technique("opaque"), options)) {
+    vk::ContextOptions co;
+    co.device = args.device;
+    co.ray_tracing = !technique_unavailable(find_technique("rtx"), options);
+    context.emplace(co);
+    options.context = &*context;
+  }
   nlohmann::json result = {{"size", {width, height}},
                            {"frames", args.frames},
                            {"flight", "orbit-zoom"},
@@ -235,8 +263,11 @@ void bench_render(const BenchRenderArgs& args) {
     ReferenceFrames references(cache, path, options);
     for (const TransferFunction& tf : tfs)
       for (const std::string& name : names) {
-        const nlohmann::json row =
-            bench_one(args, find_technique(name), cache, path, tf, options, references);
+        TechniqueOptions o = options;
+        if (name == "vrc-gpu") o.on = "gpu";
+        nlohmann::json row =
+            bench_one(args, find_technique(technique_of(name)), cache, path, tf, o, references);
+        row["technique"] = name;
         std::cerr << "bench render: " << run["cache"].get<std::string>() << " " << tf.name << " "
                   << name << ": "
                   << (row.contains("skipped")  ? "skipped, " + row["skipped"].get<std::string>()

@@ -396,8 +396,8 @@ Command add_bench(CLI::App& app) {
       ->check(CLI::IsMember({"tubes", "voxels", "embree", "bake", "render"}));
   sub->add_option("caches", render->caches, "render: asset caches (.lbc.h5)");
   sub->add_option("--techniques", render->techniques,
-                  "render: techniques (default: every one; those this machine cannot run are "
-                  "listed as skipped, with the reason)")
+                  "render: techniques (default: every one, and vrc-gpu for vrc on Vulkan "
+                  "compute; those this machine cannot run are listed as skipped, with the reason)")
       ->delimiter(',');
   sub->add_option("--tf", render->transfer_functions,
                   "render: transfer functions (default semi): opaque, semi, transparent, FILE.json")

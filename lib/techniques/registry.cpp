@@ -9,6 +9,18 @@
 
 namespace linebake {
 
+namespace {
+
+// Why a device (or a shared context on it) cannot run rtx.
+std::string no_ray_tracing(const vk::DeviceInfo& device) {
+  if (!device.ray_tracing)
+    return "ray tracing is not supported on this device (" + device.name +
+           "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure";
+  return "the shared Vulkan context on " + device.name + " was made without ray tracing";
+}
+
+}  // namespace
+
 double TechniqueFrame::total_gpu_ms() const {
   double total = 0;
   for (const auto& [pass, ms] : gpu_ms) total += ms;
@@ -78,8 +90,7 @@ std::optional<std::string> technique_unavailable(const Technique& technique,
   if (!vulkan) return std::nullopt;
   if (options.context) {
     if (info.ray_tracing && !options.context->ray_tracing())
-      return "the window's Vulkan context (" + options.context->info().name +
-             ") was made without ray tracing";
+      return no_ray_tracing(options.context->info());
     return std::nullopt;
   }
   std::vector<vk::DeviceInfo> devices;
@@ -99,18 +110,14 @@ std::optional<std::string> technique_unavailable(const Technique& technique,
   if (chosen == devices.end())
     return options.device.empty() ? "no Vulkan device"
                                   : "no Vulkan device named '" + options.device + "'";
-  if (info.ray_tracing && !chosen->ray_tracing)
-    return "ray tracing is not supported on this device (" + chosen->name +
-           "): it needs VK_KHR_ray_tracing_pipeline and VK_KHR_acceleration_structure";
+  if (info.ray_tracing && !chosen->ray_tracing) return no_ray_tracing(*chosen);
   return std::nullopt;
 }
 
 ContextHolder::ContextHolder(const TechniqueOptions& options, bool ray_tracing) {
   if (options.context) {
     if (ray_tracing && !options.context->ray_tracing())
-      throw vk::RayTracingUnsupported("the window's Vulkan context (" +
-                                      options.context->info().name +
-                                      ") was made without ray tracing");
+      throw vk::RayTracingUnsupported(no_ray_tracing(options.context->info()));
     context_ = options.context;
     return;
   }
