@@ -3,6 +3,7 @@
 // local arrays, sort by depth and blend front to back over the background. Longer lists are
 // reported through `longest` and the host re-runs the resolve with room for them.
 #include "frame.glsl"
+#include "ll_nodes.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const uint kMaxFragments = 256;
@@ -10,7 +11,6 @@ layout(constant_id = 0) const uint kMaxFragments = 256;
 layout(constant_id = 1) const uint kSort = 2;
 
 layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
-layout(set = 0, binding = 2, std430) readonly buffer Nodes { uint nodes[]; };
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
 layout(set = 0, binding = 5, std430) buffer Stats { uint longest; uint depth_complexity[]; };
 
@@ -113,10 +113,9 @@ vec3 colour_acc = vec3(0.0);
 float alpha_acc = 0.0;
 
 bool blend(uint node) {  // false once compositing may stop
-  const uint base = 6u * node;
-  const vec3 rgb = vec3(uintBitsToFloat(nodes[base]), uintBitsToFloat(nodes[base + 1u]),
-                        uintBitsToFloat(nodes[base + 2u]));
-  const float a = uintBitsToFloat(nodes[base + 3u]);
+  const vec4 c = node_colour(node);
+  const vec3 rgb = c.rgb;
+  const float a = c.a;
   colour_acc += (1.0 - alpha_acc) * a * rgb;
   alpha_acc += (1.0 - alpha_acc) * a;
   return !(frame.tf_counts.z != 0u && alpha_acc >= frame.termination.x);
@@ -127,9 +126,9 @@ void main() {
   if (p.x >= frame.size.x || p.y >= frame.size.y) return;
   const uint pixel = p.y * frame.size.x + p.x;
   uint count = 0u, total = 0u;
-  for (uint n = heads[pixel]; n != 0xFFFFFFFFu; n = nodes[6u * n + 5u]) {
+  for (uint n = heads[pixel]; n != 0xFFFFFFFFu; n = node_next(n)) {
     if (count < kMaxFragments) {
-      depth_of[count] = uintBitsToFloat(nodes[6u * n + 4u]);
+      depth_of[count] = node_depth(n);
       node_of[count] = n;
       ++count;
     }

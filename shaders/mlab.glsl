@@ -1,7 +1,8 @@
 // Multi-layer alpha blending (Salvi & Vaidyanathan 2014; techniques.md sections 4 and 5): k nodes
 // per pixel {depth, premultiplied rgb, transmittance T}, kept sorted by depth; when a fragment
-// pushes a node past the last slot, the two farthest merge. Nodes live in binding 2 as three
-// planes (depths, rgb, T) so each can be cleared with one fill: depth +inf, rgb 0, T 1.
+// pushes a node past the last slot, the two farthest merge. Nodes live in the pages of binding 6
+// (pages.glsl: storage past one buffer) as three planes of words (depths, rgb, T) so each can be
+// cleared with fills: depth +inf, rgb 0, T 1.
 // The insert reads and rewrites the whole array, so it runs inside a per-pixel critical section:
 // fragment shader interlock where the device has it, a spin lock on binding 1 otherwise.
 #include "fragment.glsl"
@@ -9,7 +10,16 @@
 layout(constant_id = 0) const uint kLayers = 8;
 
 layout(set = 0, binding = 1, std430) coherent buffer PixelState { uint pixel_state[]; };
-layout(set = 0, binding = 2, std430) coherent buffer Nodes { float node_words[]; };
+#define PAGES_QUALIFIER coherent
+#include "pages.glsl"
+
+float node_word(uint w) {
+  return uintBitsToFloat(word_load(w));
+}
+
+void set_node_word(uint w, float v) {
+  word_store(w, floatBitsToUint(v));
+}
 
 float node_depth[kLayers + 1];
 vec3 node_rgb[kLayers + 1];
@@ -23,10 +33,10 @@ void load_nodes(uint pixel) {
   const uint n = plane_size();
   for (uint i = 0u; i < kLayers; ++i) {
     const uint at = pixel * kLayers + i;
-    node_depth[i] = node_words[at];
-    node_rgb[i] = vec3(node_words[n + 3u * at], node_words[n + 3u * at + 1u],
-                       node_words[n + 3u * at + 2u]);
-    node_t[i] = node_words[4u * n + at];
+    node_depth[i] = node_word(at);
+    node_rgb[i] =
+        vec3(node_word(n + 3u * at), node_word(n + 3u * at + 1u), node_word(n + 3u * at + 2u));
+    node_t[i] = node_word(4u * n + at);
   }
 }
 
@@ -34,11 +44,11 @@ void store_nodes(uint pixel) {
   const uint n = plane_size();
   for (uint i = 0u; i < kLayers; ++i) {
     const uint at = pixel * kLayers + i;
-    node_words[at] = node_depth[i];
-    node_words[n + 3u * at] = node_rgb[i].r;
-    node_words[n + 3u * at + 1u] = node_rgb[i].g;
-    node_words[n + 3u * at + 2u] = node_rgb[i].b;
-    node_words[4u * n + at] = node_t[i];
+    set_node_word(at, node_depth[i]);
+    set_node_word(n + 3u * at, node_rgb[i].r);
+    set_node_word(n + 3u * at + 1u, node_rgb[i].g);
+    set_node_word(n + 3u * at + 2u, node_rgb[i].b);
+    set_node_word(4u * n + at, node_t[i]);
   }
 }
 

@@ -5,7 +5,11 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const uint kLayers = 8;
 
-layout(set = 0, binding = 2, std430) readonly buffer Nodes { float node_words[]; };
+#include "pages.glsl"
+
+float node_word(uint w) {
+  return uintBitsToFloat(word_load(w));
+}
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
 
 void main() {
@@ -17,10 +21,10 @@ void main() {
   float transmittance = 1.0;
   for (uint i = 0u; i < kLayers; ++i) {
     const uint at = pixel * kLayers + i;
-    if (isinf(node_words[at])) continue;  // empty (MLABDB's front bucket may be)
-    colour += transmittance * vec3(node_words[n + 3u * at], node_words[n + 3u * at + 1u],
-                                   node_words[n + 3u * at + 2u]);
-    transmittance *= node_words[4u * n + at];
+    if (isinf(node_word(at))) continue;  // empty (MLABDB's front bucket may be)
+    colour += transmittance * vec3(node_word(n + 3u * at), node_word(n + 3u * at + 1u),
+                                   node_word(n + 3u * at + 2u));
+    transmittance *= node_word(4u * n + at);
   }
   pixels[pixel] = vec4(colour + transmittance * frame.background.rgb, 1.0 - transmittance);
 }

@@ -189,6 +189,99 @@ TEST(Vulkan, ASmallNodeBufferGrowsAndTheImageStaysExact) {
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
 }
 
+// ll's node pool and mlab's planes split across storage buffers (as past 4 GiB on NVIDIA, 128 MiB
+// on lavapipe): a split size lowered to a fifth (a quarter) of the frame's nodes gives the same
+// image as one buffer; past 16 buffers the frame is refused with the figures.
+TEST(Vulkan, NodesSplitAcrossBuffersGiveTheSameImage) {
+  const Scene s = make_scene(64);
+  const TransferFunction tf = transfer_function_preset("transparent");
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  vk::RasterOptions o;
+  o.width = o.height = 64;
+  o.capacity = 1u << 20;
+  const vk::RasterFrame whole = renderer.render(s.camera, tf, o);
+  EXPECT_EQ(whole.stats.node_buffers, 1u);
+  const uint64_t fragments = whole.stats.fragments;
+  ASSERT_GT(fragments, 500u);
+  // Pages hold a power of two of nodes: the largest below a fifth of the fragments.
+  uint64_t per_page = 1;
+  while (2 * per_page <= (fragments + 4) / 5) per_page *= 2;
+  const auto pages_for = [&](uint64_t nodes) {
+    return uint32_t((nodes + per_page - 1) / per_page);
+  };
+  o.capacity = fragments;
+  o.max_buffer_bytes = (fragments + 4) / 5 * 24;
+  const vk::RasterFrame split = renderer.render(s.camera, tf, o);
+  EXPECT_EQ(split.stats.node_buffers, pages_for(fragments));
+  EXPECT_GE(split.stats.node_buffers, 5u);
+  EXPECT_EQ(split.stats.regrows, 0);
+  EXPECT_EQ(split.stats.fragments, fragments);
+  EXPECT_EQ(split.depth_complexity, whole.depth_complexity);
+  EXPECT_EQ(split.image.pixels, whole.image.pixels);
+  // Grown from 16 nodes (to 9/8 of the fragments) into pages of a fifth: the same again.
+  o.capacity = 16;
+  const vk::RasterFrame grown = renderer.render(s.camera, tf, o);
+  EXPECT_GE(grown.stats.regrows, 1);
+  EXPECT_EQ(grown.stats.node_buffers, pages_for(grown.stats.capacity));
+  EXPECT_EQ(grown.image.pixels, whole.image.pixels);
+  // Pages of 10 nodes: far more than 16 buffers.
+  o.capacity = fragments;
+  o.max_buffer_bytes = 240;
+  try {
+    renderer.render(s.camera, tf, o);
+    ADD_FAILURE() << "a pool of " << fragments << " nodes in pages of 100 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("more than 16 storage buffers"), std::string::npos)
+        << e.what();
+  }
+  // mlab and mlabdb: their planes (5 words per node, k nodes per pixel) in pages of a quarter.
+  for (auto technique : {vk::RasterTechnique::Mlab, vk::RasterTechnique::MlabBuckets}) {
+    vk::RasterOptions m = raster_options(technique, 64);
+    m.layers = 4;
+    const vk::RasterFrame one = renderer.render(s.camera, tf, m);
+    EXPECT_EQ(one.stats.node_buffers, 1u);
+    m.max_buffer_bytes = 5 * 64 * 64 * 4;  // 4 pages of 2^14 words: 81920 words in 5 pages
+    const vk::RasterFrame five = renderer.render(s.camera, tf, m);
+    EXPECT_EQ(five.stats.node_buffers, 5u) << vk::to_string(technique);
+    EXPECT_EQ(five.image.pixels, one.image.pixels) << vk::to_string(technique);
+  }
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+// 12-byte nodes (RGBA8 colour, as LineVis) against 24-byte nodes (float colour) and the reference.
+TEST(Vulkan, TwelveByteNodesStayCloseToTheReference) {
+  const Scene s = make_scene(96);
+  for (const char* preset : {"semi", "transparent"}) {
+    const TransferFunction tf = transfer_function_preset(preset);
+    const Frame reference = reference_frame(s, tf);
+    vk::Context ctx(validated());
+    vk::RasterRenderer renderer(ctx, s.mesh);
+    vk::RasterOptions o = raster_options(vk::RasterTechnique::LinkedLists, 96);
+    const vk::RasterFrame wide = renderer.render(s.camera, tf, o);
+    o.node_bytes = 12;
+    const vk::RasterFrame narrow = renderer.render(s.camera, tf, o);
+    const double wide_db = psnr(display(reference.image), display(wide.image));
+    const double narrow_db = psnr(display(reference.image), display(narrow.image));
+    std::cout << preset << ": 24-byte nodes " << wide_db << " dB, 12-byte nodes " << narrow_db
+              << " dB against the reference\n";
+    EXPECT_GE(narrow_db, 40.0) << preset;
+    EXPECT_LE(narrow_db, wide_db) << preset;
+    // The colours are quantised (the 12-byte path is in use), by at most about one 8-bit step
+    // per layer in linear light.
+    EXPECT_NE(narrow.image.pixels, wide.image.pixels) << preset;
+    float worst = 0;
+    for (size_t i = 0; i < wide.image.pixels.size(); ++i)
+      worst = std::max(worst, std::abs(wide.image.pixels[i] - narrow.image.pixels[i]));
+    std::cout << preset << ": largest linear difference " << worst << "\n";
+    EXPECT_LT(worst, 0.02f) << preset;
+    EXPECT_EQ(narrow.stats.fragments, wide.stats.fragments);
+    EXPECT_EQ(narrow.stats.capacity, wide.stats.capacity);
+    EXPECT_EQ(narrow.stats.frame_bytes + wide.stats.capacity * 12, wide.stats.frame_bytes);
+    EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+  }
+}
+
 TEST(Vulkan, OpaqueEqualsTheOpaqueReference) {
   const Scene s = make_scene(96);
   const TransferFunction tf = transfer_function_preset("opaque");

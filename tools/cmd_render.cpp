@@ -78,6 +78,7 @@ Command add_render(CLI::App& app) {
     bool rebuild = false, no_compaction = false;
     int max_iterations = 1024;
     uint64_t capacity = 0;
+    uint32_t node_bytes = 24;
     bool validation = false, no_interlock = false;
     int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
     double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1, moment_bias = -1;
@@ -116,6 +117,9 @@ Command add_render(CLI::App& app) {
   sub->add_option("--sort", args->sort,
                   "ll: per-pixel sort insertion | shell | heap (default) | quick-hybrid")
       ->check(CLI::IsMember({"insertion", "shell", "heap", "quick-hybrid"}));
+  sub->add_option("--node-bytes", args->node_bytes,
+                  "ll: 24 (float colour, default) or 12 (RGBA8 colour, as LineVis) bytes per node")
+      ->check(CLI::IsMember({24, 12}));
   sub->add_option("--capacity", args->capacity,
                   "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)");
   sub->add_option("--max-layers", args->max_layers, "dp: peel at most this many layers (2000)")
@@ -218,6 +222,7 @@ Command add_render(CLI::App& app) {
     o.attribute = args->attribute;
     o.sort = args->sort;
     o.capacity = args->capacity;
+    o.node_bytes = args->node_bytes;
     o.max_layers = args->max_layers, o.layers = args->layers;
     o.wboit_weight = args->wboit_weight, o.moments = args->moments;
     o.tau_alpha = args->tau_alpha, o.tau_opaque = args->tau_opaque;

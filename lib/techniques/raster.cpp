@@ -23,6 +23,7 @@ class Raster : public PreparedTechnique {
     options_.width = o.width, options_.height = o.height;
     options_.sort = vk::parse_list_sort(o.sort);
     options_.capacity = o.capacity;
+    options_.node_bytes = o.node_bytes;
     options_.early_termination = o.early_termination;
     options_.max_layers = o.max_layers;
     options_.layers = o.layers;
@@ -64,6 +65,10 @@ class Raster : public PreparedTechnique {
         out.stats["layers_capped"] = s.layers_capped;
     }
     if (!s.critical_section.empty()) out.stats["critical_section"] = s.critical_section;
+    if (options_.technique == vk::RasterTechnique::LinkedLists) {
+      out.stats["node_bytes"] = options_.node_bytes;
+      out.stats["node_buffers"] = s.node_buffers;
+    }
     if (s.layers_capped)
       out.warnings.push_back("needs " + std::to_string(s.max_depth_complexity) +
                              " layers; dp peeled " + std::to_string(s.layers) + " (--max-layers)");

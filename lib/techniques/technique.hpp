@@ -53,6 +53,7 @@ struct TechniqueOptions {
   // raster techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit)
   std::string sort = "heap";
   uint64_t capacity = 0;
+  uint32_t node_bytes = 24;  // ll: 24 (float colour) or 12 (RGBA8 colour)
   int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
   double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1, moment_bias = -1;
   std::string moment_basis = "power";

@@ -9,12 +9,15 @@ VkDescriptorType binding_type(uint32_t binding) {
 
 }  // namespace
 
-BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages) {
+BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages,
+                            uint32_t array_count) {
   BufferSet b;
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   for (uint32_t i = 0; i < count; ++i) bindings.push_back({i, binding_type(i), 1, stages, nullptr});
+  if (array_count > 0)
+    bindings.push_back({count, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, array_count, stages, nullptr});
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  set_info.bindingCount = count;
+  set_info.bindingCount = uint32_t(bindings.size());
   set_info.pBindings = bindings.data();
   check(vkCreateDescriptorSetLayout(device, &set_info, nullptr, &b.set_layout),
         "descriptor layout");
@@ -22,8 +25,9 @@ BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags 
   layout_info.setLayoutCount = 1;
   layout_info.pSetLayouts = &b.set_layout;
   check(vkCreatePipelineLayout(device, &layout_info, nullptr, &b.layout), "pipeline layout");
-  const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
-                                        {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, count - 1}};
+  const VkDescriptorPoolSize sizes[] = {
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, count - 1 + array_count}};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = 1;
   pool_info.poolSizeCount = 2;
@@ -51,6 +55,19 @@ void write_buffer_set(VkDevice device, VkDescriptorSet set,
     writes[i].pBufferInfo = &infos[i];
   }
   vkUpdateDescriptorSets(device, uint32_t(writes.size()), writes.data(), 0, nullptr);
+}
+
+void write_buffer_array(VkDevice device, VkDescriptorSet set, uint32_t binding,
+                        const std::vector<const Buffer*>& buffers) {
+  std::vector<VkDescriptorBufferInfo> infos(buffers.size());
+  for (size_t i = 0; i < buffers.size(); ++i) infos[i] = {buffers[i]->buffer, 0, VK_WHOLE_SIZE};
+  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  write.dstSet = set;
+  write.dstBinding = binding;
+  write.descriptorCount = uint32_t(infos.size());
+  write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  write.pBufferInfo = infos.data();
+  vkUpdateDescriptorSets(device, 1, &write, 0, nullptr);
 }
 
 }  // namespace linebake::vk

@@ -18,10 +18,15 @@ struct BufferSet {
   VkDescriptorSet set = VK_NULL_HANDLE;
 };
 
-// The caller destroys the layouts and the pool.
-BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages);
+// The caller destroys the layouts and the pool. `array_count` > 0 adds binding `count`: an array
+// of that many storage buffers.
+BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages,
+                            uint32_t array_count = 0);
 // Points binding i at buffers[i].
 void write_buffer_set(VkDevice device, VkDescriptorSet set,
                       const std::vector<const Buffer*>& buffers);
+// Points the elements of array binding `binding` at `buffers`.
+void write_buffer_array(VkDevice device, VkDescriptorSet set, uint32_t binding,
+                        const std::vector<const Buffer*>& buffers);
 
 }  // namespace linebake::vk

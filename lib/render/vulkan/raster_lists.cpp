@@ -1,5 +1,6 @@
-// Per-pixel linked lists (techniques.md section 3): gather every fragment into a node buffer,
-// then a compute resolve sorts each pixel's list and blends it front to back. The node counter
+// Per-pixel linked lists (techniques.md section 3): gather every fragment into a node pool (24-
+// or 12-byte nodes, split across storage buffers: shaders/ll_nodes.glsl), then a compute resolve
+// sorts each pixel's list and blends it front to back. The node counter
 // keeps counting past the capacity, so an overflowing frame is re-rendered with a buffer of the
 // counted size instead of losing fragments.
 #include "core/error.hpp"
@@ -30,9 +31,10 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
       fill(cmd, stats, 0, VK_WHOLE_SIZE, 0);
       barrier_all(cmd);
       mark(cmd, "clear");
-      draw(cmd, DrawSetup{"ll_gather.frag"});
+      draw(cmd, DrawSetup{"ll_gather.frag", 0, false, false, {0, 0, paged(), page_unit_bytes / 4}});
       mark(cmd, "gather");
-      dispatch(cmd, compute("ll_resolve.comp", {resolve_max, uint32_t(o.sort)}));
+      dispatch(cmd, compute("ll_resolve.comp",
+                            {resolve_max, uint32_t(o.sort), paged(), page_unit_bytes / 4}));
       mark(cmd, "resolve");
     });
     return uint64_t(*static_cast<const uint32_t*>(counter.mapped));
@@ -43,7 +45,7 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
     if (needed >= 0xFFFFFFFFull / 2)
       throw Error("ll: more than 2^31 fragments in one frame; use a smaller size");
     const uint64_t grown = needed + needed / 8;
-    prepare_frame(width, height, pixel_state_bytes, grown * kListNodeBytes, "ll");
+    prepare_pages(grown, o.node_bytes, o.max_buffer_bytes, "ll");
     list_capacity = grown;
     fill_uniforms(camera, tf, o);
     ++frame.stats.regrows;
@@ -55,14 +57,16 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
   if (longest > resolve_max) {
     resolve_max = next_power_of_two(longest);
     ctx.submit([&](VkCommandBuffer cmd) {
-      dispatch(cmd, compute("ll_resolve.comp", {resolve_max, uint32_t(o.sort)}));
+      dispatch(cmd, compute("ll_resolve.comp",
+                            {resolve_max, uint32_t(o.sort), paged(), page_unit_bytes / 4}));
     });
   }
   frame.stats.fragments = needed;
   frame.stats.capacity = list_capacity;
+  frame.stats.node_buffers = uint32_t(pages.size());
   read_depth_complexity(frame);
   read_output(frame);
-  frame.stats.frame_bytes = pixels() * 4 + list_capacity * kListNodeBytes + 4 + pixels() * 16;
+  frame.stats.frame_bytes = pixels() * 4 + list_capacity * page_unit_bytes + 4 + pixels() * 16;
 }
 
 }  // namespace linebake::vk

@@ -150,8 +150,9 @@ void RasterRenderer::State::destroy_image(Image2D& i) {
 void RasterRenderer::State::release_frame() {
   for (Buffer* b : {&uniforms, &pixel_state, &nodes, &counter, &output, &stats}) ctx.destroy(*b);
   for (Image2D* i : {&colour, &scalar, &colour2, &depth}) destroy_image(*i);
+  release_pages();
   width = height = 0;
-  pixel_state_bytes = node_bytes = list_capacity = 0;
+  pixel_state_bytes = node_bytes = 0;
 }
 
 Image2D RasterRenderer::State::make_image(VkFormat format, VkImageUsageFlags usage,
@@ -222,7 +223,8 @@ void RasterRenderer::State::create_layout() {
   VkDevice d = ctx.device();
   const BufferSet b = create_buffer_set(
       d, kBindings,
-      VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT);
+      VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT,
+      kPages);
   set_layout = b.set_layout, layout = b.layout, pool = b.pool, set = b.set;
   if (ctx.timestamps()) {
     VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
@@ -362,6 +364,63 @@ VkPipeline RasterRenderer::State::compute(const std::string& name,
 
 void RasterRenderer::State::write_descriptors() {
   write_buffer_set(ctx.device(), set, {&uniforms, &pixel_state, &nodes, &counter, &output, &stats});
+  // Pages the pool does not use point at the counter: bound, never read.
+  std::vector<const Buffer*> bound;
+  for (uint32_t i = 0; i < kPages; ++i) bound.push_back(i < pages.size() ? &pages[i] : &counter);
+  write_buffer_array(ctx.device(), set, kBindings, bound);
+}
+
+void RasterRenderer::State::release_pages() {
+  for (Buffer& b : pages) ctx.destroy(b);
+  pages.clear();
+  page_units = pool_units = list_capacity = 0;
+}
+
+void RasterRenderer::State::prepare_pages(uint64_t units, uint32_t unit_bytes,
+                                          uint64_t max_buffer_bytes, const char* technique) {
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(ctx.physical_device(), &props);
+  uint64_t limit = props.limits.maxStorageBufferRange;
+  if (max_buffer_bytes > 0) limit = std::min(limit, max_buffer_bytes);
+  // A power of two of whole units per page (the shaders shift instead of dividing), at most 2^31.
+  uint64_t per_page = 0;
+  for (uint64_t p = 1; p <= limit / unit_bytes && p <= (uint64_t{1} << 31); p <<= 1) per_page = p;
+  if (per_page == 0)
+    throw Error(std::string(technique) + ": a storage buffer must hold at least one node");
+  units = std::max<uint64_t>(units, 1);
+  const uint64_t count = (units + per_page - 1) / per_page;
+  if (count > kPages)
+    throw Error(std::string(technique) + ": the frame needs " +
+                std::to_string(units * unit_bytes >> 20) + " MiB of nodes, more than " +
+                std::to_string(kPages) + " storage buffers of " + std::to_string(limit >> 20) +
+                " MiB hold on " + ctx.info().name + "; render a smaller size" +
+                (std::string(technique) == "ll" && unit_bytes == 24
+                     ? " or use 12-byte nodes (--node-bytes 12)"
+                     : ""));
+  if (unit_bytes == page_unit_bytes && per_page == page_units && units <= pool_units) return;
+  vkDeviceWaitIdle(ctx.device());
+  const uint64_t keep_capacity = list_capacity;
+  release_pages();
+  list_capacity = keep_capacity;
+  const VkBufferUsageFlags storage =
+      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  for (uint64_t first = 0; first < units; first += per_page)
+    pages.push_back(
+        ctx.create_buffer(std::min(per_page, units - first) * unit_bytes, storage, false));
+  page_units = per_page;
+  page_unit_bytes = unit_bytes;
+  pool_units = units;
+  write_descriptors();
+}
+
+void RasterRenderer::State::fill_pages(VkCommandBuffer cmd, uint64_t first, uint64_t count,
+                                       uint32_t word) {
+  for (uint64_t p = first / page_units; count > 0 && p < pages.size(); ++p) {
+    const uint64_t begin = first - p * page_units;
+    const uint64_t n = std::min(count, page_units - begin);
+    vkCmdFillBuffer(cmd, pages[p].buffer, begin * page_unit_bytes, n * page_unit_bytes, word);
+    first += n, count -= n;
+  }
 }
 
 void RasterRenderer::State::prepare_frame(int w, int h, uint64_t pixel_state_wanted,
@@ -428,6 +487,9 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
   u.size[2] = uint32_t(std::min<uint64_t>(list_capacity, 0xFFFFFFFFu));
+  uint32_t shift = 0;  // page_units = 2^shift (shaders/pages.glsl)
+  while (page_units > (uint64_t{1} << shift)) ++shift;
+  u.size[3] = shift;
   write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
   u.tf_counts[2] = o.early_termination ? 1u : 0u;
   u.termination[0] = float(o.termination_alpha);
@@ -636,18 +698,17 @@ uint64_t RasterRenderer::mesh_bytes() const {
 namespace {
 
 // Bytes of the per-pixel state (binding 1) and of the nodes / target copies (binding 2).
-std::pair<uint64_t, uint64_t> frame_layout(const RasterOptions& o, uint64_t pixels,
-                                           uint64_t list_capacity) {
+std::pair<uint64_t, uint64_t> frame_layout(const RasterOptions& o, uint64_t pixels) {
   switch (o.technique) {
     case RasterTechnique::Opaque:
       return {4, 4};
     case RasterTechnique::DepthPeeling:
       return {pixels * 4, pixels * 20};  // peeled depth; layer colour + depth
     case RasterTechnique::LinkedLists:
-      return {pixels * 4, list_capacity * kListNodeBytes};
+      return {pixels * 4, 4};  // heads; the nodes are in their own pages
     case RasterTechnique::Mlab:
     case RasterTechnique::MlabBuckets:
-      return {pixels * 12, pixels * uint64_t(o.layers) * 20};  // locks + bucket depths; nodes
+      return {pixels * 12, 4};    // locks + bucket depths; the nodes are in pages
     case RasterTechnique::Mboit:  // moments (b0..b3, b_n, b4..b7 when n > 4) + accumulation
       return {4, pixels * ((o.moments > 4 ? 36 : 20) + 16)};
     case RasterTechnique::Wboit:
@@ -687,9 +748,16 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
     if (o.capacity == 0 && s.width == o.width && s.height == o.height)
       list_capacity = std::max(list_capacity, s.list_capacity);
   }
-  const auto [pixel_state_bytes, node_bytes] = frame_layout(o, pixels, list_capacity);
+  const auto [pixel_state_bytes, node_bytes] = frame_layout(o, pixels);
   s.prepare_frame(o.width, o.height, pixel_state_bytes, node_bytes, to_string(o.technique));
-  s.list_capacity = list_capacity;
+  if (o.technique == RasterTechnique::LinkedLists) {
+    if (o.node_bytes != 24 && o.node_bytes != 12)
+      throw Error("ll: nodes are 24 or 12 bytes, not " + std::to_string(o.node_bytes));
+    s.prepare_pages(list_capacity, o.node_bytes, o.max_buffer_bytes, "ll");
+    s.list_capacity = list_capacity;
+  }
+  if (mlab || buckets)  // five planes of k words per pixel: depth, r, g, b, T
+    s.prepare_pages(5 * pixels * uint64_t(o.layers), 4, o.max_buffer_bytes, to_string(o.technique));
   s.fill_uniforms(camera, tf, o);
   RasterFrame frame;
   switch (o.technique) {

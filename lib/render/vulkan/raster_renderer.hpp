@@ -53,6 +53,11 @@ struct RasterOptions {
   ListSort sort = ListSort::Heap;
   // Node capacity of the fragment buffer; 0: expected mean depth complexity x pixels.
   uint64_t capacity = 0;
+  // ll nodes: 24 bytes (float colour) or 12 (RGBA8 colour, as LineVis), in as many storage
+  // buffers (at most 16) as the pool needs, each at most max_buffer_bytes (0: the device's
+  // maxStorageBufferRange; lower it to test the split).
+  uint32_t node_bytes = 24;
+  uint64_t max_buffer_bytes = 0;
   double expected_depth_complexity = 20;  // the public presets: 20 (<= 1M segments), 120 above
   bool early_termination = false;         // ll: stop the resolve at termination_alpha
   double termination_alpha = 0.99;
@@ -74,10 +79,11 @@ struct RasterOptions {
 struct RasterStats {
   double seconds = 0;  // wall time of the frame, re-renders included
   std::vector<std::pair<std::string, double>> pass_ms;  // GPU timestamps of the final render
-  uint64_t frame_bytes = 0;  // the technique's per-frame buffers and images
-  uint64_t fragments = 0;    // fragments gathered (linked lists)
-  uint64_t capacity = 0;     // node capacity used for the final render
-  int regrows = 0;           // re-renders after an overflow of the node buffer
+  uint64_t frame_bytes = 0;   // the technique's per-frame buffers and images
+  uint64_t fragments = 0;     // fragments gathered (linked lists)
+  uint64_t capacity = 0;      // node capacity used for the final render
+  uint32_t node_buffers = 0;  // ll: storage buffers the node pool took
+  int regrows = 0;            // re-renders after an overflow of the node buffer
   uint32_t max_depth_complexity = 0;
   double mean_depth_complexity = 0;
   int layers = 0;                // dp: layers peeled; mlab / mlabdb: nodes per pixel

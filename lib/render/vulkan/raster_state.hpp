@@ -8,6 +8,7 @@
 //   0 FrameUniforms   1 per-pixel state (list heads, peeled depth, locks, bucket depths)
 //   2 nodes / copies of the colour attachments   3 counter   4 output (vec4 per pixel)
 //   5 stats {longest list, depth complexity per pixel}
+//   6 pages: kPages storage buffers (shaders/pages.glsl) for ll's nodes and mlab's planes
 
 #include <map>
 #include <string>
@@ -19,8 +20,8 @@
 
 namespace linebake::vk {
 
-constexpr uint32_t kListNodeBytes = 24;
-constexpr uint32_t kBindings = 6;
+constexpr uint32_t kBindings = 6;  // then binding 6, the node pages
+constexpr uint32_t kPages = 16;    // shaders/pages.glsl
 
 // std140 mirror of FrameUniforms in shaders/frame.glsl.
 struct FrameUniforms {
@@ -84,8 +85,13 @@ struct RasterRenderer::State {
   // Per-frame resources, kept while the size fits.
   int width = 0, height = 0;
   uint64_t pixel_state_bytes = 0, node_bytes = 0;
-  uint64_t list_capacity = 0;  // ll: nodes the gather may write (<= node_bytes / 24)
+  uint64_t list_capacity = 0;  // ll: nodes the gather may write
   Buffer uniforms, pixel_state, nodes, counter, output, stats;
+  // Storage past one buffer (shaders/pages.glsl): pages of page_units units (ll: nodes; mlab:
+  // words; a power of two) of page_unit_bytes each, pool_units in all.
+  std::vector<Buffer> pages;
+  uint64_t page_units = 0, pool_units = 0;
+  uint32_t page_unit_bytes = 24;
   Image2D colour, scalar, colour2, depth;
 
   explicit State(Context& c) : ctx(c) {}
@@ -102,6 +108,15 @@ struct RasterRenderer::State {
   void prepare_frame(int w, int h, uint64_t pixel_state_wanted, uint64_t nodes_wanted,
                      const char* technique);
   void release_frame();
+  // A pool of `units` units of `unit_bytes` in pages of at most max_buffer_bytes (0: the device's
+  // maxStorageBufferRange), kept when it already holds them in this layout; at most kPages.
+  void prepare_pages(uint64_t units, uint32_t unit_bytes, uint64_t max_buffer_bytes,
+                     const char* technique);
+  void release_pages();
+  // Specialisation constant 2 of the shaders that use the pages (shaders/pages.glsl).
+  uint32_t paged() const { return pages.size() > 1 ? 1u : 0u; }
+  // vkCmdFillBuffer over units [first, first + count) of the pool, across pages.
+  void fill_pages(VkCommandBuffer cmd, uint64_t first, uint64_t count, uint32_t word);
   void fill_uniforms(const Camera& camera, const TransferFunction& tf, const RasterOptions& o);
 
   // Recording steps.
