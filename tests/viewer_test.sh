@@ -23,6 +23,9 @@ screenshot $tmp/b.png
 compare
 key t             # ll -> mlab
 wait 1
+technique vrc-gpu
+key t             # vrc-gpu -> rtx: here (lavapipe) the status line says why not, vrc-gpu stays
+wait 1
 quit
 SCRIPT
 mkdir -p "$tmp/fb"
@@ -45,6 +48,8 @@ cmp -s "$tmp/b.png" "$tmp/rb.png" || fail "ll screenshot differs from linebake r
 grep -Eq '^compare: ll transparent PSNR [0-9.]+ dB SSIM 0\.9[0-9]+' "$tmp/view.out" ||
   fail "no comparison line"
 grep -q '^frame: mlab transparent' "$tmp/view.out" || fail "the t key did not switch to mlab"
+grep -q '^view: rtx: ray tracing is not supported on this device' "$tmp/view.out" ||
+  grep -q '^frame: rtx transparent' "$tmp/view.out" || fail "rtx neither shown nor refused"
 
 # The window (at the screen's origin, no window manager) shows the screenshot's pixels below the
 # status line, and the image is not blank.
