@@ -25,7 +25,7 @@ layout(set = 0, binding = 0, std140) uniform VrcUniforms {
   vec4 params;       // termination alpha, radius, voxel size, 0
   vec4 origin;       // grid origin xyz
   uvec4 grid;        // resolution xyz, quantization
-  uvec4 levels;      // occupancy levels, 0, 0, 0
+  uvec4 levels;      // occupancy levels; log2 offsets and chords per page (split grids), 0
   uvec4 level_resolution[kMaxLevels];  // xyz, first word
   vec4 colours[kMaxTfPoints];          // x, sRGB r, g, b
   vec4 opacities[kMaxTfPoints];        // x, opacity
@@ -38,6 +38,35 @@ layout(set = 0, binding = 2, std430) readonly buffer Chords { uint chords[]; };
 layout(set = 0, binding = 3, std430) readonly buffer Occupancy { uint occupancy[]; };
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
 layout(set = 0, binding = 5, std430) writeonly buffer Hits { uint hit_counts[]; };
+
+// Offsets and chords past one storage buffer (specialisation constant 0): pages of
+// 2^levels.y offsets and 2^levels.z chords at bindings 6 and 7, reached by constant index.
+layout(constant_id = 0) const bool kPaged = false;
+const uint kGridPages = 8u;
+layout(set = 0, binding = 6, std430) readonly buffer OffsetPages { uint v[]; } offset_pages[kGridPages];
+layout(set = 0, binding = 7, std430) readonly buffer ChordPages { uvec2 v[]; } chord_pages[kGridPages];
+
+#define OFFSET(n) case n: return offset_pages[n].v[j];
+uint offset_at(uint i) {
+  if (!kPaged) return offsets[i];
+  const uint j = i & ((1u << frame.levels.y) - 1u);
+  switch (i >> frame.levels.y) {
+    OFFSET(0) OFFSET(1) OFFSET(2) OFFSET(3) OFFSET(4) OFFSET(5) OFFSET(6)
+    default: return offset_pages[7].v[j];
+  }
+}
+#undef OFFSET
+
+#define CHORD(n) case n: return chord_pages[n].v[j];
+uvec2 chord_at(uint c) {
+  if (!kPaged) return uvec2(chords[2u * c], chords[2u * c + 1u]);
+  const uint j = c & ((1u << frame.levels.z) - 1u);
+  switch (c >> frame.levels.z) {
+    CHORD(0) CHORD(1) CHORD(2) CHORD(3) CHORD(4) CHORD(5) CHORD(6)
+    default: return chord_pages[7].v[j];
+  }
+}
+#undef CHORD
 
 uint voxel_index(ivec3 v) {
   return (uint(v.z) * frame.grid.y + uint(v.y)) * frame.grid.x + uint(v.x);
@@ -129,8 +158,10 @@ void voxel_hits(ivec3 v, vec3 eye, vec3 dir, float t_enter, float t_exit) {
       for (int x = max(v.x - 1, 0); x <= min(v.x + 1, res.x - 1); ++x) {
         const uint i = voxel_index(ivec3(x, y, z));
         const vec3 corner = frame.origin.xyz + vec3(x, y, z) * size;
-        for (uint c = offsets[i]; c < offsets[i + 1u]; ++c) {
-          const uint w0 = chords[2u * c], w1 = chords[2u * c + 1u];
+        const uint end = offset_at(i + 1u);
+        for (uint c = offset_at(i); c < end; ++c) {
+          const uvec2 chord = chord_at(c);
+          const uint w0 = chord.x, w1 = chord.y;
           const vec3 a = corner + size * decode_end(w0 & 7u, (w0 >> 6u) & mask,
                                                     (w0 >> (6u + bits)) & mask, (w1 >> 21u) & 31u);
           const vec3 b =

@@ -96,7 +96,8 @@ TEST(Techniques, SayWhyTheyCannotRunHere) {
 }
 
 // Device-local buffers filled through a staging buffer in small pieces (as on a discrete GPU)
-// give the same images as lavapipe's in-place writes.
+// give the same images as lavapipe's in-place writes; so do the voxel grid's arrays split across
+// storage buffers.
 TEST(Techniques, StagingInPiecesGivesIdenticalImages) {
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.002"));
   TubeOptions to;
@@ -127,7 +128,16 @@ TEST(Techniques, StagingInPiecesGivesIdenticalImages) {
   VrcOptions vrc;
   vrc.width = 64, vrc.height = 48;
   vk::VoxelCaster a(in_place, grid, occupancy), b(staged, grid, occupancy);
-  EXPECT_EQ(a.render(camera, tf, vrc).image.pixels, b.render(camera, tf, vrc).image.pixels);
+  const VrcFrame whole = a.render(camera, tf, vrc);
+  EXPECT_EQ(whole.image.pixels, b.render(camera, tf, vrc).image.pixels);
+  EXPECT_EQ(a.grid_buffers(), 2u);
+  // The grid's offsets and chords split across storage buffers of a quarter of the chords: the
+  // same image.
+  const uint64_t quarter = grid.chords.bytes() / 4;
+  vk::VoxelCaster split(in_place, grid, occupancy, quarter);
+  EXPECT_GE(split.grid_buffers(), 4u + 1u);
+  EXPECT_EQ(split.render(camera, tf, vrc).image.pixels, whole.image.pixels);
+  EXPECT_GT(whole.stats.hits, 100u);
   EXPECT_EQ(in_place.validation_errors() + staged.validation_errors(), 0u);
 }
 

@@ -10,12 +10,15 @@ VkDescriptorType binding_type(uint32_t binding) {
 }  // namespace
 
 BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages,
-                            uint32_t array_count) {
+                            const std::vector<uint32_t>& arrays) {
   BufferSet b;
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   for (uint32_t i = 0; i < count; ++i) bindings.push_back({i, binding_type(i), 1, stages, nullptr});
-  if (array_count > 0)
-    bindings.push_back({count, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, array_count, stages, nullptr});
+  uint32_t array_count = 0;
+  for (uint32_t a = 0; a < arrays.size(); ++a) {
+    bindings.push_back({count + a, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, arrays[a], stages, nullptr});
+    array_count += arrays[a];
+  }
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   set_info.bindingCount = uint32_t(bindings.size());
   set_info.pBindings = bindings.data();

@@ -18,10 +18,10 @@ struct BufferSet {
   VkDescriptorSet set = VK_NULL_HANDLE;
 };
 
-// The caller destroys the layouts and the pool. `array_count` > 0 adds binding `count`: an array
-// of that many storage buffers.
+// The caller destroys the layouts and the pool. Each entry of `arrays` adds a binding after
+// them (count, count + 1, ...): an array of that many storage buffers.
 BufferSet create_buffer_set(VkDevice device, uint32_t count, VkShaderStageFlags stages,
-                            uint32_t array_count = 0);
+                            const std::vector<uint32_t>& arrays = {});
 // Points binding i at buffers[i].
 void write_buffer_set(VkDevice device, VkDescriptorSet set,
                       const std::vector<const Buffer*>& buffers);

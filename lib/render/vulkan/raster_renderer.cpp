@@ -224,7 +224,7 @@ void RasterRenderer::State::create_layout() {
   const BufferSet b = create_buffer_set(
       d, kBindings,
       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT,
-      kPages);
+      {kPages});
   set_layout = b.set_layout, layout = b.layout, pool = b.pool, set = b.set;
   if (ctx.timestamps()) {
     VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};

@@ -29,7 +29,14 @@ struct VrcUniforms {
   float opacities[kMaxTfPoints][4];
 };
 
-constexpr uint32_t kBindings = 6;  // uniforms, offsets, chords, occupancy, output, hits
+constexpr uint32_t kBindings = 6;   // uniforms, offsets, chords, occupancy, output, hits
+constexpr uint32_t kGridPages = 8;  // bindings 6 and 7: offsets and chords split (vrc.comp)
+
+uint32_t log2_floor(uint64_t v) {
+  uint32_t l = 0;
+  while ((uint64_t{2} << l) <= v) ++l;
+  return l;
+}
 
 }  // namespace
 
@@ -42,6 +49,9 @@ struct VoxelCaster::State {
   std::array<float, 2> attribute_range{};
   std::vector<std::array<uint32_t, 4>> levels;
   Buffer uniforms, offsets, chords, occupancy;
+  // Split offsets and chords (empty when each fits one buffer): pages of 2^shift units.
+  std::vector<Buffer> offset_pages, chord_pages;
+  uint32_t offset_shift = 0, chord_shift = 0;
   PixelTargets targets;
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
   VkPipelineLayout layout = VK_NULL_HANDLE;
@@ -61,6 +71,25 @@ struct VoxelCaster::State {
   void write_descriptors() {
     write_buffer_set(ctx.device(), set,
                      {&uniforms, &offsets, &chords, &occupancy, &targets.rgba, &targets.counts});
+    for (auto [binding, pages] :
+         {std::pair{kBindings, &offset_pages}, std::pair{kBindings + 1, &chord_pages}}) {
+      std::vector<const Buffer*> bound;
+      for (uint32_t i = 0; i < kGridPages; ++i)
+        bound.push_back(i < pages->size() ? &(*pages)[i] : &occupancy);
+      write_buffer_array(ctx.device(), set, binding, bound);
+    }
+  }
+
+  // `bytes` of `data` in pages of 2^shift units of `unit` bytes.
+  std::vector<Buffer> upload_pages(const void* data, uint64_t bytes, uint32_t unit,
+                                   uint32_t shift) {
+    std::vector<Buffer> pages;
+    const uint64_t page = (uint64_t{1} << shift) * unit;
+    for (uint64_t first = 0; first < bytes; first += page)
+      pages.push_back(ctx.upload(static_cast<const uint8_t*>(data) + first,
+                                 std::min(page, bytes - first),
+                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT));
+    return pages;
   }
 
   void resize(int w, int h) {
@@ -71,6 +100,8 @@ struct VoxelCaster::State {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
     for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy}) ctx.destroy(*b);
+    for (auto* pages : {&offset_pages, &chord_pages})
+      for (Buffer& b : *pages) ctx.destroy(b);
     targets.release(ctx);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
@@ -80,7 +111,8 @@ struct VoxelCaster::State {
   }
 };
 
-VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy)
+VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy,
+                         uint64_t max_buffer_bytes)
     : state_(std::make_unique<State>(context, grid)) {
   State& s = *state_;
   if (occupancy.levels() > size_t(kMaxLevels) || occupancy.levels() == 0)
@@ -97,19 +129,36 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
                         occupancy.resolution[k][2], uint32_t(occupancy.first_word[k])});
   VkPhysicalDeviceProperties props;
   vkGetPhysicalDeviceProperties(context.physical_device(), &props);
-  const uint64_t limit = props.limits.maxStorageBufferRange;
-  for (const auto& [name, bytes] :
-       {std::pair{"offsets", grid.offsets.bytes()}, std::pair{"chords", grid.chords.bytes()}})
-    if (bytes > limit)
-      throw Error(std::string("vrc: the grid's ") + name + " take " + std::to_string(bytes >> 20) +
-                  " MiB, more than one storage buffer may hold on " + context.info().name + " (" +
-                  std::to_string(limit >> 20) + " MiB); use --on cpu or a coarser grid");
+  uint64_t limit = props.limits.maxStorageBufferRange;
+  if (max_buffer_bytes > 0) limit = std::min(limit, max_buffer_bytes);
+  // Past one buffer, offsets (4-byte units) and chords (8-byte units) go to pages of a power of
+  // two of units, so the shader shifts instead of dividing.
+  const bool paged = grid.offsets.bytes() > limit || grid.chords.bytes() > limit;
+  if (paged) {
+    if (limit < 8) throw Error("vrc: a storage buffer must hold at least one chord");
+    s.offset_shift = log2_floor(limit / 4);
+    s.chord_shift = log2_floor(limit / 8);
+    for (const auto& [name, bytes, unit, shift] :
+         {std::tuple{"offsets", grid.offsets.bytes(), 4u, s.offset_shift},
+          std::tuple{"chords", grid.chords.bytes(), 8u, s.chord_shift}}) {
+      const uint64_t page = (uint64_t{1} << shift) * unit;
+      if ((bytes + page - 1) / page > kGridPages)
+        throw Error(std::string("vrc: the grid's ") + name + " take " +
+                    std::to_string(bytes >> 20) + " MiB, more than " + std::to_string(kGridPages) +
+                    " storage buffers of " + std::to_string(page >> 20) + " MiB hold on " +
+                    context.info().name + "; use --on cpu or a coarser grid");
+    }
+    s.offset_pages = s.upload_pages(grid.offsets.data(), grid.offsets.bytes(), 4, s.offset_shift);
+    s.chord_pages = s.upload_pages(grid.chords.data(), grid.chords.bytes(), 8, s.chord_shift);
+  }
   s.uniforms = context.create_buffer(sizeof(VrcUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
-  s.offsets = s.upload(grid.offsets.data(), grid.offsets.bytes());
-  s.chords = s.upload(grid.chords.data(), grid.chords.bytes());
+  // Split: bindings 1 and 2 hold one word each (bound, never read).
+  s.offsets = paged ? s.upload(nullptr, 0) : s.upload(grid.offsets.data(), grid.offsets.bytes());
+  s.chords = paged ? s.upload(nullptr, 0) : s.upload(grid.chords.data(), grid.chords.bytes());
   s.occupancy = s.upload(occupancy.words.data(), occupancy.bytes());
   VkDevice d = context.device();
-  const BufferSet b = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
+  const BufferSet b =
+      create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT, {kGridPages, kGridPages});
   s.set_layout = b.set_layout, s.layout = b.layout, s.pool = b.pool, s.set = b.set;
   VkShaderModule module = create_shader_module(d, "vrc.comp");
   VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
@@ -117,6 +166,10 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   create.stage.module = module;
   create.stage.pName = "main";
+  const uint32_t paged_constant = paged ? 1u : 0u;  // vrc.comp kPaged
+  const VkSpecializationMapEntry entry{0, 0, 4};
+  const VkSpecializationInfo specialisation{1, &entry, 4, &paged_constant};
+  create.stage.pSpecializationInfo = &specialisation;
   create.layout = s.layout;
   const VkResult made =
       vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &s.pipeline);
@@ -131,8 +184,17 @@ double VoxelCaster::last_gpu_ms() const {
   return state_->gpu_ms;
 }
 
+uint32_t VoxelCaster::grid_buffers() const {
+  const State& s = *state_;
+  return s.offset_pages.empty() ? 2u : uint32_t(s.offset_pages.size() + s.chord_pages.size());
+}
+
 uint64_t VoxelCaster::grid_bytes() const {
-  return state_->offsets.size + state_->chords.size + state_->occupancy.size;
+  const State& s = *state_;
+  uint64_t bytes = s.offsets.size + s.chords.size + s.occupancy.size;
+  for (const auto* pages : {&s.offset_pages, &s.chord_pages})
+    for (const Buffer& b : *pages) bytes += b.size;
+  return bytes;
 }
 
 VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in,
@@ -169,6 +231,7 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   u.params[0] = float(o.termination_alpha), u.params[1] = float(frame.stats.radius);
   u.params[2] = s.voxel_size;
   u.levels[0] = uint32_t(s.levels.size());
+  u.levels[1] = s.offset_shift, u.levels[2] = s.chord_shift;
   for (size_t k = 0; k < s.levels.size(); ++k)
     for (size_t c = 0; c < 4; ++c) u.level_resolution[k][c] = s.levels[k][c];
   std::memcpy(s.uniforms.mapped, &u, sizeof u);

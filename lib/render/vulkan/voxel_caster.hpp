@@ -13,7 +13,10 @@ namespace linebake::vk {
 class VoxelCaster {
  public:
   // `grid` must outlive the caster (its voxel size clamps the radius); its arrays are copied.
-  VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy);
+  // Offsets and chords larger than one storage buffer (maxStorageBufferRange, or
+  // max_buffer_bytes when lower and not 0) are split across up to 8 buffers each.
+  VoxelCaster(Context& context, const VoxelGrid& grid, const OccupancyPyramid& occupancy,
+              uint64_t max_buffer_bytes = 0);
   VoxelCaster(const VoxelCaster&) = delete;
   VoxelCaster& operator=(const VoxelCaster&) = delete;
   ~VoxelCaster();
@@ -22,7 +25,8 @@ class VoxelCaster {
   // (voxels visited, cells skipped, chords tested) are CPU-only and stay 0.
   VrcFrame render(const Camera& camera, const TransferFunction& tf, const VrcOptions& options);
   double last_gpu_ms() const;
-  uint64_t grid_bytes() const;  // offsets + chords + occupancy on the device
+  uint64_t grid_bytes() const;    // offsets + chords + occupancy on the device
+  uint32_t grid_buffers() const;  // storage buffers the offsets and chords took (2 unsplit)
 
  private:
   struct State;
