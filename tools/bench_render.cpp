@@ -55,17 +55,28 @@ class ReferenceFrames {
  public:
   ReferenceFrames(const CacheReader& cache, const std::string& name, const TechniqueOptions& o)
       : cache_(cache), name_(name), options_(o) {}
-  const Image& at(const Camera& camera, const TransferFunction& tf, int width, int height) {
+  // The reference's image, or nullptr with why_not() set when it cannot be rendered (a cache
+  // without tubes): the technique's row then has no quality figures, its timings stay.
+  const Image* at(const Camera& camera, const TransferFunction& tf, int width, int height) {
+    if (!why_not_.empty()) return nullptr;
     const std::string key = camera_key(camera) + " " + tf.name;
     auto found = images_.find(key);
-    if (found != images_.end()) return found->second;
-    if (!prepared_) {
-      const Technique& reference = find_technique("reference");
-      prepared_ = reference.prepare(reference.info, cache_, name_, options_);
+    if (found != images_.end()) return &found->second;
+    try {
+      if (!prepared_) {
+        const Technique& reference = find_technique("reference");
+        prepared_ = reference.prepare(reference.info, cache_, name_, options_);
+      }
+      Image image = display_encoded(prepared_->render(camera, tf, width, height).image);
+      return &images_.emplace(key, std::move(image)).first->second;
+    } catch (const Interrupted&) {
+      throw;
+    } catch (const std::exception& e) {
+      why_not_ = e.what();
+      return nullptr;
     }
-    Image image = display_encoded(prepared_->render(camera, tf, width, height).image);
-    return images_.emplace(key, std::move(image)).first->second;
   }
+  const std::string& why_not() const { return why_not_; }
 
  private:
   const CacheReader& cache_;
@@ -73,6 +84,7 @@ class ReferenceFrames {
   TechniqueOptions options_;
   std::unique_ptr<PreparedTechnique> prepared_;
   std::map<std::string, Image> images_;
+  std::string why_not_;
 };
 
 std::string fixed(double v, int digits);
@@ -102,12 +114,13 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
     uint64_t frame_bytes = 0;
     nlohmann::json layers = nlohmann::json::array();
     bool capped = false;
-    const auto frames_start = std::chrono::steady_clock::now();
+    double frames_s = 0;  // the technique's own frames, not the reference's
     for (int f : plan.frames) {
       throw_if_interrupted();
       const Camera& camera = plan.cameras[size_t(f)];
       const TechniqueFrame frame = prepared->render(camera, tf, options.width, options.height);
       wall.push_back(frame.seconds);
+      frames_s += frame.seconds;
       if (!frame.gpu_ms.empty()) gpu.push_back(frame.total_gpu_ms());
       for (const auto& [pass, ms] : frame.gpu_ms) passes[pass].push_back(ms);
       frame_bytes = std::max(frame_bytes, frame.frame_bytes);
@@ -118,13 +131,15 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
         capped = capped || frame.stats.value("layers_capped", false);
       }
       if (f == 0 && technique.info.name != "reference") {
-        const Image& truth = references.at(camera, tf, options.width, options.height);
-        const Image image = display_encoded(frame.image);
-        row["psnr_db"] = psnr(image, truth);
-        row["ssim"] = ssim(image, truth);
+        if (const Image* truth = references.at(camera, tf, options.width, options.height)) {
+          const Image image = display_encoded(frame.image);
+          row["psnr_db"] = psnr(image, *truth);
+          row["ssim"] = ssim(image, *truth);
+        } else {
+          row["quality_skipped"] = "no reference: " + references.why_not();
+        }
       }
-      if (args.max_seconds > 0 && seconds_since(frames_start) > args.max_seconds &&
-          f + 1 < args.frames) {
+      if (args.max_seconds > 0 && frames_s > args.max_seconds && f + 1 < args.frames) {
         row["stopped"] = "after " + std::to_string(f + 1) + " of " + std::to_string(args.frames) +
                          " frames (--max-seconds " +
                          fixed(args.max_seconds, args.max_seconds < 10 ? 1 : 0) + ")";
@@ -246,7 +261,12 @@ void bench_render(const BenchRenderArgs& args) {
     vk::ContextOptions co;
     co.device = args.device;
     co.ray_tracing = !technique_unavailable(find_technique("rtx"), options);
-    context.emplace(co);
+    try {
+      context.emplace(co);
+    } catch (const vk::RayTracingUnsupported&) {  // the extensions, but a feature is off
+      co.ray_tracing = false;
+      context.emplace(co);
+    }
     options.context = &*context;
   }
   nlohmann::json result = {{"size", {width, height}},

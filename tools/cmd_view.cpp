@@ -110,7 +110,12 @@ class Viewer {
       const char** names = glfwGetRequiredInstanceExtensions(&count);
       if (!names) throw Error("view: GLFW found no Vulkan window support on this display");
       for (uint32_t i = 0; i < count; ++i) context_options.instance_extensions.push_back(names[i]);
-      context_.emplace(context_options);
+      try {
+        context_.emplace(context_options);
+      } catch (const vk::RayTracingUnsupported&) {  // the extensions, but a feature is off
+        context_options.ray_tracing = false;
+        context_.emplace(context_options);
+      }
       VkSurfaceKHR surface = VK_NULL_HANDLE;
       vk::check(glfwCreateWindowSurface(context_->instance(), window_, nullptr, &surface),
                 "glfwCreateWindowSurface");

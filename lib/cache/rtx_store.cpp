@@ -59,10 +59,10 @@ StoredRtx load_rtx(const CacheReader& cache) {
 
 std::string rtx_capsules_source(const std::string& lines_hash, float radius,
                                 const std::string& attribute) {
+  const std::string radius_text = std::to_string(radius);  // outlives the views below
   Hasher h;
-  for (std::string_view part :
-       {std::string_view("capsules"), std::string_view(lines_hash),
-        std::string_view(std::to_string(radius)), std::string_view(attribute)})
+  for (std::string_view part : {std::string_view("capsules"), std::string_view(lines_hash),
+                                std::string_view(radius_text), std::string_view(attribute)})
     h.update(part);
   return h.hex();
 }

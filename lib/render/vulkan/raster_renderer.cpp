@@ -756,6 +756,11 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
     s.prepare_pages(list_capacity, o.node_bytes, o.max_buffer_bytes, "ll");
     s.list_capacity = list_capacity;
   }
+  if ((mlab || buckets) && 5 * pixels * uint64_t(o.layers) > 0xFFFFFFFFull)
+    throw Error(std::string(to_string(o.technique)) + ": " + std::to_string(o.layers) +
+                " nodes per pixel at " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                " need more than 2^32 words (the shaders index them "
+                "with 32 bits); use fewer layers or a smaller size");
   if (mlab || buckets)  // five planes of k words per pixel: depth, r, g, b, T
     s.prepare_pages(5 * pixels * uint64_t(o.layers), 4, o.max_buffer_bytes, to_string(o.technique));
   s.fill_uniforms(camera, tf, o);
