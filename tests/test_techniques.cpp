@@ -43,6 +43,17 @@ TEST(Techniques, TheRegistryListsEveryTechniqueWithItsAssets) {
     EXPECT_TRUE(find_technique(exact).info.exact) << exact;
   for (const char* approximate : {"opaque", "mlab", "mlabdb", "mboit", "wboit", "vrc"})
     EXPECT_FALSE(find_technique(approximate).info.exact) << approximate;
+  // Frame memory before any work: 36 B/pixel for the image and counts, plus the technique's
+  // own (ll: 20 nodes per pixel to start, 24 or 12 bytes each).
+  TechniqueOptions o;
+  o.width = 100, o.height = 50;
+  EXPECT_EQ(estimate_frame_bytes(find_technique("ll"), o), 5000u * (36 + 20 * 24 + 4));
+  o.node_bytes = 12;
+  EXPECT_EQ(estimate_frame_bytes(find_technique("ll"), o), 5000u * (36 + 20 * 12 + 4));
+  o.capacity = 1000;
+  EXPECT_EQ(estimate_frame_bytes(find_technique("ll"), o), 5000u * (36 + 4) + 1000u * 12);
+  EXPECT_EQ(estimate_frame_bytes(find_technique("mlab"), o), 5000u * (36 + 8 * 20 + 12));
+  EXPECT_EQ(estimate_frame_bytes(find_technique("reference"), o), 5000u * (36 + 16));
   try {
     find_technique("embre");
     ADD_FAILURE() << "an unknown name was found";

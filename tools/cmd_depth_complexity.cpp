@@ -80,7 +80,8 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
-    check_frame_memory("depth-complexity", args->size, uint64_t(width) * uint64_t(height), 0, 0, 0,
+    check_frame_memory("depth-complexity", args->size,
+                       uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16),
                        args->memory_budget);
     if (args->output.empty() && args->stats.empty())
       throw Error("depth-complexity: nothing to write; give -o and/or --stats");

@@ -193,23 +193,6 @@ Command add_render(CLI::App& app) {
                   "physical memory)");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
-    check_frame_memory(args->technique, args->size, uint64_t(width) * uint64_t(height),
-                       args->capacity, args->layers, args->moments, args->memory_budget);
-    if (args->early && args->technique != "embree" && args->technique != "ll" &&
-        args->technique != "vrc" && args->technique != "rtx")
-      throw Error("--early-termination: only embree, ll, vrc and rtx stop early (" +
-                  args->technique + " does not)");
-    const TransferFunction tf = resolve_transfer_function(args->tf);
-    const CacheReader cache(args->cache);
-    const bool rtx_flags = !args->rt_geometry.empty() || args->rebuild || args->no_compaction ||
-                           args->max_iterations != 1024;
-    if (rtx_flags && args->technique != "rtx")
-      throw Error("--rt-geometry, --rebuild, --no-compaction, --max-iterations: rtx options (not " +
-                  args->technique + ")");
-    if ((args->on != "cpu" || args->no_early_termination || args->no_skip) &&
-        args->technique != "vrc")
-      throw Error("--on, --no-early-termination, --no-skip: vrc options (not " + args->technique +
-                  ")");
     TechniqueOptions o;
     o.width = width, o.height = height;
     o.early_termination = args->early;
@@ -235,6 +218,24 @@ Command add_render(CLI::App& app) {
     o.rt_geometry = args->rt_geometry;
     o.rebuild = args->rebuild, o.compaction = !args->no_compaction;
     o.max_iterations = args->max_iterations;
+    check_frame_memory(args->technique, args->size,
+                       estimate_frame_bytes(find_technique(args->technique), o),
+                       args->memory_budget);
+    if (args->early && args->technique != "embree" && args->technique != "ll" &&
+        args->technique != "vrc" && args->technique != "rtx")
+      throw Error("--early-termination: only embree, ll, vrc and rtx stop early (" +
+                  args->technique + " does not)");
+    const TransferFunction tf = resolve_transfer_function(args->tf);
+    const CacheReader cache(args->cache);
+    const bool rtx_flags = !args->rt_geometry.empty() || args->rebuild || args->no_compaction ||
+                           args->max_iterations != 1024;
+    if (rtx_flags && args->technique != "rtx")
+      throw Error("--rt-geometry, --rebuild, --no-compaction, --max-iterations: rtx options (not " +
+                  args->technique + ")");
+    if ((args->on != "cpu" || args->no_early_termination || args->no_skip) &&
+        args->technique != "vrc")
+      throw Error("--on, --no-early-termination, --no-skip: vrc options (not " + args->technique +
+                  ")");
     render_frames(*args, cache, tf, o);
   };
   // Every output of the command (an image and its --stats, each frame, both exports) is

@@ -46,27 +46,14 @@ FlightPlan plan_flight(const std::string& flight_name, int frame_count, int fram
   return plan;
 }
 
-void check_frame_memory(const std::string& technique, const std::string& size, uint64_t pixels,
-                        uint64_t capacity, int layers, int moments, const std::string& budget) {
-  uint64_t bytes = pixels * (16 + 16 + 4);
-  if (technique == "ll")
-    bytes += (capacity ? capacity : 20 * pixels) * 24 + pixels * 4;
-  else if (technique == "mlab" || technique == "mlabdb")
-    bytes += pixels * uint64_t(layers ? layers : technique == "mlab" ? 8 : 4) * 16;
-  else if (technique == "dp")
-    bytes += pixels * (2 * 4 + 16);
-  else if (technique == "mboit")
-    bytes += pixels * (uint64_t(moments + 1) * 4 + 16);
-  else if (technique == "wboit")
-    bytes += pixels * 32;
-  else
-    bytes += pixels * 16;
+void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
+                        const std::string& budget) {
   const uint64_t limit = budget.empty() ? default_memory_budget() : linebake::parse_size(budget);
   if (bytes > limit)
-    throw BudgetExceeded(
-        "a " + size + " " + technique + " frame needs about " + format_bytes(bytes) +
-        ", more than the memory budget of " + format_bytes(limit) + "; lower --size" +
-        (technique == "ll" ? " or --capacity" : "") + ", or raise --memory-budget");
+    throw BudgetExceeded("a " + size + " " + what + " frame needs about " + format_bytes(bytes) +
+                         ", more than the memory budget of " + format_bytes(limit) +
+                         "; lower --size" + (what == "ll" ? " or --capacity" : "") +
+                         ", or raise --memory-budget");
 }
 
 }  // namespace linebake::cli

@@ -28,12 +28,10 @@ struct FlightPlan {
 FlightPlan plan_flight(const std::string& flight, int frame_count, int frame,
                        const std::string& frames, const Bounds& bounds, int width, int height);
 
-// The memory one frame takes, estimated before it is spent: the image as floats, its output,
-// depth-complexity counts, and the technique's per-pixel storage (on lavapipe and integrated
-// GPUs device memory is host memory too). Errs high; ll's default node pool grows on overflow,
-// so its figure is where it starts. Throws BudgetExceeded with the figures when the frame
-// exceeds `budget` ("": half of physical memory).
-void check_frame_memory(const std::string& technique, const std::string& size, uint64_t pixels,
-                        uint64_t capacity, int layers, int moments, const std::string& budget);
+// Throws BudgetExceeded with the figures when a frame of `bytes` (estimate_frame_bytes in
+// lib/techniques for a technique; `what` names it) exceeds `budget` ("": half of physical
+// memory).
+void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
+                        const std::string& budget);
 
 }  // namespace linebake::cli

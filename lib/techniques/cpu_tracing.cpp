@@ -110,6 +110,10 @@ class CpuTracing : public PreparedTechnique {
 
 }  // namespace
 
+uint64_t cpu_tracing_frame_bytes(const TechniqueInfo&, const TechniqueOptions& o) {
+  return uint64_t(o.width) * uint64_t(o.height) * 16;  // hit lists of a tile, alpha, counts
+}
+
 std::unique_ptr<PreparedTechnique> prepare_cpu_tracing(const TechniqueInfo& info,
                                                        const CacheReader& cache,
                                                        const std::string& cache_name,

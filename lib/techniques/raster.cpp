@@ -107,6 +107,18 @@ class Raster : public PreparedTechnique {
 
 }  // namespace
 
+uint64_t raster_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& o) {
+  const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
+  const std::string& name = info.name;
+  if (name == "ll") return (o.capacity ? o.capacity : 20 * pixels) * o.node_bytes + pixels * 4;
+  if (name == "mlab" || name == "mlabdb")
+    return pixels * uint64_t(o.layers ? o.layers : name == "mlab" ? 8 : 4) * 20 + pixels * 12;
+  if (name == "dp") return pixels * (2 * 4 + 16);
+  if (name == "mboit") return pixels * (uint64_t(o.moments + 1) * 4 + 16);
+  if (name == "wboit") return pixels * 32;
+  return pixels * 16;
+}
+
 std::unique_ptr<PreparedTechnique> prepare_raster(const TechniqueInfo& info,
                                                   const CacheReader& cache,
                                                   const std::string& cache_name,

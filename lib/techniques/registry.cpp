@@ -32,34 +32,52 @@ const std::vector<Technique>& techniques() {
   static const std::vector<Technique> table = {
       {{"reference", "exact: CPU ray tracing (Embree) of the cached tube mesh, every hit in order",
         A{"tubes"}, false, false, true},
-       prepare_cpu_tracing},
+       prepare_cpu_tracing,
+       cpu_tracing_frame_bytes},
       {{"embree", "CPU ray tracing (Embree) of curves over the lines, every hit in order (OSP)",
         A{"lines"}, false, false, true},
-       prepare_cpu_tracing},
+       prepare_cpu_tracing,
+       cpu_tracing_frame_bytes},
       {{"opaque", "Vulkan: the tube mesh depth-tested, opacity ignored", A{"tubes"}, true, false,
         false},
-       prepare_raster},
+       prepare_raster,
+       raster_frame_bytes},
       {{"dp", "Vulkan: depth peeling, one pass per layer (exact up to --max-layers)", A{"tubes"},
         true, false, true},
-       prepare_raster},
+       prepare_raster,
+       raster_frame_bytes},
       {{"ll", "Vulkan: per-pixel linked lists, sorted and blended (exact)", A{"tubes"}, true, false,
         true},
-       prepare_raster},
+       prepare_raster,
+       raster_frame_bytes},
       {{"mlab", "Vulkan: multi-layer alpha blending, k nodes per pixel", A{"tubes"}, true, false,
         false},
-       prepare_raster},
+       prepare_raster,
+       raster_frame_bytes},
       {{"mlabdb", "Vulkan: MLAB with depth buckets", A{"tubes"}, true, false, false},
-       prepare_raster},
-      {{"mboit", "Vulkan: moment-based OIT", A{"tubes"}, true, false, false}, prepare_raster},
-      {{"wboit", "Vulkan: weighted blended OIT", A{"tubes"}, true, false, false}, prepare_raster},
+       prepare_raster,
+       raster_frame_bytes},
+      {{"mboit", "Vulkan: moment-based OIT", A{"tubes"}, true, false, false},
+       prepare_raster,
+       raster_frame_bytes},
+      {{"wboit", "Vulkan: weighted blended OIT", A{"tubes"}, true, false, false},
+       prepare_raster,
+       raster_frame_bytes},
       {{"vrc", "voxel ray casting of the voxel line grid, CPU or Vulkan compute (--on gpu)",
         A{"voxels"}, false, false, false},
-       prepare_vrc},
+       prepare_vrc,
+       cpu_tracing_frame_bytes},
       {{"rtx", "Vulkan ray tracing of the tube mesh (or capsules), every hit in order", A{"tubes"},
         true, true, true},
-       prepare_rtx},
+       prepare_rtx,
+       cpu_tracing_frame_bytes},
   };
   return table;
+}
+
+uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions& options) {
+  const uint64_t pixels = uint64_t(options.width) * uint64_t(options.height);
+  return pixels * (16 + 16 + 4) + technique.frame_bytes(technique.info, options);
 }
 
 std::vector<std::string> technique_names() {

@@ -101,7 +101,15 @@ struct Technique {
   std::unique_ptr<PreparedTechnique> (*prepare)(const TechniqueInfo& info, const CacheReader& cache,
                                                 const std::string& cache_name,
                                                 const TechniqueOptions& options) = nullptr;
+  // The technique's own per-frame buffers at options.width x options.height, estimated before
+  // any work (ll: where its node pool starts).
+  uint64_t (*frame_bytes)(const TechniqueInfo& info, const TechniqueOptions& options) = nullptr;
 };
+
+// The memory one frame takes, estimated before it is spent: the image as floats, its output,
+// depth-complexity counts, and the technique's own buffers (on lavapipe and integrated GPUs
+// device memory is host memory too). Errs high.
+uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions& options);
 
 // Every technique, in the order the commands list them.
 const std::vector<Technique>& techniques();
