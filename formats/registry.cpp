@@ -64,8 +64,13 @@ Format resolve_format(const std::string& path, const std::optional<Format>& forc
 
 Format resolve_output_format(const std::string& path, const std::optional<Format>& forced) {
   const Format format = resolve_format(path, forced);
-  if (!format_info(format).writable)
-    throw Error(std::string("writing ") + format_info(format).name + " is not supported");
+  if (!format_info(format).writable) {
+    std::string writable;
+    for (const FormatInfo& f : format_table())
+      if (f.writable) writable += (writable.empty() ? "" : ", ") + std::string(f.name);
+    throw Error(path + ": writing " + format_info(format).name +
+                " is not supported (writable: " + writable + ")");
+  }
   return format;
 }
 

@@ -5,6 +5,7 @@
 
 #include "cache/cache.hpp"
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
@@ -129,6 +130,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
+    if (!options.dry_run)
+      check_output_location(options.cache);  // "" : the default beside the input
     const BakeResult result = run(options);
     if (!print) return;
     if (options.dry_run) {

@@ -50,8 +50,10 @@ Command add_convert(CLI::App& app) {
     write.binlines_version = args->binlines_version;
     write.vtp_encoding = args->ascii ? "ascii" : args->vtp_encoding;
     write.vtp_compress = !args->no_compress;
-    // Fail on an unknown or read-only output format before reading a large input.
+    // Fail on an unknown or read-only output format, or a missing directory, before reading a
+    // large input.
     resolve_output_format(args->output, write.format);
+    check_output_location(args->output);
 
     LineSet lines;
     {

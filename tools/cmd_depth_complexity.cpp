@@ -80,6 +80,8 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
+    check_depth_image_output(args->output);
+    check_output_location(args->stats);
     check_frame_memory("depth-complexity", args->size,
                        uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16),
                        args->memory_budget);

@@ -45,7 +45,10 @@ Command add_export(CLI::App& app) {
     if (args->glb.empty() && args->vdb.empty())
       throw Error("nothing to export: give --glb or --vdb");
     for (const std::string& out : {args->glb, args->vdb})
-      if (!out.empty()) refuse_input_as_output(out, {args->cache});
+      if (!out.empty()) {
+        refuse_input_as_output(out, {args->cache});
+        check_output_location(out);
+      }
     const CacheReader cache(args->cache);
     if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
     if (args->glb.empty()) return;

@@ -193,6 +193,10 @@ Command add_render(CLI::App& app) {
                   "physical memory)");
   const auto body = [args] {
     const auto [width, height] = parse_size(args->size);
+    // Every output before any work: an image format, directories that exist and take files.
+    check_image_output(args->output);
+    check_output_location(args->stats);
+    check_depth_image_output(args->depth_image);
     TechniqueOptions o;
     o.width = width, o.height = height;
     o.early_termination = args->early;

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
@@ -37,6 +38,9 @@ Command add_synth(CLI::App& app) {
     const auto start = std::chrono::steady_clock::now();
     WriteOptions write;
     if (!args->to.empty()) write.format = parse_format(args->to);
+    // Before generating: a format linebake cannot write, a missing directory.
+    resolve_output_format(args->output, write.format);
+    check_output_location(args->output);
     // Generated batch by batch; .binlines is written as the batches come, so any scale fits in
     // memory. Other formats collect the line set first.
     TerminalProgress progress("generating " + args->params.name);

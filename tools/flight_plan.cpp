@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <regex>
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
 
@@ -44,6 +45,13 @@ FlightPlan plan_flight(const std::string& flight_name, int frame_count, int fram
   else
     plan.frames.push_back(frame);
   return plan;
+}
+
+void check_depth_image_output(const std::string& path) {
+  if (path.empty()) return;
+  if (path.size() < 4 || path.compare(path.size() - 4, 4, ".png") != 0)
+    throw OutputError(path, "depth complexity is written as a 16-bit PNG: use .png");
+  check_output_location(path);
 }
 
 void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,

@@ -15,6 +15,10 @@ namespace linebake::cli {
 // "WxH", 1..16384 per axis.
 std::array<int, 2> parse_size(const std::string& text);
 
+// A 16-bit PNG of counts per pixel (render --depth-complexity, depth-complexity -o): .png, in a
+// directory that exists and takes files; "" passes. Throws OutputError.
+void check_depth_image_output(const std::string& path);
+
 // "out.png" -> "out_007.png" for frame 7 of a multi-frame render.
 std::string frame_path(const std::string& path, int frame, bool numbered);
 

@@ -99,6 +99,18 @@ void refuse_input_as_output(const std::string& output, const std::vector<std::st
   }
 }
 
+void check_output_location(const std::string& path) {
+  if (path.empty()) return;
+  const std::filesystem::path p(path);
+  const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
+  std::error_code ec;
+  if (std::filesystem::is_directory(p, ec)) throw OutputError(path, "is a directory");
+  if (!std::filesystem::is_directory(dir, ec))
+    throw OutputError(path, "the directory " + dir + " does not exist");
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw OutputError(path, "the directory " + dir + " is not writable");
+}
+
 uint64_t free_bytes_for(const std::string& path) {
   const std::filesystem::path p(path);
   const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";

@@ -80,6 +80,9 @@ uint64_t remove_stale_temporaries(const std::string& path);
 // Throws OutputError when `output` is one of `inputs` (the same file, whatever the path):
 // an output never replaces an input of its command.
 void refuse_input_as_output(const std::string& output, const std::vector<std::string>& inputs);
+// Before any work: throws OutputError naming `path` when its directory does not exist or is not
+// writable, or when `path` is a directory. "" passes (no such output).
+void check_output_location(const std::string& path);
 // Bytes free for this user on the file system that holds `path` (or would: its directory).
 uint64_t free_bytes_for(const std::string& path);
 

@@ -202,6 +202,12 @@ Image read_pfm(const std::string& path) {
   return image;
 }
 
+void check_image_output(const std::string& path) {
+  if (!ends_with(path, ".pfm") && !ends_with(path, ".png"))
+    throw OutputError(path, "unknown image format (use .png or .pfm)");
+  check_output_location(path);
+}
+
 void write_image(const Image& image, const std::string& path, int png_bits) {
   if (ends_with(path, ".pfm")) return write_pfm(image, path);
   if (ends_with(path, ".png")) return write_png(image, path, png_bits);

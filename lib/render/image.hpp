@@ -40,6 +40,9 @@ Image read_pfm(const std::string& path);  // srgb_encoded = false
 
 // By extension: .png or .pfm.
 void write_image(const Image& image, const std::string& path, int png_bits = 8);
+// Before any work: what write_image would refuse (an extension other than .png or .pfm, a missing
+// or read-only directory), as OutputError naming the path.
+void check_image_output(const std::string& path);
 Image read_image(const std::string& path);
 
 }  // namespace linebake
