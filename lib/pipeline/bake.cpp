@@ -173,6 +173,19 @@ nlohmann::json to_json(const RtxOptions& r) {
   return {{"geometry", r.geometry}, {"compaction", r.compaction}};
 }
 
+nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan) {
+  uint64_t vertices = 0, indices = 0;
+  for (const TubeChunkPlan& c : plan) vertices += c.vertices, indices += c.indices;
+  return {{"chunks", plan.size()},
+          {"vertices", vertices},
+          {"triangles", indices / 3},
+          {"radius_world", mesh.radius},
+          {"attribute", mesh.attribute},
+          {"attribute_range", mesh.attribute_range},
+          {"lines_dropped", mesh.lines_dropped},
+          {"points_skipped", mesh.points_skipped}};
+}
+
 // The attribute the tubes colour by, for the curves: "" = the first, "none" = none.
 static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
   if (t.attribute == "none") return "";
@@ -770,17 +783,7 @@ BakeResult bake(const BakeOptions& options_in) {
     finish_provenance(p, "tubes", tubes_clock);
     p.input_hash = lines_hash;
     p.parameters = to_json(options.tubes);
-    uint64_t vertices = 0, indices = 0;
-    for (const TubeChunkPlan& c : tubes->finish_plan())
-      vertices += c.vertices, indices += c.indices;
-    p.stats = {{"chunks", tubes->finish_plan().size()},
-               {"vertices", vertices},
-               {"triangles", indices / 3},
-               {"radius_world", mesh.radius},
-               {"attribute", mesh.attribute},
-               {"attribute_range", mesh.attribute_range},
-               {"lines_dropped", mesh.lines_dropped},
-               {"points_skipped", mesh.points_skipped}};
+    p.stats = tube_stats(mesh, tubes->finish_plan());
     tube_sink->close(mesh, p);
     tube_sink.reset();  // its staging buffers go before the voxel merge
     if (mesh.lines_dropped)

@@ -30,6 +30,8 @@ struct RtxOptions {
   bool validation = false;
 };
 nlohmann::json to_json(const RtxOptions& rtx);
+// The tubes step's provenance figures: the chunk plan's counts and the mesh's description.
+nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan);
 
 struct BakeOptions {
   std::string input;  // file or synth: source

@@ -547,16 +547,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       p.input_hash = lines_hash;
       p.parameters = to_json(options.tubes);
       const TubeMesh& mesh = tubes->description();
-      uint64_t vertices = 0, indices = 0;
-      for (const TubeChunkPlan& c : plan) vertices += c.vertices, indices += c.indices;
-      p.stats = {{"chunks", plan.size()},
-                 {"vertices", vertices},
-                 {"triangles", indices / 3},
-                 {"radius_world", mesh.radius},
-                 {"attribute", mesh.attribute},
-                 {"attribute_range", mesh.attribute_range},
-                 {"lines_dropped", mesh.lines_dropped},
-                 {"points_skipped", mesh.points_skipped}};
+      p.stats = tube_stats(mesh, plan);
       // Every rank's figures, and the imbalance of the build (max / mean).
       mine.build_s = seconds_since(build_start);
       mine.bytes = writer.bytes_written();

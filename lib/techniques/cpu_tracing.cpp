@@ -73,11 +73,8 @@ class CpuTracing : public PreparedTechnique {
     trace_.width = width, trace_.height = height;
     Frame frame = trace_frame(*scene_, camera, tf, trace_);
     const FrameStats& s = frame.stats;
-    TechniqueFrame out;
-    out.image = std::move(frame.image);
-    out.depth_complexity = std::move(frame.depth_complexity);
-    out.seconds = s.seconds;
-    out.frame_bytes = s.frame_bytes;
+    TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
+                                         s.seconds, s.frame_bytes);
     out.stats = {{"front_hits", s.counters.hits},
                  {"composited_hits", s.counters.composited},
                  {"duplicate_hits_removed", s.counters.duplicates},

@@ -29,6 +29,11 @@ std::unique_ptr<PreparedTechnique> prepare_rtx(const TechniqueInfo& info, const 
 uint64_t cpu_tracing_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& options);
 uint64_t raster_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& options);
 
+// A frame's image, depth complexity, wall seconds and per-frame bytes, as every driver reports
+// them; the family adds its stats, pass times and notes.
+TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexity, double seconds,
+                               uint64_t frame_bytes);
+
 // A Vulkan context for a technique: the shared one when given, else one of its own.
 class ContextHolder {
  public:

@@ -42,11 +42,8 @@ class Raster : public PreparedTechnique {
     vk::RasterFrame frame = renderer_->render(camera, tf, options_);
     context_.check_validation();
     const vk::RasterStats& s = frame.stats;
-    TechniqueFrame out;
-    out.image = std::move(frame.image);
-    out.depth_complexity = std::move(frame.depth_complexity);
-    out.seconds = s.seconds;
-    out.frame_bytes = s.frame_bytes;
+    TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
+                                         s.seconds, s.frame_bytes);
     nlohmann::json passes = nlohmann::json::object();
     for (const auto& [name, ms] : s.pass_ms) {
       passes[name] = ms;

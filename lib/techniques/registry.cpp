@@ -80,6 +80,16 @@ uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions
   return pixels * (16 + 16 + 4) + technique.frame_bytes(technique.info, options);
 }
 
+TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexity, double seconds,
+                               uint64_t frame_bytes) {
+  TechniqueFrame out;
+  out.image = std::move(image);
+  out.depth_complexity = std::move(depth_complexity);
+  out.seconds = seconds;
+  out.frame_bytes = frame_bytes;
+  return out;
+}
+
 std::vector<std::string> technique_names() {
   std::vector<std::string> names;
   for (const Technique& t : techniques()) names.push_back(t.info.name);

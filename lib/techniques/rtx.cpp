@@ -82,11 +82,8 @@ class Rtx : public PreparedTechnique {
     vk::RtFrame frame = renderer_->render(*scene_, camera, tf, options_);
     context_.check_validation();
     const vk::RtStats& s = frame.stats;
-    TechniqueFrame out;
-    out.image = std::move(frame.image);
-    out.depth_complexity = std::move(frame.depth_complexity);
-    out.seconds = s.seconds;
-    out.frame_bytes = s.frame_bytes;
+    TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
+                                         s.seconds, s.frame_bytes);
     out.gpu_ms["trace"] = s.gpu_ms;
     out.stats = {{"gpu_ms", s.gpu_ms},
                  {"hits", s.hits},

@@ -55,11 +55,8 @@ class Vrc : public PreparedTechnique {
                              : cast_voxel_frame(grid_, occupancy_, camera, tf, options_);
     if (context_) context_->check_validation();
     const VrcStats& s = frame.stats;
-    TechniqueFrame out;
-    out.image = std::move(frame.image);
-    out.depth_complexity = std::move(frame.depth_complexity);
-    out.seconds = s.seconds;
-    out.frame_bytes = s.frame_bytes;
+    TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
+                                         s.seconds, s.frame_bytes);
     out.stats = {{"hits", s.hits},
                  {"depth_complexity", {{"max", s.max_depth_complexity}}},
                  {"voxels_visited", s.voxels_visited},
