@@ -18,13 +18,22 @@ mkdir run
 "$bin" synth convection --scale 0.01 --seed 2 -o run/part_1.h5 >/dev/null
 "$bin" synth convection --scale 0.005 --seed 3 -o run/part_2.csv >/dev/null
 "$bin" synth convection --scale 0.01 --seed 4 -o run/part_3.binlines >/dev/null
-options=(--assets tubes --chunk-bytes 4000000 --tube-sides 4)
+# Every asset linebake-mpi builds; small Embree scenes and tube chunks, so that ranks share
+# parts and chunks, and a voxel cap that drops chords.
+common=(--assets tubes,voxels,embree --chunk-bytes 4000000 --tube-sides 4 --max-chords 8
+  --embree-max-primitives 20000)
+options=("${common[@]}" --grid 40)
 "$bin" bake 'run/part_*' -o serial.lbc.h5 "${options[@]}" >/dev/null 2>&1
 
-# Every dataset's name and stored hash, in file order.
-hashes() { h5dump -A "$1" | grep -E '^ *DATASET|ATTRIBUTE "xxh3_128_blocks"' -A12 |
+# Every dataset's name and stored hash, and the voxel grid's and Embree curves' descriptions
+# (their statistics), in file order.
+hashes() { h5dump -A "$1" | grep -E '^ *DATASET|ATTRIBUTE "(xxh3_128_blocks|grid|curves)"' -A12 |
   grep -E 'DATASET|\(0\):' | tr -s ' '; }
+export -f hashes
 check "serial cache has several tube chunks" bash -c "h5ls -r serial.lbc.h5 | grep -c chunk_000002"
+check "serial cache has several Embree parts" bash -c "h5ls -r serial.lbc.h5 | grep -c part_000003"
+check "serial cache has dropped voxel chords" \
+  bash -c "'$bin' report --json serial.lbc.h5 | grep -Eq '\"chords_dropped\": [1-9]'"
 for n in 1 2 3; do
   check "np $n bakes" mpirun -np "$n" "$mpi" bake 'run/part_*' -o "mpi$n.lbc.h5" "${options[@]}"
   check "np $n: every dataset's hash equals the serial bake's" \
@@ -49,12 +58,27 @@ for n in names:
 check "the serial linebake renders the MPI cache as it renders its own" bash -c "
   '$bin' render mpi3.lbc.h5 --technique ll --size 96x64 -o m.png &&
   '$bin' render serial.lbc.h5 --technique ll --size 96x64 -o s.png && cmp m.png s.png"
-check "a serial bake of the same inputs reuses /lines and the tubes and adds voxels" bash -c "
-  '$bin' bake 'run/part_*' -o mpi2.lbc.h5 ${options[*]} --assets tubes,voxels --grid 32 2>&1 |
-    grep -q 'tubes: up to date, reused'"
-check "asking linebake-mpi for voxels fails, saying how to get them" bash -c "
-  mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --assets voxels > v.txt 2>&1
+check "the serial linebake renders the MPI cache's voxels and Embree buffers as its own" bash -c "
+  for t in vrc embree; do
+    '$bin' render mpi3.lbc.h5 --technique \$t --size 96x64 -o m\$t.png &&
+    '$bin' render serial.lbc.h5 --technique \$t --size 96x64 -o s\$t.png && cmp m\$t.png s\$t.png || exit 1
+  done"
+check "a serial bake of the same inputs finds every step of the MPI cache up to date" bash -c "
+  '$bin' bake 'run/part_*' -o mpi2.lbc.h5 ${options[*]} 2>&1 | grep -q 'is up to date'"
+check "a serial bake with another voxel grid rebuilds the voxels only" bash -c "
+  '$bin' bake 'run/part_*' -o mpi2.lbc.h5 ${common[*]} --grid 24 > r.txt 2>&1 &&
+  grep -q 'tubes: up to date, reused' r.txt && grep -q 'embree: up to date, reused' r.txt"
+check "asking linebake-mpi for rtx fails, saying how to get it" bash -c "
+  mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --assets rtx > v.txt 2>&1
   [ \$? -ne 0 ] && grep -q 'serial linebake' v.txt && [ ! -e v.lbc.h5 ]"
+# A budget small enough that the voxel records go to their owners in several waves.
+"$bin" synth convection --scale 0.1 --seed 5 -o big.binlines >/dev/null
+"$bin" bake big.binlines -o big-serial.lbc.h5 --assets voxels --grid 256 >/dev/null 2>&1
+check "np 2 within a small budget: the serial bake's voxels, exchanged in waves" bash -c "
+  mpirun -np 2 '$mpi' bake big.binlines -o big-mpi.lbc.h5 --assets voxels --grid 256 \
+    --memory-budget 80M > /dev/null &&
+  diff <(hashes big-serial.lbc.h5) <(hashes big-mpi.lbc.h5) &&
+  '$bin' report --json big-mpi.lbc.h5 | grep -Eq '\"exchange_waves\": ([2-9]|[1-9][0-9])'"
 
 # More ranks than lines: two lines on three ranks leave one rank with nothing to write.
 printf 'line_id,x,y,z\n0,0,0,0\n0,1,0,0\n0,1,1,0\n1,0,0,1\n1,0,1,1\n1,1,1,2\n' > two.csv

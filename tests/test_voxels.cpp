@@ -8,6 +8,8 @@
 #include <cstring>
 
 #include "core/error.hpp"
+#include "lines/line_reader.hpp"
+#include "lines/line_set.hpp"
 #include "voxels/voxelizer.hpp"
 
 namespace linebake {
@@ -249,6 +251,124 @@ TEST(Voxels, SameBytesForAnyThreadCount) {
   EXPECT_EQ(std::memcmp(one.density[0].data(), two.density[0].data(), one.density[0].bytes()), 0);
   EXPECT_EQ(one.max_error, two.max_error);
   EXPECT_EQ(one.mean_error, two.mean_error);
+}
+
+// Collects voxel ranges merged by several builders into whole-grid arrays.
+class CollectingSink : public VoxelSink {
+ public:
+  std::vector<uint32_t> offsets, chords;
+  std::vector<uint8_t> line_counts;
+  std::vector<float> density;
+  void begin(const VoxelGrid&, uint64_t) override {}
+  void voxels(uint64_t first, uint64_t count, const uint32_t* o, const uint8_t* lc, const float* d,
+              const uint32_t* c, uint64_t chord_count) override {
+    if (offsets.size() < first + count) {
+      offsets.resize(first + count), line_counts.resize(first + count);
+      density.resize(first + count);
+    }
+    std::copy_n(o, count, offsets.begin() + long(first));
+    std::copy_n(lc, count, line_counts.begin() + long(first));
+    std::copy_n(d, count, density.begin() + long(first));
+    if (chord_count == 0) return;
+    const uint64_t at = 2 * uint64_t(o[0]);
+    if (chords.size() < at + 2 * chord_count) chords.resize(at + 2 * chord_count);
+    std::copy_n(c, 2 * chord_count, chords.begin() + long(at));
+  }
+  void end(const VoxelGrid&, uint32_t, std::vector<Array<float>>) override {}
+};
+
+// What linebake-mpi does with three ranks, in one process: each "rank" walks a third of the
+// lines, the records go to the owners of z slabs in two waves, each owner merges its slab in two
+// pieces, and the tallies and level 1 sums are combined. The grid must equal voxelize()'s bit for
+// bit: chords, offsets, line counts, every density level and the statistics.
+TEST(Voxels, DistributedBuildEqualsTheSerialOne) {
+  LineSet lines;
+  for (int l = 0; l < 900; ++l) {
+    for (int i = 0; i < 40; ++i) {
+      const double t = 0.2 * i + 0.013 * l;
+      lines.append_point(float(std::cos(t) * (1 + l % 7)), float(std::sin(1.3 * t) * 3),
+                         float(0.1 * t + l % 5));
+    }
+    lines.end_line();
+  }
+  std::vector<float> a(lines.point_count());
+  for (size_t i = 0; i < a.size(); ++i) a[i] = float(i % 97);
+  lines.attributes.push_back({"a", a});
+  VoxelOptions o;
+  o.grid = 40;
+  o.max_chords_per_voxel = 6;
+  const VoxelGrid serial = voxelize(lines, o);
+  ASSERT_GT(serial.chords_dropped, 0u);
+
+  const LineSetStats stats = compute_stats(lines);
+  const uint64_t line_cuts[4] = {0, 250, 610, 900};
+  std::vector<std::unique_ptr<VoxelStreamBuilder>> ranks;
+  for (int r = 0; r < 3; ++r) {
+    ranks.push_back(std::make_unique<VoxelStreamBuilder>(lines, stats, o));
+    ranks[size_t(r)]->start_at_line(line_cuts[r]);
+    LineSet part = header_of(lines);
+    copy_lines(lines, size_t(line_cuts[r]), size_t(line_cuts[r + 1]), part);
+    ranks[size_t(r)]->add(part);
+  }
+  const VoxelGrid& grid = ranks[0]->description();
+  const uint64_t voxels = grid.voxel_count();
+  const uint64_t slab = 2 * uint64_t(grid.resolution[0]) * grid.resolution[1];
+  ASSERT_GT(grid.resolution[2], 8u);
+  // Owners of z slabs (not at unit boundaries), and two waves cut elsewhere.
+  const uint64_t owners[4] = {0, 2 * slab, 3 * slab, voxels};
+  const uint64_t waves[3] = {0, 5 * slab / 2 + 17, voxels};
+  for (int w = 0; w < 2; ++w)
+    for (int owner = 0; owner < 3; ++owner) {
+      const uint64_t v0 = std::max(waves[w], owners[owner]);
+      const uint64_t v1 = std::min(waves[w + 1], owners[owner + 1]);
+      std::vector<VoxelRecord> incoming;
+      std::vector<uint64_t> counts;
+      for (auto& sender : ranks) {
+        const size_t before = incoming.size();
+        if (v0 < v1) sender->append_records(v0, v1, incoming);
+        counts.push_back(incoming.size() - before);
+      }
+      // Kept beside the owner's own records, which it still sends from in the next wave.
+      ranks[size_t(owner)]->receive_records(incoming.data(), counts);
+    }
+  CollectingSink sink;
+  Array<float> level1 = zero_level1_sums(grid);
+  VoxelTallies tallies;
+  uint64_t chords_before = 0;
+  for (int owner = 0; owner < 3; ++owner) {
+    VoxelStreamBuilder& b = *ranks[size_t(owner)];
+    b.adopt_received();
+    const uint64_t first = owners[owner], end = owners[owner + 1];
+    const uint64_t kept = b.kept_chords(first, end);
+    Array<float> mine = zero_level1_sums(grid);
+    const uint64_t middle = first + (end - first) / 3;
+    uint64_t merged = b.merge(sink, first, middle, chords_before, mine);
+    merged += b.merge(sink, middle, end, chords_before + merged, mine);
+    EXPECT_EQ(merged, kept);
+    chords_before += merged;
+    for (uint64_t i = 0; i < level1.size(); ++i) level1[i] += mine[i];
+    tallies.add(b.tallies());
+  }
+  ranks[0]->set_statistics(tallies);
+  const VoxelGrid& merged = ranks[0]->description();
+  sink.offsets.push_back(uint32_t(chords_before));
+  ASSERT_EQ(sink.offsets.size(), serial.offsets.size());
+  EXPECT_EQ(std::memcmp(sink.offsets.data(), serial.offsets.data(), serial.offsets.bytes()), 0);
+  ASSERT_EQ(sink.chords.size(), serial.chords.size());
+  EXPECT_EQ(std::memcmp(sink.chords.data(), serial.chords.data(), serial.chords.bytes()), 0);
+  EXPECT_EQ(std::memcmp(sink.line_counts.data(), serial.line_counts.data(), voxels), 0);
+  EXPECT_EQ(std::memcmp(sink.density.data(), serial.density[0].data(), 4 * voxels), 0);
+  const std::vector<Array<float>> levels = density_levels(grid, std::move(level1));
+  ASSERT_EQ(levels.size() + 1, serial.density.size());
+  ASSERT_EQ(serial.density.size(), grid.density_level_count());
+  for (size_t l = 0; l < levels.size(); ++l)
+    EXPECT_EQ(std::memcmp(levels[l].data(), serial.density[l + 1].data(), levels[l].bytes()), 0)
+        << "level " << l + 1;
+  EXPECT_EQ(merged.voxels_occupied, serial.voxels_occupied);
+  EXPECT_EQ(merged.voxels_overflowed, serial.voxels_overflowed);
+  EXPECT_EQ(merged.chords_dropped, serial.chords_dropped);
+  EXPECT_EQ(merged.max_error, serial.max_error);
+  EXPECT_EQ(merged.mean_error, serial.mean_error);
 }
 
 }  // namespace

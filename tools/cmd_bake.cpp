@@ -84,6 +84,10 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_flag("--embree-compact", o.embree.compact, "Embree: RTC_SCENE_FLAG_COMPACT");
   sub->add_flag("--embree-robust", o.embree.robust, "Embree: RTC_SCENE_FLAG_ROBUST");
+  sub->add_option("--embree-max-primitives", o.embree.max_primitives_per_scene,
+                  "Embree: segments per scene; a larger set is cut into parts of whole lines, "
+                  "instanced in one top-level scene (default 4294967295)")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{0xFFFFFFFF}));
   sub->add_option("--rtx-geometry", o.rtx.geometry,
                   "rtx: BLAS over the tube mesh's triangles (default) or capsule AABBs")
       ->check(CLI::IsMember({"triangles", "capsules"}));

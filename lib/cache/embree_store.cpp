@@ -34,41 +34,53 @@ void store_embree(CacheWriter& cache, const StoredCurves& curves, Provenance pro
 }
 
 EmbreeStoreWriter::EmbreeStoreWriter(CacheWriter& cache, std::vector<CurvePart> parts,
-                                     EmbreeGeometry geometry, float radius, std::string attribute)
+                                     EmbreeGeometry geometry, float radius, std::string attribute,
+                                     CurvePiece piece)
     : cache_(cache),
       parts_(std::move(parts)),
       geometry_(geometry),
       radius_(radius),
-      attribute_(std::move(attribute)) {
+      attribute_(std::move(attribute)),
+      streams_(parts_.size()) {
   cache.create_group(kEmbreeGroup);
-}
-
-void EmbreeStoreWriter::open_part() {
-  const CurvePart& part = parts_[part_];
-  const std::string g = part_group(part_);
-  cache_.create_group(g);
-  // + one zero padding vertex for Embree's 16-byte loads
-  vertices_.emplace(cache_.stream<float>(g + "/vertices", curve_vertices(part, geometry_) + 1, 4));
-  indices_.emplace(cache_.stream<uint32_t>(g + "/indices", part.segments));
-  if (geometry_ != EmbreeGeometry::BezierCurve)
-    flags_.emplace(cache_.stream<uint8_t>(g + "/flags", part.segments));
-  part_points_ = part_segments_ = 0;
+  if (!cache.parallel()) return;
+  for (size_t i = 0; i < parts_.size(); ++i) {
+    open_part(i);
+    if (i < piece.part) continue;
+    const bool first = i == piece.part;
+    const uint64_t points = first ? piece.points_before : 0;
+    const uint64_t segments = first ? piece.segments_before : 0;
+    PartStreams& s = streams_[i];
+    s.vertices->start_at(geometry_ == EmbreeGeometry::BezierCurve ? 4 * segments : points);
+    s.indices->start_at(segments);
+    if (s.flags) s.flags->start_at(segments);
+  }
+  part_ = piece.part;
+  line_ = piece.first_line;
+  part_points_ = piece.points_before;
+  part_segments_ = piece.segments_before;
   open_ = true;
 }
 
-void EmbreeStoreWriter::close_part() {
-  const float padding[4] = {0, 0, 0, 0};
-  vertices_->append(padding, 1);
-  disk_ += vertices_->close() + indices_->close();
-  if (flags_) disk_ += flags_->close();
-  const CurvePart& part = parts_[part_];
-  buffer_bytes_ +=
-      (curve_vertices(part, geometry_) + 1) * 16 + part.segments * 4 + (flags_ ? part.segments : 0);
-  vertices_.reset();
-  indices_.reset();
-  flags_.reset();
-  open_ = false;
-  ++part_;
+void EmbreeStoreWriter::open_part(size_t i) {
+  const CurvePart& part = parts_[i];
+  const std::string g = part_group(i);
+  cache_.create_group(g);
+  PartStreams& s = streams_[i];
+  // + one zero padding vertex for Embree's 16-byte loads
+  s.vertices.emplace(cache_.stream<float>(g + "/vertices", curve_vertices(part, geometry_) + 1, 4));
+  s.indices.emplace(cache_.stream<uint32_t>(g + "/indices", part.segments));
+  if (geometry_ != EmbreeGeometry::BezierCurve)
+    s.flags.emplace(cache_.stream<uint8_t>(g + "/flags", part.segments));
+  buffer_bytes_ += (curve_vertices(part, geometry_) + 1) * 16 + part.segments * 4 +
+                   (s.flags ? part.segments : 0);
+}
+
+uint64_t EmbreeStoreWriter::close_part(size_t i) {
+  PartStreams& s = streams_[i];
+  const uint64_t disk = s.vertices->close() + s.indices->close() + (s.flags ? s.flags->close() : 0);
+  s = PartStreams{};
+  return disk;
 }
 
 void EmbreeStoreWriter::append(const LineSet& batch) {
@@ -76,7 +88,12 @@ void EmbreeStoreWriter::append(const LineSet& batch) {
   while (part_ < parts_.size() && parts_[part_].first_line < end) {
     const CurvePart& part = parts_[part_];
     const uint64_t from = std::max(first, part.first_line), to = std::min(end, part.end_line);
-    if (!open_) open_part();
+    if (!open_) {
+      open_part(part_);
+      part_points_ = part_segments_ = 0;
+      open_ = true;
+    }
+    PartStreams& s = streams_[part_];
     const size_t l0 = size_t(from - first), l1 = size_t(to - first);
     const uint64_t points = batch.line_offsets[l1] - batch.line_offsets[l0];
     uint64_t segments = 0;
@@ -85,26 +102,34 @@ void EmbreeStoreWriter::append(const LineSet& batch) {
     const uint64_t vertices = geometry_ == EmbreeGeometry::BezierCurve ? 4 * segments : points;
     vertex_buffer_.resize(4 * vertices);
     index_buffer_.resize(segments);
-    flag_buffer_.resize(flags_ ? segments : 0);
+    flag_buffer_.resize(s.flags ? segments : 0);
     prepare_curves(batch, l0, l1, part_points_, part_segments_, radius_, geometry_,
                    {vertex_buffer_.data(), index_buffer_.data(), flag_buffer_.data()});
-    vertices_->append(vertex_buffer_.data(), vertices);
-    indices_->append(index_buffer_.data(), segments);
-    if (flags_) flags_->append(flag_buffer_.data(), segments);
+    s.vertices->append(vertex_buffer_.data(), vertices);
+    s.indices->append(index_buffer_.data(), segments);
+    if (s.flags) s.flags->append(flag_buffer_.data(), segments);
     part_points_ += points;
     part_segments_ += segments;
-    if (to == part.end_line)
-      close_part();
-    else
-      break;
+    if (to != part.end_line) break;
+    const float padding[4] = {0, 0, 0, 0};
+    s.vertices->append(padding, 1);
+    if (!cache_.parallel()) disk_ += close_part(part_);
+    ++part_;
+    part_points_ = part_segments_ = 0;
+    open_ = cache_.parallel();  // in parallel every part is open from the start
   }
   line_ = end;
 }
 
 void EmbreeStoreWriter::close(Provenance provenance) {
-  if (open_ || part_ != parts_.size())
+  if (cache_.parallel()) {
+    // Collective: what is left of every rank's rows, then every part in order.
+    cache_.write_round();
+    for (size_t i = 0; i < parts_.size(); ++i) disk_ += close_part(i);
+  } else if (open_ || part_ != parts_.size()) {
     throw OutputError(cache_.path(),
                       "Embree buffers: the lines ended inside part " + std::to_string(part_));
+  }
   const nlohmann::json description = {{"geometry", to_string(geometry_)},
                                       {"radius", radius_},
                                       {"attribute", attribute_},

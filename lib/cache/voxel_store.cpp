@@ -43,12 +43,15 @@ void store_voxels(CacheWriter& cache, const VoxelGrid& g, Provenance provenance)
 
 struct VoxelStoreSink::State {
   CacheWriter* cache = nullptr;
+  VoxelSinkPiece piece;
   std::optional<DatasetStream> offsets, chords, line_counts, density;
   uint64_t chord_count = 0, disk = 0, memory = 0, memory_with_density = 0;
 };
 
-VoxelStoreSink::VoxelStoreSink(CacheWriter& cache) : state_(std::make_unique<State>()) {
+VoxelStoreSink::VoxelStoreSink(CacheWriter& cache, VoxelSinkPiece piece)
+    : state_(std::make_unique<State>()) {
   state_->cache = &cache;
+  state_->piece = piece;
 }
 
 VoxelStoreSink::~VoxelStoreSink() = default;
@@ -63,6 +66,12 @@ void VoxelStoreSink::begin(const VoxelGrid& g, uint64_t chord_count) {
   s.chords.emplace(s.cache->stream<uint32_t>(base + "/chords", chord_count, 2));
   s.line_counts.emplace(s.cache->stream<uint8_t>(base + "/line_counts", voxels));
   s.density.emplace(s.cache->stream<float>(density_name(0), voxels));
+  if (s.cache->parallel()) {
+    s.offsets->start_at(s.piece.first_voxel);
+    s.chords->start_at(s.piece.first_chord);
+    s.line_counts->start_at(s.piece.first_voxel);
+    s.density->start_at(s.piece.first_voxel);
+  }
 }
 
 void VoxelStoreSink::voxels(uint64_t, uint64_t count, const uint32_t* offsets,
@@ -77,14 +86,26 @@ void VoxelStoreSink::voxels(uint64_t, uint64_t count, const uint32_t* offsets,
 void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
                          std::vector<Array<float>> coarse) {
   State& s = *state_;
-  s.offsets->append(&chord_count, 1);
+  if (s.piece.last) s.offsets->append(&chord_count, 1);
+  s.cache->write_round();
   s.disk += s.offsets->close() + s.chords->close() + s.line_counts->close() + s.density->close();
-  for (size_t level = 0; level < coarse.size(); ++level)
-    s.disk += s.cache->write(density_name(level + 1), coarse[level].data(), coarse[level].size());
-  s.cache->write_attribute(kVoxelsGroup, "grid", describe(g, coarse.size() + 1).dump());
+  // In a parallel cache the root alone has the coarse levels; every rank creates their datasets.
+  const size_t levels = g.density_level_count();
+  if (s.piece.root && coarse.size() + 1 != levels)
+    throw Error("voxels: " + std::to_string(coarse.size() + 1) + " density levels, expected " +
+                std::to_string(levels));
   s.memory = (g.voxel_count() + 1) * 4 + uint64_t(chord_count) * 8;  // offsets + chords
   s.memory_with_density = s.memory + g.voxel_count() * (1 + 4);
-  for (const Array<float>& level : coarse) s.memory_with_density += level.bytes();
+  for (size_t level = 1; level < levels; ++level) {
+    const auto r = g.level_resolution(level);
+    const uint64_t count = uint64_t(r[0]) * r[1] * r[2];
+    DatasetStream stream = s.cache->stream<float>(density_name(level), count);
+    if (s.piece.root) stream.append(coarse[level - 1].data(), count);
+    s.cache->write_round();
+    s.disk += stream.close();
+    s.memory_with_density += count * sizeof(float);
+  }
+  s.cache->write_attribute(kVoxelsGroup, "grid", describe(g, levels).dump());
 }
 
 void VoxelStoreSink::close(Provenance provenance) {

@@ -16,10 +16,20 @@ constexpr const char* kVoxelsGroup = "/assets/voxels";
 void store_voxels(CacheWriter& cache, const VoxelGrid& grid, Provenance provenance);
 VoxelGrid load_voxels(const CacheReader& cache);
 
-// Writes a streamed voxel build (VoxelStreamBuilder) into the cache as it merges.
+// This rank's part of a grid merged by several ranks into one parallel cache (linebake-mpi):
+// voxels from `first_voxel` and chords from `first_chord` on, in rank order.
+struct VoxelSinkPiece {
+  uint64_t first_voxel = 0, first_chord = 0;
+  bool last = true;  // writes the closing offset (the total chord count)
+  bool root = true;  // writes the coarser density levels
+};
+
+// Writes a streamed voxel build (VoxelStreamBuilder) into the cache as it merges. In a parallel
+// cache every rank calls begin and end together, with the same grid and chord count; end writes
+// what is left collectively.
 class VoxelStoreSink : public VoxelSink {
  public:
-  explicit VoxelStoreSink(CacheWriter& cache);
+  explicit VoxelStoreSink(CacheWriter& cache, VoxelSinkPiece piece = {});
   ~VoxelStoreSink() override;
   void begin(const VoxelGrid& grid, uint64_t chord_count) override;
   void voxels(uint64_t first, uint64_t count, const uint32_t* offsets, const uint8_t* line_counts,

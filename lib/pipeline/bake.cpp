@@ -169,6 +169,23 @@ std::string embree_key(const std::string& lines_hash, const EmbreeOptions& e, co
                  to_string(compression), std::to_string(level)});
 }
 
+StoredCurves embree_curves(const BakeOptions& options, const LineSet& header,
+                           const LineSetStats& stats) {
+  StoredCurves curves;
+  curves.geometry = options.embree.geometry;
+  curves.radius = world_radius(stats.bounds, options.tubes);
+  if (options.tubes.attribute != "none")
+    curves.attribute = !options.tubes.attribute.empty() ? options.tubes.attribute
+                       : header.attributes.empty()      ? ""
+                                                        : header.attributes[0].name;
+  if (options.embree.geometry == EmbreeGeometry::Triangles)
+    throw Error("Embree: triangles are built from a tube mesh, not from lines");
+  if (!(curves.radius > 0)) throw Error("Embree: the curve radius must be positive");
+  if (options.embree.max_primitives_per_scene == 0)
+    throw Error("Embree: max primitives per scene is 0");
+  return curves;
+}
+
 nlohmann::json to_json(const RtxOptions& r) {
   return {{"geometry", r.geometry}, {"compaction", r.compaction}};
 }
@@ -653,17 +670,7 @@ BakeResult bake(const BakeOptions& options_in) {
   StoredCurves curves;  // the Embree step's description
   if (building("tubes")) tubes.emplace(header, stats, options.tubes);
   if (building("embree")) {
-    curves.geometry = options.embree.geometry;
-    curves.radius = world_radius(stats.bounds, options.tubes);
-    if (options.tubes.attribute != "none")
-      curves.attribute = !options.tubes.attribute.empty() ? options.tubes.attribute
-                         : header.attributes.empty()      ? ""
-                                                          : header.attributes[0].name;
-    if (options.embree.geometry == EmbreeGeometry::Triangles)
-      throw Error("Embree: triangles are built from a tube mesh, not from lines");
-    if (!(curves.radius > 0)) throw Error("Embree: the curve radius must be positive");
-    if (options.embree.max_primitives_per_scene == 0)
-      throw Error("Embree: max primitives per scene is 0");
+    curves = embree_curves(options, header, stats);
     embree_parts.emplace(curve_part_limit(options.embree));
   }
   if (lines_step.built || tubes || embree_parts) {
@@ -715,14 +722,12 @@ BakeResult bake(const BakeOptions& options_in) {
   std::optional<VoxelGrid> voxel_placement;
   if (building("voxels")) {
     // The grid's placement first: its density mip levels stay in memory through the merge.
-    voxel_placement = VoxelStreamBuilder(header, stats, options.voxels).description();
-    const uint64_t voxel_count = voxel_placement->voxel_count();
-    // A chord count per voxel (1 or 2 bytes), density level 1 (4 bytes per 8 voxels) and below.
-    const uint64_t bytes = voxel_count * (options.voxels.max_chords_per_voxel > 255 ? 2 : 1) +
-                           voxel_count / 8 * 4 * 8 / 7 + (uint64_t{2} << 20);
+    const VoxelStreamBuilder placement(header, stats, options.voxels);
+    voxel_placement = placement.description();
     if (!budget.unlimited())
-      budget.reserve(bytes, "the voxel grid's chord counts and density mip levels (" +
-                                std::to_string(voxel_count) + " voxels)");
+      budget.reserve(placement.fixed_bytes(),
+                     "the voxel grid's chord counts and density mip levels (" +
+                         std::to_string(voxel_placement->voxel_count()) + " voxels)");
   }
   // The budget's shares, for what follows the batches: the voxel records held before they
   // spill, and one voxel range's merge.

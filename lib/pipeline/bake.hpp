@@ -12,6 +12,7 @@
 
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
+#include "cache/embree_store.hpp"
 #include "formats/registry.hpp"
 #include "lines/validate.hpp"
 #include "tubes/tube_builder.hpp"
@@ -126,5 +127,12 @@ nlohmann::json to_json(const TubeOptions& tubes);
 std::string voxels_key(const std::string& lines_hash, const VoxelOptions& voxels,
                        Compression compression, int level);
 nlohmann::json to_json(const VoxelOptions& voxels);
+std::string embree_key(const std::string& lines_hash, const EmbreeOptions& embree,
+                       const TubeOptions& tubes, Compression compression, int level);
+nlohmann::json to_json(const EmbreeOptions& embree, const TubeOptions& tubes);
+// The Embree step's curves (geometry, world radius, attribute) for these options; Error for
+// options that make no curves.
+StoredCurves embree_curves(const BakeOptions& options, const LineSet& header,
+                           const LineSetStats& stats);
 
 }  // namespace linebake

@@ -9,10 +9,13 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <numeric>
 
+#include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
@@ -22,6 +25,8 @@
 #include "core/progress.hpp"
 #include "lines/line_spool.hpp"
 #include "lines/validate.hpp"
+#include "pipeline/bake_mpi_voxels.hpp"
+#include "pipeline/mpi_ranks.hpp"
 #include "synth/synth.hpp"
 
 #ifndef H5_HAVE_PARALLEL
@@ -30,153 +35,6 @@
 
 namespace linebake {
 namespace {
-
-// The ranks of one bake and the few collectives it needs.
-struct Ranks {
-  MPI_Comm comm;
-  int rank = 0, size = 1;
-
-  explicit Ranks(MPI_Comm c) : comm(c) {
-    MPI_Comm_rank(comm, &rank);
-    MPI_Comm_size(comm, &size);
-  }
-  std::vector<std::string> allgather(const std::string& mine) const {
-    const int n = int(mine.size());
-    std::vector<int> sizes(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
-    MPI_Allgather(&n, 1, MPI_INT, sizes.data(), 1, MPI_INT, comm);
-    int total = 0;
-    for (int r = 0; r < size; ++r) displs[size_t(r)] = total, total += sizes[size_t(r)];
-    std::string all(size_t(total), '\0');
-    MPI_Allgatherv(mine.data(), n, MPI_CHAR, all.data(), sizes.data(), displs.data(), MPI_CHAR,
-                   comm);
-    std::vector<std::string> out;
-    for (int r = 0; r < size; ++r)
-      out.push_back(all.substr(size_t(displs[size_t(r)]), size_t(sizes[size_t(r)])));
-    return out;
-  }
-  void any(std::string& bytes) const {
-    MPI_Allreduce(MPI_IN_PLACE, bytes.data(), int(bytes.size()), MPI_BYTE, MPI_BOR, comm);
-  }
-  uint64_t sum(uint64_t v) const {
-    uint64_t out = 0;
-    MPI_Allreduce(&v, &out, 1, MPI_UINT64_T, MPI_SUM, comm);
-    return out;
-  }
-  void send(const std::string& text, int to) const {
-    const uint64_t n = text.size();
-    MPI_Send(&n, 1, MPI_UINT64_T, to, 0, comm);
-    MPI_Send(text.data(), int(n), MPI_CHAR, to, 1, comm);
-  }
-  std::string receive(int from) const {
-    uint64_t n = 0;
-    MPI_Recv(&n, 1, MPI_UINT64_T, from, 0, comm, MPI_STATUS_IGNORE);
-    std::string text(n, '\0');
-    MPI_Recv(text.data(), int(n), MPI_CHAR, from, 1, comm, MPI_STATUS_IGNORE);
-    return text;
-  }
-  // A binomial tree in rank order: at each level a rank takes the joined pieces of the ranks
-  // after it, so rank 0 ends with every piece joined in order; what `finish` makes of that goes
-  // to every rank, or its error does.
-  std::string reduce(std::string mine, const ParallelWrite::Join& join,
-                     const ParallelWrite::Finish& finish) const {
-    for (int step = 1; step < size; step <<= 1) {
-      if (rank % (2 * step) == 0) {
-        if (rank + step < size) mine = join(mine, receive(rank + step));
-      } else {
-        send(mine, rank - step);
-        break;
-      }
-    }
-    std::string result;
-    if (rank == 0) {
-      try {
-        result = '+' + finish(mine);
-      } catch (const std::exception& e) {
-        result = std::string("-") + e.what();
-      }
-    }
-    result = broadcast(result);
-    if (result.empty() || result[0] != '+') throw Error(result.empty() ? "" : result.substr(1));
-    return result.substr(1);
-  }
-  // Every rank's values, in rank order, on rank 0 (empty elsewhere).
-  std::vector<uint64_t> gather(const std::vector<uint64_t>& mine) const {
-    const int n = int(mine.size());
-    std::vector<int> counts(static_cast<size_t>(size)), displs(static_cast<size_t>(size));
-    MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
-    int total = 0;
-    for (int r = 0; r < size; ++r) displs[size_t(r)] = total, total += counts[size_t(r)];
-    std::vector<uint64_t> all(rank == 0 ? size_t(total) : 0);
-    MPI_Gatherv(mine.data(), n, MPI_UINT64_T, all.data(), counts.data(), displs.data(),
-                MPI_UINT64_T, 0, comm);
-    return all;
-  }
-  std::string broadcast(std::string text, int root = 0) const {
-    uint64_t n = text.size();
-    MPI_Bcast(&n, 1, MPI_UINT64_T, root, comm);
-    text.resize(n);
-    MPI_Bcast(text.data(), int(n), MPI_CHAR, root, comm);
-    return text;
-  }
-  uint64_t max(uint64_t v) const {
-    uint64_t out = 0;
-    MPI_Allreduce(&v, &out, 1, MPI_UINT64_T, MPI_MAX, comm);
-    return out;
-  }
-  std::vector<uint64_t> sum(std::vector<uint64_t> v) const {
-    MPI_Allreduce(MPI_IN_PLACE, v.data(), int(v.size()), MPI_UINT64_T, MPI_SUM, comm);
-    return v;
-  }
-  // Sum over the ranks before this one.
-  uint64_t exclusive_sum(uint64_t v) const {
-    uint64_t out = 0;
-    MPI_Exscan(&v, &out, 1, MPI_UINT64_T, MPI_SUM, comm);
-    return rank == 0 ? 0 : out;
-  }
-
-  // Runs a step that involves no other rank and agrees on its outcome: an error on any rank is
-  // thrown on every rank, naming the lowest failing rank, with its kind (input, output, other).
-  void agree(const std::function<void()>& step) const {
-    char kind = 0;
-    std::string message;
-    try {
-      step();
-    } catch (const InputError& e) {
-      // The file, the place and the message apart, to be put together again with the rank.
-      const std::string prefix = e.file() + (e.where().empty() ? "" : ": " + e.where()) + ": ";
-      kind = 'i', message = e.file() + '\x1f' + e.where() + '\x1f' +
-                            std::string(e.what()).substr(prefix.size());
-    } catch (const OutputError& e) {
-      kind = 'o', message = e.file() + '\x1f' + e.detail();
-    } catch (const Interrupted& e) {
-      kind = 's', message = std::to_string(e.signal());
-    } catch (const std::exception& e) {
-      kind = 'e', message = e.what();
-    }
-    const std::vector<std::string> all = allgather(kind ? std::string(1, kind) + message : "");
-    for (int r = 0; r < size; ++r) {
-      const std::string& m = all[size_t(r)];
-      if (m.empty()) continue;
-      const std::string rank_name = "rank " + std::to_string(r) + ": ";
-      const std::string text = rank_name + m.substr(1);
-      const auto field = [&](int i) {
-        size_t begin = 1;
-        for (int k = 0; k < i; ++k) begin = m.find('\x1f', begin) + 1;
-        return m.substr(begin, m.find('\x1f', begin) - begin);
-      };
-      switch (m[0]) {
-        case 'i':
-          throw InputError(rank_name + field(0), field(1), field(2));
-        case 'o':
-          throw OutputError(rank_name + field(0), field(1));
-        case 's':
-          throw Interrupted(std::stoi(m.substr(1)));
-        default:
-          throw Error(text);
-      }
-    }
-  }
-};
 
 // One input file's share of this rank: lines [first, end) of it, by the file's own line index.
 struct FileRange {
@@ -275,12 +133,16 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   std::sort(options.assets.begin(), options.assets.end());
   options.assets.erase(std::unique(options.assets.begin(), options.assets.end()),
                        options.assets.end());
+  const auto asked = [&](const char* asset) {
+    return std::find(options.assets.begin(), options.assets.end(), asset) != options.assets.end();
+  };
   for (const std::string& asset : options.assets)
-    if (asset != "tubes")
-      throw Error("linebake-mpi builds /lines and tubes, not " + asset +
+    if (asset != "tubes" && asset != "voxels" && asset != "embree")
+      throw Error("linebake-mpi builds /lines, tubes, voxels and embree, not " + asset +
                   "; add it afterwards with the serial linebake bake of the same inputs and -o "
-                  "(it reuses /lines and the tubes)");
-  const bool build_tubes = !options.assets.empty();
+                  "(it reuses what is up to date)");
+  const bool build_tubes = asked("tubes"), build_voxels = asked("voxels"),
+             build_embree = asked("embree");
   if (options.dry_run) throw Error("--dry-run: ask the serial linebake bake for the estimate");
   BakeResult result;
   result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
@@ -355,7 +217,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const auto read_start = std::chrono::steady_clock::now();
   MemoryBudget budget(budget_bytes);
   // As the serial bake sizes its batches: a quarter of the budget through the builders.
-  const uint64_t per_point = cost_per_point(options, header, build_tubes, false, false);
+  const uint64_t per_point =
+      cost_per_point(options, header, build_tubes, build_voxels, build_embree);
   const uint64_t batch_points =
       budget.unlimited()
           ? uint64_t{1} << 21
@@ -401,6 +264,36 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   piece.shared = true;
   const uint64_t my_lines = local_stats.stats().lines;
   const uint64_t rounds = ranks.max(spool->batches());
+  // The voxel walk's records, and those the exchange brings, spill past their share.
+  std::optional<VoxelStreamBuilder> voxels;
+  uint64_t voxel_merge_bytes = uint64_t{1} << 30, voxel_exchange_bytes = uint64_t{1} << 30;
+  if (build_voxels)
+    ranks.agree([&] {
+      VoxelMemory memory;
+      memory.spill_near = spill_name;
+      if (!budget.unlimited()) {
+        const VoxelStreamBuilder placement(header, stats, options.voxels);
+        budget.reserve(placement.fixed_bytes(),
+                       "the voxel grid's chord counts and density mip levels (" +
+                           std::to_string(placement.description().voxel_count()) + " voxels)");
+        // Of what the batches (a quarter) leave: a third for the records walked here, a third
+        // for those received, a sixth for the exchange's buffers and the rest for the merge
+        // (which follows the exchange).
+        const uint64_t left = budget.available() / 4 * 3;
+        voxel_merge_bytes = std::min<uint64_t>(left / 6, uint64_t{256} << 20);
+        voxel_exchange_bytes = left / 6;
+        memory.records_bytes = left / 3;
+      }
+      memory.merge_bytes = voxel_merge_bytes;
+      voxels.emplace(header, stats, options.voxels, memory);
+      voxels->start_at_line(piece.first_line);
+    });
+  StoredCurves curves;  // the Embree step's description
+  if (build_embree)
+    ranks.agree([&] {
+      curves = embree_curves(options, header, stats);
+      curve_part_limit(options.embree);
+    });
   {
     const auto notes = ranks.allgather(total.clean() ? "" : total.summary());
     for (int r = 0; r < ranks.size; ++r)
@@ -444,7 +337,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     LineContentHash hash(header, piece);
     std::optional<TubeStreamBuilder> tubes;
     if (build_tubes) tubes.emplace(header, stats, options.tubes);
-    std::vector<uint64_t> kept;
+    std::vector<uint64_t> kept, line_points;  // per line: kept by the tubes; points (Embree)
     uint64_t skipped = 0;
     {
       TerminalProgress progress("writing /lines");
@@ -455,6 +348,10 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         if (replay->next(batch, UINT64_MAX)) {
           store.append(batch);
           hash.add(batch);
+          if (voxels) voxels->add(batch);
+          if (build_embree)
+            for (size_t l = 0; l < batch.line_count(); ++l)
+              line_points.push_back(batch.line_size(l));
           if (tubes) {
             const std::vector<uint64_t> k = tubes->kept_points(batch);
             for (size_t l = 0; l < k.size(); ++l) skipped += batch.line_size(l) - k[l];
@@ -573,6 +470,130 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       sink.close(mesh, p);
       BakeStep step{"tubes", true, p};
       result.steps.push_back(step);
+    }
+
+    // Embree's buffers: parts planned on rank 0 from every line's points, as the serial bake
+    // plans them; each rank writes its lines' rows.
+    if (build_embree) {
+      double prepare_s = 0;
+      const std::vector<uint64_t> all_points = ranks.gather(line_points);
+      std::vector<uint64_t>().swap(line_points);
+      const std::vector<uint64_t> firsts = ranks.gather({piece.first_line});
+      std::string parts_bytes, error;
+      std::vector<uint64_t> pieces;  // per rank: part, points and segments before its first line
+      if (ranks.rank == 0) {
+        try {
+          CurvePartPlanner planner(curve_part_limit(options.embree));
+          for (uint64_t n : all_points) planner.add(n);
+          const std::vector<CurvePart> parts = planner.finish();
+          parts_bytes.assign(reinterpret_cast<const char*>(parts.data()),
+                             parts.size() * sizeof(CurvePart));
+          for (int r = 0; r < ranks.size; ++r) {
+            const uint64_t line = firsts[size_t(r)];
+            size_t part = 0;
+            while (part < parts.size() && parts[part].end_line <= line) ++part;
+            uint64_t points = 0, segments = 0;
+            if (part < parts.size())
+              for (uint64_t l = parts[part].first_line; l < line; ++l) {
+                points += all_points[l];
+                segments += all_points[l] > 1 ? all_points[l] - 1 : 0;
+              }
+            pieces.insert(pieces.end(), {uint64_t(part), points, segments});
+          }
+        } catch (const std::exception& e) {
+          error = e.what();
+        }
+      }
+      error = ranks.broadcast(error);
+      if (!error.empty()) throw Error(error);  // every rank alike
+      parts_bytes = ranks.broadcast(parts_bytes);
+      std::vector<CurvePart> parts(parts_bytes.size() / sizeof(CurvePart));
+      std::memcpy(parts.data(), parts_bytes.data(), parts_bytes.size());
+      uint64_t place[3] = {};
+      MPI_Scatter(pieces.data(), 3, MPI_UINT64_T, place, 3, MPI_UINT64_T, 0, comm);
+      EmbreeStoreWriter embree(writer, parts, curves.geometry, curves.radius, curves.attribute,
+                               {piece.first_line, size_t(place[0]), place[1], place[2]});
+      TerminalProgress progress("preparing Embree buffers");
+      auto replay = spool->replay();
+      LineSet batch;
+      for (uint64_t round = 0; round < rounds; ++round) {
+        throw_if_interrupted();
+        if (replay->next(batch, UINT64_MAX)) {
+          const auto start = std::chrono::steady_clock::now();
+          embree.append(batch);
+          prepare_s += seconds_since(start);
+        }
+        writer.write_round();
+        if (show) progress.update(round + 1, rounds);
+      }
+      Provenance p;
+      finish(p, "embree");
+      p.key = embree_key(lines_hash, options.embree, options.tubes, options.compression,
+                         options.compression_level);
+      p.input_hash = lines_hash;
+      p.parameters = to_json(options.embree, options.tubes);
+      p.stats = {{"geometry", to_string(options.embree.geometry)},
+                 {"quality", to_string(options.embree.quality)},
+                 {"radius_world", curves.radius},
+                 {"attribute", curves.attribute},
+                 {"prepare_s", ranks.max_value(prepare_s)},
+                 {"buffer_bytes", embree.buffer_bytes()},
+                 {"ranks", ranks.size},
+                 {"bvh",
+                  "not built under MPI (it needs the whole line set in one process); render "
+                  "builds it"}};
+      p.memory_bytes = embree.buffer_bytes();
+      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
+      embree.close(p);
+      result.steps.push_back(BakeStep{"embree", true, p});
+    }
+
+    // The voxels: records to the ranks that own their voxels, merged there.
+    if (voxels) {
+      merge_voxels_mpi(
+          ranks, *voxels, writer, voxel_exchange_bytes, voxel_merge_bytes, show,
+          [&](const nlohmann::json& figures, uint64_t chords, uint64_t bytes_with_density) {
+            Provenance p;
+            finish(p, "voxels");
+            p.key = voxels_key(lines_hash, options.voxels, options.compression,
+                               options.compression_level);
+            p.input_hash = lines_hash;
+            p.parameters = to_json(options.voxels);
+            p.spill_bytes = ranks.sum(voxels->spilled_bytes());
+            const VoxelGrid& g = voxels->description();
+            p.stats = {{"resolution", g.resolution},
+                       {"quantization", g.quantization},
+                       {"chords", chords},
+                       {"bytes_with_density", bytes_with_density},
+                       {"voxels_occupied", g.voxels_occupied},
+                       {"chords_dropped", g.chords_dropped},
+                       {"voxels_overflowed", g.voxels_overflowed},
+                       {"max_error_voxels", g.max_error},
+                       {"mean_error_voxels", g.mean_error},
+                       {"records_in_memory_bytes", ranks.max(voxels->peak_record_bytes())},
+                       {"records_spilled_bytes", p.spill_bytes}};
+            nlohmann::json list = nlohmann::json::array();
+            double max_s = 0, sum_s = 0;
+            for (const std::string& r : ranks.allgather(figures.dump())) {
+              list.push_back(nlohmann::json::parse(r));
+              const double t =
+                  list.back()["exchange_s"].get<double>() + list.back()["merge_s"].get<double>();
+              max_s = std::max(max_s, t);
+              sum_s += t;
+            }
+            p.stats["ranks"] = ranks.size;
+            p.stats["rank_figures"] = list;
+            p.stats["imbalance"] = sum_s > 0 ? max_s / (sum_s / ranks.size) : 1.0;
+            p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
+            result.steps.push_back(BakeStep{"voxels", true, p});
+            if (g.chords_dropped)
+              result.notes.push_back("voxels: " + std::to_string(g.chords_dropped) +
+                                     " chords dropped in " + std::to_string(g.voxels_overflowed) +
+                                     " voxels over the cap of " +
+                                     std::to_string(g.max_chords_per_voxel) + " per voxel");
+            return p;
+          });
+      voxels.reset();
     }
     writer.commit();
   } catch (const std::exception& e) {

@@ -32,6 +32,12 @@ std::array<uint32_t, 3> VoxelGrid::level_resolution(size_t level) const {
   return r;
 }
 
+size_t VoxelGrid::density_level_count() const {
+  size_t level = 0;
+  for (auto r = resolution; r[0] > 1 || r[1] > 1 || r[2] > 1; r = level_resolution(level)) ++level;
+  return level + 1;
+}
+
 uint64_t VoxelGrid::bytes() const {
   uint64_t n = representation_bytes() + line_counts.bytes();
   for (const Array<float>& d : density) n += d.bytes();

@@ -122,6 +122,8 @@ struct VoxelGrid {
     return (uint64_t(z) * resolution[1] + y) * resolution[0] + x;
   }
   std::array<uint32_t, 3> level_resolution(size_t level) const;
+  // Density levels a build makes: level 0 and the 2x2x2 means down to one voxel.
+  size_t density_level_count() const;
   // What VRC renders from: offsets and chords.
   uint64_t representation_bytes() const { return offsets.bytes() + chords.bytes(); }
   // Everything, with the density mip levels and line counts.

@@ -91,16 +91,10 @@ struct Piece {
   const std::vector<Vec>* path = nullptr;  // entry, the line's points inside, exit
 };
 
-// A chord on its way to its voxel. Records are made in line order and along each line, and
-// every later step moves them stably, so a voxel's chords end up in the canonical order (line
-// id, then along the line) without a sort.
-// 16 bytes: the line id is not kept. Bit 31 of word1 (free in the chord layout) marks a line's
-// first chord in its voxel, which is all the distinct-line count needs; it is cleared on output.
-struct Record {
-  uint32_t voxel;
-  uint32_t word0, word1;
-  float weight;
-};
+// Records are made in line order and along each line, and every later step moves them stably,
+// so a voxel's chords end up in the canonical order (line id, then along the line) without a
+// sort.
+using Record = VoxelRecord;
 constexpr uint32_t kFirstOfLine = 1u << 31;
 
 // The voxels one line has reached so far (open addressing; cleared per line in the time its
@@ -170,6 +164,15 @@ struct Run {
   uint64_t file_offset = 0;
 };
 
+// Records received from the ranks of a distributed build, as runs of their own beside the
+// builder's (which it still sends from), with their own counts and spill file.
+struct Received {
+  std::vector<Run> runs;
+  std::vector<uint64_t> unit_records;
+  uint64_t held_bytes = 0;
+  std::unique_ptr<SpillFile> spill;
+};
+
 // Per-thread counters for the voxels of one unit.
 struct UnitScratch {
   std::vector<uint32_t> n, distinct, cursor, room;
@@ -202,6 +205,9 @@ struct VoxelStreamBuilder::State {
   double error_max = 0;
   uint128 error_sum = 0;
   uint64_t error_samples = 0;
+  std::optional<Received> received;  // a distributed build's exchange, while it lasts
+  // What the merge found, over every range merged.
+  uint64_t voxels_occupied = 0, voxels_overflowed = 0, chords_dropped = 0;
   // Scratch kept between batches, so pages are touched once.
   std::vector<Block> blocks;
   std::vector<uint32_t> block_counts;
@@ -463,8 +469,9 @@ VoxelStreamBuilder::VoxelStreamBuilder(const LineSet& header, const LineSetStats
   const uint64_t voxels = s.grid.voxel_count();
   if (voxels >= 0xFFFFFFFFull) {
     const auto& r = s.grid.resolution;
-    throw BudgetExceeded("voxels: the grid is " + std::to_string(r[0]) + " x " + std::to_string(r[1]) +
-                         " x " + std::to_string(r[2]) + " = " + std::to_string(voxels) +
+    throw BudgetExceeded("voxels: the grid is " + std::to_string(r[0]) + " x " +
+                         std::to_string(r[1]) + " x " + std::to_string(r[2]) + " = " +
+                         std::to_string(voxels) +
                          " voxels, more than the 2^32 - 1 a grid may hold; use a coarser --grid");
   }
   if (stats.lines >= 0xFFFFFFFFull) throw Error("voxels: more than 2^32 - 1 lines");
@@ -479,8 +486,13 @@ VoxelStreamBuilder::~VoxelStreamBuilder() = default;
 const VoxelGrid& VoxelStreamBuilder::description() const {
   return state_->grid;
 }
+uint64_t VoxelStreamBuilder::fixed_bytes() const {
+  const uint64_t voxels = state_->grid.voxel_count();
+  return voxels * (state_->grid.max_chords_per_voxel > 255 ? 2 : 1) + voxels / 8 * 4 * 8 / 7 +
+         (uint64_t{2} << 20);
+}
 uint64_t VoxelStreamBuilder::spilled_bytes() const {
-  return state_->spill ? state_->spill->size() : state_->spilled_bytes;
+  return state_->spilled_bytes + (state_->spill ? state_->spill->size() : 0);
 }
 uint64_t VoxelStreamBuilder::peak_record_bytes() const {
   return state_->peak_held_bytes;
@@ -582,38 +594,44 @@ void VoxelStreamBuilder::add(const LineSet& batch) {
   s.keep_run(std::move(run), total);
 }
 
-// 3. Merge, one range of whole units at a time: per voxel the chord count, density, distinct
-//    lines and the cap; then, once every unit of the range knows how many chords it keeps, the
-//    offsets and the chords themselves. Units run in parallel; each reads its records run by
-//    run, so a voxel's chords stay in line order.
-void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
-  State& s = *state_;
-  VoxelGrid& grid = s.grid;
-  const uint64_t kept_total = tbb::parallel_reduce(
-      tbb::blocked_range<uint64_t>(0, grid.voxel_count(), uint64_t{1} << 16), uint64_t{0},
+uint64_t VoxelStreamBuilder::kept_chords(uint64_t v0, uint64_t v1) const {
+  const State& s = *state_;
+  if (s.counts8.empty() && s.counts16.empty()) return 0;  // no batch came
+  return tbb::parallel_reduce(
+      tbb::blocked_range<uint64_t>(v0, std::max(v0, v1), uint64_t{1} << 16), uint64_t{0},
       [&](const tbb::blocked_range<uint64_t>& range, uint64_t sum) {
-        if (s.counts8.empty() && s.counts16.empty()) return sum;  // no batch came
         for (uint64_t v = range.begin(); v != range.end(); ++v)
           sum += s.counts16.empty() ? s.counts8[v] : s.counts16[v];
         return sum;
       },
       std::plus<uint64_t>());
-  std::vector<uint8_t>().swap(s.counts8);
-  std::vector<uint16_t>().swap(s.counts16);
-  if (kept_total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
-  sink.begin(grid, kept_total);
+}
+
+// 3. Merge, one range of whole units at a time: per voxel the chord count, density, distinct
+//    lines and the cap; then, once every unit of the range knows how many chords it keeps, the
+//    offsets and the chords themselves. Units run in parallel; each reads its records run by
+//    run, so a voxel's chords stay in line order. Units at the ends of [first, end) are cut to
+//    it (a distributed build splits the grid at z layers, not at units).
+uint64_t VoxelStreamBuilder::merge(VoxelSink& sink, uint64_t first, uint64_t end,
+                                   uint64_t chords_start, Array<float>& level1,
+                                   const ProgressFn& progress) {
+  State& s = *state_;
+  const VoxelGrid& grid = s.grid;
   s.blocks.clear();
   s.blocks.shrink_to_fit();
-  const uint64_t voxels = grid.voxel_count(), units = s.units;
+  const uint64_t voxels = grid.voxel_count();
+  end = std::min(end, voxels);
+  if (first >= end) return 0;
   const uint64_t unit_span = uint64_t(1) << s.unit_shift;
+  const uint64_t first_unit = first >> s.unit_shift, end_unit = ((end - 1) >> s.unit_shift) + 1;
+  const auto lo = [&](uint64_t u) { return std::max(u << s.unit_shift, first); };
+  const auto hi = [&](uint64_t u) { return std::min((u + 1) << s.unit_shift, end); };
   const uint32_t cap = grid.max_chords_per_voxel;
   // Per record: itself and at most one kept chord; per voxel: the output arrays.
   constexpr uint64_t kRecordCost = sizeof(Record) + 8, kVoxelCost = 4 + 1 + 4 + 16;
   // Large ranges gain nothing (the units run in parallel either way) and touch fresh pages.
   const uint64_t budget = std::clamp<uint64_t>(s.memory.merge_bytes, 1, uint64_t{256} << 20);
   const std::array<uint32_t, 3> coarse = grid.level_resolution(1);
-  Array<float> level1(static_cast<uint64_t>(coarse[0]) * coarse[1] * coarse[2]);
-  std::fill(level1.begin(), level1.end(), 0.0f);
   std::vector<Record> records;
   std::vector<const Record*> first_record;
   std::vector<uint32_t> offsets, chords;
@@ -624,38 +642,38 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     uint64_t kept = 0, occupied = 0, overflowed = 0, dropped = 0;
   };
   std::vector<UnitStats> unit_stats;
-  uint64_t chords_before = 0;
-  for (uint64_t u0 = 0; u0 < units;) {
+  uint64_t merged = 0;
+  for (uint64_t u0 = first_unit; u0 < end_unit;) {
     throw_if_interrupted();
     uint64_t u1 = u0, cost = 0;
-    while (u1 < units) {
-      const uint64_t v = std::min(unit_span, voxels - (u1 << s.unit_shift));
+    while (u1 < end_unit) {
       const uint64_t c =
           s.unit_records[u1] * (s.spill ? kRecordCost : kRecordCost - sizeof(Record)) +
-          v * kVoxelCost;
+          (hi(u1) - lo(u1)) * kVoxelCost;
       if (u1 > u0 && cost + c > budget) break;
       cost += c;
       ++u1;
     }
+    const uint64_t v0 = lo(u0), v1 = hi(u1 - 1);
     if (cost > 2 * budget)
-      throw BudgetExceeded("voxels: " + std::to_string(s.unit_records[u0]) +
-                           " chords fall into voxels " + std::to_string(u0 << s.unit_shift) + ".." +
-                           std::to_string(std::min(voxels, u1 << s.unit_shift)) +
-                           ", more than the memory budget leaves for merging (" +
-                           std::to_string(budget >> 20) +
-                           " MiB); use a coarser grid or a larger --memory-budget");
+      throw BudgetExceeded(
+          "voxels: " + std::to_string(s.unit_records[u0]) + " chords fall into voxels " +
+          std::to_string(v0) + ".." + std::to_string(v1) +
+          ", more than the memory budget leaves for merging (" + std::to_string(budget >> 20) +
+          " MiB); use a coarser grid or a larger --memory-budget");
     s.gather(u0, u1, records, first_record);
-    const uint64_t v0 = u0 << s.unit_shift, v1 = std::min(voxels, u1 << s.unit_shift);
     offsets.resize(v1 - v0);
     line_counts.resize(v1 - v0);
     density.resize(v1 - v0);
     unit_stats.assign(u1 - u0, {});
     const auto for_each_record = [&](uint64_t u, auto&& body) {
+      const uint64_t a = lo(u), b = hi(u);
       for (size_t r = 0; r < s.runs.size(); ++r) {
         const Run& run = s.runs[r];
-        const Record* first = first_record[r] + (run.start[u] - run.start[u0]);
-        const Record* last = first + (run.start[u + 1] - run.start[u]);
-        for (const Record* p = first; p != last; ++p) body(*p);
+        const Record* p = first_record[r] + (run.start[u] - run.start[u0]);
+        const Record* last = p + (run.start[u + 1] - run.start[u]);
+        for (; p != last; ++p)
+          if (p->voxel >= a && p->voxel < b) body(*p);
       }
     };
     tbb::parallel_for(u0, u1, [&](uint64_t u) {
@@ -670,7 +688,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
         t.distinct[v] += r.word1 >> 31;
       });
       UnitStats& us = unit_stats[u - u0];
-      for (uint64_t v = 0; v < span; ++v) {
+      for (uint64_t v = lo(u) - first_voxel; v < hi(u) - first_voxel; ++v) {
         const uint64_t at = first_voxel + v - v0;
         density[at] = t.density[v];
         line_counts[at] = uint8_t(std::min<uint32_t>(t.distinct[v], 255));
@@ -685,11 +703,12 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     std::vector<uint64_t> kept_start(u1 - u0 + 1, 0);
     for (uint64_t k = 0; k < u1 - u0; ++k) {
       kept_start[k + 1] = kept_start[k] + unit_stats[k].kept;
-      grid.voxels_occupied += unit_stats[k].occupied;
-      grid.voxels_overflowed += unit_stats[k].overflowed;
-      grid.chords_dropped += unit_stats[k].dropped;
+      s.voxels_occupied += unit_stats[k].occupied;
+      s.voxels_overflowed += unit_stats[k].overflowed;
+      s.chords_dropped += unit_stats[k].dropped;
     }
     const uint64_t range_chords = kept_start.back();
+    const uint64_t chords_before = chords_start + merged;
     if (chords_before + range_chords > 0xFFFFFFFFull)
       throw Error("voxels: more than 2^32 chords; use a coarser grid");
     chords.resize(2 * range_chords);
@@ -700,7 +719,7 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
       t.resize(span);
       // Per voxel: where its next kept chord goes and how many more it keeps.
       uint64_t running = kept_start[u - u0];
-      for (uint64_t v = 0; v < span; ++v) {
+      for (uint64_t v = lo(u) - first_voxel; v < hi(u) - first_voxel; ++v) {
         uint32_t& o = offsets[first_voxel + v - v0];
         t.room[v] = o;
         t.cursor[v] = uint32_t(running);
@@ -729,16 +748,22 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
         if (++y == r[1]) y = 0, ++z;
       }
     }
-    chords_before += range_chords;
-    if (progress) progress(v1, voxels);
+    merged += range_chords;
+    if (progress) progress(v1 - first, end - first);
     u0 = u1;
   }
-  s.runs.clear();
-  if (s.spill) s.spilled_bytes = s.spill->size();
-  s.spill.reset();
-  for (float& d : level1) d /= 8;
+  return merged;
+}
 
-  // Density mip levels: 2x2x2 means (missing children count as empty) down to one voxel.
+Array<float> zero_level1_sums(const VoxelGrid& grid) {
+  const std::array<uint32_t, 3> coarse = grid.level_resolution(1);
+  Array<float> level1(static_cast<uint64_t>(coarse[0]) * coarse[1] * coarse[2]);
+  std::fill(level1.begin(), level1.end(), 0.0f);
+  return level1;
+}
+
+std::vector<Array<float>> density_levels(const VoxelGrid& grid, Array<float> level1) {
+  for (float& d : level1) d /= 8;
   std::vector<Array<float>> levels;
   const bool single = grid.resolution[0] == 1 && grid.resolution[1] == 1 && grid.resolution[2] == 1;
   if (!single) levels.push_back(std::move(level1));
@@ -764,10 +789,163 @@ void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
     });
     levels.push_back(std::move(out));
   }
-  grid.max_error = s.error_max;
-  grid.mean_error =
-      s.error_samples ? double(s.error_sum) / kErrorScale / double(s.error_samples) : 0.0;
-  sink.end(grid, uint32_t(chords_before), std::move(levels));
+  return levels;
+}
+
+void VoxelTallies::add(const VoxelTallies& o) {
+  voxels_occupied += o.voxels_occupied;
+  voxels_overflowed += o.voxels_overflowed;
+  chords_dropped += o.chords_dropped;
+  error_max = std::max(error_max, o.error_max);
+  const uint64_t low = error_sum_low + o.error_sum_low;
+  error_sum_high += o.error_sum_high + (low < error_sum_low ? 1 : 0);
+  error_sum_low = low;
+  error_samples += o.error_samples;
+}
+
+VoxelTallies VoxelStreamBuilder::tallies() const {
+  const State& s = *state_;
+  VoxelTallies t;
+  t.voxels_occupied = s.voxels_occupied;
+  t.voxels_overflowed = s.voxels_overflowed;
+  t.chords_dropped = s.chords_dropped;
+  t.error_max = s.error_max;
+  t.error_sum_low = uint64_t(s.error_sum);
+  t.error_sum_high = uint64_t(s.error_sum >> 64);
+  t.error_samples = s.error_samples;
+  return t;
+}
+
+void VoxelStreamBuilder::set_statistics(const VoxelTallies& t) {
+  VoxelGrid& grid = state_->grid;
+  grid.voxels_occupied = t.voxels_occupied;
+  grid.voxels_overflowed = t.voxels_overflowed;
+  grid.chords_dropped = t.chords_dropped;
+  grid.max_error = t.error_max;
+  const uint128 sum = uint128(t.error_sum_high) << 64 | t.error_sum_low;
+  grid.mean_error = t.error_samples ? double(sum) / kErrorScale / double(t.error_samples) : 0.0;
+}
+
+void VoxelStreamBuilder::finish(VoxelSink& sink, const ProgressFn& progress) {
+  State& s = *state_;
+  const uint64_t voxels = s.grid.voxel_count();
+  const uint64_t kept_total = kept_chords(0, voxels);
+  std::vector<uint8_t>().swap(s.counts8);
+  std::vector<uint16_t>().swap(s.counts16);
+  if (kept_total > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 chords; use a coarser grid");
+  sink.begin(s.grid, kept_total);
+  Array<float> level1 = zero_level1_sums(s.grid);
+  const uint64_t chords = merge(sink, 0, voxels, 0, level1, progress);
+  s.runs.clear();
+  if (s.spill) s.spilled_bytes += s.spill->size();
+  s.spill.reset();
+  set_statistics(tallies());
+  sink.end(s.grid, uint32_t(chords), density_levels(s.grid, std::move(level1)));
+}
+
+void VoxelStreamBuilder::start_at_line(uint64_t line) {
+  if (!state_->runs.empty()) throw Error("voxels: start_at_line after the first batch");
+  state_->lines_seen = line;
+}
+
+const std::vector<uint64_t>& VoxelStreamBuilder::unit_records() const {
+  return state_->unit_records;
+}
+
+uint64_t VoxelStreamBuilder::unit_voxels() const {
+  return uint64_t(1) << state_->unit_shift;
+}
+
+void VoxelStreamBuilder::append_records(uint64_t v0, uint64_t v1, std::vector<VoxelRecord>& out) {
+  State& s = *state_;
+  v1 = std::min(v1, s.grid.voxel_count());
+  if (v0 >= v1 || s.runs.empty()) return;
+  const uint64_t first_unit = v0 >> s.unit_shift, end_unit = ((v1 - 1) >> s.unit_shift) + 1;
+  std::vector<Record> buffer;
+  std::vector<const Record*> first;
+  // A few units at a time: spilled records are read back that many at once.
+  constexpr uint64_t kUnitsAtOnce = 64;
+  for (uint64_t u0 = first_unit; u0 < end_unit; u0 += kUnitsAtOnce) {
+    const uint64_t u1 = std::min(end_unit, u0 + kUnitsAtOnce);
+    s.gather(u0, u1, buffer, first);
+    for (uint64_t u = u0; u < u1; ++u)
+      for (size_t r = 0; r < s.runs.size(); ++r) {
+        const Run& run = s.runs[r];
+        const Record* p = first[r] + (run.start[u] - run.start[u0]);
+        const Record* last = p + (run.start[u + 1] - run.start[u]);
+        for (; p != last; ++p)
+          if (p->voxel >= v0 && p->voxel < v1) out.push_back(*p);
+      }
+  }
+}
+
+void VoxelStreamBuilder::receive_records(const VoxelRecord* records,
+                                         const std::vector<uint64_t>& counts) {
+  State& s = *state_;
+  if (!s.received) {
+    // The per-voxel counts from here on are the received records' (this rank's own were only
+    // needed for its walk).
+    s.received.emplace();
+    s.received->unit_records.assign(s.units, 0);
+    if (s.grid.max_chords_per_voxel > 255)
+      s.counts16.assign(s.grid.voxel_count(), 0);
+    else
+      s.counts8.assign(s.grid.voxel_count(), 0);
+  }
+  Received& in = *s.received;
+  const uint32_t cap = s.grid.max_chords_per_voxel;
+  for (const uint64_t count : counts) {
+    if (count > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 records from one rank");
+    if (count == 0) {
+      continue;
+    }
+    Run run;
+    run.start.assign(s.units + 1, 0);
+    uint64_t previous_unit = 0;
+    for (uint64_t i = 0; i < count; ++i) {
+      const uint32_t v = records[i].voxel;
+      const uint64_t unit = v >> s.unit_shift;
+      if (v >= s.grid.voxel_count() || unit < previous_unit)
+        throw Error("voxels: received records out of order or outside the grid");
+      previous_unit = unit;
+      ++run.start[unit + 1];
+      if (!s.counts16.empty()) {
+        if (s.counts16[v] < cap) ++s.counts16[v];
+      } else if (s.counts8[v] < cap) {
+        ++s.counts8[v];
+      }
+    }
+    for (uint64_t u = 0; u < s.units; ++u) {
+      in.unit_records[u] += run.start[u + 1];
+      run.start[u + 1] += run.start[u];
+    }
+    // In memory within the same share of the budget as the builder's own records, else spilled.
+    const uint64_t bytes = count * sizeof(Record);
+    if (in.held_bytes + bytes > s.memory.records_bytes && !s.memory.spill_near.empty()) {
+      if (!in.spill) in.spill = std::make_unique<SpillFile>(s.memory.spill_near, "voxels-received");
+      run.spilled = true;
+      run.file_offset = in.spill->append(records, bytes);
+    } else {
+      run.records = Array<Record>(count);
+      std::copy_n(records, count, run.records.data());
+      in.held_bytes += bytes;
+    }
+    in.runs.push_back(std::move(run));
+    records += count;
+  }
+}
+
+void VoxelStreamBuilder::adopt_received() {
+  State& s = *state_;
+  if (!s.received) receive_records(nullptr, {});
+  Received& in = *s.received;
+  if (s.spill) s.spilled_bytes += s.spill->size();
+  s.runs = std::move(in.runs);
+  s.unit_records = std::move(in.unit_records);
+  s.spill = std::move(in.spill);
+  s.held_bytes = in.held_bytes;
+  s.peak_held_bytes = std::max(s.peak_held_bytes, s.held_bytes);
+  s.received.reset();
 }
 
 namespace {

@@ -68,6 +68,34 @@ struct VoxelMemory {
   uint64_t merge_bytes = uint64_t{1} << 30;
 };
 
+// A chord on its way to its voxel: what walking a line makes, and what the ranks of a
+// distributed build send each other. 16 bytes: the line id is not kept; bit 31 of word1 (free in
+// the chord layout) marks a line's first chord in its voxel, which is all the distinct-line count
+// needs, and is cleared on output.
+struct VoxelRecord {
+  uint32_t voxel;
+  uint32_t word0, word1;
+  float weight;  // polyline length inside the voxel x the chord's mean attribute (density)
+};
+
+// Figures of a partial build that combine across the ranks of a distributed build: sums, and
+// the largest error. The error sum is fixed point (2^-32 voxel) in 128 bits, so that it does not
+// depend on the order in which the pieces are added.
+struct VoxelTallies {
+  uint64_t voxels_occupied = 0, voxels_overflowed = 0, chords_dropped = 0;
+  double error_max = 0;
+  uint64_t error_sum_low = 0, error_sum_high = 0;
+  uint64_t error_samples = 0;
+  void add(const VoxelTallies& other);
+};
+
+// Density mip levels 1.. from the sums of level 1 (each coarse voxel the sum of its 2x2x2
+// children, added in voxel order): the 2x2x2 means, missing children counted as empty, down to
+// one voxel. Nothing for a grid of one voxel.
+std::vector<Array<float>> density_levels(const VoxelGrid& grid, Array<float> level1_sums);
+// Level 1's sums, all zero, sized for the grid.
+Array<float> zero_level1_sums(const VoxelGrid& grid);
+
 class VoxelStreamBuilder {
  public:
   VoxelStreamBuilder(const LineSet& header, const LineSetStats& stats, const VoxelOptions& options,
@@ -79,10 +107,45 @@ class VoxelStreamBuilder {
   void finish(VoxelSink& sink, const ProgressFn& progress = {});
   // The grid's placement from the start, its statistics once finished (no arrays).
   const VoxelGrid& description() const;
+  // Memory the build holds whatever its budget: a chord count per voxel (1 byte; 2 with a cap
+  // above 255) and density level 1's sums, with the levels below it.
+  uint64_t fixed_bytes() const;
   // Bytes of records written to the spill file (0: everything stayed in memory).
   uint64_t spilled_bytes() const;
   // Bytes of records held in memory at the most.
   uint64_t peak_record_bytes() const;
+
+  // Distributed builds (linebake-mpi, docs/mpi.md). Each rank walks its own lines; the records
+  // then go to the rank that owns their voxels, in rank order, and that rank merges its voxels.
+  // What finish() does is then: kept_chords, merge, tallies combined by set_statistics, and
+  // density_levels from every rank's level 1 sums.
+  //
+  // Numbers the lines from `line` on (before the first add): the chords keep line id mod 32.
+  void start_at_line(uint64_t line);
+  // Records per unit of voxels over every batch so far, and a unit's size in voxels.
+  const std::vector<uint64_t>& unit_records() const;
+  uint64_t unit_voxels() const;
+  // Appends this builder's records of voxels [v0, v1) to `out`, unit by unit, in each unit in
+  // the order they were walked: the canonical order of this builder's lines.
+  void append_records(uint64_t v0, uint64_t v1, std::vector<VoxelRecord>& out);
+  // Keeps records sent by the ranks, beside the builder's own until adopt_received():
+  // `counts[r]` records from rank r, in rank order, each rank's as append_records gave them.
+  // Ranges of voxels may come in several calls, each range once, in voxel order. The records
+  // stay in memory within the builder's share for records, and spill past it.
+  void receive_records(const VoxelRecord* records, const std::vector<uint64_t>& counts);
+  // The received records replace the builder's own.
+  void adopt_received();
+  // Chords voxels [v0, v1) keep under the cap.
+  uint64_t kept_chords(uint64_t v0, uint64_t v1) const;
+  // Merges voxels [v0, v1) into `sink` (its voxels() only), whose chords start at chord
+  // `chords_before` of the grid; adds their density to `level1_sums`. Ranges merged into one
+  // level 1 must come in voxel order, and a coarse voxel's children must all be merged into the
+  // same one. Returns the chords written; `progress` counts voxels of the range.
+  uint64_t merge(VoxelSink& sink, uint64_t v0, uint64_t v1, uint64_t chords_before,
+                 Array<float>& level1_sums, const ProgressFn& progress = {});
+  // This builder's walk and merge figures, and the grid's statistics from every rank's.
+  VoxelTallies tallies() const;
+  void set_statistics(const VoxelTallies& all);
 
  private:
   struct State;
