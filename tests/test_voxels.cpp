@@ -329,7 +329,9 @@ TEST(Voxels, DistributedBuildEqualsTheSerialOne) {
         counts.push_back(incoming.size() - before);
       }
       // Kept beside the owner's own records, which it still sends from in the next wave.
-      ranks[size_t(owner)]->receive_records(incoming.data(), counts);
+      Array<VoxelRecord> buffer(incoming.size());
+      std::copy(incoming.begin(), incoming.end(), buffer.begin());
+      ranks[size_t(owner)]->receive_records(std::move(buffer), counts);
     }
   CollectingSink sink;
   Array<float> level1 = zero_level1_sums(grid);

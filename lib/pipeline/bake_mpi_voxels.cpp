@@ -78,7 +78,18 @@ void merge_voxels_mpi(const Ranks& ranks, VoxelStreamBuilder& builder, CacheWrit
   MPI_Type_contiguous(int(sizeof(VoxelRecord)), MPI_BYTE, &record_type);
   MPI_Type_commit(&record_type);
   const size_t n = size_t(ranks.size);
-  std::vector<VoxelRecord> send, incoming;
+  // Room for this rank's largest wave, so the buffer grows once.
+  std::vector<VoxelRecord> send;
+  {
+    const std::vector<uint64_t>& mine = builder.unit_records();
+    uint64_t largest = 0;
+    for (size_t w = 0; w + 1 < waves.size(); ++w) {
+      uint64_t in = 0;
+      for (uint64_t u = waves[w] / unit_voxels; u * unit_voxels < waves[w + 1]; ++u) in += mine[u];
+      largest = std::max(largest, in);
+    }
+    send.reserve(largest);
+  }
   std::vector<uint64_t> send_counts(n), receive_counts(n);
   std::vector<int> sc(n), sd(n), rc(n), rd(n);
   for (size_t w = 0; w + 1 < waves.size(); ++w) {
@@ -96,15 +107,14 @@ void merge_voxels_mpi(const Ranks& ranks, VoxelStreamBuilder& builder, CacheWrit
       sc[r] = to_int(send_counts[r]), sd[r] = to_int(sent), sent += send_counts[r];
       rc[r] = to_int(receive_counts[r]), rd[r] = to_int(got), got += receive_counts[r];
     }
-    incoming.resize(got);
+    Array<VoxelRecord> incoming(got);
     MPI_Alltoallv(send.data(), sc.data(), sd.data(), record_type, incoming.data(), rc.data(),
                   rd.data(), record_type, ranks.comm);
-    builder.receive_records(incoming.data(), receive_counts);
+    builder.receive_records(std::move(incoming), receive_counts);
     received += got;
   }
   MPI_Type_free(&record_type);
   std::vector<VoxelRecord>().swap(send);
-  std::vector<VoxelRecord>().swap(incoming);
   builder.adopt_received();
   const double exchange_s = seconds_since(exchange_start);
 

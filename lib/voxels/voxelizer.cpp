@@ -162,6 +162,12 @@ struct Run {
   Array<Record> records;  // uninitialised, huge pages: a run is written once, in full
   bool spilled = false;
   uint64_t file_offset = 0;
+  // A run received from the ranks: a piece of one exchange's buffer, shared by its pieces.
+  std::shared_ptr<const Array<Record>> received;
+  uint64_t received_first = 0;
+  const Record* in_memory() const {
+    return received ? received->data() + received_first : records.data();
+  }
 };
 
 // Records received from the ranks of a distributed build, as runs of their own beside the
@@ -421,7 +427,7 @@ void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Rec
     const Run& run = runs[r];
     const uint64_t begin = run.start[u0], count = run.start[u1] - begin;
     if (!run.spilled) {
-      first[r] = run.records.data() + begin;
+      first[r] = run.in_memory() + begin;
       continue;
     }
     first[r] = buffer.data() + at;
@@ -879,7 +885,7 @@ void VoxelStreamBuilder::append_records(uint64_t v0, uint64_t v1, std::vector<Vo
   }
 }
 
-void VoxelStreamBuilder::receive_records(const VoxelRecord* records,
+void VoxelStreamBuilder::receive_records(Array<VoxelRecord> buffer,
                                          const std::vector<uint64_t>& counts) {
   State& s = *state_;
   if (!s.received) {
@@ -894,11 +900,19 @@ void VoxelStreamBuilder::receive_records(const VoxelRecord* records,
   }
   Received& in = *s.received;
   const uint32_t cap = s.grid.max_chords_per_voxel;
+  uint64_t total = 0;
+  for (const uint64_t count : counts) total += count;
+  if (total > buffer.size()) throw Error("voxels: received counts exceed the records");
+  // In memory (the buffer itself, shared by the ranks' runs) within the same share of the budget
+  // as the builder's own records, else spilled.
+  const bool spill = in.held_bytes + total * sizeof(Record) > s.memory.records_bytes &&
+                     !s.memory.spill_near.empty();
+  const auto shared = std::make_shared<const Array<Record>>(std::move(buffer));
+  uint64_t at = 0;
   for (const uint64_t count : counts) {
     if (count > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 records from one rank");
-    if (count == 0) {
-      continue;
-    }
+    if (count == 0) continue;
+    const Record* records = shared->data() + at;
     Run run;
     run.start.assign(s.units + 1, 0);
     uint64_t previous_unit = 0;
@@ -919,25 +933,23 @@ void VoxelStreamBuilder::receive_records(const VoxelRecord* records,
       in.unit_records[u] += run.start[u + 1];
       run.start[u + 1] += run.start[u];
     }
-    // In memory within the same share of the budget as the builder's own records, else spilled.
-    const uint64_t bytes = count * sizeof(Record);
-    if (in.held_bytes + bytes > s.memory.records_bytes && !s.memory.spill_near.empty()) {
+    if (spill) {
       if (!in.spill) in.spill = std::make_unique<SpillFile>(s.memory.spill_near, "voxels-received");
       run.spilled = true;
-      run.file_offset = in.spill->append(records, bytes);
+      run.file_offset = in.spill->append(records, count * sizeof(Record));
     } else {
-      run.records = Array<Record>(count);
-      std::copy_n(records, count, run.records.data());
-      in.held_bytes += bytes;
+      run.received = shared;
+      run.received_first = at;
     }
     in.runs.push_back(std::move(run));
-    records += count;
+    at += count;
   }
+  if (!spill) in.held_bytes += shared->bytes();
 }
 
 void VoxelStreamBuilder::adopt_received() {
   State& s = *state_;
-  if (!s.received) receive_records(nullptr, {});
+  if (!s.received) receive_records(Array<VoxelRecord>(), {});
   Received& in = *s.received;
   if (s.spill) s.spilled_bytes += s.spill->size();
   s.runs = std::move(in.runs);

@@ -128,11 +128,11 @@ class VoxelStreamBuilder {
   // Appends this builder's records of voxels [v0, v1) to `out`, unit by unit, in each unit in
   // the order they were walked: the canonical order of this builder's lines.
   void append_records(uint64_t v0, uint64_t v1, std::vector<VoxelRecord>& out);
-  // Keeps records sent by the ranks, beside the builder's own until adopt_received():
-  // `counts[r]` records from rank r, in rank order, each rank's as append_records gave them.
-  // Ranges of voxels may come in several calls, each range once, in voxel order. The records
-  // stay in memory within the builder's share for records, and spill past it.
-  void receive_records(const VoxelRecord* records, const std::vector<uint64_t>& counts);
+  // Keeps records sent by the ranks, beside the builder's own until adopt_received(): the
+  // buffer holds `counts[r]` records from rank r, in rank order, each rank's as append_records
+  // gave them. Ranges of voxels may come in several calls, each range once, in voxel order. The
+  // buffer is kept as it is within the builder's share for records, and spilled past it.
+  void receive_records(Array<VoxelRecord> buffer, const std::vector<uint64_t>& counts);
   // The received records replace the builder's own.
   void adopt_received();
   // Chords voxels [v0, v1) keep under the cap.
