@@ -77,7 +77,7 @@ check "vdb starts with the OpenVDB magic" bash -c "[ \"\$(head -c 4 '$tmp/c.vdb'
 check "tubes-only bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' > /dev/null"
 check "export vdb without voxels exits 2" exit_code 2 "$bin" export "$tmp/t.lbc.h5" --vdb "$tmp/none.vdb"
 check "export with no target is an error" exit_code 4 "$bin" export "$tmp/c.lbc.h5"
-check "bad grid is an error" exit_code 4 "$bin" bake "$tmp/c.binlines" -o "$tmp/g.lbc.h5" --assets voxels --grid 12x3
+check "bad grid is a usage error" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/g.lbc.h5" --assets voxels --grid 12x3
 check "bench tubes" bash -c "'$bin' bench tubes --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"segments\": 495000'"
 check "bench voxels" bash -c "'$bin' bench voxels --input '$tmp/c.binlines' --grid 64 --repeat 1 --json | grep -q '\"resolution\": \\['"
 
@@ -120,7 +120,12 @@ check "mboit 8 moments use a third target" python3 -c "import json; a=json.load(
 check "mboit --moments 5 is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mboit --moments 5 --size 32x24 -o "$tmp/x.png"
 check "mlab --layers 65 is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mlab --layers 65 --size 32x24 -o "$tmp/x.png"
 check "wboit unknown weight is a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique wboit --wboit-weight 5 --size 32x24 -o "$tmp/x.png"
-check "early termination only for embree and ll" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique mboit --early-termination --size 32x24 -o "$tmp/x.png"
+check "early termination only for embree, ll and rtx: a usage error" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique mboit --early-termination --size 32x24 -o "$tmp/x.png"
+# Options the technique does not read are refused, naming them and what it reads, before any work.
+check "render embree --sort --moments --device: refused, naming them, exit 1" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique embree --sort shell --moments 6 --device x -o '$tmp/own.png' 2> '$tmp/own.err'; [ \$? -eq 1 ] && grep -q -- '--sort, --moments, --device: not read by embree (embree reads --geometry' '$tmp/own.err' && [ ! -e '$tmp/own.png' ]"
+check "render ll --geometry --hits --packets: refused" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique ll --geometry bezier --hits stepping -o "$tmp/own.png"
+check "render vrc --early-termination (vrc stops early unless --no-early-termination): refused" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique vrc --early-termination -o "$tmp/own.png"
+check "render --frame with --frames all: refused" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --frame 2 --frames all -o "$tmp/own.png"
 check "depth-complexity (GPU) writes counts and stats" "$bin" depth-complexity "$tmp/t.lbc.h5" --validation --frame 3 --frame-count 8 --size 96x64 -o "$tmp/dc.png" --stats "$tmp/dc.json"
 check "depth-complexity (CPU) agrees with the GPU" bash -c "'$bin' depth-complexity '$tmp/t.lbc.h5' --on cpu --frame 3 --frame-count 8 --size 96x64 --stats '$tmp/dc_cpu.json' && python3 -c \"import json; g=json.load(open('$tmp/dc.json'))['frames'][0]; c=json.load(open('$tmp/dc_cpu.json'))['frames'][0]; assert g['max'] > 0 and abs(g['fragments'] - c['fragments']) <= 0.01 * c['fragments'], (g, c)\""
 check "depth-complexity max equals ll's" python3 -c "import json; g=json.load(open('$tmp/dc.json'))['frames'][0]; l=json.load(open('$tmp/ll.json'))['frames'][0]; assert g['max'] == l['depth_complexity']['max'], (g, l)"
@@ -137,7 +142,7 @@ check "vrc GPU and CPU agree (PSNR >= 45 dB)" bash -c "'$bin' compare '$tmp/vrcg
 check "vrc resembles the reference (SSIM >= 0.8)" bash -c "'$bin' compare '$tmp/vrc.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"ssim\"] >= 0.8 else 1)'"
 check "vrc stats: grid, radius, hits, occupancy levels" python3 -c "import json; j=json.load(open('$tmp/vrc.json')); f=j['frames'][0]; assert j['grid']['resolution'][0] <= 64 and 0 < j['radius'] <= j['grid']['voxel_size'] and f['hits'] > 0 and f['voxels_visited'] > 0 and j['occupancy_levels'] > 1 and j['skip_empty_space'], j"
 check "vrc --no-skip gives the same image" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique vrc --no-skip --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/vrcns.png' && cmp '$tmp/vrcns.png' '$tmp/vrc.png'"
-check "--on is a vrc option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique ll --on gpu --size 32x24 -o "$tmp/x.png"
+check "--on is a vrc option (usage error)" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique ll --on gpu --size 32x24 -o "$tmp/x.png"
 check "rtx on lavapipe: one clear line, exit 4" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique rtx --size 32x24 -o '$tmp/rtx.png' 2> '$tmp/rtx.err'; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/rtx.err') -eq 1 ] && grep -q 'not supported on this device' '$tmp/rtx.err' && [ ! -e '$tmp/rtx.png' ]"
 check "bake --assets rtx on lavapipe: one clear line, exit 4, the cache untouched" bash -c "cp '$tmp/t.lbc.h5' '$tmp/before.h5'; '$bin' bake '$tmp/c.binlines' -o '$tmp/t.lbc.h5' --assets tubes,voxels,rtx 2> '$tmp/bakertx.err' > /dev/null; rc=\$?; [ \$rc -eq 4 ] && [ \$(wc -l < '$tmp/bakertx.err') -eq 1 ] && grep -q 'rtx: ray tracing is not supported on this device' '$tmp/bakertx.err' && cmp '$tmp/t.lbc.h5' '$tmp/before.h5'"
 # every output is checked before any work: nothing is rendered, generated or left behind
@@ -163,7 +168,7 @@ assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'
 assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
 assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
 check "bench render: a Markdown table, unknown techniques refused before any work" bash -c "'$bin' bench render '$tmp/t.lbc.h5' --techniques wboit --frames 1 --size 32x24 2>/dev/null | grep -q '^| t (495,000) | semi | wboit | llvmpipe' && '$bin' bench render '$tmp/t.lbc.h5' --techniques wbiot 2> '$tmp/bench.err'; [ \$? -ne 0 ] && grep -q \"unknown technique 'wbiot'\" '$tmp/bench.err'"
-check "--rt-geometry is an rtx option" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
+check "--rt-geometry is an rtx option (usage error)" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step
 pipes="$(dirname "$0")/../pipelines"
@@ -181,7 +186,20 @@ check "report.html loads in headless Chromium without errors and shows every ima
 check "the shipped paper pipelines (YAML) plan, dp left out where the file says" bash -c "'$bin' run '$pipes/paper-small' --dry-run -o '$tmp/ps' > '$tmp/ps.txt' && grep -q '^skip render/clouds/dp/semi: left out of this pipeline on clouds' '$tmp/ps.txt' && grep -q '^run render/clouds/mboit/transparent' '$tmp/ps.txt' && '$bin' run '$pipes/paper.yaml' --dry-run -o '$tmp/pp' | grep -q '^run render/clouds/dp/transparent: .*--size 1920x1080'"
 check "a second run reuses every step" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' 2>&1 >/dev/null | grep -q ' 0 step(s) run, 14 reused, 3 skipped'"
 check "--dry-run after a change lists what reruns" bash -c "sed 's/\"heap\"/\"shell\"/' '$pipes/ci.json' > '$tmp/ci2.json' && '$bin' run '$tmp/ci2.json' -o '$tmp/ci' --dry-run > '$tmp/dry.txt' && grep -q '^run render/aneurysm/ll/semi' '$tmp/dry.txt' && grep -q '^reuse render/aneurysm/mboit/semi' '$tmp/dry.txt' && [ \$(grep -c '^run ' '$tmp/dry.txt') -eq 3 ]"
-check "a failing step is named, exit 4, finished outputs kept" bash -c "sed 's/\"heap\"/\"bogosort\"/' '$pipes/ci.json' > '$tmp/ci3.json' && '$bin' run '$tmp/ci3.json' -o '$tmp/ci3' > /dev/null 2> '$tmp/fail.err'; [ \$? -eq 4 ] && grep -q 'step render/aneurysm/ll/semi failed' '$tmp/fail.err' && [ -e '$tmp/ci3/aneurysm/embree-semi_001.png' ] && [ ! -e '$tmp/ci3/report.md' ]"
+check "a failing step is named, exit 4, finished outputs kept" bash -c "sed 's/\"tubes\", \"voxels\"/\"tubes\"/' '$pipes/ci.json' > '$tmp/ci3.json' && '$bin' run '$tmp/ci3.json' -o '$tmp/ci3' > /dev/null 2> '$tmp/fail.err'; [ \$? -eq 4 ] && grep -q 'step render/aneurysm/vrc-cpu/semi failed' '$tmp/fail.err' && [ -e '$tmp/ci3/aneurysm/embree-semi_001.png' ] && [ ! -e '$tmp/ci3/report.md' ]"
+# Pipeline typos fail --dry-run with the file, the JSON path and the reason; nothing is run.
+typo() {  # typo NAME SED-EXPRESSION EXPECTED-TEXT
+  sed "$2" "$pipes/ci.json" > "$tmp/typo-$1.json"
+  check "pipeline typo $1: --dry-run fails with its JSON path" bash -c "'$bin' run '$tmp/typo-$1.json' -o '$tmp/typo-$1' --dry-run > /dev/null 2> '$tmp/typo-$1.err'; [ \$? -eq 2 ] && grep -qF -- \"$3\" '$tmp/typo-$1.err' && [ ! -e '$tmp/typo-$1' ]"
+}
+typo technique 's/"embree",/"embre",/' 'techniques[1]: unknown technique'
+typo sort-value 's/"sort": "heap"/"sort": "hep"/' 'techniques[2].options: --sort: hep not in'
+typo sort-name 's/"sort": "heap"/"sortt": "heap"/' "techniques[2].options: unknown option 'sortt'; did you mean 'sort'?"
+typo option-of-another 's/"sort": "heap"/"moments": 6/' 'techniques[2].options: --moments: not read by ll'
+typo tf 's/"semi"\]/"semmi"]/' "transfer_functions[0]: semmi: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?"
+typo size 's/"64x48"/"64x-36"/' 'size:'
+typo flight 's/"orbit-zoom"/"orbit-zom"/' "flight: 'orbit-zom' is neither orbit-zoom, orbit nor a keyframe file"
+typo grid 's/"grid": 32/"grid": "3x"/' 'assets: --grid'
 check "a bad pipeline names the file and the entry" bash -c "echo '{\"datasets\": [], \"techniques\": [\"reference\"]}' > '$tmp/bad.json'; '$bin' run '$tmp/bad.json' 2> '$tmp/bad.err'; [ \$? -eq 2 ] && grep -q 'bad.json: datasets' '$tmp/bad.err'"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 

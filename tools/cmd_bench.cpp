@@ -25,6 +25,7 @@
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
+#include "flight_plan.hpp"
 #include "formats/registry.hpp"
 #include "pipeline/bake.hpp"
 #include "tubes/tube_builder.hpp"
@@ -309,7 +310,7 @@ void bench_bake(const BenchArgs& args) {
   if (args.memory_budget == "unlimited")
     options.memory_budget = BakeOptions::kUnlimited;
   else if (!args.memory_budget.empty())
-    options.memory_budget = std::max<uint64_t>(parse_size(args.memory_budget), 1);
+    options.memory_budget = std::max<uint64_t>(linebake::parse_size(args.memory_budget), 1);
   options.cache =
       args.output.empty()
           ? std::filesystem::path(default_cache_path(args.input)).stem().string() + ".bench.lbc.h5"
@@ -404,7 +405,8 @@ Command add_bench(CLI::App& app) {
       ->delimiter(',');
   sub->add_option("--frames", render->frames, "render: frames of the orbit-zoom flight (default 8)")
       ->check(CLI::Range(1, 100000));
-  sub->add_option("--size", render->size, "render: image size WxH (default 1920x1080)");
+  sub->add_option("--size", render->size, "render: image size WxH (default 1920x1080)")
+      ->check(image_size_check());
   sub->add_option("--device", render->device, "render: Vulkan device, part of its name");
   sub->add_option("--max-seconds", render->max_seconds,
                   "render: per technique and transfer function, stop after the frame that passes "

@@ -72,7 +72,8 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--frame", args->frame, "Frame (default 0)")->check(CLI::NonNegativeNumber);
   sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
       ->check(CLI::IsMember({"all"}));
-  sub->add_option("--size", args->size, "Image size WxH (default 1280x720)");
+  sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
+      ->check(image_size_check());
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this (default: half of physical "
                   "memory)");

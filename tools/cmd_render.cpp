@@ -168,11 +168,14 @@ Command add_render(CLI::App& app) {
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
       ->check(CLI::Range(1, 100000));
-  sub->add_option("--frame", args->frame, "Frame to render (default 0)")
-      ->check(CLI::NonNegativeNumber);
-  sub->add_option("--frames", args->frames, "all: render every frame (outputs get _NNN)")
-      ->check(CLI::IsMember({"all"}));
-  sub->add_option("--size", args->size, "Image size WxH (default 1280x720)");
+  auto* frame = sub->add_option("--frame", args->frame, "Frame to render (default 0)")
+                    ->check(CLI::NonNegativeNumber);
+  auto* frames =
+      sub->add_option("--frames", args->frames, "all: render every frame (outputs get _NNN)")
+          ->check(CLI::IsMember({"all"}));
+  frame->excludes(frames);
+  sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
+      ->check(image_size_check());
   sub->add_option("-o,--output", args->output, "Image: .png (sRGB) or .pfm (linear float)")
       ->required();
   sub->add_option("--png-bits", args->png_bits, "8 (default) or 16")->check(CLI::IsMember({8, 16}));
@@ -191,7 +194,13 @@ Command add_render(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: half of "
                   "physical memory)");
-  const auto body = [args] {
+  const auto body = [args, sub] {
+    // An option the technique does not read is a mistake, not a no-op.
+    std::vector<std::string> given;
+    for (const CLI::Option* option : sub->get_options())
+      if (option->count() > 0 && !option->get_lnames().empty())
+        given.push_back(option->get_lnames().front());
+    check_technique_options(find_technique(args->technique).info, given);
     const auto [width, height] = parse_size(args->size);
     // Every output before any work: an image format, directories that exist and take files.
     check_image_output(args->output);
@@ -225,21 +234,8 @@ Command add_render(CLI::App& app) {
     check_frame_memory(args->technique, args->size,
                        estimate_frame_bytes(find_technique(args->technique), o),
                        args->memory_budget);
-    if (args->early && args->technique != "embree" && args->technique != "ll" &&
-        args->technique != "vrc" && args->technique != "rtx")
-      throw Error("--early-termination: only embree, ll, vrc and rtx stop early (" +
-                  args->technique + " does not)");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
-    const bool rtx_flags = !args->rt_geometry.empty() || args->rebuild || args->no_compaction ||
-                           args->max_iterations != 1024;
-    if (rtx_flags && args->technique != "rtx")
-      throw Error("--rt-geometry, --rebuild, --no-compaction, --max-iterations: rtx options (not " +
-                  args->technique + ")");
-    if ((args->on != "cpu" || args->no_early_termination || args->no_skip) &&
-        args->technique != "vrc")
-      throw Error("--on, --no-early-termination, --no-skip: vrc options (not " + args->technique +
-                  ")");
     render_frames(*args, cache, tf, o);
   };
   // Every output of the command (an image and its --stats, each frame, both exports) is

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -18,10 +19,15 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
+#include "core/nearest.hpp"
+#include "flight_plan.hpp"
 #include "pipeline/evaluation_report.hpp"
 #include "pipeline/html_report.hpp"
 #include "pipeline/pipeline.hpp"
+#include "render/camera.hpp"
+#include "render/transfer_function.hpp"
 #include "render/vulkan/context.hpp"
+#include "techniques/technique.hpp"
 
 extern char** environ;
 
@@ -100,6 +106,66 @@ nlohmann::json machine_info() {
   return m;
 }
 
+// Every option of the pipeline, checked as the steps will read it, before any step runs: each
+// technique's options through `render`'s own parser (names, values, ranges) and against what the
+// technique reads, the bake options through `bake`'s, the transfer functions, the flight and the
+// size. Errors name the pipeline file and the JSON path of the bad value.
+void validate_pipeline(const Pipeline& p) {
+  const auto parse = [&](Command (*add)(CLI::App&), std::vector<std::string> args,
+                         const std::string& where) {
+    CLI::App scratch;
+    const Command keep = add(scratch);  // holds what the options write into
+    // A mistyped option name: the nearest one the command has.
+    const CLI::App* command = scratch.get_subcommands({}).front();
+    std::vector<std::string> names;
+    for (const CLI::Option* option : command->get_options())
+      for (const std::string& n : option->get_lnames()) names.push_back(n);
+    for (const std::string& a : args)
+      if (a.rfind("--", 0) == 0 &&
+          std::find(names.begin(), names.end(), a.substr(2)) == names.end())
+        throw InputError(p.file, where,
+                         "unknown option '" + a.substr(2) + "'" + did_you_mean(a.substr(2), names));
+    std::reverse(args.begin(), args.end());  // CLI11 takes a vector last argument first
+    try {
+      scratch.parse(args);
+    } catch (const CLI::ParseError& e) {
+      throw InputError(p.file, where, e.what());
+    }
+  };
+  // The pipeline file stands in for the cache, which the bake has not made yet.
+  for (size_t i = 0; i < p.techniques.size(); ++i) {
+    const PipelineTechnique& t = p.techniques[i];
+    const std::string where = "techniques[" + std::to_string(i) + "].options";
+    std::vector<std::string> args = {"render", p.file, "-o", "x.png", "--technique", t.technique};
+    args.insert(args.end(), t.options.begin(), t.options.end());
+    parse(add_render, args, where);
+    std::vector<std::string> given;
+    for (const std::string& a : t.options)
+      if (a.rfind("--", 0) == 0) given.push_back(a.substr(2));
+    try {
+      check_technique_options(find_technique(t.technique).info, given);
+    } catch (const UsageError& e) {
+      throw InputError(p.file, where, e.what());
+    }
+  }
+  std::vector<std::string> bake = {"bake", p.file};
+  bake.insert(bake.end(), p.bake_options.begin(), p.bake_options.end());
+  parse(add_bake, bake, "assets");
+  for (size_t i = 0; i < p.transfer_functions.size(); ++i) try {
+      resolve_transfer_function(p.transfer_functions[i]);
+    } catch (const Error& e) {
+      throw InputError(p.file, "transfer_functions[" + std::to_string(i) + "]", e.what());
+    }
+  if (parse_flight_kind(p.flight) == FlightKind::Keyframes && !std::filesystem::exists(p.flight))
+    throw InputError(p.file, "flight",
+                     "'" + p.flight + "' is neither orbit-zoom, orbit nor a keyframe file");
+  try {
+    parse_size(p.size);
+  } catch (const Error& e) {
+    throw InputError(p.file, "size", e.what());
+  }
+}
+
 }  // namespace
 
 Command add_run(CLI::App& app) {
@@ -121,6 +187,7 @@ Command add_run(CLI::App& app) {
   return [args] {
     Pipeline p = load_pipeline(args->pipeline);
     if (!args->output.empty()) p.output = args->output;
+    validate_pipeline(p);
     PlanContext context;
     try {
       for (const vk::DeviceInfo& d : vk::list_devices()) context.ray_tracing |= d.ray_tracing;

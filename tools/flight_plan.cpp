@@ -18,6 +18,21 @@ std::array<int, 2> parse_size(const std::string& text) {
   return {w, h};
 }
 
+CLI::Validator image_size_check() {
+  return CLI::Validator(
+      [](std::string& text) {
+        try {
+          parse_size(text);
+        } catch (const std::exception& e) {
+          // CLI11 names the option itself.
+          const std::string message = e.what();
+          return message.rfind("--size: ", 0) == 0 ? message.substr(8) : message;
+        }
+        return std::string();
+      },
+      "WxH");
+}
+
 std::string frame_path(const std::string& path, int frame, bool numbered) {
   if (!numbered) return path;
   const auto dot = path.find_last_of('.');

@@ -2,6 +2,7 @@
 // What `render` and `depth-complexity` share on the command line: the image size, the flight's
 // cameras and which frames to draw, and numbered output names for multi-frame runs.
 
+#include <CLI/CLI.hpp>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -14,6 +15,8 @@ namespace linebake::cli {
 
 // "WxH", 1..16384 per axis.
 std::array<int, 2> parse_size(const std::string& text);
+// parse_size as a CLI11 check, so a bad size is a usage error found when the command line is read.
+CLI::Validator image_size_check();
 
 // A 16-bit PNG of counts per pixel (render --depth-complexity, depth-complexity -o): .png, in a
 // directory that exists and takes files; "" passes. Throws OutputError.

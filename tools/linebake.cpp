@@ -38,6 +38,9 @@ int main(int argc, char** argv) {
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";
     return 128 + e.signal();
+  } catch (const linebake::UsageError& e) {
+    std::cerr << "linebake: error: " << e.what() << "\n";
+    return kUsage;
   } catch (const linebake::InputError& e) {
     std::cerr << "linebake: error: " << e.what() << "\n";
     return kInput;

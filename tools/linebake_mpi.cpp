@@ -55,6 +55,9 @@ int main(int argc, char** argv) {
     if (rank == 0)
       std::cerr << "linebake-mpi: " << e.what() << "; its temporary files are removed\n";
     code = 128 + e.signal();
+  } catch (const linebake::UsageError& e) {
+    std::cerr << "linebake: error: " << e.what() << "\n";
+    return kUsage;
   } catch (const linebake::InputError& e) {
     say(e.what());
     code = kInput;

@@ -13,6 +13,13 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A bad command line found once it is parsed: an option the chosen technique or format does not
+// read, options that contradict each other (exit code 1, as a parse error).
+class UsageError : public Error {
+ public:
+  using Error::Error;
+};
+
 // Bad or unreadable input. `where` names the place: "line 12", "byte offset 4096",
 // "dataset /points", "variable lon".
 class InputError : public Error {

@@ -9,6 +9,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 
 namespace linebake {
 
@@ -127,39 +128,14 @@ void save_transfer_function(const TransferFunction& tf, const std::string& path)
   write_file_atomically(path, j.dump(2) + "\n");
 }
 
-namespace {
-
-// Levenshtein distance, for "did you mean" on a mistyped preset.
-size_t edit_distance(const std::string& a, const std::string& b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] != b[j - 1] ? 1 : 0)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
-
-}  // namespace
-
 TransferFunction resolve_transfer_function(const std::string& name_or_path) {
   if (is_transfer_function_preset(name_or_path)) return transfer_function_preset(name_or_path);
   // Neither a preset nor a file: say which presets there are, and the nearest one.
   if (!std::filesystem::exists(name_or_path)) {
-    const char* presets[] = {"opaque", "semi", "transparent"};
-    std::string nearest;
-    size_t best = 3;  // suggest only close misspellings
-    for (const char* p : presets)
-      if (const size_t d = edit_distance(name_or_path, p); d < best) best = d, nearest = p;
     throw InputError(name_or_path, "",
                      "neither a transfer-function preset (opaque, semi, transparent) nor a "
                      "file" +
-                         (nearest.empty() ? std::string() : "; did you mean '" + nearest + "'?"));
+                         did_you_mean(name_or_path, {"opaque", "semi", "transparent"}));
   }
   return load_transfer_function(name_or_path);
 }

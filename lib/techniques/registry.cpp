@@ -27,48 +27,75 @@ double TechniqueFrame::total_gpu_ms() const {
   return total;
 }
 
+const std::vector<std::string> kCommonRenderOptions = {
+    "technique", "tf",     "flight",   "frame-count", "frame",         "frames",
+    "size",      "output", "png-bits", "stats",       "memory-budget", "depth-complexity"};
+
+void check_technique_options(const TechniqueInfo& info, const std::vector<std::string>& given) {
+  const auto reads = [&](const std::string& name) {
+    return std::find(info.options.begin(), info.options.end(), name) != info.options.end() ||
+           std::find(kCommonRenderOptions.begin(), kCommonRenderOptions.end(), name) !=
+               kCommonRenderOptions.end();
+  };
+  std::string unread, read;
+  for (const std::string& name : given)
+    if (!reads(name)) unread += (unread.empty() ? "--" : ", --") + name;
+  if (unread.empty()) return;
+  for (const std::string& name : info.options) read += (read.empty() ? "--" : ", --") + name;
+  throw UsageError(unread + ": not read by " + info.name + " (" + info.name + " reads " +
+                   (read.empty() ? std::string("no options of its own") : read) +
+                   ", and the flight and output options)");
+}
+
 const std::vector<Technique>& techniques() {
   using A = std::vector<std::string>;
   static const std::vector<Technique> table = {
       {{"reference", "exact: CPU ray tracing (Embree) of the cached tube mesh, every hit in order",
-        A{"tubes"}, false, false, true},
+        A{"tubes"}, false, false, true, A{"quality", "hits", "packets"}},
        prepare_cpu_tracing,
        cpu_tracing_frame_bytes},
       {{"embree", "CPU ray tracing (Embree) of curves over the lines, every hit in order (OSP)",
-        A{"lines"}, false, false, true},
+        A{"lines"}, false, false, true,
+        A{"geometry", "quality", "hits", "packets", "radius", "attribute", "early-termination"}},
        prepare_cpu_tracing,
        cpu_tracing_frame_bytes},
       {{"opaque", "Vulkan: the tube mesh depth-tested, opacity ignored", A{"tubes"}, true, false,
-        false},
+        false, A{"device", "validation"}},
        prepare_raster,
        raster_frame_bytes},
       {{"dp", "Vulkan: depth peeling, one pass per layer (exact up to --max-layers)", A{"tubes"},
-        true, false, true},
+        true, false, true, A{"device", "validation", "max-layers"}},
        prepare_raster,
        raster_frame_bytes},
       {{"ll", "Vulkan: per-pixel linked lists, sorted and blended (exact)", A{"tubes"}, true, false,
-        true},
+        true, A{"device", "validation", "sort", "capacity", "node-bytes", "early-termination"}},
        prepare_raster,
        raster_frame_bytes},
       {{"mlab", "Vulkan: multi-layer alpha blending, k nodes per pixel", A{"tubes"}, true, false,
-        false},
+        false, A{"device", "validation", "layers", "no-interlock"}},
        prepare_raster,
        raster_frame_bytes},
-      {{"mlabdb", "Vulkan: MLAB with depth buckets", A{"tubes"}, true, false, false},
+      {{"mlabdb", "Vulkan: MLAB with depth buckets", A{"tubes"}, true, false, false,
+        A{"device", "validation", "layers", "tau-alpha", "tau-opaque", "no-interlock"}},
        prepare_raster,
        raster_frame_bytes},
-      {{"mboit", "Vulkan: moment-based OIT", A{"tubes"}, true, false, false},
+      {{"mboit", "Vulkan: moment-based OIT", A{"tubes"}, true, false, false,
+        A{"device", "validation", "beta", "moments", "moment-basis", "moment-bias"}},
        prepare_raster,
        raster_frame_bytes},
-      {{"wboit", "Vulkan: weighted blended OIT", A{"tubes"}, true, false, false},
+      {{"wboit", "Vulkan: weighted blended OIT", A{"tubes"}, true, false, false,
+        A{"device", "validation", "wboit-weight"}},
        prepare_raster,
        raster_frame_bytes},
       {{"vrc", "voxel ray casting of the voxel line grid, CPU or Vulkan compute (--on gpu)",
-        A{"voxels"}, false, false, false},
+        A{"voxels"}, false, false, false,
+        A{"on", "no-early-termination", "no-skip", "radius", "device", "validation"}},
        prepare_vrc,
        cpu_tracing_frame_bytes},
       {{"rtx", "Vulkan ray tracing of the tube mesh (or capsules), every hit in order", A{"tubes"},
-        true, true, true},
+        true, true, true,
+        A{"device", "validation", "rt-geometry", "rebuild", "no-compaction", "max-iterations",
+          "hits", "early-termination", "radius", "attribute"}},
        prepare_rtx,
        cpu_tracing_frame_bytes},
   };

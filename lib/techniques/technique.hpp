@@ -33,7 +33,17 @@ struct TechniqueInfo {
   bool vulkan = false;              // needs a Vulkan device (vrc: only with on = "gpu")
   bool ray_tracing = false;         // needs VK_KHR_ray_tracing_pipeline
   bool exact = false;               // every hit composited in order (the ground truth's class)
+  // The render options it reads besides the flight's and the outputs' (kCommonRenderOptions),
+  // as long option names without "--".
+  std::vector<std::string> options = {};
 };
+
+// Render options every technique reads: the transfer function, the flight, the frames, the
+// image and its outputs, the memory budget.
+extern const std::vector<std::string> kCommonRenderOptions;
+// Of the options given (long names without "--"), those the technique does not read; a
+// UsageError listing them and what the technique does read unless `given` is clean.
+void check_technique_options(const TechniqueInfo& info, const std::vector<std::string>& given);
 
 // Every knob of every technique, with the command line's defaults; a technique reads its own.
 struct TechniqueOptions {
