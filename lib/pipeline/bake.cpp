@@ -190,6 +190,38 @@ nlohmann::json to_json(const RtxOptions& r) {
   return {{"geometry", r.geometry}, {"compaction", r.compaction}};
 }
 
+nlohmann::json voxel_stats(const VoxelGrid& g, uint64_t chords, uint64_t bytes_with_density,
+                           uint64_t records_in_memory, uint64_t records_spilled) {
+  return {{"resolution", g.resolution},
+          {"quantization", g.quantization},
+          {"chords", chords},
+          {"bytes_with_density", bytes_with_density},
+          {"voxels_occupied", g.voxels_occupied},
+          {"chords_dropped", g.chords_dropped},
+          {"voxels_overflowed", g.voxels_overflowed},
+          {"max_error_voxels", g.max_error},
+          {"mean_error_voxels", g.mean_error},
+          {"records_in_memory_bytes", records_in_memory},
+          {"records_spilled_bytes", records_spilled}};
+}
+
+std::string dropped_chords_note(const VoxelGrid& g) {
+  if (!g.chords_dropped) return "";
+  return "voxels: " + std::to_string(g.chords_dropped) + " chords dropped in " +
+         std::to_string(g.voxels_overflowed) + " voxels over the cap of " +
+         std::to_string(g.max_chords_per_voxel) + " per voxel";
+}
+
+nlohmann::json embree_stats(const EmbreeOptions& embree, const StoredCurves& curves,
+                            double prepare_s, uint64_t buffer_bytes) {
+  return {{"geometry", to_string(embree.geometry)},
+          {"quality", to_string(embree.quality)},
+          {"radius_world", curves.radius},
+          {"attribute", curves.attribute},
+          {"prepare_s", prepare_s},
+          {"buffer_bytes", buffer_bytes}};
+}
+
 nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan) {
   uint64_t vertices = 0, indices = 0;
   for (const TubeChunkPlan& c : plan) vertices += c.vertices, indices += c.indices;
@@ -809,23 +841,11 @@ BakeResult bake(const BakeOptions& options_in) {
     p.input_hash = lines_hash;
     p.parameters = to_json(options.voxels);
     p.spill_bytes = voxels->spilled_bytes();
-    p.stats = {{"resolution", g.resolution},
-               {"quantization", g.quantization},
-               {"chords", sink.chord_count()},
-               {"bytes_with_density", sink.memory_with_density()},
-               {"voxels_occupied", g.voxels_occupied},
-               {"chords_dropped", g.chords_dropped},
-               {"voxels_overflowed", g.voxels_overflowed},
-               {"max_error_voxels", g.max_error},
-               {"mean_error_voxels", g.mean_error},
-               {"records_in_memory_bytes", voxels->peak_record_bytes()},
-               {"records_spilled_bytes", voxels->spilled_bytes()}};
+    p.stats = voxel_stats(g, sink.chord_count(), sink.memory_with_density(),
+                          voxels->peak_record_bytes(), voxels->spilled_bytes());
     result.spill_peak_bytes = std::max(result.spill_peak_bytes, voxels->spilled_bytes());
     sink.close(p);
-    if (g.chords_dropped)
-      result.notes.push_back("voxels: " + std::to_string(g.chords_dropped) + " chords dropped in " +
-                             std::to_string(g.voxels_overflowed) + " voxels over the cap of " +
-                             std::to_string(g.max_chords_per_voxel) + " per voxel");
+    if (g.chords_dropped) result.notes.push_back(dropped_chords_note(g));
     voxels.reset();
   }
   if (embree_writer) {
@@ -835,12 +855,8 @@ BakeResult bake(const BakeOptions& options_in) {
     finish_provenance(p, "embree", embree_clock);
     p.input_hash = lines_hash;
     p.parameters = to_json(options.embree, options.tubes);
-    p.stats = {{"geometry", to_string(options.embree.geometry)},
-               {"quality", to_string(options.embree.quality)},
-               {"radius_world", curves.radius},
-               {"attribute", curves.attribute},
-               {"prepare_s", embree_clock.wall_s},
-               {"buffer_bytes", embree_writer->buffer_bytes()}};
+    p.stats =
+        embree_stats(options.embree, curves, embree_clock.wall_s, embree_writer->buffer_bytes());
     p.memory_bytes = embree_writer->buffer_bytes();
     // The BVH is built and measured where it fits the budget: the line set, the buffers and
     // Embree's BVH (about the buffers' size again for linear curves) in memory at once.

@@ -33,6 +33,14 @@ struct RtxOptions {
 nlohmann::json to_json(const RtxOptions& rtx);
 // The tubes step's provenance figures: the chunk plan's counts and the mesh's description.
 nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan);
+// The voxel step's provenance figures (bake and linebake-mpi), and its note on dropped chords
+// ("" when none were dropped).
+nlohmann::json voxel_stats(const VoxelGrid& grid, uint64_t chords, uint64_t bytes_with_density,
+                           uint64_t records_in_memory, uint64_t records_spilled);
+std::string dropped_chords_note(const VoxelGrid& grid);
+// The Embree step's provenance figures (bake and linebake-mpi).
+nlohmann::json embree_stats(const EmbreeOptions& embree, const StoredCurves& curves,
+                            double prepare_s, uint64_t buffer_bytes);
 
 struct BakeOptions {
   std::string input;  // file or synth: source

@@ -120,6 +120,23 @@ LineSetStats stats_from(const std::string& text) {
   return s;
 }
 
+// Every rank's figures in rank order into `stats` ("rank_figures"), with the rank count and the
+// load imbalance: the slowest rank's `first` + `second` seconds over the mean. Collective.
+void add_rank_figures(const Ranks& ranks, const nlohmann::json& mine, const char* first,
+                      const char* second, nlohmann::json& stats) {
+  nlohmann::json list = nlohmann::json::array();
+  double max_s = 0, sum_s = 0;
+  for (const std::string& r : ranks.allgather(mine.dump())) {
+    list.push_back(nlohmann::json::parse(r));
+    const double s = list.back()[first].get<double>() + list.back()[second].get<double>();
+    max_s = std::max(max_s, s);
+    sum_s += s;
+  }
+  stats["ranks"] = ranks.size;
+  stats["rank_figures"] = list;
+  stats["imbalance"] = sum_s > 0 ? max_s / (sum_s / ranks.size) : 1.0;
+}
+
 }  // namespace
 
 BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
@@ -292,7 +309,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   if (build_embree)
     ranks.agree([&] {
       curves = embree_curves(options, header, stats);
-      curve_part_limit(options.embree);
+      curve_part_limit(options.embree);  // throws for a limit no part can meet, on every rank
     });
   {
     const auto notes = ranks.allgather(total.clean() ? "" : total.summary());
@@ -448,24 +465,14 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       // Every rank's figures, and the imbalance of the build (max / mean).
       mine.build_s = seconds_since(build_start);
       mine.bytes = writer.bytes_written();
-      const auto all = ranks.allgather(nlohmann::json{
-          {"rank", mine.rank},
-          {"lines", mine.lines},
-          {"points", mine.points},
-          {"read_s", mine.read_s},
-          {"build_s", mine.build_s},
-          {"bytes", mine.bytes}}.dump());
-      nlohmann::json list = nlohmann::json::array();
-      double max_s = 0, sum_s = 0;
-      for (const std::string& r : all) {
-        list.push_back(nlohmann::json::parse(r));
-        const double s = list.back()["read_s"].get<double>() + list.back()["build_s"].get<double>();
-        max_s = std::max(max_s, s);
-        sum_s += s;
-      }
-      p.stats["ranks"] = ranks.size;
-      p.stats["rank_figures"] = list;
-      p.stats["imbalance"] = sum_s > 0 ? max_s / (sum_s / ranks.size) : 1.0;
+      add_rank_figures(ranks,
+                       {{"rank", mine.rank},
+                        {"lines", mine.lines},
+                        {"points", mine.points},
+                        {"read_s", mine.read_s},
+                        {"build_s", mine.build_s},
+                        {"bytes", mine.bytes}},
+                       "read_s", "build_s", p.stats);
       p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
       sink.close(mesh, p);
       BakeStep step{"tubes", true, p};
@@ -532,16 +539,11 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
                          options.compression_level);
       p.input_hash = lines_hash;
       p.parameters = to_json(options.embree, options.tubes);
-      p.stats = {{"geometry", to_string(options.embree.geometry)},
-                 {"quality", to_string(options.embree.quality)},
-                 {"radius_world", curves.radius},
-                 {"attribute", curves.attribute},
-                 {"prepare_s", ranks.max_value(prepare_s)},
-                 {"buffer_bytes", embree.buffer_bytes()},
-                 {"ranks", ranks.size},
-                 {"bvh",
-                  "not built under MPI (it needs the whole line set in one process); render "
-                  "builds it"}};
+      p.stats =
+          embree_stats(options.embree, curves, ranks.max_value(prepare_s), embree.buffer_bytes());
+      p.stats["ranks"] = ranks.size;
+      p.stats["bvh"] =
+          "not built under MPI (it needs the whole line set in one process); render builds it";
       p.memory_bytes = embree.buffer_bytes();
       p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
       embree.close(p);
@@ -561,36 +563,12 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
             p.parameters = to_json(options.voxels);
             p.spill_bytes = ranks.sum(voxels->spilled_bytes());
             const VoxelGrid& g = voxels->description();
-            p.stats = {{"resolution", g.resolution},
-                       {"quantization", g.quantization},
-                       {"chords", chords},
-                       {"bytes_with_density", bytes_with_density},
-                       {"voxels_occupied", g.voxels_occupied},
-                       {"chords_dropped", g.chords_dropped},
-                       {"voxels_overflowed", g.voxels_overflowed},
-                       {"max_error_voxels", g.max_error},
-                       {"mean_error_voxels", g.mean_error},
-                       {"records_in_memory_bytes", ranks.max(voxels->peak_record_bytes())},
-                       {"records_spilled_bytes", p.spill_bytes}};
-            nlohmann::json list = nlohmann::json::array();
-            double max_s = 0, sum_s = 0;
-            for (const std::string& r : ranks.allgather(figures.dump())) {
-              list.push_back(nlohmann::json::parse(r));
-              const double t =
-                  list.back()["exchange_s"].get<double>() + list.back()["merge_s"].get<double>();
-              max_s = std::max(max_s, t);
-              sum_s += t;
-            }
-            p.stats["ranks"] = ranks.size;
-            p.stats["rank_figures"] = list;
-            p.stats["imbalance"] = sum_s > 0 ? max_s / (sum_s / ranks.size) : 1.0;
+            p.stats = voxel_stats(g, chords, bytes_with_density,
+                                  ranks.max(voxels->peak_record_bytes()), p.spill_bytes);
+            add_rank_figures(ranks, figures, "exchange_s", "merge_s", p.stats);
             p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(to_json(p).dump())));
             result.steps.push_back(BakeStep{"voxels", true, p});
-            if (g.chords_dropped)
-              result.notes.push_back("voxels: " + std::to_string(g.chords_dropped) +
-                                     " chords dropped in " + std::to_string(g.voxels_overflowed) +
-                                     " voxels over the cap of " +
-                                     std::to_string(g.max_chords_per_voxel) + " per voxel");
+            if (g.chords_dropped) result.notes.push_back(dropped_chords_note(g));
             return p;
           });
       voxels.reset();
