@@ -8,6 +8,8 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/h5.hpp"
+#include "core/nearest.hpp"
 #include "formats/formats.hpp"
 #include "synth/synth.hpp"
 
@@ -15,15 +17,16 @@ namespace linebake {
 
 const std::vector<FormatInfo>& format_table() {
   static const std::vector<FormatInfo> list{
-      {Format::obj, "obj", {".obj"}, true, true},
-      {Format::binlines, "binlines", {".binlines"}, true, true},
-      {Format::vtk, "vtk", {".vtk"}, true, true},
-      {Format::vtp, "vtp", {".vtp"}, true, true},
-      {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false},
-      {Format::hdf5, "hdf5", {".h5", ".hdf5", ".hdf"}, true, true},
-      {Format::trk, "trk", {".trk"}, true, false},
-      {Format::tck, "tck", {".tck"}, true, false},
-      {Format::csv, "csv", {".csv"}, true, true},
+      // format, name, extensions, readable, writable, line attributes, metadata
+      {Format::obj, "obj", {".obj"}, true, true, false, false},
+      {Format::binlines, "binlines", {".binlines"}, true, true, false, false},
+      {Format::vtk, "vtk", {".vtk"}, true, true, true, false},
+      {Format::vtp, "vtp", {".vtp"}, true, true, true, false},
+      {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false, false, false},
+      {Format::hdf5, "hdf5", {".h5", ".hdf5", ".hdf"}, true, true, true, true},
+      {Format::trk, "trk", {".trk"}, true, false, false, false},
+      {Format::tck, "tck", {".tck"}, true, false, false, false},
+      {Format::csv, "csv", {".csv"}, true, true, false, false},
   };
   return list;
 }
@@ -38,9 +41,13 @@ Format parse_format(const std::string& name) {
   for (const FormatInfo& f : format_table())
     if (name == f.name) return f.format;
   std::string known;
-  for (const FormatInfo& f : format_table())
+  std::vector<std::string> names;
+  for (const FormatInfo& f : format_table()) {
     known += std::string(known.empty() ? "" : ", ") + f.name;
-  throw Error("unknown format '" + name + "' (known: " + known + ")");
+    names.push_back(f.name);
+  }
+  throw UsageError("unknown format '" + name + "' (known: " + known + ")" +
+                   did_you_mean(name, names));
 }
 
 std::optional<Format> format_from_extension(const std::string& path) {
@@ -62,6 +69,28 @@ Format resolve_format(const std::string& path, const std::optional<Format>& forc
   throw Error(path + ": cannot tell the format from the extension; name it with --from/--to");
 }
 
+Format resolve_input_format(const std::string& path, const std::optional<Format>& forced) {
+  if (!forced && !format_from_extension(path) && h5::is_hdf5_file(path)) return Format::hdf5;
+  return resolve_format(path, forced);
+}
+
+std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
+                                        const WriteOptions& options) {
+  const FormatInfo& info = format_info(format);
+  std::vector<std::string> lost;
+  if (!info.line_attributes)
+    for (const Attribute& a : lines.line_attributes) lost.push_back("line attribute " + a.name);
+  if (format == Format::binlines && options.binlines_version == 1 && !lines.attributes.empty())
+    lost.push_back("attribute names (binlines version 1)");
+  if (!info.metadata) {
+    std::string keys;
+    for (const auto& [key, value] : lines.metadata)
+      if (key != "source") keys += (keys.empty() ? "" : ", ") + key;
+    if (!keys.empty()) lost.push_back("metadata (" + keys + ")");
+  }
+  return lost;
+}
+
 Format resolve_output_format(const std::string& path, const std::optional<Format>& forced) {
   const Format format = resolve_format(path, forced);
   if (!format_info(format).writable) {
@@ -76,14 +105,14 @@ Format resolve_output_format(const std::string& path, const std::optional<Format
 
 std::string source_format_name(const std::string& source, const ReadOptions& options) {
   if (synth::is_synth_source(source)) return "synth";
-  return format_info(resolve_format(source, options.format)).name;
+  return format_info(resolve_input_format(source, options.format)).name;
 }
 
 std::unique_ptr<LineReader> open_line_reader(const std::string& source,
                                              const ReadOptions& options) {
   if (synth::is_synth_source(source))
     return synth::open_generator(synth::parse_synth_source(source), options.progress);
-  const Format format = resolve_format(source, options.format);
+  const Format format = resolve_input_format(source, options.format);
   std::unique_ptr<LineReader> reader;
   const auto whole = [](LineSet lines) {
     return std::make_unique<MemoryLineReader>(std::move(lines));

@@ -21,13 +21,18 @@ struct FormatInfo {
   std::vector<const char*> extensions;
   bool readable;
   bool writable;
+  bool line_attributes;  // writes per-line attributes
+  bool metadata;         // writes the line set's metadata (key/value strings)
 };
 const std::vector<FormatInfo>& format_table();
 const FormatInfo& format_info(Format format);
-Format parse_format(const std::string& name);  // throws Error
+Format parse_format(const std::string& name);  // throws UsageError with a did-you-mean
 std::optional<Format> format_from_extension(const std::string& path);
 // The forced format, else the one the extension names; throws Error when neither says.
 Format resolve_format(const std::string& path, const std::optional<Format>& forced);
+// For reading: as resolve_format, and an HDF5 file (a linebake cache, whatever its name) is read
+// as hdf5 when its extension names no format.
+Format resolve_input_format(const std::string& path, const std::optional<Format>& forced);
 // As resolve_format, and throws Error when linebake cannot write that format.
 Format resolve_output_format(const std::string& path, const std::optional<Format>& forced);
 
@@ -67,6 +72,11 @@ std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sou
 LineSet read_line_set(const std::string& source, const ReadOptions& options = {});
 // Format name of a source, as read_line_set would choose it ("synth" for synthetic sources).
 std::string source_format_name(const std::string& source, const ReadOptions& options = {});
+
+// What writing `lines` as `format` would lose, one phrase each ("line attribute line_length",
+// "metadata (scale, seed)", "attribute names (binlines version 1)"); empty when nothing.
+std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
+                                        const WriteOptions& options = {});
 
 // Writes through a temporary file renamed at the end: a failed write leaves nothing behind.
 void write_line_set(const LineSet& lines, const std::string& path,

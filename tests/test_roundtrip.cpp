@@ -94,7 +94,13 @@ TEST(RoundTripFormat, ExtensionOverride) {
   ReadOptions r;
   r.format = Format::hdf5;
   EXPECT_TRUE(read_line_set(dir.file("data.bin"), r).same_data(original));
-  EXPECT_THROW(read_line_set(dir.file("data.bin")), Error);  // no extension to go by
+  // No extension to go by: an HDF5 file is recognised by its superblock, anything else is
+  // refused.
+  EXPECT_TRUE(read_line_set(dir.file("data.bin")).same_data(original));
+  WriteOptions binlines;
+  binlines.format = Format::binlines;
+  write_line_set(original, dir.file("data.bin2"), binlines);
+  EXPECT_THROW(read_line_set(dir.file("data.bin2")), Error);
 }
 
 TEST(RoundTripFormat, NotWritableFormatsAreRefused) {

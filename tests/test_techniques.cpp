@@ -78,7 +78,7 @@ TEST(Techniques, SayWhyTheyCannotRunHere) {
   EXPECT_EQ(technique_unavailable(find_technique("embree"), options, &cache), std::nullopt);
   const auto vrc = technique_unavailable(find_technique("vrc"), options, &cache);
   ASSERT_TRUE(vrc.has_value());
-  EXPECT_EQ(*vrc, "the cache has no voxels (bake --assets voxels)");
+  EXPECT_EQ(*vrc, "the cache has no voxels (linebake bake CACHE --assets voxels)");
   options.device = "no such device";
   const auto ll = technique_unavailable(find_technique("ll"), options, nullptr);
   ASSERT_TRUE(ll.has_value());

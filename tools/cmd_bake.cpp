@@ -1,14 +1,17 @@
 // linebake bake <input> -o <cache>: build assets into the cache and print the build report.
 // linebake report <cache>...: the paper's Table 1 for the cached data.
 
+#include <algorithm>
 #include <iostream>
 
 #include "cache/cache.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
+#include "core/nearest.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
 
@@ -44,12 +47,13 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::IsMember({"reject", "repair"}));
   sub->add_option("--assets", o.assets,
                   "Assets to build: tubes, voxels, embree, rtx (default: tubes)")
-      ->delimiter(',');
+      ->delimiter(',')
+      ->allow_extra_args(false);
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
   sub->add_option("--radius", o.tubes.radius,
                   "Tube radius as a fraction of the bounding-box diagonal (default 0.001)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   sub->add_flag("--radius-absolute", o.tubes.radius_absolute,
                 "--radius is in world units, not a fraction of the diagonal");
   sub->add_option("--radius-attribute", o.tubes.radius_attribute,
@@ -117,7 +121,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::Range(1, 9));
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
-                  "unlimited (default: half of physical memory)");
+                  "unlimited (default: half of physical memory)")
+      ->check(byte_size());
   sub->add_flag("--force", o.force,
                 "Rebuild every step even if the cache is up to date; replace an output file "
                 "that is not a linebake cache");
@@ -128,8 +133,39 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                 "Read the input and print what the bake would write and the free space; "
                 "write nothing");
   sub->add_flag("--json", args->json, "Print the report as JSON");
+  // An option no step of this bake reads is a mistake, not a no-op.
+  check_when_parsed(sub, [sub, args] {
+    const std::vector<std::string>& assets = args->options.assets;
+    const auto building = [&](const char* asset) {
+      return std::find(assets.begin(), assets.end(), asset) != assets.end();
+    };
+    const std::vector<std::string> known = {"tubes", "voxels", "embree", "rtx"};
+    for (const std::string& asset : assets)
+      if (std::find(known.begin(), known.end(), asset) == known.end())
+        throw UsageError("--assets: unknown asset '" + asset +
+                         "' (bake builds: tubes, voxels, embree, rtx)" +
+                         did_you_mean(asset, known));
+    refuse_unless(sub, {"grid", "quantization", "max-chords", "voxel-attribute"},
+                  building("voxels"), "when voxels are built (--assets voxels)");
+    refuse_unless(sub,
+                  {"embree-geometry", "embree-quality", "embree-compact", "embree-robust",
+                   "embree-max-primitives"},
+                  building("embree"), "when the Embree buffers are built (--assets embree)");
+    refuse_unless(sub, {"rtx-geometry", "rtx-no-compaction", "device", "validation"},
+                  building("rtx"), "when rtx acceleration structures are built (--assets rtx)");
+    refuse_unless(sub, {"tube-sides", "caps", "normals", "chunk-bytes", "attribute-range"},
+                  building("tubes") || building("rtx"), "when tubes are built (--assets tubes)");
+    refuse_unless(sub, {"radius", "radius-absolute", "radius-attribute", "attribute"},
+                  building("tubes") || building("rtx") || building("embree"),
+                  "when tubes or Embree curves are built");
+    refuse_unless(sub, {"compression-level"},
+                  args->compression == "deflate" || args->compression == "blosc-zstd",
+                  "with --compression deflate or blosc-zstd (lz4 and none have no levels)");
+  });
   return [args, run, print] {
     BakeOptions options = args->options;
+    for (const std::string& input : args->inputs)
+      if (input.find_first_of("*?[") == std::string::npos) check_input_file(input);
     options.inputs = expand_inputs(args->inputs);
     options.input = options.inputs.size() == 1 ? options.inputs[0] : "";
     if (!args->from.empty()) options.format = parse_format(args->from);
@@ -166,8 +202,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                 << (step.built ? "built" : "up to date, reused") << "\n";
     if (!result.written) std::cerr << "linebake: " << result.cache << " is up to date\n";
     for (const BakeStage& stage : result.stages)
-      std::cerr << "linebake: stage " << stage.name << ": " << stage.wall_s << " s wall, "
-                << stage.cpu_s << " s CPU, peak RSS " << format_bytes(stage.peak_rss_bytes) << "\n";
+      say("stage " + stage.name + ": " + format_seconds(stage.wall_s) + " wall, " +
+          format_seconds(stage.cpu_s) + " CPU, peak RSS " + format_bytes(stage.peak_rss_bytes));
     const CacheReader cache(result.cache, false);
     const std::vector<CacheSummary> summary{summarize_cache(cache)};
     if (args->json)
@@ -189,6 +225,7 @@ Command add_report(CLI::App& app) {
   sub->add_flag("--markdown", args->markdown, "One Markdown table row per cache")->excludes(json);
   return [args] {
     std::vector<CacheSummary> summaries;
+    for (const std::string& path : args->caches) check_cache_input(path);
     for (const std::string& path : args->caches)
       summaries.push_back(summarize_cache(CacheReader(path, false)));
     if (args->json)

@@ -18,8 +18,10 @@
 #include "accel/capsule_chain.hpp"
 #include "accel/embree_scene.hpp"
 #include "bench_render.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/array.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/measure.hpp"
@@ -54,12 +56,12 @@ double memcpy_bandwidth(int repeats, size_t bytes = size_t{1} << 30) {
 }
 
 struct BenchArgs {
-  std::string step, input = "synth:clouds", grid = "512", geometry = "linear", quality = "medium";
+  std::string input, grid = "auto", geometry = "linear", quality = "medium";
   int sides = 3, repeat = 3, threads = 0;
   uint32_t quantization = 32;
   bool json = false;
   // bake
-  std::vector<std::string> assets{"tubes", "voxels"};
+  std::vector<std::string> assets{"tubes"};
   std::string memory_budget, compression = "lz4", output;
   bool keep = false;
 };
@@ -386,75 +388,98 @@ void bench_bake(const BenchArgs& args) {
 }  // namespace
 
 Command add_bench(CLI::App& app) {
-  auto* sub =
+  auto* bench =
       app.add_subcommand("bench",
                          "Benchmark a build step (tubes, voxels, embree), a whole bake, or the "
-                         "rendering techniques on caches (render CACHE...)");
+                         "rendering techniques on caches");
+  bench->require_subcommand(1);
   auto args = std::make_shared<BenchArgs>();
   auto render = std::make_shared<BenchRenderArgs>();
-  sub->add_option("step", args->step, "Step to measure")
-      ->required()
-      ->check(CLI::IsMember({"tubes", "voxels", "embree", "bake", "render"}));
-  sub->add_option("caches", render->caches, "render: asset caches (.lbc.h5)");
-  sub->add_option("--techniques", render->techniques,
-                  "render: techniques (default: every one, and vrc-gpu for vrc on Vulkan "
-                  "compute; those this machine cannot run are listed as skipped, with the reason)")
-      ->delimiter(',');
-  sub->add_option("--tf", render->transfer_functions,
-                  "render: transfer functions (default semi): opaque, semi, transparent, FILE.json")
-      ->delimiter(',');
-  sub->add_option("--frames", render->frames, "render: frames of the orbit-zoom flight (default 8)")
-      ->check(CLI::Range(1, 100000));
-  sub->add_option("--size", render->size, "render: image size WxH (default 1920x1080)")
-      ->check(image_size_check());
-  sub->add_option("--device", render->device, "render: Vulkan device, part of its name");
-  sub->add_option("--max-seconds", render->max_seconds,
-                  "render: per technique and transfer function, stop after the frame that passes "
-                  "this many seconds (dp on large sets); default: render every frame")
-      ->check(CLI::NonNegativeNumber);
-  sub->add_option("--input", args->input, "Input file or synth source (default synth:clouds)");
-  sub->add_option("--grid", args->grid, "voxels: auto, N or NxNxN (default 512)");
-  sub->add_option("--quantization", args->quantization, "voxels: 16 | 32 (default) | 64")
-      ->check(CLI::IsMember({16, 32, 64}));
-  sub->add_option("--geometry", args->geometry, "embree: linear (default) | bezier | capsules")
-      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
-  sub->add_option("--quality", args->quality, "embree: low | medium (default) | high")
-      ->check(CLI::IsMember({"low", "medium", "high"}));
-  sub->add_option("--tube-sides", args->sides, "Ring vertices (default 3)")
+  // Every step reads its input as bake does and runs with bake's defaults, so it measures what
+  // bake builds.
+  const auto step = [&](const char* name, const char* what, const char* reports) {
+    auto* sub = bench->add_subcommand(name, std::string(what) + "; " + reports);
+    sub->add_option("input", args->input, "Input file or synth source, as for bake")->required();
+    sub->add_option("--repeat", args->repeat, std::string("Runs (default 3); ") + reports)
+        ->check(CLI::Range(1, 100));
+    sub->add_option("--threads", args->threads, "Worker threads (default: all cores)")
+        ->check(CLI::Range(0, 1024));
+    sub->add_flag("--json", args->json, "Print the figures as JSON");
+    return sub;
+  };
+  auto* tubes = step("tubes", "Tube build speed against memcpy bandwidth of the same run",
+                     "prints every run, the best and the median");
+  tubes->add_option("--tube-sides", args->sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
-  sub->add_option("--repeat", args->repeat, "Runs; the best is reported (default 3)")
-      ->check(CLI::Range(1, 100));
-  sub->add_option("--threads", args->threads, "Worker threads (default: all cores)")
-      ->check(CLI::Range(0, 1024));
-  sub->add_option("--assets", args->assets, "bake: assets to build (default tubes,voxels)")
+  auto* voxels = step("voxels", "Voxel grid build: time, chords, memory, quantisation error",
+                      "prints every run, the best and the median");
+  voxels->add_option("--grid", args->grid, "auto (default, bake's rule), N or NxNxN");
+  voxels->add_option("--quantization", args->quantization, "16 | 32 (default) | 64")
+      ->check(CLI::IsMember({16, 32, 64}));
+  auto* embree = step("embree", "linebake's Embree build against a bare rtcCommitScene",
+                      "prints the best of each and their ratio");
+  embree->add_option("--embree-geometry", args->geometry, "linear (default) | bezier | capsules")
+      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
+  embree->add_option("--embree-quality", args->quality, "low | medium (default) | high")
+      ->check(CLI::IsMember({"low", "medium", "high"}));
+  auto* bake = step("bake", "A whole bake, per stage: wall and CPU time, peak RSS, spill, writes",
+                    "prints the run of median wall time in detail");
+  bake->add_option("--assets", args->assets, "Assets to build (default tubes, as bake)")
       ->delimiter(',');
-  sub->add_option("--memory-budget", args->memory_budget,
-                  "bake: resident memory the bake may use, e.g. 2G; unlimited (default: half of "
-                  "physical memory)");
-  sub->add_option("--compression", args->compression,
-                  "bake: none | deflate | lz4 (default) | blosc-zstd")
+  bake->add_option("--memory-budget", args->memory_budget,
+                   "Resident memory the bake may use, e.g. 2G; unlimited (default: half of "
+                   "physical memory)")
+      ->check(byte_size());
+  bake->add_option("--compression", args->compression,
+                   "none | deflate | lz4 (default) | blosc-zstd")
       ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
-  sub->add_option("-o,--output", args->output,
-                  "bake: the cache to write (default <input name>.bench.lbc.h5, removed after)");
-  sub->add_flag("--keep", args->keep, "bake: keep the cache");
-  sub->add_flag("--json", args->json, "Print the figures as JSON");
-  return [args, render] {
+  bake->add_option("-o,--output", args->output,
+                   "The cache to write (default <input name>.bench.lbc.h5, removed after)");
+  bake->add_flag("--keep", args->keep, "Keep the cache");
+  auto* rendering = bench->add_subcommand(
+      "render",
+      "Every technique of the registry on each cache and transfer function: GPU ms per "
+      "pass, wall, memory, PSNR/SSIM against the reference");
+  rendering->add_option("caches", render->caches, "Asset caches")->required();
+  rendering
+      ->add_option("--techniques", render->techniques,
+                   "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
+                   "those this machine cannot run are listed as skipped, with the reason)")
+      ->delimiter(',');
+  rendering
+      ->add_option("--tf", render->transfer_functions,
+                   "Transfer functions (default semi): opaque, semi, transparent, FILE.json")
+      ->delimiter(',');
+  rendering->add_option("--frames", render->frames, "Frames of the orbit-zoom flight (default 8)")
+      ->check(CLI::Range(1, 100000));
+  rendering->add_option("--size", render->size, "Image size WxH (default 1920x1080)")
+      ->check(image_size_check());
+  rendering->add_option("--device", render->device, "Vulkan device, part of its name");
+  rendering
+      ->add_option("--max-seconds", render->max_seconds,
+                   "Per technique and transfer function, stop after the frame that passes "
+                   "this many seconds (dp on large sets); default: render every frame")
+      ->check(non_negative());
+  rendering->add_flag("--json", render->json, "Print the figures as JSON");
+  return [args, render, tubes, voxels, embree, bake, rendering] {
+    if (rendering->parsed()) {
+      for (const std::string& cache : render->caches) check_cache_input(cache);
+      bench_render(*render);
+      return;
+    }
+    check_input_file(args->input);
     std::unique_ptr<tbb::global_control> limit;
     if (args->threads > 0)
       limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     size_t(args->threads));
-    if (args->step == "render") {
-      render->json = args->json;
-      bench_render(*render);
-    } else if (!render->caches.empty()) {
-      throw Error("bench " + args->step + ": caches are for bench render (use --input)");
-    } else if (args->step == "bake")
+    if (bake->parsed()) {
+      if (!args->output.empty()) check_output_location(args->output);
       bench_bake(*args);
-    else if (args->step == "voxels")
+    } else if (voxels->parsed())
       bench_voxels(*args);
-    else if (args->step == "embree")
+    else if (embree->parsed())
       bench_embree(*args);
-    else
+    else if (tubes->parsed())
       bench_tubes(*args);
   };
 }

@@ -4,7 +4,9 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "cli_contract.hpp"
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "metrics/image_metrics.hpp"
 
@@ -19,21 +21,26 @@ Command add_compare(CLI::App& app) {
     bool json = false;
   };
   auto args = std::make_shared<Args>();
-  sub->add_option("image", args->image, "Image (.png or .pfm)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  sub->add_option("reference", args->reference, "Reference image (.png or .pfm)")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub->add_option("image", args->image, "Image (.png or .pfm)")->required();
+  sub->add_option("reference", args->reference, "Reference image (.png or .pfm)")->required();
   sub->add_option("--error-image", args->error_image,
                   "Per-pixel absolute error, inverted grey (white = equal)");
   sub->add_option("--error-scale", args->error_scale, "Error image gain (default 1)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   sub->add_flag("--json", args->json, "Print JSON");
   return [args] {
     // Linear PFMs are display-encoded first, so a PFM and a PNG of one frame compare equal.
+    check_input_file(args->image);
+    check_input_file(args->reference);
+    check_output_location(args->error_image);
     const Image a = display_encoded(read_image(args->image));
     const Image b = display_encoded(read_image(args->reference));
+    if (a.width != b.width || a.height != b.height)
+      throw InputError(args->image, "",
+                       std::to_string(a.width) + "x" + std::to_string(a.height) +
+                           ", but the reference " + args->reference + " is " +
+                           std::to_string(b.width) + "x" + std::to_string(b.height) +
+                           ": images of one size compare");
     const double p = psnr(a, b), s = ssim(a, b);
     if (!args->error_image.empty())
       write_png(error_image(a, b, args->error_scale), args->error_image, 8);

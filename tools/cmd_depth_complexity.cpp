@@ -10,6 +10,7 @@
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
 #include "cache/tube_store.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -52,12 +53,10 @@ Command add_depth_complexity(CLI::App& app) {
     std::string cache, output, stats, tf = "semi", flight = "orbit-zoom", frames, size = "1280x720",
                                       on = "gpu", device;
     int frame = 0, frame_count = 64;
-    bool validation = false;
+    bool validation = false, json = false;
   };
   auto args = std::make_shared<Args>();
-  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5) with tubes")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5) with tubes")->required();
   sub->add_option("-o,--output", args->output, "16-bit grey PNG of the counts");
   sub->add_option("--stats", args->stats, "Statistics as JSON (per frame)");
   sub->add_option("--on", args->on,
@@ -69,29 +68,42 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
       ->check(CLI::Range(1, 100000));
-  sub->add_option("--frame", args->frame, "Frame (default 0)")->check(CLI::NonNegativeNumber);
-  sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
-      ->check(CLI::IsMember({"all"}));
+  auto* frame = sub->add_option("--frame", args->frame, "Frame, 0 .. frame count - 1 (default 0)")
+                    ->check(CLI::Range(0, 99999));
+  auto* frames = sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
+                     ->check(CLI::IsMember({"all"}));
+  frame->excludes(frames);
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
       ->check(image_size_check());
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this (default: half of physical "
-                  "memory)");
+                  "memory)")
+      ->check(byte_size());
   sub->add_option("--device", args->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
+  sub->add_flag("--json", args->json, "Print the statistics as JSON on stdout");
+  check_when_parsed(sub, [sub, args] {
+    refuse_unless(sub, {"device", "validation"}, args->on == "gpu", "with --on gpu");
+    if (args->frames.empty() && args->frame >= args->frame_count)
+      throw UsageError("--frame " + std::to_string(args->frame) + ": the flight has " +
+                       std::to_string(args->frame_count) + " frames, 0 to " +
+                       std::to_string(args->frame_count - 1) + " (--frame-count)");
+  });
   const auto body = [args] {
+    check_cache_input(args->cache);
     const auto [width, height] = parse_size(args->size);
     check_depth_image_output(args->output);
     check_output_location(args->stats);
     check_frame_memory("depth-complexity", args->size,
                        uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16),
                        args->memory_budget);
-    if (args->output.empty() && args->stats.empty())
-      throw Error("depth-complexity: nothing to write; give -o and/or --stats");
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
     if (!cache.exists("/assets/tubes"))
-      throw Error(args->cache + ": depth complexity counts the tube mesh; bake --assets tubes");
+      throw InputError(args->cache, "group /assets/tubes",
+                       "missing: depth complexity counts the tube mesh; add it with: linebake "
+                       "bake " +
+                           args->cache + " --assets tubes");
     const TubeMesh tubes = load_tubes(cache);
     const FlightPlan plan = plan_flight(args->flight, args->frame_count, args->frame, args->frames,
                                         compute_bounds(tubes), width, height);
@@ -114,6 +126,7 @@ Command add_depth_complexity(CLI::App& app) {
       scene.emplace(EmbreeScene::from_tubes(tubes, {}));
     }
     TerminalProgress progress("depth-complexity");
+    std::vector<std::string> lines;
     for (size_t i = 0; i < plan.frames.size(); ++i) {
       throw_if_interrupted();  // between frames: finished frames are kept
       const Camera& camera = plan.cameras[size_t(plan.frames[i])];
@@ -140,11 +153,29 @@ Command add_depth_complexity(CLI::App& app) {
       entry["seconds"] = seconds;
       stats["frames"].push_back(entry);
       progress.update(i + 1, plan.frames.size());
-      if (!TerminalProgress::enabled())
-        std::cerr << "frame " << plan.frames[i] << ": depth complexity max " << entry["max"]
-                  << ", mean over covered pixels " << entry["mean_covered"] << "\n";
+      char line[160];
+      std::snprintf(line, sizeof line,
+                    "frame %d: depth complexity max %u, mean %.3g over %llu covered pixels "
+                    "(p50 %u, p90 %u, p99 %u)",
+                    plan.frames[i], entry["max"].get<uint32_t>(),
+                    entry["mean_covered"].get<double>(),
+                    static_cast<unsigned long long>(entry["covered_pixels"].get<uint64_t>()),
+                    entry["covered_percentiles"]["p50"].get<uint32_t>(),
+                    entry["covered_percentiles"]["p90"].get<uint32_t>(),
+                    entry["covered_percentiles"]["p99"].get<uint32_t>());
+      lines.push_back(line);
+      if (!TerminalProgress::enabled()) std::cerr << line << "\n";
     }
+    progress.finish();
     if (!args->stats.empty()) write_file_atomically(args->stats, stats.dump(2) + "\n");
+    // The statistics are the command's result: on stdout when no file takes them, and left on
+    // the terminal after the bar.
+    if (args->json)
+      std::cout << stats.dump(2) << "\n";
+    else if (args->output.empty() && args->stats.empty())
+      for (const std::string& l : lines) std::cout << l << "\n";
+    else if (TerminalProgress::enabled())
+      for (const std::string& l : lines) std::cerr << l << "\n";
   };
   // Every output of the command (an image and its --stats, each frame, both exports) is
   // renamed into place at the end, or none is: a failure or an interruption leaves nothing.

@@ -1,11 +1,14 @@
 // linebake export <cache> --glb out.glb: assets from the cache in formats other tools read.
 
+#include <chrono>
+#include <filesystem>
 #include <iostream>
 
 #include "cache/cache.hpp"
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -19,13 +22,16 @@ Command add_export(CLI::App& app) {
       "export", "Export cached assets: glTF binary (tubes, lines), OpenVDB (voxel grid)");
   struct Args {
     std::string cache, glb, vdb;
+    std::vector<std::string> outputs;
     GltfOptions gltf;
     bool lines = false, no_tubes = false;
   };
   auto args = std::make_shared<Args>();
-  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")->required();
+  sub->add_option("-o,--output", args->outputs,
+                  "Output, the format from its extension: .glb (as --glb) or .vdb (as --vdb); "
+                  "once per format")
+      ->allow_extra_args(false);
   sub->add_option("--glb", args->glb, "glTF 2.0 binary output: the tube mesh (and lines)");
   sub->add_option("--vdb", args->vdb,
                   "OpenVDB output: density, line_count, attribute_max from the voxel grid");
@@ -41,9 +47,28 @@ Command add_export(CLI::App& app) {
       ->check(CLI::Range(0, 10));
   sub->add_flag("--lines", args->lines, "Add the raw lines as LINE_STRIP primitives");
   sub->add_flag("--no-tubes", args->no_tubes, "Leave the tube mesh out (with --lines)");
-  const auto body = [args] {
+  // Outputs by extension, and options that only a glTF output (with Draco) reads.
+  check_when_parsed(sub, [sub, args] {
+    for (const std::string& out : args->outputs) {
+      const std::string ext = std::filesystem::path(out).extension().string();
+      std::string& slot = ext == ".glb" ? args->glb : ext == ".vdb" ? args->vdb : args->cache;
+      if (&slot == &args->cache)
+        throw UsageError("-o " + out + ": export writes .glb (glTF binary) or .vdb (OpenVDB)");
+      if (!slot.empty())
+        throw UsageError("-o " + out + ": a " + ext + " output is given twice (" + slot + ")");
+      slot = out;
+    }
     if (args->glb.empty() && args->vdb.empty())
-      throw Error("nothing to export: give --glb or --vdb");
+      throw UsageError("nothing to export: give -o OUT.glb and/or -o OUT.vdb");
+    refuse_unless(sub, {"draco-bits", "draco-normal-bits", "draco-speed"}, args->gltf.draco,
+                  "with --draco");
+    refuse_unless(sub, {"draco", "lines", "no-tubes"}, !args->glb.empty(),
+                  "with a glTF output (-o OUT.glb)");
+    if (args->no_tubes && !args->lines)
+      throw UsageError("--no-tubes needs --lines: there would be nothing to export");
+  });
+  const auto body = [args] {
+    check_cache_input(args->cache);
     for (const std::string& out : {args->glb, args->vdb})
       if (!out.empty()) {
         refuse_input_as_output(out, {args->cache});
@@ -52,7 +77,6 @@ Command add_export(CLI::App& app) {
     const CacheReader cache(args->cache);
     if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
     if (args->glb.empty()) return;
-    if (args->no_tubes && !args->lines) throw Error("--no-tubes needs --lines: nothing to export");
     TubeMesh tubes;
     LineSet lines;
     if (!args->no_tubes) tubes = load_tubes(cache);
@@ -62,10 +86,15 @@ Command add_export(CLI::App& app) {
   };
   // Every output of the command (an image and its --stats, each frame, both exports) is
   // renamed into place at the end, or none is: a failure or an interruption leaves nothing.
-  return [body] {
+  return [body, args] {
+    const auto start = std::chrono::steady_clock::now();
     OutputGroup outputs;
     body();
     outputs.commit();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    for (const std::string& out : {args->glb, args->vdb})
+      if (!out.empty()) say_wrote(out, seconds);
   };
 }
 

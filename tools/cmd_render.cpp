@@ -3,10 +3,12 @@
 // (embree), the Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit),
 // voxel ray casting (vrc, CPU or Vulkan compute) or Vulkan ray tracing (rtx).
 
+#include <algorithm>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "cache/cache.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -36,6 +38,8 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
   stats["flight"] = to_string(plan.kind);
   stats["frames"] = nlohmann::json::array();
   TerminalProgress progress("render");
+  std::vector<double> seconds;
+  std::string last_note;
   for (size_t i = 0; i < plan.frames.size(); ++i) {
     throw_if_interrupted();  // between frames: finished frames are kept
     const int number = plan.frames[i];
@@ -56,11 +60,26 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
     for (const std::string& w : frame.warnings)
       std::cerr << "linebake: " << args.technique << ": frame " << number << ": " << w << "\n";
     progress.update(i + 1, plan.frames.size());
+    seconds.push_back(frame.seconds);
+    last_note = frame.note;
     if (!TerminalProgress::enabled())
-      std::cerr << "frame " << number << ": " << frame.seconds << " s"
+      std::cerr << "frame " << number << ": " << format_seconds(frame.seconds)
                 << (frame.note.empty() ? "" : ", " + frame.note) << "\n";
   }
+  progress.finish();
   if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
+  if (args.json) std::cout << stats.dump(2) << "\n";
+  // What stays on the terminal after the bar.
+  std::vector<double> sorted = seconds;
+  std::sort(sorted.begin(), sorted.end());
+  const std::string first = frame_path(args.output, plan.frames.front(), numbered);
+  const std::string last = frame_path(args.output, plan.frames.back(), numbered);
+  if (plan.frames.size() == 1)
+    say(args.technique + ": 1 frame in " + format_seconds(sorted[0]) +
+        (last_note.empty() ? "" : ", " + last_note) + ": " + first);
+  else
+    say(args.technique + ": " + std::to_string(plan.frames.size()) + " frames, median " +
+        format_seconds(sorted[sorted.size() / 2]) + " per frame: " + first + " .. " + last);
 }
 
 }  // namespace
@@ -85,13 +104,11 @@ Command add_render(CLI::App& app) {
     std::string moment_basis = "power";
     int frame = 0, frame_count = 64, png_bits = 8;
     float radius = 0;
-    bool early = false, packets = false;
+    bool early = false, packets = false, json = false;
     std::string memory_budget;
   };
   auto args = std::make_shared<Args>();
-  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")->required();
   sub->add_option("--technique", args->technique,
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
                   "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
@@ -100,17 +117,18 @@ Command add_render(CLI::App& app) {
       ->check(CLI::IsMember(technique_names()));
   sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
       ->check(CLI::IsMember({"cpu", "gpu"}));
-  sub->add_flag("--no-early-termination", args->no_early_termination,
-                "vrc: composite every hit (default: stop at opacity 0.99, as the paper's VRC)");
+  auto* no_early = sub->add_flag("--no-early-termination", args->no_early_termination,
+                                 "Composite every hit (the default, except for vrc, which stops "
+                                 "at opacity 0.99 as the paper's VRC)");
   sub->add_flag("--no-skip", args->no_skip,
                 "vrc: walk every voxel (default: skip cells empty in the occupancy mips)");
-  sub->add_option("--rt-geometry", args->rt_geometry,
+  sub->add_option("--rtx-geometry", args->rt_geometry,
                   "rtx: triangles (the tube mesh, default) | capsules (AABBs with an analytic "
                   "intersection shader); default: what the cached BLAS were built over")
       ->check(CLI::IsMember({"triangles", "capsules"}));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
-  sub->add_flag("--no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
+  sub->add_flag("--rtx-no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
   sub->add_option("--max-iterations", args->max_iterations,
                   "rtx: traces per pixel at most (default 1024); pixels that run out are counted")
       ->check(CLI::Range(1, 1 << 20));
@@ -154,22 +172,24 @@ Command add_render(CLI::App& app) {
                   "Vulkan device: part of its name (default: a discrete GPU, else the first)");
   sub->add_flag("--validation", args->validation,
                 "Vulkan: enable the Khronos validation layer; validation errors fail the run");
-  sub->add_option("--geometry", args->geometry,
+  sub->add_option("--embree-geometry", args->geometry,
                   "embree: linear (default) | bezier curves | capsules (user geometry)")
       ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
-  sub->add_option("--quality", args->quality, "Embree build quality: low | medium | high")
+  sub->add_option("--embree-quality", args->quality,
+                  "embree, reference: Embree build quality: low | medium (default) | high")
       ->check(CLI::IsMember({"low", "medium", "high"}));
   sub->add_option("--tf", args->tf, "Transfer function: opaque | semi | transparent | FILE.json");
   sub->add_option("--attribute", args->attribute,
                   "Vertex attribute for the curves (default: the tube mesh's, else the first)");
-  sub->add_option(
-      "--radius", args->radius,
-      "Curve radius in world units (default: the cached tubes', else 0.001 x diagonal)");
+  sub->add_option("--radius", args->radius,
+                  "Curve radius in world units (default: the cached tubes', else 0.001 x diagonal)")
+      ->check(positive());
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
       ->check(CLI::Range(1, 100000));
-  auto* frame = sub->add_option("--frame", args->frame, "Frame to render (default 0)")
-                    ->check(CLI::NonNegativeNumber);
+  auto* frame =
+      sub->add_option("--frame", args->frame, "Frame to render, 0 .. frame count - 1 (default 0)")
+          ->check(CLI::Range(0, 99999));
   auto* frames =
       sub->add_option("--frames", args->frames, "all: render every frame (outputs get _NNN)")
           ->check(CLI::IsMember({"all"}));
@@ -190,18 +210,22 @@ Command add_render(CLI::App& app) {
   sub->add_flag("--packets", args->packets,
                 "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");
   sub->add_flag("--early-termination", args->early,
-                "Stop compositing at opacity 0.99 (never for ground truth)");
+                "Stop compositing at opacity 0.99 (vrc's default; never for ground truth)")
+      ->excludes(no_early);
+  sub->add_flag("--json", args->json, "Print the --stats JSON on stdout");
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: half of "
-                  "physical memory)");
+                  "physical memory)")
+      ->check(byte_size());
   const auto body = [args, sub] {
     // An option the technique does not read is a mistake, not a no-op.
-    std::vector<std::string> given;
-    for (const CLI::Option* option : sub->get_options())
-      if (option->count() > 0 && !option->get_lnames().empty())
-        given.push_back(option->get_lnames().front());
-    check_technique_options(find_technique(args->technique).info, given);
+    check_technique_options(find_technique(args->technique).info, given_options(sub));
+    check_cache_input(args->cache);
     const auto [width, height] = parse_size(args->size);
+    if (args->frames.empty() && args->frame >= args->frame_count)
+      throw UsageError("--frame " + std::to_string(args->frame) + ": the flight has " +
+                       std::to_string(args->frame_count) + " frames, 0 to " +
+                       std::to_string(args->frame_count - 1) + " (--frame-count)");
     // Every output before any work: an image format, directories that exist and take files.
     check_image_output(args->output);
     check_output_location(args->stats);

@@ -14,6 +14,7 @@
 #include <iostream>
 #include <thread>
 
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -136,11 +137,13 @@ void validate_pipeline(const Pipeline& p) {
   for (size_t i = 0; i < p.techniques.size(); ++i) {
     const PipelineTechnique& t = p.techniques[i];
     const std::string where = "techniques[" + std::to_string(i) + "].options";
+    std::vector<std::string> options = t.options;
+    apply_deprecated_aliases("render", options);
     std::vector<std::string> args = {"render", p.file, "-o", "x.png", "--technique", t.technique};
-    args.insert(args.end(), t.options.begin(), t.options.end());
+    args.insert(args.end(), options.begin(), options.end());
     parse(add_render, args, where);
     std::vector<std::string> given;
-    for (const std::string& a : t.options)
+    for (const std::string& a : options)
       if (a.rfind("--", 0) == 0) given.push_back(a.substr(2));
     try {
       check_technique_options(find_technique(t.technique).info, given);

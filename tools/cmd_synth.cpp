@@ -3,6 +3,7 @@
 #include <chrono>
 #include <iostream>
 
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/interrupt.hpp"
@@ -58,8 +59,16 @@ Command add_synth(CLI::App& app) {
     writer->close();
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::cerr << "linebake: " << args->params.name << ": " << generator->lines_read() << " lines, "
-              << segments << " segments in " << seconds << " s\n";
+    // What the format cannot hold is named (the generator's parameters are metadata).
+    std::string lost;
+    for (const std::string& l :
+         lost_in_format(generator->header(), resolve_output_format(args->output, write.format)))
+      lost += (lost.empty() ? "" : ", ") + l;
+    progress.finish();
+    say(args->params.name + ": " + std::to_string(generator->lines_read()) + " lines, " +
+        std::to_string(segments) + " segments");
+    say_wrote(args->output, seconds);
+    if (!lost.empty()) say(args->output + ": not kept by this format: " + lost + " (.h5 keeps it)");
   };
 }
 

@@ -14,8 +14,10 @@
 #include <thread>
 
 #include "cache/cache.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "pipeline/report.hpp"
@@ -379,13 +381,14 @@ Command add_view(CLI::App& app) {
   auto* sub = app.add_subcommand("view", "Show a cache in a window, one technique at a time");
   auto options = std::make_shared<Viewer::Options>();
   auto size_text = std::make_shared<std::string>("1280x720");
-  sub->add_option("cache", options->cache, "Asset cache (.lbc.h5)")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub->add_option("cache", options->cache, "Asset cache (.lbc.h5)")->required();
   sub->add_option("--technique", options->technique,
                   "First technique (default ll); T cycles: reference embree opaque dp ll mlab "
                   "mlabdb mboit wboit vrc vrc-gpu rtx (rtx where the device ray traces; "
-                  "elsewhere the status line says why not)");
+                  "elsewhere the status line says why not); vrc-gpu is vrc --on gpu");
+  auto on = std::make_shared<std::string>();
+  sub->add_option("--on", *on, "vrc: cpu (default) | gpu (Vulkan compute), as for render")
+      ->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_option("--tf", options->tf, "First transfer function (default semi); F cycles presets");
   sub->add_option("--size", *size_text, "Window size WxH (default 1280x720)");
   sub->add_option("--flight", options->flight,
@@ -397,9 +400,22 @@ Command add_view(CLI::App& app) {
                 "Vulkan: enable the Khronos validation layer; validation errors end the session");
   sub->add_option("--script", options->script,
                   "Commands to run, one per frame (docs/viewer.md); the session ends after the "
-                  "last")
-      ->check(CLI::ExistingFile);
+                  "last");
+  sub->get_option("--size")->check(image_size_check());
+  check_when_parsed(sub, [sub, options, on] {
+    const auto& names = view_techniques();
+    if (std::find(names.begin(), names.end(), options->technique) == names.end()) {
+      std::string list;
+      for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+      throw UsageError("--technique: unknown technique '" + options->technique + "' (" + list +
+                       ")" + did_you_mean(options->technique, names));
+    }
+    refuse_unless(sub, {"on"}, options->technique == "vrc", "with --technique vrc");
+    if (*on == "gpu") options->technique = "vrc-gpu";
+  });
   return [options, size_text] {
+    check_cache_input(options->cache);
+    if (!options->script.empty()) check_input_file(options->script);
     const auto [w, h] = parse_size(*size_text);
     options->width = w, options->height = h;
     Viewer viewer(*options);

@@ -11,7 +11,7 @@ struct BakeResult;
 
 namespace linebake::cli {
 
-// Exit codes (documented in the README).
+// Exit codes (docs/cli.md, "Exit codes").
 enum ExitCode : int {
   kOk = 0,
   kUsage = 1,   // bad command line
@@ -35,5 +35,9 @@ Command add_compare(CLI::App& app);
 Command add_depth_complexity(CLI::App& app);
 Command add_run(CLI::App& app);
 Command add_view(CLI::App& app);
+Command add_techniques(CLI::App& app);
+Command add_formats(CLI::App& app);
+Command add_version(CLI::App& app);
+Command add_help(CLI::App& app);
 
 }  // namespace linebake::cli

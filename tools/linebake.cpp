@@ -1,12 +1,15 @@
 // linebake: converters, exports and renders for large 3D line sets.
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
 #include "core/interrupt.hpp"
+#include "core/nearest.hpp"
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
@@ -15,15 +18,46 @@ int main(int argc, char** argv) {
                "linebake"};
   app.set_version_flag("--version", LINEBAKE_VERSION);
   app.require_subcommand(1);
+  // One voice: CLI11's parse errors get the prefix every other error has.
+  app.failure_message([](const CLI::App* failed, const CLI::Error& e) {
+    std::string command = failed->get_name();
+    for (const CLI::App* sub = failed; sub;) {
+      const CLI::App* next = nullptr;
+      for (const CLI::App* s : sub->get_subcommands())
+        if (s->parsed()) next = s;
+      if (next) command += " " + next->get_name();
+      sub = next;
+    }
+    return "linebake: error: " + std::string(e.what()) + "\n" + "(" + command +
+           " --help lists the options)\n";
+  });
   std::vector<std::pair<CLI::App*, Command>> commands;
   for (auto add : {add_info, add_convert, add_synth, add_bake, add_report, add_export, add_render,
-                   add_depth_complexity, add_compare, add_bench, add_run, add_view}) {
+                   add_depth_complexity, add_compare, add_bench, add_run, add_view, add_techniques,
+                   add_formats, add_version, add_help}) {
     const size_t before = app.get_subcommands({}).size();
     Command run = add(app);
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   }
+  std::vector<std::string> args(argv + 1, argv + argc);
+  const auto command = std::find_if(args.begin(), args.end(),
+                                    [](const std::string& a) { return a.empty() || a[0] != '-'; });
+  if (command != args.end()) {
+    std::vector<std::string> names;
+    for (const auto& [sub, run] : commands) names.push_back(sub->get_name());
+    if (std::find(names.begin(), names.end(), *command) == names.end()) {
+      std::cerr << "linebake: error: unknown command '" << *command << "'"
+                << linebake::did_you_mean(*command, names) << " (linebake --help lists them)\n";
+      return kUsage;
+    }
+    std::vector<std::string> rest(command + 1, args.end());
+    apply_deprecated_aliases(*command, rest);
+    args.erase(command + 1, args.end());
+    args.insert(args.end(), rest.begin(), rest.end());
+  }
+  std::reverse(args.begin(), args.end());  // CLI11 takes a vector last argument first
   try {
-    app.parse(argc, argv);
+    app.parse(args);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? kOk : kUsage;

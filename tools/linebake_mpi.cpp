@@ -56,8 +56,8 @@ int main(int argc, char** argv) {
       std::cerr << "linebake-mpi: " << e.what() << "; its temporary files are removed\n";
     code = 128 + e.signal();
   } catch (const linebake::UsageError& e) {
-    std::cerr << "linebake: error: " << e.what() << "\n";
-    return kUsage;
+    say(e.what());
+    code = kUsage;
   } catch (const linebake::InputError& e) {
     say(e.what());
     code = kInput;

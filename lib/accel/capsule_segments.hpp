@@ -1,5 +1,5 @@
 #pragma once
-// The analytic tube primitive for hardware ray tracing (`rtx --rt-geometry capsules`): the same
+// The analytic tube primitive for hardware ray tracing (`rtx --rtx-geometry capsules`): the same
 // capsule chains as Embree's `capsules` geometry (accel/capsule_chain.hpp), laid out for a
 // Vulkan AABB BLAS and its intersection shader (shaders/capsule.glsl). Lines are split at line
 // boundaries into chunks, one BLAS each.

@@ -143,7 +143,9 @@ StoredCurves load_embree(const CacheReader& cache) {
   const std::string where = std::string("group ") + kEmbreeGroup;
   const auto text = cache.attribute(kEmbreeGroup, "curves");
   if (!text)
-    throw InputError(cache.path(), where, "no Embree buffers in this cache (bake --assets embree)");
+    throw InputError(cache.path(), where,
+                     "missing: no Embree buffers in this cache; add them with: linebake bake " +
+                         cache.path() + " --assets embree");
   StoredCurves c;
   size_t parts = 0;
   try {

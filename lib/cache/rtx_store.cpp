@@ -32,7 +32,9 @@ StoredRtx load_rtx(const CacheReader& cache) {
   const auto text = cache.attribute(kRtxGroup, "acceleration_structures");
   if (!text)
     throw InputError(cache.path(), where,
-                     "no serialised acceleration structures in this cache (bake --assets rtx)");
+                     "missing: no serialised acceleration structures in this cache; add them with: "
+                     "linebake bake " +
+                         cache.path() + " --assets rtx");
   StoredRtx r;
   size_t count = 0;
   try {

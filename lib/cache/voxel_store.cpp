@@ -126,7 +126,9 @@ VoxelGrid load_voxels(const CacheReader& cache) {
   const std::string where = std::string("group ") + kVoxelsGroup;
   const auto text = cache.attribute(kVoxelsGroup, "grid");
   if (!text)
-    throw InputError(cache.path(), where, "no voxel grid in this cache (bake --assets voxels)");
+    throw InputError(cache.path(), where,
+                     "missing: no voxel grid in this cache; add it with: linebake bake " +
+                         cache.path() + " --assets voxels");
   VoxelGrid g;
   size_t levels = 0;
   try {

@@ -28,6 +28,11 @@ void init() {
   });
 }
 
+bool is_hdf5_file(const std::string& path) {
+  init();
+  return H5Fis_hdf5(path.c_str()) > 0;
+}
+
 std::string last_error() {
   // Upward starts at the innermost (most specific) entry: keep the first description.
   std::string message;

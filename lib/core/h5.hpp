@@ -52,6 +52,8 @@ void init();
 
 // The innermost message of the current HDF5 error stack ("" if none).
 std::string last_error();
+// The file starts with an HDF5 superblock (H5Fis_hdf5); false for a missing file.
+bool is_hdf5_file(const std::string& path);
 
 std::vector<hsize_t> shape_of(hid_t dataset);
 

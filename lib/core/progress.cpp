@@ -10,7 +10,13 @@ TerminalProgress::TerminalProgress(std::string label)
     : label_(std::move(label)), active_(enabled()) {}
 
 TerminalProgress::~TerminalProgress() {
+  finish();
+}
+
+void TerminalProgress::finish() {
   if (drawn_) std::fprintf(stderr, "\r\033[K");
+  drawn_ = false;
+  active_ = false;
 }
 
 bool TerminalProgress::enabled() {

@@ -17,6 +17,8 @@ class TerminalProgress {
   explicit TerminalProgress(std::string label);
   ~TerminalProgress();
   void update(uint64_t done, uint64_t total);
+  // Erases the bar now (the destructor does otherwise), so a result line can follow it.
+  void finish();
   ProgressFn callback();
   static bool enabled();  // stderr is a TTY
 

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 
 namespace linebake {
 
@@ -93,9 +94,10 @@ Attribute derive_attribute(const LineSet& lines, const std::string& name) {
       a.values[line] = static_cast<float>(s);
     }
   } else {
-    throw Error("unknown derived attribute '" + name +
-                "' (expected segment_length, arc_length, curvature, index_along_line or "
-                "line_length)");
+    throw UsageError("unknown derived attribute '" + name +
+                     "' (expected segment_length, arc_length, curvature, index_along_line or "
+                     "line_length)" +
+                     did_you_mean(name, derived_attribute_names()));
   }
   return a;
 }

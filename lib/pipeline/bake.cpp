@@ -424,7 +424,7 @@ BakeResult bake(const BakeOptions& options_in) {
   BakeOptions options = options_in;
   for (const std::string& asset : options.assets)
     if (!contains(bakeable_assets(), asset))
-      throw Error("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree, rtx)");
+      throw UsageError("unknown asset '" + asset + "' (bake builds: tubes, voxels, embree, rtx)");
   // Build order: rtx needs the tubes of this run.
   std::stable_sort(
       options.assets.begin(), options.assets.end(), [](const std::string& a, const std::string& b) {
@@ -458,7 +458,14 @@ BakeResult bake(const BakeOptions& options_in) {
       throw Error("several inputs make one line set: name its cache with -o");
   }
   BakeResult result;
+  // A cache is a line source too: baking it without -o (or into itself) adds assets to it.
+  const bool input_is_cache = inputs.size() == 1 && !synth::is_synth_source(options.input) &&
+                              is_linebake_cache(options.input);
+  if (input_is_cache && options.cache.empty()) options.cache = options.input;
   result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
+  std::error_code same_error;
+  const bool in_place =
+      input_is_cache && std::filesystem::equivalent(options.input, result.cache, same_error);
   const uint64_t budget_bytes =
       options.memory_budget == BakeOptions::kDefaultBudget ? default_memory_budget()
       : options.memory_budget == BakeOptions::kUnlimited   ? 0
@@ -474,7 +481,8 @@ BakeResult bake(const BakeOptions& options_in) {
 
   // The output never replaces the input, and replaces a file that is not a linebake cache only
   // under --force; a damaged cache is rebuilt.
-  if (!synth::is_synth_source(options.input)) refuse_input_as_output(result.cache, inputs);
+  if (!synth::is_synth_source(options.input) && !in_place)
+    refuse_input_as_output(result.cache, inputs);
   std::unique_ptr<CacheReader> old;
   if (std::filesystem::exists(result.cache)) {
     if (!options.force && !is_linebake_cache(result.cache))
@@ -493,7 +501,10 @@ BakeResult bake(const BakeOptions& options_in) {
   // Which steps run: the lines when their key changed, an asset when its key did.
   BakeStep lines_step{"lines", false, {}};
   const auto old_lines = old_provenance("/lines");
-  const bool reuse_lines = !options.force && old_lines && old_lines->key == lines_key &&
+  // In place, the cache's /lines are the input; --compression applies to /lines as well.
+  const bool reuse_lines = !options.force && old_lines &&
+                           (old_lines->key == lines_key || in_place) &&
+                           old_lines->compression == to_string(options.compression) &&
                            old_lines->stats.contains("bounds");
   lines_step.built = !reuse_lines;
   if (reuse_lines) lines_step.provenance = *old_lines;
@@ -669,7 +680,12 @@ BakeResult bake(const BakeOptions& options_in) {
     for (const std::string& name : old->assets()) {
       if (contains(options.assets, name)) continue;
       const auto p = old->provenance("/assets/" + name);
-      if (p && p->input_hash == lines_hash) kept.push_back(name);
+      if (p && p->input_hash == lines_hash)
+        kept.push_back(name);
+      else
+        result.notes.push_back("dropped the cache's " + name +
+                               ": it was built from other lines (--assets " + name +
+                               " rebuilds it)");
     }
   }
   if (!anything_built) {

@@ -258,6 +258,8 @@ std::string find_pipeline(const std::string& path) {
 
 Pipeline load_pipeline(const std::string& given) {
   const std::string path = find_pipeline(given);
+  if (std::filesystem::is_directory(path))
+    throw InputError(path, "", "is a directory; give a pipeline file (.json, .yaml)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", "cannot open the pipeline file");
   nlohmann::json j;

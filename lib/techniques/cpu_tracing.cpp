@@ -34,8 +34,7 @@ class CpuTracing : public PreparedTechnique {
     options.quality = parse_build_quality(o.quality);
     if (info.name == "reference") {
       if (!has_tubes)
-        throw Error(cache_name +
-                    ": the reference renders the tube mesh; bake --assets tubes first");
+        throw_missing_asset(cache_name, "tubes", "the reference renders the tube mesh");
       tubes_ = load_tubes(cache);
       scene_.emplace(EmbreeScene::from_tubes(tubes_, options));
     } else {

@@ -34,6 +34,11 @@ uint64_t raster_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& o
 TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexity, double seconds,
                                uint64_t frame_bytes);
 
+// The cache lacks an asset the technique reads: an InputError (exit 2) naming the cache, the
+// group and the command that adds the asset to that cache (a cache is its own line source).
+[[noreturn]] void throw_missing_asset(const std::string& cache_name, const std::string& asset,
+                                      const std::string& why);
+
 // A Vulkan context for a technique: the shared one when given, else one of its own.
 class ContextHolder {
  public:

@@ -15,8 +15,7 @@ class Raster : public PreparedTechnique {
          const TechniqueOptions& o)
       : context_(o, false) {
     if (!cache.exists("/assets/tubes"))
-      throw Error(cache_name +
-                  ": the Vulkan techniques draw the tube mesh; bake --assets tubes first");
+      throw_missing_asset(cache_name, "tubes", "the Vulkan techniques draw the tube mesh");
     tubes_ = load_tubes(cache);
     renderer_ = std::make_unique<vk::RasterRenderer>(*context_, tubes_);
     options_.technique = vk::parse_raster_technique(info.name);

@@ -28,8 +28,8 @@ double TechniqueFrame::total_gpu_ms() const {
 }
 
 const std::vector<std::string> kCommonRenderOptions = {
-    "technique", "tf",     "flight",   "frame-count", "frame",         "frames",
-    "size",      "output", "png-bits", "stats",       "memory-budget", "depth-complexity"};
+    "technique", "tf",    "flight",        "frame-count",      "frame", "frames", "size", "output",
+    "png-bits",  "stats", "memory-budget", "depth-complexity", "json"};
 
 void check_technique_options(const TechniqueInfo& info, const std::vector<std::string>& given) {
   const auto reads = [&](const std::string& name) {
@@ -51,12 +51,13 @@ const std::vector<Technique>& techniques() {
   using A = std::vector<std::string>;
   static const std::vector<Technique> table = {
       {{"reference", "exact: CPU ray tracing (Embree) of the cached tube mesh, every hit in order",
-        A{"tubes"}, false, false, true, A{"quality", "hits", "packets"}},
+        A{"tubes"}, false, false, true, A{"embree-quality", "hits", "packets"}},
        prepare_cpu_tracing,
        cpu_tracing_frame_bytes},
       {{"embree", "CPU ray tracing (Embree) of curves over the lines, every hit in order (OSP)",
         A{"lines"}, false, false, true,
-        A{"geometry", "quality", "hits", "packets", "radius", "attribute", "early-termination"}},
+        A{"embree-geometry", "embree-quality", "hits", "packets", "radius", "attribute",
+          "early-termination", "no-early-termination"}},
        prepare_cpu_tracing,
        cpu_tracing_frame_bytes},
       {{"opaque", "Vulkan: the tube mesh depth-tested, opacity ignored", A{"tubes"}, true, false,
@@ -68,7 +69,9 @@ const std::vector<Technique>& techniques() {
        prepare_raster,
        raster_frame_bytes},
       {{"ll", "Vulkan: per-pixel linked lists, sorted and blended (exact)", A{"tubes"}, true, false,
-        true, A{"device", "validation", "sort", "capacity", "node-bytes", "early-termination"}},
+        true,
+        A{"device", "validation", "sort", "capacity", "node-bytes", "early-termination",
+          "no-early-termination"}},
        prepare_raster,
        raster_frame_bytes},
       {{"mlab", "Vulkan: multi-layer alpha blending, k nodes per pixel", A{"tubes"}, true, false,
@@ -89,13 +92,14 @@ const std::vector<Technique>& techniques() {
        raster_frame_bytes},
       {{"vrc", "voxel ray casting of the voxel line grid, CPU or Vulkan compute (--on gpu)",
         A{"voxels"}, false, false, false,
-        A{"on", "no-early-termination", "no-skip", "radius", "device", "validation"}},
+        A{"on", "early-termination", "no-early-termination", "no-skip", "radius", "device",
+          "validation"}},
        prepare_vrc,
        cpu_tracing_frame_bytes},
       {{"rtx", "Vulkan ray tracing of the tube mesh (or capsules), every hit in order", A{"tubes"},
         true, true, true,
-        A{"device", "validation", "rt-geometry", "rebuild", "no-compaction", "max-iterations",
-          "hits", "early-termination", "radius", "attribute"}},
+        A{"device", "validation", "rtx-geometry", "rebuild", "rtx-no-compaction", "max-iterations",
+          "hits", "early-termination", "no-early-termination", "radius", "attribute"}},
        prepare_rtx,
        cpu_tracing_frame_bytes},
   };
@@ -115,6 +119,13 @@ TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexi
   out.seconds = seconds;
   out.frame_bytes = frame_bytes;
   return out;
+}
+
+void throw_missing_asset(const std::string& cache_name, const std::string& asset,
+                         const std::string& why) {
+  throw InputError(
+      cache_name, "group /assets/" + asset,
+      "missing: " + why + "; add it with: linebake bake " + cache_name + " --assets " + asset);
 }
 
 std::vector<std::string> technique_names() {
@@ -139,7 +150,7 @@ std::optional<std::string> technique_unavailable(const Technique& technique,
     for (const std::string& asset : info.assets) {
       const std::string group = asset == "lines" ? "/lines" : "/assets/" + asset;
       if (!cache->exists(group))
-        return "the cache has no " + asset + " (bake --assets " + asset + ")";
+        return "the cache has no " + asset + " (linebake bake CACHE --assets " + asset + ")";
     }
   const bool vulkan = info.vulkan || (info.name == "vrc" && options.on == "gpu");
   if (!vulkan) return std::nullopt;

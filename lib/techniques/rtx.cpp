@@ -30,9 +30,8 @@ class Rtx : public PreparedTechnique {
     std::string source;
     if (geometry == "triangles") {
       if (!has_tubes)
-        throw Error(cache_name +
-                    ": rtx traces the tube mesh's triangles; bake --assets tubes first "
-                    "(or --rt-geometry capsules)");
+        throw_missing_asset(cache_name, "tubes",
+                            "rtx traces the tube mesh's triangles (or --rtx-geometry capsules)");
       tubes_ = load_tubes(cache);
       bounds_ = compute_bounds(tubes_);
       scene_.emplace(*context_, tubes_);
@@ -50,13 +49,13 @@ class Rtx : public PreparedTechnique {
           lines_provenance ? lines_provenance->stats.value("content_hash", "") : "", radius,
           attribute);
     } else {
-      throw Error("rtx: --rt-geometry triangles or capsules, not '" + geometry + "'");
+      throw Error("rtx: --rtx-geometry triangles or capsules, not '" + geometry + "'");
     }
     // Cached BLAS, else a build.
     if (o.rebuild)
       rebuild_reason_ = "--rebuild";
     else if (!stored)
-      rebuild_reason_ = "the cache has no serialised BLAS (bake --assets rtx)";
+      rebuild_reason_ = "the cache has no serialised BLAS (linebake bake CACHE --assets rtx)";
     else if (stored->geometry != geometry)
       rebuild_reason_ = "the cached BLAS are over " + stored->geometry + ", not " + geometry;
     else if (stored->source != source)

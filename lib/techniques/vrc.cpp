@@ -18,7 +18,7 @@ class Vrc : public PreparedTechnique {
  public:
   Vrc(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o) {
     if (!cache.exists(kVoxelsGroup))
-      throw Error(cache_name + ": vrc ray casts the voxel line grid; bake --assets voxels first");
+      throw_missing_asset(cache_name, "voxels", "vrc ray casts the voxel line grid");
     grid_ = load_voxels(cache);
     options_.width = o.width, options_.height = o.height;
     options_.early_termination = o.vrc_early_termination;

@@ -1,0 +1,206 @@
+#include "cli_contract.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <set>
+
+#include "cache/cache.hpp"
+#include "core/error.hpp"
+#include "core/h5.hpp"
+#include "core/memory_budget.hpp"
+#include "formats/registry.hpp"
+#include "synth/synth.hpp"
+
+namespace linebake::cli {
+
+namespace {
+
+std::string plain(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.10g", value);
+  return text;
+}
+
+// A number CLI11 will convert; "" when it is one and passes `ok`, else the message.
+CLI::Validator number_check(const std::string& description, const std::function<bool(double)>& ok) {
+  return CLI::Validator(
+      [description, ok](std::string& text) -> std::string {
+        double value = 0;
+        size_t used = 0;
+        try {
+          value = std::stod(text, &used);
+        } catch (const std::out_of_range&) {
+          return text + " is out of range: expected " + description;
+        } catch (const std::exception&) {
+          return "'" + text + "' is not a number";
+        }
+        if (used != text.size()) return "'" + text + "' is not a number";
+        if (!std::isfinite(value) || !ok(value))
+          return text + " is out of range: expected " + description;
+        return {};
+      },
+      description);
+}
+
+}  // namespace
+
+CLI::Validator positive() {
+  return number_check("a number > 0", [](double v) { return v > 0; });
+}
+
+CLI::Validator non_negative() {
+  return number_check("a number >= 0", [](double v) { return v >= 0; });
+}
+
+CLI::Validator within(double lo, double hi) {
+  return number_check(plain(lo) + " to " + plain(hi),
+                      [lo, hi](double v) { return v >= lo && v <= hi; });
+}
+
+CLI::Validator byte_size() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text == "unlimited") return {};
+        try {
+          parse_size(text);
+        } catch (const std::exception& e) {
+          return e.what();
+        }
+        return {};
+      },
+      "SIZE");
+}
+
+const std::vector<DeprecatedAlias>& deprecated_aliases() {
+  // The spelling each concept has in every command: an asset's or technique's options carry its
+  // name (bake's spelling), inputs are positional, outputs are -o.
+  static const std::vector<DeprecatedAlias> table = {
+      {"render", "--geometry", "--embree-geometry"},
+      {"render", "--quality", "--embree-quality"},
+      {"render", "--rt-geometry", "--rtx-geometry"},
+      {"render", "--no-compaction", "--rtx-no-compaction"},
+      {"bench", "--geometry", "--embree-geometry"},
+      {"bench", "--quality", "--embree-quality"},
+      {"bench", "--input", ""},
+  };
+  return table;
+}
+
+void apply_deprecated_aliases(const std::string& command, std::vector<std::string>& args) {
+  std::set<std::string> warned;
+  std::vector<std::string> out;
+  for (const std::string& arg : args) {
+    const size_t eq = arg.find('=');
+    const std::string name = arg.rfind("--", 0) == 0 ? arg.substr(0, eq) : "";
+    const DeprecatedAlias* alias = nullptr;
+    for (const DeprecatedAlias& a : deprecated_aliases())
+      if (!name.empty() && command == a.command && name == a.old_spelling) alias = &a;
+    if (!alias) {
+      out.push_back(arg);
+      continue;
+    }
+    const std::string replacement = alias->replacement;
+    if (warned.insert(name).second)
+      std::cerr << "linebake: warning: " << command << " " << name << " is deprecated; "
+                << (replacement.empty() ? std::string("give the value as a positional argument")
+                                        : "use " + replacement)
+                << " (docs/cli.md, deprecated spellings)\n";
+    if (replacement.empty()) {
+      if (eq != std::string::npos) out.push_back(arg.substr(eq + 1));
+    } else {
+      out.push_back(replacement + (eq == std::string::npos ? "" : arg.substr(eq)));
+    }
+  }
+  args = std::move(out);
+}
+
+std::vector<std::string> given_options(const CLI::App* sub) {
+  std::vector<std::string> names;
+  for (const CLI::Option* option : sub->get_options())
+    if (option->count() > 0 && !option->get_lnames().empty())
+      names.push_back(option->get_lnames().front());
+  return names;
+}
+
+bool given(const CLI::App* sub, const std::string& name) {
+  for (const std::string& n : given_options(sub))
+    if (n == name) return true;
+  return false;
+}
+
+void refuse_unless(const CLI::App* sub, const std::vector<std::string>& names, bool applies,
+                   const std::string& when) {
+  if (applies) return;
+  std::string list;
+  for (const std::string& name : names)
+    if (given(sub, name)) list += (list.empty() ? "--" : ", --") + name;
+  if (!list.empty()) throw UsageError(list + ": read only " + when);
+}
+
+void check_when_parsed(CLI::App* sub, std::function<void()> check) {
+  sub->parse_complete_callback([check = std::move(check)] {
+    try {
+      check();
+    } catch (const UsageError& e) {
+      throw CLI::ValidationError(e.what());
+    }
+  });
+}
+
+void check_input_file(const std::string& path) {
+  if (synth::is_synth_source(path)) return;
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw InputError(path, "", "no such file");
+  if (std::filesystem::is_directory(status))
+    throw InputError(path, "", "is a directory, not a file");
+}
+
+void check_cache_input(const std::string& path) {
+  if (synth::is_synth_source(path))
+    throw InputError(path, "",
+                     "a synthetic line source, not a linebake cache; bake it first: linebake "
+                     "bake '" +
+                         path + "' -o NAME.lbc.h5");
+  check_input_file(path);
+  // A damaged cache is left to the cache reader, which names the dataset.
+  if (is_linebake_cache(path)) return;
+  if (h5::is_hdf5_file(path))
+    throw InputError(path, "",
+                     "an HDF5 file without the linebake_cache_format attribute, not a linebake "
+                     "cache; bake it first: linebake bake " +
+                         path);
+  const auto format = format_from_extension(path);
+  if (format && *format != Format::hdf5)
+    throw InputError(path, "",
+                     std::string("a line file (") + format_info(*format).name +
+                         "), not a linebake cache; bake it first: linebake bake " + path);
+}
+
+void say(const std::string& message) {
+  std::cerr << "linebake: " << message << "\n";
+}
+
+void warn(const std::string& message) {
+  std::cerr << "linebake: warning: " << message << "\n";
+}
+
+std::string format_seconds(double seconds) {
+  char text[32];
+  if (seconds >= 100)
+    std::snprintf(text, sizeof text, "%.0f s", seconds);
+  else
+    std::snprintf(text, sizeof text, "%.3g s", seconds);
+  return text;
+}
+
+void say_wrote(const std::string& path, double seconds) {
+  std::error_code ec;
+  const uint64_t bytes = std::filesystem::file_size(path, ec);
+  say("wrote " + path + (ec ? std::string() : " (" + format_bytes(bytes) + ")") + " in " +
+      format_seconds(seconds));
+}
+
+}  // namespace linebake::cli

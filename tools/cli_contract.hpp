@@ -1,0 +1,58 @@
+#pragma once
+// What every linebake command shares on the command line (docs/cli.md, "One contract"): checks
+// that state ranges in plain numbers, the deprecated spellings and what replaced them, options
+// that belong to something the user did not ask for, inputs that must exist (exit 2 in every
+// command), and one voice on stderr ("linebake: error:", "linebake: warning:").
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+namespace linebake::cli {
+
+// Finite numbers only (CLI11's own checks take inf and nan, and print DBL_MAX in full).
+CLI::Validator positive();                    // > 0
+CLI::Validator non_negative();                // >= 0
+CLI::Validator within(double lo, double hi);  // lo..hi, both included
+CLI::Validator byte_size();                   // 2G, 1.5GiB, 512M, 4096, unlimited
+
+// An old spelling kept for one release: `command` ("render", "bench", ...; "" for any), the old
+// option (or technique value) and its replacement ("" when the value becomes a positional).
+struct DeprecatedAlias {
+  const char* command;
+  const char* old_spelling;
+  const char* replacement;
+};
+const std::vector<DeprecatedAlias>& deprecated_aliases();
+// Rewrites old spellings in the arguments of `command` (which follow it in `args`) to the new
+// ones, warning once for each on stderr. `--opt=value` forms are rewritten too.
+void apply_deprecated_aliases(const std::string& command, std::vector<std::string>& args);
+
+// Long names (without "--") of the options given on the command line.
+std::vector<std::string> given_options(const CLI::App* sub);
+bool given(const CLI::App* sub, const std::string& name);
+// UsageError naming those of `names` that were given, unless `applies`: "--draco-bits: read only
+// with --draco".
+void refuse_unless(const CLI::App* sub, const std::vector<std::string>& names, bool applies,
+                   const std::string& when);
+
+// Runs `check` as soon as the command line is parsed, before the command runs (and when `run`
+// validates a pipeline's steps with the command's parser): a UsageError it throws is a parse
+// error, exit 1.
+void check_when_parsed(CLI::App* sub, std::function<void()> check);
+
+// InputError (exit 2) when `path` does not exist or is a directory; synth: sources pass.
+void check_input_file(const std::string& path);
+// check_input_file, and an InputError saying what the file is when it is not a linebake cache
+// ("a line file (binlines): bake it first: linebake bake c.binlines").
+void check_cache_input(const std::string& path);
+
+// One voice on stderr.
+void say(const std::string& message);   // "linebake: MESSAGE"
+void warn(const std::string& message);  // "linebake: warning: MESSAGE"
+// "wrote c.glb (12.3 MiB) in 1.84 s": what a command that writes files leaves on the terminal.
+void say_wrote(const std::string& path, double seconds);
+// Seconds rounded to what they mean: 3 significant digits ("0.0949 s", "12.3 s", "184 s").
+std::string format_seconds(double seconds);
+
+}  // namespace linebake::cli
