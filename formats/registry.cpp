@@ -66,12 +66,24 @@ std::optional<Format> format_from_extension(const std::string& path) {
 Format resolve_format(const std::string& path, const std::optional<Format>& forced) {
   if (forced) return *forced;
   if (auto f = format_from_extension(path)) return *f;
-  throw Error(path + ": cannot tell the format from the extension; name it with --from/--to");
+  std::string known;
+  for (const FormatInfo& f : format_table())
+    if (f.writable)
+      for (const char* ext : f.extensions) known += (known.empty() ? "" : " ") + std::string(ext);
+  throw OutputError(path,
+                    "cannot tell the format from the extension (" + known + "); name it with --to");
 }
 
 Format resolve_input_format(const std::string& path, const std::optional<Format>& forced) {
-  if (!forced && !format_from_extension(path) && h5::is_hdf5_file(path)) return Format::hdf5;
-  return resolve_format(path, forced);
+  if (forced) return *forced;
+  if (auto f = format_from_extension(path)) return *f;
+  if (h5::is_hdf5_file(path)) return Format::hdf5;
+  std::string known;
+  for (const FormatInfo& f : format_table())
+    for (const char* ext : f.extensions) known += (known.empty() ? "" : " ") + std::string(ext);
+  throw InputError(path, "",
+                   "not a line file linebake knows by its extension (" + known +
+                       ") nor an HDF5 file; name the format with --from");
 }
 
 std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
@@ -97,8 +109,8 @@ Format resolve_output_format(const std::string& path, const std::optional<Format
     std::string writable;
     for (const FormatInfo& f : format_table())
       if (f.writable) writable += (writable.empty() ? "" : ", ") + std::string(f.name);
-    throw Error(path + ": writing " + format_info(format).name +
-                " is not supported (writable: " + writable + ")");
+    throw OutputError(path, std::string("writing ") + format_info(format).name +
+                                " is not supported (writable: " + writable + ")");
   }
   return format;
 }

@@ -26,33 +26,36 @@ check "info of a synth source" bash -c "'$bin' info 'synth:aneurysm?scale=0.002&
 
 # every writable format and back gives the same bytes
 for ext in obj vtk h5 csv vtp binlines; do
-  check "convert to $ext" "$bin" convert "$tmp/c.binlines" "$tmp/c2.$ext"
-  check "convert back from $ext" "$bin" convert "$tmp/c2.$ext" "$tmp/back-$ext.binlines"
+  check "convert to $ext" "$bin" convert "$tmp/c.binlines" -o "$tmp/c2.$ext"
+  check "convert back from $ext" "$bin" convert "$tmp/c2.$ext" -o "$tmp/back-$ext.binlines"
   check "$ext round trip is exact" cmp "$tmp/c.binlines" "$tmp/back-$ext.binlines"
 done
-check "convert X X is refused, X unchanged" bash -c "cp '$tmp/c.binlines' '$tmp/same.binlines'; '$bin' convert '$tmp/same.binlines' '$tmp/same.binlines' 2> '$tmp/same.err'; [ \$? -eq 3 ] && grep -q 'never replaces its input' '$tmp/same.err' && cmp '$tmp/c.binlines' '$tmp/same.binlines'"
-check "vtk ascii round trip" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/a.vtk' --ascii && '$bin' convert '$tmp/a.vtk' '$tmp/a.binlines' && cmp '$tmp/c.binlines' '$tmp/a.binlines'"
-check "format override" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/c.data' --to hdf5 && '$bin' info '$tmp/c.data' --from hdf5 | grep -q 495000"
-check "derive" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/d.h5' --derive segment_length,line_length && '$bin' info '$tmp/d.h5' | grep -q 'line attr.  line_length'"
+check "convert X X is refused, X unchanged" bash -c "cp '$tmp/c.binlines' '$tmp/same.binlines'; '$bin' convert '$tmp/same.binlines' -o '$tmp/same.binlines' 2> '$tmp/same.err'; [ \$? -eq 3 ] && grep -q 'never replaces its input' '$tmp/same.err' && cmp '$tmp/c.binlines' '$tmp/same.binlines'"
+check "vtk ascii round trip" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/a.vtk' --ascii && '$bin' convert '$tmp/a.vtk' -o '$tmp/a.binlines' && cmp '$tmp/c.binlines' '$tmp/a.binlines'"
+check "format override" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/c.data' --to hdf5 && '$bin' info '$tmp/c.data' --from hdf5 | grep -q 495000"
+check "derive" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/d.h5' --derive segment_length,line_length && '$bin' info '$tmp/d.h5' | grep -q 'line attr.  line_length'"
 
 # bad input: clear error, non-zero exit, no output left behind
 printf 'v 0 0 0\nv 1 1 1\nl 1 7\n' > "$tmp/bad.obj"
-check "bad input exits 2" exit_code 2 "$bin" convert "$tmp/bad.obj" "$tmp/out.vtk"
-check "error names file and line" bash -c "'$bin' convert '$tmp/bad.obj' '$tmp/out.vtk' 2>&1 | grep -q 'bad.obj: line 3'"
+check "bad input exits 2" exit_code 2 "$bin" convert "$tmp/bad.obj" -o "$tmp/out.vtk"
+check "error names file and line" bash -c "'$bin' convert '$tmp/bad.obj' -o '$tmp/out.vtk' 2>&1 | grep -q 'bad.obj: line 3'"
 check "no output after bad input" test ! -e "$tmp/out.vtk"
 check "no temporary files left" bash -c "! ls '$tmp' | grep -q tmp-"
 printf 'v 0 0 0\nv 0 0 0\nv 1 1 1\nl 1 2 3\n' > "$tmp/rep.obj"
-check "reject policy exits 2" exit_code 2 "$bin" convert "$tmp/rep.obj" "$tmp/rep.csv" --on-invalid reject
-check "repair policy reports" bash -c "'$bin' convert '$tmp/rep.obj' '$tmp/rep.csv' 2>&1 | grep -q '1 repeated consecutive points'"
+check "reject policy exits 2" exit_code 2 "$bin" convert "$tmp/rep.obj" -o "$tmp/rep.csv" --on-invalid reject
+check "repair policy reports" bash -c "'$bin' convert '$tmp/rep.obj' -o '$tmp/rep.csv' 2>&1 | grep -q '1 repeated consecutive points'"
 check "missing input exits 2" exit_code 2 "$bin" info "$tmp/none.obj"
-check "unwritable output exits 3" exit_code 3 "$bin" convert "$tmp/c.binlines" "$tmp/no/such/dir/x.vtk"
-check "unknown output format" exit_code 4 "$bin" convert "$tmp/c.binlines" "$tmp/x.unknown"
+check "unwritable output exits 3" exit_code 3 "$bin" convert "$tmp/c.binlines" -o "$tmp/no/such/dir/x.vtk"
+check "unknown output format (a bad output path): exit 3" exit_code 3 "$bin" convert "$tmp/c.binlines" -o "$tmp/x.unknown"
+check "convert IN OUT (deprecated): works, warns" bash -c "'$bin' convert '$tmp/c.binlines' '$tmp/dep.vtk' 2> '$tmp/dep.err' && grep -q 'linebake: warning: convert IN OUT is deprecated; use convert IN -o OUT' '$tmp/dep.err' && '$bin' convert '$tmp/dep.vtk' -o '$tmp/dep.binlines' 2>/dev/null && cmp '$tmp/c.binlines' '$tmp/dep.binlines'"
 check "unknown synth set is a usage error" exit_code 1 "$bin" synth galaxy -o "$tmp/g.obj"
 
 # bake / report / export / bench
 check "bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' > '$tmp/bake.txt'"
 check "bake prints the report" grep -q "LS (segments)   495,000" "$tmp/bake.txt"
 check "second bake reuses" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' 2>&1 >/dev/null | grep -q 'tubes: up to date, reused'"
+check "render --geometry (deprecated): rewritten to --embree-geometry, warns" bash -c "'$bin' render '$tmp/c.lbc.h5' --geometry bezier --size 24x16 -o '$tmp/dep.png' --stats '$tmp/dep.json' 2> '$tmp/dep.err' && grep -q 'render --geometry is deprecated; use --embree-geometry' '$tmp/dep.err' && grep -q '\"geometry\": \"bezier\"' '$tmp/dep.json'"
+check "a cache under any name is a line source" bash -c "cp '$tmp/c.lbc.h5' '$tmp/cache.data' && '$bin' info '$tmp/cache.data' --json | grep -q '\"segments\": 495000' && '$bin' convert '$tmp/cache.data' -o '$tmp/fromcache.binlines' 2>/dev/null && cmp '$tmp/c.binlines' '$tmp/fromcache.binlines'"
 check "--force rebuilds" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --force 2>&1 >/dev/null | grep -q 'tubes: built'"
 check "new sides rebuild tubes only" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: up to date, reused linebake: tubes: built'"
 check "--compression applies to /lines as well" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: built linebake: tubes: built' && h5dump -p -H -d /lines/points '$tmp/c.lbc.h5' | grep -q DEFLATE"
@@ -149,9 +152,9 @@ check "bake --assets rtx on lavapipe: one clear line, exit 4, the cache untouche
 # every output is checked before any work: nothing is rendered, generated or left behind
 check "render -o x.jpg: refused before rendering, exit 3, nothing left" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique reference --size 8000x8000 -o '$tmp/pre.jpg' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'pre.jpg: unknown image format (use .png or .pfm)' '$tmp/pre.err' && [ ! -e '$tmp/pre.jpg' ]"
 check "render --stats in a missing directory: exit 3 before the image is written" bash -c "'$bin' render '$tmp/t.lbc.h5' --size 32x24 -o '$tmp/pre.png' --stats '$tmp/nodir/pre.json' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'the directory .*nodir does not exist' '$tmp/pre.err' && [ ! -e '$tmp/pre.png' ]"
-check "synth to a format linebake cannot write: exit 4 before generating, the writable ones listed" bash -c "'$bin' synth clouds --scale 2 -o '$tmp/pre.nc' 2> '$tmp/pre.err'; [ \$? -eq 4 ] && grep -q 'pre.nc: writing netcdf is not supported (writable: ' '$tmp/pre.err' && [ ! -e '$tmp/pre.nc' ]"
+check "synth to a format linebake cannot write: exit 3 before generating, the writable ones listed" bash -c "'$bin' synth clouds --scale 2 -o '$tmp/pre.nc' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'pre.nc: writing netcdf is not supported (writable: ' '$tmp/pre.err' && [ ! -e '$tmp/pre.nc' ]"
 check "depth-complexity -o x.txt and bake -o nodir/: exit 3" bash -c "'$bin' depth-complexity '$tmp/t.lbc.h5' -o '$tmp/pre.txt' 2> /dev/null; [ \$? -eq 3 ] && '$bin' bake '$tmp/c.binlines' -o '$tmp/nodir/pre.lbc.h5' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'nodir does not exist' '$tmp/pre.err' && [ ! -e '$tmp/nodir' ]"
-check "render --tf semii: the presets and the nearest named, exit 2, before any work" bash -c "'$bin' render '$tmp/t.lbc.h5' --tf semii -o '$tmp/pre.png' 2> '$tmp/pre.err'; [ \$? -eq 2 ] && grep -q \"semii: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?\" '$tmp/pre.err' && [ ! -e '$tmp/pre.png' ]"
+check "render --tf semii: the presets and the nearest named, exit 1, before any work" bash -c "'$bin' render '$tmp/t.lbc.h5' --tf semii -o '$tmp/pre.png' 2> '$tmp/pre.err'; [ \$? -eq 1 ] && grep -q \"semii: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?\" '$tmp/pre.err' && [ ! -e '$tmp/pre.png' ]"
 check "bench render --json: per technique GPU passes, wall, memory, PSNR against the reference" python3 -c "
 import json, subprocess
 j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'reference,ll,vrc,rtx', '--frames', '2', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
@@ -233,6 +236,34 @@ check "Ctrl-C during a bake: exit 130, no cache, no spill or temporary file" bas
 for i in \$(seq 200); do ls '$tmp' | grep -q 'k.lbc.h5.*tmp-' && break; sleep 0.02; done
 sleep 0.3; kill -INT \$pid; wait \$pid; rc=\$?
 [ \$rc -eq 130 ] && grep -q 'interrupted by SIGINT' '$tmp/int.err' && [ ! -e '$tmp/k.lbc.h5' ] && ! ls '$tmp' | grep -q tmp-"
+
+# One contract (docs/cli.md): catalogues, help, in-place bakes, what is dropped, what stays on a terminal
+check "techniques --json lists every technique render accepts" python3 -c "
+import json, re, subprocess
+rows = json.loads(subprocess.run(['$bin', 'techniques', '--json'], capture_output=True, text=True, check=True).stdout)
+names = [r['name'] for r in rows]
+help = subprocess.run(['$bin', 'render', '--help'], capture_output=True, text=True).stdout
+accepted = re.search(r'--technique TEXT:\{([^}]*)\}', help).group(1).split(',')
+assert names == accepted, (names, accepted)
+rtx = [r for r in rows if r['name'] == 'rtx'][0]
+assert not rtx['available'] and 'ray tracing' in rtx['unavailable_reason'], rtx
+assert all(r['available'] for r in rows if r['name'] != 'rtx'), rows
+"
+check "formats --json: every format convert can write is marked writable" python3 -c "
+import json, subprocess
+rows = {r['name']: r for r in json.loads(subprocess.run(['$bin', 'formats', '--json'], capture_output=True, text=True, check=True).stdout)}
+for name in ('obj', 'vtk', 'vtp', 'hdf5', 'csv', 'binlines'):
+    assert rows[name]['write'], name
+for name in ('netcdf', 'trk', 'tck'):
+    assert not rows[name]['write'], name
+assert rows['hdf5']['metadata'] and rows['vtk']['line_attributes'] and not rows['csv']['line_attributes']
+"
+check "help CMD is CMD --help; version names the version" bash -c "[ \"\$('$bin' help render)\" = \"\$('$bin' render --help)\" ] && [ \"\$('$bin' help bench voxels)\" = \"\$('$bin' bench voxels --help)\" ] && '$bin' version | grep -q '^linebake [0-9]*\.[0-9]*\.[0-9]* (HDF5 '"
+check "bake CACHE adds assets in place, reusing its /lines" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/ip.lbc.h5' >/dev/null 2>&1 && '$bin' bake '$tmp/ip.lbc.h5' --assets tubes,voxels --grid 32 2> '$tmp/ip.err' >/dev/null && grep -q 'lines: up to date, reused' '$tmp/ip.err' && grep -q 'voxels: built' '$tmp/ip.err' && '$bin' report '$tmp/ip.lbc.h5' --json | grep -q '\"quantization\": 32' && ! ls '$tmp' | grep -q 'ip.lbc.lbc'"
+check "baking other lines into a cache names the assets it drops" bash -c "'$bin' synth aneurysm --scale 0.002 -o '$tmp/small.binlines' 2>/dev/null && '$bin' bake '$tmp/small.binlines' -o '$tmp/ip.lbc.h5' 2> '$tmp/drop.err' >/dev/null && grep -q \"dropped the cache's voxels: it was built from other lines\" '$tmp/drop.err'"
+check "convert names what the format cannot hold; --strict refuses it" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/ll.csv' --derive line_length 2> '$tmp/lost.err' && grep -q 'linebake: warning: .*ll.csv: csv cannot hold line attribute line_length' '$tmp/lost.err' && '$bin' convert '$tmp/c.binlines' -o '$tmp/ll2.csv' --derive line_length --strict 2>/dev/null; [ \$? -eq 4 ] && [ ! -e '$tmp/ll2.csv' ]"
+check "--derive of an existing attribute replaces it, once" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/cv.h5' --derive curvature 2> '$tmp/cv.err' && grep -q 'replaces the input' '$tmp/cv.err' && [ \$(h5ls '$tmp/cv.h5/attributes' | grep -c curvature) -eq 1 ] && '$bin' bake '$tmp/cv.h5' -o '$tmp/cv.lbc.h5' >/dev/null 2>&1"
+check "on a terminal the result stays after the progress bar" bash -c "script -qec \"'$bin' render '$tmp/t.lbc.h5' --size 24x16 -o '$tmp/tty.png'\" /dev/null | tr '\r' '\n' | grep -q 'linebake: embree: 1 frame in .* s, depth complexity max [0-9]*: .*tty.png' && script -qec \"'$bin' export '$tmp/t.lbc.h5' -o '$tmp/tty.glb'\" /dev/null | grep -q 'linebake: wrote .*tty.glb ([0-9.]* [KM]iB) in '"
 
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

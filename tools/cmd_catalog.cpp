@@ -161,7 +161,11 @@ Command add_help(CLI::App& app) {
         throw UsageError("help: unknown command '" + name + "'" + did_you_mean(name, names));
       target = found;
     }
-    std::cout << target->help();
+    // The usage line names the whole command, as `COMMAND --help` prints it.
+    std::string prefix;
+    for (const CLI::App* p = target->get_parent(); p; p = p->get_parent())
+      prefix = p->get_name() + (prefix.empty() ? "" : " " + prefix);
+    std::cout << target->help(prefix);
   };
 }
 

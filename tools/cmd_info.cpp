@@ -4,6 +4,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
@@ -28,6 +29,7 @@ Command add_info(CLI::App& app) {
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_flag("--json", args->json, "Machine-readable output (schema in docs/cli.md)");
   return [args] {
+    check_input_file(args->input);
     ReadOptions read;
     if (!args->from.empty()) read.format = parse_format(args->from);
     LineSet lines;

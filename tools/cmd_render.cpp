@@ -28,7 +28,7 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
   const Technique& technique = find_technique(args.technique);
   std::unique_ptr<PreparedTechnique> prepared =
       technique.prepare(technique.info, cache, args.cache, options);
-  for (const std::string& w : prepared->warnings) std::cerr << "linebake: " << w << "\n";
+  for (const std::string& w : prepared->warnings) warn(args.technique + ": " + w);
   const FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
                                       prepared->bounds(), options.width, options.height);
   const bool numbered = plan.frames.size() > 1;
@@ -58,7 +58,7 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
                        {"fov", c.fov_y_degrees}};
     stats["frames"].push_back(std::move(entry));
     for (const std::string& w : frame.warnings)
-      std::cerr << "linebake: " << args.technique << ": frame " << number << ": " << w << "\n";
+      warn(args.technique + ": frame " + std::to_string(number) + ": " + w);
     progress.update(i + 1, plan.frames.size());
     seconds.push_back(frame.seconds);
     last_note = frame.note;

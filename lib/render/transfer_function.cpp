@@ -131,11 +131,14 @@ void save_transfer_function(const TransferFunction& tf, const std::string& path)
 TransferFunction resolve_transfer_function(const std::string& name_or_path) {
   if (is_transfer_function_preset(name_or_path)) return transfer_function_preset(name_or_path);
   // Neither a preset nor a file: say which presets there are, and the nearest one.
+  // A bare name is a mistyped preset (a bad command line); a path is a missing file (bad input).
   if (!std::filesystem::exists(name_or_path)) {
-    throw InputError(name_or_path, "",
-                     "neither a transfer-function preset (opaque, semi, transparent) nor a "
-                     "file" +
-                         did_you_mean(name_or_path, {"opaque", "semi", "transparent"}));
+    const std::string message =
+        "neither a transfer-function preset (opaque, semi, transparent) nor a file" +
+        did_you_mean(name_or_path, {"opaque", "semi", "transparent"});
+    if (name_or_path.find_first_of("./") == std::string::npos)
+      throw UsageError(name_or_path + ": " + message);
+    throw InputError(name_or_path, "", message);
   }
   return load_transfer_function(name_or_path);
 }

@@ -65,7 +65,7 @@ class Rtx : public PreparedTechnique {
       rebuild_reason_ = *problem;
     if (!rebuild_reason_.empty()) {
       if (stored && !o.rebuild)
-        warnings.push_back("rtx: cached BLAS not used (" + rebuild_reason_ + "); rebuilding");
+        warnings.push_back("cached BLAS not used (" + rebuild_reason_ + "); rebuilding");
       scene_->build(o.compaction);
     }
     renderer_.emplace(*context_);

@@ -182,7 +182,7 @@ done
 
 echo "== convert"
 for ext in vtp vtk binlines h5 obj csv; do
-  writer "convert to .$ext" "out/x.$ext" "$bin" convert "$c" "out/x.$ext"
+  writer "convert to .$ext" "out/x.$ext" "$bin" convert "$c" -o "out/x.$ext"
 done
 
 echo "== export"
@@ -207,7 +207,7 @@ if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ fsync =~ $FAULT_MATRIX_FILTER ]]; the
     "$bin" bake "$c" -o out/x.lbc.h5 --assets tubes
   for ext in h5 binlines; do
     cell "convert to .$ext" "fsync EIO" "out/x.$ext" LINEBAKE_FAULT_FSYNC=1 -- \
-      "$bin" convert "$c" "out/x.$ext"
+      "$bin" convert "$c" -o "out/x.$ext"
   done
 fi
 if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ statvfs =~ $FAULT_MATRIX_FILTER ]]; then
