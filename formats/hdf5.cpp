@@ -71,6 +71,21 @@ class Hdf5Reader : public LineReader {
           throw InputError(path, "group /lines", std::string("bad metadata: ") + e.what());
         }
       }
+    } else {
+      // A line file: its root string attributes are the metadata (as write_hdf5 stores it).
+      std::vector<std::string> names;
+      H5Aiterate2(
+          file_, H5_INDEX_NAME, H5_ITER_INC, nullptr,
+          [](hid_t, const char* name, const H5A_info_t*, void* data) -> herr_t {
+            static_cast<std::vector<std::string>*>(data)->push_back(name);
+            return 0;
+          },
+          &names);
+      for (const std::string& name : names) {
+        std::string value;
+        if (name != "linebake_version" && h5::read_string_attribute(file_, name, value))
+          header_.metadata[name] = value;
+      }
     }
     points_ = open(prefix_ + "/points");
     const std::vector<hsize_t> dims = h5::shape_of(points_.dataset);

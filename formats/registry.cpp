@@ -20,8 +20,8 @@ const std::vector<FormatInfo>& format_table() {
       // format, name, extensions, readable, writable, line attributes, metadata
       {Format::obj, "obj", {".obj"}, true, true, false, false},
       {Format::binlines, "binlines", {".binlines"}, true, true, false, false},
-      {Format::vtk, "vtk", {".vtk"}, true, true, true, false},
-      {Format::vtp, "vtp", {".vtp"}, true, true, true, false},
+      {Format::vtk, "vtk", {".vtk"}, true, true, true, true},
+      {Format::vtp, "vtp", {".vtp"}, true, true, true, true},
       {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false, false, false},
       {Format::hdf5, "hdf5", {".h5", ".hdf5", ".hdf"}, true, true, true, true},
       {Format::trk, "trk", {".trk"}, true, false, false, false},

@@ -7,7 +7,10 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <map>
 #include <optional>
+#include <string>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -240,6 +243,57 @@ void add_components(LegacyStream& in, std::vector<Attribute>& target, const std:
     in.fail("array '" + name + "' has fewer tuples than its points or line cells");
 }
 
+// A string value of a BINARY file as vtkDataWriter writes it: its length in 1, 2, 4 or 8
+// big-endian bytes whose top two bits say which (11, 10, 01, 00), then the bytes.
+std::string vtk_binary_string(const std::string& value) {
+  const uint64_t n = value.size();
+  std::string out;
+  const auto put = [&](uint64_t word, int bytes) {
+    for (int b = bytes - 1; b >= 0; --b) out += static_cast<char>((word >> (8 * b)) & 0xFF);
+  };
+  if (n < (uint64_t{1} << 6))
+    put(n | 0xC0, 1);
+  else if (n < (uint64_t{1} << 14))
+    put(n | 0x8000, 2);
+  else if (n < (uint64_t{1} << 30))
+    put(n | 0x40000000, 4);
+  else
+    put(n, 8);
+  return out + value;
+}
+
+std::string read_binary_string(LegacyStream& in) {
+  unsigned char first = 0;
+  in.bytes(&first, 1);
+  const int bytes = (first >> 6) == 3 ? 1 : (first >> 6) == 2 ? 2 : (first >> 6) == 1 ? 4 : 8;
+  uint64_t n = first & (bytes == 8 ? 0xFF : 0x3F);
+  for (int b = 1; b < bytes; ++b) {
+    unsigned char next = 0;
+    in.bytes(&next, 1);
+    n = (n << 8) | next;
+  }
+  if (n > (uint64_t{1} << 30)) in.fail("implausible string length " + std::to_string(n));
+  std::string value(n, '\0');
+  in.bytes(value.data(), n);
+  return value;
+}
+
+// An ASCII string value: bytes outside printable ASCII, space, '%' and '"' as %XX (VTK's own
+// escaping, so an empty or multi-word value stays one line).
+std::string encode_string(const std::string& value) {
+  std::string out;
+  for (unsigned char c : value) {
+    if (c <= ' ' || c == '%' || c == '"' || c >= 127) {
+      char hex[4];
+      std::snprintf(hex, sizeof hex, "%%%02X", c);
+      out += hex;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
@@ -263,6 +317,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   enum class Target { none, point, cell } target = Target::none;
   size_t target_tuples = 0;
   std::vector<Attribute> point_attributes, cell_attributes;
+  std::map<std::string, std::string> metadata;
 
   auto read_array = [&](const std::string& name, size_t components, const std::string& type) {
     if (target == Target::none) in.fail("attribute data before POINT_DATA or CELL_DATA");
@@ -339,6 +394,17 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
             components < 1 || tuples < 0)
           in.fail("bad FIELD array header for " + name);
         const std::string type = in.token();
+        if (type == "string" || type == "utf8_string") {
+          // One value before any POINT_DATA/CELL_DATA: the line set's metadata; other string
+          // arrays are read past.
+          in.skip_line();
+          for (int64_t v = 0; v < components * tuples; ++v) {
+            const std::string value = binary ? read_binary_string(in) : io::decode_name(in.line());
+            if (binary) in.skip_line();
+            if (target == Target::none && components * tuples == 1) metadata[name] = value;
+          }
+          continue;
+        }
         if (binary) in.skip_line();
         std::vector<float> values(static_cast<size_t>(components * tuples));
         read_values(in, binary, type, values.size(), values.data());
@@ -400,6 +466,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     }
   }
   lines.line_attributes = std::move(cell_attributes);
+  lines.metadata = std::move(metadata);
   return lines;
 }
 
@@ -412,7 +479,17 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
   std::string text = modern ? "# vtk DataFile Version 5.1\n" : "# vtk DataFile Version 3.0\n";
   text += "linebake " LINEBAKE_VERSION " line set\n";
   text += binary ? "BINARY\n" : "ASCII\n";
-  text += "DATASET POLYDATA\nPOINTS " + std::to_string(n) + " float\n";
+  text += "DATASET POLYDATA\n";
+  // Metadata as a data-set FIELD of one-value string arrays, as VTK writes a vtkStringArray.
+  if (!lines.metadata.empty()) {
+    text += "FIELD FieldData " + std::to_string(lines.metadata.size()) + "\n";
+    for (const auto& [key, value] : lines.metadata) {
+      text += io::encode_name(key) + " 1 1 string\n";
+      text += binary ? vtk_binary_string(value) : encode_string(value);
+      text += "\n";
+    }
+  }
+  text += "POINTS " + std::to_string(n) + " float\n";
   out.write(text);
 
   auto write_floats = [&](const float* values, size_t count, size_t per_row) {

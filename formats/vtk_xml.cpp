@@ -10,8 +10,11 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <map>
 #include <optional>
 #include <pugixml.hpp>
+#include <sstream>
+#include <string>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -263,6 +266,37 @@ void read_attributes(const Context& ctx, const pugi::xml_node& data, size_t tupl
 
 }  // namespace
 
+// The data set's FieldData string arrays of one value: the line set's metadata, as VTK writes a
+// vtkStringArray (ascii: the bytes as numbers, each string ending in 0; binary: the same bytes
+// base64-encoded behind the size header). Other field arrays are not line-set data.
+std::map<std::string, std::string> read_field_strings(const Context& ctx,
+                                                      const pugi::xml_node& field_data) {
+  std::map<std::string, std::string> metadata;
+  for (const pugi::xml_node& array : field_data.children()) {
+    if (std::string(array.attribute("type").as_string()) != "String" ||
+        array.attribute("NumberOfTuples").as_ullong(0) != 1)
+      continue;
+    const std::string name = array.attribute("Name").as_string();
+    const std::string format = array.attribute("format").as_string("ascii");
+    const std::string where = "FieldData array " + name;
+    std::string bytes;
+    if (format == "ascii") {
+      std::istringstream in(array.child_value());
+      for (int code; in >> code;) {
+        if (code < 0 || code > 255) ctx.fail(where, "character code out of range");
+        bytes += static_cast<char>(code);
+      }
+    } else if (format == "binary") {
+      const std::vector<unsigned char> raw = decode_binary(ctx, where, array.child_value(), true);
+      bytes.assign(raw.begin(), raw.end());
+    } else {
+      continue;  // appended strings: not written by linebake; skipped
+    }
+    metadata[name] = bytes.substr(0, bytes.find('\0'));
+  }
+  return metadata;
+}
+
 LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   MappedFile file(path);
   const std::string_view content = file.view();
@@ -369,6 +403,8 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       lines.attributes.push_back(std::move(g));
     }
   }
+  lines.metadata =
+      read_field_strings(ctx, doc.child("VTKFile").child("PolyData").child("FieldData"));
   if (options.progress) options.progress(3, 3);
   return lines;
 }
@@ -420,7 +456,6 @@ class VtpWriter {
   }
   const std::string& appended() const { return appended_; }
 
- private:
   static std::string escape(const std::string& s) {
     std::string out;
     for (char c : s) {
@@ -438,6 +473,7 @@ class VtpWriter {
     return out;
   }
 
+ private:
   void put_word(std::string& out, uint64_t v) const {
     if (options_.vtp_header_uint64) {
       out.append(reinterpret_cast<const char*>(&v), 8);
@@ -494,6 +530,18 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
       "byte_order=\"LittleEndian\"" +
       w.header_attributes() + ">\n<PolyData>\n";
+  // Metadata as FieldData string arrays (what VTK writes for a vtkStringArray; ParaView shows
+  // them in its Information panel).
+  if (!lines.metadata.empty()) {
+    body += "<FieldData>\n";
+    for (const auto& [key, value] : lines.metadata) {
+      body += "<Array type=\"String\" Name=\"" + VtpWriter::escape(key) +
+              "\" NumberOfTuples=\"1\" format=\"ascii\">\n";
+      for (unsigned char c : value) body += std::to_string(c) + " ";
+      body += "0\n</Array>\n";
+    }
+    body += "</FieldData>\n";
+  }
   body += "<Piece NumberOfPoints=\"" + std::to_string(n) +
           "\" NumberOfVerts=\"0\" NumberOfLines=\"" + std::to_string(l) +
           "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";

@@ -265,5 +265,14 @@ check "convert names what the format cannot hold; --strict refuses it" bash -c "
 check "--derive of an existing attribute replaces it, once" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/cv.h5' --derive curvature 2> '$tmp/cv.err' && grep -q 'replaces the input' '$tmp/cv.err' && [ \$(h5ls '$tmp/cv.h5/attributes' | grep -c curvature) -eq 1 ] && '$bin' bake '$tmp/cv.h5' -o '$tmp/cv.lbc.h5' >/dev/null 2>&1"
 check "on a terminal the result stays after the progress bar" bash -c "script -qec \"'$bin' render '$tmp/t.lbc.h5' --size 24x16 -o '$tmp/tty.png'\" /dev/null | tr '\r' '\n' | grep -q 'linebake: embree: 1 frame in .* s, depth complexity max [0-9]*: .*tty.png' && script -qec \"'$bin' export '$tmp/t.lbc.h5' -o '$tmp/tty.glb'\" /dev/null | grep -q 'linebake: wrote .*tty.glb ([0-9.]* [KM]iB) in '"
 
+check "VTK's own readers read linebake's metadata (vtp, vtk binary and ascii)" bash -c "'$bin' synth aneurysm --scale 0.002 -o '$tmp/meta.h5' 2>/dev/null && '$bin' convert '$tmp/meta.h5' -o '$tmp/meta.vtp' 2>/dev/null && '$bin' convert '$tmp/meta.h5' -o '$tmp/meta.vtk' 2>/dev/null && '$bin' convert '$tmp/meta.h5' -o '$tmp/meta_a.vtk' --ascii 2>/dev/null && /usr/bin/python3 -c \"
+import vtk
+for f, R in (('meta.vtp', vtk.vtkXMLPolyDataReader), ('meta.vtk', vtk.vtkPolyDataReader), ('meta_a.vtk', vtk.vtkPolyDataReader)):
+    r = R(); r.SetFileName('$tmp/' + f); r.Update(); d = r.GetOutput().GetFieldData()
+    m = {d.GetAbstractArray(i).GetName(): d.GetAbstractArray(i).GetValue(0) for i in range(d.GetNumberOfArrays())}
+    assert m['synth.scale'] == '0.002000' and m['synth.description'].startswith('streamlines in a vessel'), (f, m)
+    assert r.GetOutput().GetNumberOfLines() > 0, f
+\""
+
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

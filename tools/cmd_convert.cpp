@@ -143,7 +143,7 @@ Command add_convert(CLI::App& app) {
       const std::string message = args->output + ": " + format_info(*write.format).name +
                                   " cannot hold " + list + "; they are not written";
       if (args->strict) throw Error(message + " (--strict)");
-      warn(message + " (hdf5 and vtp keep line attributes; hdf5 keeps metadata)");
+      warn(message + " (hdf5, vtk and vtp keep line attributes and metadata)");
     }
     {
       TerminalProgress progress("writing");

@@ -68,7 +68,8 @@ Command add_synth(CLI::App& app) {
     say(args->params.name + ": " + std::to_string(generator->lines_read()) + " lines, " +
         std::to_string(segments) + " segments");
     say_wrote(args->output, seconds);
-    if (!lost.empty()) say(args->output + ": not kept by this format: " + lost + " (.h5 keeps it)");
+    if (!lost.empty())
+      say(args->output + ": not kept by this format: " + lost + " (.h5, .vtk and .vtp keep it)");
   };
 }
 
