@@ -74,7 +74,7 @@ struct EmbreeScene::State {
   void set_attribute(const LineSet& lines, const std::string& name) {
     if (name.empty()) return;
     const Attribute* a = lines.find_attribute(name);
-    if (!a) throw Error("Embree: no vertex attribute named '" + name + "'");
+    if (!a) throw_unknown_attribute(lines, "--attribute", name, true);
     attribute = Array<float>(a->values.size());
     std::copy(a->values.begin(), a->values.end(), attribute.begin());
     const ValueRange r = compute_range(a->values);

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 
 namespace linebake {
 
@@ -178,6 +179,19 @@ LineSetStats compute_stats(const LineSet& lines) {
   LineSetStats s = builder.stats();
   s.offset_bytes = lines.line_offsets.size() * sizeof(uint64_t);
   return s;
+}
+
+void throw_unknown_attribute(const LineSet& lines, const std::string& option,
+                             const std::string& name, bool vertex_only) {
+  std::vector<std::string> names;
+  for (const Attribute& a : lines.attributes) names.push_back(a.name);
+  if (!vertex_only)
+    for (const Attribute& a : lines.line_attributes) names.push_back(a.name);
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  throw UsageError(option + ": no " + (vertex_only ? "vertex " : "") + "attribute named '" + name +
+                   "' in these lines (" + (list.empty() ? std::string("they have none") : list) +
+                   ")" + did_you_mean(name, names));
 }
 
 }  // namespace linebake

@@ -53,6 +53,11 @@ Bounds compute_bounds(const LineSet& lines);
 // Grows `bounds` by points given as x y z triples; non-finite points are skipped.
 void include_points(Bounds& bounds, std::span<const float> xyz);
 
+// An option names an attribute the lines do not have: a UsageError (exit 1) naming the option,
+// the attributes there are (vertex ones, and line ones unless `vertex_only`) and the nearest.
+[[noreturn]] void throw_unknown_attribute(const LineSet& lines, const std::string& option,
+                                          const std::string& name, bool vertex_only);
+
 struct ValueRange {
   float min = 0;  // 0 when no value is finite
   float max = 0;

@@ -298,6 +298,32 @@ bool contains(const std::vector<std::string>& list, const std::string& item) {
   return std::find(list.begin(), list.end(), item) != list.end();
 }
 
+// The attribute names of the options, checked against the input's header before any of it is
+// read (a mistyped name is a usage error, not a failure an hour into the bake).
+void check_attribute_options(const BakeOptions& o, const LineSet& header) {
+  const auto has = [&](const std::string& name, bool vertex_only) {
+    for (const Attribute& a : header.attributes)
+      if (a.name == name) return true;
+    if (!vertex_only)
+      for (const Attribute& a : header.line_attributes)
+        if (a.name == name) return true;
+    return false;
+  };
+  const bool tubes = contains(o.assets, "tubes") || contains(o.assets, "rtx");
+  const std::string& attribute = o.tubes.attribute;
+  if (!attribute.empty() && attribute != "none") {
+    if (tubes && !has(attribute, false))
+      throw_unknown_attribute(header, "--attribute", attribute, false);
+    if (contains(o.assets, "embree") && !has(attribute, true))
+      throw_unknown_attribute(header, "--attribute", attribute, true);
+  }
+  if (tubes && !o.tubes.radius_attribute.empty() && !has(o.tubes.radius_attribute, true))
+    throw_unknown_attribute(header, "--radius-attribute", o.tubes.radius_attribute, true);
+  const std::string& voxel = o.voxels.attribute;
+  if (contains(o.assets, "voxels") && !voxel.empty() && voxel != "none" && !has(voxel, true))
+    throw_unknown_attribute(header, "--voxel-attribute", voxel, true);
+}
+
 // Wall and CPU time of a step that runs in pieces inside shared passes, and the peak resident
 // memory of the passes it ran in. Steps that run side by side (tubes and voxels in the build
 // pass) each count the process's CPU time while they are in progress, so their figures overlap.
@@ -567,6 +593,7 @@ BakeResult bake(const BakeOptions& options_in) {
         input = MemoryLineReader::view(*whole);
       }
       header = header_of(input->header());
+      check_attribute_options(options, header);
       if (!synth::is_synth_source(options.input)) header.metadata.emplace("source", options.input);
       const uint64_t per_point = plan_batches(header);
       LineStatsBuilder builder(header);

@@ -128,7 +128,7 @@ void TubeStreamBuilder::State::resolve_attributes(const LineSet& header,
         name.empty() ? (header.attributes.empty() ? -1 : 0) : index_of(header.attributes, name);
     const int line = vertex >= 0 || name.empty() ? -1 : index_of(header.line_attributes, name);
     if (!name.empty() && vertex < 0 && line < 0)
-      throw Error("tubes: no attribute named '" + name + "'");
+      throw_unknown_attribute(header, "--attribute", name, false);
     if (vertex >= 0 || line >= 0) {
       attribute = vertex >= 0 ? vertex : line;
       attribute_per_line = line >= 0;
@@ -146,7 +146,7 @@ void TubeStreamBuilder::State::resolve_attributes(const LineSet& header,
   if (!options.radius_attribute.empty()) {
     radius_attribute = index_of(header.attributes, options.radius_attribute);
     if (radius_attribute < 0)
-      throw Error("tubes: no vertex attribute named '" + options.radius_attribute + "'");
+      throw_unknown_attribute(header, "--radius-attribute", options.radius_attribute, true);
     const ValueRange* r = stats.attribute_range(options.radius_attribute);
     radius_max = r ? r->max : 0.0f;
     if (!(radius_max > 0))

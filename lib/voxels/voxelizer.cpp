@@ -458,7 +458,7 @@ VoxelStreamBuilder::VoxelStreamBuilder(const LineSet& header, const LineSetStats
     } else {
       for (size_t i = 0; i < header.attributes.size(); ++i)
         if (header.attributes[i].name == options.attribute) index = int(i);
-      if (index < 0) throw Error("voxels: no vertex attribute named '" + options.attribute + "'");
+      if (index < 0) throw_unknown_attribute(header, "--voxel-attribute", options.attribute, true);
     }
     if (index >= 0) {
       s.attribute = index;
