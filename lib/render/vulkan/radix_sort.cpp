@@ -1,0 +1,221 @@
+#include "render/vulkan/radix_sort.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstring>
+
+#include "core/error.hpp"
+#include "render/vulkan/shaders.hpp"
+
+namespace linebake::vk {
+namespace {
+
+// As shaders/radix_sort.glsl.
+constexpr uint32_t kBlockItems = 256 * 4;
+constexpr uint32_t kRadix = 256;
+constexpr uint32_t kPartition = 1024;
+constexpr uint32_t kBindings = 6;
+
+struct PassConstants {
+  uint32_t count, shift, blocks, total;
+};
+
+uint32_t blocks_for(uint64_t count) {
+  return uint32_t(std::max<uint64_t>(1, (count + kBlockItems - 1) / kBlockItems));
+}
+
+}  // namespace
+
+struct RadixSorter::State {
+  Context& ctx;
+  VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkDescriptorPool pool = VK_NULL_HANDLE;
+  std::array<VkDescriptorSet, 2> sets{};  // keys -> scratch, scratch -> keys
+  VkPipeline counting = VK_NULL_HANDLE, scatter = VK_NULL_HANDLE;
+  std::array<VkPipeline, 3> scan{};
+  Buffer keys2, values2, counts, partitions;
+  const Buffer *bound_keys = nullptr, *bound_values = nullptr;
+
+  explicit State(Context& c) : ctx(c) {}
+
+  VkPipeline pipeline(const char* shader, const uint32_t* step) {
+    VkDevice d = ctx.device();
+    VkShaderModule module = create_shader_module(d, shader);
+    VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    create.stage.module = module;
+    create.stage.pName = "main";
+    const VkSpecializationMapEntry entry{0, 0, 4};
+    const VkSpecializationInfo specialisation{1, &entry, 4, step};
+    if (step) create.stage.pSpecializationInfo = &specialisation;
+    create.layout = layout;
+    VkPipeline p = VK_NULL_HANDLE;
+    const VkResult made = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &p);
+    vkDestroyShaderModule(d, module, nullptr);
+    check(made, shader);
+    return p;
+  }
+
+  // Scratch for `count` pairs: grown, never shrunk; descriptor sets rewritten when it or the
+  // caller's buffers change.
+  void prepare(const Buffer& keys, const Buffer& values, uint32_t count) {
+    const uint64_t pair_bytes = std::max<uint64_t>(4, uint64_t(count) * 4);
+    const uint64_t count_bytes = uint64_t(kRadix) * blocks_for(count) * 4;
+    const uint64_t partition_bytes =
+        std::max<uint64_t>(4, (count_bytes / 4 + kPartition - 1) / kPartition * 4);
+    bool rebind = &keys != bound_keys || &values != bound_values;
+    const auto grow = [&](Buffer& b, uint64_t bytes) {
+      if (b.size >= bytes) return;
+      ctx.destroy(b);
+      b = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+      rebind = true;
+    };
+    grow(keys2, pair_bytes);
+    grow(values2, pair_bytes);
+    grow(counts, count_bytes);
+    grow(partitions, partition_bytes);
+    if (!rebind) return;
+    bound_keys = &keys, bound_values = &values;
+    const std::array<std::array<const Buffer*, 4>, 2> pairs = {
+        {{&keys, &values, &keys2, &values2}, {&keys2, &values2, &keys, &values}}};
+    for (size_t s = 0; s < 2; ++s) {
+      std::array<VkDescriptorBufferInfo, kBindings> infos{};
+      std::array<VkWriteDescriptorSet, kBindings> writes{};
+      for (uint32_t i = 0; i < kBindings; ++i) {
+        const Buffer* b = i < 4 ? pairs[s][i] : i == 4 ? &counts : &partitions;
+        infos[i] = {b->buffer, 0, VK_WHOLE_SIZE};
+        writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+        writes[i].dstSet = sets[s];
+        writes[i].dstBinding = i;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        writes[i].pBufferInfo = &infos[i];
+      }
+      vkUpdateDescriptorSets(ctx.device(), kBindings, writes.data(), 0, nullptr);
+    }
+  }
+
+  ~State() {
+    VkDevice d = ctx.device();
+    vkDeviceWaitIdle(d);
+    for (Buffer* b : {&keys2, &values2, &counts, &partitions}) ctx.destroy(*b);
+    for (VkPipeline p : {counting, scatter, scan[0], scan[1], scan[2]})
+      if (p) vkDestroyPipeline(d, p, nullptr);
+    if (pool) vkDestroyDescriptorPool(d, pool, nullptr);
+    if (layout) vkDestroyPipelineLayout(d, layout, nullptr);
+    if (set_layout) vkDestroyDescriptorSetLayout(d, set_layout, nullptr);
+  }
+};
+
+RadixSorter::RadixSorter(Context& context) : state_(std::make_unique<State>(context)) {
+  State& s = *state_;
+  VkDevice d = context.device();
+  std::array<VkDescriptorSetLayoutBinding, kBindings> bindings{};
+  for (uint32_t i = 0; i < kBindings; ++i)
+    bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
+  VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  set_info.bindingCount = kBindings;
+  set_info.pBindings = bindings.data();
+  check(vkCreateDescriptorSetLayout(d, &set_info, nullptr, &s.set_layout), "radix sort layout");
+  const VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(PassConstants)};
+  VkPipelineLayoutCreateInfo layout_info{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  layout_info.setLayoutCount = 1;
+  layout_info.pSetLayouts = &s.set_layout;
+  layout_info.pushConstantRangeCount = 1;
+  layout_info.pPushConstantRanges = &range;
+  check(vkCreatePipelineLayout(d, &layout_info, nullptr, &s.layout), "radix sort pipeline layout");
+  const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * kBindings};
+  VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  pool_info.maxSets = 2;
+  pool_info.poolSizeCount = 1;
+  pool_info.pPoolSizes = &size;
+  check(vkCreateDescriptorPool(d, &pool_info, nullptr, &s.pool), "radix sort pool");
+  const std::array<VkDescriptorSetLayout, 2> layouts{s.set_layout, s.set_layout};
+  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  alloc.descriptorPool = s.pool;
+  alloc.descriptorSetCount = 2;
+  alloc.pSetLayouts = layouts.data();
+  check(vkAllocateDescriptorSets(d, &alloc, s.sets.data()), "radix sort sets");
+  s.counting = s.pipeline("radix_count.comp", nullptr);
+  s.scatter = s.pipeline("radix_scatter.comp", nullptr);
+  for (uint32_t step = 0; step < 3; ++step) s.scan[step] = s.pipeline("radix_scan.comp", &step);
+}
+
+RadixSorter::~RadixSorter() = default;
+
+uint64_t RadixSorter::scratch_bytes(uint64_t count) {
+  const uint64_t counts = uint64_t(kRadix) * blocks_for(count);
+  return 8 * count + 4 * counts + 4 * ((counts + kPartition - 1) / kPartition);
+}
+
+void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& values,
+                         uint32_t count, uint32_t bits) {
+  State& s = *state_;
+  if (uint64_t(count) * 4 > keys.size || uint64_t(count) * 4 > values.size)
+    throw Error("radix sort: " + std::to_string(count) + " pairs do not fit the buffers");
+  s.prepare(keys, values, count);
+  if (count <= 1) return;
+  const uint32_t passes = std::min<uint32_t>(4, (std::max<uint32_t>(bits, 1) + 7) / 8);
+  const uint32_t blocks = blocks_for(count);
+  const uint32_t total = kRadix * blocks;
+  const uint32_t partitions = (total + kPartition - 1) / kPartition;
+  const auto barrier = [&] {
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
+  };
+  // An odd number of passes ends in the scratch copy: one more pass by the last digit brings the
+  // pairs back unchanged (they are in that digit's order already, and the pass is stable).
+  const uint32_t rounds = passes + (passes % 2);
+  for (uint32_t pass = 0; pass < rounds; ++pass) {
+    const PassConstants c{count, 8 * std::min(pass, passes - 1), blocks, total};
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.sets[pass % 2],
+                            0, nullptr);
+    vkCmdPushConstants(cmd, s.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof c, &c);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.counting);
+    vkCmdDispatch(cmd, blocks, 1, 1);
+    barrier();
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[0]);
+    vkCmdDispatch(cmd, partitions, 1, 1);
+    barrier();
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[1]);
+    vkCmdDispatch(cmd, 1, 1, 1);
+    barrier();
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[2]);
+    vkCmdDispatch(cmd, partitions, 1, 1);
+    barrier();
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scatter);
+    vkCmdDispatch(cmd, blocks, 1, 1);
+    barrier();
+  }
+}
+
+void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits) {
+  if (keys.size() != values.size()) throw Error("radix sort: keys and values differ in length");
+  if (keys.size() > UINT32_MAX) throw Error("radix sort: more than 2^32 - 1 pairs");
+  Context& ctx = state_->ctx;
+  const uint64_t bytes = std::max<uint64_t>(4, keys.size() * 4);
+  const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  Buffer k = ctx.create_buffer(bytes, usage, true), v = ctx.create_buffer(bytes, usage, true);
+  std::memcpy(k.mapped, keys.data(), keys.size() * 4);
+  std::memcpy(v.mapped, values.data(), values.size() * 4);
+  ctx.submit([&](VkCommandBuffer cmd) {
+    record(cmd, k, v, uint32_t(keys.size()), bits);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                         1, &b, 0, nullptr, 0, nullptr);
+  });
+  std::memcpy(keys.data(), k.mapped, keys.size() * 4);
+  std::memcpy(values.data(), v.mapped, values.size() * 4);
+  state_->bound_keys = state_->bound_values = nullptr;  // the buffers go now
+  ctx.destroy(k);
+  ctx.destroy(v);
+}
+
+}  // namespace linebake::vk

@@ -1,0 +1,39 @@
+#pragma once
+// A GPU radix sort of 32-bit keys with 32-bit values in core Vulkan compute: the sort of the
+// `tiles` renderer's (tile, depth) keys. Stable, 8 bits per pass from the least significant; per
+// pass a count, a three-step scan and a scatter (shaders/radix_*.comp; the design and its
+// credit are in shaders/radix_sort.glsl). Runs wherever Vulkan compute does, lavapipe included.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "render/vulkan/context.hpp"
+
+namespace linebake::vk {
+
+class RadixSorter {
+ public:
+  explicit RadixSorter(Context& context);
+  ~RadixSorter();
+  RadixSorter(const RadixSorter&) = delete;
+  RadixSorter& operator=(const RadixSorter&) = delete;
+
+  // Scratch the sort of `count` keys needs besides the keys and values (bytes): the ping-pong
+  // copies of both and the per-block digit counts.
+  static uint64_t scratch_bytes(uint64_t count);
+  // Records into `cmd` the sort of the first `count` pairs of `keys`/`values` by their low
+  // `bits` bits (8 per pass, rounded up); the result is back in `keys`/`values`. The buffers
+  // are storage buffers; `scratch` is made (or grown) here and reused.
+  void record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& values, uint32_t count,
+              uint32_t bits = 32);
+  // Host arrays through the device (tests and benchmarks): sorts `keys` and permutes `values`
+  // alike (equal keys keep their order).
+  void sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits = 32);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace linebake::vk
