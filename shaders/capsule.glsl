@@ -66,7 +66,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     for (int k = 0; k < n; ++k) {
       const float root = k == 0 ? r0 : r1;
       const float h = dot(w + root * direction, axis);
-      if (h >= 0.0 && h <= len) {
+      if (h >= 0.0 && h <= len && candidates < 4) {
         candidate_t[candidates] = root;
         candidate_n[candidates] = w_perp + root * d_perp;
         ++candidates;
@@ -84,7 +84,8 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
       const float root = k == 0 ? r0 : r1;
       const vec3 x = origin + root * direction;
       const float h = dot(x - s.p0, axis);
-      if (end == 0 ? h > len : h < 0.0) {
+      // (At most two crossings of a convex capsule; four bounds float's borderline cases.)
+      if ((end == 0 ? h > len : h < 0.0) && candidates < 4) {
         candidate_t[candidates] = root;
         candidate_n[candidates] = x - centre;
         ++candidates;

@@ -24,13 +24,13 @@ namespace {
 using test::TempDir;
 
 TEST(Techniques, TheRegistryListsEveryTechniqueWithItsAssets) {
-  const std::vector<std::string> expected{"reference", "embree", "opaque", "dp",  "ll", "mlab",
-                                          "mlabdb",    "mboit",  "wboit",  "vrc", "rtx"};
+  const std::vector<std::string> expected{"reference", "embree", "opaque", "dp",  "ll",  "mlab",
+                                          "mlabdb",    "mboit",  "wboit",  "vrc", "rtx", "tiles"};
   EXPECT_EQ(technique_names(), expected);
   for (const Technique& t : techniques()) {
-    const std::string asset = t.info.name == "embree" ? "lines"
-                              : t.info.name == "vrc"  ? "voxels"
-                                                      : "tubes";
+    const std::string asset = t.info.name == "embree" || t.info.name == "tiles" ? "lines"
+                              : t.info.name == "vrc"                            ? "voxels"
+                                                                                : "tubes";
     EXPECT_EQ(t.info.assets, std::vector<std::string>{asset}) << t.info.name;
     const bool cpu = t.info.name == "reference" || t.info.name == "embree" || t.info.name == "vrc";
     EXPECT_EQ(t.info.vulkan, !cpu) << t.info.name;
@@ -39,7 +39,7 @@ TEST(Techniques, TheRegistryListsEveryTechniqueWithItsAssets) {
     EXPECT_FALSE(t.info.summary.empty()) << t.info.name;
   }
   // The exact ones composite every hit in order.
-  for (const char* exact : {"reference", "embree", "dp", "ll", "rtx"})
+  for (const char* exact : {"reference", "embree", "dp", "ll", "rtx", "tiles"})
     EXPECT_TRUE(find_technique(exact).info.exact) << exact;
   for (const char* approximate : {"opaque", "mlab", "mlabdb", "mboit", "wboit", "vrc"})
     EXPECT_FALSE(find_technique(approximate).info.exact) << approximate;

@@ -25,6 +25,12 @@ std::unique_ptr<PreparedTechnique> prepare_rtx(const TechniqueInfo& info, const 
                                                const std::string& cache_name,
                                                const TechniqueOptions& options);
 
+// tiles: lib/render/vulkan/tile_renderer.hpp.
+std::unique_ptr<PreparedTechnique> prepare_tiles(const TechniqueInfo& info,
+                                                 const CacheReader& cache,
+                                                 const std::string& cache_name,
+                                                 const TechniqueOptions& options);
+
 // The per-frame buffers of each family (Technique::frame_bytes).
 uint64_t cpu_tracing_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& options);
 uint64_t raster_frame_bytes(const TechniqueInfo& info, const TechniqueOptions& options);

@@ -102,6 +102,14 @@ const std::vector<Technique>& techniques() {
           "hits", "early-termination", "no-early-termination", "radius", "attribute"}},
        prepare_rtx,
        cpu_tracing_frame_bytes},
+      {{"tiles",
+        "Vulkan compute only: capsules binned into 16x16 tiles, radix-sorted, composited per "
+        "pixel in exact order",
+        A{"lines"}, true, false, true,
+        A{"device", "validation", "radius", "attribute", "early-termination",
+          "no-early-termination"}},
+       prepare_tiles,
+       cpu_tracing_frame_bytes},
   };
   return table;
 }

@@ -1,0 +1,66 @@
+#pragma once
+// `tiles`: exact order-independent transparency from compute shaders only, for GPUs with little
+// or no graphics hardware (datacenter parts: on an H100 only two TPCs rasterise). Per frame:
+// binning (each capsule's screen bounds to (tile, depth) keys), a GPU radix sort of the keys
+// (radix_sort.hpp), the tiles' key ranges, and one workgroup per 16x16 tile compositing its
+// capsules front to back through a per-pixel sorted window (shaders/tiles_*.comp).
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "accel/capsule_segments.hpp"
+#include "render/camera.hpp"
+#include "render/image.hpp"
+#include "render/ray_tracer.hpp"
+#include "render/transfer_function.hpp"
+#include "render/vulkan/context.hpp"
+
+namespace linebake::vk {
+
+struct TileOptions {
+  int width = 1280, height = 720;
+  bool early_termination = false;
+  double termination_alpha = 0.99;
+  Shading shading;
+};
+
+struct TileStats {
+  double seconds = 0;                                // wall, readback included
+  double bin_ms = 0, sort_ms = 0, composite_ms = 0;  // GPU timestamps (0 without them)
+  uint64_t segments = 0, binned_segments = 0;        // all, and those in front of the eye on screen
+  uint64_t keys = 0;                                 // (tile, segment) pairs
+  uint32_t tiles = 0;                                // 16x16 tiles of the image
+  uint64_t hits = 0;                                 // front crossings composited
+  uint64_t window_overflows = 0;  // hits composited early from a full window (0: exact order)
+  uint32_t max_depth_complexity = 0;
+  uint64_t frame_bytes = 0;  // keys, values, sort scratch, ranges, pixels
+  uint32_t rebins = 0;       // binning passes repeated for more key room
+  uint32_t slices = 1;       // composite dispatches (each takes a slice of every tile's keys)
+};
+
+struct TileFrame {
+  Image image;
+  std::vector<uint32_t> depth_complexity;
+  TileStats stats;
+};
+
+class TileRenderer {
+ public:
+  // The capsules are uploaded once (device-local); `max_buffer_bytes` > 0 lowers the largest
+  // storage buffer, `slice_keys` > 0 sets the keys per tile per composite dispatch (tests; by
+  // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all).
+  TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
+               uint32_t slice_keys = 0);
+  ~TileRenderer();
+  TileRenderer(const TileRenderer&) = delete;
+  TileRenderer& operator=(const TileRenderer&) = delete;
+
+  TileFrame render(const Camera& camera, const TransferFunction& tf, const TileOptions& options);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace linebake::vk

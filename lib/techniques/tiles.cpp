@@ -1,0 +1,85 @@
+// tiles: exact transparency from compute shaders only (render/vulkan/tile_renderer.hpp), over
+// the lines as capsule chains with the cached tubes' radius, as embree --embree-geometry capsules
+// and rtx --rtx-geometry capsules draw them.
+
+#include "accel/capsule_segments.hpp"
+#include "cache/line_store.hpp"
+#include "render/vulkan/tile_renderer.hpp"
+#include "techniques/curve_defaults.hpp"
+#include "techniques/families.hpp"
+
+namespace linebake {
+namespace {
+
+class Tiles : public PreparedTechnique {
+ public:
+  Tiles(const CacheReader& cache, const TechniqueOptions& o) : context_(o, false) {
+    lines_ = load_lines(cache);
+    const auto tube_provenance =
+        cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
+    const auto [radius, attribute] = curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
+    const CapsuleSegments capsules = build_capsule_segments(lines_, radius, attribute);
+    bounds_ = compute_bounds(lines_);
+    for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
+    renderer_.emplace(*context_, capsules);
+    radius_ = radius;
+    options_.early_termination = o.early_termination;
+  }
+
+  TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
+                        int height) override {
+    options_.width = width, options_.height = height;
+    vk::TileFrame frame = renderer_->render(camera, tf, options_);
+    context_.check_validation();
+    const vk::TileStats& s = frame.stats;
+    TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
+                                         s.seconds, s.frame_bytes);
+    out.gpu_ms["bin"] = s.bin_ms;
+    out.gpu_ms["sort"] = s.sort_ms;
+    out.gpu_ms["composite"] = s.composite_ms;
+    out.stats = {
+        {"hits", s.hits},
+        {"keys", s.keys},
+        {"tiles", s.tiles},
+        {"segments", s.segments},
+        {"binned_segments", s.binned_segments},
+        {"window_overflows", s.window_overflows},
+        {"rebins", s.rebins},
+        {"slices", s.slices},
+        {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
+        {"depth_complexity", {{"max", s.max_depth_complexity}}},
+        {"frame_bytes", s.frame_bytes}};
+    if (s.window_overflows > 0)
+      out.warnings.push_back(std::to_string(s.window_overflows) +
+                             " hits composited from a full window: the order may be inexact");
+    out.note = std::to_string(s.keys) + " keys";
+    return out;
+  }
+
+  Bounds bounds() const override { return bounds_; }
+  nlohmann::json stats() const override {
+    return {{"device", context_->info().name},
+            {"geometry", "capsules"},
+            {"radius", radius_},
+            {"early_termination", options_.early_termination}};
+  }
+  std::string device() const override { return context_->info().name; }
+
+ private:
+  ContextHolder context_;
+  LineSet lines_;
+  Bounds bounds_;
+  float radius_ = 0;
+  std::optional<vk::TileRenderer> renderer_;
+  vk::TileOptions options_;
+};
+
+}  // namespace
+
+std::unique_ptr<PreparedTechnique> prepare_tiles(const TechniqueInfo&, const CacheReader& cache,
+                                                 const std::string&,
+                                                 const TechniqueOptions& options) {
+  return std::make_unique<Tiles>(cache, options);
+}
+
+}  // namespace linebake

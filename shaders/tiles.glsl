@@ -1,0 +1,46 @@
+// Shared by the passes of the `tiles` technique (lib/render/vulkan/tile_renderer.hpp): an exact
+// transparency renderer built only from compute shaders, after the tile rasterisers of 3D
+// Gaussian splatting (bin primitives into 16x16 tiles, sort (tile, depth) keys, one workgroup per
+// tile blending front to back) with StopThePop's per-pixel sorted window, so the order is exact
+// per pixel even where the depth keys misorder long, overlapping capsules.
+
+const int kMaxTfPoints = 32;
+const uint kTile = 16;
+
+layout(set = 0, binding = 0, std140) uniform TileUniforms {
+  vec4 eye;         // xyz
+  vec4 forward;     // xyz, unit
+  vec4 right;       // xyz, scaled by tan(fov/2) x aspect
+  vec4 up;          // xyz, scaled by tan(fov/2)
+  vec4 shading;     // ambient, diffuse, specular, shininess
+  vec4 background;  // linear rgb
+  vec4 ranges;      // 0, 0; transfer-function range lo, hi
+  uvec4 size;       // width, height, early termination, segments
+  uvec4 tf_counts;  // colour points, opacity points, 0, 0
+  vec4 params;      // termination alpha, capsule radius, key depth near, key depth far
+  uvec4 tiles;      // tiles across, tiles down, depth bits of a key, key capacity
+  vec4 colours[kMaxTfPoints];    // x, sRGB r, g, b
+  vec4 opacities[kMaxTfPoints];  // x, opacity
+} frame;
+
+// x, y, z and the attribute value per point.
+layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
+// Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
+layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
+layout(set = 0, binding = 3, std430) buffer Keys { uint keys[]; };
+layout(set = 0, binding = 4, std430) buffer Values { uint values[]; };
+// keys emitted (may exceed the capacity: then the frame is binned again), segments binned.
+layout(set = 0, binding = 5, std430) buffer Counters { uint key_count; uint binned; } counters;
+// Per tile: first and one past the last sorted key.
+layout(set = 0, binding = 6, std430) buffer Ranges { uvec2 ranges[]; };
+layout(set = 0, binding = 7, std430) writeonly buffer Pixels { vec4 pixels[]; };
+layout(set = 0, binding = 8, std430) writeonly buffer Hits { uint hit_counts[]; };
+
+// The lower bound of a key's depth, in the units of t (distance along a unit ray): keys hold
+// floor((z - near) / (far - near) * (2^bits - 1)) of the capsule's nearest view depth z, and
+// t >= z for every point of it.
+float key_depth(uint key) {
+  const uint bits = frame.tiles.z;
+  const float q = float(key & ((1u << bits) - 1u));
+  return frame.params.z + q / float((1u << bits) - 1u) * (frame.params.w - frame.params.z);
+}

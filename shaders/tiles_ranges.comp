@@ -1,0 +1,15 @@
+#version 460
+// tiles, pass 2 (after the sort): where each tile's keys start and end.
+#include "tiles.glsl"
+
+layout(local_size_x = 256) in;
+
+void main() {
+  const uint i = gl_GlobalInvocationID.x;
+  const uint n = min(counters.key_count, frame.tiles.w);
+  if (i >= n) return;
+  const uint bits = frame.tiles.z;
+  const uint tile = keys[i] >> bits;
+  if (i == 0u || (keys[i - 1u] >> bits) != tile) ranges[tile].x = i;
+  if (i + 1u == n || (keys[i + 1u] >> bits) != tile) ranges[tile].y = i + 1u;
+}
