@@ -243,7 +243,7 @@ import json, re, subprocess
 rows = json.loads(subprocess.run(['$bin', 'techniques', '--json'], capture_output=True, text=True, check=True).stdout)
 names = [r['name'] for r in rows]
 help = subprocess.run(['$bin', 'render', '--help'], capture_output=True, text=True).stdout
-accepted = re.search(r'--technique TEXT:\{([^}]*)\}', help).group(1).split(',')
+accepted = [n.strip() for n in re.search(r'--technique TEXT:\{([^}]*)\}', help).group(1).split(',')]
 assert names == accepted, (names, accepted)
 rtx = [r for r in rows if r['name'] == 'rtx'][0]
 assert not rtx['available'] and 'ray tracing' in rtx['unavailable_reason'], rtx

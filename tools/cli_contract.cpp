@@ -1,5 +1,6 @@
 #include "cli_contract.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include "core/error.hpp"
 #include "core/h5.hpp"
 #include "core/memory_budget.hpp"
+#include "core/nearest.hpp"
 #include "formats/registry.hpp"
 #include "synth/synth.hpp"
 
@@ -71,6 +73,17 @@ CLI::Validator byte_size() {
         return {};
       },
       "SIZE");
+}
+
+CLI::Validator one_of(const std::vector<std::string>& names) {
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  return CLI::Validator(
+      [names, list](std::string& text) -> std::string {
+        if (std::find(names.begin(), names.end(), text) != names.end()) return {};
+        return "unknown '" + text + "' (" + list + ")" + did_you_mean(text, names);
+      },
+      "{" + list + "}");
 }
 
 const std::vector<DeprecatedAlias>& deprecated_aliases() {

@@ -50,7 +50,8 @@ Command add_convert(CLI::App& app) {
       ->required();
   sub->add_option("-o,--output", args->output, "Output file; the format from its extension");
   // The output as a second positional: the spelling before -o, kept for one release.
-  sub->add_option("old_output", args->positional_output)->group("");
+  sub->add_option("output", args->positional_output,
+                  "Deprecated: the output as a second positional (use -o)");
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--to", args->to, "Output format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid,

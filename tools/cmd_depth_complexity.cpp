@@ -164,7 +164,9 @@ Command add_depth_complexity(CLI::App& app) {
                     entry["covered_percentiles"]["p90"].get<uint32_t>(),
                     entry["covered_percentiles"]["p99"].get<uint32_t>());
       lines.push_back(line);
-      if (!TerminalProgress::enabled()) std::cerr << line << "\n";
+      // As it goes when the lines are a log beside files; otherwise they are the result, below.
+      const bool to_stdout = args->json || (args->output.empty() && args->stats.empty());
+      if (!TerminalProgress::enabled() && !to_stdout) std::cerr << line << "\n";
     }
     progress.finish();
     if (!args->stats.empty()) write_file_atomically(args->stats, stats.dump(2) + "\n");

@@ -53,7 +53,7 @@ Command add_export(CLI::App& app) {
       const std::string ext = std::filesystem::path(out).extension().string();
       std::string& slot = ext == ".glb" ? args->glb : ext == ".vdb" ? args->vdb : args->cache;
       if (&slot == &args->cache)
-        throw UsageError("-o " + out + ": export writes .glb (glTF binary) or .vdb (OpenVDB)");
+        throw OutputError(out, "export writes .glb (glTF binary) or .vdb (OpenVDB)");
       if (!slot.empty())
         throw UsageError("-o " + out + ": a " + ext + " output is given twice (" + slot + ")");
       slot = out;

@@ -113,8 +113,10 @@ Command add_render(CLI::App& app) {
                   "embree (CPU ray tracing of curves) | reference (exact, the tube mesh) | "
                   "opaque | dp | ll | mlab | mlabdb | mboit | wboit (Vulkan rasterisation of "
                   "the tube mesh) | vrc (voxel ray casting of the voxel line grid) | rtx "
-                  "(Vulkan ray tracing; needs a device with VK_KHR_ray_tracing_pipeline)")
-      ->check(CLI::IsMember(technique_names()));
+                  "(Vulkan ray tracing; needs a device with VK_KHR_ray_tracing_pipeline) | tiles "
+                  "(exact, Vulkan compute only: capsules binned into tiles and sorted); default "
+                  "embree")
+      ->check(one_of(technique_names()));
   sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
       ->check(CLI::IsMember({"cpu", "gpu"}));
   auto* no_early = sub->add_flag("--no-early-termination", args->no_early_termination,
@@ -178,11 +180,14 @@ Command add_render(CLI::App& app) {
   sub->add_option("--embree-quality", args->quality,
                   "embree, reference: Embree build quality: low | medium (default) | high")
       ->check(CLI::IsMember({"low", "medium", "high"}));
-  sub->add_option("--tf", args->tf, "Transfer function: opaque | semi | transparent | FILE.json");
+  sub->add_option("--tf", args->tf,
+                  "Transfer function: opaque | semi (default) | transparent | FILE.json");
   sub->add_option("--attribute", args->attribute,
-                  "Vertex attribute for the curves (default: the tube mesh's, else the first)");
+                  "embree, rtx, tiles: vertex attribute of the curves and capsules (default: the "
+                  "tube mesh's, else the first)");
   sub->add_option("--radius", args->radius,
-                  "Curve radius in world units (default: the cached tubes', else 0.001 x diagonal)")
+                  "embree, rtx, tiles, vrc: curve and capsule radius in world units (default: the "
+                  "cached tubes', else 0.001 x diagonal; vrc: half a voxel)")
       ->check(positive());
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
@@ -202,10 +207,11 @@ Command add_render(CLI::App& app) {
   sub->add_option("--stats", args->stats, "Frame statistics as JSON");
   sub->add_option("--depth-complexity", args->depth_image,
                   "16-bit grey PNG of front hits per pixel");
-  sub->add_option("--hits", args->hits,
-                  "embree, rtx: how hits are found: filter (every hit, collected by a filter or "
-                  "any-hit shader; default) | stepping (closest-hit queries from just past the "
-                  "last hit)")
+  sub->add_option(
+         "--hits", args->hits,
+         "embree, reference, rtx: how hits are found: filter (every hit, collected by a filter or "
+         "any-hit shader; default) | stepping (closest-hit queries from just past the "
+         "last hit)")
       ->check(CLI::IsMember({"filter", "stepping"}));
   sub->add_flag("--packets", args->packets,
                 "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");

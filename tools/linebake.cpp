@@ -56,16 +56,22 @@ int main(int argc, char** argv) {
     args.insert(args.end(), rest.begin(), rest.end());
   }
   std::reverse(args.begin(), args.end());  // CLI11 takes a vector last argument first
+  // Every failure, whether the command line's (found while parsing) or the work's, maps to the
+  // exit code of its class (docs/cli.md, "Exit codes").
+  const auto fail = [](const char* prefix, const std::exception& e, int code) {
+    std::cerr << "linebake: " << prefix << e.what() << "\n";
+    return code;
+  };
   try {
-    app.parse(args);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? kOk : kUsage;
-  }
-  // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
-  // temporary files (core/interrupt.hpp).
-  linebake::install_interrupt_handlers();
-  try {
+    try {
+      app.parse(args);
+    } catch (const CLI::ParseError& e) {
+      const int code = app.exit(e);
+      return code == 0 ? kOk : kUsage;
+    }
+    // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
+    // temporary files (core/interrupt.hpp).
+    linebake::install_interrupt_handlers();
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
     return kOk;
@@ -73,16 +79,12 @@ int main(int argc, char** argv) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";
     return 128 + e.signal();
   } catch (const linebake::UsageError& e) {
-    std::cerr << "linebake: error: " << e.what() << "\n";
-    return kUsage;
+    return fail("error: ", e, kUsage);
   } catch (const linebake::InputError& e) {
-    std::cerr << "linebake: error: " << e.what() << "\n";
-    return kInput;
+    return fail("error: ", e, kInput);
   } catch (const linebake::OutputError& e) {
-    std::cerr << "linebake: error: " << e.what() << "\n";
-    return kOutput;
+    return fail("error: ", e, kOutput);
   } catch (const std::exception& e) {
-    std::cerr << "linebake: error: " << e.what() << "\n";
-    return kFailure;
+    return fail("error: ", e, kFailure);
   }
 }
