@@ -51,6 +51,8 @@ class LegacyStream {
     return end_ > 0;
   }
   uint64_t offset() const { return base_ + pos_; }
+  uint64_t remaining() const { return file_.size() - std::min<uint64_t>(offset(), file_.size()); }
+  bool at_end() { return !fill(); }
 
   std::string line() {
     std::string s;
@@ -272,7 +274,8 @@ std::string read_binary_string(LegacyStream& in) {
     in.bytes(&next, 1);
     n = (n << 8) | next;
   }
-  if (n > (uint64_t{1} << 30)) in.fail("implausible string length " + std::to_string(n));
+  if (n > in.remaining())
+    in.fail("string length " + std::to_string(n) + " past the end of the file");
   std::string value(n, '\0');
   in.bytes(value.data(), n);
   return value;
@@ -397,12 +400,17 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
         if (type == "string" || type == "utf8_string") {
           // One value before any POINT_DATA/CELL_DATA: the line set's metadata; other string
           // arrays are read past.
+          if (components > 64 || tuples > (int64_t{1} << 40))
+            in.fail("implausible string array " + name);
+          const int64_t values = components * tuples;
           in.skip_line();
-          for (int64_t v = 0; v < components * tuples; ++v) {
+          for (int64_t v = 0; v < values; ++v) {
+            if (in.at_end()) in.fail("file ends inside string array " + name);
             const std::string value = binary ? read_binary_string(in) : io::decode_name(in.line());
-            if (binary) in.skip_line();
-            if (target == Target::none && components * tuples == 1) metadata[name] = value;
+            if (target == Target::none && values == 1) metadata[name] = value;
           }
+          // Binary strings follow each other; one newline ends the array.
+          if (binary) in.skip_line();
           continue;
         }
         if (binary) in.skip_line();

@@ -61,9 +61,11 @@ void main() {
   const float level = clamp((z_near - frame.params.z) / span, 0.0, 1.0) * float((1u << bits) - 1u);
   const uint depth = min(uint(floor(level)), (1u << bits) - 1u);
   const uint n = uint((t1.x - t0.x + 1) * (t1.y - t0.y + 1));
+  // The count saturates instead of wrapping past 2^32 - 1 (the host refuses such a frame).
   const uint base = atomicAdd(counters.key_count, n);
+  if (base > 0xFFFFFFFFu - n) atomicMax(counters.key_count, 0xFFFFFFFFu);
   atomicAdd(counters.binned, 1u);
-  if (base + n > frame.tiles.w) return;  // over capacity: the host bins again with room
+  if (base > frame.tiles.w || n > frame.tiles.w - base) return;  // no room: binned again
   uint at = base;
   for (int ty = t0.y; ty <= t1.y; ++ty)
     for (int tx = t0.x; tx <= t1.x; ++tx) {

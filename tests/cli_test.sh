@@ -274,5 +274,30 @@ for f, R in (('meta.vtp', vtk.vtkXMLPolyDataReader), ('meta.vtk', vtk.vtkPolyDat
     assert r.GetOutput().GetNumberOfLines() > 0, f
 \""
 
+check "review fixes: array root attributes, VTK's multi-value binary strings, one-tile tiles, --help CMD, in-place through a link" bash -c "
+set -e
+'$bin' convert '$tmp/c.binlines' -o '$tmp/arr.h5' 2>/dev/null
+/usr/bin/python3 -c \"import h5py, numpy as np; f = h5py.File('$tmp/arr.h5', 'a'); f.attrs['tags'] = np.array([b'ab', b'cd']); f.attrs['units'] = np.bytes_('m')\"
+'$bin' info '$tmp/arr.h5' --json | grep -q '\"units\": \"m\"'
+/usr/bin/python3 -c \"
+import vtk
+pd = vtk.vtkPolyData(); pts = vtk.vtkPoints(); pts.InsertNextPoint(0, 0, 0); pts.InsertNextPoint(1, 0, 0); pd.SetPoints(pts)
+ca = vtk.vtkCellArray(); ca.InsertNextCell(2); ca.InsertCellPoint(0); ca.InsertCellPoint(1); pd.SetLines(ca)
+for name, values in (('two', ['first value', 'second']), ('one', ['kept'])):
+    a = vtk.vtkStringArray(); a.SetName(name)
+    for v in values: a.InsertNextValue(v)
+    pd.GetFieldData().AddArray(a)
+w = vtk.vtkPolyDataWriter(); w.SetFileName('$tmp/strings.vtk'); w.SetInputData(pd); w.SetFileTypeToBinary(); w.SetFileVersion(42); w.Write()
+\"
+'$bin' info '$tmp/strings.vtk' --json | grep -q '\"one\": \"kept\"'
+'$bin' render '$tmp/t.lbc.h5' --technique tiles --size 16x16 -o '$tmp/one.png' 2>/dev/null
+'$bin' render '$tmp/t.lbc.h5' --embree-geometry capsules --size 16x16 -o '$tmp/one_e.png' 2>/dev/null
+'$bin' compare '$tmp/one.png' '$tmp/one_e.png' --json | python3 -c 'import json,sys; assert json.load(sys.stdin)[\"psnr_db\"] >= 50'
+'$bin' --help bake | grep -q 'Usage: linebake bake'
+ln -sf '$tmp/t.lbc.h5' '$tmp/link.lbc.h5'
+rc=0; '$bin' bake '$tmp/link.lbc.h5' --assets tubes,voxels 2> '$tmp/link.err' || rc=\$?
+[ \$rc -eq 3 ] && grep -q 'is a link' '$tmp/link.err'
+"
+
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

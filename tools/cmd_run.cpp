@@ -179,7 +179,7 @@ std::string find_pipeline(const std::string& path) {
     return out;
   };
   for (const auto& c : candidates(path))
-    if (std::filesystem::exists(c)) return c.string();
+    if (std::filesystem::is_regular_file(c)) return c.string();
   const std::filesystem::path name(path);
   if (!name.has_parent_path() || name.parent_path() == "pipelines")
     for (const auto& c :

@@ -50,6 +50,19 @@ int main(int argc, char** argv) {
                 << linebake::did_you_mean(*command, names) << " (linebake --help lists them)\n";
       return kUsage;
     }
+    // `linebake --help CMD` is `linebake CMD --help`; `--version` before a command is itself.
+    for (auto a = args.begin(); a != command; ++a) {
+      if (*a == "--version") {
+        std::cout << LINEBAKE_VERSION << "\n";
+        return kOk;
+      }
+      if (*a == "-h" || *a == "--help")
+        for (const auto& [sub, run] : commands)
+          if (sub->get_name() == *command) {
+            std::cout << sub->help("linebake");
+            return kOk;
+          }
+    }
     std::vector<std::string> rest(command + 1, args.end());
     apply_deprecated_aliases(*command, rest);
     args.erase(command + 1, args.end());

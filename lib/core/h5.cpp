@@ -125,6 +125,9 @@ bool read_string_attribute(hid_t object, const std::string& name, std::string& v
   Handle type(H5Aget_type(attribute), H5Tclose);
   if (!type.valid() || H5Tget_class(type) != H5T_STRING || H5Tis_variable_str(type) > 0)
     return false;
+  // One string only: an array attribute would be read past the buffer.
+  Handle space(H5Aget_space(attribute), H5Sclose);
+  if (!space.valid() || H5Sget_simple_extent_npoints(space) != 1) return false;
   const size_t size = H5Tget_size(type);
   std::string buffer(size, '\0');
   if (H5Aread(attribute, type, buffer.data()) < 0) return false;

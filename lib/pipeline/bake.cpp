@@ -492,6 +492,12 @@ BakeResult bake(const BakeOptions& options_in) {
   std::error_code same_error;
   const bool in_place =
       input_is_cache && std::filesystem::equivalent(options.input, result.cache, same_error);
+  // The new cache replaces the path given: through a symbolic or hard link that would leave the
+  // linked file as it was.
+  if (in_place && (std::filesystem::is_symlink(result.cache) ||
+                   std::filesystem::hard_link_count(result.cache, same_error) > 1))
+    throw OutputError(result.cache,
+                      "is a link; bake the cache under its own path to add assets in place");
   const uint64_t budget_bytes =
       options.memory_budget == BakeOptions::kDefaultBudget ? default_memory_budget()
       : options.memory_budget == BakeOptions::kUnlimited   ? 0

@@ -65,7 +65,8 @@ struct RadixSorter::State {
     const uint64_t count_bytes = uint64_t(kRadix) * blocks_for(count) * 4;
     const uint64_t partition_bytes =
         std::max<uint64_t>(4, (count_bytes / 4 + kPartition - 1) / kPartition * 4);
-    bool rebind = &keys != bound_keys || &values != bound_values;
+    // Always rebound: a caller may reallocate its buffers under the same Buffer object.
+    bool rebind = true;
     const auto grow = [&](Buffer& b, uint64_t bytes) {
       if (b.size >= bytes) return;
       ctx.destroy(b);

@@ -167,7 +167,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const uint32_t tiles_x = (uint32_t(o.width) + kTile - 1) / kTile;
   const uint32_t tiles_y = (uint32_t(o.height) + kTile - 1) / kTile;
   const uint32_t tiles = tiles_x * tiles_y;
-  const uint32_t tile_bits = uint32_t(std::bit_width(tiles - 1));
+  // At least one tile bit: shifts by 32 are undefined in SPIR-V.
+  const uint32_t tile_bits = std::max(1u, uint32_t(std::bit_width(tiles - 1)));
   const uint32_t depth_bits = 32 - tile_bits;
   if (resized || s.ranges.size < uint64_t(tiles) * 8) {
     ctx.destroy(s.ranges);
