@@ -14,6 +14,7 @@
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
 #include "synth/synth.hpp"
+#include "voxels/voxelizer.hpp"
 
 namespace linebake::cli {
 
@@ -73,6 +74,21 @@ CLI::Validator byte_size() {
         return {};
       },
       "SIZE");
+}
+
+CLI::Validator grid_check() {
+  return CLI::Validator(
+      [](std::string& text) {
+        VoxelOptions v;
+        try {
+          parse_grid(text, v);
+        } catch (const std::exception& e) {
+          const std::string message = e.what();  // CLI11 names the option itself
+          return message.rfind("--grid: ", 0) == 0 ? message.substr(8) : message;
+        }
+        return std::string();
+      },
+      "GRID");
 }
 
 CLI::Validator one_of(const std::vector<std::string>& names) {

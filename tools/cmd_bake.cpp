@@ -72,18 +72,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 40));
   sub->add_option("--grid", args->grid,
                   "Voxels: auto (default), N along the longest axis, or NxNxN")
-      ->check(CLI::Validator(
-          [](std::string& text) {
-            VoxelOptions v;
-            try {
-              parse_grid(text, v);
-            } catch (const std::exception& e) {
-              const std::string message = e.what();  // CLI11 names the option itself
-              return message.rfind("--grid: ", 0) == 0 ? message.substr(8) : message;
-            }
-            return std::string();
-          },
-          "GRID"));
+      ->check(grid_check());
   sub->add_option("--quantization", o.voxels.quantization,
                   "Voxels: cells per face axis for chord ends, 16 | 32 (default) | 64")
       ->check(CLI::IsMember({16, 32, 64}));

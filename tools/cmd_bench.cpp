@@ -414,17 +414,7 @@ Command add_bench(CLI::App& app) {
   auto* voxels = step("voxels", "Voxel grid build: time, chords, memory, quantisation error",
                       "prints every run, the best and the median");
   voxels->add_option("--grid", args->grid, "auto (default, bake's rule), N or NxNxN")
-      ->check(CLI::Validator(
-          [](std::string& text) {
-            VoxelOptions v;
-            try {
-              parse_grid(text, v);
-            } catch (const std::exception& e) {
-              return std::string(e.what());
-            }
-            return std::string();
-          },
-          "GRID"));
+      ->check(grid_check());
   voxels->add_option("--quantization", args->quantization, "16 | 32 (default) | 64")
       ->check(CLI::IsMember({16, 32, 64}));
   auto* embree = step("embree", "linebake's Embree build against a bare rtcCommitScene",

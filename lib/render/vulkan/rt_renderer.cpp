@@ -11,6 +11,7 @@
 #include "render/vulkan/rt_functions.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
+#include "render/vulkan/view_uniforms.hpp"
 
 namespace linebake::vk {
 namespace {
@@ -258,16 +259,7 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   const auto range = scene.attribute_range();
   if (tf.range[0] == 0 && tf.range[1] == 0) tf.range = {double(range[0]), double(range[1])};
   RtUniforms u{};
-  const Camera::ImagePlane plane = camera.image_plane(o.width, o.height);
-  for (int k = 0; k < 3; ++k) {
-    u.eye[k] = float(camera.eye[k]);
-    u.forward[k] = float(plane.forward[k]);
-    u.right[k] = float(plane.right[k]);
-    u.up[k] = float(plane.up[k]);
-    u.background[k] = float(o.shading.background[size_t(k)]);
-  }
-  u.shading[0] = float(o.shading.ambient), u.shading[1] = float(o.shading.diffuse);
-  u.shading[2] = float(o.shading.specular), u.shading[3] = float(o.shading.shininess);
+  write_view(u, camera, o.width, o.height, o.shading);
   u.ranges[0] = range[0], u.ranges[1] = range[1];
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);

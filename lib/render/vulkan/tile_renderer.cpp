@@ -12,6 +12,7 @@
 #include "render/vulkan/radix_sort.hpp"
 #include "render/vulkan/shaders.hpp"
 #include "render/vulkan/transfer_table.hpp"
+#include "render/vulkan/view_uniforms.hpp"
 
 namespace linebake::vk {
 namespace {
@@ -179,17 +180,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   if (tf.range[0] == 0 && tf.range[1] == 0)
     tf.range = {double(s.attribute_range[0]), double(s.attribute_range[1])};
   TileUniforms u{};
-  const Camera::ImagePlane plane = camera.image_plane(o.width, o.height);
-  const glm::dvec3 forward = plane.forward;
-  for (int k = 0; k < 3; ++k) {
-    u.eye[k] = float(camera.eye[k]);
-    u.forward[k] = float(plane.forward[k]);
-    u.right[k] = float(plane.right[k]);
-    u.up[k] = float(plane.up[k]);
-    u.background[k] = float(o.shading.background[size_t(k)]);
-  }
-  u.shading[0] = float(o.shading.ambient), u.shading[1] = float(o.shading.diffuse);
-  u.shading[2] = float(o.shading.specular), u.shading[3] = float(o.shading.shininess);
+  write_view(u, camera, o.width, o.height, o.shading);
+  const glm::dvec3 forward = camera.image_plane(o.width, o.height).forward;
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
   u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = uint32_t(s.segment_count);
