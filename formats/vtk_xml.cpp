@@ -467,6 +467,10 @@ class VtpWriter {
         out += "&gt;";
       else if (c == '"')
         out += "&quot;";
+      else if (c == '\t' || c == '\n' || c == '\r')  // kept: a parser turns raw ones into spaces
+        out += "&#" + std::to_string(int(c)) + ";";
+      else if (static_cast<unsigned char>(c) < 0x20)  // not allowed in XML 1.0, even escaped
+        out += "\xEF\xBF\xBD";                        // U+FFFD REPLACEMENT CHARACTER
       else
         out += c;
     }

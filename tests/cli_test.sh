@@ -299,5 +299,33 @@ rc=0; '$bin' bake '$tmp/link.lbc.h5' --assets tubes,voxels 2> '$tmp/link.err' ||
 [ \$rc -eq 3 ] && grep -q 'is a link' '$tmp/link.err'
 "
 
+check "second review fixes: in-place /lines keep their identity, the attribute check on reused lines, bench options before the step, control characters in VTP names, an asset without provenance" bash -c "
+set -e
+'$bin' bake '$tmp/c.binlines' -o '$tmp/keep.lbc.h5' --assets tubes,voxels --grid 16 >/dev/null 2>&1
+prov() { /usr/bin/python3 -c \"import h5py, json, sys; p = json.loads(h5py.File(sys.argv[1], 'r')['/lines'].attrs['provenance']); print(p['key'], p['input_hash'], p['parameters']['source'], p['compression'])\" \"\$1\"; }
+before=\$(prov '$tmp/keep.lbc.h5')
+'$bin' bake '$tmp/keep.lbc.h5' --compression deflate 2> '$tmp/keep.err' >/dev/null
+grep -q 'lines: built' '$tmp/keep.err'
+after=\$(prov '$tmp/keep.lbc.h5')
+[ \"\${before% *}\" = \"\${after% *}\" ] && [ \"\${after##* }\" = deflate ] && case \"\$after\" in *c.binlines*) ;; *) exit 1 ;; esac
+rc=0; '$bin' bake '$tmp/keep.lbc.h5' --assets embree --attribute nosuch 2> '$tmp/keep.err' || rc=\$?
+[ \$rc -eq 1 ] && grep -q \"no vertex attribute named 'nosuch'\" '$tmp/keep.err'
+'$bin' bench --input '$tmp/c.binlines' --repeat 1 tubes --json 2> '$tmp/bench.err' | grep -q '\"input\"'
+grep -q 'bench --input is deprecated' '$tmp/bench.err'
+'$bin' convert '$tmp/c.binlines' -o '$tmp/ctl.h5' 2>/dev/null
+/usr/bin/python3 -c \"import h5py; f = h5py.File('$tmp/ctl.h5', 'a'); f.attrs['bell\x07key'] = 'v'; f.attrs['tab\tkey'] = 'w'\"
+'$bin' convert '$tmp/ctl.h5' -o '$tmp/ctl.vtp' 2>/dev/null
+/usr/bin/python3 -c \"
+import vtk
+r = vtk.vtkXMLPolyDataReader(); r.SetFileName('$tmp/ctl.vtp'); r.Update(); d = r.GetOutput().GetFieldData()
+names = {d.GetAbstractArray(i).GetName() for i in range(d.GetNumberOfArrays())}
+assert 'bell\ufffdkey' in names and 'tab\tkey' in names, names
+assert r.GetOutput().GetNumberOfLines() > 0
+\"
+/usr/bin/python3 -c \"import h5py; del h5py.File('$tmp/keep.lbc.h5', 'a')['/assets/voxels'].attrs['provenance']\"
+'$bin' bake '$tmp/small.binlines' -o '$tmp/keep.lbc.h5' 2> '$tmp/keep.err' >/dev/null
+grep -q \"dropped the cache's voxels: it has no provenance\" '$tmp/keep.err'
+"
+
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

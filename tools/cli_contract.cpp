@@ -117,7 +117,31 @@ const std::vector<DeprecatedAlias>& deprecated_aliases() {
   return table;
 }
 
+namespace {
+
+// bench once took its step as a positional anywhere among the options (`bench --input x tubes`);
+// the step is now a subcommand, so options given before it move behind it. The step is the first
+// of the names that is not the value of the option before it (every option before it takes a
+// value except the flags).
+void move_options_behind_bench_step(std::vector<std::string>& args) {
+  static const std::vector<std::string> steps = {"tubes", "voxels", "embree", "bake", "render"};
+  static const std::vector<std::string> flags = {"--json", "--keep", "-h", "--help"};
+  const auto takes_value = [](const std::string& arg) {
+    return arg.size() > 1 && arg[0] == '-' && arg.find('=') == std::string::npos &&
+           std::find(flags.begin(), flags.end(), arg) == flags.end();
+  };
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (i > 0 && takes_value(args[i - 1])) continue;
+    if (std::find(steps.begin(), steps.end(), args[i]) == steps.end()) continue;
+    if (i > 0) std::rotate(args.begin(), args.begin() + i, args.begin() + i + 1);
+    return;
+  }
+}
+
+}  // namespace
+
 void apply_deprecated_aliases(const std::string& command, std::vector<std::string>& args) {
+  if (command == "bench") move_options_behind_bench_step(args);
   std::set<std::string> warned;
   std::vector<std::string> out;
   for (const std::string& arg : args) {
@@ -182,6 +206,9 @@ void check_input_file(const std::string& path) {
   if (synth::is_synth_source(path)) return;
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
+  // A directory on the way that may not be searched reads as "not found" to exists(): name it.
+  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory)
+    throw InputError(path, "", ec.message());
   if (!std::filesystem::exists(status)) throw InputError(path, "", "no such file");
   if (std::filesystem::is_directory(status))
     throw InputError(path, "", "is a directory, not a file");

@@ -142,9 +142,12 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   building("embree"), "when the Embree buffers are built (--assets embree)");
     refuse_unless(sub, {"rtx-geometry", "rtx-no-compaction", "device", "validation"},
                   building("rtx"), "when rtx acceleration structures are built (--assets rtx)");
-    refuse_unless(sub, {"tube-sides", "caps", "normals", "chunk-bytes", "attribute-range"},
-                  building("tubes") || building("rtx"), "when tubes are built (--assets tubes)");
-    refuse_unless(sub, {"radius", "radius-absolute", "radius-attribute", "attribute"},
+    // Embree's curves have one radius for the whole set: a per-point radius is the tubes' alone.
+    refuse_unless(
+        sub,
+        {"tube-sides", "caps", "normals", "chunk-bytes", "attribute-range", "radius-attribute"},
+        building("tubes") || building("rtx"), "when tubes are built (--assets tubes)");
+    refuse_unless(sub, {"radius", "radius-absolute", "attribute"},
                   building("tubes") || building("rtx") || building("embree"),
                   "when tubes or Embree curves are built");
     refuse_unless(sub, {"compression-level"},

@@ -123,11 +123,21 @@ bool read_string_attribute(hid_t object, const std::string& name, std::string& v
   if (H5Aexists(object, name.c_str()) <= 0) return false;
   Handle attribute(H5Aopen(object, name.c_str(), H5P_DEFAULT), H5Aclose);
   Handle type(H5Aget_type(attribute), H5Tclose);
-  if (!type.valid() || H5Tget_class(type) != H5T_STRING || H5Tis_variable_str(type) > 0)
-    return false;
+  if (!type.valid() || H5Tget_class(type) != H5T_STRING) return false;
   // One string only: an array attribute would be read past the buffer.
   Handle space(H5Aget_space(attribute), H5Sclose);
   if (!space.valid() || H5Sget_simple_extent_npoints(space) != 1) return false;
+  if (H5Tis_variable_str(type) > 0) {
+    // h5py's default for a Python str: HDF5 allocates the string, H5Dvlen_reclaim frees it.
+    Handle memory(H5Tcopy(H5T_C_S1), H5Tclose);
+    H5Tset_size(memory, H5T_VARIABLE);
+    H5Tset_cset(memory, H5Tget_cset(type));
+    char* text = nullptr;
+    if (H5Aread(attribute, memory, &text) < 0) return false;
+    value = text ? text : "";
+    H5Dvlen_reclaim(memory, space, H5P_DEFAULT, &text);
+    return true;
+  }
   const size_t size = H5Tget_size(type);
   std::string buffer(size, '\0');
   if (H5Aread(attribute, type, buffer.data()) < 0) return false;

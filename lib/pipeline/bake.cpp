@@ -505,12 +505,6 @@ BakeResult bake(const BakeOptions& options_in) {
   MemoryBudget budget(budget_bytes);
   result.memory_budget_bytes = budget_bytes;
 
-  const LinesIdentity identity = lines_identity(options);
-  const std::string& source = identity.source_hash;
-  const std::string& format = identity.format;
-  const std::string& policy = identity.policy;
-  const std::string& lines_key = identity.key;
-
   // The output never replaces the input, and replaces a file that is not a linebake cache only
   // under --force; a damaged cache is rebuilt.
   if (!synth::is_synth_source(options.input) && !in_place)
@@ -533,9 +527,20 @@ BakeResult bake(const BakeOptions& options_in) {
   // Which steps run: the lines when their key changed, an asset when its key did.
   BakeStep lines_step{"lines", false, {}};
   const auto old_lines = old_provenance("/lines");
+  // In place the lines keep the identity of what they were first read from: the cache is not
+  // their source, and hashing it would read the whole file for a key nobody compares.
+  const bool keep_identity = in_place && old_lines.has_value();
+  const LinesIdentity identity =
+      keep_identity ? LinesIdentity{old_lines->input_hash, old_lines->key,
+                                    old_lines->parameters.value("format", "auto"),
+                                    old_lines->parameters.value("on_invalid", "repair")}
+                    : lines_identity(options);
+  const std::string& source = identity.source_hash;
+  const std::string& format = identity.format;
+  const std::string& policy = identity.policy;
+  const std::string& lines_key = identity.key;
   // In place, the cache's /lines are the input; --compression applies to /lines as well.
-  const bool reuse_lines = !options.force && old_lines &&
-                           (old_lines->key == lines_key || in_place) &&
+  const bool reuse_lines = !options.force && old_lines && old_lines->key == lines_key &&
                            old_lines->compression == to_string(options.compression) &&
                            old_lines->stats.contains("bounds");
   lines_step.built = !reuse_lines;
@@ -600,7 +605,8 @@ BakeResult bake(const BakeOptions& options_in) {
       }
       header = header_of(input->header());
       check_attribute_options(options, header);
-      if (!synth::is_synth_source(options.input)) header.metadata.emplace("source", options.input);
+      if (!synth::is_synth_source(options.input) && !keep_identity)
+        header.metadata.emplace("source", options.input);
       const uint64_t per_point = plan_batches(header);
       LineStatsBuilder builder(header);
       LineContentHash hash(header);
@@ -637,6 +643,7 @@ BakeResult bake(const BakeOptions& options_in) {
     });
   } else {
     header = header_of(open_line_reader(result.cache)->header());
+    check_attribute_options(options, header);
     stats = line_stats_from_json(old_lines->stats, result.cache);
     lines_hash = old_lines->stats.value("content_hash", "");
     plan_batches(header);
@@ -716,9 +723,10 @@ BakeResult bake(const BakeOptions& options_in) {
       if (p && p->input_hash == lines_hash)
         kept.push_back(name);
       else
-        result.notes.push_back("dropped the cache's " + name +
-                               ": it was built from other lines (--assets " + name +
-                               " rebuilds it)");
+        result.notes.push_back("dropped the cache's " + name + ": " +
+                               (p ? "it was built from other lines"
+                                  : "it has no provenance, so nothing says which lines it is of") +
+                               " (--assets " + name + " rebuilds it)");
     }
   }
   if (!anything_built) {
@@ -776,8 +784,12 @@ BakeResult bake(const BakeOptions& options_in) {
       finish_provenance(p, "lines", lines_clock);
       p.key = lines_key;
       p.input_hash = source;
-      p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
-      if (inputs.size() > 1) p.parameters["files"] = inputs;
+      if (keep_identity) {
+        p.parameters = old_lines->parameters;
+      } else {
+        p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
+        if (inputs.size() > 1) p.parameters["files"] = inputs;
+      }
       p.stats = to_json(stats);
       p.stats["content_hash"] = lines_hash;
       p.spill_bytes = spool ? spool->bytes() : 0;
