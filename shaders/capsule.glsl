@@ -3,6 +3,10 @@
 // the segment it ends). Shared by rtx_capsules.rint and the lavapipe test shader capsule_test.comp,
 // which checks it against the CPU code.
 
+#ifndef CAPSULE_COORDINATE_ERROR
+#define CAPSULE_COORDINATE_ERROR 0.0
+#endif
+
 struct CapsuleSegment {
   vec3 before;  // the previous segment's first point (flags & 1)
   vec3 p0, p1;
@@ -95,7 +99,16 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
   // Keep crossings outside the neighbours' capsules, in distance order.
   for (int k = 0; k < candidates; ++k) {
     const vec3 x = origin + candidate_t[k] * direction;
-    const float inside = r * (1.0 - 1e-6) - 8.0 * 1.1920929e-7 * (extent + abs(candidate_t[k]));
+    // The points' own coordinates carry float error too (about 2^-23 of their magnitude): with
+    // CAPSULE_COORDINATE_ERROR 1 a crossing that close to a neighbour is kept, and the caller
+    // removes the double it may make (tiles does; a chain of short, slightly bent segments
+    // otherwise loses crossings that both sides of a joint reject).
+    const vec3 magnitude = abs(x);
+    const float inside =
+        r * (1.0 - 1e-6) -
+        8.0 * 1.1920929e-7 *
+            (extent + abs(candidate_t[k]) +
+             CAPSULE_COORDINATE_ERROR * max(magnitude.x, max(magnitude.y, magnitude.z)));
     if ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) continue;
     if ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside) continue;
     int at = count;

@@ -15,18 +15,16 @@ layout(set = 0, binding = 0, std140) uniform TileUniforms {
   vec4 shading;     // ambient, diffuse, specular, shininess
   vec4 background;  // linear rgb
   vec4 ranges;      // 0, 0; transfer-function range lo, hi
-  uvec4 size;       // width, height, early termination, segments
+  uvec4 size;       // width, height, early termination, primitives
   uvec4 tf_counts;  // colour points, opacity points, 0, 0
   vec4 params;      // termination alpha, capsule radius, key depth near, key depth far
   uvec4 tiles;      // tiles across, tiles down, depth bits of a key, key capacity
+  uvec4 band;       // the tile rows of this pass: first, one past the last
   vec4 colours[kMaxTfPoints];    // x, sRGB r, g, b
   vec4 opacities[kMaxTfPoints];  // x, opacity
 } frame;
 
-// x, y, z and the attribute value per point.
-layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
-// Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
-layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
+// Bindings 1 and 2 hold the primitives: tiles_capsules.glsl or tiles_triangles.glsl.
 layout(set = 0, binding = 3, std430) buffer Keys { uint keys[]; };
 layout(set = 0, binding = 4, std430) buffer Values { uint values[]; };
 // keys emitted (may exceed the capacity: then the frame is binned again), segments binned.
@@ -35,6 +33,8 @@ layout(set = 0, binding = 5, std430) buffer Counters { uint key_count; uint binn
 layout(set = 0, binding = 6, std430) buffer Ranges { uvec2 ranges[]; };
 layout(set = 0, binding = 7, std430) writeonly buffer Pixels { vec4 pixels[]; };
 layout(set = 0, binding = 8, std430) writeonly buffer Hits { uint hit_counts[]; };
+// Keys per tile row (binning counts them, so the host can cut the frame into bands).
+layout(set = 0, binding = 12, std430) buffer RowKeys { uint row_keys[]; };
 
 // The lower bound of a key's depth, in the units of t (distance along a unit ray): keys hold
 // floor((z - near) / (far - near) * (2^bits - 1)) of the capsule's nearest view depth z, and
@@ -43,4 +43,18 @@ float key_depth(uint key) {
   const uint bits = frame.tiles.z;
   const float q = float(key & ((1u << bits) - 1u));
   return frame.params.z + q / float((1u << bits) - 1u) * (frame.params.w - frame.params.z);
+}
+
+// Pixel position and view depth of a point (binning).
+vec3 project(vec3 p) {
+  const vec3 q = p - frame.eye.xyz;
+  const float z = dot(q, frame.forward.xyz);
+  const float x = dot(q, frame.right.xyz) / dot(frame.right.xyz, frame.right.xyz) / z;
+  const float y = -dot(q, frame.up.xyz) / dot(frame.up.xyz, frame.up.xyz) / z;
+  return vec3((x + 1.0) * 0.5 * float(frame.size.x), (y + 1.0) * 0.5 * float(frame.size.y), z);
+}
+
+// The nearest distance at which binning clips: in front of the eye, scaled to the data.
+float near_clip() {
+  return max(1e-6 * (frame.params.w - frame.params.z), frame.params.y * 1e-3);
 }

@@ -1,19 +1,11 @@
 #version 460
-// tiles, pass 1: each segment's capsule is projected to the screen, culled, and one key per tile
-// its bounds cover is emitted: the tile in the high bits, the quantised nearest view depth in
-// the low bits, the segment as the value.
+// tiles, pass 1 over capsules: each segment's capsule is projected to the screen, culled, and
+// binned (tiles_keys.glsl) with its nearest view depth.
 #include "tiles.glsl"
+#include "tiles_capsules.glsl"
+#include "tiles_keys.glsl"
 
 layout(local_size_x = 256) in;
-
-// Pixel position and view depth of a point.
-vec3 project(vec3 p) {
-  const vec3 q = p - frame.eye.xyz;
-  const float z = dot(q, frame.forward.xyz);
-  const float x = dot(q, frame.right.xyz) / dot(frame.right.xyz, frame.right.xyz) / z;
-  const float y = -dot(q, frame.up.xyz) / dot(frame.up.xyz, frame.up.xyz) / z;
-  return vec3((x + 1.0) * 0.5 * float(frame.size.x), (y + 1.0) * 0.5 * float(frame.size.y), z);
-}
 
 void main() {
   const uint s = gl_GlobalInvocationID.x;
@@ -25,7 +17,7 @@ void main() {
   float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f);
   // Behind the eye: culled; crossing the plane just in front of it: clipped there (pushed back
   // by the radius, so the end spheres stay in front too).
-  const float near = max(1e-6 * (frame.params.w - frame.params.z), r * 1e-3);
+  const float near = near_clip();
   if (max(za, zb) + r <= near) return;
   const float clip = near + r;
   if (za < clip || zb < clip) {
@@ -49,29 +41,5 @@ void main() {
   const float corner = sqrt(1.0 + dot(frame.right.xyz, frame.right.xyz) + dot(frame.up.xyz, frame.up.xyz));
   const float ra = r / max(za - r, near) * focal * corner + 1.0;
   const float rb = r / max(zb - r, near) * focal * corner + 1.0;
-  const vec2 lo = min(pa.xy - ra, pb.xy - rb), hi = max(pa.xy + ra, pb.xy + rb);
-  const ivec2 tiles = ivec2(frame.tiles.xy);
-  const ivec2 t0 = clamp(ivec2(floor(lo / float(kTile))), ivec2(0), tiles - 1);
-  const ivec2 t1 = clamp(ivec2(floor(hi / float(kTile))), ivec2(0), tiles - 1);
-  if (hi.x < 0.0 || hi.y < 0.0 || lo.x >= float(frame.size.x) || lo.y >= float(frame.size.y))
-    return;
-  const float z_near = max(min(za, zb) - r, frame.params.z);
-  const uint bits = frame.tiles.z;
-  const float span = frame.params.w - frame.params.z;
-  const float level = clamp((z_near - frame.params.z) / span, 0.0, 1.0) * float((1u << bits) - 1u);
-  const uint depth = min(uint(floor(level)), (1u << bits) - 1u);
-  const uint n = uint((t1.x - t0.x + 1) * (t1.y - t0.y + 1));
-  // The count saturates instead of wrapping past 2^32 - 1 (the host refuses such a frame).
-  const uint base = atomicAdd(counters.key_count, n);
-  if (base > 0xFFFFFFFFu - n) atomicMax(counters.key_count, 0xFFFFFFFFu);
-  atomicAdd(counters.binned, 1u);
-  if (base > frame.tiles.w || n > frame.tiles.w - base) return;  // no room: binned again
-  uint at = base;
-  for (int ty = t0.y; ty <= t1.y; ++ty)
-    for (int tx = t0.x; tx <= t1.x; ++tx) {
-      const uint tile = uint(ty) * frame.tiles.x + uint(tx);
-      keys[at] = (tile << bits) | depth;
-      values[at] = s;
-      ++at;
-    }
+  emit_keys(s, min(pa.xy - ra, pb.xy - rb), max(pa.xy + ra, pb.xy + rb), min(za, zb) - r);
 }

@@ -19,10 +19,13 @@ namespace {
 
 using test::TempDir;
 
-TEST(Tiles, MatchesEmbreeCapsulesForEveryPreset) {
+// Capsules against Embree's capsules and triangles against `reference` (Embree over the tube
+// mesh), on two of the test scenes, for every preset.
+void expect_matches(const std::string& source, const char* geometry, const char* against,
+                    const std::vector<double>& zooms) {
   TempDir dir;
   BakeOptions bake_options;
-  bake_options.input = "synth:aneurysm?scale=0.01";
+  bake_options.input = source;
   bake_options.cache = dir.file("a.lbc.h5");
   bake_options.progress = false;
   bake(bake_options);
@@ -30,24 +33,36 @@ TEST(Tiles, MatchesEmbreeCapsulesForEveryPreset) {
   TechniqueOptions o;
   o.width = 160, o.height = 120;
   o.geometry = "capsules";
-  const Technique& embree = find_technique("embree");
+  o.tiles_geometry = geometry;
+  const Technique& reference = find_technique(against);
   const Technique& tiles = find_technique("tiles");
-  auto reference = embree.prepare(embree.info, cache, bake_options.cache, o);
+  auto theirs = reference.prepare(reference.info, cache, bake_options.cache, o);
   auto ours = tiles.prepare(tiles.info, cache, bake_options.cache, o);
-  for (const double zoom : {1.0, 0.5}) {
+  for (const double zoom : zooms) {
     const Camera camera = frame_bounds(ours->bounds(), 160.0 / 120.0, 30, 20, zoom);
     for (const char* preset : {"opaque", "semi", "transparent"}) {
       const TransferFunction tf = transfer_function_preset(preset);
       const TechniqueFrame a = ours->render(camera, tf, o.width, o.height);
-      const TechniqueFrame b = reference->render(camera, tf, o.width, o.height);
+      const TechniqueFrame b = theirs->render(camera, tf, o.width, o.height);
       EXPECT_GE(psnr(display_encoded(a.image), display_encoded(b.image)), 50.0)
-          << preset << " zoom " << zoom;
+          << source << " " << geometry << " " << preset << " zoom " << zoom;
       EXPECT_EQ(a.stats["window_overflows"], 0) << preset;
       EXPECT_GT(a.stats["hits"].get<uint64_t>(), 1000u) << preset;
-      for (const char* field : {"keys", "tiles", "frame_bytes", "gpu_ms", "depth_complexity"})
+      for (const char* field :
+           {"keys", "tiles", "bands", "frame_bytes", "gpu_ms", "depth_complexity"})
         EXPECT_TRUE(a.stats.contains(field)) << field;
     }
   }
+}
+
+TEST(Tiles, CapsulesMatchEmbreeCapsulesForEveryPreset) {
+  expect_matches("synth:aneurysm?scale=0.01", "capsules", "embree", {1.0, 0.5});
+  expect_matches("synth:convection?scale=0.01", "capsules", "embree", {1.0});
+}
+
+TEST(Tiles, TrianglesMatchTheReferenceForEveryPreset) {
+  expect_matches("synth:aneurysm?scale=0.01", "triangles", "reference", {1.0, 0.5});
+  expect_matches("synth:convection?scale=0.01", "triangles", "reference", {1.0});
 }
 
 TEST(Tiles, SlicesGiveTheSameBytes) {
@@ -71,6 +86,78 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   EXPECT_GT(a.stats.hits, 100u);
+}
+
+// Bands of tile rows (a frame whose keys exceed the key budget) give the bytes of one band.
+TEST(Tiles, BandsGiveTheSameBytes) {
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
+  const Bounds bounds = compute_bounds(lines);
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name);
+  const Camera camera = frame_bounds(bounds, 1.0, 30, 20, 0.5);  // zoomed in: rows alike
+  const TransferFunction tf = transfer_function_preset("semi");
+  vk::Context ctx;
+  vk::TileRenderer renderer(ctx, capsules);
+  vk::TileOptions o;
+  o.width = 128, o.height = 128;
+  const vk::TileFrame whole = renderer.render(camera, tf, o);
+  ASSERT_EQ(whole.stats.bands, 1u);
+  // A budget of the fullest row's keys (or a third of all): several bands.
+  ASSERT_LT(whole.stats.max_row_keys * 2, whole.stats.keys);
+  o.max_key_bytes = std::max(whole.stats.max_row_keys, whole.stats.keys / 3) * 18;
+  const vk::TileFrame banded = renderer.render(camera, tf, o);
+  EXPECT_GE(banded.stats.bands, 3u);
+  EXPECT_EQ(banded.stats.keys, whole.stats.keys);
+  EXPECT_EQ(banded.image.pixels, whole.image.pixels);
+  EXPECT_EQ(banded.depth_complexity, whole.depth_complexity);
+  EXPECT_GT(whole.stats.hits, 100u);
+  // Fewer keys than one row of tiles holds: refused, naming the budget.
+  o.max_key_bytes = 18;
+  EXPECT_THROW(renderer.render(camera, tf, o), BudgetExceeded);
+}
+
+// Two capsules whose depth keys misorder them at one pixel: A starts nearer (its key sorts
+// first) but runs away from the eye, and at the pixel through B it lies behind B. Ambient light
+// only, so each hit's colour is the transfer function's: the pixel must be B over A over the
+// background, composited by hand.
+TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
+  LineSet lines;
+  lines.append_point(-3, 0, 2), lines.append_point(3, 0, 14), lines.end_line();       // A
+  lines.append_point(0.5f, -1, 4), lines.append_point(0.5f, 1, 4), lines.end_line();  // B
+  lines.attributes = {{"v", {0, 0, 1, 1}}};
+  const CapsuleSegments capsules = build_capsule_segments(lines, 0.1f, "v");
+  Camera camera;
+  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
+  camera.fov_y_degrees = 40;
+  TransferFunction tf;
+  tf.name = "two colours";
+  tf.colours = {{0.0, {1, 0, 0}}, {1.0, {0, 0, 1}}};  // A red, B blue
+  tf.opacities = {{0.0, 0.6}, {1.0, 0.5}};
+  vk::TileOptions o;
+  o.width = 64, o.height = 63;  // row 31's rays lie in the plane y = 0, through both axes
+  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
+  o.shading.background = {0.2, 0.3, 0.4};
+  // The pixel whose ray meets B's axis (x = 0.5 at depth 4).
+  const Camera::ImagePlane plane = camera.image_plane(o.width, o.height);
+  const int x = int(std::floor((0.125 / plane.right.x + 1) / 2 * o.width));
+  const int y = 31;
+  vk::Context ctx;
+  vk::TileRenderer renderer(ctx, capsules);
+  const vk::TileFrame frame = renderer.render(camera, tf, o);
+  EXPECT_EQ(frame.stats.window_overflows, 0u);
+  ASSERT_EQ(frame.depth_complexity[size_t(y) * o.width + x], 2u);
+  const Rgba a = tf.at(0), b = tf.at(1);
+  const std::array<double, 3> ca{a.r, a.g, a.b}, cb{b.r, b.g, b.b};
+  for (int c = 0; c < 3; ++c) {
+    const double expected = b.a * cb[c] + (1 - b.a) * a.a * ca[c] +
+                            (1 - b.a) * (1 - a.a) * o.shading.background[size_t(c)];
+    const double misordered = a.a * ca[c] + (1 - a.a) * b.a * cb[c] +
+                              (1 - a.a) * (1 - b.a) * o.shading.background[size_t(c)];
+    EXPECT_NEAR(frame.image.at(x, y, c), expected, 1e-5) << "channel " << c;
+    if (c != 1) {
+      EXPECT_GT(std::abs(expected - misordered), 0.05) << "channel " << c;
+    }
+  }
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "techniques/technique.hpp"
@@ -93,7 +94,7 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device, on = "cpu";
     bool no_early_termination = false, no_skip = false;
-    std::string rt_geometry;
+    std::string rt_geometry, tiles_geometry = "capsules";
     bool rebuild = false, no_compaction = false;
     int max_iterations = 1024;
     uint64_t capacity = 0;
@@ -128,6 +129,10 @@ Command add_render(CLI::App& app) {
                   "rtx: triangles (the tube mesh, default) | capsules (AABBs with an analytic "
                   "intersection shader); default: what the cached BLAS were built over")
       ->check(CLI::IsMember({"triangles", "capsules"}));
+  sub->add_option("--tiles-geometry", args->tiles_geometry,
+                  "tiles: capsules (the lines with the tubes' radius, default) | triangles (the "
+                  "cached tube mesh, as reference and the raster techniques)")
+      ->check(one_of({"capsules", "triangles"}));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
   sub->add_flag("--rtx-no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
@@ -259,8 +264,11 @@ Command add_render(CLI::App& app) {
     o.vrc_early_termination = !args->no_early_termination;
     o.skip_empty_space = !args->no_skip;
     o.rt_geometry = args->rt_geometry;
+    o.tiles_geometry = args->tiles_geometry;
     o.rebuild = args->rebuild, o.compaction = !args->no_compaction;
     o.max_iterations = args->max_iterations;
+    if (!args->memory_budget.empty() && args->memory_budget != "unlimited")
+      o.memory_budget = linebake::parse_size(args->memory_budget);
     check_frame_memory(args->technique, args->size,
                        estimate_frame_bytes(find_technique(args->technique), o),
                        args->memory_budget);

@@ -71,6 +71,7 @@ void check_depth_image_output(const std::string& path) {
 
 void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
                         const std::string& budget) {
+  if (budget == "unlimited") return;
   const uint64_t limit = budget.empty() ? default_memory_budget() : linebake::parse_size(budget);
   if (bytes > limit)
     throw BudgetExceeded("a " + size + " " + what + " frame needs about " + format_bytes(bytes) +

@@ -75,6 +75,11 @@ struct TechniqueOptions {
   std::string rt_geometry;  // triangles | capsules (empty: what the cached BLAS were built over)
   bool rebuild = false, compaction = true;
   int max_iterations = 1024;
+  // tiles
+  std::string tiles_geometry = "capsules";  // capsules (the lines) | triangles (the tube mesh)
+  // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
+  // in bands of tile rows to stay within it.
+  uint64_t memory_budget = 0;
 };
 
 struct TechniqueFrame {

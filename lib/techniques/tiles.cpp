@@ -1,9 +1,12 @@
 // tiles: exact transparency from compute shaders only (render/vulkan/tile_renderer.hpp), over
 // the lines as capsule chains with the cached tubes' radius, as embree --embree-geometry capsules
-// and rtx --rtx-geometry capsules draw them.
+// and rtx --rtx-geometry capsules draw them, or (--tiles-geometry triangles) over the cached tube
+// mesh, as reference and the raster techniques draw it.
 
 #include "accel/capsule_segments.hpp"
 #include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "core/error.hpp"
 #include "render/vulkan/tile_renderer.hpp"
 #include "techniques/curve_defaults.hpp"
 #include "techniques/families.hpp"
@@ -13,22 +16,43 @@ namespace {
 
 class Tiles : public PreparedTechnique {
  public:
-  Tiles(const CacheReader& cache, const TechniqueOptions& o) : context_(o, false) {
-    lines_ = load_lines(cache);
-    const auto tube_provenance =
-        cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
-    const auto [radius, attribute] = curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
-    const CapsuleSegments capsules = build_capsule_segments(lines_, radius, attribute);
-    bounds_ = compute_bounds(lines_);
-    for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
-    renderer_.emplace(*context_, capsules);
-    radius_ = radius;
+  Tiles(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
+      : context_(o, false), triangles_(o.tiles_geometry == "triangles") {
+    if (triangles_) {
+      if (!cache.exists("/assets/tubes"))
+        throw_missing_asset(cache_name, "tubes",
+                            "tiles --tiles-geometry triangles draws the tube mesh");
+      if (o.radius > 0 || !o.attribute.empty())
+        throw UsageError(
+            "--radius and --attribute are the capsules' (the tube mesh has its own); "
+            "not with --tiles-geometry triangles");
+      const TubeMesh mesh = load_tubes(cache);
+      bounds_ = compute_bounds(mesh);
+      radius_ = mesh.radius;
+      renderer_.emplace(*context_, mesh);
+    } else {
+      const LineSet lines = load_lines(cache);
+      const auto tube_provenance =
+          cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
+      const auto [radius, attribute] =
+          curve_defaults(o.radius, o.attribute, tube_provenance, lines);
+      const CapsuleSegments capsules = build_capsule_segments(lines, radius, attribute);
+      bounds_ = compute_bounds(lines);
+      for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
+      renderer_.emplace(*context_, capsules);
+      radius_ = radius;
+    }
     options_.early_termination = o.early_termination;
+    memory_budget_ = o.memory_budget;
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
     options_.width = width, options_.height = height;
+    // What the budget leaves for the keys once the image's own buffers are counted.
+    const uint64_t image_bytes = uint64_t(width) * uint64_t(height) * (16 + 4);
+    if (memory_budget_ > 0)
+      options_.max_key_bytes = memory_budget_ > image_bytes ? memory_budget_ - image_bytes : 1;
     vk::TileFrame frame = renderer_->render(camera, tf, options_);
     context_.check_validation();
     const vk::TileStats& s = frame.stats;
@@ -41,11 +65,12 @@ class Tiles : public PreparedTechnique {
         {"hits", s.hits},
         {"keys", s.keys},
         {"tiles", s.tiles},
-        {"segments", s.segments},
-        {"binned_segments", s.binned_segments},
+        {triangles_ ? "triangles" : "segments", s.primitives},
+        {triangles_ ? "binned_triangles" : "binned_segments", s.binned_primitives},
         {"window_overflows", s.window_overflows},
         {"rebins", s.rebins},
         {"slices", s.slices},
+        {"bands", s.bands},
         {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
         {"depth_complexity", {{"max", s.max_depth_complexity}}},
         {"frame_bytes", s.frame_bytes}};
@@ -59,7 +84,7 @@ class Tiles : public PreparedTechnique {
   Bounds bounds() const override { return bounds_; }
   nlohmann::json stats() const override {
     return {{"device", context_->info().name},
-            {"geometry", "capsules"},
+            {"geometry", triangles_ ? "triangles" : "capsules"},
             {"radius", radius_},
             {"early_termination", options_.early_termination}};
   }
@@ -67,19 +92,20 @@ class Tiles : public PreparedTechnique {
 
  private:
   ContextHolder context_;
-  LineSet lines_;
+  bool triangles_ = false;
   Bounds bounds_;
   float radius_ = 0;
   std::optional<vk::TileRenderer> renderer_;
   vk::TileOptions options_;
+  uint64_t memory_budget_ = 0;
 };
 
 }  // namespace
 
 std::unique_ptr<PreparedTechnique> prepare_tiles(const TechniqueInfo&, const CacheReader& cache,
-                                                 const std::string&,
+                                                 const std::string& cache_name,
                                                  const TechniqueOptions& options) {
-  return std::make_unique<Tiles>(cache, options);
+  return std::make_unique<Tiles>(cache, cache_name, options);
 }
 
 }  // namespace linebake

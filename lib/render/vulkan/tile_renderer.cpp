@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
+#include <span>
 
 #include "core/error.hpp"
 #include "render/vulkan/buffer_set.hpp"
@@ -19,10 +21,14 @@ namespace {
 
 constexpr uint32_t kTile = 16;
 // 0 uniforms, 1 points, 2 segments, 3 keys, 4 values, 5 counters, 6 ranges, 7 pixels, 8 hit
-// counts, 9 stats, 10 the slice, 11 pixel states (shaders/tiles.glsl, tiles_composite.comp).
-constexpr uint32_t kBindings = 12;
+// counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row (shaders/tiles.glsl,
+// tiles_composite.comp).
+constexpr uint32_t kBindings = 13;
+// Device memory per (tile, segment) key: key and value words with an eighth more room, and the
+// radix sort's scratch (8 bytes a key and its digit counts).
+constexpr uint64_t kKeyBytes = 18;
 // A pixel's state between slices (tiles_composite.comp PixelState, std430).
-constexpr uint64_t kPixelStateBytes = 16 + 16 + 16 * 4 + 16 * 16;
+constexpr uint64_t kPixelStateBytes = 16 + 16 + 16 + 16 * 4 + 16 * 4 + 16 * 16;
 // Keys per tile per dispatch where the driver caps an invocation's loop iterations (lavapipe's
 // gallivm: 65535 in all): each key costs up to about 60 (window, transfer function, crossings).
 constexpr uint32_t kCappedSliceKeys = 512;
@@ -33,6 +39,7 @@ struct TileUniforms {
   uint32_t size[4], tf_counts[4];
   float params[4];
   uint32_t tiles[4];
+  uint32_t band[4];  // first tile row, one past the last
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
 };
@@ -52,13 +59,13 @@ struct SliceInfo {
 struct TileRenderer::State {
   Context& ctx;
   RadixSorter sorter;
-  uint64_t segment_count = 0;
+  uint64_t primitive_count = 0;  // capsule segments or triangles
   uint64_t max_buffer = 0;
   std::array<float, 2> attribute_range{};
   glm::dvec3 centre{};
   double extent = 0;  // radius of the bounding sphere, capsules included
-  float radius = 0;
-  Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states;
+  float radius = 0;   // capsules; 0 for triangles
+  Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows;
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
@@ -66,18 +73,22 @@ struct TileRenderer::State {
   VkQueryPool queries = VK_NULL_HANDLE;
 
   State(Context& c) : ctx(c), sorter(c) {}
+  // Uploads the primitives (vertex_stride floats per vertex, x y z first) and makes the passes.
+  void init(const std::vector<float>& vertex_words, const std::vector<uint32_t>& primitive_words,
+            uint64_t primitives, uint32_t vertex_stride, uint64_t max_buffer_bytes,
+            uint32_t slice_keys_wanted, bool triangles);
 
   void bind() {
     write_buffer_set(ctx.device(), set.set,
                      {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
-                      &targets.rgba, &targets.counts, &stats, &slice, &states});
+                      &targets.rgba, &targets.counts, &stats, &slice, &states, &rows});
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
     for (Buffer* b : {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats,
-                      &slice, &states})
+                      &slice, &states, &rows})
       ctx.destroy(*b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
@@ -88,6 +99,71 @@ struct TileRenderer::State {
     if (set.set_layout) vkDestroyDescriptorSetLayout(d, set.set_layout, nullptr);
   }
 };
+
+void TileRenderer::State::init(const std::vector<float>& vertex_words,
+                               const std::vector<uint32_t>& primitive_words, uint64_t primitives,
+                               uint32_t vertex_stride, uint64_t max_buffer_bytes,
+                               uint32_t slice_keys_wanted, bool triangles) {
+  primitive_count = primitives;
+  glm::dvec3 lo(1e300), hi(-1e300);
+  for (size_t i = 0; i + 3 <= vertex_words.size(); i += vertex_stride)
+    for (int k = 0; k < 3; ++k)
+      lo[k] = std::min(lo[k], double(vertex_words[i + size_t(k)])),
+      hi[k] = std::max(hi[k], double(vertex_words[i + size_t(k)]));
+  if (vertex_words.empty()) lo = hi = glm::dvec3(0);
+  centre = 0.5 * (lo + hi);
+  extent = 0.5 * glm::length(hi - lo) + radius;
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(ctx.physical_device(), &props);
+  max_buffer = props.limits.maxStorageBufferRange;
+  if (max_buffer_bytes > 0) max_buffer = std::min(max_buffer, max_buffer_bytes);
+  for (const auto& [name, bytes] :
+       {std::pair<const char*, uint64_t>{"vertices", vertex_words.size() * 4},
+        {"primitives", primitive_words.size() * 4}})
+    if (bytes > max_buffer)
+      throw BudgetExceeded("tiles: the " + std::string(name) + " take " +
+                           std::to_string(bytes >> 20) + " MiB, more than one storage buffer " +
+                           "holds on " + ctx.info().name + " (" + std::to_string(max_buffer >> 20) +
+                           " MiB)");
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  points = ctx.upload(vertex_words.data(), vertex_words.size() * 4, storage);
+  segments = ctx.upload(primitive_words.data(), primitive_words.size() * 4, storage);
+  uniforms = ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  counters = ctx.create_buffer(sizeof(Counters), storage, true);
+  stats = ctx.create_buffer(sizeof(CompositeStats), storage, true);
+  keys = ctx.create_buffer(4, storage, false);
+  values = ctx.create_buffer(4, storage, false);
+  ranges = ctx.create_buffer(8, storage, true);
+  rows = ctx.create_buffer(4, storage, true);
+  slice = ctx.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+  states = ctx.create_buffer(4, storage, false);
+  slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted
+               : ctx.info().driver.find("llvmpipe") != std::string::npos ||
+                       ctx.info().name.find("llvmpipe") != std::string::npos
+                   ? kCappedSliceKeys
+                   : 0;
+  VkDevice d = ctx.device();
+  set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
+  const std::array<const char*, 3> shaders =
+      triangles ? std::array<const char*, 3>{"tiles_bin_triangles.comp", "tiles_ranges.comp",
+                                             "tiles_composite_triangles.comp"}
+                : std::array<const char*, 3>{"tiles_bin.comp", "tiles_ranges.comp",
+                                             "tiles_composite.comp"};
+  for (size_t i = 0; i < 3; ++i) {
+    VkShaderModule module = create_shader_module(d, shaders[i]);
+    VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    create.stage.module = module;
+    create.stage.pName = "main";
+    create.layout = set.layout;
+    const VkResult made =
+        vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &pipelines[i]);
+    vkDestroyShaderModule(d, module, nullptr);
+    check(made, shaders[i]);
+  }
+  queries = ctx.create_timestamp_pair();
+}
 
 TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
                            uint64_t max_buffer_bytes, uint32_t slice_keys)
@@ -106,57 +182,64 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
     for (uint32_t w : chunk.segments)
       words.push_back((((w >> 2) + uint32_t(base)) << 2) | (w & 3u));
   }
-  s.segment_count = words.size();
-  glm::dvec3 lo(1e300), hi(-1e300);
-  for (size_t i = 0; i + 3 < points.size() + 1; i += 4)
-    for (int k = 0; k < 3; ++k)
-      lo[k] = std::min(lo[k], double(points[i + size_t(k)])),
-      hi[k] = std::max(hi[k], double(points[i + size_t(k)]));
-  if (points.empty()) lo = hi = glm::dvec3(0);
-  s.centre = 0.5 * (lo + hi);
-  s.extent = 0.5 * glm::length(hi - lo) + capsules.radius;
-  VkPhysicalDeviceProperties props;
-  vkGetPhysicalDeviceProperties(context.physical_device(), &props);
-  s.max_buffer = props.limits.maxStorageBufferRange;
-  if (max_buffer_bytes > 0) s.max_buffer = std::min(s.max_buffer, max_buffer_bytes);
-  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  s.points = context.upload(points.data(), points.size() * 4, storage);
-  s.segments = context.upload(words.data(), words.size() * 4, storage);
-  s.uniforms =
-      context.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
-  s.counters = context.create_buffer(sizeof(Counters), storage, true);
-  s.stats = context.create_buffer(sizeof(CompositeStats), storage, true);
-  s.keys = context.create_buffer(4, storage, false);
-  s.values = context.create_buffer(4, storage, false);
-  s.ranges = context.create_buffer(8, storage, true);
-  s.slice =
-      context.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
-  s.states = context.create_buffer(4, storage, false);
-  s.slice_keys = slice_keys > 0 ? slice_keys
-                 : context.info().driver.find("llvmpipe") != std::string::npos ||
-                         context.info().name.find("llvmpipe") != std::string::npos
-                     ? kCappedSliceKeys
-                     : 0;
-  VkDevice d = context.device();
-  s.set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
-  const char* shaders[] = {"tiles_bin.comp", "tiles_ranges.comp", "tiles_composite.comp"};
-  for (size_t i = 0; i < 3; ++i) {
-    VkShaderModule module = create_shader_module(d, shaders[i]);
-    VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    create.stage.module = module;
-    create.stage.pName = "main";
-    create.layout = s.set.layout;
-    const VkResult made =
-        vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &s.pipelines[i]);
-    vkDestroyShaderModule(d, module, nullptr);
-    check(made, shaders[i]);
+  s.init(points, words, words.size(), 4, max_buffer_bytes, slice_keys, false);
+}
+
+TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes,
+                           uint32_t slice_keys)
+    : state_(std::make_unique<State>(context)) {
+  State& s = *state_;
+  s.attribute_range = mesh.attribute_range;
+  // Per vertex x, y, z, attribute value, then the normal; indices re-based over the chunks.
+  std::vector<float> vertices;
+  std::vector<uint32_t> indices;
+  vertices.reserve(mesh.vertex_count() * 8);
+  indices.reserve(mesh.triangle_count() * 3);
+  for (const TubeChunk& chunk : mesh.chunks) {
+    const uint64_t base = vertices.size() / 8;
+    if (base + chunk.vertex_count() > UINT32_MAX)
+      throw Error("tiles: more than 2^32 tube vertices; not supported yet");
+    for (uint64_t v = 0; v < chunk.vertex_count(); ++v) {
+      const float value =
+          chunk.attribute.empty() ? 0.0f : decode_unorm16(chunk.attribute[v], mesh.attribute_range);
+      std::array<float, 3> n{0, 0, 1};
+      if (!chunk.normals.empty())
+        n = {chunk.normals[3 * v], chunk.normals[3 * v + 1], chunk.normals[3 * v + 2]};
+      else if (!chunk.normals_oct.empty())
+        n = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
+      vertices.insert(vertices.end(), {chunk.positions[3 * v], chunk.positions[3 * v + 1],
+                                       chunk.positions[3 * v + 2], value, n[0], n[1], n[2], 0.0f});
+    }
+    for (uint32_t i : std::span(chunk.indices.data(), chunk.indices.size()))
+      indices.push_back(i + uint32_t(base));
   }
-  s.queries = context.create_timestamp_pair();
+  s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true);
 }
 
 TileRenderer::~TileRenderer() = default;
+
+namespace {
+
+// The tile rows of each band: consecutive rows whose keys fit `limit` together. A row over the
+// limit on its own is refused (one tile row is the smallest band).
+std::vector<std::pair<uint32_t, uint32_t>> plan_bands(const uint32_t* row_keys, uint32_t rows,
+                                                      uint64_t limit) {
+  std::vector<std::pair<uint32_t, uint32_t>> bands;
+  uint32_t first = 0;
+  uint64_t keys = 0;
+  for (uint32_t row = 0; row < rows; ++row) {
+    if (row_keys[row] > limit) return {};
+    if (keys + row_keys[row] > limit) {
+      bands.emplace_back(first, row);
+      first = row, keys = 0;
+    }
+    keys += row_keys[row];
+  }
+  bands.emplace_back(first, rows);
+  return bands;
+}
+
+}  // namespace
 
 TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_in,
                                const TileOptions& o) {
@@ -173,7 +256,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const uint32_t depth_bits = 32 - tile_bits;
   if (resized || s.ranges.size < uint64_t(tiles) * 8) {
     ctx.destroy(s.ranges);
+    ctx.destroy(s.rows);
     s.ranges = ctx.create_buffer(uint64_t(tiles) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    s.rows = ctx.create_buffer(uint64_t(tiles_y) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
   s.bind();
   TransferFunction tf = tf_in;
@@ -184,7 +269,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const glm::dvec3 forward = camera.image_plane(o.width, o.height).forward;
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
   u.size[0] = uint32_t(o.width), u.size[1] = uint32_t(o.height);
-  u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = uint32_t(s.segment_count);
+  u.size[2] = o.early_termination ? 1u : 0u, u.size[3] = uint32_t(s.primitive_count);
   // The keys' depth span: the data's bounding sphere along the view.
   const double middle = glm::dot(s.centre - camera.eye, forward);
   const double near = std::max(0.0, middle - s.extent), far = middle + s.extent;
@@ -199,16 +284,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                          stage, 0, 1, &b, 0, nullptr, 0, nullptr);
   };
-  TileFrame frame;
-  TileStats& st = frame.stats;
-  st.segments = s.segment_count;
-  st.tiles = tiles;
-  // Binning, again with room for every key when the first pass ran out of it.
-  uint64_t capacity = s.keys.size / 4;
-  for (;;) {
-    u.tiles[3] = uint32_t(std::min<uint64_t>(capacity, UINT32_MAX));
-    std::memcpy(s.uniforms.mapped, &u, sizeof u);
-    std::memset(s.counters.mapped, 0, sizeof(Counters));
+  // Records one pass between timestamps and waits for it; its GPU milliseconds.
+  const auto pass = [&](const std::function<void(VkCommandBuffer)>& record) {
     ctx.submit([&](VkCommandBuffer cmd) {
       if (s.queries) {
         vkCmdResetQueryPool(cmd, s.queries, 0, 2);
@@ -216,90 +293,121 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       }
       vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
                               0, nullptr);
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[0]);
-      vkCmdDispatch(cmd, uint32_t((s.segment_count + 255) / 256), 1, 1);
+      record(cmd);
       if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
       barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
     });
-    st.bin_ms += ctx.elapsed_ms(s.queries);
+    return ctx.elapsed_ms(s.queries);
+  };
+  TileFrame frame;
+  TileStats& st = frame.stats;
+  st.primitives = s.primitive_count;
+  st.tiles = tiles;
+  // Keys one band may hold: within one storage buffer each for keys and values (with an eighth
+  // more for the next frame), and within the frame's key budget where one is set.
+  uint64_t key_limit = s.max_buffer / 4 / 9 * 8;
+  if (o.max_key_bytes > 0) key_limit = std::min(key_limit, o.max_key_bytes / kKeyBytes);
+  key_limit = std::min<uint64_t>(key_limit, UINT32_MAX - 1);
+  // Binning of the tile rows [first, last): the keys it emitted (it wrote them if they fit).
+  const auto bin = [&](uint32_t first, uint32_t last) {
+    u.band[0] = first, u.band[1] = last;
+    u.tiles[3] = uint32_t(std::min<uint64_t>(s.keys.size / 4, UINT32_MAX));
+    std::memcpy(s.uniforms.mapped, &u, sizeof u);
+    std::memset(s.counters.mapped, 0, sizeof(Counters));
+    std::memset(s.rows.mapped, 0, s.rows.size);
+    st.bin_ms += pass([&](VkCommandBuffer cmd) {
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[0]);
+      vkCmdDispatch(cmd, uint32_t((s.primitive_count + 255) / 256), 1, 1);
+    });
     Counters c;
     std::memcpy(&c, s.counters.mapped, sizeof c);
-    st.keys = c.key_count;
-    st.binned_segments = c.binned;
-    if (c.key_count <= capacity) break;
-    // Room for all keys, within one storage buffer each for keys and values.
-    const uint64_t needed = uint64_t(c.key_count) + c.key_count / 8;
-    if (needed * 4 > s.max_buffer)
-      throw BudgetExceeded("tiles: " + std::to_string(c.key_count) + " (tile, segment) keys need " +
-                           std::to_string(needed * 4 >> 20) +
-                           " MiB, more than one storage buffer holds on " + ctx.info().name + " (" +
-                           std::to_string(s.max_buffer >> 20) + " MiB); a smaller image renders");
+    return c;
+  };
+  const auto grow_keys = [&](uint64_t keys) {
+    const uint64_t room = std::min(key_limit, keys + keys / 8);
     ctx.destroy(s.keys);
     ctx.destroy(s.values);
-    s.keys = ctx.create_buffer(needed * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
-    s.values = ctx.create_buffer(needed * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    s.keys = ctx.create_buffer(room * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    s.values = ctx.create_buffer(room * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
     s.bind();
-    capacity = needed;
     ++st.rebins;
+  };
+  // The whole frame first: every key counted, per tile row.
+  const Counters whole = bin(0, tiles_y);
+  st.keys = whole.key_count;
+  st.binned_primitives = whole.binned;
+  std::vector<uint32_t> row_keys(tiles_y);
+  std::memcpy(row_keys.data(), s.rows.mapped, uint64_t(tiles_y) * 4);
+  st.max_row_keys = *std::max_element(row_keys.begin(), row_keys.end());
+  const std::vector<std::pair<uint32_t, uint32_t>> bands =
+      plan_bands(row_keys.data(), tiles_y, key_limit);
+  if (bands.empty()) {
+    throw BudgetExceeded("tiles: one row of tiles holds " + std::to_string(st.max_row_keys) +
+                         " (tile, segment) keys, more than a band may (" +
+                         std::to_string(key_limit) + ": one storage buffer on " + ctx.info().name +
+                         (o.max_key_bytes > 0 ? ", or the memory budget" : "") +
+                         "); a smaller image renders");
   }
-  // Sort and ranges.
+  // The composite pass over the band's tiles, in slices of each tile's keys where the device
+  // needs them: the number of slices.
+  const auto composite = [&](uint32_t first, uint32_t last) {
+    uint32_t longest = 0;
+    const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
+    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
+      longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
+    const uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : std::max<uint32_t>(longest, 1);
+    const uint32_t slices = std::max<uint32_t>(1, (longest + slice_keys - 1) / slice_keys);
+    const uint64_t state_bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
+    if (slices > 1 && s.states.size < state_bytes) {
+      if (state_bytes > s.max_buffer)
+        throw BudgetExceeded("tiles: rendering in slices on " + ctx.info().name + " keeps " +
+                             std::to_string(state_bytes >> 20) + " MiB of pixel state, more " +
+                             "than one storage buffer holds (" +
+                             std::to_string(s.max_buffer >> 20) + " MiB); a smaller image renders");
+      ctx.destroy(s.states);
+      s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+      s.bind();
+    }
+    st.composite_ms += pass([&](VkCommandBuffer cmd) {
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
+      for (uint32_t k = 0; k < slices; ++k) {
+        const SliceInfo info{k, slice_keys, k == 0 ? 1u : 0u, k + 1 == slices ? 1u : 0u};
+        vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
+        barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
+                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+        vkCmdDispatch(cmd, tiles_x, last - first, 1);
+        barrier(
+            cmd,
+            VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+            VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
+      }
+    });
+    return slices;
+  };
+  st.bands = uint32_t(bands.size());
+  uint64_t longest_band = 0;
   std::memset(s.stats.mapped, 0, sizeof(CompositeStats));
-  std::memset(s.ranges.mapped, 0, s.ranges.size);
-  ctx.submit([&](VkCommandBuffer cmd) {
-    if (s.queries) {
-      vkCmdResetQueryPool(cmd, s.queries, 0, 2);
-      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
+  for (const auto& [first, last] : bands) {
+    uint64_t keys = 0;
+    for (uint32_t row = first; row < last; ++row) keys += row_keys[row];
+    longest_band = std::max(longest_band, keys);
+    // The whole frame's keys are in place already when it is one band that fitted.
+    if (bands.size() > 1 || whole.key_count > s.keys.size / 4) {
+      if (keys > s.keys.size / 4) grow_keys(keys);
+      bin(first, last);
     }
-    s.sorter.record(cmd, s.keys, s.values, uint32_t(st.keys), 32);
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set, 0,
-                            nullptr);
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[1]);
-    vkCmdDispatch(cmd, uint32_t((st.keys + 255) / 256) + 1, 1, 1);
-    if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
-    barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
-  });
-  st.sort_ms = ctx.elapsed_ms(s.queries);
-  // The composite pass in slices of each tile's keys where the device needs them.
-  uint32_t longest = 0;
-  const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-  for (uint32_t t = 0; t < tiles; ++t)
-    longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
-  const uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : std::max<uint32_t>(longest, 1);
-  const uint32_t slices = std::max<uint32_t>(1, (longest + slice_keys - 1) / slice_keys);
-  st.slices = slices;
-  if (slices > 1 && s.states.size < uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes) {
-    const uint64_t bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
-    if (bytes > s.max_buffer)
-      throw BudgetExceeded("tiles: rendering in slices on " + ctx.info().name + " keeps " +
-                           std::to_string(bytes >> 20) + " MiB of pixel state, more than one " +
-                           "storage buffer holds (" + std::to_string(s.max_buffer >> 20) +
-                           " MiB); a smaller image renders");
-    ctx.destroy(s.states);
-    s.states = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
-    s.bind();
+    u.band[0] = first, u.band[1] = last;
+    std::memcpy(s.uniforms.mapped, &u, sizeof u);
+    std::memset(s.ranges.mapped, 0, s.ranges.size);
+    st.sort_ms += pass([&](VkCommandBuffer cmd) {
+      s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), 32);
+      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
+                              0, nullptr);
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[1]);
+      vkCmdDispatch(cmd, uint32_t((keys + 255) / 256) + 1, 1, 1);
+    });
+    st.slices = std::max(st.slices, composite(first, last));
   }
-  ctx.submit([&](VkCommandBuffer cmd) {
-    if (s.queries) {
-      vkCmdResetQueryPool(cmd, s.queries, 0, 2);
-      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
-    }
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set, 0,
-                            nullptr);
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
-    for (uint32_t k = 0; k < slices; ++k) {
-      const SliceInfo info{k, slice_keys, k == 0 ? 1u : 0u, k + 1 == slices ? 1u : 0u};
-      vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
-      barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
-              VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-      vkCmdDispatch(cmd, tiles_x, tiles_y, 1);
-      barrier(cmd,
-              VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-              VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
-    }
-    if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
-    barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
-  });
-  st.composite_ms = ctx.elapsed_ms(s.queries);
   CompositeStats cs;
   std::memcpy(&cs, s.stats.mapped, sizeof cs);
   st.window_overflows = cs.window_overflows;
@@ -308,9 +416,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   frame.depth_complexity = std::move(read.counts);
   st.hits = read.total;
   st.max_depth_complexity = read.maximum;
-  st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(st.keys) +
-                   s.ranges.size + s.targets.rgba.size + s.targets.counts.size +
-                   (slices > 1 ? s.states.size : 0);
+  st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
+                   s.ranges.size + s.rows.size + s.targets.rgba.size + s.targets.counts.size +
+                   (st.slices > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }

@@ -1,9 +1,10 @@
 #pragma once
 // `tiles`: exact order-independent transparency from compute shaders only, for GPUs with little
-// or no graphics hardware (datacenter parts: on an H100 only two TPCs rasterise). Per frame:
-// binning (each capsule's screen bounds to (tile, depth) keys), a GPU radix sort of the keys
+// or no graphics hardware (datacenter parts: on an H100 only two TPCs rasterise), over capsules
+// (the lines) or the tube mesh's triangles. Per frame: binning (each primitive's screen bounds
+// to (tile, depth) keys), a GPU radix sort of the keys
 // (radix_sort.hpp), the tiles' key ranges, and one workgroup per 16x16 tile compositing its
-// capsules front to back through a per-pixel sorted window (shaders/tiles_*.comp).
+// primitives front to back through a per-pixel sorted window (shaders/tiles_*.comp).
 
 #include <cstdint>
 #include <memory>
@@ -15,6 +16,7 @@
 #include "render/ray_tracer.hpp"
 #include "render/transfer_function.hpp"
 #include "render/vulkan/context.hpp"
+#include "tubes/tube_mesh.hpp"
 
 namespace linebake::vk {
 
@@ -22,21 +24,26 @@ struct TileOptions {
   int width = 1280, height = 720;
   bool early_termination = false;
   double termination_alpha = 0.99;
+  // Device memory the frame's (tile, segment) keys may take, sort scratch included (0: as much
+  // as one storage buffer allows). A frame with more keys renders in bands of tile rows.
+  uint64_t max_key_bytes = 0;
   Shading shading;
 };
 
 struct TileStats {
   double seconds = 0;                                // wall, readback included
   double bin_ms = 0, sort_ms = 0, composite_ms = 0;  // GPU timestamps (0 without them)
-  uint64_t segments = 0, binned_segments = 0;        // all, and those in front of the eye on screen
-  uint64_t keys = 0;                                 // (tile, segment) pairs
+  uint64_t primitives = 0, binned_primitives = 0;    // all, and those in front of the eye on screen
+  uint64_t keys = 0;                                 // (tile, segment) pairs, all bands
   uint32_t tiles = 0;                                // 16x16 tiles of the image
   uint64_t hits = 0;                                 // front crossings composited
   uint64_t window_overflows = 0;  // hits composited early from a full window (0: exact order)
   uint32_t max_depth_complexity = 0;
-  uint64_t frame_bytes = 0;  // keys, values, sort scratch, ranges, pixels
-  uint32_t rebins = 0;       // binning passes repeated for more key room
-  uint32_t slices = 1;       // composite dispatches (each takes a slice of every tile's keys)
+  uint64_t frame_bytes = 0;   // keys, values, sort scratch, ranges, pixels
+  uint32_t rebins = 0;        // binning passes repeated for more key room
+  uint32_t slices = 1;        // composite dispatches per band (each a slice of every tile's keys)
+  uint64_t max_row_keys = 0;  // keys of the fullest row of tiles (the smallest band)
+  uint32_t bands = 1;         // bands of tile rows, each binned, sorted and composited alone
 };
 
 struct TileFrame {
@@ -51,6 +58,10 @@ class TileRenderer {
   // storage buffer, `slice_keys` > 0 sets the keys per tile per composite dispatch (tests; by
   // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all).
   TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
+               uint32_t slice_keys = 0);
+  // Triangle mode: the tube mesh's front-facing triangles, comparable with `reference` and the
+  // raster techniques to the last bit of coverage.
+  TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes = 0,
                uint32_t slice_keys = 0);
   ~TileRenderer();
   TileRenderer(const TileRenderer&) = delete;
