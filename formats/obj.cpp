@@ -67,7 +67,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
     }
   }
   const size_t point_count = positions.size() / 3;
-  if (attribute_count == SIZE_MAX) attribute_count = 0;
+  // No vertices, no vt lines: the `a` line alone says which attributes an empty set has.
+  if (attribute_count == SIZE_MAX) attribute_count = point_count == 0 ? names.size() : 0;
   if (vt_rows != 0 && vt_rows != point_count)
     throw InputError(path, "",
                      std::to_string(vt_rows) + " vt lines for " + std::to_string(point_count) +

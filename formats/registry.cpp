@@ -268,8 +268,8 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
   const std::unique_ptr<LineReader> reader = open_line_reader(source, options);
   LineSet lines = read_all(*reader);
   if (synth::is_synth_source(source)) return lines;
-  // An empty file, or one whose lines were all filtered out, is almost always a mistake.
-  if (lines.line_count() == 0) throw InputError(source, "", "no lines in the file");
+  // A file with no lines is a valid, empty line set (a filter that kept nothing writes one);
+  // what needs lines (bake) says so.
   lines.metadata.emplace("source", source);
   return lines;
 }

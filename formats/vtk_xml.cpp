@@ -84,6 +84,7 @@ struct Context {
   bool compressed = false;
   std::string_view appended;  // bytes after the '_' of <AppendedData>
   bool appended_base64 = false;
+  uint64_t file_bytes = 0;
 
   [[noreturn]] void fail(const std::string& where, const std::string& message) const {
     throw InputError(path, where, message);
@@ -121,13 +122,22 @@ uint64_t header_word(const Context& ctx, const unsigned char* p) {
   return ctx.swap ? io::byteswap_value(v) : v;
 }
 
+constexpr uint64_t kMaxDeflateRatio = 1032;
+
 std::vector<unsigned char> inflate_blocks(const Context& ctx, const std::string& where,
                                           const std::vector<uint64_t>& header,
                                           const unsigned char* data, size_t available) {
   const uint64_t blocks = header[0], block_size = header[1], last_size = header[2];
   uint64_t total = 0;
-  for (uint64_t b = 0; b < blocks; ++b)
-    total += (b + 1 == blocks && last_size != 0) ? last_size : block_size;
+  for (uint64_t b = 0; b < blocks; ++b) {
+    const uint64_t size = (b + 1 == blocks && last_size != 0) ? last_size : block_size;
+    // Deflate expands at most 1032:1 (zlib's technical notes): a larger claim is a lie, refused
+    // before it is allocated.
+    if (size > kMaxDeflateRatio * header[3 + b] + 64)
+      ctx.fail(where, "zlib block " + std::to_string(b) + " claims " + std::to_string(size) +
+                          " bytes from " + std::to_string(header[3 + b]) + " compressed");
+    total += size;
+  }
   std::vector<unsigned char> out(total);
   size_t in_at = 0, out_at = 0;
   for (uint64_t b = 0; b < blocks; ++b) {
@@ -221,6 +231,13 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
   if (!type) ctx.fail(where, "unsupported type '" + type_name + "'");
   const size_t size = io::scalar_size(*type);
   const std::string format = node.attribute("format").as_string("ascii");
+  // A count from the file's attributes is checked against the file before it is allocated: an
+  // ASCII value takes at least two characters, a binary one its size over deflate's best ratio.
+  const uint64_t most =
+      format == "ascii" ? ctx.file_bytes / 2 + 1 : ctx.file_bytes * kMaxDeflateRatio / size + 1;
+  if (count > most)
+    ctx.fail(where, std::to_string(count) + " values cannot be in a file of " +
+                        std::to_string(ctx.file_bytes) + " bytes");
   std::vector<Out> out(count);
   if (format == "ascii") {
     const auto tokens = io::split_whitespace(node.child_value());
@@ -302,6 +319,7 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   const std::string_view content = file.view();
   Context ctx;
   ctx.path = path;
+  ctx.file_bytes = content.size();
 
   // The appended section is raw bytes, not XML: parse the part before it, closed by hand.
   std::string xml;
@@ -348,6 +366,16 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   const uint64_t poly_count = piece.attribute("NumberOfPolys").as_ullong(0);
   const uint64_t strip_count = piece.attribute("NumberOfStrips").as_ullong(0);
   if (options.progress) options.progress(0, 3);
+  // Counts past what any file holds (and whose products would wrap) are refused here.
+  for (const auto& [name, count] : {std::pair<const char*, uint64_t>{"NumberOfPoints", point_count},
+                                    {"NumberOfLines", line_count},
+                                    {"NumberOfVerts", vert_count},
+                                    {"NumberOfPolys", poly_count},
+                                    {"NumberOfStrips", strip_count}})
+    if (count > ctx.file_bytes * kMaxDeflateRatio)
+      throw InputError(path, "Piece",
+                       std::string(name) + " " + std::to_string(count) +
+                           " cannot be in a file of " + std::to_string(ctx.file_bytes) + " bytes");
 
   LineSet lines;
   const pugi::xml_node points = piece.child("Points").child("DataArray");
@@ -367,8 +395,9 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     if (std::string(a.attribute("Name").as_string()) == "connectivity")
       connectivity = read_array<int64_t>(ctx, a, connectivity_size);
   }
-  if (line_count == 0) throw InputError(path, "Piece", "no lines (NumberOfLines is 0)");
   if (offsets.size() != line_count) throw InputError(path, "Lines", "missing offsets array");
+  if (connectivity.size() != connectivity_size)
+    throw InputError(path, "Lines", "missing connectivity array");
   int64_t previous = 0;
   for (int64_t o : offsets) {
     if (o < previous) throw InputError(path, "Lines", "offsets decrease");

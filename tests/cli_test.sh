@@ -327,5 +327,24 @@ assert r.GetOutput().GetNumberOfLines() > 0
 grep -q \"dropped the cache's voxels: it has no provenance\" '$tmp/keep.err'
 "
 
+corpus="$(dirname "$0")/fuzz/corpus"
+check "empty is valid: nibabel-style .tck and .trk with no streamlines read as 0 lines, convert to every writable format, bake refuses with no cache" bash -c "
+set -e
+for f in '$corpus/tck/empty.tck' '$corpus/trk/empty.trk'; do
+  '$bin' info \"\$f\" --json | /usr/bin/python3 -c 'import json, sys; j = json.load(sys.stdin); assert j[\"lines\"] == 0 and j[\"points\"] == 0, j'
+done
+for ext in obj binlines vtk vtp h5 csv; do
+  '$bin' convert '$corpus/tck/empty.tck' -o '$tmp/empty.'\$ext 2>/dev/null
+  [ \"\$('$bin' info '$tmp/empty.'\$ext --json | /usr/bin/python3 -c 'import json, sys; print(json.load(sys.stdin)[\"lines\"])')\" = 0 ]
+done
+/usr/bin/python3 -c \"
+import vtk
+for f, R in (('empty.vtp', vtk.vtkXMLPolyDataReader), ('empty.vtk', vtk.vtkPolyDataReader)):
+    r = R(); r.SetFileName('$tmp/' + f); r.Update(); assert r.GetOutput().GetNumberOfLines() == 0, f
+\"
+rc=0; '$bin' bake '$corpus/tck/empty.tck' -o '$tmp/empty.lbc.h5' 2> '$tmp/empty.err' || rc=\$?
+[ \$rc -eq 2 ] && grep -q 'has no lines: nothing to bake' '$tmp/empty.err' && [ ! -e '$tmp/empty.lbc.h5' ]
+"
+
 echo "cli: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -2,8 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
+#include "core/base64.hpp"
 #include "core/error.hpp"
 #include "formats/registry.hpp"
+#include "pipeline/pipeline.hpp"
+#include "render/camera.hpp"
+#include "render/transfer_function.hpp"
 #include "test_util.hpp"
 
 using namespace linebake;
@@ -161,17 +167,106 @@ TEST(Malformed, Csv) {
   expect_error(dir.file("e.csv"), "line 2: bad coordinate 'abc'");
 }
 
+// A file of no bytes lacks the header of every format but OBJ, which has none: there it is a
+// valid file with no lines, as is one of vertices and comments only.
 TEST(Malformed, EmptyFileOfEveryFormat) {
   TempDir dir;
   for (const FormatInfo& f : format_table()) {
     const std::string path = dir.file(std::string("empty") + f.extensions[0]);
     write_text(path, "");
-    EXPECT_THROW(read_line_set(path), InputError) << f.name;
+    if (f.format == Format::obj)
+      EXPECT_EQ(read_line_set(path).line_count(), 0u);
+    else
+      EXPECT_THROW(read_line_set(path), InputError) << f.name;
   }
   write_text(dir.file("comments.obj"), "# only a comment\nv 1 2 3\n");
-  expect_error(dir.file("comments.obj"), "no lines in the file");
+  EXPECT_EQ(read_line_set(dir.file("comments.obj")).line_count(), 0u);
 }
 
 TEST(Malformed, UnknownExtension) {
   EXPECT_THROW(read_line_set("/tmp/lines.xyz"), Error);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Found by the fuzz targets (tests/fuzz, docs/fuzzing.md); their inputs are in the corpus too.
+
+static std::string vtp_piece(const std::string& piece_attributes, const std::string& body) {
+  return "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
+         "byte_order=\"LittleEndian\" header_type=\"UInt64\"><PolyData><Piece " +
+         piece_attributes + ">" + body + "</Piece></PolyData></VTKFile>\n";
+}
+
+TEST(FuzzFindings, VtpCountsAreCheckedAgainstTheFileBeforeAllocating) {
+  TempDir dir;
+  // NumberOfPoints of 10^15 in a file of 300 bytes: refused, not a 12 PB allocation.
+  write_text(dir.file("huge.vtp"),
+             vtp_piece("NumberOfPoints=\"1000000000000000\" NumberOfLines=\"1\"",
+                       "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+                       "format=\"ascii\">0 0 0</DataArray></Points>"));
+  expect_error(dir.file("huge.vtp"), "NumberOfPoints 1000000000000000 cannot be in a file");
+  // Within the file's bound, a DataArray still has to hold its values: 1000 ASCII values cannot
+  // be in 40 characters.
+  write_text(dir.file("short.vtp"),
+             vtp_piece("NumberOfPoints=\"300\" NumberOfLines=\"0\"",
+                       "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+                       "format=\"ascii\">0 0 0</DataArray></Points>"));
+  expect_error(dir.file("short.vtp"), "DataArray");
+}
+
+TEST(FuzzFindings, VtpZlibBlocksCannotClaimMoreThanDeflateGives) {
+  TempDir dir;
+  // One block whose header claims 2^40 bytes from 8 compressed ones (base64 of the UInt64
+  // words 1, 2^40, 2^40, 8 and eight data bytes).
+  const std::string header = linebake::base64_encode(
+      std::string("\x01\0\0\0\0\0\0\0", 8) + std::string("\0\0\0\0\0\x01\0\0", 8) +
+      std::string("\0\0\0\0\0\x01\0\0", 8) + std::string("\x08\0\0\0\0\0\0\0", 8));
+  const std::string data = linebake::base64_encode(std::string(8, 'x'));
+  write_text(dir.file("zlib.vtp"),
+             "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
+             "byte_order=\"LittleEndian\" header_type=\"UInt64\" "
+             "compressor=\"vtkZLibDataCompressor\"><PolyData><Piece NumberOfPoints=\"1\" "
+             "NumberOfLines=\"0\"><Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+             "format=\"binary\">" +
+                 header + data + "</DataArray></Points></Piece></PolyData></VTKFile>\n");
+  expect_error(dir.file("zlib.vtp"), "claims 1099511627776 bytes from 8 compressed");
+}
+
+TEST(FuzzFindings, VtpLinesWithoutConnectivity) {
+  TempDir dir;
+  write_text(dir.file("noconn.vtp"),
+             vtp_piece("NumberOfPoints=\"2\" NumberOfLines=\"1\"",
+                       "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+                       "format=\"ascii\">0 0 0 1 1 1</DataArray></Points><Lines><DataArray "
+                       "type=\"Int64\" Name=\"offsets\" format=\"ascii\">2</DataArray></Lines>"));
+  expect_error(dir.file("noconn.vtp"), "missing connectivity array");
+}
+
+// JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
+// is not UTF-8 are the file's errors, with its name, not nlohmann::json's exceptions.
+TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
+  TempDir dir;
+  const auto refused = [&](const std::string& name, const std::function<void(std::string)>& load) {
+    try {
+      load(dir.file(name));
+      ADD_FAILURE() << name << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  };
+  write_text(dir.file("tf.json"), "{\"name\": \"x\", \"range\": [0, 1e400]}");
+  refused("tf.json", [](const std::string& p) { load_transfer_function(p); });
+  write_text(dir.file("keys.json"),
+             "{\"keyframes\": [{\"eye\": [0, 0, 1], \"target\": [0, 0, 0], \"fov\": \"wide\"}]}");
+  refused("keys.json", [](const std::string& p) {
+    FlightOptions f;
+    f.kind = FlightKind::Keyframes;
+    f.keyframes_file = p;
+    Bounds b;
+    b.max = {1, 1, 1}, b.empty = false;
+    make_flight(b, 1.0, f);
+  });
+  write_text(dir.file("p.json"), "{\"name\": 1e999}");
+  refused("p.json", [](const std::string& p) { load_pipeline(p); });
+  write_text(dir.file("p.yaml"), "name: \"\x95\x95\"\ndata: synth:aneurysm\n");
+  refused("p.yaml", [](const std::string& p) { load_pipeline(p); });
 }

@@ -71,6 +71,24 @@ TEST_P(RoundTrip, PreservesDataExactly) {
       << "temporary files left behind";
 }
 
+// An empty line set (no lines; attribute names kept where the format has them) is a valid
+// file in every writable format, read back as zero lines and zero points.
+TEST_P(RoundTrip, EmptyLineSetIsAValidFile) {
+  const Case& c = GetParam();
+  TempDir dir;
+  LineSet empty;
+  empty.attributes = {{"speed", {}}};
+  if (c.keeps_line_attributes) empty.line_attributes = {{"line_id", {}}};
+  const std::string path = dir.file(std::string("empty") + c.extension);
+  write_line_set(empty, path, c.options);
+  const LineSet back = read_line_set(path);
+  EXPECT_EQ(back.line_count(), 0u);
+  EXPECT_EQ(back.point_count(), 0u);
+  EXPECT_EQ(back.line_offsets, std::vector<uint64_t>{0});
+  for (const Attribute& a : back.attributes) EXPECT_TRUE(a.values.empty()) << a.name;
+  for (const Attribute& a : back.line_attributes) EXPECT_TRUE(a.values.empty()) << a.name;
+}
+
 // Metadata survives every format that can hold it (formats/registry.cpp says which): names and
 // values with spaces, quotes, XML specials, an empty value, and values long enough for each of
 // VTK's binary string length prefixes (1, 2 and 4 bytes).

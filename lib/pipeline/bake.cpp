@@ -636,7 +636,10 @@ BakeResult bake(const BakeOptions& options_in) {
       input.reset();
       whole.reset();
       stats = builder.stats();
-      if (stats.lines == 0) throw InputError(options.input, "", "no lines in the file");
+      if (stats.lines == 0)
+        throw InputError(options.input, "",
+                         "has no lines: nothing to bake (an empty line set reads and converts, "
+                         "but a cache holds lines); no cache written");
       if (!total.clean()) result.notes.push_back(options.input + ": " + total.summary());
       lines_hash = hash.hex();
       result.spill_peak_bytes = spool ? spool->bytes() : 0;

@@ -12,6 +12,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/json_file.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake {
@@ -260,10 +261,10 @@ Pipeline load_pipeline(const std::string& given) {
   const std::string path = find_pipeline(given);
   if (std::filesystem::is_directory(path))
     throw InputError(path, "", "is a directory; give a pipeline file (.json, .yaml)");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "", "cannot open the pipeline file");
   nlohmann::json j;
   if (is_yaml(path)) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, "", "cannot open the pipeline file");
     try {
       j = yaml_to_json(YAML::Load(in));
     } catch (const YAML::Exception& e) {
@@ -272,15 +273,16 @@ Pipeline load_pipeline(const std::string& given) {
                            std::to_string(e.mark.column + 1),
                        "not YAML: " + e.msg);
     }
-    return parse_pipeline(j, path);
+  } else {
+    j = read_json_file(path, "pipeline file");
   }
+  // What the checks let through to nlohmann::json (a key or text that is not UTF-8, for one) is
+  // still the file's fault.
   try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path, "byte offset " + std::to_string(e.byte),
-                     std::string("not JSON: ") + e.what());
+    return parse_pipeline(j, path);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path, "", std::string("unexpected JSON value: ") + e.what());
   }
-  return parse_pipeline(j, path);
 }
 
 std::string cache_path(const Pipeline& p, const std::string& dataset) {

@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 namespace {
@@ -49,14 +50,7 @@ glm::dvec3 read_vec3(const nlohmann::json& j, const char* key, const std::string
 }
 
 std::vector<Camera> read_keyframes(const std::string& file) {
-  std::ifstream in(file);
-  if (!in) throw InputError(file, "", "cannot open the keyframe file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(file, "byte offset " + std::to_string(e.byte), "not valid JSON");
-  }
+  const nlohmann::json j = read_json_file(file, "keyframe file");
   if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() ||
       j["keyframes"].empty())
     throw InputError(file, "", "expected {\"keyframes\": [ ... ]} with at least one keyframe");
@@ -67,6 +61,8 @@ std::vector<Camera> read_keyframes(const std::string& file) {
     c.eye = read_vec3(k, "eye", file, i);
     c.target = read_vec3(k, "target", file, i);
     c.up = k.contains("up") ? read_vec3(k, "up", file, i) : glm::dvec3(0, 1, 0);
+    if (k.contains("fov") && !k["fov"].is_number())
+      throw InputError(file, "keyframe " + std::to_string(i), "fov: expected a number");
     c.fov_y_degrees = k.value("fov", 40.0);
     if (glm::length(c.target - c.eye) == 0 || !(c.fov_y_degrees > 0 && c.fov_y_degrees < 180))
       throw InputError(file, "keyframe " + std::to_string(i),

@@ -9,6 +9,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "core/nearest.hpp"
 
 namespace linebake {
@@ -72,14 +73,7 @@ TransferFunction transfer_function_preset(const std::string& name) {
 }
 
 TransferFunction load_transfer_function(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "", "cannot open the transfer function");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path, "byte offset " + std::to_string(e.byte), "not valid JSON");
-  }
+  const nlohmann::json j = read_json_file(path, "transfer function");
   TransferFunction tf;
   const auto number = [&](const nlohmann::json& v, const std::string& where) {
     if (!v.is_number()) throw InputError(path, where, "expected a number");

@@ -240,7 +240,10 @@ struct RtScene::State {
       blas.push_back(create_as(sizes.accelerationStructureSize,
                                VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR));
     }
-    auto [scratch_buffer, scratch_address] = scratch(scratch_size);
+    // (Not a structured binding: clang 14, the fuzz preset's compiler, cannot capture one.)
+    auto scratch_pair = scratch(scratch_size);
+    Buffer& scratch_buffer = scratch_pair.first;
+    const VkDeviceAddress scratch_address = scratch_pair.second;
     figures.scratch_bytes = scratch_buffer.size;
     VkQueryPool sizes_pool = VK_NULL_HANDLE;
     if (compaction) {
@@ -356,7 +359,10 @@ struct RtScene::State {
     fn.get_build_sizes(d, VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &info, &count, &sizes);
     tlas = create_as(sizes.accelerationStructureSize, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR);
     figures.tlas_bytes = tlas.buffer.size;
-    auto [scratch_buffer, scratch_address] = scratch(sizes.buildScratchSize);
+    // (Not a structured binding: clang 14, the fuzz preset's compiler, cannot capture one.)
+    auto scratch_pair = scratch(sizes.buildScratchSize);
+    Buffer& scratch_buffer = scratch_pair.first;
+    const VkDeviceAddress scratch_address = scratch_pair.second;
     figures.tlas_scratch_bytes = scratch_buffer.size;
     try {
       figures.gpu_tlas_ms = timed([&](VkCommandBuffer cmd) {
