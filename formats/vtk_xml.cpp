@@ -129,10 +129,14 @@ std::vector<unsigned char> inflate_blocks(const Context& ctx, const std::string&
                                           const unsigned char* data, size_t available) {
   const uint64_t blocks = header[0], block_size = header[1], last_size = header[2];
   uint64_t total = 0;
+  uint64_t compressed_total = 0;
   for (uint64_t b = 0; b < blocks; ++b) {
     const uint64_t size = (b + 1 == blocks && last_size != 0) ? last_size : block_size;
-    // Deflate expands at most 1032:1 (zlib's technical notes): a larger claim is a lie, refused
+    // The compressed sizes first (so that nothing below overflows), then the sizes they claim:
+    // deflate expands at most 1032:1 (zlib's technical notes), a larger claim is a lie, refused
     // before it is allocated.
+    if (header[3 + b] > available || (compressed_total += header[3 + b]) > available)
+      ctx.fail(where, "compressed block past the end of data");
     if (size > kMaxDeflateRatio * header[3 + b] + 64)
       ctx.fail(where, "zlib block " + std::to_string(b) + " claims " + std::to_string(size) +
                           " bytes from " + std::to_string(header[3 + b]) + " compressed");

@@ -229,6 +229,20 @@ TEST(FuzzFindings, VtpZlibBlocksCannotClaimMoreThanDeflateGives) {
              "format=\"binary\">" +
                  header + data + "</DataArray></Points></Piece></PolyData></VTKFile>\n");
   expect_error(dir.file("zlib.vtp"), "claims 1099511627776 bytes from 8 compressed");
+  // Raw appended data with a compressed size of 2^62 (1032 times it wraps to a small number):
+  // past the data, refused before anything is sized from it.
+  const std::string raw_header =
+      std::string("\x01\0\0\0\0\0\0\0", 8) + std::string("\0\0\0\0\0\x01\0\0", 8) +
+      std::string("\0\0\0\0\0\x01\0\0", 8) + std::string("\0\0\0\0\0\0\0\x40", 8);
+  write_text(dir.file("wrap.vtp"),
+             "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
+             "byte_order=\"LittleEndian\" header_type=\"UInt64\" "
+             "compressor=\"vtkZLibDataCompressor\"><PolyData><Piece NumberOfPoints=\"1\" "
+             "NumberOfLines=\"0\"><Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+             "format=\"appended\" offset=\"0\"/></Points></Piece></PolyData>"
+             "<AppendedData encoding=\"raw\">_" +
+                 raw_header + std::string(8, 'x') + "</AppendedData></VTKFile>\n");
+  expect_error(dir.file("wrap.vtp"), "compressed block past the end of data");
 }
 
 TEST(FuzzFindings, VtpLinesWithoutConnectivity) {

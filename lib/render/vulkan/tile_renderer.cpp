@@ -394,7 +394,13 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     // The whole frame's keys are in place already when it is one band that fitted.
     if (bands.size() > 1 || whole.key_count > s.keys.size / 4) {
       if (keys > s.keys.size / 4) grow_keys(keys);
-      bin(first, last);
+      // The rows' counts and the band's binning agree unless a count wrapped: never sort less.
+      const uint32_t binned = bin(first, last).key_count;
+      if (binned != keys)
+        throw BudgetExceeded("tiles: tile rows " + std::to_string(first) + ".." +
+                             std::to_string(last - 1) + " binned " + std::to_string(binned) +
+                             " keys where their rows counted " + std::to_string(keys) +
+                             " (past 2^32 keys); a smaller image renders");
     }
     u.band[0] = first, u.band[1] = last;
     std::memcpy(s.uniforms.mapped, &u, sizeof u);
