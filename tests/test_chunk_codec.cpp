@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <cstring>
 #include <filesystem>
 #include <numeric>
 #include <random>
@@ -266,6 +267,33 @@ TEST(DatasetStream, MissingRowsAndOverrunsAreErrorsNamingTheDataset) {
   } catch (const OutputError& e) {
     EXPECT_NE(std::string(e.what()).find("/group/d: only 4 of 10 rows"), std::string::npos)
         << e.what();
+  }
+}
+
+// A stored chunk whose dataset claims far more raw bytes than its codec can give (a hostile or
+// damaged cache) is refused before a buffer is sized from the claim (docs/fuzzing.md, guarded
+// allocation).
+TEST(ChunkCodec, RefusesRawSizesBeyondTheCodecsRatio) {
+  std::vector<float> raw(1024);
+  for (size_t i = 0; i < raw.size(); ++i) raw[i] = float(i % 7);
+  for (const Compression c :
+       {Compression::None, Compression::Lz4, Compression::Deflate, Compression::BloscZstd}) {
+    ChunkCodec codec;
+    codec.compression = c;
+    codec.element_size = 4;
+    std::vector<char> stored, out, scratch;
+    encode_chunk(codec, raw.data(), raw.size() * 4, stored, scratch);
+    decode_chunk(codec, 0, stored.data(), stored.size(), raw.size() * 4, out, scratch);
+    EXPECT_EQ(std::memcmp(out.data(), raw.data(), raw.size() * 4), 0) << to_string(c);
+    try {
+      decode_chunk(codec, 0, stored.data(), stored.size(), size_t{1} << 40, out, scratch);
+      ADD_FAILURE() << to_string(c) << ": a 1 TiB claim was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("cannot hold 1099511627776 raw bytes"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_LT(out.capacity(), size_t{1} << 30) << to_string(c);
   }
 }
 

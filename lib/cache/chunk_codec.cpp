@@ -186,8 +186,24 @@ void encode_codec(const ChunkCodec& codec, const char* in, size_t bytes, std::ve
   }
 }
 
+// The most each codec can expand its input, with room for headers: LZ4 255:1 (a match costs
+// at least one byte per 255), deflate 1032:1 (zlib's technical notes), zstd about 2^17:1 (a
+// run-length block of 128 KiB in 3 bytes of header and 1 of data). A stored chunk claiming more
+// is damaged or hostile; it is refused before a buffer is sized from the claim.
+uint64_t most_raw_bytes(Compression compression, size_t stored) {
+  const uint64_t ratio = compression == Compression::Lz4         ? 255
+                         : compression == Compression::Deflate   ? 1032
+                         : compression == Compression::BloscZstd ? uint64_t{1} << 17
+                                                                 : 1;
+  return ratio * uint64_t(stored) + 1024;
+}
+
 void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t raw_bytes,
                   std::vector<char>& out) {
+  if (raw_bytes > most_raw_bytes(codec.compression, bytes))
+    throw Error(std::string(to_string(codec.compression)) + ": a stored chunk of " +
+                std::to_string(bytes) + " bytes cannot hold " + std::to_string(raw_bytes) +
+                " raw bytes");
   out.resize(raw_bytes);
   switch (codec.compression) {
     case Compression::Lz4: {
