@@ -176,8 +176,20 @@ Cells split_classic(LegacyStream& in, const std::vector<int64_t>& list, uint64_t
   return cells;
 }
 
+// A count from the file, checked before anything is sized from it: each of its `values_each`
+// values takes at least one byte of what is left of the file (an int8, or one ASCII digit).
+uint64_t checked_count(LegacyStream& in, uint64_t count, uint64_t values_each,
+                       const std::string& what) {
+  if (count > in.remaining() / values_each)
+    in.fail(what + " " + std::to_string(count) + " cannot be in the " +
+            std::to_string(in.remaining()) + " bytes left of the file");
+  return count;
+}
+
 Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
   if (a == 0 && b == 0) return {};
+  checked_count(in, a, 1, "cell count");
+  checked_count(in, b, 1, "cell list size");
   // The 5.1 layout announces OFFSETS next; the classic one starts with the first cell's count.
   std::vector<int64_t> classic(b);
   if (binary) {
@@ -206,6 +218,7 @@ Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
         if (c > 0) t = in.token();
         int64_t n;
         if (!io::parse_int64(t, n) || n < 0) in.fail("bad cell size '" + t + "'");
+        checked_count(in, static_cast<uint64_t>(n), 1, "cell size");
         classic.push_back(n);
         const size_t at = classic.size();
         classic.resize(at + static_cast<size_t>(n));
@@ -325,6 +338,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   auto read_array = [&](const std::string& name, size_t components, const std::string& type) {
     if (target == Target::none) in.fail("attribute data before POINT_DATA or CELL_DATA");
     if (binary) in.skip_line();
+    checked_count(in, target_tuples, components,
+                  "array " + name + " (POINT_DATA or CELL_DATA count)");
     std::vector<float> values(components * target_tuples);
     read_values(in, binary, type, values.size(), values.data());
     if (target == Target::point)
@@ -338,6 +353,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     if (key == "POINTS") {
       uint64_t n;
       if (!io::parse_uint64(in.token(), n)) in.fail("bad POINTS count");
+      checked_count(in, n, 3, "POINTS count");
       const std::string type = in.token();
       if (binary) in.skip_line();
       points.resize(3 * n);
@@ -414,6 +430,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
           continue;
         }
         if (binary) in.skip_line();
+        checked_count(in, static_cast<uint64_t>(tuples), static_cast<uint64_t>(components),
+                      "array " + name + " tuple count");
         std::vector<float> values(static_cast<size_t>(components * tuples));
         read_values(in, binary, type, values.size(), values.data());
         if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
@@ -429,6 +447,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       int64_t size;
       if (!io::parse_int64(in.token(), size) || size < 0) in.fail("bad LOOKUP_TABLE size");
       if (binary) in.skip_line();
+      checked_count(in, static_cast<uint64_t>(size), 4, "LOOKUP_TABLE size");
       std::vector<float> table(static_cast<size_t>(4 * size));
       read_values(in, binary, binary ? "unsigned_char" : "float", table.size(), table.data());
     } else if (key == "METADATA") {

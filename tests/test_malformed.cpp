@@ -284,3 +284,29 @@ TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
   write_text(dir.file("p.yaml"), "name: \"\x95\x95\"\ndata: synth:aneurysm\n");
   refused("p.yaml", [](const std::string& p) { load_pipeline(p); });
 }
+
+// Counts in a VTK legacy header are checked against what is left of the file before anything is
+// sized from them (docs/fuzzing.md, guarded allocation): a 100-byte file claiming 10^15 points,
+// cells, cell sizes, tuples or lookup-table entries is an error naming the count.
+TEST(GuardedAllocation, VtkLegacyCountsAreCheckedAgainstTheFile) {
+  TempDir dir;
+  const std::string head = "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\n";
+  const std::pair<const char*, std::string> cases[] = {
+      {"POINTS count 1000000000000000", "POINTS 1000000000000000 float\n0 0 0\n"},
+      {"cell count 1000000000000000", "POINTS 2 float\n0 0 0 1 1 1\nLINES 1000000000000000 3\n"},
+      {"cell list size 1000000000000000",
+       "POINTS 2 float\n0 0 0 1 1 1\nLINES 1 1000000000000000\n"},
+      {"cell size 1000000000000000", "POINTS 2 float\n0 0 0 1 1 1\nLINES 1 3\n1000000000000000\n"},
+      {"POINT_DATA or CELL_DATA count",
+       "POINTS 2 float\n0 0 0 1 1 1\nLINES 1 3\n2 0 1\nPOINT_DATA 1000000000000000\n"
+       "SCALARS s float\nLOOKUP_TABLE default\n0 0\n"},
+      {"LOOKUP_TABLE size 1000000000000000",
+       "POINTS 2 float\n0 0 0 1 1 1\nLINES 1 3\n2 0 1\nLOOKUP_TABLE t 1000000000000000\n0\n"},
+  };
+  int k = 0;
+  for (const auto& [expected, body] : cases) {
+    const std::string path = dir.file("c" + std::to_string(k++) + ".vtk");
+    write_text(path, head + body);
+    expect_error(path, expected);
+  }
+}
