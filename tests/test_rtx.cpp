@@ -158,16 +158,8 @@ TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
   std::memcpy(input.mapped, cases.data(), cases.size() * sizeof(GpuCase));
   const vk::BufferSet set = vk::create_buffer_set(ctx.device(), 3, VK_SHADER_STAGE_COMPUTE_BIT);
   vk::write_buffer_set(ctx.device(), set.set, {&params, &input, &output});
-  VkShaderModule module = vk::create_shader_module(ctx.device(), "capsule_test.comp");
-  VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  create.stage.module = module;
-  create.stage.pName = "main";
-  create.layout = set.layout;
-  VkPipeline pipeline = VK_NULL_HANDLE;
-  ASSERT_EQ(vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &create, nullptr, &pipeline),
-            VK_SUCCESS);
+  const VkPipeline pipeline =
+      vk::create_compute_pipeline(ctx.device(), set.layout, "capsule_test.comp");
   ctx.submit([&](VkCommandBuffer cmd) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, set.layout, 0, 1, &set.set, 0,
@@ -182,7 +174,6 @@ TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
   std::vector<GpuCrossings> gpu(cases.size());
   std::memcpy(gpu.data(), output.mapped, gpu.size() * sizeof(GpuCrossings));
   vkDestroyPipeline(ctx.device(), pipeline, nullptr);
-  vkDestroyShaderModule(ctx.device(), module, nullptr);
   vkDestroyDescriptorPool(ctx.device(), set.pool, nullptr);
   vkDestroyPipelineLayout(ctx.device(), set.layout, nullptr);
   vkDestroyDescriptorSetLayout(ctx.device(), set.set_layout, nullptr);

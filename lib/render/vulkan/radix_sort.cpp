@@ -40,22 +40,9 @@ struct RadixSorter::State {
   explicit State(Context& c) : ctx(c) {}
 
   VkPipeline pipeline(const char* shader, const uint32_t* step) {
-    VkDevice d = ctx.device();
-    VkShaderModule module = create_shader_module(d, shader);
-    VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    create.stage.module = module;
-    create.stage.pName = "main";
     const VkSpecializationMapEntry entry{0, 0, 4};
     const VkSpecializationInfo specialisation{1, &entry, 4, step};
-    if (step) create.stage.pSpecializationInfo = &specialisation;
-    create.layout = layout;
-    VkPipeline p = VK_NULL_HANDLE;
-    const VkResult made = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &p);
-    vkDestroyShaderModule(d, module, nullptr);
-    check(made, shader);
-    return p;
+    return create_compute_pipeline(ctx.device(), layout, shader, step ? &specialisation : nullptr);
   }
 
   // Scratch for `count` pairs: grown, never shrunk; descriptor sets rewritten when it or the

@@ -344,20 +344,8 @@ VkPipeline RasterRenderer::State::compute(const std::string& name,
                                           const std::vector<uint32_t>& constants) {
   const std::string key = pipeline_key(name, constants);
   if (auto it = pipelines.find(key); it != pipelines.end()) return it->second;
-  VkDevice d = ctx.device();
-  VkShaderModule cs = create_shader_module(d, name);
   const Specialisation spec(constants);
-  VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  create.stage.module = cs;
-  create.stage.pName = "main";
-  create.stage.pSpecializationInfo = &spec.info;
-  create.layout = layout;
-  VkPipeline pipeline;
-  const VkResult r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &pipeline);
-  vkDestroyShaderModule(d, cs, nullptr);
-  check(r, "vkCreateComputePipelines");
+  const VkPipeline pipeline = create_compute_pipeline(ctx.device(), layout, name, &spec.info);
   pipelines[key] = pipeline;
   return pipeline;
 }

@@ -38,4 +38,23 @@ VkShaderModule create_shader_module(VkDevice device, const std::string& name) {
   return module;
 }
 
+VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
+                                   const std::string& name,
+                                   const VkSpecializationInfo* specialisation) {
+  VkShaderModule module = create_shader_module(device, name);
+  VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  create.stage.module = module;
+  create.stage.pName = "main";
+  create.stage.pSpecializationInfo = specialisation;
+  create.layout = layout;
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  const VkResult made =
+      vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &create, nullptr, &pipeline);
+  vkDestroyShaderModule(device, module, nullptr);
+  check(made, ("vkCreateComputePipelines (" + name + ")").c_str());
+  return pipeline;
+}
+
 }  // namespace linebake::vk

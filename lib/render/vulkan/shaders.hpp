@@ -18,5 +18,10 @@ struct Spirv {
 Spirv shader_spirv(const std::string& name);
 // A shader module of one embedded shader (the caller destroys it).
 VkShaderModule create_shader_module(VkDevice device, const std::string& name);
+// A compute pipeline of one embedded shader's `main` with `layout` and, where given, its
+// specialisation constants (the caller destroys it). Throws naming the shader.
+VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
+                                   const std::string& name,
+                                   const VkSpecializationInfo* specialisation = nullptr);
 
 }  // namespace linebake::vk

@@ -149,19 +149,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
                                              "tiles_composite_triangles.comp"}
                 : std::array<const char*, 3>{"tiles_bin.comp", "tiles_ranges.comp",
                                              "tiles_composite.comp"};
-  for (size_t i = 0; i < 3; ++i) {
-    VkShaderModule module = create_shader_module(d, shaders[i]);
-    VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-    create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-    create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-    create.stage.module = module;
-    create.stage.pName = "main";
-    create.layout = set.layout;
-    const VkResult made =
-        vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &pipelines[i]);
-    vkDestroyShaderModule(d, module, nullptr);
-    check(made, shaders[i]);
-  }
+  for (size_t i = 0; i < 3; ++i) pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i]);
   queries = ctx.create_timestamp_pair();
 }
 

@@ -161,21 +161,10 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   const BufferSet b =
       create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT, {kGridPages, kGridPages});
   s.set_layout = b.set_layout, s.layout = b.layout, s.pool = b.pool, s.set = b.set;
-  VkShaderModule module = create_shader_module(d, "vrc.comp");
-  VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  create.stage.module = module;
-  create.stage.pName = "main";
   const uint32_t paged_constant = paged ? 1u : 0u;  // vrc.comp kPaged
   const VkSpecializationMapEntry entry{0, 0, 4};
   const VkSpecializationInfo specialisation{1, &entry, 4, &paged_constant};
-  create.stage.pSpecializationInfo = &specialisation;
-  create.layout = s.layout;
-  const VkResult made =
-      vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &create, nullptr, &s.pipeline);
-  vkDestroyShaderModule(d, module, nullptr);
-  check(made, "vkCreateComputePipelines (vrc.comp)");
+  s.pipeline = create_compute_pipeline(d, s.layout, "vrc.comp", &specialisation);
   s.queries = context.create_timestamp_pair();
 }
 
