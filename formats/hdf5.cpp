@@ -15,6 +15,7 @@
 
 #include "core/error.hpp"
 #include "core/h5.hpp"
+#include "core/h5_probe.hpp"
 #include "core/hash.hpp"
 #include "formats/formats.hpp"
 
@@ -43,6 +44,11 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
   for (hsize_t d : dims) total *= d;
   if (total > 0 && H5Dwrite(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
     throw OutputError(path, "cannot write dataset " + name + ": " + h5::last_error());
+  // The cache's block hash of the stored bytes (docs/cache.md): the reader checks it, so damaged
+  // data is an error rather than different lines.
+  const std::string hash =
+      BlockHasher().update(data, total * H5Tget_size(memory_type)).hex();
+  write_string_attribute(path, dataset, "xxh3_128_blocks", hash);
 }
 
 }  // namespace
@@ -56,6 +62,9 @@ class Hdf5Reader : public LineReader {
     h5::init();
     if (H5Fis_hdf5(path.c_str()) <= 0)
       throw InputError(path, "", "not an HDF5 file (or unreadable)");
+    // What this reader touches, walked first where a crash of libhdf5 cannot take us down.
+    h5::probe(path, {"/points", "/line_offsets", "/line_lengths", "/attributes", "/line_attributes",
+                     "/lines"});
     file_ = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
     if (!file_.valid()) throw InputError(path, "", "cannot open HDF5 file");
     if (H5Aexists(file_, "linebake_cache_format") > 0) {
@@ -154,6 +163,7 @@ class Hdf5Reader : public LineReader {
     H5Pset_chunk_cache(dapl, 521, size_t{16} << 20, 1.0);
     d.dataset = Handle(H5Dopen2(file_, name.c_str(), dapl), H5Dclose);
     if (!d.dataset.valid()) throw InputError(path_, "dataset " + name, "missing");
+    h5::check_claimed_size(path_, d.dataset, name);
     hsize_t total = 1;
     for (hsize_t v : h5::shape_of(d.dataset)) total *= v;
     if (expected != UINT64_MAX && total != expected)
@@ -220,6 +230,7 @@ class Hdf5Reader : public LineReader {
   std::vector<uint64_t> read_whole(const std::string& name) const {
     Handle dataset(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
     if (!dataset.valid()) throw InputError(path_, "dataset " + name, "missing");
+    h5::check_claimed_size(path_, dataset, name);
     hsize_t total = 1;
     for (hsize_t d : h5::shape_of(dataset)) total *= d;
     // Each value takes at least a bit of the file: a larger count is a corrupt header.
@@ -228,7 +239,14 @@ class Hdf5Reader : public LineReader {
       throw InputError(path_, "dataset " + name,
                        std::to_string(total) + " values cannot fit a file of " +
                            std::to_string(st.st_size) + " bytes");
-    std::vector<uint64_t> values(total);
+    std::vector<uint64_t> values;
+    try {
+      values.resize(total);
+    } catch (const std::bad_alloc&) {
+      throw InputError(path_, "dataset " + name,
+                       "needs " + std::to_string(total * sizeof(uint64_t)) +
+                           " bytes of memory, more than this machine can give");
+    }
     if (total > 0 &&
         H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
       throw InputError(path_, "dataset " + name, "cannot read (wrong type or corrupt data)");

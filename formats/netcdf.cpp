@@ -16,18 +16,72 @@
 #include <cctype>
 #include <cmath>
 #include <optional>
+#include <stdexcept>
 
 #include "core/error.hpp"
+#include "core/isolated.hpp"
 #include "formats/formats.hpp"
 
 namespace linebake::formats {
 
 namespace {
 
+// What the reader touches at open, walked first in an isolated child (core/isolated.hpp): the
+// NetCDF library, and HDF5 under NetCDF-4, crash on some malformed files (docs/reliability.md).
+void walk_netcdf_metadata(const std::string& path) {
+  int id = -1;
+  int status = nc_open(path.c_str(), NC_NOWRITE, &id);
+  if (status != NC_NOERR)
+    throw std::runtime_error(std::string("cannot open as NetCDF: ") + nc_strerror(status));
+  auto check = [&](int s, const std::string& where) {
+    if (s != NC_NOERR) {
+      nc_close(id);
+      throw std::runtime_error(where + ": " + nc_strerror(s));
+    }
+  };
+  int dims = 0, vars = 0, globals = 0, unlimited = -1;
+  check(nc_inq(id, &dims, &vars, &globals, &unlimited), "the header");
+  for (int d = 0; d < dims; ++d) {
+    size_t length = 0;
+    check(nc_inq_dimlen(id, d, &length), "dimension " + std::to_string(d));
+  }
+  auto attributes = [&](int var, int count, const std::string& where) {
+    for (int a = 0; a < count; ++a) {
+      char name[NC_MAX_NAME + 1];
+      nc_type type;
+      size_t length = 0;
+      check(nc_inq_attname(id, var, a, name), where + ", attribute " + std::to_string(a));
+      check(nc_inq_att(id, var, name, &type, &length), where + ", attribute " + name);
+      size_t size = 0;
+      check(nc_inq_type(id, type, nullptr, &size), where + ", attribute " + name);
+      if (type == NC_STRING) {
+        std::vector<char*> text(length);
+        check(nc_get_att_string(id, var, name, text.data()), where + ", attribute " + name);
+        nc_free_string(length, text.data());
+      } else if (type <= NC_MAX_ATOMIC_TYPE) {
+        std::vector<char> value(length * size + 1);
+        check(nc_get_att(id, var, name, value.data()), where + ", attribute " + name);
+      }
+    }
+  };
+  attributes(NC_GLOBAL, globals, "global attributes");
+  for (int v = 0; v < vars; ++v) {
+    char name[NC_MAX_NAME + 1];
+    nc_type type;
+    int ndims = 0, natts = 0;
+    int var_dims[NC_MAX_VAR_DIMS];
+    const std::string where = "variable " + std::to_string(v);
+    check(nc_inq_var(id, v, name, &type, &ndims, var_dims, &natts), where);
+    attributes(v, natts, std::string("variable ") + name);
+  }
+  nc_close(id);
+}
+
 struct Nc {
   std::string path;
   int id = -1;
   explicit Nc(const std::string& p) : path(p) {
+    check_in_isolation(p, "NetCDF", [&p] { walk_netcdf_metadata(p); });
     const int status = nc_open(p.c_str(), NC_NOWRITE, &id);
     if (status != NC_NOERR)
       throw InputError(p, "", std::string("cannot open as NetCDF: ") + nc_strerror(status));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <new>
 #include <set>
 
 #include "core/atomic_file.hpp"
@@ -129,34 +130,43 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
   const auto whole = [](LineSet lines) {
     return std::make_unique<MemoryLineReader>(std::move(lines));
   };
-  switch (format) {
-    case Format::obj:
-      reader = whole(formats::read_obj(source, options));
-      break;
-    case Format::binlines:
-      reader = formats::open_binlines(source, options);
-      break;
-    case Format::vtk:
-      reader = whole(formats::read_vtk_legacy(source, options));
-      break;
-    case Format::vtp:
-      reader = whole(formats::read_vtp(source, options));
-      break;
-    case Format::netcdf:
-      reader = formats::open_netcdf(source, options);
-      break;
-    case Format::hdf5:
-      reader = formats::open_hdf5(source, options);
-      break;
-    case Format::trk:
-      reader = formats::open_trk(source, options);
-      break;
-    case Format::tck:
-      reader = formats::open_tck(source, options);
-      break;
-    case Format::csv:
-      reader = formats::open_csv(source, options);
-      break;
+  // Sizes read from a file are checked before they size anything; what is left (a header whose
+  // sizes are plausible but more than this machine has) is an error naming the file, not a bare
+  // std::bad_alloc.
+  try {
+    switch (format) {
+      case Format::obj:
+        reader = whole(formats::read_obj(source, options));
+        break;
+      case Format::binlines:
+        reader = formats::open_binlines(source, options);
+        break;
+      case Format::vtk:
+        reader = whole(formats::read_vtk_legacy(source, options));
+        break;
+      case Format::vtp:
+        reader = whole(formats::read_vtp(source, options));
+        break;
+      case Format::netcdf:
+        reader = formats::open_netcdf(source, options);
+        break;
+      case Format::hdf5:
+        reader = formats::open_hdf5(source, options);
+        break;
+      case Format::trk:
+        reader = formats::open_trk(source, options);
+        break;
+      case Format::tck:
+        reader = formats::open_tck(source, options);
+        break;
+      case Format::csv:
+        reader = formats::open_csv(source, options);
+        break;
+    }
+  } catch (const std::bad_alloc&) {
+    throw InputError(source, "",
+                     "opening it needs more memory than this machine can give (is a size in its "
+                     "header damaged?)");
   }
   return reader;
 }

@@ -17,6 +17,7 @@
 
 #include "accel/capsule_chain.hpp"
 #include "accel/embree_scene.hpp"
+#include "bench_isolation.hpp"
 #include "bench_render.hpp"
 #include "cli_contract.hpp"
 #include "commands.hpp"
@@ -462,7 +463,26 @@ Command add_bench(CLI::App& app) {
                    "this many seconds (dp on large sets); default: render every frame")
       ->check(non_negative());
   rendering->add_flag("--json", render->json, "Print the figures as JSON");
-  return [args, render, tubes, voxels, embree, bake, rendering] {
+  auto isolation_args = std::make_shared<BenchIsolationArgs>();
+  auto* isolation = bench->add_subcommand(
+      "isolation",
+      "The cost of walking HDF5 metadata in an isolated child (docs/reliability.md) against "
+      "reading the data, and of reading the data in the child into shared memory");
+  isolation->add_option("files", isolation_args->files, "HDF5 files (line files, caches)")
+      ->required();
+  isolation->add_option("--repeat", isolation_args->repeat, "Runs (default 3); prints medians")
+      ->check(CLI::Range(1, 100));
+  isolation
+      ->add_option("--resident", isolation_args->resident,
+                   "Memory to touch first, e.g. 8G: a fork copies the page tables of all of it")
+      ->check(byte_size());
+  isolation->add_flag("--json", isolation_args->json, "Print the figures as JSON");
+  return [args, render, tubes, voxels, embree, bake, rendering, isolation, isolation_args] {
+    if (isolation->parsed()) {
+      for (const std::string& file : isolation_args->files) check_input_file(file);
+      bench_isolation(*isolation_args);
+      return;
+    }
     if (rendering->parsed()) {
       for (const std::string& cache : render->caches) check_cache_input(cache);
       bench_render(*render);

@@ -14,6 +14,7 @@
 #include <ctime>
 
 #include "core/error.hpp"
+#include "core/h5_probe.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
 
@@ -172,6 +173,11 @@ void CacheWriter::open(hid_t fapl) {
   // open must not keep the file open until HDF5's shutdown at exit, which then flushes it to a
   // full disk (and crashes in 1.10).
   H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG);
+  // The 1.10 file format: superblock v3, v2 object headers and the new chunk indices, each with a
+  // Jenkins lookup3 checksum HDF5 verifies on read, so damaged metadata is an error, not a crash
+  // of the library (docs/cache.md: readers need HDF5 1.10 or later).
+  if (H5Pset_libver_bounds(fapl, H5F_LIBVER_V110, H5F_LIBVER_V110) < 0)
+    throw OutputError(path, "cannot ask for the HDF5 1.10 file format (" + h5::last_error() + ")");
   // Page-aligned datasets from 4 KiB up, so uncompressed ones can be viewed in a mapping.
   H5Pset_alignment(fapl, 4096, 4096);
   // HDF5's metadata cache may grow to 32 MiB by default; chunk indices written in order need
@@ -211,6 +217,7 @@ void CacheWriter::create_group(const std::string& group) {
 }
 
 void CacheWriter::copy_group(const std::string& source_path, const std::string& group) {
+  h5::probe(source_path, {group});
   Handle source(H5Fopen(source_path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!source.valid()) throw InputError(source_path, "", "cannot open to copy " + group);
   const size_t slash = group.find_last_of('/');
@@ -619,6 +626,7 @@ template DatasetStream CacheWriter::stream<uint64_t>(const std::string&, uint64_
 bool is_linebake_cache(const std::string& path) {
   h5::init();
   if (H5Fis_hdf5(path.c_str()) <= 0) return false;
+  h5::probe(path);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   return file.valid() && H5Aexists(file, kFormatAttribute) > 0;
 }
@@ -630,6 +638,9 @@ CacheReader::CacheReader(const std::string& path, bool verify) : path_(path), ve
   file_size_ = static_cast<uint64_t>(st.st_size);
   if (H5Fis_hdf5(path.c_str()) <= 0)
     throw InputError(path, "", "not an HDF5 file (or its superblock is damaged)");
+  // Caches come from other machines and rotting disks; HDF5 1.10 crashes on some damaged
+  // metadata, so the whole file is walked first in a child process (docs/reliability.md).
+  h5::probe(path);
   h5_ = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!h5_.valid())
     throw InputError(
@@ -708,6 +719,7 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
   if (!exists(dataset)) throw InputError(path_, where, "missing");
   Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   if (!d.valid()) throw InputError(path_, where, "cannot open: " + h5::last_error());
+  h5::check_claimed_size(path_, d, dataset);
   uint64_t count = 1;
   for (hsize_t n : h5::shape_of(d)) count *= n;
   if (expected != SIZE_MAX && count != expected)
@@ -734,7 +746,13 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
     out = Array<unsigned char>(mapping_, static_cast<const unsigned char*>(mapping_.get()) + offset,
                                bytes);
   } else {
-    out = Array<unsigned char>(bytes);
+    try {
+      out = Array<unsigned char>(bytes);
+    } catch (const std::bad_alloc&) {
+      throw InputError(
+          path_, where,
+          "needs " + std::to_string(bytes) + " bytes of memory, more than this machine can give");
+    }
     if (bytes && H5Dread(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
       throw InputError(path_, where,
                        "cannot read: " + h5::last_error() + " (corrupt or truncated data)");
@@ -758,6 +776,7 @@ std::vector<uint64_t> CacheReader::shape(const std::string& dataset) const {
   if (!exists(dataset)) throw InputError(path_, "dataset " + dataset, "missing");
   Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   if (!d.valid()) throw InputError(path_, "dataset " + dataset, "cannot open: " + h5::last_error());
+  h5::check_claimed_size(path_, d, dataset);
   const std::vector<hsize_t> dims = h5::shape_of(d);
   return {dims.begin(), dims.end()};
 }

@@ -2,9 +2,13 @@
 
 #include <H5PLpublic.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <mutex>
+
+#include "core/error.hpp"
 
 namespace linebake::h5 {
 
@@ -91,6 +95,39 @@ std::vector<hsize_t> shape_of(hid_t dataset) {
   std::vector<hsize_t> dims(rank > 0 ? static_cast<size_t>(rank) : 0);
   if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
   return dims;
+}
+
+uint64_t max_decoded_bytes(hid_t dataset) {
+  const uint64_t stored = H5Dget_storage_size(dataset);
+  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+  uint64_t ratio = 1;
+  const int filters = dcpl.valid() ? H5Pget_nfilters(dcpl) : 0;
+  for (int f = 0; f < filters; ++f) {
+    unsigned flags = 0, config = 0;
+    size_t values = 0;
+    const H5Z_filter_t id = H5Pget_filter2(dcpl, static_cast<unsigned>(f), &flags, &values, nullptr,
+                                           0, nullptr, &config);
+    const uint64_t best = id == H5Z_FILTER_SHUFFLE || id == H5Z_FILTER_FLETCHER32 ? 1
+                          : id == H5Z_FILTER_DEFLATE                              ? 1032
+                          : id == 32004 /* LZ4 */                                 ? 255
+                                                  : uint64_t{1} << 17;
+    ratio = std::min<uint64_t>(ratio * best, uint64_t{1} << 17);
+  }
+  const uint64_t slack = uint64_t{1} << 20;
+  return stored > (UINT64_MAX - slack) / ratio ? UINT64_MAX : stored * ratio + slack;
+}
+
+void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name) {
+  Handle type(H5Dget_type(dataset), H5Tclose);
+  uint64_t bytes = type.valid() ? H5Tget_size(type) : 1;
+  for (hsize_t n : shape_of(dataset))
+    bytes = n != 0 && bytes > UINT64_MAX / n ? UINT64_MAX : bytes * n;
+  const uint64_t most = max_decoded_bytes(dataset);
+  if (bytes > most)
+    throw InputError(path, "dataset " + name,
+                     "its shape claims " + std::to_string(bytes) + " bytes, but it stores only " +
+                         std::to_string(H5Dget_storage_size(dataset)) + " (at most " +
+                         std::to_string(most) + " decoded): the header is damaged");
 }
 
 std::vector<std::string> group_members(hid_t location, const std::string& group) {

@@ -57,6 +57,14 @@ bool is_hdf5_file(const std::string& path);
 
 std::vector<hsize_t> shape_of(hid_t dataset);
 
+// The most bytes `dataset` can decode to: its stored bytes (the sum of its chunks, from the chunk
+// index) times the best ratio of its filter pipeline (deflate 1032:1, LZ4 255:1, Blosc and any
+// filter we do not know 2^17:1; none: 1:1), plus 1 MiB for chunks left to the fill value.
+uint64_t max_decoded_bytes(hid_t dataset);
+// Throws InputError naming `path` and `name` when the dataset's shape claims more bytes than
+// max_decoded_bytes(): a damaged header, refused before anything is sized from it.
+void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name);
+
 // Maps any attribute name to an HDF5 link name: '/' and '%' (and a leading '.') become %XX;
 // the empty name becomes "%".
 std::string encode_link_name(const std::string& name);

@@ -16,6 +16,7 @@
 #include <typeinfo>
 
 #include "core/error.hpp"
+#include "core/isolated.hpp"
 
 namespace linebake::fuzz {
 
@@ -25,6 +26,16 @@ inline std::string input_path(const std::string& extension) {
   return std::string(dir && *dir ? dir : "/tmp") + "/linebake-fuzz-" + std::to_string(getpid()) +
          "." + extension;
 }
+
+// At exit: how many inputs crashed libhdf5 or libnetcdf in the isolated child (core/isolated.hpp)
+// and were refused cleanly; scripts/fuzz reports the count (docs/fuzzing.md).
+struct ContainedCrashReport {
+  ~ContainedCrashReport() {
+    std::fprintf(stderr, "linebake fuzz: %llu library crashes contained\n",
+                 static_cast<unsigned long long>(linebake::contained_crashes()));
+  }
+};
+inline ContainedCrashReport contained_crash_report;
 
 template <class F>
 int with_input_file(const uint8_t* data, size_t size, const std::string& extension, F&& read) {

@@ -1,0 +1,250 @@
+#include "core/isolated.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+
+#include "core/error.hpp"
+#include "core/interrupt.hpp"
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LINEBAKE_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define LINEBAKE_ASAN 1
+#endif
+
+// Sanitizer runtimes (the fuzz build) call this before they exit on a report; libFuzzer uses it to
+// keep the input as a crash. A contained crash in the child is not one, so the child clears it.
+extern "C" void __sanitizer_set_death_callback(void (*callback)(void)) __attribute__((weak));
+
+namespace linebake {
+namespace {
+
+// The address space the process has mapped now (/proc/self/statm's first field), or 0.
+uint64_t mapped_bytes() {
+  FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return 0;
+  unsigned long long pages = 0;
+  const int n = std::fscanf(f, "%llu", &pages);
+  std::fclose(f);
+  return n == 1 ? pages * static_cast<uint64_t>(sysconf(_SC_PAGESIZE)) : 0;
+}
+
+void write_all(int fd, const char* data, size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;
+    data += n;
+    size -= static_cast<size_t>(n);
+  }
+}
+
+[[noreturn]] void run_child(int fd, const std::function<std::string()>& work,
+                            const IsolationLimits& limits) {
+  // A crash must end the child with its signal, not run the parent's handlers (libFuzzer's, the
+  // interrupt flag); no core file either.
+  for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGINT, SIGTERM, SIGHUP, SIGALRM, SIGXFSZ,
+                SIGPIPE})
+    std::signal(s, SIG_DFL);
+  if (__sanitizer_set_death_callback) __sanitizer_set_death_callback(nullptr);
+  struct rlimit core {};
+  setrlimit(RLIMIT_CORE, &core);
+#ifndef LINEBAKE_ASAN
+  // AddressSanitizer reserves terabytes of shadow memory: there the cap is the sanitizer's own
+  // allocation limit, set by scripts/fuzz.
+  if (limits.memory_bytes > 0) {
+    const rlim_t cap = static_cast<rlim_t>(mapped_bytes() + limits.memory_bytes);
+    struct rlimit as {
+      cap, cap
+    };
+    setrlimit(RLIMIT_AS, &as);
+  }
+#endif
+  char tag = 'R';
+  std::string text;
+  try {
+    text = work();
+  } catch (const std::bad_alloc&) {
+    tag = 'M';
+  } catch (const std::exception& e) {
+    tag = 'E';
+    text = e.what();
+  } catch (...) {
+    tag = 'E';
+    text = "unknown exception";
+  }
+  write_all(fd, &tag, 1);
+  write_all(fd, text.data(), text.size());
+  ::close(fd);
+  _exit(0);
+}
+
+const char* signal_text(int signal) {
+  switch (signal) {
+    case SIGSEGV:
+      return "SIGSEGV";
+    case SIGBUS:
+      return "SIGBUS";
+    case SIGABRT:
+      return "SIGABRT";
+    case SIGFPE:
+      return "SIGFPE";
+    case SIGILL:
+      return "SIGILL";
+    case SIGKILL:
+      return "SIGKILL";
+    default:
+      return nullptr;
+  }
+}
+
+}  // namespace
+
+std::string IsolatedOutcome::describe(const IsolationLimits& limits) const {
+  switch (kind) {
+    case Kind::Finished:
+      return "finished";
+    case Kind::Failed:
+      return "failed: " + result;
+    case Kind::OutOfMemory:
+      return "needed more than " + std::to_string(limits.memory_bytes >> 20) + " MiB";
+    case Kind::Signal: {
+      const char* name = signal_text(signal);
+      return std::string("crashed on ") + (name ? name : "signal " + std::to_string(signal)) +
+             " (" + strsignal(signal) + ")";
+    }
+    case Kind::Exited:
+      return "ended its process with status " + std::to_string(exit_code);
+    case Kind::TimedOut:
+      return "ran past " + std::to_string(static_cast<int>(limits.seconds)) + " s";
+  }
+  return "";
+}
+
+IsolatedOutcome run_isolated(const std::function<std::string()>& work,
+                             const IsolationLimits& limits) {
+  const auto start = std::chrono::steady_clock::now();
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    throw Error(std::string("cannot start an isolated reader: pipe: ") + std::strerror(errno));
+  std::fflush(nullptr);  // nothing buffered may be written twice
+  const pid_t pid = fork();
+  if (pid < 0) {
+    const int error = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw Error(std::string("cannot start an isolated reader: fork: ") + std::strerror(error) +
+                " (LINEBAKE_ISOLATION=off reads in-process; docs/reliability.md)");
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    run_child(fds[1], work, limits);
+  }
+  ::close(fds[1]);
+
+  IsolatedOutcome outcome;
+  std::string received;
+  bool timed_out = false;
+  int interrupted = 0;
+  for (;;) {
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (elapsed >= limits.seconds) {
+      timed_out = true;
+      break;
+    }
+    if ((interrupted = interrupt_signal()) != 0) break;
+    pollfd p{fds[0], POLLIN, 0};
+    const int wait_ms = static_cast<int>(std::min(1000.0, (limits.seconds - elapsed) * 1000) + 1);
+    const int ready = poll(&p, 1, wait_ms);
+    if (ready < 0 && errno != EINTR) break;
+    if (ready <= 0) continue;
+    char buffer[4096];
+    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;  // end of file: the child has exited (or closed its end)
+    received.append(buffer, static_cast<size_t>(n));
+  }
+  ::close(fds[0]);
+  if (timed_out || interrupted) kill(pid, SIGKILL);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  outcome.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (interrupted) throw Interrupted(interrupted, "while a reader ran isolated");
+  if (timed_out) {
+    outcome.kind = IsolatedOutcome::Kind::TimedOut;
+  } else if (WIFSIGNALED(status)) {
+    outcome.kind = IsolatedOutcome::Kind::Signal;
+    outcome.signal = WTERMSIG(status);
+  } else if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    outcome.kind = IsolatedOutcome::Kind::Exited;
+    outcome.exit_code = WEXITSTATUS(status);
+  } else if (received.empty()) {
+    outcome.kind = IsolatedOutcome::Kind::Exited;  // exited 0 without a result: never ours
+  } else {
+    const char tag = received[0];
+    outcome.result = received.substr(1);
+    outcome.kind = tag == 'R'   ? IsolatedOutcome::Kind::Finished
+                   : tag == 'M' ? IsolatedOutcome::Kind::OutOfMemory
+                                : IsolatedOutcome::Kind::Failed;
+  }
+  return outcome;
+}
+
+namespace {
+std::atomic<uint64_t> contained{0};
+}
+
+uint64_t contained_crashes() {
+  return contained.load();
+}
+
+void check_in_isolation(const std::string& path, const std::string& library,
+                        const std::function<void()>& walk, const IsolationLimits& limits) {
+  if (!isolation_enabled()) return;
+  const IsolatedOutcome outcome = run_isolated(
+      [&walk] {
+        walk();
+        return std::string("ok");
+      },
+      limits);
+  if (outcome.kind == IsolatedOutcome::Kind::Finished) return;
+  if (outcome.kind == IsolatedOutcome::Kind::Failed) throw InputError(path, "", outcome.result);
+  ++contained;
+  throw InputError(path, "",
+                   "the " + library + " library " + outcome.describe(limits) +
+                       " while reading its metadata in an isolated process: the file is "
+                       "malformed");
+}
+
+bool memory_cap_enforced() {
+#ifdef LINEBAKE_ASAN
+  return false;
+#else
+  return true;
+#endif
+}
+
+bool isolation_enabled() {
+  const char* value = std::getenv("LINEBAKE_ISOLATION");
+  return !(value && (std::strcmp(value, "off") == 0 || std::strcmp(value, "0") == 0));
+}
+
+}  // namespace linebake

@@ -1,0 +1,66 @@
+#pragma once
+// Runs work we cannot trust (a third-party parser on a hostile file) in a forked child, so that its
+// crash, hang or runaway allocation ends the child and not linebake. The child shares nothing back
+// but a short text result through a pipe; it never flushes the parent's buffers or runs its exit
+// handlers. Used to walk foreign HDF5 and NetCDF metadata before the parent reads the file
+// (core/h5_probe.hpp, docs/reliability.md).
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+namespace linebake {
+
+struct IsolationLimits {
+  double seconds = 120;                       // wall clock; the child is killed past it
+  uint64_t memory_bytes = uint64_t{1} << 30;  // address space the child may add to the parent's
+};
+
+struct IsolatedOutcome {
+  enum class Kind {
+    Finished,     // the work returned; `result` holds what it returned
+    Failed,       // the work threw; `result` holds the exception's message
+    OutOfMemory,  // the work threw std::bad_alloc: it hit the memory cap
+    Signal,       // the child died on `signal` (SIGSEGV, SIGABRT, ...)
+    Exited,       // the child exited on its own with `exit_code` (a sanitizer's report)
+    TimedOut,     // killed after the time limit
+  };
+  Kind kind = Kind::Finished;
+  std::string result;
+  int signal = 0;
+  int exit_code = 0;
+  double wall_s = 0;
+
+  bool contained_crash() const {
+    return kind == Kind::Signal || kind == Kind::Exited || kind == Kind::TimedOut ||
+           kind == Kind::OutOfMemory;
+  }
+  // "died on SIGSEGV (Segmentation fault)", "ran past its 120 s limit", ...
+  std::string describe(const IsolationLimits& limits) const;
+};
+
+// Forks, runs `work` in the child under `limits`, and waits for it. Throws Error when the child
+// cannot be started (fork or pipe failing) and Interrupted when Ctrl-C or SIGTERM arrives while
+// waiting (the child is killed first).
+IsolatedOutcome run_isolated(const std::function<std::string()>& work,
+                             const IsolationLimits& limits = {});
+
+// Runs `walk` (which opens `path` with `library` and touches what linebake will read) isolated, and
+// turns a contained crash into an InputError naming the file: "the HDF5 library died on SIGSEGV
+// (Segmentation fault) while reading its metadata: the file is malformed". A walk that throws
+// becomes an InputError with its message. Does nothing when isolation is off.
+void check_in_isolation(const std::string& path, const std::string& library,
+                        const std::function<void()>& walk, const IsolationLimits& limits = {});
+
+// How many crashes check_in_isolation() contained in this process (the fuzz targets report it).
+uint64_t contained_crashes();
+
+// False in AddressSanitizer builds (the fuzz preset), where RLIMIT_AS cannot cap the child: the
+// sanitizer reserves terabytes of shadow memory. scripts/fuzz caps single allocations instead.
+bool memory_cap_enforced();
+
+// False when LINEBAKE_ISOLATION=off asks to read foreign files in-process (MPI stacks that forbid
+// fork, debugging HDF5 itself).
+bool isolation_enabled();
+
+}  // namespace linebake

@@ -1,0 +1,158 @@
+// The isolated runner (core/isolated.hpp) and the HDF5 metadata walk (core/h5_probe.hpp): what a
+// crash, a hang, an allocation past the cap and a clean result in the child give the parent.
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+
+#include <csignal>
+#include <cstdlib>
+#include <fstream>
+#include <new>
+#include <stdexcept>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/h5.hpp"
+#include "core/h5_probe.hpp"
+#include "core/isolated.hpp"
+#include "formats/registry.hpp"
+#include "lines/line_set.hpp"
+#include "test_util.hpp"
+
+using namespace linebake;
+using linebake::test::TempDir;
+using Kind = IsolatedOutcome::Kind;
+
+TEST(Isolated, ReturnsTheChildsResult) {
+  const IsolatedOutcome o = run_isolated([] { return std::string(100000, 'x') + "end"; });
+  ASSERT_EQ(o.kind, Kind::Finished);
+  EXPECT_EQ(o.result.size(), 100003u);  // more than one pipe buffer
+  EXPECT_EQ(o.result.substr(100000), "end");
+}
+
+TEST(Isolated, ASegfaultEndsOnlyTheChild) {
+  const IsolatedOutcome o = run_isolated([]() -> std::string {
+    std::raise(SIGSEGV);
+    return "unreachable";
+  });
+  ASSERT_EQ(o.kind, Kind::Signal);
+  EXPECT_EQ(o.signal, SIGSEGV);
+  EXPECT_TRUE(o.contained_crash());
+  EXPECT_NE(o.describe({}).find("SIGSEGV"), std::string::npos) << o.describe({});
+}
+
+TEST(Isolated, AnAbortIsASignalToo) {
+  const IsolatedOutcome o = run_isolated([]() -> std::string { std::abort(); });
+  ASSERT_EQ(o.kind, Kind::Signal);
+  EXPECT_EQ(o.signal, SIGABRT);
+}
+
+TEST(Isolated, AnExceptionIsAFailureWithItsMessage) {
+  const IsolatedOutcome o =
+      run_isolated([]() -> std::string { throw std::runtime_error("dataset /x: bad"); });
+  ASSERT_EQ(o.kind, Kind::Failed);
+  EXPECT_EQ(o.result, "dataset /x: bad");
+  EXPECT_FALSE(o.contained_crash());
+}
+
+TEST(Isolated, AHangIsKilledAtTheTimeLimit) {
+  const IsolatedOutcome o = run_isolated(
+      []() -> std::string {
+        for (;;) pause();
+      },
+      {0.3, uint64_t{1} << 30});
+  ASSERT_EQ(o.kind, Kind::TimedOut);
+  EXPECT_GE(o.wall_s, 0.3);
+  EXPECT_LT(o.wall_s, 5.0);
+}
+
+TEST(Isolated, AllocationPastTheCapIsOutOfMemory) {
+  if (!memory_cap_enforced()) GTEST_SKIP() << "no address-space cap under AddressSanitizer";
+  // 64 MiB past what the parent maps is refused; 16 MiB is not.
+  const IsolationLimits limits{30, uint64_t{64} << 20};
+  const IsolatedOutcome big = run_isolated(
+      [] {
+        std::vector<char> v(size_t{256} << 20, 1);
+        return std::to_string(v[12345]);
+      },
+      limits);
+  EXPECT_EQ(big.kind, Kind::OutOfMemory);
+  const IsolatedOutcome small = run_isolated(
+      [] {
+        std::vector<char> v(size_t{16} << 20, 1);
+        return std::to_string(v[12345]);
+      },
+      limits);
+  ASSERT_EQ(small.kind, Kind::Finished);
+  EXPECT_EQ(small.result, "1");
+}
+
+TEST(Isolated, ACrashBecomesAnInputErrorNamingTheFile) {
+  const uint64_t before = contained_crashes();
+  try {
+    check_in_isolation("/data/x.h5", "HDF5", [] { std::raise(SIGBUS); });
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "/data/x.h5");
+    const std::string m = e.what();
+    EXPECT_NE(m.find("HDF5 library crashed on SIGBUS"), std::string::npos) << m;
+    EXPECT_NE(m.find("the file is malformed"), std::string::npos) << m;
+  }
+  EXPECT_EQ(contained_crashes(), before + 1);
+}
+
+TEST(Isolated, OffRunsNothing) {
+  setenv("LINEBAKE_ISOLATION", "off", 1);
+  EXPECT_NO_THROW(check_in_isolation("x.h5", "HDF5", [] { std::raise(SIGSEGV); }));
+  unsetenv("LINEBAKE_ISOLATION");
+  EXPECT_TRUE(isolation_enabled());
+}
+
+// The walk visits what the reader reads: a dataset whose chunk index is damaged fails the walk
+// (in the child), and the reader's error names the file and the dataset.
+TEST(H5Probe, AWalkFailureNamesTheDataset) {
+  TempDir dir;
+  const std::string path = dir.file("chunked.h5");
+  {
+    h5::init();
+    h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    const hsize_t dims[2] = {4096, 3}, chunk[2] = {256, 3};
+    h5::Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+    h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    H5Pset_chunk(dcpl, 2, chunk);
+    h5::Handle d(H5Dcreate2(file, "points", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+                 H5Dclose);
+    std::vector<float> values(4096 * 3, 1.0f);
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+    const uint64_t offsets[2] = {0, 4096};
+    const hsize_t two = 2;
+    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
+    h5::Handle o(
+        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+  }
+  EXPECT_NO_THROW(h5::probe(path, {"/points", "/line_offsets"}));
+  EXPECT_EQ(read_line_set(path).point_count(), 4096u);
+  // Damage the v1 B-tree of the chunk index: its node signature "TREE" is followed by the node
+  // type, level and entry count; a wrong level sends HDF5 to a child node that is not there.
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  size_t at = bytes.find("TREE", 1000);  // the root group's is near the start; the chunk index
+  ASSERT_NE(at, std::string::npos);      // comes after the dataset's header
+  bytes[at + 4] = 5;                     // node type 5: neither group nor chunk
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  try {
+    (void)read_line_set(path);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_NE(std::string(e.what()).find("/points"), std::string::npos) << e.what();
+  }
+}
