@@ -46,8 +46,7 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
     throw OutputError(path, "cannot write dataset " + name + ": " + h5::last_error());
   // The cache's block hash of the stored bytes (docs/cache.md): the reader checks it, so damaged
   // data is an error rather than different lines.
-  const std::string hash =
-      BlockHasher().update(data, total * H5Tget_size(memory_type)).hex();
+  const std::string hash = BlockHasher().update(data, total * H5Tget_size(memory_type)).hex();
   write_string_attribute(path, dataset, "xxh3_128_blocks", hash);
 }
 
