@@ -12,6 +12,7 @@
 
 #include "cache/cache.hpp"
 #include "cache/chunk_codec.hpp"
+#include "cache/chunk_reader.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
 #include "test_util.hpp"
@@ -174,6 +175,18 @@ TEST_P(ChunkCodecHdf5, LinebakeDecodesWhatHdf5sFiltersStore) {
     const size_t n = std::min(chunk_rows, rows - c * chunk_rows);
     ASSERT_EQ(std::memcmp(raw.data(), values.data() + c * chunk_rows, n * sizeof(float)), 0) << c;
   }
+  // read_cache_rows: any range of rows, across chunk boundaries, is what was written.
+  const std::pair<size_t, size_t> ranges[] = {
+      {0, rows}, {chunk_rows - 3, 7}, {rows - 5, 5}, {chunk_rows, chunk_rows}};
+  for (const auto& [first_row, count] : ranges) {
+    std::vector<float> got(count, -1.0f);
+    ASSERT_TRUE(read_cache_rows(d, H5T_NATIVE_FLOAT, first_row, count, got.data()));
+    ASSERT_EQ(std::memcmp(got.data(), values.data() + first_row, count * sizeof(float)), 0)
+        << first_row << " " << count;
+  }
+  // Read as another type, it is not read_cache_rows' to convert: H5Dread's.
+  std::vector<double> as_double(rows);
+  EXPECT_FALSE(read_cache_rows(d, H5T_NATIVE_DOUBLE, 0, rows, as_double.data()));
   // A flipped byte fails the checksum, with a message saying so.
   const hsize_t first[1] = {0};
   hsize_t bytes = 0;

@@ -230,6 +230,9 @@ class CacheReader {
  private:
   Array<unsigned char> read_raw(const std::string& dataset, hid_t type, size_t element,
                                 size_t expected) const;
+  // Rows through linebake's chunk decoder (cache/chunk_reader.hpp); false: use H5Dread.
+  bool read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
+                   const std::string& where) const;
   std::string path_;
   bool verify_;
   h5::Handle h5_;

@@ -1,0 +1,20 @@
+#pragma once
+// Rows of a cache dataset read chunk by chunk with H5Dread_chunk and decoded by linebake's own
+// codec (cache/chunk_codec.hpp), not by HDF5's filter pipeline: HDF5 1.10.8 copies a chunk whose
+// filters return fewer bytes than the chunk holds past the end of their buffer
+// (H5VM_memcpyvv <- H5D__select_read, found by the cache fuzzer; docs/reliability.md). Our decoder
+// checks the Fletcher-32 sum first and every size against the chunk's.
+
+#include <hdf5.h>
+
+#include <cstdint>
+
+namespace linebake {
+
+// Reads rows [first, first + count) of `dataset` into `out` when its storage is the cache's own
+// (chunked along rows only, filters shuffle, deflate | LZ4 | Blosc, Fletcher-32, in that order,
+// a stored type equal to `memory_type`). Returns false, having read nothing, for any other
+// dataset: the caller reads it with H5Dread. Throws Error naming the chunk on a damaged one.
+bool read_cache_rows(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t count, void* out);
+
+}  // namespace linebake
