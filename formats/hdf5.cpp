@@ -204,24 +204,37 @@ class Hdf5Reader : public LineReader {
   bool read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
                    const std::string& name) const {
     if (count == 0) return true;
+    // Line files from other tools keep HDF5's own read: their unwritten chunks are fill values.
+    if (prefix_.empty()) return false;
     try {
       if (read_cache_rows(dataset, type, first, count, out)) return true;
     } catch (const Error& e) {
       throw InputError(path_, "dataset " + name, std::string(e.what()) + " (the data is corrupt)");
+    } catch (const std::bad_alloc&) {
+      throw InputError(path_, "dataset " + name,
+                       "a chunk needs more memory than this machine can give");
     }
     // In a cache every chunked dataset is the kind read_cache_rows decodes (cache.cpp says why).
     Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
-    if (!prefix_.empty() && (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_CHUNKED))
+    if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_CHUNKED)
       throw InputError(path_, "dataset " + name,
                        "chunked or filtered differently from what linebake writes: the cache is "
                        "damaged");
     return false;
   }
 
+  // A line file edited by another program keeps linebake's hash of the old data: say so.
+  std::string checksum_mismatch() const {
+    return prefix_.empty() ? "checksum mismatch: the data is corrupt, or was changed by another "
+                             "program after linebake wrote it (deleting the dataset's attribute "
+                             "xxh3_128_blocks reads it unchecked)"
+                           : "checksum mismatch: the data is corrupt";
+  }
+
   void verify(Data& d) const {
     if ((d.hash && d.hash->hex() != d.stored_hash) ||
         (d.flat_hash && d.flat_hash->hex() != d.stored_hash))
-      throw InputError(path_, "dataset " + d.name, "checksum mismatch: the data is corrupt");
+      throw InputError(path_, "dataset " + d.name, checksum_mismatch());
   }
 
   void read_offsets(uint64_t points) {
@@ -267,9 +280,7 @@ class Hdf5Reader : public LineReader {
                        "needs " + std::to_string(total * sizeof(uint64_t)) +
                            " bytes of memory, more than this machine can give");
     }
-    if (total > 0 &&
-        !read_direct(dataset, H5T_NATIVE_UINT64, 0, h5::shape_of(dataset).at(0), values.data(),
-                     name) &&
+    if (total > 0 && !read_direct(dataset, H5T_NATIVE_UINT64, 0, total, values.data(), name) &&
         H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
       throw InputError(path_, "dataset " + name, "cannot read (wrong type or corrupt data)");
     std::string stored;
@@ -278,7 +289,7 @@ class Hdf5Reader : public LineReader {
          stored != BlockHasher().update(values.data(), bytes).hex()) ||
         (h5::read_string_attribute(dataset, "xxh3_128", stored) &&
          stored != hash_bytes(values.data(), bytes)))
-      throw InputError(path_, "dataset " + name, "checksum mismatch: the data is corrupt");
+      throw InputError(path_, "dataset " + name, checksum_mismatch());
     return values;
   }
 

@@ -58,7 +58,7 @@ void walk_netcdf_metadata(const std::string& path) {
         std::vector<char*> text(length);
         check(nc_get_att_string(id, var, name, text.data()), where + ", attribute " + name);
         nc_free_string(length, text.data());
-      } else if (type <= NC_MAX_ATOMIC_TYPE) {
+      } else if (type <= NC_MAX_ATOMIC_TYPE && size > 0 && length <= (size_t{1} << 30) / size) {
         std::vector<char> value(length * size + 1);
         check(nc_get_att(id, var, name, value.data()), where + ", attribute " + name);
       }

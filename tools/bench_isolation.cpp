@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -48,7 +49,11 @@ std::vector<Dataset> datasets_of(const std::string& path) {
     if (H5Tis_variable_str(type) > 0 || H5Tdetect_class(type, H5T_VLEN) > 0) return 0;
     uint64_t bytes = H5Tget_size(type);
     for (hsize_t n : h5::shape_of(d)) bytes *= n;
-    static_cast<std::vector<Dataset>*>(data)->push_back({std::string("/") + name, bytes});
+    try {  // nothing may unwind through HDF5's C frames
+      static_cast<std::vector<Dataset>*>(data)->push_back({std::string("/") + name, bytes});
+    } catch (...) {
+      return -1;
+    }
     return 0;
   };
   H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_INC, each, &list, H5O_INFO_BASIC);
@@ -111,7 +116,9 @@ Figures measure(const std::string& path, int repeat) {
     t = Clock::now();
     {
       const int fd = memfd_create("linebake-isolated-data", MFD_CLOEXEC);
-      if (fd < 0 || ftruncate(fd, static_cast<off_t>(f.data_bytes + 1)) != 0)
+      if (fd < 0) throw Error(std::string("memfd: ") + std::strerror(errno));
+      const std::shared_ptr<void> close_fd(nullptr, [fd](void*) { close(fd); });
+      if (ftruncate(fd, static_cast<off_t>(f.data_bytes + 1)) != 0)
         throw Error(std::string("memfd: ") + std::strerror(errno));
       const IsolatedOutcome o = run_isolated(
           [&] {
@@ -127,7 +134,6 @@ Figures measure(const std::string& path, int repeat) {
       if (p == MAP_FAILED) throw Error("mmap of the memfd failed");
       (void)touch(static_cast<const char*>(p), f.data_bytes);
       munmap(p, f.data_bytes + 1);
-      close(fd);
     }
     child.push_back(seconds_since(t));
   }

@@ -627,7 +627,9 @@ template DatasetStream CacheWriter::stream<uint64_t>(const std::string&, uint64_
 bool is_linebake_cache(const std::string& path) {
   h5::init();
   if (H5Fis_hdf5(path.c_str()) <= 0) return false;
-  h5::probe(path);
+  // Only what this opens (the superblock, the root's attributes): a damaged cache is then read,
+  // refused and rebuilt by bake, and a line file is not judged by objects it never reads.
+  h5::probe(path, {});
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   return file.valid() && H5Aexists(file, kFormatAttribute) > 0;
 }
@@ -721,6 +723,8 @@ bool CacheReader::read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_
     if (read_cache_rows(dataset, type, first, count, out)) return true;
   } catch (const Error& e) {
     throw InputError(path_, where, std::string(e.what()) + " (the data is corrupt)");
+  } catch (const std::bad_alloc&) {
+    throw InputError(path_, where, "a chunk needs more memory than this machine can give");
   }
   // linebake chunks every compressed dataset the one way read_cache_rows decodes; any other
   // chunked layout is damage, and HDF5's own filtered read of it is not safe in 1.10.8.

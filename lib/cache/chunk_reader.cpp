@@ -49,6 +49,9 @@ bool read_cache_rows(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t 
   const int rank = H5Pget_chunk(dcpl, 2, chunk);
   if (rank != static_cast<int>(dims.size()) || rank < 1 || rank > 2 || chunk[0] == 0) return false;
   if (rank == 2 && chunk[1] != dims[1]) return false;  // chunked along rows only
+  // linebake's chunks hold at most the dataset's rows: a larger chunk is a damaged header that
+  // would size the decode buffer.
+  if (chunk[0] > std::max<hsize_t>(dims[0], 1)) return false;
   const size_t element = H5Tget_size(type);
   ChunkCodec codec;
   if (!cache_codec(dcpl, element, codec)) return false;

@@ -118,6 +118,13 @@ uint64_t max_decoded_bytes(hid_t dataset) {
 }
 
 void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name) {
+  // Nothing stored to compare with: data never written (all fill value), a virtual dataset or
+  // one in external files. Their readers size batches, not the whole shape.
+  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+  H5D_space_status_t status = H5D_SPACE_STATUS_ERROR;
+  if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_VIRTUAL || H5Pget_external_count(dcpl) > 0 ||
+      H5Dget_space_status(dataset, &status) < 0 || status == H5D_SPACE_STATUS_NOT_ALLOCATED)
+    return;
   Handle type(H5Dget_type(dataset), H5Tclose);
   uint64_t bytes = type.valid() ? H5Tget_size(type) : 1;
   for (hsize_t n : shape_of(dataset))

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <mutex>
+#include <new>
 #include <set>
 #include <stdexcept>
 
@@ -122,12 +123,16 @@ void walk_metadata(const std::string& path, const std::vector<std::string>& obje
       const Walk* walk;
       std::string prefix;
       std::string error;
-    } visit{&walk, name == "/" ? "/" : name + "/", ""};
+      bool out_of_memory = false;
+    } visit{&walk, name == "/" ? "/" : name + "/", "", false};
     auto each = [](hid_t group, const char* member, const H5O_info_t*, void* data) -> herr_t {
       auto& v = *static_cast<Visit*>(data);
       if (member[0] == '.' && member[1] == '\0') return 0;
       try {
         walk_object(group, member, v.prefix + member, *v.walk);
+      } catch (const std::bad_alloc&) {
+        v.out_of_memory = true;
+        return -1;
       } catch (const std::exception& e) {
         v.error = e.what();
         return -1;
@@ -136,7 +141,10 @@ void walk_metadata(const std::string& path, const std::vector<std::string>& obje
     };
     Handle group(H5Gopen2(file, name.c_str(), H5P_DEFAULT), H5Gclose);
     if (!group.valid()) fail(name, "cannot open");
-    if (H5Ovisit2(group, H5_INDEX_NAME, H5_ITER_INC, each, &visit, H5O_INFO_BASIC) < 0)
+    const herr_t visited =
+        H5Ovisit2(group, H5_INDEX_NAME, H5_ITER_INC, each, &visit, H5O_INFO_BASIC);
+    if (visit.out_of_memory) throw std::bad_alloc();  // the child's memory cap: say so
+    if (visited < 0)
       throw std::runtime_error(
           visit.error.empty() ? name + ": unreadable group (" + last_error() + ")" : visit.error);
   }

@@ -59,17 +59,19 @@ void write_all(int fd, const char* data, size_t size) {
                             const IsolationLimits& limits) {
   // A crash must end the child with its signal, not run the parent's handlers (libFuzzer's, the
   // interrupt flag); no core file either.
-  for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGINT, SIGTERM, SIGHUP, SIGALRM, SIGXFSZ,
-                SIGPIPE})
+  for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGALRM, SIGXFSZ, SIGPIPE})
     std::signal(s, SIG_DFL);
+  // Ctrl-C reaches the whole process group: the parent decides, and kills the child itself.
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) std::signal(s, SIG_IGN);
   if (__sanitizer_set_death_callback) __sanitizer_set_death_callback(nullptr);
   struct rlimit core {};
   setrlimit(RLIMIT_CORE, &core);
 #ifndef LINEBAKE_ASAN
   // AddressSanitizer reserves terabytes of shadow memory: there the cap is the sanitizer's own
   // allocation limit, set by scripts/fuzz.
-  if (limits.memory_bytes > 0) {
-    const rlim_t cap = static_cast<rlim_t>(mapped_bytes() + limits.memory_bytes);
+  const uint64_t mapped = mapped_bytes();  // 0 without /proc: then no cap, rather than a wrong one
+  if (limits.memory_bytes > 0 && mapped > 0) {
+    const rlim_t cap = static_cast<rlim_t>(mapped + limits.memory_bytes);
     struct rlimit as {
       cap, cap
     };
@@ -160,7 +162,7 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
 
   IsolatedOutcome outcome;
   std::string received;
-  bool timed_out = false;
+  bool timed_out = false, ended = false;
   int interrupted = 0;
   for (;;) {
     const double elapsed =
@@ -178,17 +180,19 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
     char buffer[4096];
     const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;  // end of file: the child has exited (or closed its end)
+    if (n == 0) ended = true;  // end of file: the child has exited (or closed its end)
+    if (n <= 0) break;
     received.append(buffer, static_cast<size_t>(n));
   }
   ::close(fds[0]);
-  if (timed_out || interrupted) kill(pid, SIGKILL);
+  if (!ended) kill(pid, SIGKILL);  // timed out, interrupted, or poll/read failed
+  if (!interrupted) interrupted = interrupt_signal();
   int status = 0;
   while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   outcome.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (interrupted) throw Interrupted(interrupted, "while a reader ran isolated");
-  if (timed_out) {
+  if (timed_out || !ended) {
     outcome.kind = IsolatedOutcome::Kind::TimedOut;
   } else if (WIFSIGNALED(status)) {
     outcome.kind = IsolatedOutcome::Kind::Signal;

@@ -46,7 +46,7 @@ EOF
 # the error names the copy; SAME: the output equals the pristine file's).
 damage() {
   local file="$1" offset="$2" commands="$3"
-  local copy="d$offset-$file" command status named same
+  local copy="d$offset-${commands//,/-}-$file" command status named same
   cp "$file" "$copy"
   perl -e 'open(F, "+<", $ARGV[0]) or die; seek(F, $ARGV[1], 0); read(F, $b, 4);
     seek(F, $ARGV[1], 0); print F ($b ^ ("\xA5" x length($b)))' "$copy" "$offset"
