@@ -203,24 +203,13 @@ class Hdf5Reader : public LineReader {
   // reader's do (cache/chunk_reader.hpp); false for any other dataset.
   bool read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
                    const std::string& name) const {
-    if (count == 0) return true;
     // Line files from other tools keep HDF5's own read: their unwritten chunks are fill values.
-    if (prefix_.empty()) return false;
+    if (prefix_.empty()) return count == 0;
     try {
-      if (read_cache_rows(dataset, type, first, count, out)) return true;
+      return read_cache_rows_strict(dataset, type, first, count, out);
     } catch (const Error& e) {
-      throw InputError(path_, "dataset " + name, std::string(e.what()) + " (the data is corrupt)");
-    } catch (const std::bad_alloc&) {
-      throw InputError(path_, "dataset " + name,
-                       "a chunk needs more memory than this machine can give");
+      throw InputError(path_, "dataset " + name, e.what());
     }
-    // In a cache every chunked dataset is the kind read_cache_rows decodes (cache.cpp says why).
-    Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
-    if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_CHUNKED)
-      throw InputError(path_, "dataset " + name,
-                       "chunked or filtered differently from what linebake writes: the cache is "
-                       "damaged");
-    return false;
   }
 
   // A line file edited by another program keeps linebake's hash of the old data: say so.

@@ -673,13 +673,7 @@ CacheReader::CacheReader(const std::string& path, bool verify) : path_(path), ve
 CacheReader::~CacheReader() = default;
 
 bool CacheReader::exists(const std::string& object) const {
-  if (object == "/") return true;
-  // Every prefix must exist for H5Lexists to answer.
-  size_t at = 0;
-  while ((at = object.find('/', at + 1)) != std::string::npos) {
-    if (H5Lexists(h5_, object.substr(0, at).c_str(), H5P_DEFAULT) <= 0) return false;
-  }
-  return H5Lexists(h5_, object.c_str(), H5P_DEFAULT) > 0;
+  return h5::path_exists(h5_, object);
 }
 
 std::vector<std::string> CacheReader::members(const std::string& group) const {
@@ -718,22 +712,11 @@ Array<T> CacheReader::read(const std::string& dataset, size_t expected) const {
 
 bool CacheReader::read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
                               const std::string& where) const {
-  if (count == 0) return true;
   try {
-    if (read_cache_rows(dataset, type, first, count, out)) return true;
+    return read_cache_rows_strict(dataset, type, first, count, out);
   } catch (const Error& e) {
-    throw InputError(path_, where, std::string(e.what()) + " (the data is corrupt)");
-  } catch (const std::bad_alloc&) {
-    throw InputError(path_, where, "a chunk needs more memory than this machine can give");
+    throw InputError(path_, where, e.what());
   }
-  // linebake chunks every compressed dataset the one way read_cache_rows decodes; any other
-  // chunked layout is damage, and HDF5's own filtered read of it is not safe in 1.10.8.
-  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
-  if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_CHUNKED)
-    throw InputError(path_, where,
-                     "chunked or filtered differently from what linebake writes: the cache is "
-                     "damaged");
-  return false;
 }
 
 Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t type, size_t element,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -87,6 +88,22 @@ bool read_cache_rows(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t 
                 (to - from) * row_bytes);
   }
   return true;
+}
+
+bool read_cache_rows_strict(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t count,
+                            void* out) {
+  if (count == 0) return true;
+  try {
+    if (read_cache_rows(dataset, memory_type, first, count, out)) return true;
+  } catch (const std::bad_alloc&) {
+    throw Error("a chunk needs more memory than this machine can give");
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + " (the data is corrupt)");
+  }
+  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+  if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_CHUNKED)
+    throw Error("chunked or filtered differently from what linebake writes: the cache is damaged");
+  return false;
 }
 
 }  // namespace linebake

@@ -97,6 +97,13 @@ std::vector<hsize_t> shape_of(hid_t dataset) {
   return dims;
 }
 
+bool path_exists(hid_t location, const std::string& path) {
+  if (path == "/") return true;
+  for (size_t at = path.find('/', 1); at != std::string::npos; at = path.find('/', at + 1))
+    if (H5Lexists(location, path.substr(0, at).c_str(), H5P_DEFAULT) <= 0) return false;
+  return H5Lexists(location, path.c_str(), H5P_DEFAULT) > 0;
+}
+
 uint64_t max_decoded_bytes(hid_t dataset) {
   const uint64_t stored = H5Dget_storage_size(dataset);
   Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);

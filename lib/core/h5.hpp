@@ -57,6 +57,10 @@ bool is_hdf5_file(const std::string& path);
 
 std::vector<hsize_t> shape_of(hid_t dataset);
 
+// The object at the absolute `path` exists ("/" always does). H5Lexists answers only when every
+// group on the way exists, so each prefix is asked first.
+bool path_exists(hid_t location, const std::string& path);
+
 // The most bytes `dataset` can decode to: its stored bytes (the sum of its chunks, from the chunk
 // index) times the best ratio of its filter pipeline (deflate 1032:1, LZ4 255:1, Blosc and any
 // filter we do not know 2^17:1; none: 1:1), plus 1 MiB for chunks left to the fill value.

@@ -107,12 +107,7 @@ void walk_metadata(const std::string& path, const std::vector<std::string>& obje
   if (H5Fget_filesize(file, &walk.file_size) < 0) fail("", "unknown size");
   walk_attributes(file);
   for (const std::string& name : objects) {
-    // Every prefix must exist for H5Lexists to answer.
-    bool present = true;
-    for (size_t at = name.find('/', 1); present && at != std::string::npos;
-         at = name.find('/', at + 1))
-      present = H5Lexists(file, name.substr(0, at).c_str(), H5P_DEFAULT) > 0;
-    if (name != "/" && (!present || H5Lexists(file, name.c_str(), H5P_DEFAULT) <= 0)) continue;
+    if (!path_exists(file, name)) continue;
     walk_object(file, name.c_str(), name, walk);
     H5O_info_t info{};
     if (H5Oget_info_by_name2(file, name.c_str(), &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
