@@ -1,104 +1,152 @@
 #include "formats/vdb.hpp"
 
-#include <openvdb/io/File.h>
-#include <openvdb/io/Stream.h>
-#include <openvdb/openvdb.h>
+#include <dlfcn.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
-#include <ostream>
-#include <streambuf>
+#include <limits>
+#include <mutex>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
+#include "formats/vdb_module.h"
 
 namespace linebake {
+namespace {
 
-void write_vdb(const std::string& path, const VoxelGrid& g) {
-  openvdb::initialize();
+float chord_length(const DecodedChord& c) {
+  const float dx = c.end[0] - c.start[0], dy = c.end[1] - c.start[1], dz = c.end[2] - c.start[2];
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+// The 99th percentile of the non-zero values: one dense knot of lines should not make the
+// rest of the volume invisible, as the maximum would.
+float percentile_99(std::vector<float> values) {
+  std::erase_if(values, [](float v) { return !(v > 0); });
+  if (values.empty()) return 1;
+  const size_t at = std::min(values.size() - 1, size_t(0.99 * double(values.size())));
+  std::nth_element(values.begin(), values.begin() + ptrdiff_t(at), values.end());
+  return values[at];
+}
+
+// liblinebake_vdb.so beside the executable, else in the build tree it was built in.
+LinebakeVdbWrite load_vdb_module(const std::string& output) {
+  static std::once_flag once;
+  static LinebakeVdbWrite write = nullptr;
+  static std::string failure;
+  std::call_once(once, [] {
+    std::vector<std::string> tried;
+    std::error_code ec;
+    const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    std::vector<std::filesystem::path> dirs;
+    if (!ec) dirs.push_back(exe.parent_path());
+    dirs.emplace_back(LINEBAKE_MODULE_DIR);
+    for (const auto& dir : dirs) {
+      const std::string path = (dir / "liblinebake_vdb.so").string();
+      if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
+        write = reinterpret_cast<LinebakeVdbWrite>(dlsym(module, LINEBAKE_VDB_WRITE_SYMBOL));
+        if (write) return;
+        tried.push_back(path + ": no " LINEBAKE_VDB_WRITE_SYMBOL);
+      } else {
+        tried.push_back(dlerror());
+      }
+    }
+    for (const std::string& t : tried) failure += (failure.empty() ? "" : "; ") + t;
+  });
+  if (!write)
+    throw OutputError(output,
+                      "VDB export needs linebake's OpenVDB module, liblinebake_vdb.so, "
+                      "which was not found or did not load (" +
+                          failure + ")");
+  return write;
+}
+
+}  // namespace
+
+VdbGrids vdb_grids(const VoxelGrid& g) {
+  VdbGrids out;
   const double h = g.voxel_size;
-  auto transform = openvdb::math::Transform::createLinearTransform(h);
+  out.voxel_size = h;
   // OpenVDB index (i, j, k) is the centre of a voxel; ours spans [origin + i h, origin + (i+1) h].
-  transform->postTranslate(
-      openvdb::Vec3d(g.origin[0] + 0.5 * h, g.origin[1] + 0.5 * h, g.origin[2] + 0.5 * h));
-  auto density = openvdb::FloatGrid::create(0.0f);
-  auto line_count = openvdb::Int32Grid::create(0);
+  for (int a = 0; a < 3; ++a) out.first_centre[a] = double(g.origin[a]) + 0.5 * h;
   const bool has_attribute = !g.attribute.empty();
-  auto attribute_max = openvdb::FloatGrid::create(0.0f);
-  density->setName("density");
-  density->setGridClass(openvdb::GRID_FOG_VOLUME);
-  line_count->setName("line_count");
-  attribute_max->setName("attribute_max");
-  for (openvdb::GridBase::Ptr grid :
-       std::initializer_list<openvdb::GridBase::Ptr>{density, line_count, attribute_max})
-    grid->setTransform(transform);
-  auto d = density->getAccessor();
-  auto n = line_count->getAccessor();
-  auto a = attribute_max->getAccessor();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> length, attribute_density, count, attribute_max;
   const float lo = g.attribute_range[0], span = g.attribute_range[1] - g.attribute_range[0];
   for (uint32_t z = 0; z < g.resolution[2]; ++z)
     for (uint32_t y = 0; y < g.resolution[1]; ++y)
       for (uint32_t x = 0; x < g.resolution[0]; ++x) {
         const uint64_t v = g.index(x, y, z);
         if (g.line_counts[v] == 0) continue;
-        const openvdb::Coord ijk{static_cast<int>(x), static_cast<int>(y), static_cast<int>(z)};
-        d.setValue(ijk, g.density[0][v]);
-        n.setValue(ijk, g.line_counts[v]);
-        if (has_attribute && g.offsets[v + 1] > g.offsets[v]) {
-          uint8_t most = 0;
-          for (uint32_t c = g.offsets[v]; c < g.offsets[v + 1]; ++c) {
-            const DecodedChord chord =
-                unpack_chord(g.chords[2 * c], g.chords[2 * c + 1], g.quantization);
-            most = std::max({most, chord.attribute_start, chord.attribute_end});
-          }
-          a.setValue(ijk, lo + span * float(most) / 255.0f);
+        out.active.push_back({int32_t(x), int32_t(y), int32_t(z)});
+        float sum = 0;
+        uint8_t most = 0;
+        for (uint32_t c = g.offsets[v]; c < g.offsets[v + 1]; ++c) {
+          const DecodedChord chord =
+              unpack_chord(g.chords[2 * c], g.chords[2 * c + 1], g.quantization);
+          sum += chord_length(chord);
+          most = std::max({most, chord.attribute_start, chord.attribute_end});
         }
+        length.push_back(sum);
+        count.push_back(float(g.line_counts[v]));
+        if (!has_attribute) continue;
+        attribute_density.push_back(g.density[0][v]);
+        attribute_max.push_back(g.offsets[v + 1] > g.offsets[v] ? lo + span * float(most) / 255.0f
+                                                                : nan);
       }
-  openvdb::GridPtrVec grids{density, line_count};
-  if (has_attribute) grids.push_back(attribute_max);
-  openvdb::MetaMap meta;
-  meta.insertMeta("creator", openvdb::StringMetadata("linebake " LINEBAKE_VERSION));
-  meta.insertMeta("linebake_attribute", openvdb::StringMetadata(g.attribute));
-  meta.insertMeta("linebake_quantization", openvdb::Int32Metadata(int(g.quantization)));
+  out.density_scale = percentile_99(length);
+  for (float& l : length) l = std::min(1.0f, l / out.density_scale);
+  out.grids.push_back({"density",
+                       "chord length in the voxel (voxel units) / linebake_density_scale, "
+                       "clamped to [0, 1]",
+                       true, std::move(length)});
+  if (has_attribute)
+    out.grids.push_back({"attribute_density",
+                         "polyline length in the voxel (voxel units) x mean " + g.attribute +
+                             " normalised to [0, 1]",
+                         true, std::move(attribute_density)});
+  out.grids.push_back(
+      {"line_count", "distinct lines in the voxel (saturating at 255)", false, std::move(count)});
+  if (has_attribute)
+    out.grids.push_back({"attribute_chord_max",
+                         "largest " + g.attribute + " at the voxel's chord ends (data units)",
+                         false, std::move(attribute_max)});
+  return out;
+}
 
-  AtomicFile file(path);
-  try {
-    openvdb::io::File out(file.temp_path());
-    out.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-    out.write(grids, meta);
-    out.close();
-  } catch (const std::exception& e) {
-    throw OutputError(path, std::string("OpenVDB: ") + e.what() + " (" + file.temp_path() + ")");
-  }
-  // OpenVDB does not check its stream after writing: a full disk leaves a short file without an
-  // error. The same grids serialised into a counting stream give the size the file must have
-  // (a non-seekable archive writes the same bytes, only its offsets are left unpatched).
-  struct Counter : std::streambuf {
-    uint64_t bytes = 0;
-    int_type overflow(int_type c) override {
-      ++bytes;
-      return traits_type::not_eof(c);
-    }
-    std::streamsize xsputn(const char*, std::streamsize n) override {
-      bytes += uint64_t(n);
-      return n;
-    }
-  } counter;
-  {
-    std::ostream sink(&counter);
-    openvdb::io::Stream stream(sink);
-    stream.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
-    stream.write(grids, meta);
-  }
+void write_vdb(const std::string& path, const VoxelGrid& grid) {
+  const LinebakeVdbWrite write = load_vdb_module(path);
+  const VdbGrids grids = vdb_grids(grid);
+  std::vector<LinebakeVdbGrid> specs;
+  for (const VdbGrids::Grid& g : grids.grids)
+    specs.push_back({g.name.c_str(), g.description.c_str(), g.fog_volume, g.values.data()});
+  const std::string creator = "linebake " LINEBAKE_VERSION;
+  const std::vector<LinebakeVdbMeta> meta{
+      {"creator", creator.c_str(), 0, 0},
+      {"linebake_attribute", grid.attribute.c_str(), 0, 0},
+      {"linebake_quantization", nullptr, double(grid.quantization), 1},
+      {"linebake_density_scale", nullptr, double(grids.density_scale), 0},
+      {"linebake_axes", "data: x, y, z as stored", 0, 0}};
+  const LinebakeVdbFile file{
+      grids.voxel_size,    {grids.first_centre[0], grids.first_centre[1], grids.first_centre[2]},
+      grids.active.size(), reinterpret_cast<const int32_t*>(grids.active.data()),
+      specs.data(),        uint32_t(specs.size()),
+      meta.data(),         uint32_t(meta.size())};
+  AtomicFile out(path);
+  uint64_t expected = 0;
+  char error[1024] = "";
+  if (write(out.temp_path().c_str(), &file, &expected, error, sizeof error) != 0)
+    throw OutputError(path, std::string(error) + " (" + out.temp_path() + ")");
   std::error_code ec;
-  const uint64_t written = std::filesystem::file_size(file.temp_path(), ec);
-  if (ec || written != counter.bytes)
+  const uint64_t written = std::filesystem::file_size(out.temp_path(), ec);
+  if (ec || written != expected)
     throw OutputError(path, "write failed: " + std::to_string(ec ? 0 : written) + " of " +
-                                std::to_string(counter.bytes) + " bytes reached the file (" +
+                                std::to_string(expected) + " bytes reached the file (" +
                                 format_bytes(free_bytes_for(path)) + " free there) (" +
-                                file.temp_path() + ")");
-  file.commit();
+                                out.temp_path() + ")");
+  out.commit();
 }
 
 }  // namespace linebake

@@ -4,6 +4,7 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "cache/voxel_store.hpp"
@@ -66,24 +67,33 @@ TEST(VoxelStore, CacheRoundTripIsBitExact) {
   }
 }
 
+// The VDB read back with OpenVDB itself: every grid a FloatGrid (what pyopenvdb and Blender
+// read), the same active voxels, values against the grid they came from.
 TEST(VoxelStore, VdbRoundTrip) {
   test::TempDir dir;
   VoxelOptions o;
   o.grid = 32;
   const VoxelGrid g = voxelize(wavy_lines(), o);
+  ASSERT_FALSE(g.attribute.empty());
   write_vdb(dir.file("g.vdb"), g);
   openvdb::initialize();
   openvdb::io::File file(dir.file("g.vdb"));
   file.open();
-  auto density = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid("density"));
-  auto count = openvdb::gridPtrCast<openvdb::Int32Grid>(file.readGrid("line_count"));
-  auto attribute = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid("attribute_max"));
+  const auto meta = file.getMetadata();
+  const double scale = meta->metaValue<double>("linebake_density_scale");
+  auto grid = [&](const char* name) {
+    return openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(name));
+  };
+  auto density = grid("density"), weighted = grid("attribute_density"), count = grid("line_count"),
+       attribute = grid("attribute_chord_max");
   file.close();
-  ASSERT_TRUE(density && count && attribute);
-  EXPECT_EQ(density->activeVoxelCount(), g.voxels_occupied);
-  EXPECT_EQ(count->activeVoxelCount(), g.voxels_occupied);
-  uint64_t checked = 0;
+  ASSERT_TRUE(density && weighted && count && attribute);
+  EXPECT_EQ(density->getGridClass(), openvdb::GRID_FOG_VOLUME);
+  for (const auto& v : {density, weighted, count})
+    EXPECT_EQ(v->activeVoxelCount(), g.voxels_occupied);
+  uint64_t checked = 0, saturated = 0;
   auto d = density->getConstAccessor();
+  auto w = weighted->getConstAccessor();
   auto n = count->getConstAccessor();
   auto a = attribute->getConstAccessor();
   for (uint32_t z = 0; z < g.resolution[2]; ++z)
@@ -93,13 +103,23 @@ TEST(VoxelStore, VdbRoundTrip) {
         const openvdb::Coord ijk{int(x), int(y), int(z)};
         ASSERT_EQ(n.isValueOn(ijk), g.line_counts[v] > 0);
         if (!g.line_counts[v]) continue;
-        EXPECT_EQ(d.getValue(ijk), g.density[0][v]);
-        EXPECT_EQ(n.getValue(ijk), g.line_counts[v]);
+        double length = 0;  // of the voxel's chords, in voxel units
+        for (uint32_t c = g.offsets[v]; c < g.offsets[v + 1]; ++c) {
+          const DecodedChord k = unpack_chord(g.chords[2 * c], g.chords[2 * c + 1], g.quantization);
+          length += std::hypot(k.end[0] - k.start[0], k.end[1] - k.start[1], k.end[2] - k.start[2]);
+        }
+        EXPECT_NEAR(d.getValue(ijk), std::min(1.0, length / scale), 1e-5);
+        saturated += d.getValue(ijk) == 1.0f;
+        EXPECT_EQ(w.getValue(ijk), g.density[0][v]);
+        EXPECT_EQ(n.getValue(ijk), float(g.line_counts[v]));
         EXPECT_GE(a.getValue(ijk), g.attribute_range[0]);
         EXPECT_LE(a.getValue(ijk), g.attribute_range[1] + 1e-5f);
         ++checked;
       }
   EXPECT_EQ(checked, g.voxels_occupied);
+  // The scale is the 99th percentile: about 1 % of the voxels saturate.
+  EXPECT_GE(saturated, 1u);
+  EXPECT_LE(saturated, checked / 50 + 1);
   // Index (i, j, k) is the centre of our voxel (i, j, k) in world space.
   const openvdb::Vec3d centre = density->transform().indexToWorld(openvdb::Coord(3, 5, 7));
   EXPECT_NEAR(centre[0], g.origin[0] + 3.5 * g.voxel_size, 1e-5);
