@@ -13,8 +13,12 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
@@ -30,7 +34,9 @@ constexpr uint64_t kGlbLimit = 0xFFFFFFFFull;
 // Builds the single binary buffer and the views/accessors that point into it.
 class ModelBuilder {
  public:
-  explicit ModelBuilder(tinygltf::Model& model) : model_(model) { model_.buffers.emplace_back(); }
+  ModelBuilder(tinygltf::Model& model, bool glb) : model_(model), glb_(glb) {
+    model_.buffers.emplace_back();
+  }
 
   // Appends bytes (4-byte aligned) as a new buffer view; returns its index.
   int add_view(const void* data, size_t bytes, int target, size_t stride = 0) {
@@ -44,7 +50,8 @@ class ModelBuilder {
     view.target = target;
     const auto* p = static_cast<const unsigned char*>(data);
     buffer.insert(buffer.end(), p, p + bytes);
-    if (buffer.size() > kGlbLimit) throw Error("the export exceeds GLB's 4 GiB limit");
+    if (glb_ && buffer.size() > kGlbLimit)
+      throw Error("the export exceeds GLB's 4 GiB limit (write .gltf, whose .bin has none)");
     model_.bufferViews.push_back(std::move(view));
     return int(model_.bufferViews.size() - 1);
   }
@@ -67,6 +74,7 @@ class ModelBuilder {
 
  private:
   tinygltf::Model& model_;
+  bool glb_;
 };
 
 void bounds_of(const float* xyz, size_t count, std::vector<double>& min, std::vector<double>& max) {
@@ -82,6 +90,17 @@ void bounds_of(const float* xyz, size_t count, std::vector<double>& min, std::ve
   max.assign(hi.begin(), hi.end());
 }
 
+// Positions or normals in the output's axes (gltf.hpp): glTF's +y is the data's +z.
+std::vector<float> in_axes(const float* xyz, uint64_t count, GltfAxes axes) {
+  std::vector<float> out(xyz, xyz + 3 * count);
+  if (axes == GltfAxes::ZUp)
+    for (uint64_t i = 0; i < count; ++i) {
+      out[3 * i + 1] = xyz[3 * i + 2];
+      out[3 * i + 2] = -xyz[3 * i + 1];
+    }
+  return out;
+}
+
 // Float normals of a chunk whatever its encoding (glTF NORMAL is FLOAT VEC3).
 std::vector<float> float_normals(const TubeChunk& chunk) {
   if (!chunk.normals.empty()) return {chunk.normals.begin(), chunk.normals.end()};
@@ -93,11 +112,61 @@ std::vector<float> float_normals(const TubeChunk& chunk) {
   return out;
 }
 
-// glTF wants every vertex attribute element 4-byte aligned: pad uint16 values to a stride of 4.
-std::vector<uint16_t> padded_attribute(const TubeChunk& chunk) {
-  std::vector<uint16_t> out(2 * chunk.attribute.size(), 0);
-  for (size_t i = 0; i < chunk.attribute.size(); ++i) out[2 * i] = chunk.attribute[i];
+// The attribute normalised to [0, 1] as unorm16, what the tube chunks store.
+std::vector<uint16_t> unorm16_of(const std::vector<float>& values, std::array<float, 2> range) {
+  const double span = double(range[1]) - double(range[0]);
+  std::vector<uint16_t> out(values.size());
+  for (size_t i = 0; i < values.size(); ++i) {
+    const double t = span > 0 ? (double(values[i]) - range[0]) / span : 0.5;
+    out[i] = uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * 65535.0));
+  }
   return out;
+}
+
+// Per-vertex arrays derived from the normalised attribute. glTF wants every vertex attribute
+// element 4-byte aligned, hence the padding of `_ATTRIBUTE` to a stride of 4.
+struct AttributeArrays {
+  std::vector<uint16_t> padded;     // _ATTRIBUTE: value, 0
+  std::vector<uint16_t> texcoords;  // TEXCOORD_0: value, 0.5
+  std::vector<uint8_t> colours;     // COLOR_0: linear RGB from the colour map, A = 255
+};
+// `unorm` spans `range` (data units).
+AttributeArrays attribute_arrays(const uint16_t* unorm, uint64_t count, std::array<float, 2> range,
+                                 const GltfOptions& options) {
+  AttributeArrays a;
+  a.padded.assign(2 * count, 0);
+  a.texcoords.resize(2 * count);
+  for (uint64_t i = 0; i < count; ++i) {
+    a.padded[2 * i] = a.texcoords[2 * i] = unorm[i];
+    a.texcoords[2 * i + 1] = 32768;
+  }
+  if (options.colour_map.size() == 256) {
+    const bool own = !(options.colour_range[1] > options.colour_range[0]);
+    const double lo = range[0], span = double(range[1]) - range[0];
+    const double c0 = own ? lo : options.colour_range[0];
+    const double c_span = own ? span : double(options.colour_range[1]) - c0;
+    a.colours.resize(4 * count);
+    for (uint64_t i = 0; i < count; ++i) {
+      const double value = lo + span * (unorm[i] / 65535.0);
+      const double t = c_span > 0 ? std::clamp((value - c0) / c_span, 0.0, 1.0) : 0.5;
+      const auto& c = options.colour_map[size_t(std::lround(t * 255.0))];
+      std::copy(c.begin(), c.end(), a.colours.begin() + 4 * i);
+      a.colours[4 * i + 3] = 255;
+    }
+  }
+  return a;
+}
+
+// TEXCOORD_0 and COLOR_0 accessors over plain arrays (the tubes' _ATTRIBUTE is added apart).
+void add_mapped_attributes(ModelBuilder& builder, tinygltf::Primitive& primitive,
+                           const AttributeArrays& a, uint64_t count) {
+  primitive.attributes["TEXCOORD_0"] = builder.add_accessor(
+      builder.add_view(a.texcoords.data(), a.texcoords.size() * 2, kArrayBuffer), 0,
+      TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC2, count, true);
+  if (!a.colours.empty())
+    primitive.attributes["COLOR_0"] = builder.add_accessor(
+        builder.add_view(a.colours.data(), a.colours.size(), kArrayBuffer), 0,
+        TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, count, true);
 }
 
 template <class T>
@@ -115,22 +184,29 @@ int add_draco_attribute(draco::Mesh& mesh, draco::GeometryAttribute::Type type, 
 struct DracoChunk {
   std::vector<char> bytes;
   uint64_t points = 0, faces = 0;
-  int position = -1, normal = -1, attribute = -1;
+  int position = -1, normal = -1, attribute = -1, texcoord = -1, colour = -1;
 };
 
-DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& normals,
+DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& positions,
+                        const std::vector<float>& normals, const AttributeArrays* attribute,
                         const GltfOptions& options) {
   draco::Mesh mesh;
   const uint64_t v = chunk.vertex_count();
   mesh.set_num_points(uint32_t(v));
   DracoChunk out;
   out.position = add_draco_attribute(mesh, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32,
-                                     false, chunk.positions.data(), v);
+                                     false, positions.data(), v);
   out.normal = add_draco_attribute(mesh, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32,
                                    false, normals.data(), v);
-  if (!chunk.attribute.empty())
+  if (attribute) {
     out.attribute = add_draco_attribute(mesh, draco::GeometryAttribute::GENERIC, 1,
                                         draco::DT_UINT16, true, chunk.attribute.data(), v);
+    out.texcoord = add_draco_attribute(mesh, draco::GeometryAttribute::TEX_COORD, 2,
+                                       draco::DT_UINT16, true, attribute->texcoords.data(), v);
+    if (!attribute->colours.empty())
+      out.colour = add_draco_attribute(mesh, draco::GeometryAttribute::COLOR, 4, draco::DT_UINT8,
+                                       true, attribute->colours.data(), v);
+  }
   mesh.SetNumFaces(chunk.triangle_count());
   for (uint64_t t = 0; t < chunk.triangle_count(); ++t)
     mesh.SetFace(draco::FaceIndex(uint32_t(t)), {draco::PointIndex(chunk.indices[3 * t]),
@@ -156,6 +232,37 @@ DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& normal
   return out;
 }
 
+void add_draco_primitive(ModelBuilder& builder, tinygltf::Primitive& primitive, const DracoChunk& d,
+                         const std::vector<double>& min, const std::vector<double>& max) {
+  const int view = builder.add_view(d.bytes.data(), d.bytes.size(), 0);
+  tinygltf::Value::Object ids;
+  const auto add = [&](const char* name, int id, int component, int type, bool normalized,
+                       std::vector<double> lo = {}, std::vector<double> hi = {}) {
+    if (id < 0) return;
+    primitive.attributes[name] = builder.add_accessor(-1, 0, component, type, d.points, normalized,
+                                                      std::move(lo), std::move(hi));
+    ids[name] = tinygltf::Value(id);
+  };
+  add("POSITION", d.position, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, false, min, max);
+  add("NORMAL", d.normal, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, false);
+  add("_ATTRIBUTE", d.attribute, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR,
+      true);
+  add("TEXCOORD_0", d.texcoord, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC2, true);
+  add("COLOR_0", d.colour, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, true);
+  primitive.indices = builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                           TINYGLTF_TYPE_SCALAR, 3 * d.faces);
+  primitive.extensions[kDraco] = tinygltf::Value(tinygltf::Value::Object{
+      {"bufferView", tinygltf::Value(view)}, {"attributes", tinygltf::Value(std::move(ids))}});
+}
+
+tinygltf::Value attribute_extras(const std::string& name, std::array<float, 2> range) {
+  return tinygltf::Value(tinygltf::Value::Object{
+      {"linebake_attribute", tinygltf::Value(name)},
+      {"linebake_attribute_range",
+       tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(double(range[0])),
+                                              tinygltf::Value(double(range[1]))})}});
+}
+
 void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tubes,
                const GltfOptions& options) {
   tinygltf::Mesh mesh;
@@ -163,44 +270,35 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tu
   const bool has_attribute = !tubes.attribute.empty();
   for (const TubeChunk& chunk : tubes.chunks) {
     if (chunk.vertex_count() == 0) continue;
+    const uint64_t v = chunk.vertex_count();
     tinygltf::Primitive primitive;
     primitive.mode = TINYGLTF_MODE_TRIANGLES;
     primitive.material = 0;
+    const std::vector<float> positions = in_axes(chunk.positions.data(), v, options.axes);
+    const std::vector<float> raw_normals = float_normals(chunk);
+    const std::vector<float> normals = in_axes(raw_normals.data(), v, options.axes);
     std::vector<double> min, max;
-    bounds_of(chunk.positions.data(), chunk.vertex_count(), min, max);
-    const std::vector<float> normals = float_normals(chunk);
+    bounds_of(positions.data(), v, min, max);
+    const AttributeArrays attribute =
+        has_attribute ? attribute_arrays(chunk.attribute.data(), v, tubes.attribute_range, options)
+                      : AttributeArrays{};
     if (options.draco) {
-      const DracoChunk d = encode_draco(chunk, normals, options);
-      const int view = builder.add_view(d.bytes.data(), d.bytes.size(), 0);
-      primitive.attributes["POSITION"] = builder.add_accessor(
-          -1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points, false, min, max);
-      primitive.attributes["NORMAL"] =
-          builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, d.points);
-      tinygltf::Value::Object attributes{{"POSITION", tinygltf::Value(d.position)},
-                                         {"NORMAL", tinygltf::Value(d.normal)}};
-      if (has_attribute) {
-        primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-            -1, 0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, d.points, true);
-        attributes["_ATTRIBUTE"] = tinygltf::Value(d.attribute);
-      }
-      primitive.indices = builder.add_accessor(-1, 0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
-                                               TINYGLTF_TYPE_SCALAR, 3 * d.faces);
-      primitive.extensions[kDraco] = tinygltf::Value(
-          tinygltf::Value::Object{{"bufferView", tinygltf::Value(view)},
-                                  {"attributes", tinygltf::Value(std::move(attributes))}});
+      add_draco_primitive(
+          builder, primitive,
+          encode_draco(chunk, positions, normals, has_attribute ? &attribute : nullptr, options),
+          min, max);
     } else {
-      const uint64_t v = chunk.vertex_count();
       primitive.attributes["POSITION"] = builder.add_accessor(
-          builder.add_view(chunk.positions.data(), chunk.positions.bytes(), kArrayBuffer), 0,
+          builder.add_view(positions.data(), positions.size() * sizeof(float), kArrayBuffer), 0,
           TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v, false, min, max);
       primitive.attributes["NORMAL"] = builder.add_accessor(
           builder.add_view(normals.data(), normals.size() * sizeof(float), kArrayBuffer), 0,
           TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
       if (has_attribute) {
-        const std::vector<uint16_t> padded = padded_attribute(chunk);
         primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-            builder.add_view(padded.data(), padded.size() * 2, kArrayBuffer, 4), 0,
-            TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
+            builder.add_view(attribute.padded.data(), attribute.padded.size() * 2, kArrayBuffer, 4),
+            0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
+        add_mapped_attributes(builder, primitive, attribute, v);
       }
       primitive.indices = builder.add_accessor(
           builder.add_view(chunk.indices.data(), chunk.indices.bytes(), kElementArrayBuffer), 0,
@@ -209,61 +307,169 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tu
     mesh.primitives.push_back(std::move(primitive));
   }
   // What a renderer needs to map _ATTRIBUTE back to data values.
-  mesh.extras = tinygltf::Value(tinygltf::Value::Object{
-      {"linebake_attribute", tinygltf::Value(tubes.attribute)},
-      {"linebake_attribute_range",
-       tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(double(tubes.attribute_range[0])),
-                                              tinygltf::Value(double(tubes.attribute_range[1]))})},
-      {"linebake_tube_radius", tinygltf::Value(double(tubes.radius))},
-      {"linebake_tube_sides", tinygltf::Value(tubes.sides)}});
+  mesh.extras = attribute_extras(tubes.attribute, tubes.attribute_range);
+  auto& extras = mesh.extras.Get<tinygltf::Value::Object>();
+  extras["linebake_tube_radius"] = tinygltf::Value(double(tubes.radius));
+  extras["linebake_tube_sides"] = tinygltf::Value(tubes.sides);
   model.meshes.push_back(std::move(mesh));
 }
 
-// One LINE_STRIP primitive per polyline, all reading one shared position view.
-void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lines) {
+std::array<float, 2> value_range(const std::vector<float>& values) {
+  std::array<float, 2> r{std::numeric_limits<float>::max(), std::numeric_limits<float>::lowest()};
+  for (float x : values)
+    if (std::isfinite(x)) r = {std::min(r[0], x), std::max(r[1], x)};
+  return r[0] <= r[1] ? r : std::array<float, 2>{0, 0};
+}
+
+// The lines: one indexed LINES primitive (a segment per pair of consecutive points), or one
+// LINE_STRIP per polyline over a shared position view.
+void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lines,
+               const GltfOptions& options) {
   tinygltf::Mesh mesh;
   mesh.name = "lines";
-  if (lines.positions.size() * sizeof(float) > 0x7FFFFFFFull)
-    throw Error("--lines: more than 2 GiB of positions (glTF accessor offsets are 31-bit here)");
-  const int positions =
-      builder.add_view(lines.positions.data(), lines.positions.size() * sizeof(float), kArrayBuffer,
-                       12);  // shared by many accessors: glTF then requires an explicit stride
+  const uint64_t points = lines.point_count();
+  if (options.line_strips && points * 12 > 0x7FFFFFFFull)
+    throw Error(
+        "--line-strips: more than 2 GiB of positions (glTF accessor offsets are 31-bit "
+        "here); leave --line-strips out");
+  if (points > 0xFFFFFFFFull) throw Error("--lines: more than 2^32 points");
+  const std::vector<float> positions = in_axes(lines.positions.data(), points, options.axes);
+  const int position_view = builder.add_view(positions.data(), positions.size() * sizeof(float),
+                                             kArrayBuffer, 12);  // shared: explicit stride
   const Attribute* attribute = lines.attributes.empty() ? nullptr : &lines.attributes[0];
-  const int values =
-      attribute ? builder.add_view(attribute->values.data(),
-                                   attribute->values.size() * sizeof(float), kArrayBuffer, 4)
-                : -1;
-  for (size_t l = 0; l < lines.line_count(); ++l) {
-    const uint64_t first = lines.line_offsets[l], count = lines.line_size(l);
-    if (count < 2) continue;
-    tinygltf::Primitive primitive;
-    primitive.mode = TINYGLTF_MODE_LINE_STRIP;
-    std::vector<double> min, max;
-    bounds_of(lines.positions.data() + 3 * first, count, min, max);
-    primitive.attributes["POSITION"] =
-        builder.add_accessor(positions, 12 * first, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                             TINYGLTF_TYPE_VEC3, count, false, min, max);
-    if (attribute)
-      primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-          values, 4 * first, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, count);
-    mesh.primitives.push_back(std::move(primitive));
+  std::array<float, 2> range{};
+  AttributeArrays arrays;
+  int values = -1;
+  if (attribute) {
+    range = value_range(attribute->values);
+    const std::vector<uint16_t> unorm = unorm16_of(attribute->values, range);
+    arrays = attribute_arrays(unorm.data(), points, range, options);
+    values = builder.add_view(attribute->values.data(), attribute->values.size() * sizeof(float),
+                              kArrayBuffer, 4);
   }
-  if (attribute)
-    mesh.extras = tinygltf::Value(
-        tinygltf::Value::Object{{"linebake_attribute", tinygltf::Value(attribute->name)}});
-  if (mesh.primitives.empty()) throw Error("--lines: no line has two points");
+  if (!options.line_strips) {
+    std::vector<uint32_t> indices;
+    for (size_t l = 0; l < lines.line_count(); ++l)
+      for (uint64_t p = lines.line_offsets[l]; p + 1 < lines.line_offsets[l + 1]; ++p)
+        indices.insert(indices.end(), {uint32_t(p), uint32_t(p + 1)});
+    if (indices.empty()) throw Error("--lines: no line has two points");
+    tinygltf::Primitive primitive;
+    primitive.mode = TINYGLTF_MODE_LINE;
+    std::vector<double> min, max;
+    bounds_of(positions.data(), points, min, max);
+    primitive.attributes["POSITION"] =
+        builder.add_accessor(position_view, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3,
+                             points, false, min, max);
+    if (attribute) {
+      primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
+          values, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, points);
+      add_mapped_attributes(builder, primitive, arrays, points);
+    }
+    primitive.indices = builder.add_accessor(
+        builder.add_view(indices.data(), indices.size() * 4, kElementArrayBuffer), 0,
+        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices.size());
+    mesh.primitives.push_back(std::move(primitive));
+  } else {
+    int texcoord_view = -1, colour_view = -1;
+    if (attribute) {
+      texcoord_view =
+          builder.add_view(arrays.texcoords.data(), arrays.texcoords.size() * 2, kArrayBuffer, 4);
+      if (!arrays.colours.empty())
+        colour_view =
+            builder.add_view(arrays.colours.data(), arrays.colours.size(), kArrayBuffer, 4);
+    }
+    for (size_t l = 0; l < lines.line_count(); ++l) {
+      const uint64_t first = lines.line_offsets[l], count = lines.line_size(l);
+      if (count < 2) continue;
+      tinygltf::Primitive primitive;
+      primitive.mode = TINYGLTF_MODE_LINE_STRIP;
+      std::vector<double> min, max;
+      bounds_of(positions.data() + 3 * first, count, min, max);
+      primitive.attributes["POSITION"] =
+          builder.add_accessor(position_view, 12 * first, TINYGLTF_COMPONENT_TYPE_FLOAT,
+                               TINYGLTF_TYPE_VEC3, count, false, min, max);
+      if (attribute) {
+        primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
+            values, 4 * first, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, count);
+        primitive.attributes["TEXCOORD_0"] =
+            builder.add_accessor(texcoord_view, 4 * first, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                 TINYGLTF_TYPE_VEC2, count, true);
+        if (colour_view >= 0)
+          primitive.attributes["COLOR_0"] =
+              builder.add_accessor(colour_view, 4 * first, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                   TINYGLTF_TYPE_VEC4, count, true);
+      }
+      mesh.primitives.push_back(std::move(primitive));
+    }
+    if (mesh.primitives.empty()) throw Error("--lines: no line has two points");
+  }
+  if (attribute) mesh.extras = attribute_extras(attribute->name, range);
   model.meshes.push_back(std::move(mesh));
+}
+
+// Writes one output file through `write`, under a temporary name until complete.
+void write_output(const std::string& path, const std::function<bool(std::ostream&)>& write) {
+  AtomicFile file(path);
+  const auto failed = [&](const char* what) {
+    return OutputError(path, std::string(what) +
+                                 (errno ? std::string(": ") + std::strerror(errno) : "") + " (" +
+                                 file.temp_path() + ")");
+  };
+  errno = 0;
+  std::ofstream out(file.temp_path(), std::ios::binary);
+  if (!out) throw failed("cannot create");
+  if (!write(out) || !out.flush()) throw failed("write failed");
+  out.close();
+  if (!out) throw failed("write failed");
+  file.commit();
+}
+
+// A relative URI reference for a file name (RFC 3986: unreserved characters stay).
+std::string uri_of(const std::string& name) {
+  std::string out;
+  for (unsigned char c : name) {
+    if (std::isalnum(c) || c == '-' || c == '.' || c == '_' || c == '~') {
+      out += char(c);
+    } else {
+      char hex[4];
+      std::snprintf(hex, sizeof hex, "%%%02X", c);
+      out += hex;
+    }
+  }
+  return out;
+}
+
+// .gltf: the JSON, and the buffer in a .bin file beside it.
+void write_gltf_json(const std::string& path, tinygltf::Model& model) {
+  const std::filesystem::path bin = std::filesystem::path(path).replace_extension(".bin");
+  const std::vector<unsigned char> data = std::move(model.buffers[0].data);
+  model.buffers[0].data.clear();
+  std::ostringstream text;
+  tinygltf::TinyGLTF writer;
+  writer.WriteGltfSceneToStream(&model, text, true, false);
+  nlohmann::json doc = nlohmann::json::parse(text.str());
+  doc["buffers"][0] = {{"byteLength", data.size()}, {"uri", uri_of(bin.filename().string())}};
+  write_output(bin.string(), [&](std::ostream& out) {
+    return bool(
+        out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size())));
+  });
+  write_output(path, [&](std::ostream& out) { return bool(out << doc.dump(2) << '\n'); });
 }
 
 }  // namespace
 
-void write_glb(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
-               const GltfOptions& options) {
-  if (!tubes && !lines) throw Error("glb export: nothing to export");
+void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
+                const GltfOptions& options) {
+  if (!tubes && !lines) throw Error("glTF export: nothing to export");
+  const bool glb = std::filesystem::path(path).extension() != ".gltf";
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "linebake " LINEBAKE_VERSION;
-  ModelBuilder builder(model);
+  model.asset.extras = tinygltf::Value(tinygltf::Value::Object{
+      {"linebake_axes", tinygltf::Value(std::string(options.axes == GltfAxes::ZUp
+                                                        ? "z-up: glTF (x, y, z) = data (x, z, -y)"
+                                                        : "raw: data coordinates as stored"))}});
+  ModelBuilder builder(model, glb);
   tinygltf::Material material;
   material.name = "tubes";
   material.pbrMetallicRoughness.metallicFactor = 0.0;
@@ -272,7 +478,7 @@ void write_glb(const std::string& path, const TubeMesh* tubes, const LineSet* li
   tinygltf::Scene scene;
   try {
     if (tubes) add_tubes(model, builder, *tubes, options);
-    if (lines) add_lines(model, builder, *lines);
+    if (lines) add_lines(model, builder, *lines, options);
   } catch (const Error& e) {
     throw OutputError(path, e.what());
   }
@@ -290,24 +496,11 @@ void write_glb(const std::string& path, const TubeMesh* tubes, const LineSet* li
     model.extensionsRequired.push_back(kDraco);
   }
   model.buffers[0].data.resize((model.buffers[0].data.size() + 3) & ~size_t{3});
-
-  AtomicFile file(path);
-  {
-    const auto failed = [&](const char* what) {
-      return OutputError(path, std::string(what) +
-                                   (errno ? std::string(": ") + std::strerror(errno) : "") + " (" +
-                                   file.temp_path() + ")");
-    };
-    errno = 0;
-    std::ofstream out(file.temp_path(), std::ios::binary);
-    if (!out) throw failed("cannot create");
+  if (!glb) return write_gltf_json(path, model);
+  write_output(path, [&](std::ostream& out) {
     tinygltf::TinyGLTF writer;
-    if (!writer.WriteGltfSceneToStream(&model, out, false, true) || !out.flush())
-      throw failed("write failed");
-    out.close();
-    if (!out) throw failed("write failed");
-  }
-  file.commit();
+    return writer.WriteGltfSceneToStream(&model, out, false, true);
+  });
 }
 
 }  // namespace linebake

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Exports a plain, a --lines and a Draco .glb from a small synthetic data set and checks each
-# with the Khronos glTF-Validator: zero errors.
+# Exports a plain, a --lines and a Draco .glb (COLOR_0, TEXCOORD_0, indexed LINES: the defaults)
+# and a .gltf with its .bin and --line-strips from a small synthetic data set and checks each with
+# the Khronos glTF-Validator: zero errors.
 set -u
 bin=$1 node_modules=$2
 here=$(cd "$(dirname "$0")" && pwd)
@@ -17,4 +18,6 @@ set -e
 "$bin" bake "synth:aneurysm?scale=0.01" -o "$tmp/o.lbc.h5" --normals oct16 --chunk-bytes 200000 > /dev/null
 "$bin" export "$tmp/o.lbc.h5" --glb "$tmp/chunks.glb" --no-tubes --lines
 "$bin" export "$tmp/o.lbc.h5" --glb "$tmp/draco.glb" --draco
-node "$here/gltf_validate.mjs" "$node_modules" "$tmp/plain.glb" "$tmp/lines.glb" "$tmp/chunks.glb" "$tmp/draco.glb"
+"$bin" export "$tmp/o.lbc.h5" -o "$tmp/strips.gltf" --lines --line-strips --axes raw --colors none
+node "$here/gltf_validate.mjs" "$node_modules" "$tmp/plain.glb" "$tmp/lines.glb" "$tmp/chunks.glb" \
+  "$tmp/draco.glb" "$tmp/strips.gltf"

@@ -4,6 +4,7 @@
 #include <draco/compression/decode.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -28,6 +29,11 @@ uint32_t u32(const std::vector<unsigned char>& b, size_t at) {
   uint32_t v;
   std::memcpy(&v, b.data() + at, 4);
   return v;
+}
+
+std::vector<unsigned char> read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
 }
 
 Glb read_glb(const std::string& path) {
@@ -85,7 +91,10 @@ TEST(Gltf, PlainExportHoldsTheMeshExactly) {
   o.max_chunk_bytes = 40000;  // several chunks -> several primitives
   const TubeMesh mesh = build_tubes(lines, o);
   ASSERT_GT(mesh.chunks.size(), 2u);
-  write_glb(dir.file("t.glb"), &mesh, &lines);
+  GltfOptions raw;
+  raw.axes = GltfAxes::Raw;
+  raw.line_strips = true;
+  write_gltf(dir.file("t.glb"), &mesh, &lines, raw);
   const Glb glb = read_glb(dir.file("t.glb"));
   EXPECT_EQ(glb.doc["asset"]["version"], "2.0");
   const json& tubes = glb.doc["meshes"][0];
@@ -114,7 +123,7 @@ TEST(Gltf, PlainExportHoldsTheMeshExactly) {
         EXPECT_LE(chunk.positions[3 * v + k], a["max"][k].get<float>());
       }
   }
-  // Raw lines: one LINE_STRIP per polyline over a shared, strided view.
+  // --line-strips: one LINE_STRIP per polyline over a shared, strided view.
   const json& strips = glb.doc["meshes"][1]["primitives"];
   ASSERT_EQ(strips.size(), lines.line_count());
   for (size_t l = 0; l < lines.line_count(); ++l) {
@@ -151,7 +160,7 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
   const TubeMesh mesh = build_tubes(lines, o);
   GltfOptions g;
   g.draco = true;
-  write_glb(dir.file("d.glb"), &mesh, nullptr, g);
+  write_gltf(dir.file("d.glb"), &mesh, nullptr, g);
   const Glb glb = read_glb(dir.file("d.glb"));
   EXPECT_EQ(glb.doc["extensionsRequired"][0], "KHR_draco_mesh_compression");
   const json& prims = glb.doc["meshes"][0]["primitives"];
@@ -189,9 +198,89 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
   }
 }
 
+// The default output: glTF's +y is the data's +z, COLOR_0 from the colour map, TEXCOORD_0 the
+// normalised attribute, the lines one indexed LINES primitive. Written as .gltf + .bin, which
+// must hold the same bytes a .glb holds.
+TEST(Gltf, DefaultAxesColoursAndIndexedLines) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(12);
+  TubeOptions o;
+  o.max_chunk_bytes = 40000;
+  const TubeMesh mesh = build_tubes(lines, o);
+  GltfOptions g;
+  for (int i = 0; i < 256; ++i) g.colour_map.push_back({uint8_t(i), uint8_t(255 - i), 7});
+  write_gltf(dir.file("d.gltf"), &mesh, &lines, g);
+  write_gltf(dir.file("d.glb"), &mesh, &lines, g);
+  Glb gltf;
+  gltf.doc = json::parse(read_bytes(dir.file("d.gltf")));
+  EXPECT_EQ(gltf.doc["buffers"][0]["uri"], "d.bin");
+  gltf.bin = read_bytes(dir.file("d.bin"));
+  EXPECT_EQ(gltf.doc["buffers"][0]["byteLength"].get<size_t>(), gltf.bin.size());
+  const Glb glb = read_glb(dir.file("d.glb"));
+  EXPECT_EQ(glb.bin, gltf.bin);
+  EXPECT_EQ(glb.doc["accessors"], gltf.doc["accessors"]);
+
+  const json& tubes = gltf.doc["meshes"][0]["primitives"];
+  ASSERT_EQ(tubes.size(), mesh.chunks.size());
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) {
+    const TubeChunk& chunk = mesh.chunks[c];
+    const json& at = tubes[c]["attributes"];
+    const auto pos = accessor_values<float>(gltf, at["POSITION"], 3);
+    const auto nrm = accessor_values<float>(gltf, at["NORMAL"], 3);
+    const auto uv = accessor_values<uint16_t>(gltf, at["TEXCOORD_0"], 2);
+    const auto rgba = accessor_values<uint8_t>(gltf, at["COLOR_0"], 4);
+    ASSERT_EQ(pos.size(), chunk.positions.size());
+    for (size_t v = 0; v < chunk.vertex_count(); ++v) {
+      // (x, y, z) -> (x, z, -y)
+      EXPECT_EQ(pos[3 * v], chunk.positions[3 * v]);
+      EXPECT_EQ(pos[3 * v + 1], chunk.positions[3 * v + 2]);
+      EXPECT_EQ(pos[3 * v + 2], -chunk.positions[3 * v + 1]);
+      EXPECT_EQ(nrm[3 * v + 1], chunk.normals[3 * v + 2]);
+      EXPECT_EQ(nrm[3 * v + 2], -chunk.normals[3 * v + 1]);
+      EXPECT_EQ(uv[2 * v], chunk.attribute[v]);
+      EXPECT_EQ(uv[2 * v + 1], 32768);
+      const int entry = int(std::lround(chunk.attribute[v] / 65535.0 * 255.0));
+      EXPECT_EQ(rgba[4 * v], entry);
+      EXPECT_EQ(rgba[4 * v + 1], 255 - entry);
+      EXPECT_EQ(rgba[4 * v + 3], 255);
+    }
+  }
+  // One LINES primitive: a segment for each pair of consecutive points of a polyline.
+  const json& prims = gltf.doc["meshes"][1]["primitives"];
+  ASSERT_EQ(prims.size(), 1u);
+  EXPECT_EQ(prims[0]["mode"], 1);
+  const auto idx = accessor_values<uint32_t>(gltf, prims[0]["indices"], 1);
+  EXPECT_EQ(idx.size(), 2 * (lines.point_count() - lines.line_count()));
+  size_t at = 0;
+  for (size_t l = 0; l < lines.line_count(); ++l)
+    for (uint64_t p = lines.line_offsets[l]; p + 1 < lines.line_offsets[l + 1]; ++p, at += 2) {
+      EXPECT_EQ(idx[at], p);
+      EXPECT_EQ(idx[at + 1], p + 1);
+    }
+  const auto uv = accessor_values<uint16_t>(gltf, prims[0]["attributes"]["TEXCOORD_0"], 2);
+  const auto& values = lines.attributes[0].values;
+  // A colour range of its own (a transfer function's): the lower half of the data spans the map,
+  // the upper half takes its last colour.
+  const float middle = 0.5f * (mesh.attribute_range[0] + mesh.attribute_range[1]);
+  g.colour_range = {mesh.attribute_range[0], middle};
+  write_gltf(dir.file("half.glb"), &mesh, nullptr, g);
+  const Glb half = read_glb(dir.file("half.glb"));
+  const json& first = half.doc["meshes"][0]["primitives"][0]["attributes"];
+  const auto half_rgba = accessor_values<uint8_t>(half, first["COLOR_0"], 4);
+  const TubeChunk& chunk = mesh.chunks[0];
+  for (size_t v = 0; v < chunk.vertex_count(); ++v) {
+    const double t = std::min(1.0, 2.0 * chunk.attribute[v] / 65535.0);
+    EXPECT_NEAR(half_rgba[4 * v], t * 255.0, 0.5 + 1e-3) << v;
+  }
+  const float lo = *std::min_element(values.begin(), values.end());
+  const float hi = *std::max_element(values.begin(), values.end());
+  for (size_t p = 0; p < lines.point_count(); ++p)
+    EXPECT_NEAR(uv[2 * p] / 65535.0, (values[p] - lo) / (hi - lo), 1.0 / 65535);
+}
+
 TEST(Gltf, NothingToExportIsAnError) {
   test::TempDir dir;
-  EXPECT_THROW(write_glb(dir.file("x.glb"), nullptr, nullptr), Error);
+  EXPECT_THROW(write_gltf(dir.file("x.glb"), nullptr, nullptr), Error);
   EXPECT_TRUE(dir.entries().empty());
 }
 

@@ -1,4 +1,5 @@
-// linebake export <cache> --glb out.glb: assets from the cache in formats other tools read.
+// linebake export <cache> -o out.glb -o out.vdb: assets from the cache in formats other tools
+// read.
 
 #include <chrono>
 #include <filesystem>
@@ -14,14 +15,29 @@
 #include "core/error.hpp"
 #include "formats/gltf.hpp"
 #include "formats/vdb.hpp"
+#include "render/transfer_function.hpp"
 
 namespace linebake::cli {
+namespace {
+
+// COLOR_0's colour map: the transfer function's colours, linear RGB in 8 bits.
+std::vector<std::array<uint8_t, 3>> colour_map_of(const TransferFunction& tf) {
+  std::vector<std::array<uint8_t, 3>> map(256);
+  for (int i = 0; i < 256; ++i) {
+    const Rgba c = tf.at(i / 255.0);
+    const auto byte = [](double x) { return uint8_t(std::lround(std::clamp(x, 0.0, 1.0) * 255)); };
+    map[size_t(i)] = {byte(c.r), byte(c.g), byte(c.b)};
+  }
+  return map;
+}
+
+}  // namespace
 
 Command add_export(CLI::App& app) {
-  auto* sub = app.add_subcommand(
-      "export", "Export cached assets: glTF binary (tubes, lines), OpenVDB (voxel grid)");
+  auto* sub = app.add_subcommand("export",
+                                 "Export cached assets: glTF (tubes, lines), OpenVDB (voxel grid)");
   struct Args {
-    std::string cache, glb, vdb;
+    std::string cache, glb, vdb, axes = "z-up", colors = "semi";
     std::vector<std::string> outputs;
     GltfOptions gltf;
     bool lines = false, no_tubes = false;
@@ -29,10 +45,12 @@ Command add_export(CLI::App& app) {
   auto args = std::make_shared<Args>();
   sub->add_option("cache", args->cache, "Asset cache (.lbc.h5)")->required();
   sub->add_option("-o,--output", args->outputs,
-                  "Output, the format from its extension: .glb (as --glb) or .vdb (as --vdb); "
-                  "once per format")
+                  "Output, the format from its extension: .glb or .gltf (as --glb) or .vdb (as "
+                  "--vdb); once per format")
       ->allow_extra_args(false);
-  sub->add_option("--glb", args->glb, "glTF 2.0 binary output: the tube mesh (and lines)");
+  sub->add_option("--glb", args->glb,
+                  "glTF 2.0 output, the tube mesh (and lines): .glb, or .gltf with a .bin beside "
+                  "it (no 4 GiB limit)");
   sub->add_option("--vdb", args->vdb,
                   "OpenVDB output: density, line_count, attribute_max from the voxel grid");
   sub->add_flag("--draco", args->gltf.draco, "Compress the tube mesh (KHR_draco_mesh_compression)");
@@ -45,25 +63,40 @@ Command add_export(CLI::App& app) {
   sub->add_option("--draco-speed", args->gltf.draco_speed,
                   "0 (smallest) .. 10 (fastest), default 5")
       ->check(CLI::Range(0, 10));
-  sub->add_flag("--lines", args->lines, "Add the raw lines as LINE_STRIP primitives");
+  sub->add_flag("--lines", args->lines, "Add the raw lines (one indexed LINES primitive)");
+  sub->add_flag("--line-strips", args->gltf.line_strips,
+                "With --lines: one LINE_STRIP primitive per polyline instead");
   sub->add_flag("--no-tubes", args->no_tubes, "Leave the tube mesh out (with --lines)");
+  sub->add_option("--axes", args->axes,
+                  "glTF axes: z-up (the data's +z becomes glTF's +y, as importers expect; "
+                  "default) or raw (coordinates as stored)")
+      ->check(CLI::IsMember({"z-up", "raw"}));
+  sub->add_option("--colors", args->colors,
+                  "COLOR_0 from a transfer function's colours: a preset (opaque, semi, "
+                  "transparent), FILE.json, or none (default semi)");
   // Outputs by extension, and options that only a glTF output (with Draco) reads.
   check_when_parsed(sub, [sub, args] {
     for (const std::string& out : args->outputs) {
       const std::string ext = std::filesystem::path(out).extension().string();
-      std::string& slot = ext == ".glb" ? args->glb : ext == ".vdb" ? args->vdb : args->cache;
+      std::string& slot = ext == ".glb" || ext == ".gltf" ? args->glb
+                          : ext == ".vdb"                 ? args->vdb
+                                                          : args->cache;
       if (&slot == &args->cache)
-        throw OutputError(out, "export writes .glb (glTF binary) or .vdb (OpenVDB)");
+        throw OutputError(out, "export writes .glb or .gltf (glTF) or .vdb (OpenVDB)");
       if (!slot.empty())
         throw UsageError("-o " + out + ": a " + ext + " output is given twice (" + slot + ")");
       slot = out;
     }
     if (args->glb.empty() && args->vdb.empty())
       throw UsageError("nothing to export: give -o OUT.glb and/or -o OUT.vdb");
+    if (!args->glb.empty() && std::filesystem::path(args->glb).extension() != ".glb" &&
+        std::filesystem::path(args->glb).extension() != ".gltf")
+      throw OutputError(args->glb, "a glTF output ends in .glb or .gltf");
     refuse_unless(sub, {"draco-bits", "draco-normal-bits", "draco-speed"}, args->gltf.draco,
                   "with --draco");
-    refuse_unless(sub, {"draco", "lines", "no-tubes"}, !args->glb.empty(),
+    refuse_unless(sub, {"draco", "lines", "no-tubes", "axes", "colors"}, !args->glb.empty(),
                   "with a glTF output (-o OUT.glb)");
+    refuse_unless(sub, {"line-strips"}, args->lines, "with --lines");
     if (args->no_tubes && !args->lines)
       throw UsageError("--no-tubes needs --lines: there would be nothing to export");
   });
@@ -74,6 +107,12 @@ Command add_export(CLI::App& app) {
         refuse_input_as_output(out, {args->cache});
         check_output_location(out);
       }
+    args->gltf.axes = args->axes == "raw" ? GltfAxes::Raw : GltfAxes::ZUp;
+    if (!args->glb.empty() && args->colors != "none") {
+      const TransferFunction tf = resolve_transfer_function(args->colors);
+      args->gltf.colour_map = colour_map_of(tf);
+      args->gltf.colour_range = {float(tf.range[0]), float(tf.range[1])};
+    }
     const CacheReader cache(args->cache);
     if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
     if (args->glb.empty()) return;
@@ -81,8 +120,8 @@ Command add_export(CLI::App& app) {
     LineSet lines;
     if (!args->no_tubes) tubes = load_tubes(cache);
     if (args->lines) lines = load_lines(cache);
-    write_glb(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
-              args->gltf);
+    write_gltf(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
+               args->gltf);
   };
   // Every output of the command (an image and its --stats, each frame, both exports) is
   // renamed into place at the end, or none is: a failure or an interruption leaves nothing.
@@ -95,6 +134,8 @@ Command add_export(CLI::App& app) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (const std::string& out : {args->glb, args->vdb})
       if (!out.empty()) say_wrote(out, seconds);
+    if (std::filesystem::path(args->glb).extension() == ".gltf")
+      say_wrote(std::filesystem::path(args->glb).replace_extension(".bin").string(), seconds);
   };
 }
 
