@@ -10,6 +10,7 @@
 #include "cache/cache.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
+#include "core/h5_probe.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
@@ -221,6 +222,10 @@ void check_cache_input(const std::string& path) {
                      "bake '" +
                          path + "' -o NAME.lbc.h5");
   check_input_file(path);
+  // Every caller reads the cache next, which walks the whole file in an isolated child first
+  // (core/h5_probe.hpp): walking it whole here makes that one walk, not two (the root's, then
+  // the whole file's).
+  if (h5::is_hdf5_file(path)) h5::probe(path, {"/"});
   // A damaged cache is left to the cache reader, which names the dataset.
   if (is_linebake_cache(path)) return;
   if (h5::is_hdf5_file(path))

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <vector>
 
 #include "core/error.hpp"
@@ -55,10 +56,11 @@ std::string hash_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", "cannot open");
   Hasher hasher;
-  std::vector<char> buffer(size_t{1} << 20);
+  constexpr size_t kBuffer = size_t{1} << 18;
+  const std::unique_ptr<char[]> buffer(new char[kBuffer]);  // not zeroed: it is read into
   while (in) {
-    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    hasher.update(buffer.data(), static_cast<size_t>(in.gcount()));
+    in.read(buffer.get(), static_cast<std::streamsize>(kBuffer));
+    hasher.update(buffer.get(), static_cast<size_t>(in.gcount()));
   }
   if (in.bad()) throw InputError(path, "", "read error");
   return hasher.hex();
