@@ -557,6 +557,14 @@ class VtpWriter {
   std::string appended_;
 };
 
+// The first attribute as the active scalars (Scalars="NAME"), as VTK's legacy reader makes the
+// first SCALARS section active: without it ParaView draws the .vtp in a plain colour while the
+// .vtk of the same lines is colour-mapped.
+std::string active_scalars(const std::vector<Attribute>& attributes) {
+  if (attributes.empty()) return "";
+  return " Scalars=\"" + VtpWriter::escape(attributes.front().name) + "\"";
+}
+
 }  // namespace
 
 void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions& options) {
@@ -590,10 +598,10 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
   body += "<Lines>\n" + w.array("connectivity", "Int64", 1, connectivity.data(), n) +
           w.array("offsets", "Int64", 1, offsets.data(), l) + "</Lines>\n";
   if (options.progress) options.progress(1, 3);
-  body += "<PointData>\n";
+  body += "<PointData" + active_scalars(lines.attributes) + ">\n";
   for (const Attribute& a : lines.attributes)
     body += w.array(a.name, "Float32", 1, a.values.data(), a.values.size());
-  body += "</PointData>\n<CellData>\n";
+  body += "</PointData>\n<CellData" + active_scalars(lines.line_attributes) + ">\n";
   for (const Attribute& a : lines.line_attributes)
     body += w.array(a.name, "Float32", 1, a.values.data(), a.values.size());
   body += "</CellData>\n</Piece>\n</PolyData>\n";

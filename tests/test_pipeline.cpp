@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -229,6 +230,56 @@ TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.where(), "techniques[1].frames");
   }
+}
+
+// A transfer-function file beside the pipeline file is found from any working directory (the
+// shipped quickstart's is); other file names stay as written. Editing the file renders again.
+TEST(Pipeline, TransferFunctionFilesBesideThePipelineFile) {
+  const auto dir = std::filesystem::temp_directory_path() / "linebake-test-tf-files";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "vivid.json") << R"({"colours": [[0, 1, 0, 0]], "opacities": [[0, 1]]})";
+  auto j = small();
+  j["transfer_functions"] = {"semi", "vivid.json", "elsewhere.json"};
+  const Pipeline p = parse_pipeline(j, (dir / "t.json").string());
+  EXPECT_EQ(transfer_function_argument(p, "semi"), "semi");
+  EXPECT_EQ(transfer_function_argument(p, "vivid.json"), (dir / "vivid.json").string());
+  EXPECT_EQ(transfer_function_argument(p, "elsewhere.json"), "elsewhere.json");
+  PlanContext context;
+  context.file_hash = &fake_hash;
+  std::map<std::string, std::string> tf_of, key_of;
+  for (const PipelineStep& s : plan_pipeline(p, context)) {
+    key_of[s.id] = s.key;
+    const auto tf = std::find(s.args.begin(), s.args.end(), "--tf");
+    if (tf != s.args.end()) tf_of[s.id] = *(tf + 1);
+  }
+  EXPECT_EQ(tf_of.at("render/a/ll/vivid.json"), (dir / "vivid.json").string());
+  EXPECT_EQ(tf_of.at("render/a/ll/elsewhere.json"), "elsewhere.json");
+  EXPECT_EQ(tf_of.at("render/a/ll/semi"), "semi");
+  context.file_hash = [](const std::string& path) { return "edited-" + path; };
+  for (const PipelineStep& s : plan_pipeline(p, context)) {
+    // The bake of b hashes its input file too; only vivid.json's renders and compares follow
+    // the edited transfer function.
+    if (s.id.find("/b") != std::string::npos) continue;
+    EXPECT_EQ(s.key != key_of.at(s.id), s.id.find("/vivid.json") != std::string::npos) << s.id;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// Every compare step amplifies its error image by the gain the report's captions state.
+TEST(Pipeline, CompareStepsWriteErrorImagesWithTheStatedGain) {
+  PlanContext context;
+  context.file_hash = &fake_hash;
+  size_t compares = 0;
+  for (const PipelineStep& s : plan_pipeline(parse_pipeline(small(), "t.json"), context)) {
+    if (s.kind != "compare") continue;
+    ++compares;
+    const auto scale = std::find(s.args.begin(), s.args.end(), "--error-scale");
+    ASSERT_NE(scale, s.args.end()) << s.id;
+    ASSERT_NE(scale + 1, s.args.end()) << s.id;
+    EXPECT_DOUBLE_EQ(std::stod(*(scale + 1)), kErrorImageGain) << s.id;
+  }
+  EXPECT_EQ(compares, 24u);
+  EXPECT_GT(kErrorImageGain, 1.0);  // a gain of 1 leaves good techniques' errors invisible
 }
 
 }  // namespace

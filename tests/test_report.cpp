@@ -1,14 +1,22 @@
 // The report's building blocks: base64 (RFC 4648 vectors), PNG encoding in memory (round trip
-// through the file reader), and SVG line plots (geometry checked against hand-computed values).
+// through the file reader), SVG line plots (geometry checked against hand-computed values); and
+// what report.md and report.html say: durations, PSNR of identical images, skipped techniques,
+// the error images' gain, Embree's BVH built at render time.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <regex>
 
 #include "core/base64.hpp"
+#include "metrics/image_metrics.hpp"
+#include "pipeline/evaluation_report.hpp"
+#include "pipeline/html_report.hpp"
+#include "pipeline/pipeline.hpp"
+#include "pipeline/report.hpp"
 #include "pipeline/svg_plot.hpp"
 #include "render/image.hpp"
 
@@ -76,6 +84,147 @@ TEST(SvgPlot, GapsAtMissingValuesAndLogAxes) {
   EXPECT_NE(svg_line_plot(single).find("<circle"), std::string::npos);
   LinePlot empty{"t", "frame", "dB", false, {}};
   EXPECT_NE(svg_line_plot(empty).find("no data"), std::string::npos);
+}
+
+TEST(FormatDuration, KeepsTwoOrThreeSignificantDigits) {
+  EXPECT_EQ(format_duration(0.0045), "4.5 ms");  // printed "0.00 s" before
+  EXPECT_EQ(format_duration(0.00045), "0.45 ms");
+  EXPECT_EQ(format_duration(0.0), "0.00 ms");
+  EXPECT_EQ(format_duration(0.017), "17 ms");
+  EXPECT_EQ(format_duration(0.2304), "230 ms");
+  EXPECT_EQ(format_duration(0.9996), "1.00 s");  // not "1000 ms"
+  EXPECT_EQ(format_duration(1.254), "1.25 s");
+  EXPECT_EQ(format_duration(12.34), "12.3 s");
+  EXPECT_EQ(format_duration(154.2), "154 s");
+  EXPECT_EQ(format_duration(NAN), "-");
+}
+
+std::string fixed(double value, int digits) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
+}
+
+size_t count_of(const std::string& text, const std::string& part) {
+  size_t n = 0;
+  for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++n;
+  return n;
+}
+
+// A one-frame run of three techniques on the paper's "aneurysm": the reference, ll (an image
+// identical to the reference, 4.5 ms a frame), embree (slow, its BVH built at render time) and
+// rtx (skipped), with the frames the image grid reads written under a temporary output.
+struct SmallRun {
+  Pipeline pipeline;
+  nlohmann::json evaluation;
+  Image frame{16, 12, 3};
+
+  SmallRun() {
+    pipeline.name = "t";
+    pipeline.file = "t.json";
+    pipeline.output = (std::filesystem::temp_directory_path() / "linebake-test-report").string();
+    pipeline.datasets = {{"aneurysm", "synth:aneurysm?scale=0.01"}};
+    pipeline.frame_count = 1;
+    pipeline.techniques = {{"reference", {}, "reference", {}, {}},
+                           {"ll", {}, "ll", {}, {}},
+                           {"embree", {}, "embree", {}, {}},
+                           {"rtx", {}, "rtx", {}, {}}};
+    frame.srgb_encoded = true;
+    for (size_t i = 0; i < frame.pixels.size(); ++i) frame.pixels[i] = float(i % 5) / 4.0f;
+    std::filesystem::create_directories(pipeline.output + "/aneurysm");
+    for (const char* label : {"reference", "ll", "embree"}) {
+      const std::string stem = render_stem(pipeline, "aneurysm", label, "semi");
+      write_png(frame, frame_output(pipeline, stem, 0, ".png"));
+      if (std::string(label) != "reference")
+        write_png(error_image(frame, frame, kErrorImageGain),
+                  frame_output(pipeline, stem + "-error", 0, ".png"));
+    }
+    // What compare writes for an identical image: psnr(), capped by lib/metrics.
+    const double identical = psnr(frame, frame);
+    const auto result = [&](const char* label, double seconds, bool compared) {
+      nlohmann::json frame_stats = {{"frame", 0}, {"seconds", seconds}, {"frame_bytes", 1024}};
+      if (compared) frame_stats.update({{"psnr_db", identical}, {"ssim", 1.0}});
+      nlohmann::json r = {{"dataset", "aneurysm"},   {"transfer_function", "semi"},
+                          {"technique", label},      {"render", label},
+                          {"frames", {frame_stats}}, {"mean_seconds", seconds}};
+      if (compared) r.update({{"mean_psnr_db", identical}, {"mean_ssim", 1.0}, {"min_ssim", 1.0}});
+      return r;
+    };
+    nlohmann::json embree = result("embree", 4.0, true);
+    embree["bvh"] = {{"buffer_bytes", 1000000},
+                     {"bvh_bytes", 2000000},
+                     {"prepare_s", 0.001},
+                     {"commit_s", 0.0035}};
+    evaluation = {
+        {"machine", {{"cpu", "test CPU"}, {"cores", 2}, {"vulkan", "llvmpipe (LLVM 15)"}}},
+        {"caches",
+         {{{"name", "aneurysm"},
+           {"lines", {{"memory_bytes", 1000000}, {"stats", {{"segments", 115000}}}}},
+           {"assets",
+            {{"tubes", {{"memory_bytes", 16000000}, {"build", {{"wall_s", 0.0045}}}}}}}}}},
+        {"results",
+         {result("reference", 0.01, false),
+          result("ll", 0.0045, true),
+          embree,
+          {{"dataset", "aneurysm"},
+           {"transfer_function", "semi"},
+           {"technique", "rtx"},
+           {"render", "rtx"},
+           {"skipped", "no Vulkan device with ray tracing"}}}}};
+  }
+  ~SmallRun() { std::filesystem::remove_all(pipeline.output); }
+};
+
+TEST(EvaluationReport, MarkdownStatesThePsnrCapAndKeepsSkipReasonsOutOfTheTable) {
+  const SmallRun run;
+  const std::string md = evaluation_markdown(run.pipeline, {}, run.evaluation);
+  const std::string cap = fixed(psnr(run.frame, run.frame), 0) + " dB";
+  EXPECT_NE(md.find("capped at " + cap), std::string::npos) << md;
+  EXPECT_EQ(md.find("100 dB"), std::string::npos) << md;
+  EXPECT_NE(md.find("| ll | 4.5 ms | " + fixed(psnr(run.frame, run.frame), 1) + " |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| rtx | skipped [1] | | | |"), std::string::npos) << md;
+  EXPECT_NE(md.find("[1] rtx: no Vulkan device with ray tracing"), std::string::npos) << md;
+  // An identical image's PSNR, written as null by older runs, counts as what psnr() returns.
+  EXPECT_EQ(report_psnr(nlohmann::json()), psnr(run.frame, run.frame));
+  EXPECT_EQ(report_psnr(nlohmann::json(42.5)), 42.5);
+}
+
+TEST(EvaluationReport, HtmlStatesTheGainNotesSkipsAndReportsTheRenderTimeBvh) {
+  const SmallRun run;
+  const std::string html = evaluation_html(run.pipeline, {}, run.evaluation, {});
+  // The error images' gain, as the compare steps apply it.
+  EXPECT_NE(html.find("gain of " + fixed(kErrorImageGain, 0)), std::string::npos);
+  EXPECT_NE(html.find(error_image_caption()), std::string::npos);
+  // The skip reason: a tooltip and a numbered note, not the cell's text.
+  EXPECT_NE(html.find("title=\"no Vulkan device with ray tracing\">skipped<sup>1</sup>"),
+            std::string::npos);
+  EXPECT_NE(html.find("<li value=\"1\">rtx: no Vulkan device with ray tracing</li>"),
+            std::string::npos);
+  EXPECT_EQ(count_of(html, "no Vulkan device with ray tracing"), 2u);
+  // Speed-ups: the reference's time / the technique's, with the reason they are below 1 here.
+  EXPECT_NE(html.find(">2.22x<"), std::string::npos);    // 10 ms / 4.5 ms
+  EXPECT_NE(html.find(">0.0025x<"), std::string::npos);  // 10 ms / 4 s, not "0.00x"
+  EXPECT_NE(html.find("below 1 = slower"), std::string::npos);
+  EXPECT_NE(html.find("a software renderer on the same CPU"), std::string::npos);
+  // Beside the paper: the tubes' 4.5 ms build, and the BVH embree built at render time
+  // (buffers 1 MB + BVH 2 MB; prepare 1 ms + commit 3.5 ms), marked as such.
+  EXPECT_NE(html.find(">4.5 ms<"), std::string::npos);
+  EXPECT_NE(html.find(">0.003 *<"), std::string::npos);
+  EXPECT_NE(html.find(">4.5 ms *<"), std::string::npos);
+  EXPECT_NE(html.find("the BVH the embree technique built when it rendered"), std::string::npos);
+  // The identical image's PSNR in the grid is what lib/metrics returns.
+  EXPECT_NE(html.find("PSNR " + fixed(psnr(run.frame, run.frame), 2) + " dB"), std::string::npos);
+  EXPECT_EQ(html.find("100.00 dB"), std::string::npos);
+}
+
+TEST(EvaluationReport, NoRenderTimeBvhMarkWithoutAnEmbreeRender) {
+  SmallRun run;
+  run.evaluation["results"][2].erase("bvh");
+  const std::string html = evaluation_html(run.pipeline, {}, run.evaluation, {});
+  EXPECT_EQ(html.find(" *<"), std::string::npos);
+  EXPECT_EQ(html.find("the BVH the embree technique built"), std::string::npos);
 }
 
 }  // namespace

@@ -155,7 +155,7 @@ void validate_pipeline(const Pipeline& p) {
   bake.insert(bake.end(), p.bake_options.begin(), p.bake_options.end());
   parse(add_bake, bake, "assets");
   for (size_t i = 0; i < p.transfer_functions.size(); ++i) try {
-      resolve_transfer_function(p.transfer_functions[i]);
+      resolve_transfer_function(transfer_function_argument(p, p.transfer_functions[i]));
     } catch (const Error& e) {
       throw InputError(p.file, "transfer_functions[" + std::to_string(i) + "]", e.what());
     }

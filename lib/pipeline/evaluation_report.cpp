@@ -9,6 +9,7 @@
 
 #include "cache/cache.hpp"
 #include "core/error.hpp"
+#include "metrics/image_metrics.hpp"
 #include "pipeline/report.hpp"
 
 namespace linebake {
@@ -31,6 +32,12 @@ std::string fixed(double value, int digits) {
 }
 
 }  // namespace
+
+double report_psnr(const nlohmann::json& psnr_db) {
+  // `compare` writes psnr() (lib/metrics), capped at kPsnrCap; a null, what an infinite PSNR of
+  // an identical image becomes in JSON, is that cap too.
+  return psnr_db.is_number() ? psnr_db.get<double>() : kPsnrCap;
+}
 
 std::vector<CacheSummary> pipeline_caches(const Pipeline& p) {
   std::vector<CacheSummary> summaries;
@@ -69,6 +76,9 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
         }
         const std::string stem = render_stem(p, d.name, t.label, tf);
         const nlohmann::json stats = read_json(stem + ".json");
+        // The acceleration structure the technique built at render time (Embree's BVH for
+        // embree and reference): Table 1's build figures when the cache holds none.
+        if (stats.contains("bvh")) r["bvh"] = stats["bvh"];
         nlohmann::json frames = nlohmann::json::array();
         for (int f = 0; f < p.frame_count; ++f) {
           const nlohmann::json& fs = stats.at("frames").at(size_t(f));
@@ -86,8 +96,7 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
         for (const auto& f : frames) {
           seconds += f["seconds"].get<double>();
           if (f.contains("ssim")) {
-            // An identical image has infinite PSNR; JSON writes it as null.
-            psnr += f["psnr_db"].is_number() ? f["psnr_db"].get<double>() : 100.0;
+            psnr += report_psnr(f["psnr_db"]);
             ssim += f["ssim"].get<double>();
             min_ssim = std::min(min_ssim, f["ssim"].get<double>());
           }
@@ -105,6 +114,59 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
   return out;
 }
 
+std::string psnr_cap_note() {
+  return "PSNR is capped at " + fixed(kPsnrCap, 0) +
+         " dB, what an identical image gets, as linebake compare reports it";
+}
+
+namespace {
+
+// evaluation_json()'s results by data set and transfer function, in their order.
+std::vector<std::vector<const nlohmann::json*>> result_groups(const nlohmann::json& evaluation) {
+  std::vector<std::vector<const nlohmann::json*>> groups;
+  for (const auto& r : evaluation["results"]) {
+    const bool same = !groups.empty() && (*groups.back().front())["dataset"] == r["dataset"] &&
+                      (*groups.back().front())["transfer_function"] == r["transfer_function"];
+    if (!same) groups.emplace_back();
+    groups.back().push_back(&r);
+  }
+  return groups;
+}
+
+// One data set and transfer function: the plots, the table, and the reasons for skipped
+// techniques as numbered notes under it (in the table they would stretch its column).
+std::string markdown_group(const std::vector<const nlohmann::json*>& results) {
+  const nlohmann::json& first = *results.front();
+  const std::string dataset = first["dataset"], tf = first["transfer_function"];
+  const std::string plot = "plots/" + dataset + "-" + tf + "-";
+  std::string md = "\n### " + dataset + ", `" + tf + "`\n\n![frame time](" + plot +
+                   "time.svg) ![PSNR](" + plot + "psnr.svg) ![SSIM](" + plot +
+                   "ssim.svg) ![per-frame memory](" + plot + "memory.svg)\n" +
+                   "\n\n| technique | time / frame | PSNR (dB) | SSIM | min SSIM |\n"
+                   "|---|---:|---:|---:|---:|\n";
+  std::string notes;
+  int note = 0;
+  for (const nlohmann::json* r : results) {
+    const std::string name = (*r)["technique"];
+    if (r->contains("skipped")) {
+      const std::string mark = "[" + std::to_string(++note) + "]";
+      md += "| " + name + " | skipped " + mark + " | | | |\n";
+      notes += mark + " " + name + ": " + (*r)["skipped"].get<std::string>() + "  \n";
+      continue;
+    }
+    md += "| " + name + " | " + format_duration((*r)["mean_seconds"].get<double>()) + " | ";
+    if (r->contains("mean_ssim"))
+      md += fixed((*r)["mean_psnr_db"].get<double>(), 1) + " | " +
+            fixed((*r)["mean_ssim"].get<double>(), 4) + " | " +
+            fixed((*r)["min_ssim"].get<double>(), 4) + " |\n";
+    else
+      md += "reference | | |\n";
+  }
+  return notes.empty() ? md : md + "\n" + notes;
+}
+
+}  // namespace
+
 std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummary>& summaries,
                                 const nlohmann::json& e) {
   std::string md = "# " + p.name + ": evaluation report\n\n";
@@ -117,36 +179,9 @@ std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummar
   md += "## Table 1: data and representations\n\n";
   md += report_markdown(summaries) + "\n";
   md += "## Frame time and quality\n\nMeans over the flight; PSNR and SSIM against `" +
-        p.reference +
-        "` (an identical image counts as 100 dB). report.html has the image grids; report.json "
-        "every frame's numbers.\n\n";
-  std::string current;
-  for (const auto& r : e["results"]) {
-    const std::string group =
-        r["dataset"].get<std::string>() + ", `" + r["transfer_function"].get<std::string>() + "`";
-    if (group != current) {
-      current = group;
-      const std::string plot = "plots/" + r["dataset"].get<std::string>() + "-" +
-                               r["transfer_function"].get<std::string>() + "-";
-      md += "\n### " + group + "\n\n![frame time](" + plot + "time.svg) ![PSNR](" + plot +
-            "psnr.svg) ![SSIM](" + plot + "ssim.svg) ![per-frame memory](" + plot +
-            "memory.svg)\n" +
-            "\n\n| technique | s / frame | PSNR (dB) | SSIM | min SSIM |\n"
-            "|---|---:|---:|---:|---:|\n";
-    }
-    const std::string name = r["technique"].get<std::string>();
-    if (r.contains("skipped")) {
-      md += "| " + name + " | skipped: " + r["skipped"].get<std::string>() + " | | | |\n";
-      continue;
-    }
-    md += "| " + name + " | " + fixed(r["mean_seconds"].get<double>(), 3) + " | ";
-    if (r.contains("mean_ssim"))
-      md += fixed(r["mean_psnr_db"].get<double>(), 1) + " | " +
-            fixed(r["mean_ssim"].get<double>(), 4) + " | " + fixed(r["min_ssim"].get<double>(), 4) +
-            " |\n";
-    else
-      md += "reference | | |\n";
-  }
+        p.reference + "` (" + psnr_cap_note() +
+        "). report.html has the image grids; report.json every frame's numbers.\n";
+  for (const auto& group : result_groups(e)) md += markdown_group(group);
   return md;
 }
 

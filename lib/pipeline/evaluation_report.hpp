@@ -20,6 +20,12 @@ std::vector<CacheSummary> pipeline_caches(const Pipeline& pipeline);
 nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
                                const std::vector<PipelineStep>& steps,
                                const nlohmann::json& machine);
+// A frame's PSNR as the report counts it: compare's value, which lib/metrics caps at kPsnrCap
+// for an identical image.
+double report_psnr(const nlohmann::json& psnr_db);
+// The sentence both reports say it with.
+std::string psnr_cap_note();
+
 std::string evaluation_markdown(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
                                 const nlohmann::json& evaluation);
 

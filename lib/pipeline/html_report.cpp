@@ -8,6 +8,8 @@
 
 #include "cache/cache.hpp"
 #include "core/base64.hpp"
+#include "metrics/image_metrics.hpp"
+#include "pipeline/evaluation_report.hpp"
 #include "pipeline/paper_table1.hpp"
 #include "pipeline/report.hpp"
 #include "pipeline/svg_plot.hpp"
@@ -128,30 +130,59 @@ std::string plot_name(const std::string& ds, const std::string& tf, const char* 
   return ds + "-" + tf + "-" + what + ".svg";
 }
 
-std::string table(const std::vector<std::string>& header,
-                  const std::vector<std::vector<std::string>>& rows) {
+// Cells are HTML already (a skipped technique's cell carries its note mark).
+std::string html_table(const std::vector<std::string>& header,
+                       const std::vector<std::vector<std::string>>& rows) {
   std::string html = "<table><tr>";
   for (const std::string& h : header) html += "<th>" + xml_escape(h) + "</th>";
   html += "</tr>\n";
   for (const auto& row : rows) {
     html += "<tr>";
     for (size_t i = 0; i < row.size(); ++i)
-      html += std::string(i ? "<td class=\"n\">" : "<td>") + xml_escape(row[i]) + "</td>";
+      html += std::string(i ? "<td class=\"n\">" : "<td>") + row[i] + "</td>";
     html += "</tr>\n";
   }
   return html + "</table>\n";
 }
 
-// Ours beside the paper's Table 1, for the data sets the paper has.
-std::string paper_comparison(const nlohmann::json& caches) {
+std::string table(const std::vector<std::string>& header,
+                  std::vector<std::vector<std::string>> rows) {
+  for (auto& row : rows)
+    for (std::string& cell : row) cell = xml_escape(cell);
+  return html_table(header, rows);
+}
+
+// Embree's BVH as the embree technique built it when it rendered `dataset`, for a cache without
+// an embree asset: {buffers + BVH bytes, prepare + commit seconds}; null when none rendered.
+nlohmann::json render_time_embree_bvh(const nlohmann::json& evaluation,
+                                      const std::string& dataset) {
+  for (const auto& r : evaluation["results"])
+    if (r["dataset"] == dataset && r["render"] == "embree" && r.contains("bvh")) {
+      const nlohmann::json& bvh = r["bvh"];
+      return {{"memory_bytes",
+               bvh.value("buffer_bytes", uint64_t{0}) + bvh.value("bvh_bytes", uint64_t{0})},
+              {"seconds", bvh.value("prepare_s", 0.0) + bvh.value("commit_s", 0.0)}};
+    }
+  return nullptr;
+}
+
+constexpr const char* kBuiltAtRender =
+    " * = not in the cache: the BVH the embree technique built when it rendered (its input "
+    "buffers and rtcCommitScene; memory: the buffers and the BVH).";
+
+// Ours beside the paper's Table 1, for the data sets the paper has. Where the cache holds no
+// embree asset but the embree technique rendered, its OSP/Embree cells are the BVH that render
+// built (marked), not "not built".
+std::string paper_comparison(const nlohmann::json& evaluation) {
   std::vector<std::vector<std::string>> rows;
   const auto gb = [](const nlohmann::json& asset) {
     return asset.is_object() ? fixed(asset.value("memory_bytes", 0.0) / 1e9, 3) : "-";
   };
   const auto secs = [](const nlohmann::json& asset) {
-    return asset.is_object() ? fixed(asset["build"].value("wall_s", 0.0), 2) : "-";
+    return asset.is_object() ? format_duration(asset["build"].value("wall_s", 0.0)) : "-";
   };
-  for (const auto& c : caches) {
+  bool built_at_render = false;
+  for (const auto& c : evaluation["caches"]) {
     const PaperTable1Row* paper = find_paper_table1(c.value("name", std::string()));
     if (!paper) continue;
     const nlohmann::json& a = c["assets"];
@@ -159,23 +190,30 @@ std::string paper_comparison(const nlohmann::json& caches) {
       return a.contains(name) ? a[name] : nlohmann::json();
     };
     const double segments = c["lines"]["stats"].value("segments", 0.0);
+    std::string embree_gb = gb(asset("embree")), embree_s = secs(asset("embree"));
+    const nlohmann::json at_render = render_time_embree_bvh(evaluation, c.value("name", ""));
+    if (!a.contains("embree") && at_render.is_object()) {
+      embree_gb = fixed(at_render["memory_bytes"].get<double>() / 1e9, 3) + " *";
+      embree_s = format_duration(at_render["seconds"].get<double>()) + " *";
+      built_at_render = true;
+    }
     rows.push_back({c["name"].get<std::string>() + " (linebake)", fixed(segments / 1e6, 3),
                     fixed(c["lines"].value("memory_bytes", 0.0) / 1e6, 1), gb(asset("tubes")),
-                    gb(asset("embree")), gb(asset("rtx")), gb(asset("voxels")),
-                    secs(asset("tubes")), secs(asset("embree")), secs(asset("rtx")),
-                    secs(asset("voxels"))});
+                    embree_gb, gb(asset("rtx")), gb(asset("voxels")), secs(asset("tubes")),
+                    embree_s, secs(asset("rtx")), secs(asset("voxels"))});
     rows.push_back({paper->dataset + " (paper)", fixed(paper->segments_millions, 1),
                     fixed(paper->line_model_mb, 0), fixed(paper->raster_gb, 2),
                     fixed(paper->osp_gb, 2), fixed(paper->rtx_gb, 2), fixed(paper->vrc_gb, 2),
-                    fixed(paper->raster_s, 1), fixed(paper->osp_s, 1), fixed(paper->rtx_s, 1),
-                    fixed(paper->vrc_s, 1)});
+                    format_duration(paper->raster_s), format_duration(paper->osp_s),
+                    format_duration(paper->rtx_s), format_duration(paper->vrc_s)});
   }
   if (rows.empty()) return "";
   return "<p>Beside the paper's Table 1 (its machine, its data at full size; linebake's synthetic "
          "stand-ins at the pipeline's scale, so compare ratios, not absolute values). "
-         "'-' = not built by this pipeline.</p>\n" +
+         "'-' = not built by this pipeline." +
+         std::string(built_at_render ? kBuiltAtRender : "") + "</p>\n" +
          table({"data set", "LS (M)", "LM (MB)", "raster (GB)", "OSP/Embree (GB)", "RTX (GB)",
-                "VRC (GB)", "raster build (s)", "OSP build (s)", "RTX build (s)", "VRC build (s)"},
+                "VRC (GB)", "raster build", "OSP build", "RTX build", "VRC build"},
                rows);
 }
 
@@ -184,7 +222,7 @@ body{font-family:sans-serif;margin:1.5em;max-width:1500px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1em}th,td{border:1px solid #ccc;padding:2px 6px}
 td.n{text-align:right;font-variant-numeric:tabular-nums}th{background:#f3f3f3}
 .plots{display:flex;flex-wrap:wrap;gap:8px}.grid td{vertical-align:top;text-align:center}
-img.closeup{image-rendering:pixelated}.skip{color:#888}
+img.closeup{image-rendering:pixelated}.skip{color:#888}.notes{font-size:90%;color:#555}
 </style>
 )";
 
@@ -199,7 +237,82 @@ window.addEventListener('load', function () {
 </script>
 )";
 
+// Two decimals, and two significant digits below 0.1, where two decimals would read "0.00x".
+std::string speedup_text(double ratio) {
+  char text[32];
+  std::snprintf(text, sizeof text, ratio < 0.1 ? "%.2gx" : "%.2fx", ratio);
+  return text;
+}
+
+// Why the speed-ups are mostly below 1 where they are: the reference is no slow brute force.
+std::string speedup_note(const nlohmann::json& machine, const std::string& reference) {
+  std::string note = "Speed-up = the time per frame of <code>" + xml_escape(reference) +
+                     "</code> divided by the technique's; below 1 = slower. The reference ray "
+                     "traces the exact tube mesh with Embree on every CPU core, its BVH built "
+                     "before the first frame and not counted";
+  const std::string vulkan = machine.value("vulkan", std::string("none"));
+  for (const char* software : {"llvmpipe", "lavapipe", "SwiftShader"})
+    if (vulkan.find(software) != std::string::npos) {
+      note += ", while the Vulkan techniques run on " + xml_escape(vulkan) +
+              ", a software renderer on the same CPU";
+      break;
+    }
+  return note + ".";
+}
+
+// The summary of one data set and transfer function: a row per technique; a skipped one has a
+// short cell with a numbered note under the table (its reason would stretch the column) and the
+// reason as the cell's tooltip.
+std::string summary_table(const Pipeline& p, const std::vector<const nlohmann::json*>& results,
+                          const nlohmann::json& machine) {
+  double reference_seconds = 0;
+  for (const nlohmann::json* r : results)
+    if ((*r)["technique"] == p.reference && r->contains("mean_seconds"))
+      reference_seconds = (*r)["mean_seconds"].get<double>();
+  std::vector<std::vector<std::string>> rows;
+  std::string notes;
+  int note = 0;
+  for (const nlohmann::json* r : results) {
+    const std::string name = xml_escape((*r)["technique"].get<std::string>());
+    if (r->contains("skipped")) {
+      const std::string reason = xml_escape((*r)["skipped"].get<std::string>());
+      const std::string mark = std::to_string(++note);
+      rows.push_back(
+          {name,
+           "<span class=\"skip\" title=\"" + reason + "\">skipped<sup>" + mark + "</sup></span>",
+           "", "", "", "", ""});
+      notes += "<li value=\"" + mark + "\">" + name + ": " + reason + "</li>";
+      continue;
+    }
+    double peak = 0;
+    for (const auto& f : (*r)["frames"]) peak = std::max(peak, number_or(f, "frame_bytes", 0));
+    const double seconds = (*r)["mean_seconds"].get<double>();
+    const std::string speedup =
+        reference_seconds > 0 ? speedup_text(reference_seconds / seconds) : "";
+    if (r->contains("mean_ssim"))
+      rows.push_back({name, fixed(seconds * 1e3, 1), speedup,
+                      fixed((*r)["mean_psnr_db"].get<double>(), 2),
+                      fixed((*r)["mean_ssim"].get<double>(), 4),
+                      fixed((*r)["min_ssim"].get<double>(), 4), format_bytes(uint64_t(peak))});
+    else
+      rows.push_back({name, fixed(seconds * 1e3, 1), speedup, "reference", "", "",
+                      format_bytes(uint64_t(peak))});
+  }
+  std::string html = html_table({"technique", "ms / frame", "speed-up vs reference", "PSNR (dB)",
+                                 "SSIM", "min SSIM", "peak per-frame memory"},
+                                rows);
+  if (!notes.empty()) html += "<ol class=\"notes\">" + notes + "</ol>\n";
+  return html + "<p>" + speedup_note(machine, p.reference) + " " + psnr_cap_note() + ".</p>\n";
+}
+
 }  // namespace
+
+std::string error_image_caption() {
+  return "Error images: the absolute difference from the reference (mean over the colour "
+         "channels) times a gain of " +
+         fixed(kErrorImageGain, 0) + ", inverted (white = equal, black = a difference of " +
+         fixed(100 / kErrorImageGain, 0) + " % of full scale or more).";
+}
 
 int grid_frame(const Pipeline& p) {
   return p.frame_count / 2;
@@ -224,7 +337,7 @@ std::map<std::string, std::string> evaluation_plots(const Pipeline& p, const nlo
           t.y.push_back(number_or(f, "seconds", NAN) * 1e3);
           m.y.push_back(number_or(f, "frame_bytes", NAN) / 1048576.0);
           if (f.contains("ssim")) {
-            q.y.push_back(number_or(f, "psnr_db", 100.0));  // identical: 100 dB, as the tables
+            q.y.push_back(report_psnr(f["psnr_db"]));
             s.y.push_back(number_or(f, "ssim", NAN));
           }
         }
@@ -267,7 +380,7 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
   html += "</p>\n<h2>Table 1: data and representations</h2>\n";
   std::vector<std::string> header;
   const auto rows = report_table(summaries, header);
-  html += table(header, rows) + paper_comparison(e["caches"]);
+  html += table(header, rows) + paper_comparison(e);
 
   const int frame = grid_frame(p);
   for (const PipelineDataset& d : p.datasets) {
@@ -276,40 +389,10 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
     for (const std::string& tf : p.transfer_functions) {
       html += "<h3>" + xml_escape(d.name) + ", transfer function <code>" + xml_escape(tf) +
               "</code></h3>\n";
-      // Summary table.
-      std::vector<std::vector<std::string>> summary;
-      double reference_seconds = 0;
       std::vector<const nlohmann::json*> results;
       for (const auto& r : e["results"])
-        if (r["dataset"] == d.name && r["transfer_function"] == tf) {
-          results.push_back(&r);
-          if (r["technique"] == p.reference && r.contains("mean_seconds"))
-            reference_seconds = r["mean_seconds"].get<double>();
-        }
-      for (const nlohmann::json* r : results) {
-        const std::string name = (*r)["technique"];
-        if (r->contains("skipped")) {
-          summary.push_back(
-              {name, "skipped: " + (*r)["skipped"].get<std::string>(), "", "", "", "", ""});
-          continue;
-        }
-        double peak = 0;
-        for (const auto& f : (*r)["frames"]) peak = std::max(peak, number_or(f, "frame_bytes", 0));
-        const double seconds = (*r)["mean_seconds"].get<double>();
-        const std::string speedup =
-            reference_seconds > 0 ? fixed(reference_seconds / seconds, 2) + "x" : "";
-        if (r->contains("mean_ssim"))
-          summary.push_back(
-              {name, fixed(seconds * 1e3, 1), speedup, fixed((*r)["mean_psnr_db"].get<double>(), 2),
-               fixed((*r)["mean_ssim"].get<double>(), 4), fixed((*r)["min_ssim"].get<double>(), 4),
-               format_bytes(uint64_t(peak))});
-        else
-          summary.push_back({name, fixed(seconds * 1e3, 1), speedup, "reference", "", "",
-                             format_bytes(uint64_t(peak))});
-      }
-      html += table({"technique", "ms / frame", "speed-up vs reference", "PSNR (dB)", "SSIM",
-                     "min SSIM", "peak per-frame memory"},
-                    summary);
+        if (r["dataset"] == d.name && r["transfer_function"] == tf) results.push_back(&r);
+      html += summary_table(p, results, m);
       html += "<div class=\"plots\">\n";
       for (const char* what : {"time", "psnr", "ssim", "memory"}) {
         const auto plot = plots.find(plot_name(d.name, tf, what));
@@ -335,9 +418,8 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
       const Window w = closeup_window(reference, images);
       html += "<p>Frame " + std::to_string(frame) + ". Close-ups: the " + std::to_string(w.width) +
               "x" + std::to_string(w.height) + " window at (" + std::to_string(w.x) + ", " +
-              std::to_string(w.y) +
-              ") where the techniques differ most from the reference, 2x. Error images: absolute "
-              "difference, inverted (white = equal). Images link to the full-size files.</p>\n";
+              std::to_string(w.y) + ") where the techniques differ most from the reference, 2x. " +
+              error_image_caption() + " Images link to the full-size files.</p>\n";
       html +=
           "<table class=\"grid\"><tr><th>technique</th><th>frame</th><th>close-up</th>"
           "<th>error</th></tr>\n";
@@ -361,7 +443,7 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
         const nlohmann::json& f = r["frames"].at(size_t(frame));
         const std::string stem = render_stem(p, d.name, name, tf);
         row(name,
-            "PSNR " + fixed(number_or(f, "psnr_db", 100.0), 2) + " dB<br>SSIM " +
+            "PSNR " + fixed(report_psnr(f["psnr_db"]), 2) + " dB<br>SSIM " +
                 fixed(number_or(f, "ssim", NAN), 4) + "<br>" +
                 fixed(number_or(f, "seconds", NAN) * 1e3, 1) + " ms",
             frame_output(p, stem, frame, ".png"), images[i],

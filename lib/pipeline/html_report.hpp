@@ -24,6 +24,9 @@ std::string evaluation_html(const Pipeline& pipeline, const std::vector<CacheSum
                             const nlohmann::json& evaluation,
                             const std::map<std::string, std::string>& plots);
 
+// The image grids' caption of the error images, with the gain the compare steps apply.
+std::string error_image_caption();
+
 // The frame shown in the image grids: the middle of the flight.
 int grid_frame(const Pipeline& pipeline);
 

@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/json_file.hpp"
+#include "render/transfer_function.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake {
@@ -98,6 +99,12 @@ std::string key_of(const std::vector<std::string>& parts) {
   return h.hex();
 }
 
+std::string error_gain_argument() {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", kErrorImageGain);
+  return text;
+}
+
 }  // namespace
 
 Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
@@ -141,11 +148,14 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
     for (const auto& tf : tfs) {
       if (!tf.is_string()) throw InputError(file, "transfer_functions", "names must be strings");
       p.transfer_functions.push_back(tf.get<std::string>());
-      if (!safe_name(p.transfer_functions.back()))
+      const std::string& name = p.transfer_functions.back();
+      if (!safe_name(name))
         throw InputError(file, "transfer_functions",
-                         "'" + p.transfer_functions.back() +
+                         "'" + name +
                              "': a preset name (opaque, semi, "
                              "transparent) or a file name without directories");
+      if (!is_transfer_function_preset(name) && std::filesystem::is_regular_file(base / name))
+        p.transfer_function_files[name] = (base / name).lexically_normal().string();
     }
   }
   const std::set<std::string> tf_names(p.transfer_functions.begin(), p.transfer_functions.end());
@@ -285,6 +295,11 @@ Pipeline load_pipeline(const std::string& given) {
   }
 }
 
+std::string transfer_function_argument(const Pipeline& p, const std::string& tf) {
+  const auto file = p.transfer_function_files.find(tf);
+  return file == p.transfer_function_files.end() ? tf : file->second;
+}
+
 std::string cache_path(const Pipeline& p, const std::string& dataset) {
   return p.output + "/" + dataset + ".lbc.h5";
 }
@@ -340,7 +355,7 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
                        "--technique",
                        t.technique,
                        "--tf",
-                       tf,
+                       transfer_function_argument(p, tf),
                        "--flight",
                        p.flight,
                        "--frame-count",
@@ -359,6 +374,9 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));
         std::vector<std::string> rparts = render.args;
         rparts.push_back(bake_key);
+        // An edited transfer-function file renders again, as an edited input file bakes again.
+        if (p.transfer_function_files.count(tf) && context.file_hash)
+          rparts.push_back(context.file_hash(transfer_function_argument(p, tf)));
         render.key = key_of(rparts);
         if (!listed(t.only_datasets, d.name))
           render.skip_reason = "left out of this pipeline on " + d.name + " (it runs on " +
@@ -398,11 +416,14 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
           c.depends = {render_id, "render/" + d.name + "/" + p.reference + "/" + tf};
           const std::string err = frame_output(p, stem + "-error", f, ".png");
           const std::string json = frame_output(p, stem + "-compare", f, ".json");
-          c.args = {"compare", frame_png(stem, f), frame_png(ref_stem, f),
-                    "--json",  "--error-image",    err};
+          c.args = {"compare",       frame_png(stem, f),   frame_png(ref_stem, f),
+                    "--json",        "--error-image",      err,
+                    "--error-scale", error_gain_argument()};
           c.stdout_file = json;
           c.outputs = {json, err};
-          c.key = key_of({c.args[1], c.args[2], render_key, reference_key});
+          std::vector<std::string> cparts = c.args;
+          cparts.insert(cparts.end(), {render_key, reference_key});
+          c.key = key_of(cparts);
           c.skip_reason = render_skip.empty() ? reference_skip : render_skip;
           steps.push_back(c);
         }

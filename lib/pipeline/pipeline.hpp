@@ -4,6 +4,7 @@
 // run as a dependency graph. Planning is pure: it turns the file into command lines and keys; the
 // runner (tools/cmd_run.cpp) executes them and reuses steps whose key is unchanged.
 
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -33,6 +34,10 @@ struct Pipeline {
   std::vector<std::string> bake_options;  // extra bake arguments
   std::vector<PipelineTechnique> techniques;
   std::vector<std::string> transfer_functions{"semi"};
+  // Transfer functions given as files found next to the pipeline file: name -> that path, so
+  // a shipped pipeline's own transfer function works from any directory. Other file names are
+  // read from the working directory, as they are written.
+  std::map<std::string, std::string> transfer_function_files;
   std::string flight = "orbit-zoom";
   int frame_count = 4;
   std::string size = "320x180";
@@ -65,6 +70,14 @@ struct PlanContext {
 
 // Steps in an order where every step follows its dependencies.
 std::vector<PipelineStep> plan_pipeline(const Pipeline& pipeline, const PlanContext& context);
+
+// Error images of the compare steps: |technique - reference| amplified by this gain, so that the
+// few-percent differences of good techniques show (the report states it in the captions).
+constexpr double kErrorImageGain = 10;
+
+// What `render --tf` gets for one of the pipeline's transfer functions: the preset name, or the
+// file's path.
+std::string transfer_function_argument(const Pipeline& p, const std::string& tf);
 
 // Paths the report reads.
 std::string cache_path(const Pipeline& p, const std::string& dataset);

@@ -1,5 +1,6 @@
 #include "pipeline/report.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -50,9 +51,22 @@ static const Provenance* find_asset(const CacheSummary& c, const std::string& st
   return nullptr;
 }
 
-static std::string seconds(double s) {
+std::string format_duration(double seconds) {
+  if (!std::isfinite(seconds)) return "-";
+  const double ms = seconds * 1e3;
   char text[32];
-  std::snprintf(text, sizeof text, s < 10 ? "%.2f" : "%.1f", s);
+  if (ms < 1)
+    std::snprintf(text, sizeof text, "%.2f ms", ms);
+  else if (ms < 9.95)  // below this, %.1f keeps two significant digits
+    std::snprintf(text, sizeof text, "%.1f ms", ms);
+  else if (ms < 999.5)
+    std::snprintf(text, sizeof text, "%.0f ms", ms);
+  else if (seconds < 9.995)
+    std::snprintf(text, sizeof text, "%.2f s", seconds);
+  else if (seconds < 99.95)
+    std::snprintf(text, sizeof text, "%.1f s", seconds);
+  else
+    std::snprintf(text, sizeof text, "%.0f s", seconds);
   return text;
 }
 
@@ -75,11 +89,11 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
                               : a == "embree" ? "embree (OSP)"
                                               : a;
     header.push_back(label + " size");
-    header.push_back(a + " build (s)");
+    header.push_back(a + " build");
     header.push_back(a + " build peak RSS");
     header.push_back(a + " on disk");
     if (a == "voxels") header.push_back("voxel grid, chords, error max/mean (voxels)");
-    if (a == "embree") header.push_back("embree rebuild: commit (s), BVH");
+    if (a == "embree") header.push_back("embree rebuild: commit, BVH");
   }
   std::vector<std::vector<std::string>> rows;
   for (const CacheSummary& c : caches) {
@@ -93,7 +107,7 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
         continue;
       }
       row.push_back(format_bytes(p->memory_bytes));
-      row.push_back(seconds(p->build.wall_s));
+      row.push_back(format_duration(p->build.wall_s));
       row.push_back(format_bytes(p->build.peak_rss));
       row.push_back(format_bytes(p->disk_bytes) + " (" + p->compression + ")");
       if (a == "voxels") {
@@ -107,7 +121,7 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
         row.push_back(text);
       }
       if (a == "embree")
-        row.push_back(seconds(p->stats.value("commit_s", 0.0)) + " s, " +
+        row.push_back(format_duration(p->stats.value("commit_s", 0.0)) + ", " +
                       format_bytes(p->stats.value("bvh_bytes", uint64_t{0})));
     }
     rows.push_back(std::move(row));
@@ -147,8 +161,8 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
           << (p.estimated_disk_bytes ? ", estimated " + format_bytes(p.estimated_disk_bytes)
                                      : std::string())
           << ")\n"
-          << "    build         " << seconds(p.build.wall_s) << " s wall, "
-          << seconds(p.build.cpu_s) << " s CPU, " << p.threads << " threads\n"
+          << "    build         " << format_duration(p.build.wall_s) << " wall, "
+          << format_duration(p.build.cpu_s) << " CPU, " << p.threads << " threads\n"
           << "    peak RSS      " << format_bytes(p.build.peak_rss) << " (process held "
           << format_bytes(p.build.rss_before) << " before"
           << (p.build.peak_is_step_local ? "" : "; peak since process start") << "; budget "

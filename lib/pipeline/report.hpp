@@ -20,6 +20,11 @@ struct CacheSummary {
 
 CacheSummary summarize_cache(const CacheReader& cache);
 
+// A build or frame time with two or three significant digits in a unit that keeps them:
+// "0.45 ms", "4.5 ms", "230 ms", "1.25 s", "12.3 s", "154 s". Fixed decimals of seconds print the
+// milliseconds small data sets take as "0.00 s".
+std::string format_duration(double seconds);
+
 // Table 1's cells, one row per cache, with the column names in `header`.
 std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummary>& caches,
                                                    std::vector<std::string>& header);
