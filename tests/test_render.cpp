@@ -252,6 +252,90 @@ TEST(RayTracer, FramesDoNotDependOnTheThreadCount) {
   EXPECT_EQ(many.depth_complexity, one.depth_complexity);
 }
 
+// A stack of 12 tubes seen from above whose second tube is opaque: the walk stops there. Its
+// pixel equals the hand-computed value of the two tubes over nothing, and fewer hits are
+// visited than the all-hits path finds.
+TEST(RayTracer, AnOpaqueTubeStopsTheWalk) {
+  std::vector<float> values(12, 0.0f);
+  values[1] = 1.0f;  // opacity 1 at attribute 1
+  const LineSet lines = stacked_lines(12, values);
+  const EmbreeScene scene = EmbreeScene::from_lines(lines, kRadius, "value", {});
+  TransferFunction tf = rgb_tf();
+  tf.opacities = {{0.0, 0.5}, {0.5, 0.5}, {0.75, 1.0}, {1.0, 1.0}};  // opaque over [0.75, 1]
+  Camera cam;
+  cam.eye = kOrigin;
+  cam.target = kOrigin + kDown;
+  cam.near = 0.01, cam.far = 100;
+  TraceOptions o;
+  o.width = o.height = 1;
+  o.shading.background = {0.25, 0.5, 0.75};
+  const Frame all = trace_frame(scene, cam, tf, o);
+  o.every_hit = false;
+  const Frame walked = trace_frame(scene, cam, tf, o);
+  EXPECT_EQ(all.stats.counters.hits, 12u);
+  EXPECT_EQ(all.depth_complexity[0], 12u);
+  EXPECT_TRUE(walked.depth_complexity.empty());
+  EXPECT_FALSE(walked.stats.every_hit);
+  EXPECT_EQ(walked.stats.counters.stopped, 1u);
+  EXPECT_LT(walked.stats.counters.hits, all.stats.counters.hits);
+  EXPECT_EQ(walked.stats.counters.composited, 2u);
+  // Red at A 0.5 over blue at A 1, both head-on (lambert 1): shaded = 0.95 c + 0.2.
+  const double k = o.shading.ambient + o.shading.diffuse, sp = o.shading.specular;
+  const double expected[3] = {0.5 * (k + sp) + 0.5 * sp, 0.5 * sp + 0.5 * sp,
+                              0.5 * sp + 0.5 * (k + sp)};
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_NEAR(walked.image.at(0, 0, ch), expected[ch], 1e-5) << ch;
+    EXPECT_EQ(walked.image.at(0, 0, ch), all.image.at(0, 0, ch)) << ch;
+  }
+}
+
+// The walk gives the all-hits image exactly, for the three presets on curves and on the
+// triangle tube mesh, with and without early termination; the all-hits path keeps its depth
+// complexity.
+TEST(RayTracer, TheIntervalWalkGivesTheAllHitsImage) {
+  std::vector<float> values;
+  for (int i = 0; i < 16; ++i) values.push_back(float(i % 5) / 4.0f);
+  LineSet lines = stacked_lines(16, values);
+  // Tilted lines cross the stack: seams, joints and near misses along the rays.
+  for (int i = 0; i < 16; ++i) {
+    lines.append_point(-1.0f, 0.3f * float(i % 3) - 0.3f, -float(i));
+    lines.append_point(1.0f, 0.1f, -float(i) - 0.5f);
+    lines.attributes[0].values.insert(lines.attributes[0].values.end(), 2, values[size_t(i)]);
+    lines.end_line();
+  }
+  TubeOptions t;
+  t.radius = kRadius;
+  t.radius_absolute = true;
+  const TubeMesh mesh = build_tubes(lines, t);
+  const EmbreeScene curves = EmbreeScene::from_lines(lines, kRadius, "value", {});
+  const EmbreeScene triangles = EmbreeScene::from_tubes(mesh, {});
+  for (const EmbreeScene* scene : {&curves, &triangles})
+    for (const char* preset : {"opaque", "semi", "transparent"})
+      for (const bool early : {false, true}) {
+        const TransferFunction tf = transfer_function_preset(preset);
+        Camera cam;  // from above, down the stack: up to 32 tubes along a ray
+        cam.eye = {0.1, 0.05, 4}, cam.target = {0, 0, -8};
+        TraceOptions o;
+        o.width = 48, o.height = 32;
+        o.early_termination = early;
+        const Frame all = trace_frame(*scene, cam, tf, o);
+        o.every_hit = false;
+        const Frame walked = trace_frame(*scene, cam, tf, o);
+        const std::string what = std::string(preset) + (early ? " early" : "") +
+                                 (scene == &curves ? " curves" : " triangles");
+        EXPECT_EQ(walked.image.pixels, all.image.pixels) << what;
+        EXPECT_EQ(all.depth_complexity.size(), size_t(48 * 32)) << what;
+        EXPECT_GT(all.stats.max_depth_complexity, 4u) << what;
+        // Only a pixel that can become opaque stops early; transparent never does.
+        if (std::string(preset) == "transparent" && !early) {
+          EXPECT_EQ(walked.stats.counters.hits, all.stats.counters.hits) << what;
+        }
+        if (std::string(preset) == "opaque") {
+          EXPECT_LT(walked.stats.counters.hits, all.stats.counters.hits / 2) << what;
+        }
+      }
+}
+
 TEST(RayTracer, PacketsMatchSingleRays) {
   // 61x41: tiles whose edges cut 4x2 packets, so some lanes are off the image.
   const LineSet lines = stacked_lines(4, {0.0f, 0.3f, 0.6f, 1.0f});

@@ -267,6 +267,8 @@ Command add_render(CLI::App& app) {
     o.tiles_geometry = args->tiles_geometry;
     o.rebuild = args->rebuild, o.compaction = !args->no_compaction;
     o.max_iterations = args->max_iterations;
+    // The depth complexity costs embree and reference every hit of every ray: only when shown.
+    o.every_hit = !args->stats.empty() || args->json || !args->depth_image.empty();
     if (!args->memory_budget.empty() && args->memory_budget != "unlimited")
       o.memory_budget = linebake::parse_size(args->memory_budget);
     check_frame_memory(args->technique, args->size,

@@ -51,16 +51,18 @@ auto key(const RawHit& h) {
   return std::tie(h.instance, h.geometry, h.primitive);
 }
 
-// Sorts by distance, removes repeated reports of one hit, back hits and seam doubles; returns
-// the front hits in order.
-void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const EmbreeScene& scene,
-             std::vector<RayHit>& out, TraceCounters& counters) {
-  std::sort(raw.begin(), raw.end(), [](const RawHit& a, const RawHit& b) {
+// Sorts raw[first..] by distance and appends its front hits to `out`: repeated reports of one
+// hit, back hits and seam doubles are removed. Every decision looks back only (at raw hits and
+// front hits before the one decided), so resolving a ray in pieces, each starting past the
+// previous one's hits, gives what resolving it whole gives.
+void resolve_from(std::vector<RawHit>& raw, size_t first, const glm::dvec3& direction,
+                  const EmbreeScene& scene, std::vector<RayHit>& out, TraceCounters& counters) {
+  std::sort(raw.begin() + ptrdiff_t(first), raw.end(), [](const RawHit& a, const RawHit& b) {
     return std::tie(a.t, a.instance, a.geometry, a.primitive) <
            std::tie(b.t, b.instance, b.geometry, b.primitive);
   });
-  out.clear();
-  for (size_t i = 0; i < raw.size(); ++i) {
+  const size_t before = out.size();
+  for (size_t i = first; i < raw.size(); ++i) {
     const RawHit& h = raw[i];
     // A filter can report one hit twice.
     bool repeated = false;
@@ -94,7 +96,15 @@ void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const Embree
     }
     out.push_back({h.t, h.instance, h.geometry, h.primitive, scene.surface(h.hit)});
   }
-  counters.hits += out.size();
+  counters.hits += out.size() - before;
+}
+
+// Sorts by distance, removes repeated reports of one hit, back hits and seam doubles; returns
+// the front hits in order.
+void resolve(std::vector<RawHit>& raw, const glm::dvec3& direction, const EmbreeScene& scene,
+             std::vector<RayHit>& out, TraceCounters& counters) {
+  out.clear();
+  resolve_from(raw, 0, direction, scene, out, counters);
 }
 
 RTCRayHit make_ray(const glm::dvec3& origin, const glm::dvec3& direction, double t_near,
@@ -213,24 +223,105 @@ glm::dvec3 shade_hit(const Rgba& base, glm::dvec3 n, const glm::dvec3& to_eye, c
 std::array<double, 4> composite(const std::vector<RayHit>& hits, const glm::dvec3& direction,
                                 const TransferFunction& tf, const TraceOptions& options,
                                 uint64_t* composited) {
-  const Shading& s = options.shading;
-  const glm::dvec3 to_eye = -glm::normalize(direction);
-  glm::dvec3 colour(0);
-  double alpha = 0;
-  uint64_t used = 0;
+  Compositor pixel(direction, tf, options);
   for (const RayHit& h : hits) {
-    if (options.early_termination && alpha >= options.termination_alpha) break;
-    const Rgba base = tf.evaluate(h.surface.attribute);
-    const glm::dvec3 shaded = shade_hit(base, h.surface.normal, to_eye, s);
-    colour += (1 - alpha) * base.a * shaded;
-    alpha += (1 - alpha) * base.a;
-    ++used;
+    if (options.early_termination && pixel.opaque()) break;
+    pixel.add(h);
   }
-  if (composited) *composited += used;
-  const glm::dvec3 bg(s.background[0], s.background[1], s.background[2]);
-  colour += (1 - alpha) * bg;
-  return {colour.x, colour.y, colour.z, alpha};
+  if (composited) *composited += pixel.used();
+  return pixel.over_background();
 }
+
+Compositor::Compositor(const glm::dvec3& direction, const TransferFunction& tf,
+                       const TraceOptions& options)
+    : tf_(tf),
+      options_(options),
+      to_eye_(-glm::normalize(direction)),
+      stop_alpha_(options.early_termination ? options.termination_alpha : 1.0) {}
+
+void Compositor::add(const RayHit& h) {
+  const Rgba base = tf_.evaluate(h.surface.attribute);
+  const glm::dvec3 shaded = shade_hit(base, h.surface.normal, to_eye_, options_.shading);
+  colour_ += (1 - alpha_) * base.a * shaded;
+  alpha_ += (1 - alpha_) * base.a;
+  ++used_;
+}
+
+std::array<double, 4> Compositor::over_background() const {
+  const auto& bg = options_.shading.background;
+  const glm::dvec3 c = colour_ + (1 - alpha_) * glm::dvec3(bg[0], bg[1], bg[2]);
+  return {c.x, c.y, c.z, alpha_};
+}
+
+bool can_become_opaque(const TransferFunction& tf, const TraceOptions& options) {
+  if (options.early_termination) return true;
+  // Opacity 1 over a stretch of the range, not at a single value (semi's top end): a hit lands
+  // exactly on one value too rarely to pay for the walk.
+  const auto& p = tf.opacities;
+  for (size_t i = 0; i + 1 < p.size(); ++i)
+    if (p[i].opacity >= 1 && p[i + 1].opacity >= 1 && p[i + 1].x > p[i].x) return true;
+  return p.size() == 1 && p[0].opacity >= 1;
+}
+
+namespace {
+
+// Buffers one thread reuses from ray to ray.
+struct RayScratch {
+  std::vector<RawHit> raw, interval;
+  std::vector<RayHit> hits;
+};
+
+// The depth-interval walk of one ray (ray_tracer.hpp): returns the pixel over the background.
+// `scale` is the first interval's length past the first surface.
+std::array<double, 4> walk_intervals(const EmbreeScene& scene, const glm::dvec3& origin,
+                                     const glm::dvec3& direction, double t_near, double t_far,
+                                     double scale, const TransferFunction& tf,
+                                     const TraceOptions& options, RayScratch& scratch,
+                                     TraceCounters& counters) {
+  Compositor pixel(direction, tf, options);
+  scratch.raw.clear();
+  scratch.hits.clear();
+  // Where the first surface is, front or back: a closest-hit query, no filter.
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit first = make_ray(origin, direction, t_near, t_far);
+  rtcIntersect1(scene.handle(), &context, &first);
+  ++counters.traversals;
+  if (first.hit.geomID == RTC_INVALID_GEOMETRY_ID) return pixel.over_background();
+  // Interval ends are floats, as Embree's ray is: a hit at exactly an end belongs to the next
+  // interval, whose tnear it is.
+  const auto to_float = [](double t) { return double(float(std::min(t, 3.0e38))); };
+  t_far = to_float(t_far);
+  double length = scale;
+  double lo = t_near, hi = to_float(std::min(t_far, double(first.ray.tfar) + length));
+  size_t composited = 0;
+  for (;;) {
+    const bool last = hi >= t_far;
+    scratch.interval.clear();
+    collect_by_filter(scene, origin, direction, lo, hi, scratch.interval);
+    ++counters.traversals;
+    const size_t first_new = scratch.raw.size();
+    for (const RawHit& h : scratch.interval)
+      if (last || h.t < hi) scratch.raw.push_back(h);
+    resolve_from(scratch.raw, first_new, direction, scene, scratch.hits, counters);
+    for (; composited < scratch.hits.size() && !pixel.opaque(); ++composited)
+      pixel.add(scratch.hits[composited]);
+    if (pixel.opaque()) {
+      ++counters.stopped;
+      break;
+    }
+    if (last) break;
+    // Every traversal starts at the root again: intervals grow, fastest while they hold few hits.
+    length *= scratch.raw.size() - first_new < 16 ? 4 : 2;
+    lo = hi;
+    hi = to_float(std::min(t_far, lo + length));
+    if (hi <= lo) hi = to_float(t_far);
+  }
+  counters.composited += pixel.used();
+  return pixel.over_background();
+}
+
+}  // namespace
 
 Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const TransferFunction& tf_in,
                   const TraceOptions& options) {
@@ -241,15 +332,22 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
     tf.range = {r[0], r[1]};
   }
   const int w = options.width, h = options.height;
+  const bool packets = options.packets && options.collection == HitCollection::Filter;
+  // The interval walk where it can stop early; every hit when asked for, or when it cannot.
+  const bool walk = !options.every_hit && !packets && options.collection == HitCollection::Filter &&
+                    can_become_opaque(tf, options);
   Frame frame;
   frame.image = Image(w, h, 3);
-  frame.depth_complexity.assign(size_t(w) * h, 0);
+  if (!walk) frame.depth_complexity.assign(size_t(w) * h, 0);
   struct Scratch {
     std::vector<RawHit> raw[kPacket];
     std::vector<RayHit> hits;
+    RayScratch ray;
     TraceCounters counters;
     size_t peak_raw = 0;
   };
+  // The first interval past the first surface: a few tube radii in most sets.
+  const double scale = std::max(1e-6, double(scene.bounds().diagonal()) / 256.0);
   tbb::enumerable_thread_specific<Scratch> scratch;
   const glm::dvec3 forward = camera.forward();
   // The ray through pixel (x, y), clipped against the camera's near and far planes as
@@ -267,10 +365,22 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
     for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
     frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
   };
-  const bool packets = options.packets && options.collection == HitCollection::Filter;
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
     Scratch& sc = scratch.local();
     const auto rows = tile.rows(), cols = tile.cols();
+    if (walk) {
+      for (int y = rows.begin(); y != rows.end(); ++y)
+        for (int x = cols.begin(); x != cols.end(); ++x) {
+          glm::dvec3 dir;
+          double t_near, t_far;
+          ray(x, y, dir, t_near, t_far);
+          const auto c = walk_intervals(scene, camera.eye, dir, t_near, t_far, scale, tf, options,
+                                        sc.ray, sc.counters);
+          for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
+          sc.peak_raw = std::max(sc.peak_raw, sc.ray.raw.capacity() + sc.ray.interval.capacity());
+        }
+      return;
+    }
     if (!packets) {
       for (int y = rows.begin(); y != rows.end(); ++y)
         for (int x = cols.begin(); x != cols.end(); ++x) {
@@ -278,6 +388,7 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
           double t_near, t_far;
           ray(x, y, dir, t_near, t_far);
           collect(scene, camera.eye, dir, t_near, t_far, options.collection, sc.raw[0]);
+          ++sc.counters.traversals;
           shade(sc, sc.raw[0], x, y, dir);
         }
       return;
@@ -293,28 +404,34 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
           ray(valid[i] ? x : x0, valid[i] ? y : y0, dir[i], t_near[i], t_far[i]);
         }
         collect_packet(scene, camera.eye, dir, t_near, t_far, valid, sc.raw);
+        ++sc.counters.traversals;
         for (int i = 0; i < kPacket; ++i)
           if (valid[i]) shade(sc, sc.raw[i], x0 + i % kPacketWidth, y0 + i / kPacketWidth, dir[i]);
       }
   });
   FrameStats& st = frame.stats;
   st.width = w, st.height = h;
+  st.every_hit = !walk;
   uint64_t hit_buffer_bytes = 0;
   for (const Scratch& sc : scratch) {
     st.counters.hits += sc.counters.hits;
     st.counters.duplicates += sc.counters.duplicates;
     st.counters.back_hits += sc.counters.back_hits;
     st.counters.composited += sc.counters.composited;
+    st.counters.traversals += sc.counters.traversals;
+    st.counters.stopped += sc.counters.stopped;
     hit_buffer_bytes += (packets ? kPacket : 1) * sc.peak_raw * sizeof(RawHit) +
-                        sc.hits.capacity() * sizeof(RayHit);
+                        (sc.hits.capacity() + sc.ray.hits.capacity()) * sizeof(RayHit);
   }
   uint64_t covered = 0;
   for (uint32_t d : frame.depth_complexity) {
     st.max_depth_complexity = std::max(st.max_depth_complexity, d);
     covered += d > 0;
   }
-  st.mean_depth_complexity = double(st.counters.hits) / double(size_t(w) * h);
-  st.mean_covered_depth_complexity = covered ? double(st.counters.hits) / double(covered) : 0.0;
+  if (!walk) {
+    st.mean_depth_complexity = double(st.counters.hits) / double(size_t(w) * h);
+    st.mean_covered_depth_complexity = covered ? double(st.counters.hits) / double(covered) : 0.0;
+  }
   st.frame_bytes = frame.image.pixels.size() * sizeof(float) +
                    frame.depth_complexity.size() * sizeof(uint32_t) + hit_buffer_bytes;
   st.seconds = seconds_since(start);

@@ -63,6 +63,7 @@ class CpuTracing : public PreparedTechnique {
     trace_.early_termination = o.early_termination;
     trace_.collection = parse_hit_collection(o.hits);
     trace_.packets = o.packets;
+    trace_.every_hit = o.every_hit;
     if (trace_.packets && trace_.collection != HitCollection::Filter)
       throw Error("--packets: packets collect hits with the filter, not by stepping");
   }
@@ -74,16 +75,22 @@ class CpuTracing : public PreparedTechnique {
     const FrameStats& s = frame.stats;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
                                          s.seconds, s.frame_bytes);
-    out.stats = {{"front_hits", s.counters.hits},
+    out.stats = {{"every_hit", s.every_hit},
+                 {"front_hits", s.counters.hits},
                  {"composited_hits", s.counters.composited},
                  {"duplicate_hits_removed", s.counters.duplicates},
                  {"back_hits_rejected", s.counters.back_hits},
-                 {"depth_complexity",
-                  {{"max", s.max_depth_complexity},
-                   {"mean", s.mean_depth_complexity},
-                   {"mean_covered", s.mean_covered_depth_complexity}}},
+                 {"traversals", s.counters.traversals},
+                 {"rays_stopped_opaque", s.counters.stopped},
                  {"frame_bytes", s.frame_bytes}};
-    out.note = "depth complexity max " + std::to_string(s.max_depth_complexity);
+    if (s.every_hit) {
+      out.stats["depth_complexity"] = {{"max", s.max_depth_complexity},
+                                       {"mean", s.mean_depth_complexity},
+                                       {"mean_covered", s.mean_covered_depth_complexity}};
+      out.note = "depth complexity max " + std::to_string(s.max_depth_complexity);
+    } else {
+      out.note = std::to_string(s.counters.stopped) + " rays stopped opaque";
+    }
     return out;
   }
 

@@ -58,6 +58,9 @@ struct TechniqueOptions {
   std::string hits = "filter";  // filter | stepping
   std::string geometry = "linear", quality = "medium";
   bool packets = false;
+  // embree and reference: collect every hit, for the depth complexity (render --stats,
+  // --depth-complexity); off, a ray stops where its pixel is opaque (render/ray_tracer.hpp).
+  bool every_hit = false;
   float radius = 0;       // curves: world units (0: the cached tubes', else 0.001 x diagonal)
   std::string attribute;  // curves: vertex attribute (empty: the tubes', else the first)
   // raster techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit)
