@@ -8,15 +8,10 @@
 #include "commands.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
+#include "lines/line_info.hpp"
 #include "lines/validate.hpp"
 
 namespace linebake::cli {
-
-namespace {
-nlohmann::json range_json(const std::string& name, const ValueRange& r) {
-  return {{"name", name}, {"min", r.min}, {"max", r.max}, {"nonfinite", r.nonfinite}};
-}
-}  // namespace
 
 Command add_info(CLI::App& app) {
   auto* sub = app.add_subcommand("info", "Print statistics of a line set (file or synth: source)");
@@ -38,38 +33,14 @@ Command add_info(CLI::App& app) {
       read.progress = progress.callback();
       lines = read_line_set(args->input, read);
     }
-    const LineSetStats s = compute_stats(lines);
-    const ValidationReport v = inspect(lines);
     if (args->json) {
-      nlohmann::json j;
-      j["linebake_version"] = LINEBAKE_VERSION;
-      j["source"] = args->input;
-      j["format"] = source_format_name(args->input, read);
-      j["lines"] = s.lines;
-      j["points"] = s.points;
-      j["segments"] = s.segments;
-      j["bounds"] = s.bounds.empty ? nlohmann::json(nullptr)
-                                   : nlohmann::json{{"min", s.bounds.min}, {"max", s.bounds.max}};
-      j["attributes"] = nlohmann::json::array();
-      for (const auto& [name, r] : s.attribute_ranges)
-        j["attributes"].push_back(range_json(name, r));
-      j["line_attributes"] = nlohmann::json::array();
-      for (const auto& [name, r] : s.line_attribute_ranges)
-        j["line_attributes"].push_back(range_json(name, r));
-      j["bytes"] = {{"positions", s.position_bytes},
-                    {"line_offsets", s.offset_bytes},
-                    {"attributes", s.attribute_bytes},
-                    {"total", s.total_bytes()}};
-      j["validation"] = {{"clean", v.clean()},
-                         {"invalid_points", v.invalid_points},
-                         {"repeated_points", v.repeated_points},
-                         {"short_lines", v.short_lines},
-                         {"attribute_length_mismatches", v.attribute_length_mismatches},
-                         {"nonfinite_attribute_values", v.nonfinite_attribute_values}};
-      j["metadata"] = lines.metadata;
+      const nlohmann::json j =
+          line_set_info(lines, args->input, source_format_name(args->input, read));
       std::cout << j.dump(2) << "\n";
       return;
     }
+    const LineSetStats s = compute_stats(lines);
+    const ValidationReport v = inspect(lines);
     std::printf("source      %s (%s)\n", args->input.c_str(),
                 source_format_name(args->input, read).c_str());
     std::printf("lines       %llu\n", static_cast<unsigned long long>(s.lines));

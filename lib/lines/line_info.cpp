@@ -1,0 +1,50 @@
+#include "lines/line_info.hpp"
+
+#include "lines/validate.hpp"
+
+namespace linebake {
+namespace {
+
+nlohmann::json range_json(const std::string& name, const ValueRange& r) {
+  return {{"name", name}, {"min", r.min}, {"max", r.max}, {"nonfinite", r.nonfinite}};
+}
+
+nlohmann::json string_or_null(const std::string& s) {
+  return s.empty() ? nlohmann::json(nullptr) : nlohmann::json(s);
+}
+
+}  // namespace
+
+nlohmann::json line_set_info(const LineSet& lines, const std::string& source,
+                             const std::string& format) {
+  const LineSetStats s = compute_stats(lines);
+  const ValidationReport v = inspect(lines);
+  nlohmann::json j;
+  j["linebake_version"] = LINEBAKE_VERSION;
+  j["source"] = string_or_null(source);
+  j["format"] = string_or_null(format);
+  j["lines"] = s.lines;
+  j["points"] = s.points;
+  j["segments"] = s.segments;
+  j["bounds"] = s.bounds.empty ? nlohmann::json(nullptr)
+                               : nlohmann::json{{"min", s.bounds.min}, {"max", s.bounds.max}};
+  j["attributes"] = nlohmann::json::array();
+  for (const auto& [name, r] : s.attribute_ranges) j["attributes"].push_back(range_json(name, r));
+  j["line_attributes"] = nlohmann::json::array();
+  for (const auto& [name, r] : s.line_attribute_ranges)
+    j["line_attributes"].push_back(range_json(name, r));
+  j["bytes"] = {{"positions", s.position_bytes},
+                {"line_offsets", s.offset_bytes},
+                {"attributes", s.attribute_bytes},
+                {"total", s.total_bytes()}};
+  j["validation"] = {{"clean", v.clean()},
+                     {"invalid_points", v.invalid_points},
+                     {"repeated_points", v.repeated_points},
+                     {"short_lines", v.short_lines},
+                     {"attribute_length_mismatches", v.attribute_length_mismatches},
+                     {"nonfinite_attribute_values", v.nonfinite_attribute_values}};
+  j["metadata"] = lines.metadata;
+  return j;
+}
+
+}  // namespace linebake

@@ -1,0 +1,421 @@
+// linebake.bake() with the CLI's options as keyword arguments, and linebake.open_cache(): the
+// cached assets as NumPy views (tube chunks, voxel grid arrays) and provenance as dicts.
+
+#include "assets.hpp"
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <optional>
+
+#include "bindings.hpp"
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
+#include "cache/voxel_store.hpp"
+#include "cli_contract.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/memory_budget.hpp"
+#include "pipeline/bake.hpp"
+#include "pipeline/report.hpp"
+
+namespace linebake::python {
+
+namespace {
+
+// bake's keyword arguments: the CLI's long options with '_' for '-' ("from" is `format`).
+const std::vector<std::string> kBakeKeywords = {"format",
+                                                "on_invalid",
+                                                "tube_sides",
+                                                "radius",
+                                                "radius_absolute",
+                                                "radius_attribute",
+                                                "caps",
+                                                "normals",
+                                                "attribute",
+                                                "attribute_range",
+                                                "chunk_bytes",
+                                                "grid",
+                                                "quantization",
+                                                "max_chords",
+                                                "voxel_attribute",
+                                                "embree_geometry",
+                                                "embree_quality",
+                                                "embree_compact",
+                                                "embree_robust",
+                                                "embree_max_primitives",
+                                                "rtx_geometry",
+                                                "rtx_no_compaction",
+                                                "device",
+                                                "validation",
+                                                "compression",
+                                                "compression_level",
+                                                "memory_budget",
+                                                "force",
+                                                "no_space_check",
+                                                "dry_run"};
+
+// The CLI's rule (tools/cmd_bake.cpp): an option no step of this bake reads is a mistake, not a
+// no-op. Same messages, with the options spelled as keywords.
+void refuse_unused(const py::kwargs& given, const std::vector<std::string>& assets,
+                   const std::string& compression) {
+  const auto building = [&](const char* asset) {
+    return std::find(assets.begin(), assets.end(), asset) != assets.end();
+  };
+  const auto refuse_unless = [&](const std::vector<const char*>& names, bool applies,
+                                 const std::string& when) {
+    if (applies) return;
+    std::string list;
+    for (const char* name : names)
+      if (given.contains(name)) list += (list.empty() ? "" : ", ") + std::string(name);
+    if (!list.empty()) throw UsageError(list + ": read only " + when);
+  };
+  refuse_unless({"grid", "quantization", "max_chords", "voxel_attribute"}, building("voxels"),
+                "when voxels are built (assets=['voxels'])");
+  refuse_unless({"embree_geometry", "embree_quality", "embree_compact", "embree_robust",
+                 "embree_max_primitives"},
+                building("embree"), "when the Embree buffers are built (assets=['embree'])");
+  refuse_unless({"rtx_geometry", "rtx_no_compaction", "device", "validation"}, building("rtx"),
+                "when rtx acceleration structures are built (assets=['rtx'])");
+  refuse_unless(
+      {"tube_sides", "caps", "normals", "chunk_bytes", "attribute_range", "radius_attribute"},
+      building("tubes") || building("rtx"), "when tubes are built (assets=['tubes'])");
+  refuse_unless({"radius", "radius_absolute", "attribute"},
+                building("tubes") || building("rtx") || building("embree"),
+                "when tubes or Embree curves are built");
+  refuse_unless({"compression_level"}, compression == "deflate" || compression == "blosc-zstd",
+                "with compression='deflate' or 'blosc-zstd' (lz4 and none have no levels)");
+}
+
+template <class T>
+std::optional<T> keyword(const py::kwargs& options, const char* name) {
+  if (!options.contains(name)) return std::nullopt;
+  return options[name].cast<T>();
+}
+
+// 2G, 512M, unlimited, or a number of bytes.
+uint64_t memory_budget_from(const py::object& value) {
+  if (py::isinstance<py::str>(value)) {
+    const std::string text = value.cast<std::string>();
+    if (text == "unlimited") return BakeOptions::kUnlimited;
+    return std::max<uint64_t>(parse_size(text), 1);
+  }
+  return std::max<uint64_t>(value.cast<uint64_t>(), 1);
+}
+
+BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& assets,
+                         bool progress) {
+  check_keywords("bake", kw, kBakeKeywords);
+  BakeOptions o;
+  o.assets = assets;
+  const std::vector<std::string> known = {"tubes", "voxels", "embree", "rtx"};
+  for (const std::string& asset : assets)
+    if (std::find(known.begin(), known.end(), asset) == known.end())
+      throw UsageError("assets: unknown asset '" + asset +
+                       "' (bake builds: tubes, voxels, embree, rtx)");
+  const std::string compression = keyword<std::string>(kw, "compression").value_or("lz4");
+  refuse_unused(kw, assets, compression);
+  if (auto v = keyword<std::string>(kw, "format")) o.format = parse_format(*v);
+  o.on_invalid = parse_invalid_policy(keyword<std::string>(kw, "on_invalid").value_or("repair"));
+  o.compression = parse_compression(compression);
+  if (auto v = keyword<int>(kw, "compression_level")) o.compression_level = *v;
+  if (auto v = keyword<int>(kw, "tube_sides")) o.tubes.sides = *v;
+  if (auto v = keyword<float>(kw, "radius")) o.tubes.radius = *v;
+  if (auto v = keyword<bool>(kw, "radius_absolute")) o.tubes.radius_absolute = *v;
+  if (auto v = keyword<std::string>(kw, "radius_attribute")) o.tubes.radius_attribute = *v;
+  if (auto v = keyword<bool>(kw, "caps")) o.tubes.caps = *v;
+  o.tubes.normals = parse_normal_encoding(keyword<std::string>(kw, "normals").value_or("float32"));
+  if (auto v = keyword<std::string>(kw, "attribute")) o.tubes.attribute = *v;
+  if (auto v = keyword<std::array<float, 2>>(kw, "attribute_range")) o.tubes.attribute_range = *v;
+  if (auto v = keyword<uint64_t>(kw, "chunk_bytes")) o.tubes.max_chunk_bytes = *v;
+  if (kw.contains("grid")) parse_grid(py::str(kw["grid"]), o.voxels);
+  if (auto v = keyword<uint32_t>(kw, "quantization")) o.voxels.quantization = *v;
+  if (auto v = keyword<uint32_t>(kw, "max_chords")) o.voxels.max_chords_per_voxel = *v;
+  if (auto v = keyword<std::string>(kw, "voxel_attribute")) o.voxels.attribute = *v;
+  o.embree.geometry =
+      parse_embree_geometry(keyword<std::string>(kw, "embree_geometry").value_or("linear"));
+  o.embree.quality =
+      parse_build_quality(keyword<std::string>(kw, "embree_quality").value_or("medium"));
+  if (auto v = keyword<bool>(kw, "embree_compact")) o.embree.compact = *v;
+  if (auto v = keyword<bool>(kw, "embree_robust")) o.embree.robust = *v;
+  if (auto v = keyword<uint64_t>(kw, "embree_max_primitives"))
+    o.embree.max_primitives_per_scene = *v;
+  if (auto v = keyword<std::string>(kw, "rtx_geometry")) o.rtx.geometry = *v;
+  if (auto v = keyword<bool>(kw, "rtx_no_compaction")) o.rtx.compaction = !*v;
+  if (auto v = keyword<std::string>(kw, "device")) o.rtx.device = *v;
+  if (auto v = keyword<bool>(kw, "validation")) o.rtx.validation = *v;
+  if (kw.contains("memory_budget")) o.memory_budget = memory_budget_from(kw["memory_budget"]);
+  if (auto v = keyword<bool>(kw, "force")) o.force = *v;
+  if (auto v = keyword<bool>(kw, "no_space_check")) o.space_check = !*v;
+  if (auto v = keyword<bool>(kw, "dry_run")) o.dry_run = *v;
+  o.progress = progress;
+  return o;
+}
+
+nlohmann::json estimate_json(const BakeEstimate& e) {
+  return {{"lines", e.lines},   {"tubes", e.tubes}, {"voxels", e.voxels},
+          {"embree", e.embree}, {"spill", e.spill}, {"total", e.total()}};
+}
+
+nlohmann::json result_json(const BakeResult& r) {
+  nlohmann::json j;
+  j["cache"] = r.cache;
+  j["written"] = r.written;
+  j["steps"] = nlohmann::json::array();
+  for (const BakeStep& s : r.steps)
+    j["steps"].push_back(
+        {{"step", s.step}, {"built", s.built}, {"provenance", to_json(s.provenance)}});
+  j["notes"] = r.notes;
+  j["stages"] = nlohmann::json::array();
+  for (const BakeStage& s : r.stages)
+    j["stages"].push_back({{"name", s.name},
+                           {"wall_s", s.wall_s},
+                           {"cpu_s", s.cpu_s},
+                           {"peak_rss_bytes", s.peak_rss_bytes}});
+  j["memory_budget_bytes"] = r.memory_budget_bytes;
+  j["peak_rss_bytes"] = r.peak_rss_bytes;
+  j["batch_points"] = r.batch_points;
+  j["spill_peak_bytes"] = r.spill_peak_bytes;
+  j["bytes_written"] = r.bytes_written;
+  j["wall_s"] = r.wall_s;
+  j["estimate"] = estimate_json(r.estimate);
+  j["free_bytes"] = r.free_bytes;
+  return j;
+}
+
+// A line set given as arrays is baked from a temporary HDF5 line file beside the cache (the
+// format that keeps line attributes and metadata): bake reads its input in batches from a file,
+// and its /lines provenance is that file's content hash. Removed when the bake ends.
+class TemporaryInput {
+ public:
+  TemporaryInput(const PyLineSet& set, const std::string& cache) {
+    const std::filesystem::path dir = std::filesystem::absolute(cache).parent_path();
+    path_ = (dir / (std::filesystem::path(cache).filename().string() + ".input-" +
+                    std::to_string(::getpid()) + ".h5"))
+                .string();
+    WriteOptions options;
+    options.format = Format::hdf5;
+    write_line_set(set.lines, path_, options);
+  }
+  ~TemporaryInput() {
+    std::error_code ignored;
+    std::filesystem::remove(path_, ignored);
+  }
+  TemporaryInput(const TemporaryInput&) = delete;
+  TemporaryInput& operator=(const TemporaryInput&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+py::dict bake_lines(const py::object& lines_or_path, const std::optional<std::string>& cache,
+                    const std::vector<std::string>& assets, bool progress,
+                    const py::kwargs& options) {
+  BakeOptions o = bake_options(options, assets, progress);
+  o.cache = cache.value_or("");
+  std::optional<TemporaryInput> temporary;
+  if (py::isinstance<PyLineSet>(lines_or_path)) {
+    if (o.cache.empty()) throw UsageError("bake: a LineSet needs a cache path");
+    if (o.format) throw UsageError("format: read only when baking a file");
+    if (!o.dry_run) check_output_location(o.cache);
+    const PyLineSet& set = lines_or_path.cast<const PyLineSet&>();
+    py::gil_scoped_release unlocked;
+    temporary.emplace(set, o.cache);
+  } else {
+    o.input = py::str(lines_or_path);  // a str or an os.PathLike
+    cli::check_input_file(o.input);
+    if (!o.dry_run) check_output_location(o.cache);
+  }
+  if (temporary) o.input = temporary->path();
+  o.inputs = {o.input};
+  nlohmann::json result;
+  {
+    py::gil_scoped_release unlocked;
+    const BakeResult baked = bake(o);
+    result = result_json(baked);
+    if (!o.dry_run)
+      result["report"] = report_json({summarize_cache(CacheReader(baked.cache, false))})[0];
+  }
+  return to_python(result);
+}
+
+// Views of one Array<T>, kept alive by the array's own owner (the file mapping or the
+// allocation), not by the Python objects around it.
+template <class T>
+py::object array_view(const Array<T>& array, size_t columns) {
+  const size_t rows = columns ? array.size() / columns : array.size();
+  return view(array.data(), rows, columns ? std::vector<size_t>{columns} : std::vector<size_t>{},
+              keep_alive(array.owner()));
+}
+
+template <class T>
+py::object optional_view(const Array<T>& array, size_t columns) {
+  if (array.empty()) return py::none();
+  return array_view(array, columns);
+}
+
+}  // namespace
+
+PyCache::PyCache(const std::string& path) : path_(path) {
+  cli::check_cache_input(path);  // the CLI's messages for a line file, a plain HDF5 file
+  py::gil_scoped_release unlocked;
+  reader_ = std::make_shared<CacheReader>(path);
+}
+
+const TubeMesh& PyCache::tubes() {
+  if (!tubes_) {
+    if (!reader_->exists(kTubesGroup))
+      throw InputError(path_, "", "the cache has no tubes (linebake bake CACHE --assets tubes)");
+    py::gil_scoped_release unlocked;
+    tubes_ = std::make_shared<TubeMesh>(load_tubes(*reader_));
+  }
+  return *tubes_;
+}
+
+const VoxelGrid& PyCache::voxels() {
+  if (!voxels_) {
+    if (!reader_->exists(kVoxelsGroup))
+      throw InputError(path_, "", "the cache has no voxels (linebake bake CACHE --assets voxels)");
+    py::gil_scoped_release unlocked;
+    voxels_ = std::make_shared<VoxelGrid>(load_voxels(*reader_));
+  }
+  return *voxels_;
+}
+
+namespace {
+
+py::object provenance_of(const PyCache& cache, const std::string& step) {
+  const std::string group = step == "lines" ? "/lines" : "/assets/" + step;
+  const std::optional<Provenance> p = cache.reader().provenance(group);
+  if (!p) throw InputError(cache.path(), group, "no provenance (no such step in the cache)");
+  return to_python(to_json(*p));
+}
+
+py::dict tube_chunk(const TubeChunk& chunk) {
+  py::dict d;
+  d["first_line"] = chunk.first_line;
+  d["line_count"] = chunk.line_count;
+  d["positions"] = array_view(chunk.positions, 3);
+  d["normals"] = optional_view(chunk.normals, 3);
+  d["normals_oct"] = optional_view(chunk.normals_oct, 2);
+  d["attribute"] = optional_view(chunk.attribute, 0);
+  d["indices"] = array_view(chunk.indices, 3);
+  return d;
+}
+
+py::dict tubes_dict(PyCache& cache) {
+  const TubeMesh& mesh = cache.tubes();
+  py::dict d;
+  d["sides"] = mesh.sides;
+  d["radius"] = mesh.radius;
+  d["caps"] = mesh.caps;
+  d["normals"] = to_string(mesh.normals);
+  d["attribute"] = mesh.attribute;
+  d["attribute_range"] = py::make_tuple(mesh.attribute_range[0], mesh.attribute_range[1]);
+  d["lines_dropped"] = mesh.lines_dropped;
+  d["points_skipped"] = mesh.points_skipped;
+  d["vertex_count"] = mesh.vertex_count();
+  d["triangle_count"] = mesh.triangle_count();
+  py::list chunks;
+  for (const TubeChunk& chunk : mesh.chunks) chunks.append(tube_chunk(chunk));
+  d["chunks"] = chunks;
+  return d;
+}
+
+// A per-voxel array as (z, y, x): the grid stores x fastest.
+template <class T>
+py::object grid_view(const Array<T>& array, const std::array<uint32_t, 3>& resolution) {
+  if (array.empty()) return py::none();
+  return view(array.data(), resolution[2], {resolution[1], resolution[0]},
+              keep_alive(array.owner()));
+}
+
+py::dict voxels_dict(PyCache& cache) {
+  const VoxelGrid& grid = cache.voxels();
+  py::dict d;
+  d["resolution"] = py::make_tuple(grid.resolution[0], grid.resolution[1], grid.resolution[2]);
+  d["origin"] = py::make_tuple(grid.origin[0], grid.origin[1], grid.origin[2]);
+  d["voxel_size"] = grid.voxel_size;
+  d["quantization"] = grid.quantization;
+  d["max_chords_per_voxel"] = grid.max_chords_per_voxel;
+  d["attribute"] = grid.attribute;
+  d["attribute_range"] = py::make_tuple(grid.attribute_range[0], grid.attribute_range[1]);
+  d["offsets"] = array_view(grid.offsets, 0);
+  d["chords"] = array_view(grid.chords, 2);
+  d["line_counts"] = grid_view(grid.line_counts, grid.resolution);
+  py::list density;
+  for (size_t level = 0; level < grid.density.size(); ++level)
+    density.append(grid_view(grid.density[level], grid.level_resolution(level)));
+  d["density"] = density;
+  d["voxels_occupied"] = grid.voxels_occupied;
+  d["chords_dropped"] = grid.chords_dropped;
+  d["voxels_overflowed"] = grid.voxels_overflowed;
+  return d;
+}
+
+}  // namespace
+
+void bind_assets(py::module_& module) {
+  py::class_<PyCache, std::shared_ptr<PyCache>>(module, "Cache", R"doc(
+An asset cache (.lbc.h5) opened for reading: linebake.open_cache(path).
+
+Arrays are read-only NumPy views of the cache's memory: of the mapped file where a dataset is
+stored uncompressed, else of the decompressed copy, which the Cache keeps (a second call returns
+the same memory).)doc")
+      .def_property_readonly("path", &PyCache::path)
+      .def_property_readonly(
+          "assets", [](const PyCache& c) { return c.reader().assets(); },
+          "Assets stored under /assets: tubes, voxels, embree, rtx.")
+      .def("provenance", &provenance_of, py::arg("step"),
+           "What a step ('lines', 'tubes', 'voxels', ...) was built from, with what, and what it "
+           "cost, as a dict (the provenance of `linebake report --json`).")
+      .def(
+          "report",
+          [](const PyCache& c) { return to_python(report_json({summarize_cache(c.reader())})[0]); },
+          "This cache's entry of `linebake report --json`: Table 1's figures.")
+      .def(
+          "lines",
+          [](const PyCache& c) {
+            auto set = std::make_shared<PyLineSet>();
+            {
+              py::gil_scoped_release unlocked;
+              set->lines = load_lines(c.reader());
+            }
+            return set;
+          },
+          "The cached line set (/lines), as a LineSet (a copy).")
+      .def("tubes", &tubes_dict,
+           "The tube mesh: sides, radius, ..., and chunks, each a dict of first_line, line_count, "
+           "positions (v, 3) float32, normals (v, 3) float32 or None, normals_oct (v, 2) int16 or "
+           "None, attribute (v,) uint16 (unorm over attribute_range) or None, indices (t, 3) "
+           "uint32.")
+      .def("voxels", &voxels_dict,
+           "The voxel line grid: resolution (x, y, z), origin, voxel_size, quantization, offsets "
+           "(voxels + 1,) uint32, chords (c, 2) uint32 packed words, line_counts (z, y, x) "
+           "uint8, density: list of (z, y, x) float32 levels.")
+      .def("__repr__", [](const PyCache& c) {
+        std::string assets;
+        for (const std::string& a : c.reader().assets()) assets += (assets.empty() ? "" : ", ") + a;
+        return "<linebake.Cache " + c.path() + (assets.empty() ? "" : ": " + assets) + ">";
+      });
+
+  module.def(
+      "open_cache", [](const std::string& path) { return std::make_shared<PyCache>(path); },
+      py::arg("path"), "Opens an asset cache; linebake.InputError if it is not one.");
+  module.def("bake", &bake_lines, py::arg("lines_or_path"), py::arg("cache") = py::none(),
+             py::arg("assets") = std::vector<std::string>{"tubes"}, py::kw_only(),
+             py::arg("progress") = false, R"doc(
+Builds assets into an asset cache, as `linebake bake`: lines_or_path is a LineSet, a file or a
+synth: source; cache defaults to <input name>.lbc.h5 (required for a LineSet); assets from
+tubes, voxels, embree, rtx. The CLI's options are keyword arguments with '_' for '-' (format for
+--from): tube_sides, radius, radius_absolute, radius_attribute, caps, normals, attribute,
+attribute_range, chunk_bytes, grid, quantization, max_chords, voxel_attribute, embree_geometry,
+embree_quality, embree_compact, embree_robust, embree_max_primitives, rtx_geometry,
+rtx_no_compaction, device, validation, compression, compression_level, memory_budget ('2G',
+'unlimited' or bytes), force, no_space_check, dry_run, on_invalid. An option no step reads is
+linebake.UsageError. Returns the build result with its stages and the cache's report (the
+entry of `linebake report --json`). Releases the GIL; no progress bar unless progress=True.)doc");
+}
+
+}  // namespace linebake::python

@@ -1,0 +1,62 @@
+#pragma once
+// What the binding files share: the Python-side line set, NumPy views that keep their owner
+// alive, JSON as Python objects, and the registration function of each file.
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstddef>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "lines/line_set.hpp"
+
+namespace linebake::python {
+
+namespace py = pybind11;
+
+// A line set as Python holds it: the arrays, and where they came from (info() names them as
+// `linebake info --json` does). Python never resizes the arrays, so views of them stay valid
+// for as long as the object lives.
+struct PyLineSet {
+  LineSet lines;
+  std::string source;  // the path or synth: source it was read from; "" when made from arrays
+  std::string format;  // that source's format name
+};
+
+// nlohmann::json -> dict, list, str, int, float, bool or None.
+py::object to_python(const nlohmann::json& value);
+
+// A capsule that holds `owner` for as long as a view of its memory lives.
+py::object keep_alive(std::shared_ptr<const void> owner);
+
+// A read-only NumPy view (no copy) of `rows` rows of `shape_tail` values each of T at `data`;
+// `base` keeps the memory alive. An empty `shape_tail` makes a 1-D array.
+template <class T>
+py::array view(const T* data, size_t rows, const std::vector<size_t>& shape_tail, py::handle base) {
+  std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(rows)};
+  for (size_t n : shape_tail) shape.push_back(static_cast<py::ssize_t>(n));
+  if (!data) return py::array(py::dtype::of<T>(), shape);  // empty: nothing to view
+  py::array array(py::dtype::of<T>(), shape, {}, data, base);
+  array.attr("setflags")(py::arg("write") = false);
+  return array;
+}
+
+// The Python name of a keyword argument as the CLI spells its option: "tube_sides" ->
+// "tube-sides".
+std::string option_name(const std::string& keyword);
+// The keyword arguments' names, as option names.
+std::vector<std::string> option_names(const py::kwargs& options);
+// TypeError for a keyword none of `known` is, with the nearest ("did you mean").
+void check_keywords(const char* function, const py::kwargs& options,
+                    const std::vector<std::string>& known);
+
+void bind_errors(py::module_& module);
+void bind_line_sets(py::module_& module);
+void bind_assets(py::module_& module);
+void bind_rendering(py::module_& module);
+
+}  // namespace linebake::python

@@ -1,0 +1,309 @@
+// linebake.LineSet from and to NumPy arrays, read() and write() through the format registry,
+// info(), validation and derived attributes.
+
+#include <algorithm>
+#include <optional>
+
+#include "bindings.hpp"
+#include "cli_contract.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "formats/registry.hpp"
+#include "lines/derived.hpp"
+#include "lines/line_info.hpp"
+#include "lines/validate.hpp"
+
+namespace linebake::python {
+
+namespace {
+
+using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// (n, 3) float32 positions, copied into the line set.
+std::vector<float> positions_from(const py::array& points) {
+  const FloatArray xyz = FloatArray::ensure(points);
+  if (!xyz || xyz.ndim() != 2 || xyz.shape(1) != 3)
+    throw py::value_error("points: expected an (n, 3) array of positions");
+  return {xyz.data(), xyz.data() + xyz.size()};
+}
+
+// Offsets: integers, line i spans points [offsets[i], offsets[i + 1]), from 0 to the point count.
+std::vector<uint64_t> offsets_from(const py::array& offsets, size_t points) {
+  const char kind = offsets.dtype().kind();
+  if (offsets.ndim() != 1 || (kind != 'i' && kind != 'u'))
+    throw py::value_error("offsets: expected a 1-D integer array (uint64)");
+  // Signed input is checked before the cast, which would wrap negative values.
+  const auto signed_values = py::array_t<int64_t, py::array::forcecast>::ensure(offsets);
+  if (kind == 'i')
+    for (py::ssize_t i = 0; i < signed_values.size(); ++i)
+      if (signed_values.at(i) < 0) throw py::value_error("offsets: negative offset");
+  const auto values =
+      py::array_t<uint64_t, py::array::c_style | py::array::forcecast>::ensure(offsets);
+  std::vector<uint64_t> result(values.data(), values.data() + values.size());
+  if (result.empty() || result.front() != 0)
+    throw py::value_error("offsets: must start at 0 (one more offset than lines)");
+  if (!std::is_sorted(result.begin(), result.end()))
+    throw py::value_error("offsets: must not decrease");
+  if (result.back() != points)
+    throw py::value_error("offsets: the last offset (" + std::to_string(result.back()) +
+                          ") must be the point count (" + std::to_string(points) + ")");
+  return result;
+}
+
+// {name: values} with one float32 value per point (or per line), in the dict's order.
+std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, const char* what) {
+  std::vector<Attribute> attributes;
+  if (mapping.is_none()) return attributes;
+  for (const auto& [key, value] : mapping.cast<py::dict>()) {
+    Attribute attribute;
+    attribute.name = py::str(key);
+    const FloatArray values = FloatArray::ensure(value);
+    if (!values || values.ndim() != 1 || size_t(values.size()) != count)
+      throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +
+                            std::to_string(count) + " float32 values, one per " +
+                            (std::string(what) == "attribute" ? "point" : "line"));
+    attribute.values.assign(values.data(), values.data() + values.size());
+    attributes.push_back(std::move(attribute));
+  }
+  return attributes;
+}
+
+std::shared_ptr<PyLineSet> make_line_set(const py::array& points, const py::array& offsets,
+                                         const py::object& attributes,
+                                         const py::object& line_attributes,
+                                         const py::object& metadata) {
+  auto result = std::make_shared<PyLineSet>();
+  LineSet& lines = result->lines;
+  lines.positions = positions_from(points);
+  lines.line_offsets = offsets_from(offsets, lines.point_count());
+  lines.attributes = attributes_from(attributes, lines.point_count(), "attribute");
+  lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
+  if (!metadata.is_none()) lines.metadata = metadata.cast<std::map<std::string, std::string>>();
+  return result;
+}
+
+nlohmann::json info_json(const PyLineSet& set) {
+  return line_set_info(set.lines, set.source, set.format);
+}
+
+nlohmann::json validation_json(const ValidationReport& v) {
+  return {{"clean", v.clean()},
+          {"summary", v.summary()},
+          {"invalid_points", v.invalid_points},
+          {"repeated_points", v.repeated_points},
+          {"short_lines", v.short_lines},
+          {"bad_offsets", v.bad_offsets},
+          {"attribute_length_mismatches", v.attribute_length_mismatches},
+          {"nonfinite_attribute_values", v.nonfinite_attribute_values},
+          {"lines_split", v.lines_split},
+          {"lines_dropped", v.lines_dropped},
+          {"points_dropped", v.points_dropped},
+          {"attributes_dropped", v.attributes_dropped},
+          {"repaired", v.repaired}};
+}
+
+// Attribute views keyed by name, each kept alive by the line set object `self`.
+py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle self) {
+  py::dict views;
+  for (const Attribute& a : attributes)
+    views[py::str(a.name)] = view(a.values.data(), a.values.size(), {}, self);
+  return views;
+}
+
+std::shared_ptr<PyLineSet> read(const std::string& source,
+                                const std::optional<std::string>& format) {
+  cli::check_input_file(source);  // the CLI's "no such file" / "is a directory"
+  ReadOptions options;
+  if (format) options.format = parse_format(*format);
+  auto result = std::make_shared<PyLineSet>();
+  {
+    py::gil_scoped_release unlocked;
+    result->lines = read_line_set(source, options);
+    result->format = source_format_name(source, options);
+  }
+  result->source = source;
+  return result;
+}
+
+// As `linebake convert`: what the format cannot hold is a warning, or an Error when strict.
+void write(const PyLineSet& set, const std::string& path, const std::optional<std::string>& format,
+           bool ascii, uint32_t binlines_version, const std::string& vtp_encoding,
+           bool vtp_compress, bool strict) {
+  if (!set.source.empty()) refuse_input_as_output(path, {set.source});
+  WriteOptions options;
+  options.format =
+      resolve_output_format(path, format ? std::optional(parse_format(*format)) : std::nullopt);
+  options.ascii = ascii;
+  options.binlines_version = binlines_version;
+  options.vtp_encoding = ascii ? "ascii" : vtp_encoding;
+  options.vtp_compress = vtp_compress;
+  check_output_location(path);
+  const std::vector<std::string> lost = lost_in_format(set.lines, *options.format, options);
+  if (!lost.empty()) {
+    std::string list;
+    for (const std::string& l : lost) list += (list.empty() ? "" : ", ") + l;
+    const std::string message = path + ": " + format_info(*options.format).name + " cannot hold " +
+                                list + "; they are not written";
+    if (strict) throw Error(message + " (strict)");
+    PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1);
+  }
+  py::gil_scoped_release unlocked;
+  write_line_set(set.lines, path, options);
+}
+
+std::shared_ptr<PyLineSet> with_derived(const PyLineSet& set,
+                                        const std::vector<std::string>& names) {
+  auto result = std::make_shared<PyLineSet>(set);
+  LineSet& lines = result->lines;
+  for (const std::string& name : names) {
+    Attribute derived = derive_attribute(lines, name);
+    // A derived attribute replaces an input attribute of its name, as `convert --derive` does.
+    for (auto* list : {&lines.attributes, &lines.line_attributes})
+      std::erase_if(*list, [&](const Attribute& a) { return a.name == name; });
+    (is_line_attribute(name) ? lines.line_attributes : lines.attributes)
+        .push_back(std::move(derived));
+  }
+  return result;
+}
+
+py::tuple validated(const PyLineSet& set, const std::string& policy) {
+  auto result = std::make_shared<PyLineSet>(set);
+  const InvalidPolicy parsed = parse_invalid_policy(policy);
+  const std::string source = set.source.empty() ? "<arrays>" : set.source;
+  ValidationReport report;
+  {
+    py::gil_scoped_release unlocked;
+    report = validate(result->lines, parsed, source);
+  }
+  return py::make_tuple(result, to_python(validation_json(report)));
+}
+
+py::list format_list() {
+  py::list formats;
+  for (const FormatInfo& f : format_table()) {
+    py::dict entry;
+    entry["name"] = f.name;
+    entry["extensions"] = std::vector<std::string>(f.extensions.begin(), f.extensions.end());
+    entry["read"] = f.readable;
+    entry["write"] = f.writable;
+    entry["line_attributes"] = f.line_attributes;
+    entry["metadata"] = f.metadata;
+    formats.append(entry);
+  }
+  return formats;
+}
+
+std::string repr(const PyLineSet& set) {
+  std::string names;
+  for (const auto* list : {&set.lines.attributes, &set.lines.line_attributes})
+    for (const Attribute& a : *list) names += (names.empty() ? "" : ", ") + a.name;
+  return "<linebake.LineSet " + std::to_string(set.lines.line_count()) + " lines, " +
+         std::to_string(set.lines.point_count()) + " points" +
+         (names.empty() ? "" : ", attributes " + names) +
+         (set.source.empty() ? "" : ", from " + set.source) + ">";
+}
+
+}  // namespace
+
+void bind_line_sets(py::module_& module) {
+  py::class_<PyLineSet, std::shared_ptr<PyLineSet>>(module, "LineSet", R"doc(
+A set of 3D polylines: positions, line offsets and float32 attributes per point or per line.
+
+LineSet(points, offsets, attributes=None, line_attributes=None, metadata=None)
+
+points: (n, 3) positions (converted to float32); offsets: line i spans points
+offsets[i]:offsets[i+1], from 0 to n (converted to uint64); attributes: {name: n values};
+line_attributes: {name: one value per line}; metadata: {str: str}. The arrays are copied in.
+The properties points, offsets, attributes and line_attributes are read-only NumPy views of
+the line set's own memory (no copy); they keep the line set alive.)doc")
+      .def(py::init(&make_line_set), py::arg("points"), py::arg("offsets"),
+           py::arg("attributes") = py::none(), py::arg("line_attributes") = py::none(),
+           py::arg("metadata") = py::none())
+      .def_property_readonly(
+          "points",
+          [](py::object self) {
+            const LineSet& l = self.cast<const PyLineSet&>().lines;
+            return view(l.positions.data(), l.point_count(), {3}, self);
+          },
+          "(n, 3) float32 positions: a read-only view, no copy.")
+      .def_property_readonly(
+          "offsets",
+          [](py::object self) {
+            const LineSet& l = self.cast<const PyLineSet&>().lines;
+            return view(l.line_offsets.data(), l.line_offsets.size(), {}, self);
+          },
+          "(lines + 1,) uint64 offsets: line i is points[offsets[i]:offsets[i+1]]. A view.")
+      .def_property_readonly(
+          "attributes",
+          [](py::object self) {
+            return attribute_views(self.cast<const PyLineSet&>().lines.attributes, self);
+          },
+          "{name: (n,) float32 view}: one value per point.")
+      .def_property_readonly(
+          "line_attributes",
+          [](py::object self) {
+            return attribute_views(self.cast<const PyLineSet&>().lines.line_attributes, self);
+          },
+          "{name: (lines,) float32 view}: one value per line.")
+      .def_property_readonly(
+          "metadata", [](const PyLineSet& s) { return s.lines.metadata; },
+          "{str: str}: provenance, units, source notes (a copy).")
+      .def_property_readonly(
+          "source",
+          [](const PyLineSet& s) {
+            return s.source.empty() ? py::object(py::none()) : py::str(s.source);
+          },
+          "The file or synth: source it was read from; None when made from arrays.")
+      .def_property_readonly("point_count",
+                             [](const PyLineSet& s) { return s.lines.point_count(); })
+      .def_property_readonly("line_count", [](const PyLineSet& s) { return s.lines.line_count(); })
+      .def_property_readonly(
+          "segment_count", [](const PyLineSet& s) { return s.lines.segment_count(); },
+          "Consecutive point pairs within a line: the LS column of the paper's Table 1.")
+      .def("__len__", [](const PyLineSet& s) { return s.lines.line_count(); })
+      .def(
+          "line",
+          [](py::object self, size_t index) {
+            const LineSet& l = self.cast<const PyLineSet&>().lines;
+            if (index >= l.line_count())
+              throw py::index_error("line " + std::to_string(index) + " of " +
+                                    std::to_string(l.line_count()));
+            return view(l.positions.data() + 3 * l.line_offsets[index], l.line_size(index), {3},
+                        self);
+          },
+          py::arg("index"), "(m, 3) view of line `index`'s points.")
+      .def(
+          "info", [](const PyLineSet& s) { return to_python(info_json(s)); },
+          "Counts, bounds, attribute ranges, sizes and validation: the fields of `linebake info "
+          "--json`.")
+      .def("validate", &validated, py::arg("policy") = "repair",
+           "(LineSet, report): 'repair' returns a repaired copy (bad points dropped, lines split, "
+           "short lines dropped) and what was done; 'reject' raises linebake.Error unless clean.")
+      .def("with_derived", &with_derived, py::arg("names"),
+           "A copy with derived attributes added: segment_length, arc_length, curvature, "
+           "index_along_line (per point), line_length (per line).")
+      .def(
+          "same_data",
+          [](const PyLineSet& a, const PyLineSet& b) { return a.lines.same_data(b.lines); },
+          py::arg("other"), "Exact equality of every array and name (metadata excluded).")
+      .def("__repr__", &repr);
+
+  module.def("read", &read, py::arg("source"), py::arg("format") = py::none(),
+             R"doc(Reads a line set: a file of any readable format (by extension unless
+`format` names it) or a synthetic source "synth:<name>?scale=..&seed=..". Raises
+linebake.InputError naming the file and place on bad input. Releases the GIL.)doc");
+  module.def("write", &write, py::arg("lines"), py::arg("path"), py::arg("format") = py::none(),
+             py::kw_only(), py::arg("ascii") = false, py::arg("binlines_version") = 2,
+             py::arg("vtp_encoding") = "appended", py::arg("vtp_compress") = true,
+             py::arg("strict") = false,
+             R"doc(Writes a line set in the format of the path's extension (or `format`),
+through a temporary file renamed at the end. What the format cannot hold is a UserWarning, or
+linebake.Error with strict=True. Releases the GIL.)doc");
+  module.def("formats", &format_list,
+             "Every format: name, extensions, read, write, what it holds.");
+  module.def(
+      "derived_attributes", [] { return derived_attribute_names(); },
+      "Names with_derived() accepts.");
+}
+
+}  // namespace linebake::python

@@ -1,0 +1,126 @@
+"""bake() and open_cache() against the CLI's `report --json` of the same cache, and the cached
+arrays against figures computed here from the line set."""
+
+import numpy as np
+import pytest
+
+import linebake
+from conftest import SYNTH, cli_error, cli_json
+
+
+def address(array):
+    return array.__array_interface__["data"][0]
+
+
+def test_bake_report_is_the_clis(baked):
+    cache, result = baked
+    assert result["written"] and result["cache"] == cache
+    assert [s["step"] for s in result["steps"]] == ["lines", "tubes", "voxels"]
+    assert all(s["built"] for s in result["steps"])
+    assert result["report"] == cli_json("report", cache)[0]
+    assert linebake.open_cache(cache).report() == result["report"]
+
+
+def test_rebake_reuses_every_step(baked):
+    cache, _ = baked
+    again = linebake.bake(SYNTH, cache, assets=["tubes", "voxels"], compression="none")
+    assert not again["written"]
+    assert not any(s["built"] for s in again["steps"])
+
+
+def test_tubes_match_the_lines(baked):
+    cache, _ = baked
+    opened = linebake.open_cache(cache)
+    assert opened.assets == ["tubes", "voxels"]
+    tubes = opened.tubes()
+    stats = opened.provenance("tubes")["stats"]
+    vertices = sum(c["positions"].shape[0] for c in tubes["chunks"])
+    triangles = sum(c["indices"].shape[0] for c in tubes["chunks"])
+    assert (vertices, triangles) == (stats["vertices"], stats["triangles"])
+    assert len(tubes["chunks"]) == stats["chunks"]
+    # Hand-computed from the line set: a ring of `sides` vertices per point and 2 x sides
+    # triangles per segment (no caps), for the lines and points the builder kept.
+    lines = opened.lines()
+    assert lines.same_data(linebake.read(SYNTH))
+    sides = tubes["sides"]
+    if tubes["lines_dropped"] == 0 and tubes["points_skipped"] == 0:
+        assert vertices == sides * lines.point_count
+        assert triangles == 2 * sides * lines.segment_count
+    # Every vertex lies within a radius of the line set's bounds.
+    bounds = lines.info()["bounds"]
+    for chunk in tubes["chunks"]:
+        assert chunk["positions"].dtype == np.float32 and chunk["indices"].dtype == np.uint32
+        assert np.all(chunk["positions"] >= np.array(bounds["min"]) - 1.01 * tubes["radius"])
+        assert np.all(chunk["positions"] <= np.array(bounds["max"]) + 1.01 * tubes["radius"])
+        assert chunk["indices"].max() < chunk["positions"].shape[0]
+        normals = chunk["normals"].astype(np.float64)
+        np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1, atol=1e-5)
+
+
+def test_cached_arrays_are_views(baked):
+    cache, _ = baked
+    opened = linebake.open_cache(cache)
+    first = opened.tubes()["chunks"][0]["positions"]
+    second = opened.tubes()["chunks"][0]["positions"]
+    assert address(first) == address(second)
+    assert not first.flags.writeable
+    # The view outlives the Cache object: it holds the mapping.
+    expected = np.array(first)
+    del opened
+    np.testing.assert_array_equal(first, expected)
+
+
+def test_voxels_match_provenance(baked):
+    cache, _ = baked
+    opened = linebake.open_cache(cache)
+    grid = opened.voxels()
+    stats = opened.provenance("voxels")["stats"]
+    nx, ny, nz = grid["resolution"]
+    assert list(grid["resolution"]) == stats["resolution"]
+    assert grid["offsets"].shape == (nx * ny * nz + 1,)
+    assert grid["chords"].shape == (stats["chords"], 2)
+    assert int(grid["offsets"][-1]) == stats["chords"]
+    assert grid["line_counts"].shape == (nz, ny, nx)
+    # A voxel is occupied when it holds chords.
+    assert int(np.count_nonzero(np.diff(grid["offsets"].astype(np.int64)))) == \
+        stats["voxels_occupied"]
+    assert grid["density"][0].shape == (nz, ny, nx)
+
+
+def test_bake_a_line_set_from_arrays(tmp_path):
+    rng = np.random.default_rng(3)
+    points = np.cumsum(rng.normal(size=(40, 3)), axis=0).astype(np.float32)
+    offsets = np.array([0, 10, 25, 40], dtype=np.uint64)
+    lines = linebake.LineSet(points, offsets, {"t": np.arange(40, dtype=np.float32)})
+    cache = str(tmp_path / "arrays.lbc.h5")
+    result = linebake.bake(lines, cache, tube_sides=4)
+    assert result["report"] == cli_json("report", cache)[0]
+    opened = linebake.open_cache(cache)
+    assert opened.lines().same_data(lines)
+    tubes = opened.tubes()
+    assert tubes["sides"] == 4 and tubes["attribute"] == "t"
+    assert sum(c["positions"].shape[0] for c in tubes["chunks"]) == 4 * 40
+    # The temporary input file is gone.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arrays.lbc.h5"]
+
+
+def test_bake_options_are_checked(tmp_path):
+    cache = str(tmp_path / "x.lbc.h5")
+    with pytest.raises(TypeError, match="tube_side"):
+        linebake.bake(SYNTH, cache, tube_side=4)
+    with pytest.raises(linebake.UsageError, match="grid: read only when voxels are built"):
+        linebake.bake(SYNTH, cache, grid=64)
+    with pytest.raises(linebake.Error):
+        linebake.bake(SYNTH, cache, assets=["tubes", "meshes"])
+
+
+def test_open_cache_errors_are_the_clis(tmp_path):
+    lines_file = tmp_path / "l.binlines"
+    linebake.write(linebake.read(SYNTH), str(lines_file))
+    with pytest.raises(linebake.InputError) as caught:
+        linebake.open_cache(str(lines_file))
+    assert str(caught.value) == cli_error("report", lines_file)
+    missing = str(tmp_path / "none.lbc.h5")
+    with pytest.raises(linebake.InputError) as caught:
+        linebake.open_cache(missing)
+    assert str(caught.value) == cli_error("report", missing)

@@ -1,0 +1,221 @@
+"""LineSet from NumPy and back: every writable format, zero-copy views, info() against the CLI,
+errors naming the file, CF trajectories written by xarray and netCDF4."""
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+
+import linebake
+from conftest import SYNTH, cli_error, cli_json
+
+
+def sample_arrays():
+    """Three lines of 4, 7 and 2 points with random float32 values (fixed seed)."""
+    rng = np.random.default_rng(24)
+    offsets = np.array([0, 4, 11, 13], dtype=np.uint64)
+    points = rng.uniform(-50, 50, size=(13, 3)).astype(np.float32)
+    attributes = {
+        "speed": rng.uniform(0, 3, 13).astype(np.float32),
+        "temperature": rng.normal(280, 10, 13).astype(np.float32),
+    }
+    line_attributes = {"seed_id": np.array([7, 8, 9], dtype=np.float32)}
+    return points, offsets, attributes, line_attributes
+
+
+def writable_formats():
+    return [f for f in linebake.formats() if f["write"]]
+
+
+def test_arrays_in_and_out():
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes, line_attributes, {"units": "km"})
+    assert (lines.line_count, lines.point_count) == (3, 13)
+    assert lines.segment_count == 3 + 6 + 1  # points - 1 per line
+    assert lines.points.dtype == np.float32 and lines.points.shape == (13, 3)
+    assert lines.offsets.dtype == np.uint64
+    np.testing.assert_array_equal(lines.points, points)
+    np.testing.assert_array_equal(lines.offsets, offsets)
+    assert list(lines.attributes) == ["speed", "temperature"]
+    for name, values in attributes.items():
+        np.testing.assert_array_equal(lines.attributes[name], values)
+    np.testing.assert_array_equal(lines.line_attributes["seed_id"], [7, 8, 9])
+    np.testing.assert_array_equal(lines.line(1), points[4:11])
+    assert lines.metadata == {"units": "km"}
+
+
+@pytest.mark.parametrize("fmt", writable_formats(), ids=lambda f: f["name"])
+def test_round_trip_every_writable_format(tmp_path, fmt):
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes, line_attributes)
+    path = str(tmp_path / ("lines" + fmt["extensions"][0]))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        linebake.write(lines, path)
+    # Formats without line attributes say so: the CLI's "cannot hold" warning.
+    lost = [str(w.message) for w in caught]
+    assert bool(lost) == (not fmt["line_attributes"]), lost
+    back = linebake.read(path)
+    np.testing.assert_array_equal(back.points, points)
+    np.testing.assert_array_equal(back.offsets, offsets)
+    assert list(back.attributes) == list(attributes)
+    for name, values in attributes.items():
+        np.testing.assert_array_equal(back.attributes[name], values)
+    if fmt["line_attributes"]:
+        np.testing.assert_array_equal(back.line_attributes["seed_id"], [7, 8, 9])
+    # The CLI reads the same file to the same figures.
+    assert back.info() == cli_json("info", path)
+
+
+def test_strict_write_refuses_losing_data(tmp_path):
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes, line_attributes)
+    with pytest.raises(linebake.Error, match="cannot hold line attribute seed_id"):
+        linebake.write(lines, str(tmp_path / "x.csv"), strict=True)
+    assert not os.path.exists(tmp_path / "x.csv")
+
+
+def address(array):
+    return array.__array_interface__["data"][0]
+
+
+def test_views_share_the_line_sets_memory():
+    points, offsets, attributes, _ = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes)
+    first, second = lines.points, lines.points
+    assert address(first) == address(second)
+    assert address(lines.offsets) == address(lines.offsets)
+    assert address(lines.attributes["speed"]) == address(lines.attributes["speed"])
+    # A line is a slice of the same buffer: 4 points of 12 bytes in.
+    assert address(lines.line(1)) == address(first) + 4 * 3 * 4
+    # The input arrays were copied in; the views are the line set's own and read-only.
+    assert address(first) != address(points)
+    assert not first.flags.writeable
+    with pytest.raises(ValueError):
+        first[0, 0] = 1
+    # A view keeps the line set alive.
+    del lines
+    np.testing.assert_array_equal(second, points)
+
+
+def test_bad_arrays_are_value_errors():
+    points, offsets, _, _ = sample_arrays()
+    with pytest.raises(ValueError, match=r"\(n, 3\)"):
+        linebake.LineSet(points.reshape(-1), offsets)
+    with pytest.raises(ValueError, match="point count"):
+        linebake.LineSet(points, np.array([0, 4, 12], dtype=np.uint64))
+    with pytest.raises(ValueError, match="negative"):
+        linebake.LineSet(points, np.array([0, -1, 13]))
+    with pytest.raises(ValueError, match="speed"):
+        linebake.LineSet(points, offsets, {"speed": np.zeros(5, np.float32)})
+
+
+def test_info_matches_cli():
+    lines = linebake.read(SYNTH)
+    assert lines.info() == cli_json("info", SYNTH)
+    assert lines.info()["lines"] == lines.line_count
+
+
+def test_validate_and_derive():
+    points, offsets, attributes, _ = sample_arrays()
+    points[2] = np.nan  # an invalid point splits line 0 into 2 + 1 points, the 1 is dropped
+    lines = linebake.LineSet(points, offsets, attributes)
+    repaired, report = lines.validate("repair")
+    assert report["invalid_points"] == 1 and report["repaired"]
+    assert repaired.point_count == 12 - 1 and repaired.line_count == 3
+    with pytest.raises(linebake.Error):
+        lines.validate("reject")
+    derived = repaired.with_derived(["arc_length", "line_length"])
+    # Hand-computed: arc length of the second line's points.
+    line = derived.line(1).astype(np.float64)
+    steps = np.linalg.norm(np.diff(line, axis=0), axis=1)
+    start = int(derived.offsets[1])
+    arc = derived.attributes["arc_length"][start:start + len(line)]
+    np.testing.assert_allclose(arc, np.concatenate([[0], np.cumsum(steps)]), rtol=1e-6)
+    np.testing.assert_allclose(derived.line_attributes["line_length"][1], steps.sum(), rtol=1e-6)
+
+
+def test_bad_input_names_the_file(tmp_path):
+    bad = tmp_path / "broken.vtp"
+    bad.write_text("<VTKFile type='PolyData'><PolyData><Piece NumberOfPoints='x'>")
+    with pytest.raises(linebake.InputError) as caught:
+        linebake.read(str(bad))
+    assert str(bad) in str(caught.value)
+    assert caught.value.file == str(bad)
+    assert str(caught.value) == cli_error("info", bad)
+    assert isinstance(caught.value, linebake.Error) and isinstance(caught.value, RuntimeError)
+
+    missing = str(tmp_path / "missing.binlines")
+    with pytest.raises(linebake.Error) as caught:
+        linebake.read(missing)
+    assert str(caught.value) == cli_error("info", missing)
+
+    truncated = tmp_path / "short.binlines"
+    linebake.write(linebake.LineSet(*sample_arrays()[:3]), str(truncated))
+    truncated.write_bytes(truncated.read_bytes()[:40])
+    with pytest.raises(linebake.InputError) as caught:
+        linebake.read(str(truncated))
+    assert str(caught.value) == cli_error("info", truncated)
+
+
+def trajectories():
+    """Three trajectories of up to 5 observations; the last is 3 long (NaN-filled after)."""
+    rng = np.random.default_rng(7)
+    lon = rng.uniform(-20, 20, (3, 5))
+    lat = rng.uniform(30, 60, (3, 5))
+    alt = rng.uniform(0, 9000, (3, 5))
+    temperature = rng.uniform(220, 300, (3, 5))
+    for array in (lon, lat, alt, temperature):
+        array[2, 3:] = np.nan
+    return lon, lat, alt, temperature
+
+
+def test_cf_trajectory_written_by_xarray(tmp_path):
+    xr = pytest.importorskip("xarray")
+    lon, lat, alt, temperature = trajectories()
+    dims = ("trajectory", "obs")
+    ds = xr.Dataset(
+        {
+            "lon": (dims, lon, {"standard_name": "longitude", "units": "degrees_east"}),
+            "lat": (dims, lat, {"standard_name": "latitude", "units": "degrees_north"}),
+            "alt": (dims, alt, {"standard_name": "altitude", "units": "m"}),
+            "temperature": (dims, temperature, {"units": "K"}),
+            "trajectory_id": ("trajectory", np.arange(3), {"cf_role": "trajectory_id"}),
+        },
+        attrs={"featureType": "trajectory", "Conventions": "CF-1.8"},
+    )
+    path = str(tmp_path / "traj.nc")
+    ds.to_netcdf(path, engine="netcdf4")
+    lines = linebake.read(path)
+    assert lines.info()["format"] == "netcdf"
+    lengths = [5, 5, 3]
+    np.testing.assert_array_equal(lines.offsets, np.cumsum([0] + lengths))
+    valid = ~np.isnan(lon)
+    expected = np.stack([lon[valid], lat[valid], alt[valid]], axis=1).astype(np.float32)
+    np.testing.assert_array_equal(lines.points, expected)
+    np.testing.assert_array_equal(lines.attributes["temperature"],
+                                  temperature[valid].astype(np.float32))
+
+
+def test_cf_contiguous_ragged_written_by_netcdf4(tmp_path):
+    netCDF4 = pytest.importorskip("netCDF4")
+    lon, lat, alt, _ = trajectories()
+    valid = ~np.isnan(lon)
+    path = str(tmp_path / "ragged.nc")
+    with netCDF4.Dataset(path, "w") as nc:
+        nc.featureType = "trajectory"
+        nc.createDimension("trajectory", 3)
+        nc.createDimension("obs", int(valid.sum()))
+        row_size = nc.createVariable("row_size", "i4", ("trajectory",))
+        row_size.sample_dimension = "obs"
+        row_size[:] = valid.sum(axis=1)
+        for name, values, standard in (("lon", lon, "longitude"), ("lat", lat, "latitude"),
+                                       ("z", alt, "altitude")):
+            variable = nc.createVariable(name, "f8", ("obs",))
+            variable.standard_name = standard
+            variable[:] = values[valid]
+    lines = linebake.read(path)
+    np.testing.assert_array_equal(lines.offsets, [0, 5, 10, 13])
+    expected = np.stack([lon[valid], lat[valid], alt[valid]], axis=1).astype(np.float32)
+    np.testing.assert_array_equal(lines.points, expected)

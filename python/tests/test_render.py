@@ -1,0 +1,97 @@
+"""render() against `linebake render -o x.pfm` for the same cache, camera, frame and size;
+compare() against `linebake compare --json`; the CLI's availability check."""
+
+import numpy as np
+import pytest
+
+import linebake
+from conftest import cli_error, cli_json, read_pfm, run_cli, vulkan_available
+
+SIZE = (96, 64)
+FRAME = 12
+
+
+def cli_render(cache, technique, output):
+    run_cli("render", cache, "--technique", technique, "--tf", "semi", "--frame", FRAME,
+            "--size", f"{SIZE[0]}x{SIZE[1]}", "-o", output)
+    return read_pfm(output)
+
+
+def render(cache, technique):
+    return linebake.render(cache, technique=technique, tf="semi", size=SIZE, frame=FRAME)
+
+
+@pytest.mark.parametrize("technique", ["reference", "ll"])
+def test_render_equals_the_clis(baked, tmp_path, technique):
+    if technique == "ll" and not vulkan_available():
+        pytest.skip("no Vulkan device (lavapipe: mesa-vulkan-drivers)")
+    cache, _ = baked
+    image, stats = render(cache, technique)
+    assert image.shape == (SIZE[1], SIZE[0], 4) and image.dtype == np.float32
+    np.testing.assert_array_equal(image[..., 3], 1)
+    expected = cli_render(cache, technique, str(tmp_path / f"{technique}.pfm"))
+    np.testing.assert_array_equal(image[..., :3], expected)
+    assert stats["technique"] == technique
+    assert stats["frames"][0]["frame"] == FRAME
+    assert stats["frames"][0]["size"] == list(SIZE)
+    # Not a blank frame: the aneurysm is in view.
+    assert np.ptp(image[..., :3]) > 0.1
+
+
+def test_compare_equals_the_clis(baked, tmp_path):
+    if not vulkan_available():
+        pytest.skip("no Vulkan device")
+    cache, _ = baked
+    reference, _ = render(cache, "reference")
+    ll, _ = render(cache, "ll")
+    ours = linebake.compare(ll, reference)
+    cli_render(cache, "reference", str(tmp_path / "r.pfm"))
+    cli_render(cache, "ll", str(tmp_path / "l.pfm"))
+    theirs = cli_json("compare", tmp_path / "l.pfm", tmp_path / "r.pfm")
+    assert ours["psnr_db"] == pytest.approx(theirs["psnr_db"], rel=1e-12)
+    assert ours["ssim"] == pytest.approx(theirs["ssim"], rel=1e-12)
+    # Files compare as arrays do.
+    assert linebake.compare(str(tmp_path / "l.pfm"), str(tmp_path / "r.pfm")) == ours
+    # Identical images: the 60 dB cap and SSIM 1.
+    same = linebake.compare(reference, reference)
+    assert same["psnr_db"] == 60 and same["ssim"] == pytest.approx(1)
+
+
+def test_renderer_reuses_its_scene(baked):
+    cache, _ = baked
+    renderer = linebake.Renderer(linebake.open_cache(cache), "reference", size=SIZE)
+    first, _ = renderer.render(frame=FRAME)
+    again, _ = renderer.render(frame=FRAME)
+    np.testing.assert_array_equal(first, again)
+    image, stats = renderer.render(camera={"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 30})
+    assert stats["frames"][0]["camera"]["eye"] == [0, 0, 5]
+
+
+def test_availability_is_the_clis(baked):
+    cache, _ = baked
+    ours = {t["name"]: (t["available"], t["unavailable_reason"]) for t in linebake.techniques()}
+    theirs = {t["name"]: (t["available"], t["unavailable_reason"])
+              for t in cli_json("techniques")}
+    assert ours == theirs
+    for name, (available, reason) in ours.items():
+        if not available:
+            with pytest.raises(linebake.Error, match="cannot run here"):
+                linebake.render(cache, technique=name, size=SIZE)
+
+
+def test_technique_options_are_checked_as_the_cli_does(baked, tmp_path):
+    cache, _ = baked
+    with pytest.raises(linebake.UsageError) as caught:
+        linebake.render(cache, technique="reference", size=SIZE, layers=4)
+    expected = cli_error("render", cache, "--technique", "reference", "--size", "96x64",
+                         "--layers", 4, "-o", tmp_path / "x.png")
+    assert str(caught.value) == expected
+    with pytest.raises(TypeError):
+        linebake.render(cache, technique="reference", colour="red")
+
+
+def test_render_needs_a_cache(tmp_path):
+    with pytest.raises(linebake.InputError) as caught:
+        linebake.render("synth:aneurysm?scale=0.01", technique="reference")
+    assert str(caught.value) == cli_error("render", "synth:aneurysm?scale=0.01", "-o",
+                                          tmp_path / "x.png")
