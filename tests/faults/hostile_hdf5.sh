@@ -41,55 +41,65 @@ print("\n".join(map(str, sorted(found))))
 EOF
 }
 
-# damage FILE OFFSET COMMANDS: copies FILE, damages the copy, runs each linebake command of
-# COMMANDS (comma separated) on it and prints "OFFSET COMMAND STATUS NAMED SAME" for each (NAMED:
-# the error names the copy; SAME: the output equals the pristine file's).
-damage() {
-  local file="$1" offset="$2" commands="$3"
-  local copy="d$offset-${commands//,/-}-$file" command status named same
-  cp "$file" "$copy"
-  perl -e 'open(F, "+<", $ARGV[0]) or die; seek(F, $ARGV[1], 0); read(F, $b, 4);
-    seek(F, $ARGV[1], 0); print F ($b ^ ("\xA5" x length($b)))' "$copy" "$offset"
-  for command in ${commands//,/ }; do
-    run "$copy" "$command" >"$copy.out" 2>"$copy.err"
-    status=$?
-    named=0 same=0
-    grep -q "$copy" "$copy.err" && named=1
-    cmp -s "$copy.out" "$file.$command.out" && same=1
-    echo "$offset $command $status $named $same"
-  done
-  rm -f "$copy" "$copy.out" "$copy.err"
-}
-# The outputs compared: the text of info and report without the file's own name and size, and
-# the rendered image's bytes.
-run() {
-  local file="$1" command="$2" status
-  case "$command" in
-    info | report) "$bin" "$command" "$file" >"$file.text" ;;
-    render) "$bin" render "$file" --technique reference --size 48x36 -o "$file.png" >/dev/null ;;
-  esac
-  status=$?
-  case "$command" in
-    info | report) grep -v -e "$file" -e bytes -e 'file size' "$file.text" ;;
-    render) [ $status -eq 0 ] && cat "$file.png" ;;
-  esac
-  rm -f "$file.text" "$file.png"
-  return $status
-}
-export bin
-export -f damage run
-
-run lines.h5 info >lines.h5.info.out
-run cache.lbc.h5 report >cache.lbc.h5.report.out
-run cache.lbc.h5 render >cache.lbc.h5.render.out
-{
+# One Python process damages the copies and runs linebake on them, two at a time: a shell per
+# damaged copy (cp, perl, grep, cmp) cost as much CPU as linebake itself. For each job it prints
+# "OFFSET COMMAND STATUS NAMED SAME" (NAMED: the error names the copy; SAME: the output equals
+# the pristine file's). Outputs compared: the text of info and report without the lines naming
+# the file or its size, and the rendered image's bytes.
+jobs() {
   offsets lines.h5 | sed 's/$/ lines.h5 info/'
   # render reads what report reads and the tubes' data: every 2048th byte and the chunk indices.
   offsets cache.lbc.h5 | awk '{ print $1, "cache.lbc.h5", "report" }'
   offsets cache.lbc.h5 FAHD FADB EAHD EAIB EASB EADB BTHD BTIN BTLF TREE |
     awk '$1 % 2048 == 0 || $1 >= 8192 || $1 % 64 != 0 { print $1, "cache.lbc.h5", "render" }'
-} >jobs
-awk '{print $2, $1, $3}' jobs | xargs -P 2 -n 3 bash -c 'damage "$0" "$1" "$2"' >results
+}
+jobs >jobs
+python3 - "$bin" jobs >results <<'EOF2'
+import os, subprocess, sys
+from concurrent.futures import ThreadPoolExecutor
+
+linebake, job_file = sys.argv[1], sys.argv[2]
+pristine = {name: open(name, "rb").read() for name in ("lines.h5", "cache.lbc.h5")}
+
+def output(copy, command):
+    """The command's comparable output and its status."""
+    if command == "render":
+        png = copy + ".png"
+        done = subprocess.run([linebake, "render", copy, "--technique", "reference", "--size",
+                               "48x36", "-o", png], capture_output=True)
+        out = open(png, "rb").read() if done.returncode == 0 else b""
+        if os.path.exists(png):
+            os.remove(png)
+        return done, out
+    done = subprocess.run([linebake, command, copy], capture_output=True)
+    kept = [line for line in done.stdout.splitlines(keepends=True)
+            if copy.encode() not in line and b"bytes" not in line and b"file size" not in line]
+    return done, b"".join(kept)
+
+expected = {}
+for name, command in (("lines.h5", "info"), ("cache.lbc.h5", "report"),
+                      ("cache.lbc.h5", "render")):
+    expected[name, command] = output(name, command)[1]
+
+def damage(job):
+    offset, name, command = job.split()
+    offset = int(offset)
+    copy = f"d{offset}-{command}-{name}"
+    data = bytearray(pristine[name])
+    for i in range(offset, min(offset + 4, len(data))):
+        data[i] ^= 0xA5
+    with open(copy, "wb") as f:
+        f.write(data)
+    done, out = output(copy, command)
+    named = int(copy.encode() in done.stderr)
+    same = int(out == expected[name, command])
+    os.remove(copy)
+    return f"{offset} {command} {done.returncode if done.returncode >= 0 else 128 - done.returncode} {named} {same}"
+
+with ThreadPoolExecutor(2) as pool:
+    for line in pool.map(damage, open(job_file).read().split("\n")[:-1]):
+        print(line)
+EOF2
 
 runs=$(wc -l <results)
 signals=$(awk '$3 >= 128' results | wc -l)
