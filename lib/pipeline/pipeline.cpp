@@ -304,9 +304,13 @@ std::string cache_path(const Pipeline& p, const std::string& dataset) {
   return p.output + "/" + dataset + ".lbc.h5";
 }
 
+// A transfer function file gives its name without folder and extension (semi-vivid.json:
+// "semi-vivid"), so outputs stay in the dataset's folder with readable names.
 std::string render_stem(const Pipeline& p, const std::string& dataset, const std::string& label,
                         const std::string& tf) {
-  return p.output + "/" + dataset + "/" + label + "-" + tf;
+  const std::filesystem::path path(tf);
+  const std::string name = path.extension() == ".json" ? path.stem().string() : tf;
+  return p.output + "/" + dataset + "/" + label + "-" + name;
 }
 
 std::string frame_file(const std::string& stem, int frame, const char* suffix) {
