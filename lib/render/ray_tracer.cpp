@@ -368,28 +368,22 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
     Scratch& sc = scratch.local();
     const auto rows = tile.rows(), cols = tile.cols();
-    if (walk) {
-      for (int y = rows.begin(); y != rows.end(); ++y)
-        for (int x = cols.begin(); x != cols.end(); ++x) {
-          glm::dvec3 dir;
-          double t_near, t_far;
-          ray(x, y, dir, t_near, t_far);
-          const auto c = walk_intervals(scene, camera.eye, dir, t_near, t_far, scale, tf, options,
-                                        sc.ray, sc.counters);
-          for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
-          sc.peak_raw = std::max(sc.peak_raw, sc.ray.raw.capacity() + sc.ray.interval.capacity());
-        }
-      return;
-    }
     if (!packets) {
       for (int y = rows.begin(); y != rows.end(); ++y)
         for (int x = cols.begin(); x != cols.end(); ++x) {
           glm::dvec3 dir;
           double t_near, t_far;
           ray(x, y, dir, t_near, t_far);
-          collect(scene, camera.eye, dir, t_near, t_far, options.collection, sc.raw[0]);
-          ++sc.counters.traversals;
-          shade(sc, sc.raw[0], x, y, dir);
+          if (!walk) {
+            collect(scene, camera.eye, dir, t_near, t_far, options.collection, sc.raw[0]);
+            ++sc.counters.traversals;
+            shade(sc, sc.raw[0], x, y, dir);
+            continue;
+          }
+          const auto c = walk_intervals(scene, camera.eye, dir, t_near, t_far, scale, tf, options,
+                                        sc.ray, sc.counters);
+          for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
+          sc.peak_raw = std::max(sc.peak_raw, sc.ray.raw.capacity() + sc.ray.interval.capacity());
         }
       return;
     }

@@ -264,9 +264,7 @@ PyCache::PyCache(const std::string& path) : path_(path) {
 }
 
 const TubeMesh& PyCache::tubes() {
-  if (!tubes_) {
-    if (!reader_->exists(kTubesGroup))
-      throw InputError(path_, "", "the cache has no tubes (linebake bake CACHE --assets tubes)");
+  if (!tubes_) {  // load_tubes says what is missing, as the CLI does
     py::gil_scoped_release unlocked;
     tubes_ = std::make_shared<TubeMesh>(load_tubes(*reader_));
   }
@@ -274,9 +272,7 @@ const TubeMesh& PyCache::tubes() {
 }
 
 const VoxelGrid& PyCache::voxels() {
-  if (!voxels_) {
-    if (!reader_->exists(kVoxelsGroup))
-      throw InputError(path_, "", "the cache has no voxels (linebake bake CACHE --assets voxels)");
+  if (!voxels_) {  // load_voxels says what is missing, as the CLI does
     py::gil_scoped_release unlocked;
     voxels_ = std::make_shared<VoxelGrid>(load_voxels(*reader_));
   }
