@@ -548,6 +548,35 @@ TEST(StreamReaderContent, NoLines) {
   }
 }
 
+// A text reader's buffer starts at the file's size (at least 4 KiB, at most 1 MiB) and grows for
+// a longer line: an OBJ polyline of 200,000 indices is one 1.3 MB line; a small OBJ and CSV
+// without a final newline end within their first buffer.
+TEST(StreamReaderContent, TextLinesLongerThanTheReadBuffer) {
+  TempDir dir;
+  const int n = 200000;
+  std::string text;
+  for (int i = 0; i < n; ++i) text += "v " + std::to_string(i) + " 0 " + std::to_string(-i) + "\n";
+  text += "l";
+  for (int i = 1; i <= n; ++i) text += " " + std::to_string(i);
+  text += "\n";
+  ASSERT_GT(text.size() - text.rfind('l'), size_t(1) << 20);
+  write_text(dir.file("long.obj"), text);
+  const LineSet whole = read_line_set(dir.file("long.obj"));
+  ASSERT_EQ(whole.line_count(), 1u);
+  ASSERT_EQ(whole.point_count(), size_t(n));
+  EXPECT_EQ(whole.positions[3 * (n - 1)], float(n - 1));
+  EXPECT_EQ(whole.positions[3 * (n - 1) + 2], -float(n - 1));
+
+  write_text(dir.file("small.obj"), "v 0 0 0\nv 1 2 3\nl 1 2");  // no final newline
+  write_text(dir.file("small.csv"), "line_id,x,y,z\n0,0,0,0\n0,1,2,3");
+  for (const char* name : {"small.obj", "small.csv"}) {
+    SCOPED_TRACE(name);
+    const LineSet small = read_line_set(dir.file(name));
+    ASSERT_EQ(small.point_count(), 2u);
+    EXPECT_EQ(small.positions[5], 3.0f);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Malformed files fail the same way streamed in small batches
 

@@ -87,6 +87,8 @@ class Compositor {
   // No further hit can change the pixel: alpha 1, or the early-termination alpha reached.
   bool opaque() const { return alpha_ >= stop_alpha_; }
   uint64_t used() const { return used_; }
+  double alpha() const { return alpha_; }
+  double stop_alpha() const { return stop_alpha_; }
   std::array<double, 4> over_background() const;  // linear RGB and A
 
  private:
