@@ -5,6 +5,7 @@
 // TEXTURE_COORDINATES, TENSORS and FIELD arrays; multi-component arrays are split into
 // name_x/_y/_z (3 components) or name_0.._k.
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -40,7 +41,10 @@ std::optional<io::Scalar> legacy_type(const std::string& type) {
 class LegacyStream {
  public:
   LegacyStream(const std::string& path, ProgressFn progress)
-      : file_(path), progress_(std::move(progress)), buffer_(1 << 20) {}
+      : file_(path),
+        progress_(std::move(progress)),
+        // As io::TextReader: no more than the file (a small file should not zero a megabyte).
+        buffer_(size_t(std::clamp<uint64_t>(file_.size(), 4096, 1 << 20))) {}
 
   bool fill() {
     if (pos_ < end_) return true;
