@@ -30,8 +30,9 @@ File::~File() {
 TextReader::TextReader(const std::string& path, ProgressFn progress)
     : file_(path),
       progress_(std::move(progress)),
-      // 1 MiB, or the file and a byte for a small one: a small file read often (a fuzzer's
-      // input, a sidecar) should not pay for zeroing a megabyte. refill() grows it for long lines.
+      // 1 MiB, or the file and a byte (at least 4 KiB) for a small one: a small file read often
+      // (a fuzzer's input, a sidecar) should not pay for zeroing a megabyte. refill() grows it
+      // for longer lines.
       buffer_(size_t(std::clamp<uint64_t>(file_.size() + 1, 4096, 1 << 20))) {}
 
 bool TextReader::refill() {

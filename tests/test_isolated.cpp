@@ -156,3 +156,66 @@ TEST(H5Probe, AWalkFailureNamesTheDataset) {
     EXPECT_NE(std::string(e.what()).find("/points"), std::string::npos) << e.what();
   }
 }
+
+// A compact dataset keeps its data in its header. One whose header says it stores fewer bytes
+// than its shape (a fuzzed file said 0) made HDF5 1.10.8 copy from a null buffer, in-process,
+// when the reader read it: the walk and the reader both refuse it now, and a sound compact
+// dataset still reads.
+TEST(H5Probe, ACompactDatasetMustStoreItsShape) {
+  TempDir dir;
+  const std::string path = dir.file("compact.h5");
+  {
+    h5::init();
+    h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    const hsize_t dims[2] = {4, 3};
+    h5::Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+    h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    H5Pset_layout(dcpl, H5D_COMPACT);
+    h5::Handle d(H5Dcreate2(file, "points", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+                 H5Dclose);
+    const float values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
+    const uint64_t offsets[2] = {0, 4};
+    const hsize_t two = 2;
+    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
+    h5::Handle o(
+        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+  }
+  const LineSet sound = read_line_set(path);
+  ASSERT_EQ(sound.point_count(), 4u);
+  EXPECT_EQ(sound.positions[11], 12.0f);
+  // The layout message (version 3, class 0: compact) holds the size, 48 bytes, then the data.
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const float first[2] = {1, 2};
+  const size_t data = bytes.find(std::string(reinterpret_cast<const char*>(first), 8));
+  ASSERT_NE(data, std::string::npos);
+  ASSERT_GE(data, 4u);
+  ASSERT_EQ(bytes.substr(data - 4, 4), std::string("\x03\x00\x30\x00", 4));
+  bytes[data - 2] = 0;  // "stores 0 bytes"
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  for (const char* isolation : {"on", "off"}) {
+    SCOPED_TRACE(isolation);
+    setenv("LINEBAKE_ISOLATION", isolation, 1);
+    try {
+      (void)read_line_set(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      EXPECT_NE(std::string(e.what()).find("/points"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("compact dataset whose shape claims 48 bytes, but it "
+                                           "stores 0"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  unsetenv("LINEBAKE_ISOLATION");
+}

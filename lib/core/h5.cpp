@@ -124,7 +124,30 @@ uint64_t max_decoded_bytes(hid_t dataset) {
   return stored > (UINT64_MAX - slack) / ratio ? UINT64_MAX : stored * ratio + slack;
 }
 
+namespace {
+
+uint64_t shape_bytes(hid_t dataset) {
+  Handle type(H5Dget_type(dataset), H5Tclose);
+  uint64_t bytes = type.valid() ? H5Tget_size(type) : 1;
+  for (hsize_t n : shape_of(dataset))
+    bytes = n != 0 && bytes > UINT64_MAX / n ? UINT64_MAX : bytes * n;
+  return bytes;
+}
+
+}  // namespace
+
+std::string damaged_compact_storage(hid_t dataset) {
+  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+  if (!dcpl.valid() || H5Pget_layout(dcpl) != H5D_COMPACT) return "";
+  const uint64_t bytes = shape_bytes(dataset), stored = H5Dget_storage_size(dataset);
+  if (stored == bytes) return "";
+  return "compact dataset whose shape claims " + std::to_string(bytes) + " bytes, but it stores " +
+         std::to_string(stored) + ": the header is damaged";
+}
+
 void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name) {
+  const std::string compact = damaged_compact_storage(dataset);
+  if (!compact.empty()) throw InputError(path, "dataset " + name, compact);
   // Nothing stored to compare with: data never written (all fill value), a virtual dataset or
   // one in external files. Their readers size batches, not the whole shape.
   Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
@@ -132,10 +155,7 @@ void check_claimed_size(const std::string& path, hid_t dataset, const std::strin
   if (!dcpl.valid() || H5Pget_layout(dcpl) == H5D_VIRTUAL || H5Pget_external_count(dcpl) > 0 ||
       H5Dget_space_status(dataset, &status) < 0 || status == H5D_SPACE_STATUS_NOT_ALLOCATED)
     return;
-  Handle type(H5Dget_type(dataset), H5Tclose);
-  uint64_t bytes = type.valid() ? H5Tget_size(type) : 1;
-  for (hsize_t n : shape_of(dataset))
-    bytes = n != 0 && bytes > UINT64_MAX / n ? UINT64_MAX : bytes * n;
+  const uint64_t bytes = shape_bytes(dataset);
   const uint64_t most = max_decoded_bytes(dataset);
   if (bytes > most)
     throw InputError(path, "dataset " + name,
