@@ -9,6 +9,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <iterator>
 #include <limits>
@@ -679,4 +680,51 @@ TEST(StreamReaderMalformed, Netcdf) {
   expect_same_failure(dir.file("none.nc"), "no trajectory variables");
   write_text(dir.file("text.nc"), "not netcdf");
   expect_same_failure(dir.file("text.nc"), "cannot open as NetCDF");
+}
+
+// NetCDF-4 data is read by HDF5 under libnetcdf, and HDF5 1.10.8 trusts a compact dataset's
+// stored size when it reads one (tests/test_isolated.cpp,
+// H5Probe.ACompactDatasetMustStoreItsShape). A NetCDF-4 variable damaged that way is refused
+// already when libnetcdf opens the file, in the isolated walk: a clean error naming the file, even
+// for a variable the reader does not read.
+TEST(StreamReaderMalformed, NetcdfCompactVariableWithoutItsData) {
+  TempDir dir;
+  const std::string path = dir.file("a.nc");
+  write_multidimensional(path, true, 2, 3, grid_x(2, 3, {}));
+  {
+    int nc, k, extra;
+    nc_ok(nc_open(path.c_str(), NC_WRITE, &nc));
+    nc_ok(nc_redef(nc));
+    nc_ok(nc_def_dim(nc, "k", 3, &k));
+    nc_ok(nc_def_var(nc, "extra", NC_FLOAT, 1, &k, &extra));
+    nc_ok(nc_def_var_chunking(nc, extra, NC_COMPACT, nullptr));
+    nc_ok(nc_enddef(nc));
+    const float values[3] = {101.5f, 202.5f, 303.5f};
+    nc_ok(nc_put_var_float(nc, extra, values));
+    nc_ok(nc_close(nc));
+  }
+  EXPECT_EQ(read_line_set(path).line_count(), 2u);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const float first[2] = {101.5f, 202.5f};
+  const size_t data = bytes.find(std::string(reinterpret_cast<const char*>(first), 8));
+  ASSERT_NE(data, std::string::npos);
+  ASSERT_GE(data, 4u);
+  // The layout message: version 3, class 0 (compact), 12 bytes, then the data.
+  ASSERT_EQ(bytes.substr(data - 4, 4), std::string("\x03\x00\x0c\x00", 4));
+  bytes[data - 2] = 0;
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  try {
+    (void)read_line_set(path);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_NE(std::string(e.what()).find("cannot open as NetCDF"), std::string::npos) << e.what();
+  }
 }
