@@ -172,6 +172,17 @@ assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'
 assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
 assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
 check "bench render: a Markdown table, unknown techniques refused before any work" bash -c "'$bin' bench render '$tmp/t.lbc.h5' --techniques wboit --frames 1 --size 32x24 2>/dev/null | grep -q '^| t (495,000) | semi | wboit | llvmpipe' && '$bin' bench render '$tmp/t.lbc.h5' --techniques wbiot 2> '$tmp/bench.err'; [ \$? -ne 0 ] && grep -q \"unknown technique 'wbiot'\" '$tmp/bench.err'"
+check "bench render --every-hit: embree's interval walk and every hit, the same image" python3 -c "
+import json, subprocess
+def bench(*extra):
+    return json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'embree', '--tf', 'opaque', '--frames', '1', '--size', '64x48', '--json', *extra], check=True, capture_output=True, text=True).stdout)
+walk, every = bench(), bench('--every-hit')
+assert walk['every_hit'] is False and every['every_hit'] is True, (walk, every)
+w, e = walk['runs'][0]['rows'][0], every['runs'][0]['rows'][0]
+assert w['every_hit'] is False and e['every_hit'] is True, (w, e)
+assert e['traversals'] == 64 * 48 and e['rays_stopped_opaque'] == 0, e
+assert w['rays_stopped_opaque'] > 0 and w['front_hits'] < e['front_hits'], (w, e)
+assert w['psnr_db'] == e['psnr_db'] and w['ssim'] == e['ssim'], (w, e)  # the same image"
 check "--rt-geometry is an rtx option (usage error)" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step

@@ -126,6 +126,11 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
       frame_bytes = std::max(frame_bytes, frame.frame_bytes);
       if (frame.stats.contains("critical_section"))
         row["critical_section"] = frame.stats["critical_section"];
+      // The CPU tracers' path (every hit, or the interval walk) and its traversal counts.
+      for (const char* count : {"traversals", "rays_stopped_opaque", "front_hits"})
+        if (frame.stats.contains(count))
+          row[count] = row.value(count, uint64_t{0}) + frame.stats[count].get<uint64_t>();
+      if (frame.stats.contains("every_hit")) row["every_hit"] = frame.stats["every_hit"];
       if (technique.info.name == "dp" && frame.stats.contains("layers")) {
         layers.push_back(frame.stats["layers"]);
         capped = capped || frame.stats.value("layers_capped", false);
@@ -269,10 +274,10 @@ void bench_render(const BenchRenderArgs& args) {
     }
     options.context = &*context;
   }
-  nlohmann::json result = {{"size", {width, height}},
-                           {"frames", args.frames},
-                           {"flight", "orbit-zoom"},
-                           {"runs", nlohmann::json::array()}};
+  nlohmann::json result = {
+      {"size", {width, height}},     {"frames", args.frames},
+      {"flight", "orbit-zoom"},      {"early_termination", args.early_termination},
+      {"every_hit", args.every_hit}, {"runs", nlohmann::json::array()}};
   for (const std::string& path : args.caches) {
     const CacheReader cache(path);
     nlohmann::json run = {{"cache", std::filesystem::path(path).stem().stem().string()},
@@ -285,6 +290,9 @@ void bench_render(const BenchRenderArgs& args) {
       for (const std::string& name : names) {
         TechniqueOptions o = options;
         if (name == "vrc-gpu") o.on = "gpu";
+        // The reference stays exact (its frames above are rendered without these).
+        o.early_termination = args.early_termination && name != "reference";
+        o.every_hit = args.every_hit;
         nlohmann::json row =
             bench_one(args, find_technique(technique_of(name)), cache, path, tf, o, references);
         row["technique"] = name;

@@ -13,6 +13,8 @@ struct BenchRenderArgs {
   int frames = 8;
   std::string size = "1920x1080", device;
   double max_seconds = 0;  // per technique and transfer function: stop after the frame past it
+  bool early_termination = false;  // as render's: embree, ll, rtx, tiles (never reference)
+  bool every_hit = false;          // embree, reference: every hit of every ray, no interval walk
   bool json = false;
 };
 

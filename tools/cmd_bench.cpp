@@ -462,6 +462,11 @@ Command add_bench(CLI::App& app) {
                    "Per technique and transfer function, stop after the frame that passes "
                    "this many seconds (dp on large sets); default: render every frame")
       ->check(non_negative());
+  rendering->add_flag("--early-termination", render->early_termination,
+                      "Stop compositing at opacity 0.99, as render (never the reference)");
+  rendering->add_flag("--every-hit", render->every_hit,
+                      "embree, reference: collect every hit of every ray (the path render --stats "
+                      "takes), not the interval walk");
   rendering->add_flag("--json", render->json, "Print the figures as JSON");
   auto isolation_args = std::make_shared<BenchIsolationArgs>();
   auto* isolation = bench->add_subcommand(
