@@ -20,7 +20,9 @@
 #include "test_util.hpp"
 
 using namespace linebake;
+using linebake::test::read_text;
 using linebake::test::TempDir;
+using linebake::test::write_text;
 using Kind = IsolatedOutcome::Kind;
 
 TEST(Isolated, ReturnsTheChildsResult) {
@@ -136,18 +138,11 @@ TEST(H5Probe, AWalkFailureNamesTheDataset) {
   EXPECT_EQ(read_line_set(path).point_count(), 4096u);
   // Damage the v1 B-tree of the chunk index: its node signature "TREE" is followed by the node
   // type, level and entry count; a wrong level sends HDF5 to a child node that is not there.
-  std::string bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string bytes = read_text(path);
   size_t at = bytes.find("TREE", 1000);  // the root group's is near the start; the chunk index
   ASSERT_NE(at, std::string::npos);      // comes after the dataset's header
   bytes[at + 4] = 5;                     // node type 5: neither group nor chunk
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out << bytes;
-  }
+  write_text(path, bytes);
   try {
     (void)read_line_set(path);
     FAIL() << "no error";
@@ -187,21 +182,14 @@ TEST(H5Probe, ACompactDatasetMustStoreItsShape) {
   ASSERT_EQ(sound.point_count(), 4u);
   EXPECT_EQ(sound.positions[11], 12.0f);
   // The layout message (version 3, class 0: compact) holds the size, 48 bytes, then the data.
-  std::string bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string bytes = read_text(path);
   const float first[2] = {1, 2};
   const size_t data = bytes.find(std::string(reinterpret_cast<const char*>(first), 8));
   ASSERT_NE(data, std::string::npos);
   ASSERT_GE(data, 4u);
   ASSERT_EQ(bytes.substr(data - 4, 4), std::string("\x03\x00\x30\x00", 4));
   bytes[data - 2] = 0;  // "stores 0 bytes"
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out << bytes;
-  }
+  write_text(path, bytes);
   for (const char* isolation : {"on", "off"}) {
     SCOPED_TRACE(isolation);
     setenv("LINEBAKE_ISOLATION", isolation, 1);

@@ -22,6 +22,7 @@
 #include "test_util.hpp"
 
 using namespace linebake;
+using linebake::test::read_text;
 using linebake::test::TempDir;
 using linebake::test::write_bytes;
 using linebake::test::write_text;
@@ -704,11 +705,7 @@ TEST(StreamReaderMalformed, NetcdfCompactVariableWithoutItsData) {
     nc_ok(nc_close(nc));
   }
   EXPECT_EQ(read_line_set(path).line_count(), 2u);
-  std::string bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    bytes.assign(std::istreambuf_iterator<char>(in), {});
-  }
+  std::string bytes = read_text(path);
   const float first[2] = {101.5f, 202.5f};
   const size_t data = bytes.find(std::string(reinterpret_cast<const char*>(first), 8));
   ASSERT_NE(data, std::string::npos);
@@ -716,10 +713,7 @@ TEST(StreamReaderMalformed, NetcdfCompactVariableWithoutItsData) {
   // The layout message: version 3, class 0 (compact), 12 bytes, then the data.
   ASSERT_EQ(bytes.substr(data - 4, 4), std::string("\x03\x00\x0c\x00", 4));
   bytes[data - 2] = 0;
-  {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out << bytes;
-  }
+  write_text(path, bytes);
   try {
     (void)read_line_set(path);
     FAIL() << "no error";
