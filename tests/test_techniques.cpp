@@ -108,7 +108,8 @@ TEST(Techniques, SayWhyTheyCannotRunHere) {
 
 // Device-local buffers filled through a staging buffer in small pieces (as on a discrete GPU)
 // give the same images as lavapipe's in-place writes; so do the voxel grid's arrays split across
-// storage buffers.
+// storage buffers. With staging forced the results (images, per-pixel counts, ll's node counter)
+// are device-local too and reach the host through Context::read_back's copy.
 TEST(Techniques, StagingInPiecesGivesIdenticalImages) {
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.002"));
   TubeOptions to;
@@ -128,13 +129,27 @@ TEST(Techniques, StagingInPiecesGivesIdenticalImages) {
   std::cout << "lavapipe uploads in place: " << in_place.uploads_in_place() << "\n";
   vk::RasterOptions ro;
   ro.width = 64, ro.height = 48;
-  for (auto technique : {vk::RasterTechnique::LinkedLists, vk::RasterTechnique::Opaque}) {
+  ro.capacity = 8;  // ll grows its node pool: the counter is read back mid-frame
+  for (auto technique : {vk::RasterTechnique::LinkedLists, vk::RasterTechnique::Opaque,
+                         vk::RasterTechnique::DepthPeeling}) {
     ro.technique = technique;
     vk::RasterRenderer a(in_place, mesh), b(staged, mesh);
     const vk::RasterFrame fa = a.render(camera, tf, ro), fb = b.render(camera, tf, ro);
     EXPECT_EQ(fa.image.pixels, fb.image.pixels) << vk::to_string(technique);
+    EXPECT_EQ(fa.alpha, fb.alpha) << vk::to_string(technique);
+    EXPECT_EQ(fa.depth_complexity, fb.depth_complexity) << vk::to_string(technique);
+    EXPECT_EQ(fa.stats.fragments, fb.stats.fragments) << vk::to_string(technique);
+    EXPECT_EQ(fa.stats.regrows, fb.stats.regrows) << vk::to_string(technique);
     const auto [lo, hi] = std::minmax_element(fa.image.pixels.begin(), fa.image.pixels.end());
     EXPECT_GT(*hi - *lo, 0.1f) << "the tubes are in the picture";
+    if (technique == vk::RasterTechnique::LinkedLists) {
+      EXPECT_GT(fb.stats.regrows, 0) << "the pool grew from the counter read back";
+      EXPECT_GT(fb.stats.fragments, ro.capacity);
+    }
+    const vk::RasterFrame ca = a.count_fragments(camera, tf, 64, 48),
+                          cb = b.count_fragments(camera, tf, 64, 48);
+    EXPECT_EQ(ca.depth_complexity, cb.depth_complexity);
+    EXPECT_GT(cb.stats.max_depth_complexity, 1u);
   }
   VrcOptions vrc;
   vrc.width = 64, vrc.height = 48;

@@ -427,6 +427,48 @@ void Context::destroy(Buffer& b) {
   b = Buffer{};
 }
 
+void Context::destroy(ResultBuffer& r) {
+  destroy(r.gpu);
+  destroy(r.host);
+}
+
+ResultBuffer Context::create_result(uint64_t size, VkBufferUsageFlags usage) {
+  usage |= VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  ResultBuffer r;
+  r.gpu = create_buffer(size, usage, in_place_uploads_);
+  if (in_place_uploads_) return r;
+  try {
+    r.host = create_buffer(r.gpu.size, VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+  } catch (...) {
+    destroy(r);
+    throw;
+  }
+  return r;
+}
+
+const void* Context::read_back(const ResultBuffer& r, uint64_t bytes) {
+  if (r.gpu.mapped) return r.gpu.mapped;
+  const uint64_t count = std::min(bytes, r.gpu.size);
+  if (count > 0)
+    submit([&](VkCommandBuffer cmd) {
+      // The writes of earlier submissions (shaders, copies, fills) become visible to the copy,
+      // and the copy to the host.
+      VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+      before.srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT;
+      before.dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                           0, 1, &before, 0, nullptr, 0, nullptr);
+      const VkBufferCopy region{0, 0, count};
+      vkCmdCopyBuffer(cmd, r.gpu.buffer, r.host.buffer, 1, &region);
+      VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+      after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+      after.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                           &after, 0, nullptr, 0, nullptr);
+    });
+  return r.host.mapped;
+}
+
 VkQueryPool Context::create_timestamp_pair() {
   if (!timestamps_) return VK_NULL_HANDLE;
   VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};

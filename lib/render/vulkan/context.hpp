@@ -64,6 +64,16 @@ struct Buffer {
   void* mapped = nullptr;  // host-visible buffers stay mapped
 };
 
+// A buffer the GPU writes and the host reads (images, per-pixel counts, counters). On a GPU with
+// memory of its own `gpu` is device-local, so shader writes and atomics stay in video memory
+// rather than crossing PCIe, and `host` is a host-cached mirror that Context::read_back fills by
+// a copy; where device-local memory is the host's (lavapipe, integrated GPUs) `gpu` is mapped and
+// `host` stays empty.
+struct ResultBuffer {
+  Buffer gpu;   // what shaders bind and commands fill
+  Buffer host;  // the mirror, or empty
+};
+
 class Context {
  public:
   explicit Context(const ContextOptions& options = {});
@@ -101,7 +111,14 @@ class Context {
   // Whether create_filled writes device-local memory in place (no staging copy).
   bool uploads_in_place() const { return in_place_uploads_; }
   bool ray_tracing() const { return ray_tracing_; }
+  // A ResultBuffer of `size` bytes (usage gains TRANSFER_SRC and TRANSFER_DST, for the readback
+  // copy and for clearing with vkCmdFillBuffer).
+  ResultBuffer create_result(uint64_t size, VkBufferUsageFlags usage);
+  // The host's view of bytes [0, bytes) of a result, after the GPU work that wrote them has been
+  // waited for: the mapped buffer itself, or the mirror after a copy (one submission, waited for).
+  const void* read_back(const ResultBuffer& result, uint64_t bytes = VK_WHOLE_SIZE);
   void destroy(Buffer& buffer);
+  void destroy(ResultBuffer& result);
   uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags properties) const;
 
   // Records `record` into a fresh command buffer, submits it and waits.

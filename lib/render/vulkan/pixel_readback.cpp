@@ -4,15 +4,12 @@
 
 namespace linebake::vk {
 
-PixelReadback read_pixels(const Buffer& rgba_buffer, const Buffer& counts_buffer, int width,
-                          int height) {
+PixelReadback read_pixels(const float* rgba, const uint32_t* counts, int width, int height) {
   const uint64_t pixels = uint64_t(width) * uint64_t(height);
   PixelReadback out;
   out.image = Image(width, height, 3);
   out.alpha.resize(pixels);
   out.counts.resize(pixels);
-  const auto* rgba = static_cast<const float*>(rgba_buffer.mapped);
-  const auto* counts = static_cast<const uint32_t*>(counts_buffer.mapped);
   for (uint64_t p = 0; p < pixels; ++p) {
     for (uint64_t k = 0; k < 3; ++k) out.image.pixels[3 * p + k] = rgba[4 * p + k];
     out.alpha[p] = rgba[4 * p + 3];
@@ -28,10 +25,15 @@ bool PixelTargets::resize(Context& context, int w, int h) {
   vkDeviceWaitIdle(context.device());
   release(context);
   const uint64_t pixels = uint64_t(w) * uint64_t(h);
-  rgba = context.create_buffer(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-  counts = context.create_buffer(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  rgba = context.create_result(pixels * 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  counts = context.create_result(pixels * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   width = w, height = h;
   return true;
+}
+
+PixelReadback PixelTargets::read(Context& context) const {
+  return read_pixels(static_cast<const float*>(context.read_back(rgba)),
+                     static_cast<const uint32_t*>(context.read_back(counts)), width, height);
 }
 
 void PixelTargets::release(Context& context) {

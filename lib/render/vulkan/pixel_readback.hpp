@@ -1,6 +1,6 @@
 #pragma once
 // Reading back what the per-pixel GPU techniques (voxel caster, ray tracer) write: linear RGBA
-// (16 bytes per pixel) and a hit count per pixel, from host-visible buffers.
+// (16 bytes per pixel) and a hit count per pixel, through Context::read_back.
 
 #include <cstdint>
 #include <vector>
@@ -18,16 +18,17 @@ struct PixelReadback {
   uint32_t maximum = 0;  // largest count
 };
 
-PixelReadback read_pixels(const Buffer& rgba, const Buffer& counts, int width, int height);
+PixelReadback read_pixels(const float* rgba, const uint32_t* counts, int width, int height);
 
-// The two host-visible per-pixel buffers those techniques write, sized for one image.
+// The two per-pixel result buffers those techniques write, sized for one image.
 struct PixelTargets {
-  Buffer rgba, counts;
+  ResultBuffer rgba, counts;
   int width = 0, height = 0;
   // Reallocates for a new size (waiting for the device first); false when the size is unchanged.
   bool resize(Context& context, int w, int h);
   void release(Context& context);
-  PixelReadback read() const { return read_pixels(rgba, counts, width, height); }
+  // After the GPU work that wrote them has been waited for.
+  PixelReadback read(Context& context) const;
 };
 
 }  // namespace linebake::vk

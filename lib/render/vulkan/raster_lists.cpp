@@ -27,8 +27,8 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
     ctx.submit([&](VkCommandBuffer cmd) {
       begin_timing(cmd);
       fill(cmd, pixel_state, 0, VK_WHOLE_SIZE, kEmptyList);
-      fill(cmd, counter, 0, VK_WHOLE_SIZE, 0);
-      fill(cmd, stats, 0, VK_WHOLE_SIZE, 0);
+      fill(cmd, counter.gpu, 0, VK_WHOLE_SIZE, 0);
+      fill(cmd, stats.gpu, 0, VK_WHOLE_SIZE, 0);
       barrier_all(cmd);
       mark(cmd, "clear");
       draw(cmd, DrawSetup{"ll_gather.frag", 0, false, false, {0, 0, paged(), page_unit_bytes / 4}});
@@ -37,7 +37,7 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
                             {resolve_max, uint32_t(o.sort), paged(), page_unit_bytes / 4}));
       mark(cmd, "resolve");
     });
-    return uint64_t(*static_cast<const uint32_t*>(counter.mapped));
+    return uint64_t(*static_cast<const uint32_t*>(ctx.read_back(counter)));
   };
   uint64_t needed = gather_and_resolve();
   // Overflow: grow the node buffer to what the frame needed and render it again.
@@ -53,7 +53,7 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
   }
   read_timings(frame.stats);
   // Lists longer than the resolve's local arrays: resolve again with room for them.
-  const uint32_t longest = *static_cast<const uint32_t*>(stats.mapped);
+  const uint32_t longest = *static_cast<const uint32_t*>(ctx.read_back(stats, 4));
   if (longest > resolve_max) {
     resolve_max = next_power_of_two(longest);
     ctx.submit([&](VkCommandBuffer cmd) {

@@ -32,7 +32,7 @@ void RasterRenderer::State::render_peeling(const RasterOptions& o, RasterFrame& 
       if (done == 0) {
         begin_timing(cmd);
         fill(cmd, pixel_state, 0, VK_WHOLE_SIZE, kMinusOne);
-        fill(cmd, output, 0, VK_WHOLE_SIZE, 0);
+        fill(cmd, output.gpu, 0, VK_WHOLE_SIZE, 0);
         barrier_all(cmd);
       }
       const int end = std::min(layers, done + kLayersPerSubmission);

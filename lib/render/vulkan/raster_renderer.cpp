@@ -148,7 +148,8 @@ void RasterRenderer::State::destroy_image(Image2D& i) {
 }
 
 void RasterRenderer::State::release_frame() {
-  for (Buffer* b : {&uniforms, &pixel_state, &nodes, &counter, &output, &stats}) ctx.destroy(*b);
+  for (Buffer* b : {&uniforms, &pixel_state, &nodes}) ctx.destroy(*b);
+  for (ResultBuffer* b : {&counter, &output, &stats}) ctx.destroy(*b);
   for (Image2D* i : {&colour, &scalar, &colour2, &depth}) destroy_image(*i);
   release_pages();
   width = height = 0;
@@ -351,10 +352,12 @@ VkPipeline RasterRenderer::State::compute(const std::string& name,
 }
 
 void RasterRenderer::State::write_descriptors() {
-  write_buffer_set(ctx.device(), set, {&uniforms, &pixel_state, &nodes, &counter, &output, &stats});
+  write_buffer_set(ctx.device(), set,
+                   {&uniforms, &pixel_state, &nodes, &counter.gpu, &output.gpu, &stats.gpu});
   // Pages the pool does not use point at the counter: bound, never read.
   std::vector<const Buffer*> bound;
-  for (uint32_t i = 0; i < kPages; ++i) bound.push_back(i < pages.size() ? &pages[i] : &counter);
+  for (uint32_t i = 0; i < kPages; ++i)
+    bound.push_back(i < pages.size() ? &pages[i] : &counter.gpu);
   write_buffer_array(ctx.device(), set, kBindings, bound);
 }
 
@@ -441,9 +444,9 @@ void RasterRenderer::State::prepare_frame(int w, int h, uint64_t pixel_state_wan
   uniforms = ctx.create_buffer(sizeof(FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   pixel_state = ctx.create_buffer(pixel_state_bytes, storage, false);
   nodes = ctx.create_buffer(node_bytes, storage, false);
-  counter = ctx.create_buffer(4, storage, true);
-  output = ctx.create_buffer(pixels() * 16, storage, true);
-  stats = ctx.create_buffer(4 + pixels() * 4, storage, true);
+  counter = ctx.create_result(4, storage);
+  output = ctx.create_result(pixels() * 16, storage);
+  stats = ctx.create_result(4 + pixels() * 4, storage);
   const VkImageUsageFlags target =
       VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
   colour = make_image(VK_FORMAT_R32G32B32A32_SFLOAT, target, VK_IMAGE_ASPECT_COLOR_BIT);
@@ -510,6 +513,7 @@ void RasterRenderer::State::fill_uniforms(const Camera& camera, const TransferFu
   u.oit_counts[0] = uint32_t(std::max(o.layers, 0));
   u.oit_counts[1] = uint32_t(o.wboit_weight);
   std::memcpy(uniforms.mapped, &u, sizeof u);
+  std::memcpy(background, u.background, sizeof background);
 }
 
 void RasterRenderer::State::begin_timing(VkCommandBuffer cmd) {
@@ -622,7 +626,7 @@ void RasterRenderer::State::dispatch(VkCommandBuffer cmd, VkPipeline pipeline) {
 }
 
 void RasterRenderer::State::read_output(RasterFrame& frame) {
-  const auto* rgba = static_cast<const float*>(output.mapped);
+  const auto* rgba = static_cast<const float*>(ctx.read_back(output));
   frame.image = Image(width, height, 3);
   frame.alpha.resize(pixels());
   for (int y = 0; y < height; ++y)
@@ -634,7 +638,7 @@ void RasterRenderer::State::read_output(RasterFrame& frame) {
 }
 
 void RasterRenderer::State::read_depth_complexity(RasterFrame& frame) {
-  const auto* counts = static_cast<const uint32_t*>(stats.mapped) + 1;
+  const auto* counts = static_cast<const uint32_t*>(ctx.read_back(stats)) + 1;
   frame.depth_complexity.assign(counts, counts + pixels());
   uint64_t total = 0;
   for (uint32_t d : frame.depth_complexity) {
@@ -648,11 +652,10 @@ void RasterRenderer::State::render_opaque(RasterFrame& frame) {
   ctx.submit([&](VkCommandBuffer cmd) {
     begin_timing(cmd);
     DrawSetup setup{"opaque.frag", 1, true};
-    const auto* bg = reinterpret_cast<const FrameUniforms*>(uniforms.mapped)->background;
-    setup.clear = {bg[0], bg[1], bg[2], 0};
+    setup.clear = {background[0], background[1], background[2], 0};
     draw(cmd, setup);
     mark(cmd, "draw");
-    copy_targets(cmd, output.buffer, {0});
+    copy_targets(cmd, output.gpu.buffer, {0});
   });
   read_timings(frame.stats);
   read_output(frame);
@@ -662,7 +665,7 @@ void RasterRenderer::State::render_opaque(RasterFrame& frame) {
 void RasterRenderer::State::count_fragments(RasterFrame& frame) {
   ctx.submit([&](VkCommandBuffer cmd) {
     begin_timing(cmd);
-    fill(cmd, stats, 0, VK_WHOLE_SIZE, 0);
+    fill(cmd, stats.gpu, 0, VK_WHOLE_SIZE, 0);
     barrier_all(cmd);
     draw(cmd, DrawSetup{"count.frag"});
     mark(cmd, "count");

@@ -86,7 +86,13 @@ struct RasterRenderer::State {
   int width = 0, height = 0;
   uint64_t pixel_state_bytes = 0, node_bytes = 0;
   uint64_t list_capacity = 0;  // ll: nodes the gather may write
-  Buffer uniforms, pixel_state, nodes, counter, output, stats;
+  Buffer uniforms, pixel_state, nodes;
+  // What the host reads back: ll's node counter, the resolved RGBA, and `longest` followed by
+  // the depth complexity per pixel (Context::read_back).
+  ResultBuffer counter, output, stats;
+  // The frame's background, kept here: the uniform buffer may be device memory the host should
+  // not read.
+  float background[4] = {0, 0, 0, 0};
   // Storage past one buffer (shaders/pages.glsl): pages of page_units units (ll: nodes; mlab:
   // words; a power of two) of page_unit_bytes each, pool_units in all.
   std::vector<Buffer> pages;

@@ -47,7 +47,8 @@ struct RtRenderer::State {
   VkDescriptorSet set = VK_NULL_HANDLE;
   VkPipeline pipeline = VK_NULL_HANDLE;
   VkQueryPool queries = VK_NULL_HANDLE;
-  Buffer uniforms, counters, sbt;
+  Buffer uniforms, sbt;
+  ResultBuffer counters;  // back hits, truncated pixels, traces, seam hits
   PixelTargets targets;
   VkStridedDeviceAddressRegionKHR raygen{}, miss{}, hit{}, callable{};
 
@@ -56,7 +57,8 @@ struct RtRenderer::State {
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
-    for (Buffer* b : {&uniforms, &counters, &sbt}) ctx.destroy(*b);
+    for (Buffer* b : {&uniforms, &sbt}) ctx.destroy(*b);
+    ctx.destroy(counters);
     targets.release(ctx);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
     if (pipeline) vkDestroyPipeline(d, pipeline, nullptr);
@@ -200,8 +202,9 @@ struct RtRenderer::State {
         VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
     as.accelerationStructureCount = 1;
     as.pAccelerationStructures = &tlas;
-    const Buffer* buffers[kBindings] = {nullptr,       &uniforms,       &scene.chunk_table(),
-                                        &targets.rgba, &targets.counts, &counters};
+    const Buffer* buffers[kBindings] = {
+        nullptr,           &uniforms,           &scene.chunk_table(),
+        &targets.rgba.gpu, &targets.counts.gpu, &counters.gpu};
     std::array<VkDescriptorBufferInfo, kBindings> infos{};
     std::array<VkWriteDescriptorSet, kBindings> writes{};
     for (uint32_t i = 0; i < kBindings; ++i) {
@@ -238,7 +241,7 @@ RtRenderer::RtRenderer(Context& context) : state_(std::make_unique<State>(contex
   if (!context.ray_tracing())
     throw Error("rtx: the Vulkan context was created without ray tracing");
   s.uniforms = context.create_buffer(sizeof(RtUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
-  s.counters = context.create_buffer(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  s.counters = context.create_result(16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
   s.create_layout();
   s.create_pipeline();
   s.queries = context.create_timestamp_pair();
@@ -269,8 +272,14 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
   u.tf_counts[2] = o.hits == RtHits::Stepping ? 1u : 0u;
   std::memcpy(s.uniforms.mapped, &u, sizeof u);
-  std::memset(s.counters.mapped, 0, 16);
   s.ctx.submit([&](VkCommandBuffer cmd) {
+    vkCmdFillBuffer(cmd, s.counters.gpu.buffer, 0, VK_WHOLE_SIZE, 0);
+    VkMemoryBarrier cleared{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    cleared.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    cleared.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, 0, 1, &cleared, 0, nullptr,
+                         0, nullptr);
     if (s.queries) {
       vkCmdResetQueryPool(cmd, s.queries, 0, 2);
       vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
@@ -290,13 +299,13 @@ RtFrame RtRenderer::render(const RtScene& scene, const Camera& camera,
   RtFrame frame;
   frame.stats.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  PixelReadback read = s.targets.read();
+  PixelReadback read = s.targets.read(s.ctx);
   frame.image = std::move(read.image);
   frame.alpha = std::move(read.alpha);
   frame.depth_complexity = std::move(read.counts);
   frame.stats.hits = read.total;
   frame.stats.max_depth_complexity = read.maximum;
-  const auto* c = static_cast<const uint32_t*>(s.counters.mapped);
+  const auto* c = static_cast<const uint32_t*>(s.ctx.read_back(s.counters));
   frame.stats.back_hits = c[0];
   frame.stats.truncated_pixels = c[1];
   frame.stats.traces = c[2];

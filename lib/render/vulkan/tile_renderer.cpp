@@ -81,7 +81,7 @@ struct TileRenderer::State {
   void bind() {
     write_buffer_set(ctx.device(), set.set,
                      {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
-                      &targets.rgba, &targets.counts, &stats, &slice, &states, &rows});
+                      &targets.rgba.gpu, &targets.counts.gpu, &stats, &slice, &states, &rows});
   }
 
   ~State() {
@@ -405,14 +405,14 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   CompositeStats cs;
   std::memcpy(&cs, s.stats.mapped, sizeof cs);
   st.window_overflows = cs.window_overflows;
-  PixelReadback read = s.targets.read();
+  PixelReadback read = s.targets.read(ctx);
   frame.image = std::move(read.image);
   frame.depth_complexity = std::move(read.counts);
   st.hits = read.total;
   st.max_depth_complexity = read.maximum;
   st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
-                   s.ranges.size + s.rows.size + s.targets.rgba.size + s.targets.counts.size +
-                   (st.slices > 1 ? s.states.size : 0);
+                   s.ranges.size + s.rows.size + s.targets.rgba.gpu.size +
+                   s.targets.counts.gpu.size + (st.slices > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }

@@ -70,8 +70,9 @@ struct VoxelCaster::State {
   }
 
   void write_descriptors() {
-    write_buffer_set(ctx.device(), set,
-                     {&uniforms, &offsets, &chords, &occupancy, &targets.rgba, &targets.counts});
+    write_buffer_set(
+        ctx.device(), set,
+        {&uniforms, &offsets, &chords, &occupancy, &targets.rgba.gpu, &targets.counts.gpu});
     for (auto [binding, pages] :
          {std::pair{kBindings, &offset_pages}, std::pair{kBindings + 1, &chord_pages}}) {
       std::vector<const Buffer*> bound;
@@ -236,7 +237,7 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   });
   s.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
-  PixelReadback read = s.targets.read();
+  PixelReadback read = s.targets.read(s.ctx);
   frame.image = std::move(read.image);
   frame.alpha = std::move(read.alpha);
   frame.depth_complexity = std::move(read.counts);
