@@ -26,6 +26,16 @@ class BinlinesReader : public LineReader {
     const auto attribute_count = in_.read_value<uint32_t>("attribute count");
     if (attribute_count > 4096)
       in_.fail_at(8, "implausible attribute count " + std::to_string(attribute_count));
+    // Before anything is sized from the header: each line needs at least its 4-byte count and,
+    // in version 2, each attribute its 4-byte name length.
+    const uint64_t left = in_.size() - in_.offset();
+    const uint64_t names = version == 2 ? 4ull * attribute_count : 0;
+    if (names > left)
+      in_.fail_at(8, "attribute count " + std::to_string(attribute_count) + " needs " +
+                         std::to_string(names) + " bytes of names, the file has " +
+                         std::to_string(left) + " left");
+    if (static_cast<uint64_t>(line_count_) * 4 > left - names)
+      in_.fail_at(4, "line count " + std::to_string(line_count_) + " does not fit the file size");
     header_.attributes.resize(attribute_count);
     for (uint32_t a = 0; a < attribute_count; ++a) {
       header_.attributes[a].name = "attribute" + std::to_string(a);

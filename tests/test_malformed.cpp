@@ -111,6 +111,17 @@ TEST(Malformed, Binlines) {
   // Two lines announced, one present.
   write_bytes(dir.file("d.binlines"), {1, 0, 0, 0, 200, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
   expect_error(dir.file("d.binlines"), "line count 200 does not fit");
+  // Version 2 names its attributes: 3585 of them need 14,340 bytes of name lengths before a
+  // 32-byte file's end (a fuzzer's input; each used to make an Attribute first).
+  std::vector<uint8_t> names = {2, 0, 0, 0, 2, 0, 0, 0, 0x01, 0x0e, 0, 0};
+  names.resize(32, 0);
+  write_bytes(dir.file("e.binlines"), names);
+  expect_error(dir.file("e.binlines"),
+               "byte offset 8: attribute count 3585 needs 14340 bytes of names, the file has 20 "
+               "left");
+  // Version 1 with no lines may declare attributes without data: a valid, empty file.
+  write_bytes(dir.file("f.binlines"), {1, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0});
+  EXPECT_EQ(read_line_set(dir.file("f.binlines")).attributes.size(), 256u);
 }
 
 TEST(Malformed, VtkLegacy) {
