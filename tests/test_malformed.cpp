@@ -280,6 +280,10 @@ TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
   };
   write_text(dir.file("tf.json"), "{\"name\": \"x\", \"range\": [0, 1e400]}");
   refused("tf.json", [](const std::string& p) { load_transfer_function(p); });
+  // The campaign's finding: a name that is not a string (nlohmann::json's type_error 302).
+  write_text(dir.file("tf-name.json"),
+             "{\"name\":[0, 1], \"colours\": [[1, 0, 0.1, 0]], \"opacities\": [[0, 0.1], [1, 1]]}");
+  refused("tf-name.json", [](const std::string& p) { load_transfer_function(p); });
   write_text(dir.file("keys.json"),
              "{\"keyframes\": [{\"eye\": [0, 0, 1], \"target\": [0, 0, 0], \"fov\": \"wide\"}]}");
   refused("keys.json", [](const std::string& p) {

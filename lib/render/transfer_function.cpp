@@ -102,6 +102,8 @@ TransferFunction load_transfer_function(const std::string& path) {
   };
   for (const auto& p : points("colours", 4)) tf.colours.push_back({p[0], {p[1], p[2], p[3]}});
   for (const auto& p : points("opacities", 2)) tf.opacities.push_back({p[0], p[1]});
+  if (j.contains("name") && !j["name"].is_string())
+    throw InputError(path, "name", "expected a string");
   tf.name = j.value("name", path);
   if (j.contains("range")) {
     if (!j["range"].is_array() || j["range"].size() != 2)
