@@ -3,11 +3,14 @@
 // checked binary reads with byte offsets, byte order, and exact float formatting.
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.hpp"
@@ -101,15 +104,32 @@ T BinaryReader::read_value(const char* what, bool swap) {
 enum class Scalar { int8, uint8, int16, uint16, int32, uint32, int64, uint64, float32, float64 };
 size_t scalar_size(Scalar type);
 
-// Converts `count` packed values of `type` at `src` (byte-swapped when `swap`) to Out.
+// `v` as Out. Where Out is an integer type, a floating-point `v` must be finite and inside Out's
+// range, since the cast is undefined behaviour otherwise: false (and `out` untouched) where not.
+template <typename Out, typename T>
+[[nodiscard]] bool convert_scalar(T v, Out& out) {
+  if constexpr (std::is_integral_v<Out> && std::is_floating_point_v<T>) {
+    const double lowest = double(std::numeric_limits<Out>::lowest());
+    const double past_max = std::ldexp(1.0, std::numeric_limits<Out>::digits);  // max + 1
+    if (!(double(v) >= lowest && double(v) < past_max)) return false;
+  }
+  out = static_cast<Out>(v);
+  return true;
+}
+
+// Converts `count` packed values of `type` at `src` (byte-swapped when `swap`) to Out: false
+// when a value does not fit Out (convert_scalar), e.g. a float array read as indices.
 template <typename Out>
-void decode_scalars(Scalar type, const unsigned char* src, size_t count, bool swap, Out* out) {
+[[nodiscard]] bool decode_scalars(Scalar type, const unsigned char* src, size_t count, bool swap,
+                                  Out* out) {
+  bool fits = true;
   auto run = [&]<typename T>(T) {
     for (size_t i = 0; i < count; ++i) {
       T v;
       std::memcpy(&v, src + i * sizeof(T), sizeof(T));
-      out[i] = static_cast<Out>(swap ? byteswap_value(v) : v);
+      fits = convert_scalar(swap ? byteswap_value(v) : v, out[i]) && fits;
     }
+    return fits;
   };
   switch (type) {
     case Scalar::int8:
@@ -133,6 +153,7 @@ void decode_scalars(Scalar type, const unsigned char* src, size_t count, bool sw
     case Scalar::float64:
       return run(double{});
   }
+  return fits;
 }
 
 // Whitespace tokenizer over one line.

@@ -137,7 +137,7 @@ void read_values(LegacyStream& in, bool binary, const std::string& type_name, si
         in.fail("file ends after " + std::to_string(i) + " of " + std::to_string(count) +
                 " values");
       if (!io::parse_double(t, v)) in.fail("bad number '" + t + "'");
-      out[i] = static_cast<Out>(v);
+      if (!io::convert_scalar(v, out[i])) in.fail("value " + t + " is outside the array's range");
     }
     return;
   }
@@ -149,7 +149,8 @@ void read_values(LegacyStream& in, bool binary, const std::string& type_name, si
   for (size_t done = 0; done < count; done += kChunk) {
     const size_t n = std::min(kChunk, count - done);
     in.bytes(raw.data(), n * size);
-    io::decode_scalars(*type, raw.data(), n, swap, out + done);
+    if (!io::decode_scalars(*type, raw.data(), n, swap, out + done))
+      in.fail("a " + type_name + " value outside the range of the array it is read into");
   }
 }
 
@@ -209,8 +210,8 @@ Cells read_cells(LegacyStream& in, bool binary, uint64_t a, uint64_t b) {
       std::vector<unsigned char> raw(b * 4);
       std::memcpy(raw.data(), head, 7);
       in.bytes(raw.data() + 7, raw.size() - 7);
-      io::decode_scalars(io::Scalar::int32, raw.data(), b,
-                         std::endian::native == std::endian::little, classic.data());
+      (void)io::decode_scalars(io::Scalar::int32, raw.data(), b,  // int32 always fits int64
+                               std::endian::native == std::endian::little, classic.data());
       return split_classic(in, classic, a);
     }
   } else {

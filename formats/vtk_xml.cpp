@@ -251,7 +251,8 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
       double v;
       if (!io::parse_double(tokens[i], v))
         ctx.fail(where, "bad number '" + std::string(tokens[i]) + "'");
-      out[i] = static_cast<Out>(v);
+      if (!io::convert_scalar(v, out[i]))
+        ctx.fail(where, "value " + std::string(tokens[i]) + " is outside the array's range");
     }
     return out;
   }
@@ -268,7 +269,8 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
   if (bytes.size() != count * size)
     ctx.fail(where,
              std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
-  io::decode_scalars(*type, bytes.data(), count, ctx.swap, out.data());
+  if (!io::decode_scalars(*type, bytes.data(), count, ctx.swap, out.data()))
+    ctx.fail(where, "a " + type_name + " value outside the range of the indices it holds");
   return out;
 }
 

@@ -266,6 +266,32 @@ TEST(FuzzFindings, VtpLinesWithoutConnectivity) {
   expect_error(dir.file("noconn.vtp"), "missing connectivity array");
 }
 
+// The campaign's finding: an index too large for int64 (UBSan: 2e+110 outside the range of
+// 'long' in the cast); a float array of indices with a NaN, in VTP binary and legacy VTK alike.
+TEST(FuzzFindings, IndicesOutsideTheirIntegerRange) {
+  TempDir dir;
+  const auto lines = [](const std::string& type, const std::string& format,
+                        const std::string& connectivity) {
+    return vtp_piece("NumberOfPoints=\"2\" NumberOfLines=\"1\"",
+                     "<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" "
+                     "format=\"ascii\">0 0 0 1 1 1</DataArray></Points><Lines><DataArray "
+                     "type=\"" +
+                         type + "\" Name=\"connectivity\" format=\"" + format + "\">" +
+                         connectivity +
+                         "</DataArray><DataArray type=\"Int64\" Name=\"offsets\" "
+                         "format=\"ascii\">2</DataArray></Lines>");
+  };
+  write_text(dir.file("huge.vtp"), lines("Int64", "ascii", "0 2e110"));
+  expect_error(dir.file("huge.vtp"), "DataArray 'connectivity': value 2e110 is outside");
+  // Float32 {0, NaN}, binary: a UInt64 byte count, then the data, in base64.
+  write_text(dir.file("nan.vtp"), lines("Float32", "binary", "CAAAAAAAAAAAAAAAAADAfw=="));
+  expect_error(dir.file("nan.vtp"), "a Float32 value outside the range of the indices");
+  write_text(dir.file("huge.vtk"),
+             "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n"
+             "0 0 0 1 1 1\nLINES 1 3\n2 0 1e300\n");
+  expect_error(dir.file("huge.vtk"), "value 1e300 is outside the array's range");
+}
+
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
 // is not UTF-8 are the file's errors, with its name, not nlohmann::json's exceptions.
 TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
