@@ -2,8 +2,9 @@
 // 32-bit values, sorted stably by 8-bit digits, least significant first. The design is the
 // reduce-then-scan sort of AMD FidelityFX Parallel Sort (count per block, scan the per-digit
 // counts of all blocks, scatter), written anew for linebake: a block is kBlockItems keys, one
-// workgroup of kThreads threads each; the scatter ranks keys stably with a local split sort, so
-// neither subgroup operations nor anything past core Vulkan compute is needed.
+// workgroup of kThreads threads each; the scatter ranks keys stably by counting bits of per-digit
+// thread masks in shared memory (radix_scatter.comp), so neither subgroup operations nor
+// anything past core Vulkan compute is needed.
 
 const uint kThreads = 256;
 const uint kItems = 4;  // keys per thread per block

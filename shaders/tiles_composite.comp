@@ -25,6 +25,22 @@ void load_primitive(uint lane, uint s) {
   batch_after[lane] = (flags & 2u) != 0u ? points[p + 2u].xyz : points[p + 1u].xyz;
 }
 
+// Whether the pixel's ray may cross batch entry i's capsule: the line of the ray passes within
+// the radius of the segment (every crossing capsule.glsl reports lies on the segment's own
+// capsule), with half a radius and the float error of the far eye to spare. A cheap test
+// before the exact one: the composite walks only the entries that pass it.
+const bool kNearTest = true;
+bool may_cross(uint i, vec3 direction) {
+  const vec3 w = batch_p0[i].xyz - frame.eye.xyz, e = batch_p1[i].xyz - batch_p0[i].xyz;
+  // The parts of w and e across the ray: the segment seen along the ray.
+  const vec3 across = w - dot(w, direction) * direction;
+  const vec3 slope = e - dot(e, direction) * direction;
+  const float slope2 = dot(slope, slope);
+  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
+  const float slack = 0.125 * frame.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
+  return length(across + h * slope) <= frame.params.y + slack;
+}
+
 void intersect_primitive(uint i, uint primitive, vec3 direction) {
   CapsuleSegment c;
   c.p0 = batch_p0[i].xyz;

@@ -1,7 +1,8 @@
 // tiles, pass 3, shared by the primitives' composite passes (tiles_composite.comp for capsules,
 // tiles_composite_triangles.comp): one workgroup per 16x16 tile walks the tile's primitives in
 // key order, a batch of 256 at a time through shared memory. Each pixel intersects its ray with
-// each primitive and keeps its hits in a small window sorted by t. A hit is composited once no
+// the primitives whose screen bounds cover its block of 4x2 pixels and keeps its hits in a small
+// window sorted by t. A hit is composited once no
 // later primitive can come nearer: every later key's depth bound is past it. Only when the window
 // is full is its nearest hit composited early, and that is counted (window_overflows).
 //
@@ -10,7 +11,9 @@
 // (lavapipe: 65535) render in slices; others in one.
 //
 // The including shader defines, before this file: kBatch, load_primitive(lane, primitive), which puts
-// the primitive in its shared batch arrays, and intersect_primitive(i, primitive, direction),
+// the primitive in its shared batch arrays, screen_bounds (as for binning), kNearTest and
+// may_cross(i, direction), a conservative test before the exact one (used where kNearTest), and
+// intersect_primitive(i, primitive, direction),
 // which calls insert(t, colour, primitive, seam) for each front hit of batch entry i along the pixel's ray from the eye.
 
 layout(local_size_x = 16, local_size_y = 16) in;
@@ -19,6 +22,34 @@ const int kWindow = 16;
 
 shared float batch_bound[kBatch];     // the key's depth bound
 shared uint batch_primitive[kBatch];  // its primitive
+
+// Pixels go to invocations in blocks of 4x2, eight consecutive invocations per block, so the
+// invocations one SIMD unit runs together (lavapipe: 8 along x) share a block. Per block, a bit
+// per batch entry whose screen bounds cover it: a block walks only those, in key order, so a
+// small capsule costs the pixels near it instead of the whole tile's 256 (on lavapipe, where a
+// SIMD unit runs both sides of a branch, a skip inside the loop would save nothing).
+const uint kBlocks = 32;
+shared uint block_entries[kBlocks][kBatch / 32u];
+
+uvec2 pixel_in_tile(uint lane) {
+  const uint block = lane / 8u, k = lane % 8u;
+  return uvec2((block % 4u) * 4u + k % 4u, (block / 4u) * 2u + k / 4u);
+}
+
+// Marks batch entry `entry` in the blocks its screen bounds [lo, hi] cover in the tile whose
+// first pixel is `origin`; pixel x is covered when floor(lo.x) <= x <= floor(hi.x), the test
+// binning's tiles make (tiles_keys.glsl). Bounds it cannot use cover the whole tile.
+void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
+  ivec2 p0 = ivec2(0), p1 = ivec2(int(kTile) - 1);
+  if (bounded && !any(isnan(lo)) && !any(isnan(hi))) {
+    p0 = max(ivec2(clamp(floor(lo) - origin, -1.0, float(kTile))), p0);
+    p1 = min(ivec2(clamp(floor(hi) - origin, -1.0, float(kTile))), p1);
+    if (p0.x > p1.x || p0.y > p1.y) return;
+  }
+  for (int by = p0.y / 2; by <= p1.y / 2; ++by)
+    for (int bx = p0.x / 4; bx <= p1.x / 4; ++bx)
+      atomicOr(block_entries[by * 4 + bx][entry / 32u], 1u << (entry % 32u));
+}
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows; } stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range;
 // first: the pixels start empty; last: they are written out.
@@ -116,59 +147,90 @@ void insert(float t, vec4 c, uint primitive, float seam) {
 
 void main() {
   // The dispatch covers the band's tile rows.
-  const uvec2 pixel = gl_GlobalInvocationID.xy + uvec2(0u, frame.band.x * kTile);
-  const uint tile = (gl_WorkGroupID.y + frame.band.x) * frame.tiles.x + gl_WorkGroupID.x;
+  const uvec2 tile_xy = gl_WorkGroupID.xy + uvec2(0u, frame.band.x);
+  const uint tile = tile_xy.y * frame.tiles.x + tile_xy.x;
   const uint lane = gl_LocalInvocationIndex;
+  const uvec2 pixel = tile_xy * kTile + pixel_in_tile(lane);
+  const uint block = lane / 8u;
   const bool inside = pixel.x < frame.size.x && pixel.y < frame.size.y;
   const uint index = pixel.y * frame.size.x + pixel.x;
-  if (inside && slicing.first == 0u) {
-    const PixelState s = states[index];
-    colour = s.colour_alpha.rgb;
-    alpha = s.colour_alpha.a;
-    hit_count = s.hits;
-    pending = int(s.pending);
-    done = s.done != 0u;
-    last_t = s.last_t;
-    last_primitive = s.last_primitive;
-    for (int k = 0; k < kWindow; ++k)
-      window_t[k] = s.t[k], window_primitive[k] = s.primitive[k], window_colour[k] = s.colour[k];
-  }
   const uvec2 whole = ranges[tile];
   const uint begin = min(whole.x + slicing.slice * slicing.slice_keys, whole.y);
   const uint end = min(begin + slicing.slice_keys, whole.y);
+  // A middle slice past the end of this tile's keys leaves its pixels' states as they are.
+  if (begin == end && slicing.first == 0u && slicing.last == 0u) return;
+  if (inside && slicing.first == 0u) {
+    colour = states[index].colour_alpha.rgb;
+    alpha = states[index].colour_alpha.a;
+    hit_count = states[index].hits;
+    pending = min(int(states[index].pending), kWindow);
+    done = states[index].done != 0u;
+    last_t = states[index].last_t;
+    last_primitive = states[index].last_primitive;
+    for (int k = 0; k < pending; ++k) {
+      window_t[k] = states[index].t[k];
+      window_primitive[k] = states[index].primitive[k];
+      window_colour[k] = states[index].colour[k];
+    }
+  }
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first);
+    block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
+    barrier();
     if (lane < count) {
-      batch_primitive[lane] = values[first + lane];
-      load_primitive(lane, batch_primitive[lane]);
+      const uint primitive = values[first + lane];
+      batch_primitive[lane] = primitive;
+      load_primitive(lane, primitive);
       batch_bound[lane] = key_depth(keys[first + lane]);
+      vec2 lo, hi;
+      float z_near;
+      const bool bounded = screen_bounds(primitive, lo, hi, z_near);
+      mark_blocks(lane, bounded, lo, hi, vec2(tile_xy * kTile));
     }
     barrier();
     if (inside && !done) {
       const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
       const vec3 direction =
           normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
-      for (uint i = 0u; i < count && !done; ++i) {
-        flush(batch_bound[i]);
-        if (done) break;
-        intersect_primitive(i, batch_primitive[i], direction);
+      // Skipped entries need no flush: the depth bounds grow in key order, so the flush before
+      // the next covering entry composites all that theirs would have.
+      for (uint w = 0u; w < kBatch / 32u && !done; ++w) {
+        uint entries = block_entries[block][w];
+        if (kNearTest) {
+          // Each pixel keeps the entries its ray passes near: the invocations of a SIMD unit
+          // then walk their own few instead of the block's many.
+          uint near = 0u;
+          for (uint left = entries; left != 0u; left &= left - 1u) {
+            const uint bit = uint(findLSB(left));
+            if (may_cross(w * 32u + bit, direction)) near |= 1u << bit;
+          }
+          entries = near;
+        }
+        while (entries != 0u && !done) {
+          const uint i = w * 32u + uint(findLSB(entries));
+          entries &= entries - 1u;
+          flush(batch_bound[i]);
+          if (done) break;
+          intersect_primitive(i, batch_primitive[i], direction);
+        }
       }
     }
     barrier();
   }
   if (!inside) return;
   if (slicing.last == 0u) {
-    PixelState s;
-    s.colour_alpha = vec4(colour, alpha);
-    s.hits = hit_count;
-    s.pending = uint(pending);
-    s.done = done ? 1u : 0u;
-    s.last_primitive = last_primitive;
-    s.last_t = last_t;
-    s.pad0 = s.pad1 = s.pad2 = 0.0;
-    for (int k = 0; k < kWindow; ++k)
-      s.t[k] = window_t[k], s.primitive[k] = window_primitive[k], s.colour[k] = window_colour[k];
-    states[index] = s;
+    states[index].colour_alpha = vec4(colour, alpha);
+    states[index].hits = hit_count;
+    states[index].pending = uint(pending);
+    states[index].done = done ? 1u : 0u;
+    states[index].last_primitive = last_primitive;
+    states[index].last_t = last_t;
+    // Only the pending hits: the rest of the window is never read.
+    for (int k = 0; k < pending; ++k) {
+      states[index].t[k] = window_t[k];
+      states[index].primitive[k] = window_primitive[k];
+      states[index].colour[k] = window_colour[k];
+    }
     return;
   }
   flush(3.0e38);

@@ -4,3 +4,29 @@
 layout(set = 0, binding = 1, std430) readonly buffer Vertices { vec4 vertices[]; };
 // Three vertex indices per triangle, counter-clockwise seen from outside.
 layout(set = 0, binding = 2, std430) readonly buffer Indices { uint indices[]; };
+
+// Triangle s on the screen: its pixel bounds [lo, hi] and nearest vertex depth; false when it
+// faces away or lies behind the eye. Binning bins these bounds; the composite tests only the
+// pixels inside them, so both must use this one function.
+bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near) {
+  const vec3 a = vertices[2u * indices[3u * s]].xyz, b = vertices[2u * indices[3u * s + 1u]].xyz,
+             c = vertices[2u * indices[3u * s + 2u]].xyz;
+  // Every ray from the eye meets a plane from one side: a triangle facing away has no front hit.
+  if (dot(cross(b - a, c - a), a - frame.eye.xyz) >= 0.0) return false;
+  const vec3 f = frame.forward.xyz;
+  const float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f),
+              zc = dot(c - frame.eye.xyz, f);
+  const float near = near_clip();
+  if (max(za, max(zb, zc)) <= near) return false;
+  if (min(za, min(zb, zc)) <= near) {
+    // Crossing the plane at the eye: its projection is unbounded, so every tile.
+    lo = vec2(0.0);
+    hi = vec2(frame.size.xy);
+  } else {
+    const vec3 pa = project(a), pb = project(b), pc = project(c);
+    lo = min(pa.xy, min(pb.xy, pc.xy)) - 1.0;
+    hi = max(pa.xy, max(pb.xy, pc.xy)) + 1.0;
+  }
+  z_near = min(za, min(zb, zc));
+  return true;
+}
