@@ -6,9 +6,10 @@
 // later primitive can come nearer: every later key's depth bound is past it. Only when the window
 // is full is its nearest hit composited early, and that is counted (window_overflows).
 //
-// A dispatch takes one slice of each tile's keys; the pixels' state (colour, window) carries over
-// between slices through a buffer. Devices that cap the loop iterations of an invocation
-// (lavapipe: 65535) render in slices; others in one.
+// A dispatch takes one slice of the keys of the tiles that have keys in it (the first slice: of
+// every tile); the pixels' state (colour, window) carries over between slices through a buffer,
+// and a tile's pixels are written out by its last slice. Devices that cap the loop iterations
+// of an invocation (lavapipe: 65535) render in slices; others in one.
 //
 // The including shader defines, before this file: kBatch, load_primitive(lane, primitive), which puts
 // the primitive in its shared batch arrays, screen_bounds (as for binning), kNearTest and
@@ -51,11 +52,12 @@ void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
       atomicOr(block_entries[by * 4 + bx][entry / 32u], 1u << (entry % 32u));
 }
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows; } stats;
-// This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range;
-// first: the pixels start empty; last: they are written out.
+// This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
+// for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each.
 layout(set = 0, binding = 10, std430) readonly buffer Slice {
-  uint slice, slice_keys, first, last;
+  uint slice, slice_keys, tile_offset, tile_count;
 } slicing;
+layout(set = 0, binding = 13, std430) readonly buffer SliceTiles { uint slice_tiles[]; };
 struct PixelState {
   vec4 colour_alpha;
   uint hits, pending, done, last_primitive;
@@ -146,9 +148,10 @@ void insert(float t, vec4 c, uint primitive, float seam) {
 }
 
 void main() {
-  // The dispatch covers the band's tile rows.
-  const uvec2 tile_xy = gl_WorkGroupID.xy + uvec2(0u, frame.band.x);
-  const uint tile = tile_xy.y * frame.tiles.x + tile_xy.x;
+  const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  if (entry >= slicing.tile_count) return;
+  const uint tile = slice_tiles[slicing.tile_offset + entry];
+  const uvec2 tile_xy = uvec2(tile % frame.tiles.x, tile / frame.tiles.x);
   const uint lane = gl_LocalInvocationIndex;
   const uvec2 pixel = tile_xy * kTile + pixel_in_tile(lane);
   const uint block = lane / 8u;
@@ -157,9 +160,9 @@ void main() {
   const uvec2 whole = ranges[tile];
   const uint begin = min(whole.x + slicing.slice * slicing.slice_keys, whole.y);
   const uint end = min(begin + slicing.slice_keys, whole.y);
-  // A middle slice past the end of this tile's keys leaves its pixels' states as they are.
-  if (begin == end && slicing.first == 0u && slicing.last == 0u) return;
-  if (inside && slicing.first == 0u) {
+  // The first slice starts the pixels empty; the tile's last writes them out.
+  const bool first_slice = slicing.slice == 0u, last_slice = end == whole.y;
+  if (inside && !first_slice) {
     colour = states[index].colour_alpha.rgb;
     alpha = states[index].colour_alpha.a;
     hit_count = states[index].hits;
@@ -218,7 +221,7 @@ void main() {
     barrier();
   }
   if (!inside) return;
-  if (slicing.last == 0u) {
+  if (!last_slice) {
     states[index].colour_alpha = vec4(colour, alpha);
     states[index].hits = hit_count;
     states[index].pending = uint(pending);

@@ -21,9 +21,9 @@ namespace {
 
 constexpr uint32_t kTile = 16;
 // 0 uniforms, 1 points, 2 segments, 3 keys, 4 values, 5 counters, 6 ranges, 7 pixels, 8 hit
-// counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row (shaders/tiles.glsl,
-// tiles_composite.comp).
-constexpr uint32_t kBindings = 13;
+// counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
+// slice (shaders/tiles.glsl, tiles_composite.glsl).
+constexpr uint32_t kBindings = 14;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
@@ -50,8 +50,10 @@ struct Counters {
 struct CompositeStats {
   uint32_t window_overflows;
 };
+// Slice `slice` composites keys [slice * slice_keys, (slice + 1) * slice_keys) of the tiles
+// slice_tiles[tile_offset, tile_offset + tile_count): those that have keys there (slice 0: all).
 struct SliceInfo {
-  uint32_t slice, slice_keys, first, last;
+  uint32_t slice, slice_keys, tile_offset, tile_count;
 };
 
 }  // namespace
@@ -65,7 +67,8 @@ struct TileRenderer::State {
   glm::dvec3 centre{};
   double extent = 0;  // radius of the bounding sphere, capsules included
   float radius = 0;   // capsules; 0 for triangles
-  Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows;
+  Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
+      slice_tiles;
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
@@ -79,16 +82,17 @@ struct TileRenderer::State {
             uint32_t slice_keys_wanted, bool triangles);
 
   void bind() {
-    write_buffer_set(ctx.device(), set.set,
-                     {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
-                      &targets.rgba.gpu, &targets.counts.gpu, &stats, &slice, &states, &rows});
+    write_buffer_set(
+        ctx.device(), set.set,
+        {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &targets.rgba.gpu,
+         &targets.counts.gpu, &stats, &slice, &states, &rows, &slice_tiles});
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
     for (Buffer* b : {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats,
-                      &slice, &states, &rows})
+                      &slice, &states, &rows, &slice_tiles})
       ctx.destroy(*b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
@@ -137,6 +141,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   rows = ctx.create_buffer(4, storage, true);
   slice = ctx.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
   states = ctx.create_buffer(4, storage, false);
+  slice_tiles = ctx.create_buffer(4, storage, true);
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted
                : ctx.info().driver.find("llvmpipe") != std::string::npos ||
                        ctx.info().name.find("llvmpipe") != std::string::npos
@@ -356,14 +361,34 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
       s.bind();
     }
+    // Each slice dispatches only the tiles with keys in it (the first: every tile, which starts
+    // its pixels), so one crowded tile does not cost a dispatch of the whole band per slice.
+    std::vector<uint32_t> slice_tiles;
+    std::vector<std::pair<uint32_t, uint32_t>> slice_lists;  // offset, count
+    for (uint32_t k = 0; k < slices; ++k) {
+      const size_t offset = slice_tiles.size();
+      for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
+        if (k == 0 || ranges[2 * t + 1] - ranges[2 * t] > uint64_t(k) * slice_keys)
+          slice_tiles.push_back(t);
+      slice_lists.emplace_back(uint32_t(offset), uint32_t(slice_tiles.size() - offset));
+    }
+    if (s.slice_tiles.size < slice_tiles.size() * 4) {
+      ctx.destroy(s.slice_tiles);
+      s.slice_tiles =
+          ctx.create_buffer(slice_tiles.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+      s.bind();
+    }
+    std::memcpy(s.slice_tiles.mapped, slice_tiles.data(), slice_tiles.size() * 4);
     st.composite_ms += pass([&](VkCommandBuffer cmd) {
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
       for (uint32_t k = 0; k < slices; ++k) {
-        const SliceInfo info{k, slice_keys, k == 0 ? 1u : 0u, k + 1 == slices ? 1u : 0u};
+        const auto [offset, count] = slice_lists[k];
+        const SliceInfo info{k, slice_keys, offset, count};
         vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
         barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-        vkCmdDispatch(cmd, tiles_x, last - first, 1);
+        // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
+        vkCmdDispatch(cmd, std::min<uint32_t>(count, 65535), (count + 65534) / 65535, 1);
         barrier(
             cmd,
             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
@@ -412,7 +437,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   st.max_depth_complexity = read.maximum;
   st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
                    s.ranges.size + s.rows.size + s.targets.rgba.gpu.size +
-                   s.targets.counts.gpu.size + (st.slices > 1 ? s.states.size : 0);
+                   s.targets.counts.gpu.size + s.slice_tiles.size +
+                   (st.slices > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }
