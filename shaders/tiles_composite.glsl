@@ -51,11 +51,11 @@ void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
     for (int bx = p0.x / 4; bx <= p1.x / 4; ++bx)
       atomicOr(block_entries[by * 4 + bx][entry / 32u], 1u << (entry % 32u));
 }
-layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows; } stats;
+layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
 // for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each.
 layout(set = 0, binding = 10, std430) readonly buffer Slice {
-  uint slice, slice_keys, tile_offset, tile_count;
+  uint slice, slice_keys, tile_offset, tile_count, sentinel;
 } slicing;
 layout(set = 0, binding = 13, std430) readonly buffer SliceTiles { uint slice_tiles[]; };
 struct PixelState {
@@ -220,6 +220,12 @@ void main() {
     }
     barrier();
   }
+  // lavapipe ends every loop of an invocation once its loops together have run 65535 times
+  // (gallivm's limiter), dropping work silently. A loop that must run `sentinel` times and runs
+  // fewer tells it, and the host composites the band again in smaller slices.
+  uint trips = 0u;
+  for (uint k = 0u; k < slicing.sentinel; ++k) ++trips;
+  if (trips != slicing.sentinel) atomicAdd(stats.cut_short, 1u);
   if (!inside) return;
   if (!last_slice) {
     states[index].colour_alpha = vec4(colour, alpha);

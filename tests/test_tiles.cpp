@@ -195,5 +195,45 @@ TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
   }
 }
 
+// A stack of short lines across the view axis, each a capsule a little behind the last: the
+// centre pixel's ray meets every one (one front hit each), and so the composite of its tile
+// runs far past lavapipe's 65535 loop iterations an invocation when given all keys at once.
+CapsuleSegments stacked_capsules(int count) {
+  LineSet lines;
+  for (int k = 0; k < count; ++k) {
+    const float z = 2.0f + 0.01f * float(k);
+    lines.append_point(-0.05f, 0, z), lines.append_point(0.05f, 0, z), lines.end_line();
+  }
+  lines.attributes = {{"v", std::vector<float>(size_t(2 * count), 0.5f)}};
+  return build_capsule_segments(lines, 0.004f, "v");
+}
+
+// Slices given all keys of a tile at once (as on GPUs without a loop limit) give the same bytes
+// as small ones, because an invocation cut short is found (a sentinel loop that runs short) and
+// its band composited again in smaller slices.
+TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
+  const int count = 3000;
+  const CapsuleSegments capsules = stacked_capsules(count);
+  Camera camera;
+  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
+  camera.fov_y_degrees = 40;
+  const TransferFunction tf = transfer_function_preset("transparent");
+  vk::TileOptions o;
+  o.width = 33, o.height = 33;
+  vk::Context ctx;
+  vk::TileRenderer whole(ctx, capsules, 0, 1u << 20), fine(ctx, capsules, 0, 16);
+  const vk::TileFrame a = whole.render(camera, tf, o), b = fine.render(camera, tf, o);
+  const size_t centre = size_t(16) * o.width + 16;
+  EXPECT_EQ(b.depth_complexity[centre], uint32_t(count));
+  EXPECT_EQ(a.depth_complexity[centre], uint32_t(count));
+  EXPECT_EQ(a.image.pixels, b.image.pixels);
+  EXPECT_EQ(a.depth_complexity, b.depth_complexity);
+  if (ctx.info().name.find("llvmpipe") != std::string::npos) {
+    // All 3,000 keys of a tile in one slice pass the limit there: found, and sliced again.
+    EXPECT_GT(a.stats.resliced, 0u);
+    EXPECT_GT(a.stats.slices, 1u);
+  }
+}
+
 }  // namespace
 }  // namespace linebake

@@ -70,6 +70,7 @@ class Tiles : public PreparedTechnique {
         {"window_overflows", s.window_overflows},
         {"rebins", s.rebins},
         {"slices", s.slices},
+        {"resliced", s.resliced},
         {"bands", s.bands},
         {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
         {"depth_complexity", {{"max", s.max_depth_complexity}}},

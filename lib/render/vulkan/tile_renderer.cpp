@@ -48,12 +48,13 @@ struct Counters {
   uint32_t key_count, binned;
 };
 struct CompositeStats {
-  uint32_t window_overflows;
+  uint32_t window_overflows, cut_short;
 };
 // Slice `slice` composites keys [slice * slice_keys, (slice + 1) * slice_keys) of the tiles
 // slice_tiles[tile_offset, tile_offset + tile_count): those that have keys there (slice 0: all).
+// `sentinel`: the trips of the loop that tells an invocation cut short (tiles_composite.glsl).
 struct SliceInfo {
-  uint32_t slice, slice_keys, tile_offset, tile_count;
+  uint32_t slice, slice_keys, tile_offset, tile_count, sentinel;
 };
 
 }  // namespace
@@ -341,15 +342,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                          (o.max_key_bytes > 0 ? ", or the memory budget" : "") +
                          "); a smaller image renders");
   }
-  // The composite pass over the band's tiles, in slices of each tile's keys where the device
-  // needs them: the number of slices.
-  const auto composite = [&](uint32_t first, uint32_t last) {
-    uint32_t longest = 0;
-    const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
-      longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
-    const uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : std::max<uint32_t>(longest, 1);
-    const uint32_t slices = std::max<uint32_t>(1, (longest + slice_keys - 1) / slice_keys);
+  // The composite pass over the band's tiles in `slices` slices of `slice_keys` keys per tile.
+  const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
+  const auto composite_slices = [&](uint32_t first, uint32_t last, uint32_t slice_keys,
+                                    uint32_t slices) {
     const uint64_t state_bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
     if (slices > 1 && s.states.size < state_bytes) {
       if (state_bytes > s.max_buffer)
@@ -383,7 +379,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
       for (uint32_t k = 0; k < slices; ++k) {
         const auto [offset, count] = slice_lists[k];
-        const SliceInfo info{k, slice_keys, offset, count};
+        const SliceInfo info{k, slice_keys, offset, count, 2};
         vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
         barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
@@ -395,7 +391,30 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
             VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
       }
     });
-    return slices;
+  };
+  // The composite pass over the band's tiles, in slices of each tile's keys where the device
+  // needs them: the number of slices. Where an invocation was cut short (lavapipe's loop limit)
+  // the band is composited again in slices a quarter the size.
+  const auto composite = [&](uint32_t first, uint32_t last) {
+    uint32_t longest = 0;
+    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
+      longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
+    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : std::max<uint32_t>(longest, 1);
+    CompositeStats before;
+    std::memcpy(&before, s.stats.mapped, sizeof before);
+    for (;;) {
+      const uint32_t slices = std::max<uint32_t>(1, (longest + slice_keys - 1) / slice_keys);
+      composite_slices(first, last, slice_keys, slices);
+      CompositeStats after;
+      std::memcpy(&after, s.stats.mapped, sizeof after);
+      if (after.cut_short == 0) return slices;
+      if (slice_keys == 1)
+        throw BudgetExceeded("tiles: " + ctx.info().name + " cut a composite invocation short " +
+                             "even at one key per slice (its loop iteration limit)");
+      slice_keys = std::max<uint32_t>(1, slice_keys / 4);
+      ++st.resliced;
+      std::memcpy(s.stats.mapped, &before, sizeof before);  // the band's overflows count again
+    }
   };
   st.bands = uint32_t(bands.size());
   uint64_t longest_band = 0;

@@ -44,6 +44,7 @@ struct TileStats {
   uint32_t slices = 1;        // composite dispatches per band (each a slice of every tile's keys)
   uint64_t max_row_keys = 0;  // keys of the fullest row of tiles (the smallest band)
   uint32_t bands = 1;         // bands of tile rows, each binned, sorted and composited alone
+  uint32_t resliced = 0;      // bands composited again in smaller slices (an invocation cut short)
 };
 
 struct TileFrame {
