@@ -2,20 +2,20 @@
 // tiles_composite_triangles.comp): one workgroup per 16x16 tile walks the tile's primitives in
 // key order, a batch of 256 at a time through shared memory. Each pixel intersects its ray with
 // the primitives whose screen bounds cover its block of 4x2 pixels and keeps its hits in a small
-// window sorted by t. A hit is composited once no
-// later primitive can come nearer: every later key's depth bound is past it. Only when the window
-// is full is its nearest hit composited early, and that is counted (window_overflows).
+// window sorted by t. A hit is composited once no later primitive can come nearer: every later
+// key's depth bound is past it. Only when the window is full is its nearest hit composited
+// early, and that is counted (window_overflows).
 //
 // A dispatch takes one slice of the keys of the tiles that have keys in it (the first slice: of
 // every tile); the pixels' state (colour, window) carries over between slices through a buffer,
 // and a tile's pixels are written out by its last slice. Devices that cap the loop iterations
 // of an invocation (lavapipe: 65535) render in slices; others in one.
 //
-// The including shader defines, before this file: kBatch, load_primitive(lane, primitive), which puts
-// the primitive in its shared batch arrays, screen_bounds (as for binning), kNearTest and
-// may_cross(i, direction), a conservative test before the exact one (used where kNearTest), and
-// intersect_primitive(i, primitive, direction),
-// which calls insert(t, colour, primitive, seam) for each front hit of batch entry i along the pixel's ray from the eye.
+// The including shader defines, before this file: kBatch; load_primitive(lane, primitive),
+// which puts the primitive in its shared batch arrays; screen_bounds (as for binning);
+// kNearTest and may_cross(i, direction), a conservative test before the exact one (used where
+// kNearTest); and intersect_primitive(i, primitive, direction), which calls insert(t, colour,
+// primitive, seam) for each front hit of batch entry i along the pixel's ray from the eye.
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -51,6 +51,7 @@ void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
     for (int bx = p0.x / 4; bx <= p1.x / 4; ++bx)
       atomicOr(block_entries[by * 4 + bx][entry / 32u], 1u << (entry % 32u));
 }
+
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
 // for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each.
