@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <fstream>
@@ -108,6 +109,29 @@ TEST(Isolated, OffRunsNothing) {
   EXPECT_NO_THROW(check_in_isolation("x.h5", "HDF5", [] { std::raise(SIGSEGV); }));
   unsetenv("LINEBAKE_ISOLATION");
   EXPECT_TRUE(isolation_enabled());
+}
+
+// LINEBAKE_ISOLATION_SECONDS sets the child's limit (scripts/fuzz: 10 s instead of 120); a value
+// that is not a number of seconds from 1 to 86400 is an error naming the variable.
+TEST(Isolated, TheLimitComesFromTheEnvironment) {
+  EXPECT_EQ(isolation_seconds(), 120.0);
+  setenv("LINEBAKE_ISOLATION_SECONDS", "1", 1);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    check_in_isolation("hung.nc", "NetCDF", [] {
+      for (;;) pause();
+    });
+    ADD_FAILURE() << "a hung walk passed";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("ran past 1 s"), std::string::npos) << e.what();
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  for (const char* bad : {"0", "abc", "5s", "1e9", "nan"}) {
+    setenv("LINEBAKE_ISOLATION_SECONDS", bad, 1);
+    EXPECT_THROW(isolation_seconds(), Error) << bad;
+  }
+  unsetenv("LINEBAKE_ISOLATION_SECONDS");
+  EXPECT_EQ(isolation_seconds(), 120.0);
 }
 
 // The walk visits what the reader reads: a dataset whose chunk index is damaged fails the walk

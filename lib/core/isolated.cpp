@@ -246,6 +246,17 @@ bool memory_cap_enforced() {
 #endif
 }
 
+double isolation_seconds() {
+  const char* value = std::getenv("LINEBAKE_ISOLATION_SECONDS");
+  if (!value || !*value) return 120;
+  char* end = nullptr;
+  const double seconds = std::strtod(value, &end);
+  if (*end != '\0' || !(seconds >= 1 && seconds <= 86400))
+    throw Error("LINEBAKE_ISOLATION_SECONDS=" + std::string(value) +
+                ": expected a number of seconds from 1 to 86400");
+  return seconds;
+}
+
 bool isolation_enabled() {
   const char* value = std::getenv("LINEBAKE_ISOLATION");
   return !(value && (std::strcmp(value, "off") == 0 || std::strcmp(value, "0") == 0));

@@ -11,8 +11,12 @@
 
 namespace linebake {
 
+// The child's wall-clock limit: LINEBAKE_ISOLATION_SECONDS where it is a number from 1 to
+// 86400 (scripts/fuzz sets 10), else 120. Throws Error naming the variable for any other value.
+double isolation_seconds();
+
 struct IsolationLimits {
-  double seconds = 120;                       // wall clock; the child is killed past it
+  double seconds = isolation_seconds();       // wall clock; the child is killed past it
   uint64_t memory_bytes = uint64_t{1} << 30;  // address space the child may add to the parent's
 };
 
