@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <optional>
 
 #include "accel/capsule_segments.hpp"
 #include "cache/cache.hpp"
@@ -19,31 +21,47 @@ namespace {
 
 using test::TempDir;
 
-// Capsules against Embree's capsules and triangles against `reference` (Embree over the tube
-// mesh), on two of the test scenes, for every preset.
-void expect_matches(const std::string& source, const char* geometry, const char* against,
-                    const std::vector<double>& zooms) {
+// `source` baked into a cache in a temporary directory, with `tiles` (over `geometry`) and the
+// technique `against` prepared on it for 160x120 frames.
+struct PreparedPair {
   TempDir dir;
+  std::optional<CacheReader> cache;
+  std::unique_ptr<PreparedTechnique> ours, theirs;
+};
+
+std::unique_ptr<PreparedPair> prepare_pair(const std::string& source, const char* geometry,
+                                           const char* against) {
+  auto pair = std::make_unique<PreparedPair>();
   BakeOptions bake_options;
   bake_options.input = source;
-  bake_options.cache = dir.file("a.lbc.h5");
+  bake_options.cache = pair->dir.file("a.lbc.h5");
   bake_options.progress = false;
   bake(bake_options);
-  const CacheReader cache(bake_options.cache);
+  pair->cache.emplace(bake_options.cache);
   TechniqueOptions o;
   o.width = 160, o.height = 120;
   o.geometry = "capsules";
   o.tiles_geometry = geometry;
-  const Technique& reference = find_technique(against);
+  const Technique& theirs = find_technique(against);
   const Technique& tiles = find_technique("tiles");
-  auto theirs = reference.prepare(reference.info, cache, bake_options.cache, o);
-  auto ours = tiles.prepare(tiles.info, cache, bake_options.cache, o);
+  pair->theirs = theirs.prepare(theirs.info, *pair->cache, bake_options.cache, o);
+  pair->ours = tiles.prepare(tiles.info, *pair->cache, bake_options.cache, o);
+  return pair;
+}
+
+// Capsules against Embree's capsules and triangles against `reference` (Embree over the tube
+// mesh), on two of the test scenes, for every preset.
+void expect_matches(const std::string& source, const char* geometry, const char* against,
+                    const std::vector<double>& zooms) {
+  const auto pair = prepare_pair(source, geometry, against);
+  PreparedTechnique& ours = *pair->ours;
+  PreparedTechnique& theirs = *pair->theirs;
   for (const double zoom : zooms) {
-    const Camera camera = frame_bounds(ours->bounds(), 160.0 / 120.0, 30, 20, zoom);
+    const Camera camera = frame_bounds(ours.bounds(), 160.0 / 120.0, 30, 20, zoom);
     for (const char* preset : {"opaque", "semi", "transparent"}) {
       const TransferFunction tf = transfer_function_preset(preset);
-      const TechniqueFrame a = ours->render(camera, tf, o.width, o.height);
-      const TechniqueFrame b = theirs->render(camera, tf, o.width, o.height);
+      const TechniqueFrame a = ours.render(camera, tf, 160, 120);
+      const TechniqueFrame b = theirs.render(camera, tf, 160, 120);
       EXPECT_GE(psnr(display_encoded(a.image), display_encoded(b.image)), 50.0)
           << source << " " << geometry << " " << preset << " zoom " << zoom;
       EXPECT_EQ(a.stats["window_overflows"], 0) << preset;
@@ -60,25 +78,14 @@ void expect_matches(const std::string& source, const char* geometry, const char*
 // segment, so a bound too tight would drop hits that the image's PSNR could hide. Close up
 // (zoom 0.25) capsules span many blocks and tiles; far away (zoom 1), several share a block.
 TEST(Tiles, CapsulesHitThePixelsEmbreeHits) {
-  TempDir dir;
-  BakeOptions bake_options;
-  bake_options.input = "synth:aneurysm?scale=0.01";
-  bake_options.cache = dir.file("a.lbc.h5");
-  bake_options.progress = false;
-  bake(bake_options);
-  const CacheReader cache(bake_options.cache);
-  TechniqueOptions o;
-  o.width = 160, o.height = 120;
-  o.geometry = "capsules";
-  const Technique& embree = find_technique("embree");
-  const Technique& tiles = find_technique("tiles");
-  auto theirs = embree.prepare(embree.info, cache, bake_options.cache, o);
-  auto ours = tiles.prepare(tiles.info, cache, bake_options.cache, o);
+  const auto pair = prepare_pair("synth:aneurysm?scale=0.01", "capsules", "embree");
+  PreparedTechnique& ours = *pair->ours;
+  PreparedTechnique& theirs = *pair->theirs;
   const TransferFunction tf = transfer_function_preset("semi");
   for (const double zoom : {1.0, 0.25}) {
-    const Camera camera = frame_bounds(ours->bounds(), 160.0 / 120.0, 30, 20, zoom);
-    const TechniqueFrame a = ours->render(camera, tf, o.width, o.height);
-    const TechniqueFrame b = theirs->render(camera, tf, o.width, o.height);
+    const Camera camera = frame_bounds(ours.bounds(), 160.0 / 120.0, 30, 20, zoom);
+    const TechniqueFrame a = ours.render(camera, tf, 160, 120);
+    const TechniqueFrame b = theirs.render(camera, tf, 160, 120);
     ASSERT_EQ(a.depth_complexity.size(), b.depth_complexity.size());
     uint64_t hits = 0, differing = 0;
     for (size_t i = 0; i < a.depth_complexity.size(); ++i) {
