@@ -90,20 +90,28 @@ void composite(float t, uint primitive, vec4 c) {
   if (frame.size.z != 0u && alpha >= frame.params.x) done = true;
 }
 
+// The window is indexed by constants only (loops of kWindow trips, which the compiler unrolls):
+// Mesa lowers a private array indexed by a variable to a choice among all its elements, so on
+// lavapipe each such access cost the whole window (a 4-hit window made the composite about a
+// third faster before this).
+
+// Drops the nearest pending hit.
+void pop_front() {
+  for (int j = 0; j + 1 < kWindow; ++j) {
+    window_t[j] = window_t[j + 1];
+    window_primitive[j] = window_primitive[j + 1];
+    window_colour[j] = window_colour[j + 1];
+  }
+  --pending;
+}
+
 // Composites the pending hits nearer than `bound`, nearest first.
 void flush(float bound) {
-  int k = 0;
-  while (k < pending && window_t[k] < bound && !done) {
-    composite(window_t[k], window_primitive[k], window_colour[k]);
-    ++k;
+  while (pending > 0 && window_t[0] < bound && !done) {
+    composite(window_t[0], window_primitive[0], window_colour[0]);
+    pop_front();
   }
-  if (done) k = pending;
-  for (int j = k; j < pending; ++j) {
-    window_t[j - k] = window_t[j];
-    window_primitive[j - k] = window_primitive[j];
-    window_colour[j - k] = window_colour[j];
-  }
-  pending -= k;
+  if (done) pending = 0;
 }
 
 // Whether a hit of `primitive` at t is the second report of a seam: a hit of the primitive
@@ -114,37 +122,39 @@ bool seam_double(float t, uint primitive, float seam) {
   const bool last = abs(last_t - t) <= seam &&
                     (last_primitive + 1u == primitive || primitive + 1u == last_primitive);
   if (seam <= 0.0 || last) return last && seam > 0.0;
-  for (int j = 0; j < pending; ++j)
-    if (abs(window_t[j] - t) <= seam &&
-        (window_primitive[j] + 1u == primitive || primitive + 1u == window_primitive[j]))
-      return true;
-  return false;
+  bool found = false;
+  for (int j = 0; j < kWindow; ++j)
+    found = found || (j < pending && abs(window_t[j] - t) <= seam &&
+                      (window_primitive[j] + 1u == primitive || primitive + 1u == window_primitive[j]));
+  return found;
 }
 
-// Adds a hit to the window, nearest first; `seam` > 0 drops a neighbour's double (above).
+// Adds a hit to the window, nearest first, after the pending hits at the same t; `seam` > 0
+// drops a neighbour's double (above).
 void insert(float t, vec4 c, uint primitive, float seam) {
   if (seam_double(t, primitive, seam)) return;
   if (pending == kWindow) {
     // Full: the nearest goes now (exact unless a later segment comes nearer still).
     atomicAdd(stats.window_overflows, 1u);
     composite(window_t[0], window_primitive[0], window_colour[0]);
-    for (int j = 1; j < pending; ++j) {
-      window_t[j - 1] = window_t[j];
-      window_primitive[j - 1] = window_primitive[j];
-      window_colour[j - 1] = window_colour[j];
+    pop_front();
+  }
+  // Its place: after every pending hit with t' <= t (the window is sorted).
+  int at = 0;
+  for (int j = 0; j < kWindow; ++j)
+    if (j < pending && window_t[j] <= t) at = j + 1;
+  // From the back, so each slot reads its neighbour before that one is overwritten.
+  for (int j = kWindow - 1; j >= 0; --j) {
+    if (j > at && j <= pending) {
+      window_t[j] = window_t[j - 1];
+      window_primitive[j] = window_primitive[j - 1];
+      window_colour[j] = window_colour[j - 1];
+    } else if (j == at) {
+      window_t[j] = t;
+      window_primitive[j] = primitive;
+      window_colour[j] = c;
     }
-    --pending;
   }
-  int at = pending;
-  while (at > 0 && window_t[at - 1] > t) {
-    window_t[at] = window_t[at - 1];
-    window_primitive[at] = window_primitive[at - 1];
-    window_colour[at] = window_colour[at - 1];
-    --at;
-  }
-  window_t[at] = t;
-  window_primitive[at] = primitive;
-  window_colour[at] = c;
   ++pending;
 }
 
@@ -171,7 +181,8 @@ void main() {
     done = states[index].done != 0u;
     last_t = states[index].last_t;
     last_primitive = states[index].last_primitive;
-    for (int k = 0; k < pending; ++k) {
+    for (int k = 0; k < kWindow; ++k) {
+      if (k >= pending) continue;
       window_t[k] = states[index].t[k];
       window_primitive[k] = states[index].primitive[k];
       window_colour[k] = states[index].colour[k];
@@ -236,7 +247,8 @@ void main() {
     states[index].last_primitive = last_primitive;
     states[index].last_t = last_t;
     // Only the pending hits: the rest of the window is never read.
-    for (int k = 0; k < pending; ++k) {
+    for (int k = 0; k < kWindow; ++k) {
+      if (k >= pending) continue;
       states[index].t[k] = window_t[k];
       states[index].primitive[k] = window_primitive[k];
       states[index].colour[k] = window_colour[k];
