@@ -40,7 +40,9 @@ int capsule_solve_quadratic(float a, float b, float c, out float r0, out float r
 }
 
 // Crossings of origin + t direction (unit direction) with the surface `s` owns, nearest first:
-// t, the unit outward normal, and the position along the segment u in [0, 1].
+// t, the unit outward normal, and the position along the segment u in [0, 1]. The arrays are
+// indexed by constants only (loops of fixed trips, unrolled): a variable index into a private
+// array costs about the whole array on lavapipe (tiles_composite.glsl).
 int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t[4],
                       out vec3 normal[4], out float u[4]) {
   int count = 0;
@@ -67,12 +69,16 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     const vec3 w_perp = w - dot(w, axis) * axis;
     const int n = capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
                                           dot(w_perp, w_perp) - r * r, r0, r1);
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < 2; ++k) {
+      if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
       const float h = dot(w + root * direction, axis);
       if (h >= 0.0 && h <= len && candidates < 4) {
-        candidate_t[candidates] = root;
-        candidate_n[candidates] = w_perp + root * d_perp;
+        for (int j = 0; j < 4; ++j)
+          if (j == candidates) {
+            candidate_t[j] = root;
+            candidate_n[j] = w_perp + root * d_perp;
+          }
         ++candidates;
       }
     }
@@ -84,20 +90,25 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     const vec3 w = origin - centre;
     const int n = capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
                                           dot(w, w) - r * r, r0, r1);
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < 2; ++k) {
+      if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
       const vec3 x = origin + root * direction;
       const float h = dot(x - s.p0, axis);
       // (At most two crossings of a convex capsule; four bounds float's borderline cases.)
       if ((end == 0 ? h > len : h < 0.0) && candidates < 4) {
-        candidate_t[candidates] = root;
-        candidate_n[candidates] = x - centre;
+        for (int j = 0; j < 4; ++j)
+          if (j == candidates) {
+            candidate_t[j] = root;
+            candidate_n[j] = x - centre;
+          }
         ++candidates;
       }
     }
   }
   // Keep crossings outside the neighbours' capsules, in distance order.
-  for (int k = 0; k < candidates; ++k) {
+  for (int k = 0; k < 4; ++k) {
+    if (k >= candidates) continue;
     const vec3 x = origin + candidate_t[k] * direction;
     // The points' own coordinates carry float error too (about 2^-23 of their magnitude): with
     // CAPSULE_COORDINATE_ERROR 1 a crossing that close to a neighbour is kept, and the caller
@@ -111,16 +122,24 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
              CAPSULE_COORDINATE_ERROR * max(magnitude.x, max(magnitude.y, magnitude.z)));
     if ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) continue;
     if ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside) continue;
-    int at = count;
-    while (at > 0 && t[at - 1] > candidate_t[k]) {
-      t[at] = t[at - 1];
-      normal[at] = normal[at - 1];
-      u[at] = u[at - 1];
-      --at;
+    // Its place: after every crossing kept so far with t' <= t; from the back, so each slot
+    // reads its neighbour before that one is overwritten.
+    int at = 0;
+    for (int j = 0; j < 4; ++j)
+      if (j < count && t[j] <= candidate_t[k]) at = j + 1;
+    const vec3 n_k = normalize(candidate_n[k]);
+    const float u_k = len > 0.0 ? clamp(dot(x - s.p0, axis) / len, 0.0, 1.0) : 0.0;
+    for (int j = 3; j >= 0; --j) {
+      if (j > at && j <= count) {
+        t[j] = t[j - 1];
+        normal[j] = normal[j - 1];
+        u[j] = u[j - 1];
+      } else if (j == at) {
+        t[j] = candidate_t[k];
+        normal[j] = n_k;
+        u[j] = u_k;
+      }
     }
-    t[at] = candidate_t[k];
-    normal[at] = normalize(candidate_n[k]);
-    u[at] = len > 0.0 ? clamp(dot(x - s.p0, axis) / len, 0.0, 1.0) : 0.0;
     ++count;
   }
   return count;

@@ -219,7 +219,7 @@ CapsuleSegments stacked_capsules(int count) {
 // as small ones, because an invocation cut short is found (a sentinel loop that runs short) and
 // its band composited again in smaller slices.
 TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
-  const int count = 3000;
+  const int count = 20000;
   const CapsuleSegments capsules = stacked_capsules(count);
   Camera camera;
   camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
@@ -228,7 +228,7 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
   vk::TileOptions o;
   o.width = 33, o.height = 33;
   vk::Context ctx;
-  vk::TileRenderer whole(ctx, capsules, 0, 1u << 20), fine(ctx, capsules, 0, 16);
+  vk::TileRenderer whole(ctx, capsules, 0, 1u << 20), fine(ctx, capsules, 0, 64);
   const vk::TileFrame a = whole.render(camera, tf, o), b = fine.render(camera, tf, o);
   const size_t centre = size_t(16) * o.width + 16;
   EXPECT_EQ(b.depth_complexity[centre], uint32_t(count));
@@ -236,7 +236,7 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   if (ctx.info().name.find("llvmpipe") != std::string::npos) {
-    // All 3,000 keys of a tile in one slice pass the limit there: found, and sliced again.
+    // All 20,000 keys of a tile in one slice pass the limit there: found, and sliced again.
     EXPECT_GT(a.stats.resliced, 0u);
     EXPECT_GT(a.stats.slices, 1u);
   }
