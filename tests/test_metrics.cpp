@@ -108,5 +108,56 @@ TEST(ImageFiles, PfmIsExactAndPngIsSrgbEncoded) {
   EXPECT_EQ(dir.entries().size(), 4u);  // a.pfm a.png bad.png short.pfm: nothing half-written
 }
 
+// CRC-32 of PNG chunks (ISO 3309, the PNG specification's Annex D), bit by bit.
+uint32_t png_crc(const std::string& bytes) {
+  uint32_t c = 0xffffffffu;
+  for (unsigned char b : bytes) {
+    c ^= b;
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+  }
+  return c ^ 0xffffffffu;
+}
+
+std::string big_endian(uint32_t v) {
+  return {char(v >> 24), char(v >> 16), char(v >> 8), char(v)};
+}
+
+// The fuzzer's finding (CI, 2026-11-23): a PFM header asking for gigabytes in a small file was
+// allocated before the pixels were read. Both image readers now refuse such a header first.
+TEST(ImageFiles, AHeaderAskingForMoreThanTheFileHoldsIsRefusedBeforeAllocating) {
+  test::TempDir dir;
+  std::ofstream(dir.file("huge.pfm"), std::ios::binary) << "PF\n65536 65536\n-1.0\n0123";
+  try {
+    read_pfm(dir.file("huge.pfm"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("51539607552 bytes, the file has 4 left"),
+              std::string::npos)
+        << e.what();
+  }
+  // A valid 1x1 PNG whose IHDR, with a correct CRC, then claims 65536x65536 RGB pixels: about
+  // 12.9 GB, where deflate can inflate the file's few dozen bytes to at most 1032 times as many.
+  write_png(constant(0.5f, 1, 1), dir.file("one.png"), 8);
+  std::ifstream in(dir.file("one.png"), std::ios::binary);
+  std::string png((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_EQ(png.substr(12, 4), "IHDR");
+  const std::string ihdr = "IHDR" + big_endian(65536) + big_endian(65536) + png.substr(24, 5);
+  png.replace(12, 17, ihdr);
+  png.replace(29, 4, big_endian(png_crc(ihdr)));
+  std::ofstream(dir.file("huge.png"), std::ios::binary) << png;
+  try {
+    read_png(dir.file("huge.png"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("65536x65536 pixels need more than"), std::string::npos)
+        << e.what();
+  }
+  // One pixel wider than the limit is libpng's own refusal, still an InputError.
+  png.replace(16, 4, big_endian(65537));
+  png.replace(29, 4, big_endian(png_crc(png.substr(12, 17))));
+  std::ofstream(dir.file("wide.png"), std::ios::binary) << png;
+  EXPECT_THROW(read_png(dir.file("wide.png")), InputError);
+}
+
 }  // namespace
 }  // namespace linebake

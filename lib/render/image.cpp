@@ -30,6 +30,21 @@ FilePtr open_file(const std::string& path, const char* mode) {
   return FilePtr(std::fopen(path.c_str(), mode), &std::fclose);
 }
 
+// Bytes from the read position to the end of the file; the position is kept.
+size_t bytes_left(std::FILE* f) {
+  const long here = std::ftell(f);
+  if (here < 0 || std::fseek(f, 0, SEEK_END) != 0) return 0;
+  const long end = std::ftell(f);
+  std::fseek(f, here, SEEK_SET);
+  return end > here ? size_t(end - here) : 0;
+}
+
+// Deflate's largest expansion: a 258-byte match coded in about 2 bits (RFC 1951), so no zlib
+// stream inflates more than 1032 times its size. A header asking for more than the file can hold
+// is refused before anything is allocated.
+constexpr size_t kDeflateMaxRatio = 1032;
+constexpr int kMaxImageSide = 1 << 16;
+
 [[noreturn]] void png_fail(png_structp png, png_const_charp message) {
   *static_cast<std::string*>(png_get_error_ptr(png)) = message;
   png_longjmp(png, 1);
@@ -144,6 +159,8 @@ Image read_png(const std::string& path) {
   }
   png_init_io(png, f.get());
   png_set_sig_bytes(png, 8);
+  png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  const size_t file_bytes = bytes_left(f.get()) + 8;
   png_read_info(png, info);
   png_set_expand(png);  // palette -> RGB, low-bit grey -> 8 bits, tRNS -> alpha
   png_set_strip_alpha(png);
@@ -153,6 +170,13 @@ Image read_png(const std::string& path) {
   const int bits = png_get_bit_depth(png, info);
   const int channels = png_get_channels(png, info);
   const size_t row_bytes = png_get_rowbytes(png, info);
+  if ((row_bytes + 1) * size_t(height) > kDeflateMaxRatio * file_bytes) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    throw InputError(path, "IHDR",
+                     std::to_string(width) + "x" + std::to_string(height) +
+                         " pixels need more than the " + std::to_string(file_bytes) +
+                         "-byte file can inflate to");
+  }
   data.resize(row_bytes * height);
   rows.resize(height);
   for (int y = 0; y < height; ++y) rows[y] = data.data() + y * row_bytes;
@@ -189,11 +213,18 @@ Image read_pfm(const std::string& path) {
   if (std::fscanf(f.get(), "%2s %d %d %lf", kind, &width, &height, &scale) != 4 ||
       (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0))
     throw InputError(path, "byte offset 0", "not a PFM file (expected PF or Pf header)");
-  if (width <= 0 || height <= 0 || width > 1 << 16 || height > 1 << 16 || scale == 0)
+  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide || scale == 0)
     throw InputError(path, "header", "implausible size or scale");
   if (scale > 0) throw InputError(path, "header", "big-endian PFM is not supported");
   std::fgetc(f.get());  // the single whitespace after the scale
-  Image image(width, height, kind[1] == 'F' ? 3 : 1);
+  const int channels = kind[1] == 'F' ? 3 : 1;
+  const size_t pixel_bytes = size_t(width) * height * channels * 4;
+  if (pixel_bytes > bytes_left(f.get()))
+    throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get())),
+                     "truncated pixel data: the header's " + std::to_string(width) + "x" +
+                         std::to_string(height) + " pixels need " + std::to_string(pixel_bytes) +
+                         " bytes, the file has " + std::to_string(bytes_left(f.get())) + " left");
+  Image image(width, height, channels);
   const size_t row = size_t(width) * image.channels;
   for (int y = height - 1; y >= 0; --y)
     if (std::fread(image.pixels.data() + size_t(y) * row, 4, row, f.get()) != row)
