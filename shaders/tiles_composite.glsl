@@ -2,9 +2,12 @@
 // tiles_composite_triangles.comp): one workgroup per 16x16 tile walks the tile's primitives in
 // key order, a batch of 256 at a time through shared memory. Each pixel intersects its ray with
 // the primitives whose screen bounds cover its block of 4x2 pixels and keeps its hits in a small
-// window sorted by t. A hit is composited once no later primitive can come nearer: every later
-// key's depth bound is past it. Only when the window is full is its nearest hit composited
-// early, and that is counted (window_overflows).
+// window sorted by (t, primitive). A hit is composited once no later primitive can come nearer:
+// every later key's depth bound is past it. When the window is full the farther of its last hit
+// and the new one is left for another walk: from then on the pixel keeps only hits before it
+// (the floor), so what it composites stays exact, and after the tile's last key the tile is
+// walked again (binding 14) for the hits from there on, past those composited (k-buffer
+// peeling, as rtx's windows do; counted in window_overflows).
 //
 // A dispatch takes one slice of the keys of the tiles that have keys in it (the first slice: of
 // every tile); the pixels' state (colour, window) carries over between slices through a buffer,
@@ -31,6 +34,9 @@ shared uint batch_primitive[kBatch];  // its primitive
 // SIMD unit runs both sides of a branch, a skip inside the loop would save nothing).
 const uint kBlocks = 32;
 shared uint block_entries[kBlocks][kBatch / 32u];
+// The tile's pixels that may still take a hit after a batch, by the batch's parity: none, and the
+// walk stops early (every pixel opaque enough, written out, or past its floor).
+shared uint busy[2];
 
 uvec2 pixel_in_tile(uint lane) {
   const uint block = lane / 8u, k = lane % 8u;
@@ -54,20 +60,26 @@ void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
 
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
-// for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each.
+// for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each. `walk`
+// > 0: a walk again over tiles whose pixels left hits for it (their state carries over).
 layout(set = 0, binding = 10, std430) readonly buffer Slice {
-  uint slice, slice_keys, tile_offset, tile_count, sentinel;
+  uint slice, slice_keys, tile_offset, tile_count, sentinel, walk;
 } slicing;
 layout(set = 0, binding = 13, std430) readonly buffer SliceTiles { uint slice_tiles[]; };
+const uint kDone = 1u, kWritten = 2u;  // PixelState.flags: opaque enough; pixel written out
 struct PixelState {
   vec4 colour_alpha;
-  uint hits, pending, done, last_primitive;
-  float last_t, pad0, pad1, pad2;
+  uint hits, pending, flags, last_primitive;
+  float last_t, floor_t, after_t;
+  uint floor_primitive;
+  uint after_primitive, pad0, pad1, pad2;
   float t[kWindow];
   uint primitive[kWindow];
   vec4 colour[kWindow];
 };
 layout(set = 0, binding = 11, std430) buffer States { PixelState states[]; };
+// Per tile: 1 where a pixel left hits for another walk.
+layout(set = 0, binding = 14, std430) buffer WalkAgain { uint walk_again[]; };
 
 float window_t[kWindow];
 uint window_primitive[kWindow];
@@ -80,6 +92,15 @@ vec3 colour = vec3(0.0);
 float alpha = 0.0;
 uint hit_count = 0u;
 bool done = false;
+// Hits at or before `after` were composited by an earlier walk; hits at or past `floor` are left
+// for the next (a full window dropped one there). No floor: t = +inf.
+float after_t = -1.0, floor_t = 1.0 / 0.0;
+uint after_primitive = 0u, floor_primitive = 0xFFFFFFFFu;
+
+// The order of hits: by t, ties by primitive, so that every walk sees the same order.
+bool hit_before(float t, uint primitive, float other_t, uint other_primitive) {
+  return t < other_t || (t == other_t && primitive < other_primitive);
+}
 
 void composite(float t, uint primitive, vec4 c) {
   last_t = t;
@@ -129,20 +150,28 @@ bool seam_double(float t, uint primitive, float seam) {
   return found;
 }
 
-// Adds a hit to the window, nearest first, after the pending hits at the same t; `seam` > 0
-// drops a neighbour's double (above).
+// Adds a hit to the window in (t, primitive) order; `seam` > 0 drops a neighbour's double
+// (above). Hits an earlier walk composited, and hits at or past the floor, are not this walk's.
 void insert(float t, vec4 c, uint primitive, float seam) {
+  if (!hit_before(after_t, after_primitive, t, primitive) ||
+      !hit_before(t, primitive, floor_t, floor_primitive))
+    return;
   if (seam_double(t, primitive, seam)) return;
   if (pending == kWindow) {
-    // Full: the nearest goes now (exact unless a later segment comes nearer still).
-    atomicAdd(stats.window_overflows, 1u);
-    composite(window_t[0], window_primitive[0], window_colour[0]);
-    pop_front();
+    // Full: the farther of the window's last and this hit becomes the floor and waits for the
+    // next walk; every hit before it is still composited in order.
+    const int last = kWindow - 1;
+    if (hit_before(window_t[last], window_primitive[last], t, primitive)) {
+      floor_t = t, floor_primitive = primitive;
+      return;
+    }
+    floor_t = window_t[last], floor_primitive = window_primitive[last];
+    --pending;
   }
-  // Its place: after every pending hit with t' <= t (the window is sorted).
+  // Its place: after every pending hit before it (the window is sorted).
   int at = 0;
   for (int j = 0; j < kWindow; ++j)
-    if (j < pending && window_t[j] <= t) at = j + 1;
+    if (j < pending && hit_before(window_t[j], window_primitive[j], t, primitive)) at = j + 1;
   // From the back, so each slot reads its neighbour before that one is overwritten.
   for (int j = kWindow - 1; j >= 0; --j) {
     if (j > at && j <= pending) {
@@ -171,16 +200,23 @@ void main() {
   const uvec2 whole = ranges[tile];
   const uint begin = min(whole.x + slicing.slice * slicing.slice_keys, whole.y);
   const uint end = min(begin + slicing.slice_keys, whole.y);
-  // The first slice starts the pixels empty; the tile's last writes them out.
-  const bool first_slice = slicing.slice == 0u, last_slice = end == whole.y;
+  // The first slice of the first walk starts the pixels empty; the tile's last slice writes
+  // them out, or keeps them for another walk.
+  const bool first_slice = slicing.slice == 0u && slicing.walk == 0u, last_slice = end == whole.y;
+  bool written = false;  // by an earlier walk
   if (inside && !first_slice) {
     colour = states[index].colour_alpha.rgb;
     alpha = states[index].colour_alpha.a;
     hit_count = states[index].hits;
     pending = min(int(states[index].pending), kWindow);
-    done = states[index].done != 0u;
+    done = (states[index].flags & kDone) != 0u;
+    written = (states[index].flags & kWritten) != 0u;
     last_t = states[index].last_t;
     last_primitive = states[index].last_primitive;
+    floor_t = states[index].floor_t;
+    floor_primitive = states[index].floor_primitive;
+    after_t = states[index].after_t;
+    after_primitive = states[index].after_primitive;
     for (int k = 0; k < kWindow; ++k) {
       if (k >= pending) continue;
       window_t[k] = states[index].t[k];
@@ -189,8 +225,10 @@ void main() {
     }
   }
   for (uint first = begin; first < end; first += kBatch) {
-    const uint count = min(kBatch, end - first);
+    const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
+    // Last read two batches ago, before the barriers of the batch between.
+    if (lane == 0u) busy[parity] = 0u;
     barrier();
     if (lane < count) {
       const uint primitive = values[first + lane];
@@ -203,7 +241,7 @@ void main() {
       mark_blocks(lane, bounded, lo, hi, vec2(tile_xy * kTile));
     }
     barrier();
-    if (inside && !done) {
+    if (inside && !done && !written) {
       const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
       const vec3 direction =
           normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
@@ -230,7 +268,13 @@ void main() {
         }
       }
     }
+    // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
+    // it takes none of them in this walk.
+    const uint next = first + kBatch;
+    if (inside && !done && !written && (next >= end || floor_t > key_depth(keys[next])))
+      atomicAdd(busy[parity], 1u);
     barrier();
+    if (busy[parity] == 0u) break;
   }
   // lavapipe ends every loop of an invocation once its loops together have run 65535 times
   // (gallivm's limiter), dropping work silently. A loop that must run `sentinel` times and runs
@@ -238,14 +282,30 @@ void main() {
   uint trips = 0u;
   for (uint k = 0u; k < slicing.sentinel; ++k) ++trips;
   if (trips != slicing.sentinel) atomicAdd(stats.cut_short, 1u);
-  if (!inside) return;
-  if (!last_slice) {
+  if (!inside || written) return;
+  if (last_slice) flush(3.0e38);
+  // Hits left for another walk: this walk composited every hit before the floor, and the next
+  // starts after the last of them.
+  const bool again = last_slice && !done && floor_t < 1.0 / 0.0;
+  if (again) {
+    atomicAdd(stats.window_overflows, 1u);
+    walk_again[tile] = 1u;
+    after_t = last_t, after_primitive = last_primitive;
+    floor_t = 1.0 / 0.0, floor_primitive = 0xFFFFFFFFu;
+  }
+  // Without room for the state (one slice, no walk yet) the host makes room and composites
+  // the band again.
+  if ((!last_slice || again) && index < states.length()) {
     states[index].colour_alpha = vec4(colour, alpha);
     states[index].hits = hit_count;
     states[index].pending = uint(pending);
-    states[index].done = done ? 1u : 0u;
+    states[index].flags = done ? kDone : 0u;
     states[index].last_primitive = last_primitive;
     states[index].last_t = last_t;
+    states[index].floor_t = floor_t;
+    states[index].floor_primitive = floor_primitive;
+    states[index].after_t = after_t;
+    states[index].after_primitive = after_primitive;
     // Only the pending hits: the rest of the window is never read.
     for (int k = 0; k < kWindow; ++k) {
       if (k >= pending) continue;
@@ -253,10 +313,11 @@ void main() {
       states[index].primitive[k] = window_primitive[k];
       states[index].colour[k] = window_colour[k];
     }
-    return;
   }
-  flush(3.0e38);
+  if (!last_slice || again) return;
   colour += (1.0 - alpha) * frame.background.rgb;
   pixels[index] = vec4(colour, alpha);
   hit_counts[index] = hit_count;
+  // A walk again over this tile (another pixel's) leaves this one as it is.
+  if (index < states.length()) states[index].flags = kWritten;
 }

@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <glm/glm.hpp>
 #include <memory>
 #include <optional>
 
@@ -240,6 +242,64 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
     EXPECT_GT(a.stats.resliced, 0u);
     EXPECT_GT(a.stats.slices, 1u);
   }
+}
+
+// Forty long capsules that all start near the eye and cross the view axis one behind the other
+// (at depths 4, 4.5, ... 23.5), those that start nearer crossing farther: every key's depth bound
+// lies before the first hit, and the hits arrive far to near, so the centre pixel's 16-hit
+// window fills before any hit may be composited. Compositing the window's nearest early would
+// misorder them; instead the tile is walked again for the hits past the window (three walks:
+// 16, 16 and 8 hits), and the pixel must be the forty colours composited front to back by hand,
+// whatever the slice size. (The near half is red, the far half blue: compositing the window's
+// nearest early would put blue hits before red ones.)
+TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
+  const int count = 40;
+  LineSet lines;
+  std::vector<float> values;
+  for (int k = 0; k < count; ++k) {
+    const float angle = 2.39996f * float(k);  // golden angle: the starts spread around the axis
+    const float depth = 4.0f + 0.5f * float(count - 1 - k);
+    const glm::vec3 start(std::cos(angle), std::sin(angle), 1.5f + 0.01f * float(k));
+    const glm::vec3 end = 2.0f * glm::vec3(0, 0, depth) - start;
+    lines.append_point(start.x, start.y, start.z), lines.append_point(end.x, end.y, end.z);
+    lines.end_line();
+    values.insert(values.end(), 2, k < count / 2 ? 1.0f : 0.0f);  // the far half blue
+  }
+  lines.attributes = {{"v", values}};
+  const CapsuleSegments capsules = build_capsule_segments(lines, 0.05f, "v");
+  Camera camera;
+  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
+  camera.fov_y_degrees = 40;
+  TransferFunction tf;
+  tf.name = "two colours";
+  tf.colours = {{0.0, {1, 0, 0}}, {1.0, {0, 0, 1}}};
+  tf.opacities = {{0.0, 0.15}, {1.0, 0.1}};
+  vk::TileOptions o;
+  o.width = 33, o.height = 33;  // the centre pixel's ray is the view axis
+  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
+  o.shading.background = {0.2, 0.3, 0.4};
+  vk::Context ctx;
+  vk::TileRenderer whole(ctx, capsules, 0, 1u << 20), fine(ctx, capsules, 0, 8);
+  const vk::TileFrame a = whole.render(camera, tf, o), b = fine.render(camera, tf, o);
+  const size_t centre = size_t(16) * o.width + 16;
+  ASSERT_EQ(a.depth_complexity[centre], uint32_t(count));
+  EXPECT_GT(a.stats.window_overflows, 0u);
+  EXPECT_EQ(a.stats.walks, 3u);
+  std::array<double, 3> colour{};
+  double alpha = 0;
+  for (int k = count - 1; k >= 0; --k) {  // nearest first
+    const Rgba c = tf.at(k < count / 2 ? 1.0 : 0.0);
+    const std::array<double, 3> rgb{c.r, c.g, c.b};
+    for (int i = 0; i < 3; ++i) colour[size_t(i)] += (1 - alpha) * c.a * rgb[size_t(i)];
+    alpha += (1 - alpha) * c.a;
+  }
+  for (int i = 0; i < 3; ++i) {
+    const double expected = colour[size_t(i)] + (1 - alpha) * o.shading.background[size_t(i)];
+    EXPECT_NEAR(a.image.at(16, 16, i), expected, 1e-5) << "channel " << i;
+  }
+  EXPECT_EQ(a.image.pixels, b.image.pixels);
+  EXPECT_EQ(a.depth_complexity, b.depth_complexity);
+  EXPECT_EQ(b.stats.walks, 3u);
 }
 
 }  // namespace

@@ -68,6 +68,7 @@ class Tiles : public PreparedTechnique {
         {triangles_ ? "triangles" : "segments", s.primitives},
         {triangles_ ? "binned_triangles" : "binned_segments", s.binned_primitives},
         {"window_overflows", s.window_overflows},
+        {"walks", s.walks},
         {"rebins", s.rebins},
         {"slices", s.slices},
         {"resliced", s.resliced},
@@ -75,9 +76,6 @@ class Tiles : public PreparedTechnique {
         {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
         {"depth_complexity", {{"max", s.max_depth_complexity}}},
         {"frame_bytes", s.frame_bytes}};
-    if (s.window_overflows > 0)
-      out.warnings.push_back(std::to_string(s.window_overflows) +
-                             " hits composited from a full window: the order may be inexact");
     out.note = std::to_string(s.keys) + " keys";
     return out;
   }

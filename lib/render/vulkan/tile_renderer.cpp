@@ -22,13 +22,13 @@ namespace {
 constexpr uint32_t kTile = 16;
 // 0 uniforms, 1 points, 2 segments, 3 keys, 4 values, 5 counters, 6 ranges, 7 pixels, 8 hit
 // counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
-// slice (shaders/tiles.glsl, tiles_composite.glsl).
-constexpr uint32_t kBindings = 14;
+// slice, 14 the tiles to walk again (shaders/tiles.glsl, tiles_composite.glsl).
+constexpr uint32_t kBindings = 15;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
 // A pixel's state between slices (tiles_composite.comp PixelState, std430).
-constexpr uint64_t kPixelStateBytes = 16 + 16 + 16 + 16 * 4 + 16 * 4 + 16 * 16;
+constexpr uint64_t kPixelStateBytes = 16 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
 // Keys per tile per dispatch where the driver caps an invocation's loop iterations (lavapipe's
 // gallivm: 65535 in all): each key costs up to about 60 (window, transfer function, crossings).
 constexpr uint32_t kCappedSliceKeys = 512;
@@ -52,9 +52,10 @@ struct CompositeStats {
 };
 // Slice `slice` composites keys [slice * slice_keys, (slice + 1) * slice_keys) of the tiles
 // slice_tiles[tile_offset, tile_offset + tile_count): those that have keys there (slice 0: all).
-// `sentinel`: the trips of the loop that tells an invocation cut short (tiles_composite.glsl).
+// `sentinel`: the trips of the loop that tells an invocation cut short (tiles_composite.glsl);
+// `walk` > 0: a walk again over tiles whose pixels left hits for it.
 struct SliceInfo {
-  uint32_t slice, slice_keys, tile_offset, tile_count, sentinel;
+  uint32_t slice, slice_keys, tile_offset, tile_count, sentinel, walk;
 };
 
 }  // namespace
@@ -69,7 +70,7 @@ struct TileRenderer::State {
   double extent = 0;  // radius of the bounding sphere, capsules included
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
-      slice_tiles;
+      slice_tiles, walk_again;
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
@@ -86,14 +87,14 @@ struct TileRenderer::State {
     write_buffer_set(
         ctx.device(), set.set,
         {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &targets.rgba.gpu,
-         &targets.counts.gpu, &stats, &slice, &states, &rows, &slice_tiles});
+         &targets.counts.gpu, &stats, &slice, &states, &rows, &slice_tiles, &walk_again});
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
     for (Buffer* b : {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats,
-                      &slice, &states, &rows, &slice_tiles})
+                      &slice, &states, &rows, &slice_tiles, &walk_again})
       ctx.destroy(*b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
@@ -143,6 +144,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   slice = ctx.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
   states = ctx.create_buffer(4, storage, false);
   slice_tiles = ctx.create_buffer(4, storage, true);
+  walk_again = ctx.create_buffer(4, storage, true);
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted
                : ctx.info().driver.find("llvmpipe") != std::string::npos ||
                        ctx.info().name.find("llvmpipe") != std::string::npos
@@ -251,8 +253,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   if (resized || s.ranges.size < uint64_t(tiles) * 8) {
     ctx.destroy(s.ranges);
     ctx.destroy(s.rows);
+    ctx.destroy(s.walk_again);
     s.ranges = ctx.create_buffer(uint64_t(tiles) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.rows = ctx.create_buffer(uint64_t(tiles_y) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    s.walk_again = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
   s.bind();
   TransferFunction tf = tf_in;
@@ -342,12 +346,13 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                          (o.max_key_bytes > 0 ? ", or the memory budget" : "") +
                          "); a smaller image renders");
   }
-  // The composite pass over the band's tiles in `slices` slices of `slice_keys` keys per tile.
+  // One walk of the composite pass over `walk_tiles` in `slices` slices of `slice_keys` keys
+  // per tile (walk 0: the band's every tile, starting its pixels).
   const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-  const auto composite_slices = [&](uint32_t first, uint32_t last, uint32_t slice_keys,
-                                    uint32_t slices) {
-    const uint64_t state_bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
-    if (slices > 1 && s.states.size < state_bytes) {
+  const uint64_t state_bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
+  const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
+                                    uint32_t slice_keys, uint32_t slices, bool keep_states) {
+    if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
       if (state_bytes > s.max_buffer)
         throw BudgetExceeded("tiles: rendering in slices on " + ctx.info().name + " keeps " +
                              std::to_string(state_bytes >> 20) + " MiB of pixel state, more " +
@@ -363,7 +368,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     std::vector<std::pair<uint32_t, uint32_t>> slice_lists;  // offset, count
     for (uint32_t k = 0; k < slices; ++k) {
       const size_t offset = slice_tiles.size();
-      for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
+      for (uint32_t t : walk_tiles)
         if (k == 0 || ranges[2 * t + 1] - ranges[2 * t] > uint64_t(k) * slice_keys)
           slice_tiles.push_back(t);
       slice_lists.emplace_back(uint32_t(offset), uint32_t(slice_tiles.size() - offset));
@@ -379,7 +384,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
       for (uint32_t k = 0; k < slices; ++k) {
         const auto [offset, count] = slice_lists[k];
-        const SliceInfo info{k, slice_keys, offset, count, 2};
+        const SliceInfo info{k, slice_keys, offset, count, 2, walk};
         vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
         barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
@@ -393,26 +398,53 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     });
   };
   // The composite pass over the band's tiles, in slices of each tile's keys where the device
-  // needs them: the number of slices. Where an invocation was cut short (lavapipe's loop limit)
-  // the band is composited again in slices a quarter the size.
+  // needs them, and walked again where pixels left hits for another walk (a full window):
+  // the number of slices. Where an invocation was cut short (lavapipe's loop limit) the band is
+  // composited again in slices a quarter the size; where a pixel had no room to keep its state
+  // for another walk, again with room.
   const auto composite = [&](uint32_t first, uint32_t last) {
-    uint32_t longest = 0;
-    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t)
-      longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
-    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : std::max<uint32_t>(longest, 1);
+    std::vector<uint32_t> band_tiles;
+    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t) band_tiles.push_back(t);
+    const auto longest_of = [&](const std::vector<uint32_t>& list) {
+      uint32_t longest = 1;
+      for (uint32_t t : list) longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
+      return longest;
+    };
+    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : longest_of(band_tiles);
+    bool keep_states = false;
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
+    auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
     for (;;) {
-      const uint32_t slices = std::max<uint32_t>(1, (longest + slice_keys - 1) / slice_keys);
-      composite_slices(first, last, slice_keys, slices);
-      CompositeStats after;
-      std::memcpy(&after, s.stats.mapped, sizeof after);
-      if (after.cut_short == 0) return slices;
-      if (slice_keys == 1)
-        throw BudgetExceeded("tiles: " + ctx.info().name + " cut a composite invocation short " +
-                             "even at one key per slice (its loop iteration limit)");
-      slice_keys = std::max<uint32_t>(1, slice_keys / 4);
-      ++st.resliced;
+      std::memset(again, 0, uint64_t(tiles) * 4);
+      uint32_t most_slices = 0, walks = 0;
+      bool cut_short = false, no_room = false;
+      for (std::vector<uint32_t> walk_tiles = band_tiles; !walk_tiles.empty(); ++walks) {
+        const uint32_t longest = longest_of(walk_tiles);
+        const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
+        most_slices = std::max(most_slices, slices);
+        composite_slices(walk_tiles, walks, slice_keys, slices, keep_states);
+        const bool had_room = s.states.size >= state_bytes;
+        CompositeStats after;
+        std::memcpy(&after, s.stats.mapped, sizeof after);
+        if ((cut_short = after.cut_short != 0)) break;
+        walk_tiles.clear();
+        for (uint32_t t : band_tiles)
+          if (again[t] != 0) walk_tiles.push_back(t), again[t] = 0;
+        if ((no_room = !walk_tiles.empty() && !had_room)) break;
+      }
+      if (!cut_short && !no_room) {
+        st.walks = std::max(st.walks, walks);
+        return most_slices;
+      }
+      if (cut_short) {
+        if (slice_keys == 1)
+          throw BudgetExceeded("tiles: " + ctx.info().name + " cut a composite invocation short " +
+                               "even at one key per slice (its loop iteration limit)");
+        slice_keys = std::max<uint32_t>(1, slice_keys / 4);
+        ++st.resliced;
+      }
+      keep_states = keep_states || no_room;
       std::memcpy(s.stats.mapped, &before, sizeof before);  // the band's overflows count again
     }
   };
@@ -456,8 +488,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   st.max_depth_complexity = read.maximum;
   st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
                    s.ranges.size + s.rows.size + s.targets.rgba.gpu.size +
-                   s.targets.counts.gpu.size + s.slice_tiles.size +
-                   (st.slices > 1 ? s.states.size : 0);
+                   s.targets.counts.gpu.size + s.slice_tiles.size + s.walk_again.size +
+                   (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }

@@ -37,7 +37,7 @@ struct TileStats {
   uint64_t keys = 0;                                 // (tile, segment) pairs, all bands
   uint32_t tiles = 0;                                // 16x16 tiles of the image
   uint64_t hits = 0;                                 // front crossings composited
-  uint64_t window_overflows = 0;  // hits composited early from a full window (0: exact order)
+  uint64_t window_overflows = 0;  // pixel walks that left hits for another (a full window)
   uint32_t max_depth_complexity = 0;
   uint64_t frame_bytes = 0;   // keys, values, sort scratch, ranges, pixels
   uint32_t rebins = 0;        // binning passes repeated for more key room
@@ -45,6 +45,7 @@ struct TileStats {
   uint64_t max_row_keys = 0;  // keys of the fullest row of tiles (the smallest band)
   uint32_t bands = 1;         // bands of tile rows, each binned, sorted and composited alone
   uint32_t resliced = 0;      // bands composited again in smaller slices (an invocation cut short)
+  uint32_t walks = 1;         // the most walks over a tile's keys (more: a full window, exact)
 };
 
 struct TileFrame {
