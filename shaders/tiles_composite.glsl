@@ -77,7 +77,10 @@ struct PixelState {
   uint primitive[kWindow];
   vec4 colour[kWindow];
 };
+// The pixels' states, kTile * kTile per tile slot: as many tiles as one storage buffer holds
+// are composited at a time (the host's groups), each group's tiles in slots 0, 1, ...
 layout(set = 0, binding = 11, std430) buffer States { PixelState states[]; };
+layout(set = 0, binding = 15, std430) readonly buffer TileSlots { uint tile_slots[]; };
 // Per tile: 1 where a pixel left hits for another walk.
 layout(set = 0, binding = 14, std430) buffer WalkAgain { uint walk_again[]; };
 
@@ -197,6 +200,8 @@ void main() {
   const uint block = lane / 8u;
   const bool inside = pixel.x < frame.size.x && pixel.y < frame.size.y;
   const uint index = pixel.y * frame.size.x + pixel.x;
+  // The pixel's state between slices and walks: its tile's slot, the pixel's lane in it.
+  const uint state = tile_slots[tile] * (kTile * kTile) + lane;
   const uvec2 whole = ranges[tile];
   const uint begin = min(whole.x + slicing.slice * slicing.slice_keys, whole.y);
   const uint end = min(begin + slicing.slice_keys, whole.y);
@@ -205,23 +210,23 @@ void main() {
   const bool first_slice = slicing.slice == 0u && slicing.walk == 0u, last_slice = end == whole.y;
   bool written = false;  // by an earlier walk
   if (inside && !first_slice) {
-    colour = states[index].colour_alpha.rgb;
-    alpha = states[index].colour_alpha.a;
-    hit_count = states[index].hits;
-    pending = min(int(states[index].pending), kWindow);
-    done = (states[index].flags & kDone) != 0u;
-    written = (states[index].flags & kWritten) != 0u;
-    last_t = states[index].last_t;
-    last_primitive = states[index].last_primitive;
-    floor_t = states[index].floor_t;
-    floor_primitive = states[index].floor_primitive;
-    after_t = states[index].after_t;
-    after_primitive = states[index].after_primitive;
+    colour = states[state].colour_alpha.rgb;
+    alpha = states[state].colour_alpha.a;
+    hit_count = states[state].hits;
+    pending = min(int(states[state].pending), kWindow);
+    done = (states[state].flags & kDone) != 0u;
+    written = (states[state].flags & kWritten) != 0u;
+    last_t = states[state].last_t;
+    last_primitive = states[state].last_primitive;
+    floor_t = states[state].floor_t;
+    floor_primitive = states[state].floor_primitive;
+    after_t = states[state].after_t;
+    after_primitive = states[state].after_primitive;
     for (int k = 0; k < kWindow; ++k) {
       if (k >= pending) continue;
-      window_t[k] = states[index].t[k];
-      window_primitive[k] = states[index].primitive[k];
-      window_colour[k] = states[index].colour[k];
+      window_t[k] = states[state].t[k];
+      window_primitive[k] = states[state].primitive[k];
+      window_colour[k] = states[state].colour[k];
     }
   }
   for (uint first = begin; first < end; first += kBatch) {
@@ -295,23 +300,23 @@ void main() {
   }
   // Without room for the state (one slice, no walk yet) the host makes room and composites
   // the band again.
-  if ((!last_slice || again) && index < states.length()) {
-    states[index].colour_alpha = vec4(colour, alpha);
-    states[index].hits = hit_count;
-    states[index].pending = uint(pending);
-    states[index].flags = done ? kDone : 0u;
-    states[index].last_primitive = last_primitive;
-    states[index].last_t = last_t;
-    states[index].floor_t = floor_t;
-    states[index].floor_primitive = floor_primitive;
-    states[index].after_t = after_t;
-    states[index].after_primitive = after_primitive;
+  if ((!last_slice || again) && state < states.length()) {
+    states[state].colour_alpha = vec4(colour, alpha);
+    states[state].hits = hit_count;
+    states[state].pending = uint(pending);
+    states[state].flags = done ? kDone : 0u;
+    states[state].last_primitive = last_primitive;
+    states[state].last_t = last_t;
+    states[state].floor_t = floor_t;
+    states[state].floor_primitive = floor_primitive;
+    states[state].after_t = after_t;
+    states[state].after_primitive = after_primitive;
     // Only the pending hits: the rest of the window is never read.
     for (int k = 0; k < kWindow; ++k) {
       if (k >= pending) continue;
-      states[index].t[k] = window_t[k];
-      states[index].primitive[k] = window_primitive[k];
-      states[index].colour[k] = window_colour[k];
+      states[state].t[k] = window_t[k];
+      states[state].primitive[k] = window_primitive[k];
+      states[state].colour[k] = window_colour[k];
     }
   }
   if (!last_slice || again) return;
@@ -319,5 +324,5 @@ void main() {
   pixels[index] = vec4(colour, alpha);
   hit_counts[index] = hit_count;
   // A walk again over this tile (another pixel's) leaves this one as it is.
-  if (index < states.length()) states[index].flags = kWritten;
+  if (state < states.length()) states[state].flags = kWritten;
 }

@@ -69,6 +69,7 @@ class Tiles : public PreparedTechnique {
         {triangles_ ? "binned_triangles" : "binned_segments", s.binned_primitives},
         {"window_overflows", s.window_overflows},
         {"walks", s.walks},
+        {"groups", s.groups},
         {"rebins", s.rebins},
         {"slices", s.slices},
         {"resliced", s.resliced},

@@ -22,13 +22,15 @@ namespace {
 constexpr uint32_t kTile = 16;
 // 0 uniforms, 1 points, 2 segments, 3 keys, 4 values, 5 counters, 6 ranges, 7 pixels, 8 hit
 // counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
-// slice, 14 the tiles to walk again (shaders/tiles.glsl, tiles_composite.glsl).
-constexpr uint32_t kBindings = 15;
+// slice, 14 the tiles to walk again, 15 each tile's state slot (shaders/tiles.glsl,
+// tiles_composite.glsl).
+constexpr uint32_t kBindings = 16;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
-// A pixel's state between slices (tiles_composite.comp PixelState, std430).
+// A pixel's state between slices (tiles_composite.comp PixelState, std430), and a tile's.
 constexpr uint64_t kPixelStateBytes = 16 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
+constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
 // Keys per tile per dispatch where the driver caps an invocation's loop iterations (lavapipe's
 // gallivm: 65535 in all): each key costs up to about 60 (window, transfer function, crossings).
 constexpr uint32_t kCappedSliceKeys = 512;
@@ -70,7 +72,7 @@ struct TileRenderer::State {
   double extent = 0;  // radius of the bounding sphere, capsules included
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
-      slice_tiles, walk_again;
+      slice_tiles, walk_again, tile_slots;
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
@@ -84,17 +86,17 @@ struct TileRenderer::State {
             uint32_t slice_keys_wanted, bool triangles);
 
   void bind() {
-    write_buffer_set(
-        ctx.device(), set.set,
-        {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &targets.rgba.gpu,
-         &targets.counts.gpu, &stats, &slice, &states, &rows, &slice_tiles, &walk_again});
+    write_buffer_set(ctx.device(), set.set,
+                     {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
+                      &targets.rgba.gpu, &targets.counts.gpu, &stats, &slice, &states, &rows,
+                      &slice_tiles, &walk_again, &tile_slots});
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
     for (Buffer* b : {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats,
-                      &slice, &states, &rows, &slice_tiles, &walk_again})
+                      &slice, &states, &rows, &slice_tiles, &walk_again, &tile_slots})
       ctx.destroy(*b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
@@ -145,6 +147,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   states = ctx.create_buffer(4, storage, false);
   slice_tiles = ctx.create_buffer(4, storage, true);
   walk_again = ctx.create_buffer(4, storage, true);
+  tile_slots = ctx.create_buffer(4, storage, true);
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted
                : ctx.info().driver.find("llvmpipe") != std::string::npos ||
                        ctx.info().name.find("llvmpipe") != std::string::npos
@@ -254,9 +257,11 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     ctx.destroy(s.ranges);
     ctx.destroy(s.rows);
     ctx.destroy(s.walk_again);
+    ctx.destroy(s.tile_slots);
     s.ranges = ctx.create_buffer(uint64_t(tiles) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.rows = ctx.create_buffer(uint64_t(tiles_y) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.walk_again = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    s.tile_slots = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
   s.bind();
   TransferFunction tf = tf_in;
@@ -349,15 +354,15 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   // One walk of the composite pass over `walk_tiles` in `slices` slices of `slice_keys` keys
   // per tile (walk 0: the band's every tile, starting its pixels).
   const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-  const uint64_t state_bytes = uint64_t(o.width) * uint64_t(o.height) * kPixelStateBytes;
+  // The pixels' states of as many tiles as one storage buffer holds: the tiles are composited
+  // in groups of that many (a tile's state takes 112 KiB: lavapipe's 128 MiB hold 1,170 tiles,
+  // 1080p has 8,160).
+  const uint32_t group_tiles =
+      uint32_t(std::clamp<uint64_t>(s.max_buffer / kTileStateBytes, 1, tiles));
+  const uint64_t state_bytes = uint64_t(group_tiles) * kTileStateBytes;
   const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
                                     uint32_t slice_keys, uint32_t slices, bool keep_states) {
     if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
-      if (state_bytes > s.max_buffer)
-        throw BudgetExceeded("tiles: rendering in slices on " + ctx.info().name + " keeps " +
-                             std::to_string(state_bytes >> 20) + " MiB of pixel state, more " +
-                             "than one storage buffer holds (" +
-                             std::to_string(s.max_buffer >> 20) + " MiB); a smaller image renders");
       ctx.destroy(s.states);
       s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
       s.bind();
@@ -397,20 +402,20 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       }
     });
   };
-  // The composite pass over the band's tiles, in slices of each tile's keys where the device
+  // The composite pass over a group of tiles, in slices of each tile's keys where the device
   // needs them, and walked again where pixels left hits for another walk (a full window):
-  // the number of slices. Where an invocation was cut short (lavapipe's loop limit) the band is
+  // the number of slices. Where an invocation was cut short (lavapipe's loop limit) the group is
   // composited again in slices a quarter the size; where a pixel had no room to keep its state
   // for another walk, again with room.
-  const auto composite = [&](uint32_t first, uint32_t last) {
-    std::vector<uint32_t> band_tiles;
-    for (uint32_t t = first * tiles_x; t < last * tiles_x; ++t) band_tiles.push_back(t);
+  const auto composite_group = [&](const std::vector<uint32_t>& tiles_of_group) {
+    auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
+    for (size_t k = 0; k < tiles_of_group.size(); ++k) slots[tiles_of_group[k]] = uint32_t(k);
     const auto longest_of = [&](const std::vector<uint32_t>& list) {
       uint32_t longest = 1;
       for (uint32_t t : list) longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
       return longest;
     };
-    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : longest_of(band_tiles);
+    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : longest_of(tiles_of_group);
     bool keep_states = false;
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
@@ -419,7 +424,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       std::memset(again, 0, uint64_t(tiles) * 4);
       uint32_t most_slices = 0, walks = 0;
       bool cut_short = false, no_room = false;
-      for (std::vector<uint32_t> walk_tiles = band_tiles; !walk_tiles.empty(); ++walks) {
+      for (std::vector<uint32_t> walk_tiles = tiles_of_group; !walk_tiles.empty(); ++walks) {
         const uint32_t longest = longest_of(walk_tiles);
         const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
         most_slices = std::max(most_slices, slices);
@@ -429,7 +434,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         std::memcpy(&after, s.stats.mapped, sizeof after);
         if ((cut_short = after.cut_short != 0)) break;
         walk_tiles.clear();
-        for (uint32_t t : band_tiles)
+        for (uint32_t t : tiles_of_group)
           if (again[t] != 0) walk_tiles.push_back(t), again[t] = 0;
         if ((no_room = !walk_tiles.empty() && !had_room)) break;
       }
@@ -445,8 +450,19 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         ++st.resliced;
       }
       keep_states = keep_states || no_room;
-      std::memcpy(s.stats.mapped, &before, sizeof before);  // the band's overflows count again
+      std::memcpy(s.stats.mapped, &before, sizeof before);  // the group's overflows count again
     }
+  };
+  // The band's tiles, in groups whose states fit one storage buffer: the most slices.
+  const auto composite = [&](uint32_t first, uint32_t last) {
+    uint32_t slices = 0, groups = 0;
+    for (uint32_t t = first * tiles_x; t < last * tiles_x; t += group_tiles, ++groups) {
+      std::vector<uint32_t> group;
+      for (uint32_t k = t; k < std::min(t + group_tiles, last * tiles_x); ++k) group.push_back(k);
+      slices = std::max(slices, composite_group(group));
+    }
+    st.groups = std::max(st.groups, groups);
+    return slices;
   };
   st.bands = uint32_t(bands.size());
   uint64_t longest_band = 0;
@@ -489,7 +505,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
                    s.ranges.size + s.rows.size + s.targets.rgba.gpu.size +
                    s.targets.counts.gpu.size + s.slice_tiles.size + s.walk_again.size +
-                   (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
+                   s.tile_slots.size + (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }

@@ -46,6 +46,7 @@ struct TileStats {
   uint32_t bands = 1;         // bands of tile rows, each binned, sorted and composited alone
   uint32_t resliced = 0;      // bands composited again in smaller slices (an invocation cut short)
   uint32_t walks = 1;         // the most walks over a tile's keys (more: a full window, exact)
+  uint32_t groups = 1;        // the most groups of tiles in a band (their states fit a buffer)
 };
 
 struct TileFrame {
