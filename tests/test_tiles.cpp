@@ -169,6 +169,23 @@ TEST(Tiles, BandsGiveTheSameBytes) {
   EXPECT_THROW(renderer.render(camera, tf, o), BudgetExceeded);
 }
 
+// The eye at the origin looking along +z, 40 degrees high: the hand-built scenes below.
+Camera looking_along_z() {
+  Camera camera;
+  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
+  camera.fov_y_degrees = 40;
+  return camera;
+}
+
+// Red at attribute 0 and blue at 1, with those opacities.
+TransferFunction red_to_blue(double red_opacity, double blue_opacity) {
+  TransferFunction tf;
+  tf.name = "two colours";
+  tf.colours = {{0.0, {1, 0, 0}}, {1.0, {0, 0, 1}}};
+  tf.opacities = {{0.0, red_opacity}, {1.0, blue_opacity}};
+  return tf;
+}
+
 // Two capsules whose depth keys misorder them at one pixel: A starts nearer (its key sorts
 // first) but runs away from the eye, and at the pixel through B it lies behind B. Ambient light
 // only, so each hit's colour is the transfer function's: the pixel must be B over A over the
@@ -179,13 +196,8 @@ TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
   lines.append_point(0.5f, -1, 4), lines.append_point(0.5f, 1, 4), lines.end_line();  // B
   lines.attributes = {{"v", {0, 0, 1, 1}}};
   const CapsuleSegments capsules = build_capsule_segments(lines, 0.1f, "v");
-  Camera camera;
-  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
-  camera.fov_y_degrees = 40;
-  TransferFunction tf;
-  tf.name = "two colours";
-  tf.colours = {{0.0, {1, 0, 0}}, {1.0, {0, 0, 1}}};  // A red, B blue
-  tf.opacities = {{0.0, 0.6}, {1.0, 0.5}};
+  const Camera camera = looking_along_z();
+  const TransferFunction tf = red_to_blue(0.6, 0.5);  // A red, B blue
   vk::TileOptions o;
   o.width = 64, o.height = 63;  // row 31's rays lie in the plane y = 0, through both axes
   o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
@@ -232,9 +244,7 @@ CapsuleSegments stacked_capsules(int count) {
 TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
   const int count = 20000;
   const CapsuleSegments capsules = stacked_capsules(count);
-  Camera camera;
-  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
-  camera.fov_y_degrees = 40;
+  const Camera camera = looking_along_z();
   const TransferFunction tf = transfer_function_preset("transparent");
   vk::TileOptions o;
   o.width = 33, o.height = 33;
@@ -276,13 +286,8 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   }
   lines.attributes = {{"v", values}};
   const CapsuleSegments capsules = build_capsule_segments(lines, 0.05f, "v");
-  Camera camera;
-  camera.eye = {0, 0, 0}, camera.target = {0, 0, 1}, camera.up = {0, 1, 0};
-  camera.fov_y_degrees = 40;
-  TransferFunction tf;
-  tf.name = "two colours";
-  tf.colours = {{0.0, {1, 0, 0}}, {1.0, {0, 0, 1}}};
-  tf.opacities = {{0.0, 0.15}, {1.0, 0.1}};
+  const Camera camera = looking_along_z();
+  const TransferFunction tf = red_to_blue(0.15, 0.1);
   vk::TileOptions o;
   o.width = 33, o.height = 33;  // the centre pixel's ray is the view axis
   o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
