@@ -19,6 +19,7 @@
 #include "pipeline/report.hpp"
 #include "pipeline/svg_plot.hpp"
 #include "render/image.hpp"
+#include "test_util.hpp"
 
 namespace linebake {
 namespace {
@@ -113,8 +114,10 @@ size_t count_of(const std::string& text, const std::string& part) {
 
 // A one-frame run of three techniques on the paper's "aneurysm": the reference, ll (an image
 // identical to the reference, 4.5 ms a frame), embree (slow, its BVH built at render time) and
-// rtx (skipped), with the frames the image grid reads written under a temporary output.
+// rtx (skipped), with the frames the image grid reads written under a temporary output (one per
+// test and process: ctest runs these tests side by side, and a shared directory raced).
 struct SmallRun {
+  test::TempDir dir;
   Pipeline pipeline;
   nlohmann::json evaluation;
   Image frame{16, 12, 3};
@@ -122,7 +125,7 @@ struct SmallRun {
   SmallRun() {
     pipeline.name = "t";
     pipeline.file = "t.json";
-    pipeline.output = (std::filesystem::temp_directory_path() / "linebake-test-report").string();
+    pipeline.output = dir.file("report");
     pipeline.datasets = {{"aneurysm", "synth:aneurysm?scale=0.01"}};
     pipeline.frame_count = 1;
     pipeline.techniques = {{"reference", {}, "reference", {}, {}},
@@ -172,7 +175,6 @@ struct SmallRun {
            {"render", "rtx"},
            {"skipped", "no Vulkan device with ray tracing"}}}}};
   }
-  ~SmallRun() { std::filesystem::remove_all(pipeline.output); }
 };
 
 TEST(EvaluationReport, MarkdownStatesThePsnrCapAndKeepsSkipReasonsOutOfTheTable) {
