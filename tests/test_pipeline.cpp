@@ -7,9 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <string>
 
 #include "core/error.hpp"
 #include "pipeline/pipeline.hpp"
+#include "test_util.hpp"
 
 namespace linebake {
 namespace {
@@ -120,8 +122,11 @@ TEST(Pipeline, KeysChangeWithTheirInputsOnly) {
     EXPECT_EQ(base.at(id) != key, id.find("/b") != std::string::npos) << id;
 }
 
+// A file under the temporary directory, named for this process (two checkouts' tests may run
+// at once).
 std::string write_temp(const std::string& name, const std::string& text) {
-  const auto path = std::filesystem::temp_directory_path() / ("linebake-test-" + name);
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("linebake-test-" + std::to_string(::getpid()) + "-" + name);
   std::ofstream(path) << text;
   return path.string();
 }
@@ -235,7 +240,8 @@ TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {
 // A transfer-function file beside the pipeline file is found from any working directory (the
 // shipped quickstart's is); other file names stay as written. Editing the file renders again.
 TEST(Pipeline, TransferFunctionFilesBesideThePipelineFile) {
-  const auto dir = std::filesystem::temp_directory_path() / "linebake-test-tf-files";
+  const test::TempDir temp;
+  const std::filesystem::path dir = temp.file("pipeline");
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "vivid.json") << R"({"colours": [[0, 1, 0, 0]], "opacities": [[0, 1]]})";
   auto j = small();

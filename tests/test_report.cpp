@@ -39,7 +39,8 @@ TEST(EncodePng, MatchesTheFileWriterAndReadsBack) {
   Image image(5, 3, 3);
   image.srgb_encoded = true;
   for (size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = float(i % 7) / 6.0f;
-  const auto path = std::filesystem::temp_directory_path() / "linebake-encode.png";
+  const test::TempDir dir;
+  const std::filesystem::path path = dir.file("encode.png");
   write_png(image, path.string());
   std::ifstream in(path, std::ios::binary);
   const std::string file((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
