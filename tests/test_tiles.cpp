@@ -139,6 +139,12 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   EXPECT_EQ(b.stats.groups, 1u);
   EXPECT_EQ(c.image.pixels, b.image.pixels);
   EXPECT_EQ(c.depth_complexity, b.depth_complexity);
+  // The same from a memory budget for the states (--memory-budget gives them a quarter of what
+  // the image leaves): 6 tiles' states, 2 groups.
+  o.max_state_bytes = 6 * 16 * 16 * 448;
+  const vk::TileFrame d = fine.render(camera, tf, o);
+  EXPECT_EQ(d.stats.groups, 2u);
+  EXPECT_EQ(d.image.pixels, b.image.pixels);
 }
 
 // Bands of tile rows (a frame whose keys exceed the key budget) give the bytes of one band.

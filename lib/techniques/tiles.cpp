@@ -49,10 +49,14 @@ class Tiles : public PreparedTechnique {
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
     options_.width = width, options_.height = height;
-    // What the budget leaves for the keys once the image's own buffers are counted.
+    // What the budget leaves once the image's own buffers are counted: a quarter for the pixels'
+    // states (tiles composited in groups that fit), the rest for the keys (bands that fit).
     const uint64_t image_bytes = uint64_t(width) * uint64_t(height) * (16 + 4);
-    if (memory_budget_ > 0)
-      options_.max_key_bytes = memory_budget_ > image_bytes ? memory_budget_ - image_bytes : 1;
+    if (memory_budget_ > 0) {
+      const uint64_t left = memory_budget_ > image_bytes ? memory_budget_ - image_bytes : 4;
+      options_.max_state_bytes = std::max<uint64_t>(left / 4, 1);
+      options_.max_key_bytes = left - left / 4;
+    }
     vk::TileFrame frame = renderer_->render(camera, tf, options_);
     context_.check_validation();
     const vk::TileStats& s = frame.stats;

@@ -357,8 +357,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   // The pixels' states of as many tiles as one storage buffer holds: the tiles are composited
   // in groups of that many (a tile's state takes 112 KiB: lavapipe's 128 MiB hold 1,170 tiles,
   // 1080p has 8,160).
+  const uint64_t state_limit =
+      o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
   const uint32_t group_tiles =
-      uint32_t(std::clamp<uint64_t>(s.max_buffer / kTileStateBytes, 1, tiles));
+      uint32_t(std::clamp<uint64_t>(state_limit / kTileStateBytes, 1, tiles));
   const uint64_t state_bytes = uint64_t(group_tiles) * kTileStateBytes;
   const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
                                     uint32_t slice_keys, uint32_t slices, bool keep_states) {

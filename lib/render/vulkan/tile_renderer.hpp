@@ -27,6 +27,9 @@ struct TileOptions {
   // Device memory the frame's (tile, segment) keys may take, sort scratch included (0: as much
   // as one storage buffer allows). A frame with more keys renders in bands of tile rows.
   uint64_t max_key_bytes = 0;
+  // Device memory the pixels' states between slices and walks may take (0: one storage buffer):
+  // the tiles are composited in groups whose states fit, at least one tile (112 KiB) a group.
+  uint64_t max_state_bytes = 0;
   Shading shading;
 };
 
