@@ -354,9 +354,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   // One walk of the composite pass over `walk_tiles` in `slices` slices of `slice_keys` keys
   // per tile (walk 0: the band's every tile, starting its pixels).
   const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-  // The pixels' states of as many tiles as one storage buffer holds: the tiles are composited
-  // in groups of that many (a tile's state takes 112 KiB: lavapipe's 128 MiB hold 1,170 tiles,
-  // 1080p has 8,160).
+  // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
+  // tiles are composited in groups of that many (a tile's state takes 112 KiB: lavapipe's
+  // 128 MiB hold 1,170 tiles, 1080p has 8,160).
   const uint64_t state_limit =
       o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
   const uint32_t group_tiles =
@@ -455,7 +455,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       std::memcpy(s.stats.mapped, &before, sizeof before);  // the group's overflows count again
     }
   };
-  // The band's tiles, in groups whose states fit one storage buffer: the most slices.
+  // The band's tiles, in groups whose states fit (above): the most slices.
   const auto composite = [&](uint32_t first, uint32_t last) {
     uint32_t slices = 0, groups = 0;
     for (uint32_t t = first * tiles_x; t < last * tiles_x; t += group_tiles, ++groups) {
