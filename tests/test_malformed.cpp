@@ -326,6 +326,26 @@ TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
   refused("p.yaml", [](const std::string& p) { load_pipeline(p); });
 }
 
+// The campaign's pipeline_yaml finding: a transfer function named by 300 characters, which the
+// parser looked for as a file beside the pipeline with the throwing std::filesystem overload:
+// "File name too long" escaped as std::filesystem_error. Such a name is no file (and no preset):
+// the pipeline loads and keeps it as written. A pipeline path that long is a missing file.
+TEST(FuzzFindings, ANameTooLongForTheFileSystemIsNoFile) {
+  TempDir dir;
+  const std::string long_name(300, 'f');
+  write_text(dir.file("p.yaml"),
+             "name: t\n"
+             "datasets:\n  - {name: a, source: \"synth:aneurysm?scale=0.01\"}\n"
+             "techniques: [reference, ll]\n"
+             "transfer_functions: [semi, " +
+                 long_name + "]\n");
+  const Pipeline p = load_pipeline(dir.file("p.yaml"));
+  ASSERT_EQ(p.transfer_functions.size(), 2u);
+  EXPECT_EQ(p.transfer_functions[1], long_name);
+  EXPECT_EQ(p.transfer_function_files.count(long_name), 0u);
+  EXPECT_THROW(load_pipeline(dir.file(long_name)), InputError);
+}
+
 // Counts in a VTK legacy header are checked against what is left of the file before anything is
 // sized from them (docs/fuzzing.md, guarded allocation): a 100-byte file claiming 10^15 points,
 // cells, cell sizes, tuples or lookup-table entries is an error naming the count.

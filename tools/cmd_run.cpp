@@ -178,13 +178,14 @@ std::string find_pipeline(const std::string& path) {
     for (const char* ext : {".json", ".yaml", ".yml"}) out.push_back(base.string() + ext);
     return out;
   };
+  std::error_code absent;  // a name too long for the file system is not there either
   for (const auto& c : candidates(path))
-    if (std::filesystem::is_regular_file(c)) return c.string();
+    if (std::filesystem::is_regular_file(c, absent)) return c.string();
   const std::filesystem::path name(path);
   if (!name.has_parent_path() || name.parent_path() == "pipelines")
     for (const auto& c :
          candidates(std::filesystem::path(LINEBAKE_PIPELINES_DIR) / name.filename()))
-      if (std::filesystem::is_regular_file(c)) return c.string();
+      if (std::filesystem::is_regular_file(c, absent)) return c.string();
   return path;
 }
 

@@ -109,6 +109,12 @@ void check_output_location(const std::string& path) {
     throw OutputError(path, "the directory " + dir + " does not exist");
   if (::access(dir.c_str(), W_OK) != 0)
     throw OutputError(path, "the directory " + dir + " is not writable");
+  // The pipeline fuzzer's finding: such a name made std::filesystem throw its own error.
+  const long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  if (name_max > 0 && p.filename().string().size() > size_t(name_max))
+    throw OutputError(path, "the file name is " + std::to_string(p.filename().string().size()) +
+                                " bytes, longer than the file system allows (" +
+                                std::to_string(name_max) + ")");
 }
 
 uint64_t free_bytes_for(const std::string& path) {

@@ -510,7 +510,8 @@ BakeResult bake(const BakeOptions& options_in) {
   if (!synth::is_synth_source(options.input) && !in_place)
     refuse_input_as_output(result.cache, inputs);
   std::unique_ptr<CacheReader> old;
-  if (std::filesystem::exists(result.cache)) {
+  std::error_code absent;
+  if (std::filesystem::exists(result.cache, absent)) {
     if (!options.force && !is_linebake_cache(result.cache))
       throw OutputError(result.cache, "exists and is not a linebake cache; --force replaces it");
     try {

@@ -154,7 +154,11 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
                          "'" + name +
                              "': a preset name (opaque, semi, "
                              "transparent) or a file name without directories");
-      if (!is_transfer_function_preset(name) && std::filesystem::is_regular_file(base / name))
+      // A name no file can have (longer than the file system allows) is no file here: the
+      // error_code overload, as the throwing one escapes as std::filesystem_error.
+      std::error_code not_a_file;
+      if (!is_transfer_function_preset(name) &&
+          std::filesystem::is_regular_file(base / name, not_a_file))
         p.transfer_function_files[name] = (base / name).lexically_normal().string();
     }
   }
@@ -261,15 +265,17 @@ bool is_yaml(const std::string& path) {
 }  // namespace
 
 std::string find_pipeline(const std::string& path) {
-  if (std::filesystem::exists(path)) return path;
+  std::error_code absent;  // a name too long for the file system is not there either
+  if (std::filesystem::exists(path, absent)) return path;
   for (const char* ext : {".json", ".yaml", ".yml"})
-    if (std::filesystem::exists(path + ext)) return path + ext;
+    if (std::filesystem::exists(path + ext, absent)) return path + ext;
   return path;
 }
 
 Pipeline load_pipeline(const std::string& given) {
   const std::string path = find_pipeline(given);
-  if (std::filesystem::is_directory(path))
+  std::error_code not_a_directory;
+  if (std::filesystem::is_directory(path, not_a_directory))
     throw InputError(path, "", "is a directory; give a pipeline file (.json, .yaml)");
   nlohmann::json j;
   if (is_yaml(path)) {
