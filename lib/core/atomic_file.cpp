@@ -109,7 +109,8 @@ void check_output_location(const std::string& path) {
     throw OutputError(path, "the directory " + dir + " does not exist");
   if (::access(dir.c_str(), W_OK) != 0)
     throw OutputError(path, "the directory " + dir + " is not writable");
-  // The pipeline fuzzer's finding: such a name made std::filesystem throw its own error.
+  // A name past the file system's limit is refused here, with the others, before any work
+  // (std::filesystem would throw its own error on it later; the pipeline fuzzer's finding).
   const long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
   if (name_max > 0 && p.filename().string().size() > size_t(name_max))
     throw OutputError(path, "the file name is " + std::to_string(p.filename().string().size()) +
