@@ -218,12 +218,12 @@ Image read_pfm(const std::string& path) {
   if (scale > 0) throw InputError(path, "header", "big-endian PFM is not supported");
   std::fgetc(f.get());  // the single whitespace after the scale
   const int channels = kind[1] == 'F' ? 3 : 1;
-  const size_t pixel_bytes = size_t(width) * height * channels * 4;
-  if (pixel_bytes > bytes_left(f.get()))
+  const size_t pixel_bytes = size_t(width) * height * channels * 4, left = bytes_left(f.get());
+  if (pixel_bytes > left)
     throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get())),
                      "truncated pixel data: the header's " + std::to_string(width) + "x" +
                          std::to_string(height) + " pixels need " + std::to_string(pixel_bytes) +
-                         " bytes, the file has " + std::to_string(bytes_left(f.get())) + " left");
+                         " bytes, the file has " + std::to_string(left) + " left");
   Image image(width, height, channels);
   const size_t row = size_t(width) * image.channels;
   for (int y = height - 1; y >= 0; --y)
