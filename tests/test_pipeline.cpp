@@ -175,6 +175,30 @@ size: "64x48"
   EXPECT_EQ(load_pipeline(stem).file, yaml);
 }
 
+TEST(Pipeline, FindPipelineTakesFilesThenExtensionsThenTheShippedOnes) {
+  const test::TempDir dir;
+  std::filesystem::create_directories(dir.file("shipped"));
+  std::ofstream(dir.file("shipped/demo.yaml")) << "name: demo\n";
+  std::ofstream(dir.file("p.yml")) << "name: p\n";
+  // A directory of the pipeline's name (its output, say) is not the pipeline file.
+  std::filesystem::create_directories(dir.file("p"));
+  const std::string shipped = dir.file("shipped");
+  EXPECT_EQ(find_pipeline(dir.file("p")), dir.file("p.yml"));
+  EXPECT_EQ(find_pipeline(dir.file("p.yml"), shipped), dir.file("p.yml"));
+  // A bare name, or pipelines/NAME, not found here is looked up among the shipped ones.
+  const std::string bare = "demo";
+  ASSERT_FALSE(std::filesystem::exists(bare + ".yaml"));
+  EXPECT_EQ(find_pipeline(bare, shipped), dir.file("shipped/demo.yaml"));
+  EXPECT_EQ(find_pipeline("pipelines/demo", shipped), dir.file("shipped/demo.yaml"));
+  EXPECT_EQ(find_pipeline(bare), bare);
+  // A path elsewhere is only that path; nothing found gives it back as given.
+  EXPECT_EQ(find_pipeline(dir.file("demo"), shipped), dir.file("demo"));
+  EXPECT_EQ(find_pipeline(dir.file("none"), shipped), dir.file("none"));
+  // The directory alone, as given: load_pipeline says what it is.
+  std::filesystem::remove(dir.file("p.yml"));
+  EXPECT_EQ(find_pipeline(dir.file("p")), dir.file("p"));
+}
+
 TEST(Pipeline, YamlErrorsNameLineAndColumnOrTheEntry) {
   const std::string bad_syntax =
       write_temp("bad.yaml", "name: t\ndatasets:\n  - {name: a, source: [\n");

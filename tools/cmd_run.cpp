@@ -169,26 +169,6 @@ void validate_pipeline(const Pipeline& p) {
   }
 }
 
-// The pipeline file: `path` as given, else with .json, .yaml or .yml added, else a pipeline
-// shipped with linebake by that name (pipelines/ in the source tree: `linebake run quickstart`
-// works from any directory). The path as given when none exists, so the error names it.
-std::string find_pipeline(const std::string& path) {
-  const auto candidates = [](const std::filesystem::path& base) {
-    std::vector<std::filesystem::path> out{base};
-    for (const char* ext : {".json", ".yaml", ".yml"}) out.push_back(base.string() + ext);
-    return out;
-  };
-  std::error_code absent;  // a name too long for the file system is not there either
-  for (const auto& c : candidates(path))
-    if (std::filesystem::is_regular_file(c, absent)) return c.string();
-  const std::filesystem::path name(path);
-  if (!name.has_parent_path() || name.parent_path() == "pipelines")
-    for (const auto& c :
-         candidates(std::filesystem::path(LINEBAKE_PIPELINES_DIR) / name.filename()))
-      if (std::filesystem::is_regular_file(c, absent)) return c.string();
-  return path;
-}
-
 }  // namespace
 
 Command add_run(CLI::App& app) {
@@ -208,7 +188,7 @@ Command add_run(CLI::App& app) {
                 "List the steps and whether each would run or be reused");
   sub->add_flag("--force", args->force, "Run every step, even unchanged ones");
   return [args] {
-    Pipeline p = load_pipeline(find_pipeline(args->pipeline));
+    Pipeline p = load_pipeline(find_pipeline(args->pipeline, LINEBAKE_PIPELINES_DIR));
     if (!args->output.empty()) p.output = args->output;
     validate_pipeline(p);
     PlanContext context;

@@ -264,12 +264,20 @@ bool is_yaml(const std::string& path) {
 
 }  // namespace
 
-std::string find_pipeline(const std::string& path) {
-  std::error_code absent;  // a name too long for the file system is not there either
-  if (std::filesystem::exists(path, absent)) return path;
-  for (const char* ext : {".json", ".yaml", ".yml"})
-    if (std::filesystem::exists(path + ext, absent)) return path + ext;
-  return path;
+std::string find_pipeline(const std::string& path, const std::string& shipped_dir) {
+  const auto in = [](const std::filesystem::path& base) -> std::string {
+    std::error_code absent;  // a name too long for the file system is not there either
+    if (std::filesystem::is_regular_file(base, absent)) return base.string();
+    for (const char* ext : {".json", ".yaml", ".yml"})
+      if (std::filesystem::is_regular_file(base.string() + ext, absent)) return base.string() + ext;
+    return "";
+  };
+  std::string found = in(path);
+  const std::filesystem::path name(path);
+  if (found.empty() && !shipped_dir.empty() &&
+      (!name.has_parent_path() || name.parent_path() == "pipelines"))
+    found = in(std::filesystem::path(shipped_dir) / name.filename());
+  return found.empty() ? path : found;
 }
 
 Pipeline load_pipeline(const std::string& given) {

@@ -44,9 +44,15 @@ struct Pipeline {
   std::string reference = "reference";  // the technique the others are compared with
 };
 
-// Reads a pipeline: JSON, or YAML for .yaml/.yml; a path without its extension finds
-// PATH.json, PATH.yaml or PATH.yml. InputError naming the file and the JSON path of a bad entry
-// (YAML syntax errors: the line and column).
+// The pipeline file `path` names: the file as given, else with .json, .yaml or .yml added, else
+// (where `shipped_dir` is given and `path` is a bare name or pipelines/NAME) the same in
+// `shipped_dir`. A directory is no pipeline file: `run quickstart` beside the quickstart/ output
+// directory still finds quickstart.yaml. The path as given when none exists, so the error names
+// it.
+std::string find_pipeline(const std::string& path, const std::string& shipped_dir = "");
+// Reads a pipeline: JSON, or YAML for .yaml/.yml; the file find_pipeline(path) names.
+// InputError naming the file and the JSON path of a bad entry (YAML syntax errors: the line and
+// column).
 Pipeline load_pipeline(const std::string& path);
 Pipeline parse_pipeline(const nlohmann::json& json, const std::string& file);
 
