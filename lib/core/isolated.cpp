@@ -35,6 +35,7 @@ extern "C" void __sanitizer_set_death_callback(void (*callback)(void)) __attribu
 namespace linebake {
 namespace {
 
+#ifndef LINEBAKE_ASAN
 // The address space the process has mapped now (/proc/self/statm's first field), or 0.
 uint64_t mapped_bytes() {
   FILE* f = std::fopen("/proc/self/statm", "r");
@@ -44,6 +45,7 @@ uint64_t mapped_bytes() {
   std::fclose(f);
   return n == 1 ? pages * static_cast<uint64_t>(sysconf(_SC_PAGESIZE)) : 0;
 }
+#endif
 
 void write_all(int fd, const char* data, size_t size) {
   while (size > 0) {
@@ -56,7 +58,7 @@ void write_all(int fd, const char* data, size_t size) {
 }
 
 [[noreturn]] void run_child(int fd, const std::function<std::string()>& work,
-                            const IsolationLimits& limits) {
+                            [[maybe_unused]] const IsolationLimits& limits) {
   // A crash must end the child with its signal, not run the parent's handlers (libFuzzer's, the
   // interrupt flag); no core file either.
   for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGALRM, SIGXFSZ, SIGPIPE})
