@@ -46,8 +46,8 @@ struct Pipeline {
 
 // The pipeline file `path` names: the file as given, else with .json, .yaml or .yml added, else
 // (where `shipped_dir` is given and `path` is a bare name or pipelines/NAME) the same in
-// `shipped_dir`. A directory is no pipeline file: `run quickstart` beside the quickstart/ output
-// directory still finds quickstart.yaml. The path as given when none exists, so the error names
+// `shipped_dir`. A directory is no pipeline file: `run quickstart` beside a quickstart/
+// directory still finds quickstart.json. The path as given when none exists, so the error names
 // it.
 std::string find_pipeline(const std::string& path, const std::string& shipped_dir = "");
 // Reads a pipeline: JSON, or YAML for .yaml/.yml; the file find_pipeline(path) names.
