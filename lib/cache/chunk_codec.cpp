@@ -252,7 +252,7 @@ void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t 
     }
     case Compression::None:
       if (bytes != raw_bytes) throw Error("stored chunk has the wrong size");
-      std::memcpy(out.data(), in, bytes);
+      if (bytes > 0) std::memcpy(out.data(), in, bytes);
       return;
   }
 }
@@ -264,7 +264,8 @@ void shuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_by
   auto* out = static_cast<uint8_t*>(out_bytes);
   const size_t n = size ? bytes / size : 0;
   if (size <= 1 || n <= 1) {  // as HDF5: nothing to shuffle
-    std::memcpy(out, in, bytes);
+    // memcpy's pointers must not be null even for 0 bytes, and an empty vector's may be (UBSan).
+    if (bytes > 0) std::memcpy(out, in, bytes);
     return;
   }
   size_t done = 0;
@@ -281,7 +282,7 @@ void unshuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_
   auto* out = static_cast<uint8_t*>(out_bytes);
   const size_t n = size ? bytes / size : 0;
   if (size <= 1 || n <= 1) {
-    std::memcpy(out, in, bytes);
+    if (bytes > 0) std::memcpy(out, in, bytes);  // as shuffle_bytes
     return;
   }
   size_t done = 0;
