@@ -12,7 +12,16 @@ void main() {
   barrier();
   for (uint i = 0u; i < kItems; ++i) {
     const uint at = block * kBlockItems + i * kThreads + t;
-    if (at < pass.count) atomicAdd(histogram[digit_of(keys_in[at])], 1u);
+    const bool valid = at < pass.count;
+    const uint digit = valid ? digit_of(keys_in[at]) : 0u;
+#ifdef LINEBAKE_SUBGROUPS
+    // One atomic per digit per subgroup: sorted runs of keys share digits, and atomics on one
+    // shared address go one at a time.
+    const uvec4 peers = digit_peers(digit, valid);
+    if (valid && last_peer(peers)) atomicAdd(histogram[digit], subgroupBallotBitCount(peers));
+#else
+    if (valid) atomicAdd(histogram[digit], 1u);
+#endif
   }
   barrier();
   counts[t * pass.blocks + block] = histogram[t];

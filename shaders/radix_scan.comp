@@ -8,6 +8,27 @@
 layout(local_size_x = 256) in;
 layout(constant_id = 0) const uint kStep = 0u;
 
+#ifdef LINEBAKE_SUBGROUPS
+shared uint subgroup_sums[kMaxSubgroups];
+
+// Exclusive scan of one value per thread across the workgroup, in thread_index() order: within
+// each subgroup, then over the subgroups' sums. Returns the thread's prefix and leaves the
+// workgroup's total in `total_out`.
+uint workgroup_exclusive_scan(uint value, out uint total_out) {
+  const uint inclusive = subgroupInclusiveAdd(value);
+  if (gl_SubgroupInvocationID == gl_SubgroupSize - 1u) subgroup_sums[gl_SubgroupID] = inclusive;
+  barrier();
+  uint before = 0u, total = 0u;
+  for (uint s = 0u; s < gl_NumSubgroups; ++s) {
+    const uint sum = subgroup_sums[s];
+    if (s < gl_SubgroupID) before += sum;
+    total += sum;
+  }
+  total_out = total;
+  barrier();
+  return before + inclusive - value;
+}
+#else
 shared uint scratch[kThreads];
 
 // Exclusive scan of one value per thread across the workgroup (Hillis-Steele); returns the
@@ -27,9 +48,10 @@ uint workgroup_exclusive_scan(uint value, out uint total_out) {
   barrier();
   return inclusive - value;
 }
+#endif
 
 void main() {
-  const uint t = gl_LocalInvocationID.x, p = gl_WorkGroupID.x;
+  const uint t = thread_index(), p = gl_WorkGroupID.x;
   const uint per_thread = kPartition / kThreads;
   if (kStep == 0u) {
     uint sum = 0u;

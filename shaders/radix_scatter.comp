@@ -6,10 +6,63 @@
 // order across chunks: the sort is stable. Three barriers a chunk: on lavapipe a barrier
 // switches every SIMD batch of the workgroup, and a split sort's scans (seven dozen of them a
 // chunk, an earlier version of this file) took most of the sort's time.
+// With LINEBAKE_SUBGROUPS (radix_sort.glsl) the ranks come from ballots instead: below.
 #include "radix_sort.glsl"
 
 layout(local_size_x = 256) in;
 
+#ifdef LINEBAKE_SUBGROUPS
+// Per subgroup and digit, how many of the subgroup's keys have that digit, then where the first
+// of them goes in the block's run of that digit. 16 bits a count, two digits a word: a block's
+// 1024 keys never carry into the neighbour, and 32 subgroups of 8 fit lavapipe's 32 KiB.
+shared uint subgroup_digits[kMaxSubgroups][kRadix / 2u];
+
+void main() {
+  const uint t = gl_LocalInvocationID.x, block = gl_WorkGroupID.x, s = gl_SubgroupID;
+  for (uint i = t; i < kMaxSubgroups * kRadix / 2u; i += kThreads)
+    subgroup_digits[i / (kRadix / 2u)][i % (kRadix / 2u)] = 0u;
+  barrier();
+  // A subgroup's keys are a run of the block, kItems subgroups wide; a key's rank among the
+  // subgroup's keys of its digit is the count of its earlier steps' plus its peers before it.
+  const uint first = block * kBlockItems + s * kItems * gl_SubgroupSize + gl_SubgroupInvocationID;
+  uint key[kItems], rank[kItems];
+  for (uint i = 0u; i < kItems; ++i) {
+    const uint at = first + i * gl_SubgroupSize;
+    const bool valid = at < pass.count;
+    key[i] = valid ? keys_in[at] : 0u;
+    const uint digit = digit_of(key[i]), shift = (digit & 1u) * 16u;
+    const uvec4 peers = digit_peers(digit, valid);
+    rank[i] = ((subgroup_digits[s][digit / 2u] >> shift) & 0xFFFFu) +
+              subgroupBallotExclusiveBitCount(peers);
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();
+    if (valid && last_peer(peers))
+      atomicAdd(subgroup_digits[s][digit / 2u], subgroupBallotBitCount(peers) << shift);
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();
+  }
+  barrier();
+  // Thread t scans word t over the subgroups: both digits at once, as neither half carries.
+  if (t < kRadix / 2u) {
+    uint running = 0u;
+    for (uint g = 0u; g < gl_NumSubgroups; ++g) {
+      const uint here = subgroup_digits[g][t];
+      subgroup_digits[g][t] = running;
+      running += here;
+    }
+  }
+  barrier();
+  for (uint i = 0u; i < kItems; ++i) {
+    const uint at = first + i * gl_SubgroupSize;
+    if (at >= pass.count) continue;
+    const uint digit = digit_of(key[i]);
+    const uint to = counts[digit * pass.blocks + block] +
+                    ((subgroup_digits[s][digit / 2u] >> ((digit & 1u) * 16u)) & 0xFFFFu) + rank[i];
+    keys_out[to] = key[i];
+    values_out[to] = values_in[at];
+  }
+}
+#else
 // Thread t clears and totals digit t: one thread per digit.
 const uint kWords = kThreads / 32u;
 shared uint digit_threads[kRadix][kWords];
@@ -40,3 +93,4 @@ void main() {
     running[t] += keys_of_digit;
   }
 }
+#endif

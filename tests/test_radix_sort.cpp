@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <string>
 
 #include "render/vulkan/context.hpp"
 #include "render/vulkan/radix_sort.hpp"
@@ -15,9 +16,7 @@ namespace {
 
 // The expected result: pairs ordered by the key's low `bits` rounded up to whole 8-bit digits,
 // equal keys in input order.
-void expect_sorted_like_std(std::vector<uint32_t> keys, uint32_t bits) {
-  vk::Context ctx;
-  vk::RadixSorter sorter(ctx);
+void expect_sorted_like_std(vk::RadixSorter& sorter, std::vector<uint32_t> keys, uint32_t bits) {
   std::vector<uint32_t> values(keys.size());
   std::iota(values.begin(), values.end(), 0u);
   const uint32_t digits = (bits + 7) / 8;
@@ -31,6 +30,19 @@ void expect_sorted_like_std(std::vector<uint32_t> keys, uint32_t bits) {
   sorter.sort(keys, values, bits);
   EXPECT_EQ(values, order);
   EXPECT_EQ(keys, expected_keys);
+}
+
+// Both paths of the sort: shared memory, and subgroups where the device has them (lavapipe
+// does: subgroups of 8 with ballots; SubgroupPathWhereTheDeviceHasIt says when it does not).
+void expect_sorted_like_std(std::vector<uint32_t> keys, uint32_t bits) {
+  vk::Context ctx;
+  for (const bool subgroups : {false, true}) {
+    vk::RadixSorter sorter(ctx, subgroups);
+    if (subgroups && sorter.subgroup_size() == 0) continue;
+    SCOPED_TRACE(subgroups ? "subgroups of " + std::to_string(sorter.subgroup_size())
+                           : std::string("shared memory"));
+    expect_sorted_like_std(sorter, keys, bits);
+  }
 }
 
 std::vector<uint32_t> random_keys(size_t n, uint32_t range, uint32_t seed) {
@@ -71,4 +83,37 @@ TEST(RadixSort, DescendingInputAndAllDigits) {
   std::vector<uint32_t> keys(300'000);
   for (size_t i = 0; i < keys.size(); ++i) keys[i] = uint32_t(keys.size() - i) * 2654435761u;
   expect_sorted_like_std(keys, 32);
+}
+
+TEST(RadixSort, SubgroupPathWhereTheDeviceHasIt) {
+  vk::DeviceInfo info;
+  info.subgroup_size = 32;
+  info.subgroup_ballot_arithmetic = true;
+  info.compute_full_subgroups = true;
+  EXPECT_TRUE(vk::RadixSorter::subgroups_supported(info));
+  for (const uint32_t size : {8u, 64u, 128u}) {
+    info.subgroup_size = size;
+    EXPECT_TRUE(vk::RadixSorter::subgroups_supported(info)) << size;
+  }
+  // Smaller subgroups than the shaders' shared arrays hold, larger than a ballot's 128 bits, or
+  // a size that does not divide the workgroup.
+  for (const uint32_t size : {0u, 4u, 24u, 256u}) {
+    info.subgroup_size = size;
+    EXPECT_FALSE(vk::RadixSorter::subgroups_supported(info)) << size;
+  }
+  info.subgroup_size = 32;
+  info.compute_full_subgroups = false;
+  EXPECT_FALSE(vk::RadixSorter::subgroups_supported(info));
+  info.compute_full_subgroups = true;
+  info.subgroup_ballot_arithmetic = false;
+  EXPECT_FALSE(vk::RadixSorter::subgroups_supported(info));
+
+  // The device here: the sorter takes the path the device allows, and never against the caller.
+  vk::Context ctx;
+  const bool supported = vk::RadixSorter::subgroups_supported(ctx.info());
+  EXPECT_EQ(vk::RadixSorter(ctx).subgroup_size(), supported ? ctx.info().subgroup_size : 0u);
+  EXPECT_EQ(vk::RadixSorter(ctx, false).subgroup_size(), 0u);
+  if (!supported)
+    GTEST_SKIP() << ctx.info().name << " has no subgroup path: the sorts above ran "
+                 << "the shared-memory path only";
 }

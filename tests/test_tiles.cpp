@@ -73,6 +73,8 @@ void expect_matches(const std::string& source, const char* geometry, const char*
         EXPECT_TRUE(a.stats.contains(field)) << field;
     }
   }
+  // Which path the key sort took (radix_sort.hpp): a subgroup size, or 0.
+  EXPECT_TRUE(ours.stats().contains("sort_subgroup_size"));
 }
 
 // Per pixel, the front hits tiles counts are Embree's: the composite tests only the pixels whose

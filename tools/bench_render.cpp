@@ -172,8 +172,11 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
   return row;
 }
 
+// The registry's technique behind a bench name: vrc-gpu is vrc on Vulkan compute, tiles-shared
+// is tiles with its key sort's shared-memory path (beside tiles, whose sort takes subgroups
+// where the device has them: the two paths' A/B).
 std::string technique_of(const std::string& name) {
-  return name == "vrc-gpu" ? "vrc" : name;
+  return name == "vrc-gpu" ? "vrc" : name == "tiles-shared" ? "tiles" : name;
 }
 
 std::string fixed(double v, int digits) {
@@ -260,7 +263,7 @@ void bench_render(const BenchRenderArgs& args) {
   // thirty in one process (H100, driver 580).
   std::optional<vk::Context> context;
   const bool vulkan = std::any_of(names.begin(), names.end(), [](const std::string& name) {
-    return name == "vrc-gpu" || find_technique(name).info.vulkan;
+    return find_technique(technique_of(name)).info.vulkan || name == "vrc-gpu";
   });
   if (vulkan && !technique_unavailable(find_technique("opaque"), options)) {
     vk::ContextOptions co;
@@ -290,6 +293,7 @@ void bench_render(const BenchRenderArgs& args) {
       for (const std::string& name : names) {
         TechniqueOptions o = options;
         if (name == "vrc-gpu") o.on = "gpu";
+        if (name == "tiles-shared") o.tiles_sort = "shared";
         // The reference stays exact (its frames above are rendered without these).
         o.early_termination = args.early_termination && name != "reference";
         o.every_hit = args.every_hit;

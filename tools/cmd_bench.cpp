@@ -446,7 +446,8 @@ Command add_bench(CLI::App& app) {
   rendering
       ->add_option("--techniques", render->techniques,
                    "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
-                   "those this machine cannot run are listed as skipped, with the reason)")
+                   "tiles-shared, tiles with its sort's shared-memory path, when named; those "
+                   "this machine cannot run are listed as skipped, with the reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,

@@ -94,7 +94,7 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device, on = "cpu";
     bool no_early_termination = false, no_skip = false;
-    std::string rt_geometry, tiles_geometry = "capsules";
+    std::string rt_geometry, tiles_geometry = "capsules", tiles_sort = "auto";
     bool rebuild = false, no_compaction = false;
     int max_iterations = 1024;
     uint64_t capacity = 0;
@@ -133,6 +133,10 @@ Command add_render(CLI::App& app) {
                   "tiles: capsules (the lines with the tubes' radius, default) | triangles (the "
                   "cached tube mesh, as reference and the raster techniques)")
       ->check(one_of({"capsules", "triangles"}));
+  sub->add_option("--tiles-sort", args->tiles_sort,
+                  "tiles: the key sort's path: auto (subgroups where the device has them, "
+                  "default) | subgroups | shared (shared memory only); the same order either way")
+      ->check(one_of({"auto", "subgroups", "shared"}));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
   sub->add_flag("--rtx-no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
@@ -265,6 +269,7 @@ Command add_render(CLI::App& app) {
     o.skip_empty_space = !args->no_skip;
     o.rt_geometry = args->rt_geometry;
     o.tiles_geometry = args->tiles_geometry;
+    o.tiles_sort = args->tiles_sort;
     o.rebuild = args->rebuild, o.compaction = !args->no_compaction;
     o.max_iterations = args->max_iterations;
     // The depth complexity costs embree and reference every hit of every ray: only when shown.

@@ -107,7 +107,7 @@ const std::vector<Technique>& techniques() {
         "pixel in exact order",
         A{"lines"}, true, false, true,
         A{"device", "validation", "radius", "attribute", "early-termination",
-          "no-early-termination", "tiles-geometry"}},
+          "no-early-termination", "tiles-geometry", "tiles-sort"}},
        prepare_tiles,
        cpu_tracing_frame_bytes},
   };

@@ -80,6 +80,8 @@ struct TechniqueOptions {
   int max_iterations = 1024;
   // tiles
   std::string tiles_geometry = "capsules";  // capsules (the lines) | triangles (the tube mesh)
+  // The key sort's path: auto (subgroups where the device has them) | subgroups | shared.
+  std::string tiles_sort = "auto";
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
   // in bands of tile rows to stay within it.
   uint64_t memory_budget = 0;

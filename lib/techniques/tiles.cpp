@@ -7,6 +7,7 @@
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
+#include "render/vulkan/radix_sort.hpp"
 #include "render/vulkan/tile_renderer.hpp"
 #include "techniques/curve_defaults.hpp"
 #include "techniques/families.hpp"
@@ -18,6 +19,14 @@ class Tiles : public PreparedTechnique {
  public:
   Tiles(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
       : context_(o, false), triangles_(o.tiles_geometry == "triangles") {
+    if (o.tiles_sort != "auto" && o.tiles_sort != "subgroups" && o.tiles_sort != "shared")
+      throw UsageError("tiles: the sort is auto, subgroups or shared, not '" + o.tiles_sort + "'");
+    const bool sort_subgroups = o.tiles_sort != "shared";
+    if (o.tiles_sort == "subgroups" && !vk::RadixSorter::subgroups_supported(context_->info()))
+      throw Error("tiles --tiles-sort subgroups: " + context_->info().name +
+                  " lacks what the sort's subgroup path needs (compute subgroups of 8 to 128 "
+                  "invocations with basic, ballot and arithmetic operations, and full "
+                  "subgroups); --tiles-sort shared or auto run everywhere");
     if (triangles_) {
       if (!cache.exists("/assets/tubes"))
         throw_missing_asset(cache_name, "tubes",
@@ -29,7 +38,7 @@ class Tiles : public PreparedTechnique {
       const TubeMesh mesh = load_tubes(cache);
       bounds_ = compute_bounds(mesh);
       radius_ = mesh.radius;
-      renderer_.emplace(*context_, mesh);
+      renderer_.emplace(*context_, mesh, 0, 0, sort_subgroups);
     } else {
       const LineSet lines = load_lines(cache);
       const auto tube_provenance =
@@ -39,7 +48,7 @@ class Tiles : public PreparedTechnique {
       const CapsuleSegments capsules = build_capsule_segments(lines, radius, attribute);
       bounds_ = compute_bounds(lines);
       for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
-      renderer_.emplace(*context_, capsules);
+      renderer_.emplace(*context_, capsules, 0, 0, sort_subgroups);
       radius_ = radius;
     }
     options_.early_termination = o.early_termination;
@@ -90,7 +99,8 @@ class Tiles : public PreparedTechnique {
     return {{"device", context_->info().name},
             {"geometry", triangles_ ? "triangles" : "capsules"},
             {"radius", radius_},
-            {"early_termination", options_.early_termination}};
+            {"early_termination", options_.early_termination},
+            {"sort_subgroup_size", renderer_->sort_subgroup_size()}};
   }
   std::string device() const override { return context_->info().name; }
 

@@ -32,7 +32,10 @@ bool has_layer(const char* name) {
 
 DeviceInfo describe(VkPhysicalDevice device) {
   VkPhysicalDeviceIDProperties id{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES};
-  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES, &id};
+  VkPhysicalDeviceSubgroupProperties subgroups{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES, &id};
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES,
+                                          &subgroups};
   VkPhysicalDeviceProperties2 props{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &driver};
   vkGetPhysicalDeviceProperties2(device, &props);
   DeviceInfo info;
@@ -44,6 +47,12 @@ DeviceInfo describe(VkPhysicalDevice device) {
   info.ray_tracing = has_extension(device, "VK_KHR_ray_tracing_pipeline") &&
                      has_extension(device, "VK_KHR_acceleration_structure") &&
                      has_extension(device, "VK_KHR_deferred_host_operations");
+  info.subgroup_size = subgroups.subgroupSize;
+  const VkSubgroupFeatureFlags wanted = VK_SUBGROUP_FEATURE_BASIC_BIT |
+                                        VK_SUBGROUP_FEATURE_BALLOT_BIT |
+                                        VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
+  info.subgroup_ballot_arithmetic = (subgroups.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) &&
+                                    (subgroups.supportedOperations & wanted) == wanted;
   std::copy(std::begin(id.driverUUID), std::end(id.driverUUID), info.driver_uuid.begin());
   return info;
 }
@@ -212,6 +221,7 @@ Context::Context(const ContextOptions& options) {
     // MLAB's ordered critical section; without it the shaders fall back to a spin lock.
     info_.fragment_shader_interlock =
         info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
+    info_.compute_full_subgroups = supported13.computeFullSubgroups;
     ray_tracing_ = options.ray_tracing;
     // Integrated and CPU devices share their memory with the host: no staging copy there.
     staging_piece_bytes_ = std::max<uint64_t>(options.staging_piece_bytes / 4 * 4, 4);
@@ -242,6 +252,7 @@ Context::Context(const ContextOptions& options) {
     VkPhysicalDeviceVulkan13Features features13{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &features12};
     features13.dynamicRendering = VK_TRUE;
+    features13.computeFullSubgroups = info_.compute_full_subgroups ? VK_TRUE : VK_FALSE;
     void* chain_end = nullptr;
     if (info_.fragment_shader_interlock) {
       device_extensions.push_back("VK_EXT_fragment_shader_interlock");

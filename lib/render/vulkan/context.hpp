@@ -48,6 +48,13 @@ struct DeviceInfo {
   uint32_t api_version = 0;
   bool fragment_shader_interlock = false;
   bool ray_tracing = false;  // VK_KHR_ray_tracing_pipeline + VK_KHR_acceleration_structure
+  // Compute-stage subgroups: their size (VkPhysicalDeviceSubgroupProperties::subgroupSize, what
+  // a compute pipeline gets unless it asks for another), whether basic, ballot and arithmetic
+  // operations are there, and whether a pipeline may require full subgroups (Vulkan 1.3's
+  // computeFullSubgroups: known, and enabled, once a Context has made the device).
+  uint32_t subgroup_size = 0;
+  bool subgroup_ballot_arithmetic = false;
+  bool compute_full_subgroups = false;
   std::array<uint8_t, 16> driver_uuid{};  // VkPhysicalDeviceIDProperties::driverUUID
 };
 

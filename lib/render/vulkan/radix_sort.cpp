@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <string>
 
 #include "core/error.hpp"
 #include "render/vulkan/shaders.hpp"
@@ -39,10 +40,19 @@ struct RadixSorter::State {
 
   explicit State(Context& c) : ctx(c) {}
 
-  VkPipeline pipeline(const char* shader, const uint32_t* step) {
+  uint32_t subgroup_size = 0;  // 0: the shared-memory path
+
+  // The pass's shader, its subgroup variant (shaders/CMakeLists.txt) with full subgroups where
+  // the sort runs on subgroups.
+  VkPipeline pipeline(const std::string& shader, const uint32_t* step) {
     const VkSpecializationMapEntry entry{0, 0, 4};
     const VkSpecializationInfo specialisation{1, &entry, 4, step};
-    return create_compute_pipeline(ctx.device(), layout, shader, step ? &specialisation : nullptr);
+    if (subgroup_size == 0)
+      return create_compute_pipeline(ctx.device(), layout, shader,
+                                     step ? &specialisation : nullptr);
+    return create_compute_pipeline(ctx.device(), layout, shader + ":subgroups",
+                                   step ? &specialisation : nullptr,
+                                   VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT);
   }
 
   // Scratch for `count` pairs: grown, never shrunk; descriptor sets rewritten when it or the
@@ -97,8 +107,23 @@ struct RadixSorter::State {
   }
 };
 
-RadixSorter::RadixSorter(Context& context) : state_(std::make_unique<State>(context)) {
+bool RadixSorter::subgroups_supported(const DeviceInfo& info) {
+  // At most kThreads / 8 subgroups: the shaders' shared arrays (radix_sort.glsl), and whole
+  // subgroups in a workgroup of kThreads.
+  const uint32_t size = info.subgroup_size;
+  return info.subgroup_ballot_arithmetic && info.compute_full_subgroups && size >= 8 &&
+         size <= 128 && (size & (size - 1)) == 0;
+}
+
+uint32_t RadixSorter::subgroup_size() const {
+  return state_->subgroup_size;
+}
+
+RadixSorter::RadixSorter(Context& context, bool use_subgroups)
+    : state_(std::make_unique<State>(context)) {
   State& s = *state_;
+  if (use_subgroups && subgroups_supported(context.info()))
+    s.subgroup_size = context.info().subgroup_size;
   VkDevice d = context.device();
   std::array<VkDescriptorSetLayoutBinding, kBindings> bindings{};
   for (uint32_t i = 0; i < kBindings; ++i)

@@ -2,7 +2,9 @@
 // A GPU radix sort of 32-bit keys with 32-bit values in core Vulkan compute: the sort of the
 // `tiles` renderer's (tile, depth) keys. Stable, 8 bits per pass from the least significant; per
 // pass a count, a three-step scan and a scatter (shaders/radix_*.comp; the design and its
-// credit are in shaders/radix_sort.glsl). Runs wherever Vulkan compute does, lavapipe included.
+// credit are in shaders/radix_sort.glsl). Runs wherever Vulkan compute does, lavapipe included;
+// where the device has the subgroup operations for it, a subgroup path of the same passes (the
+// same results, bit for bit).
 
 #include <cstdint>
 #include <memory>
@@ -14,10 +16,17 @@ namespace linebake::vk {
 
 class RadixSorter {
  public:
-  explicit RadixSorter(Context& context);
+  // `use_subgroups` false keeps the shared-memory path on every device (tests, comparisons).
+  explicit RadixSorter(Context& context, bool use_subgroups = true);
   ~RadixSorter();
   RadixSorter(const RadixSorter&) = delete;
   RadixSorter& operator=(const RadixSorter&) = delete;
+
+  // Whether a device runs the subgroup path: compute subgroups of 8 to 128 invocations with
+  // basic, ballot and arithmetic operations, and pipelines that may require full subgroups.
+  static bool subgroups_supported(const DeviceInfo& info);
+  // The subgroup size the passes run with; 0 on the shared-memory path.
+  uint32_t subgroup_size() const;
 
   // Scratch the sort of `count` keys needs besides the keys and values (bytes): the ping-pong
   // copies of both and the per-block digit counts.

@@ -40,10 +40,12 @@ VkShaderModule create_shader_module(VkDevice device, const std::string& name) {
 
 VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
                                    const std::string& name,
-                                   const VkSpecializationInfo* specialisation) {
+                                   const VkSpecializationInfo* specialisation,
+                                   VkPipelineShaderStageCreateFlags stage_flags) {
   VkShaderModule module = create_shader_module(device, name);
   VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  create.stage.flags = stage_flags;
   create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   create.stage.module = module;
   create.stage.pName = "main";

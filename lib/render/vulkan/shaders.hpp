@@ -19,9 +19,10 @@ Spirv shader_spirv(const std::string& name);
 // A shader module of one embedded shader (the caller destroys it).
 VkShaderModule create_shader_module(VkDevice device, const std::string& name);
 // A compute pipeline of one embedded shader's `main` with `layout` and, where given, its
-// specialisation constants (the caller destroys it). Throws naming the shader.
+// specialisation constants and stage flags (the caller destroys it). Throws naming the shader.
 VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
                                    const std::string& name,
-                                   const VkSpecializationInfo* specialisation = nullptr);
+                                   const VkSpecializationInfo* specialisation = nullptr,
+                                   VkPipelineShaderStageCreateFlags stage_flags = 0);
 
 }  // namespace linebake::vk

@@ -79,7 +79,7 @@ struct TileRenderer::State {
   std::array<VkPipeline, 3> pipelines{};  // bin, ranges, composite
   VkQueryPool queries = VK_NULL_HANDLE;
 
-  State(Context& c) : ctx(c), sorter(c) {}
+  State(Context& c, bool sort_subgroups) : ctx(c), sorter(c, sort_subgroups) {}
   // Uploads the primitives (vertex_stride floats per vertex, x y z first) and makes the passes.
   void init(const std::vector<float>& vertex_words, const std::vector<uint32_t>& primitive_words,
             uint64_t primitives, uint32_t vertex_stride, uint64_t max_buffer_bytes,
@@ -165,8 +165,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
 }
 
 TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
-                           uint64_t max_buffer_bytes, uint32_t slice_keys)
-    : state_(std::make_unique<State>(context)) {
+                           uint64_t max_buffer_bytes, uint32_t slice_keys, bool sort_subgroups)
+    : state_(std::make_unique<State>(context, sort_subgroups)) {
   State& s = *state_;
   s.radius = capsules.radius;
   s.attribute_range = capsules.attribute_range;
@@ -185,8 +185,8 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
 }
 
 TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes,
-                           uint32_t slice_keys)
-    : state_(std::make_unique<State>(context)) {
+                           uint32_t slice_keys, bool sort_subgroups)
+    : state_(std::make_unique<State>(context, sort_subgroups)) {
   State& s = *state_;
   s.attribute_range = mesh.attribute_range;
   // Per vertex x, y, z, attribute value, then the normal; indices re-based over the chunks.
@@ -239,6 +239,10 @@ std::vector<std::pair<uint32_t, uint32_t>> plan_bands(const uint32_t* row_keys, 
 }
 
 }  // namespace
+
+uint32_t TileRenderer::sort_subgroup_size() const {
+  return state_->sorter.subgroup_size();
+}
 
 TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_in,
                                const TileOptions& o) {

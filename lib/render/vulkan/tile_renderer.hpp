@@ -62,18 +62,21 @@ class TileRenderer {
  public:
   // The capsules are uploaded once (device-local); `max_buffer_bytes` > 0 lowers the largest
   // storage buffer, `slice_keys` > 0 sets the keys per tile per composite dispatch (tests; by
-  // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all).
+  // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all);
+  // `sort_subgroups` false keeps the key sort on its shared-memory path (radix_sort.hpp).
   TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
-               uint32_t slice_keys = 0);
+               uint32_t slice_keys = 0, bool sort_subgroups = true);
   // Triangle mode: the tube mesh's front-facing triangles, comparable with `reference` and the
   // raster techniques to the last bit of coverage.
   TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes = 0,
-               uint32_t slice_keys = 0);
+               uint32_t slice_keys = 0, bool sort_subgroups = true);
   ~TileRenderer();
   TileRenderer(const TileRenderer&) = delete;
   TileRenderer& operator=(const TileRenderer&) = delete;
 
   TileFrame render(const Camera& camera, const TransferFunction& tf, const TileOptions& options);
+  // The subgroup size the key sort runs with (radix_sort.hpp); 0: its shared-memory path.
+  uint32_t sort_subgroup_size() const;
 
  private:
   struct State;
