@@ -37,6 +37,8 @@ shared uint block_entries[kBlocks][kBatch / 32u];
 // The tile's pixels that may still take a hit after a batch, by the batch's parity: none, and the
 // walk stops early (every pixel opaque enough, written out, or past its floor).
 shared uint busy[2];
+// The depth bound of the first key after the batch (+inf: none in this slice), read once.
+shared float next_bound;
 
 uvec2 pixel_in_tile(uint lane) {
   const uint block = lane / 8u, k = lane % 8u;
@@ -235,6 +237,10 @@ void main() {
     // Last read two batches ago, before the barriers of the batch between.
     if (lane == 0u) busy[parity] = 0u;
     barrier();
+    if (lane == 0u) {
+      const uint next = first + kBatch;
+      next_bound = next < end ? key_depth(keys[next]) : 1.0 / 0.0;
+    }
     if (lane < count) {
       const uint primitive = values[first + lane];
       batch_primitive[lane] = primitive;
@@ -275,9 +281,7 @@ void main() {
     }
     // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
     // it takes none of them in this walk.
-    const uint next = first + kBatch;
-    if (inside && !done && !written && (next >= end || floor_t > key_depth(keys[next])))
-      atomicAdd(busy[parity], 1u);
+    if (inside && !done && !written && floor_t > next_bound) atomicAdd(busy[parity], 1u);
     barrier();
     if (busy[parity] == 0u) break;
   }

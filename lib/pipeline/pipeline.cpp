@@ -268,8 +268,10 @@ std::string find_pipeline(const std::string& path, const std::string& shipped_di
   const auto in = [](const std::filesystem::path& base) -> std::string {
     std::error_code absent;  // a name too long for the file system is not there either
     if (std::filesystem::is_regular_file(base, absent)) return base.string();
-    for (const char* ext : {".json", ".yaml", ".yml"})
-      if (std::filesystem::is_regular_file(base.string() + ext, absent)) return base.string() + ext;
+    for (const char* ext : {".json", ".yaml", ".yml"}) {
+      std::string named = base.string() + ext;
+      if (std::filesystem::is_regular_file(named, absent)) return named;
+    }
     return "";
   };
   std::string found = in(path);
