@@ -374,7 +374,7 @@ void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* sto
   out.resize(raw_bytes);
   if (!(filter_mask & kShuffleBit))
     unshuffle_bytes(data, raw_bytes, codec.element_size, out.data());
-  else
+  else if (raw_bytes > 0)  // memcpy takes no null pointer, even for 0 bytes
     std::memcpy(out.data(), data, raw_bytes);
 }
 
@@ -413,7 +413,7 @@ size_t run_filter(Compression compression, unsigned flags, size_t cd_nelmts,
     }
     void* result = H5allocate_memory(out.size(), false);
     if (!result) return 0;
-    std::memcpy(result, out.data(), out.size());
+    if (!out.empty()) std::memcpy(result, out.data(), out.size());
     H5free_memory(*buf);
     *buf = result;
     *buf_size = out.size();

@@ -441,7 +441,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       uint64_t place[4] = {};
       MPI_Scatter(places.data(), 4, MPI_UINT64_T, place, 4, MPI_UINT64_T, 0, comm);
       std::vector<TubeChunkPlan> plan(plan_bytes.size() / sizeof(TubeChunkPlan));
-      std::memcpy(plan.data(), plan_bytes.data(), plan_bytes.size());
+      if (!plan.empty()) std::memcpy(plan.data(), plan_bytes.data(), plan.size() * sizeof plan[0]);
       tubes->adopt_plan(plan, totals[0], totals[1], totals[2], std::move(kept), piece.first_line,
                         {size_t(place[0]), place[1], place[2]});
       TubeStoreSink sink(writer, tubes->description(), plan, size_t(place[0]), place[1], place[2],
@@ -515,7 +515,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       if (!error.empty()) throw Error(error);  // every rank alike
       parts_bytes = ranks.broadcast(parts_bytes);
       std::vector<CurvePart> parts(parts_bytes.size() / sizeof(CurvePart));
-      std::memcpy(parts.data(), parts_bytes.data(), parts_bytes.size());
+      if (!parts.empty())
+        std::memcpy(parts.data(), parts_bytes.data(), parts.size() * sizeof parts[0]);
       uint64_t place[3] = {};
       MPI_Scatter(pieces.data(), 3, MPI_UINT64_T, place, 3, MPI_UINT64_T, 0, comm);
       EmbreeStoreWriter embree(writer, parts, curves.geometry, curves.radius, curves.attribute,

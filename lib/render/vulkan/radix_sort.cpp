@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cstring>
 #include <string>
 
 #include "core/error.hpp"
@@ -214,8 +213,9 @@ void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& value
   const uint64_t bytes = std::max<uint64_t>(4, keys.size() * 4);
   const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   Buffer k = ctx.create_buffer(bytes, usage, true), v = ctx.create_buffer(bytes, usage, true);
-  std::memcpy(k.mapped, keys.data(), keys.size() * 4);
-  std::memcpy(v.mapped, values.data(), values.size() * 4);
+  // std::copy, not memcpy: an empty vector's data() may be null, which memcpy may not take.
+  std::copy(keys.begin(), keys.end(), static_cast<uint32_t*>(k.mapped));
+  std::copy(values.begin(), values.end(), static_cast<uint32_t*>(v.mapped));
   ctx.submit([&](VkCommandBuffer cmd) {
     record(cmd, k, v, uint32_t(keys.size()), bits);
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -224,8 +224,8 @@ void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& value
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
                          1, &b, 0, nullptr, 0, nullptr);
   });
-  std::memcpy(keys.data(), k.mapped, keys.size() * 4);
-  std::memcpy(values.data(), v.mapped, values.size() * 4);
+  std::copy_n(static_cast<const uint32_t*>(k.mapped), keys.size(), keys.begin());
+  std::copy_n(static_cast<const uint32_t*>(v.mapped), values.size(), values.begin());
   state_->bound_keys = state_->bound_values = nullptr;  // the buffers go now
   ctx.destroy(k);
   ctx.destroy(v);

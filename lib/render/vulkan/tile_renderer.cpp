@@ -390,7 +390,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
           ctx.create_buffer(slice_tiles.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
       s.bind();
     }
-    std::memcpy(s.slice_tiles.mapped, slice_tiles.data(), slice_tiles.size() * 4);
+    std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
     st.composite_ms += pass([&](VkCommandBuffer cmd) {
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
       for (uint32_t k = 0; k < slices; ++k) {
