@@ -11,6 +11,9 @@
 #   $FAULT_MATRIX_KEEP    a directory: keep each failed cell's stderr and fault log there
 set -u
 shim=$(realpath "$2")
+# An AddressSanitizer build (the asan preset) needs its runtime first in the preload list.
+asan_runtime=$(ldd "$1" 2>/dev/null | awk '/libasan/ {print $3; exit}')
+preload="${asan_runtime:+$asan_runtime:}$shim"
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -44,7 +47,7 @@ run_cell() {
   local envs=()
   while [ "$1" != "--" ]; do envs+=("$1"); shift; done
   shift
-  (cd "$dir" && timeout "$limit_s" env LD_PRELOAD="$shim" "${envs[@]}" "$@" 2>&1 >/dev/null | cat >"$err"
+  (cd "$dir" && timeout "$limit_s" env LD_PRELOAD="$preload" "${envs[@]}" "$@" 2>&1 >/dev/null | cat >"$err"
    exit "${PIPESTATUS[0]}")
   rc=$?
 }
