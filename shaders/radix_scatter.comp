@@ -22,8 +22,9 @@ void main() {
   for (uint i = t; i < kMaxSubgroups * kRadix / 2u; i += kThreads)
     subgroup_digits[i / (kRadix / 2u)][i % (kRadix / 2u)] = 0u;
   barrier();
-  // A subgroup's keys are a run of the block, kItems subgroups wide; a key's rank among the
-  // subgroup's keys of its digit is the count of its earlier steps' plus its peers before it.
+  // A subgroup's keys are a run of kItems * gl_SubgroupSize keys of the block, taken a subgroup
+  // wide at a time; a key's rank among the subgroup's keys of its digit is the count of the
+  // earlier steps' plus its peers before it.
   const uint first = block * kBlockItems + s * kItems * gl_SubgroupSize + gl_SubgroupInvocationID;
   uint key[kItems], rank[kItems];
   for (uint i = 0u; i < kItems; ++i) {
