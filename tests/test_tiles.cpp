@@ -11,8 +11,10 @@
 
 #include "accel/capsule_segments.hpp"
 #include "cache/cache.hpp"
+#include "core/error.hpp"
 #include "metrics/image_metrics.hpp"
 #include "pipeline/bake.hpp"
+#include "render/vulkan/radix_sort.hpp"
 #include "render/vulkan/tile_renderer.hpp"
 #include "synth/synth.hpp"
 #include "techniques/technique.hpp"
@@ -109,6 +111,37 @@ TEST(Tiles, CapsulesMatchEmbreeCapsulesForEveryPreset) {
 TEST(Tiles, TrianglesMatchTheReferenceForEveryPreset) {
   expect_matches("synth:aneurysm?scale=0.01", "triangles", "reference", {1.0, 0.5});
   expect_matches("synth:convection?scale=0.01", "triangles", "reference", {1.0});
+}
+
+// TechniqueOptions::tiles_sort (render --tiles-sort): `shared` keeps the key sort on shared
+// memory, `subgroups` takes the subgroup path where the device has it and is refused where it
+// does not, anything else is a usage error; both paths give the same image, to the bit.
+TEST(Tiles, TheSortPathIsTheCallersToChoose) {
+  const auto pair = prepare_pair("synth:aneurysm?scale=0.01", "capsules", "embree");
+  const Technique& tiles = find_technique("tiles");
+  const std::string cache_name = pair->dir.file("a.lbc.h5");
+  TechniqueOptions o;
+  o.width = 160, o.height = 120;
+  o.tiles_sort = "shared";
+  const auto shared = tiles.prepare(tiles.info, *pair->cache, cache_name, o);
+  EXPECT_EQ(shared->stats()["sort_subgroup_size"], 0u);
+  o.tiles_sort = "warp";
+  EXPECT_THROW(tiles.prepare(tiles.info, *pair->cache, cache_name, o), UsageError);
+  o.tiles_sort = "subgroups";
+  vk::Context ctx;  // the device the technique picks: a discrete GPU, else any
+  if (!vk::RadixSorter::subgroups_supported(ctx.info())) {
+    EXPECT_THROW(tiles.prepare(tiles.info, *pair->cache, cache_name, o), Error);
+    GTEST_SKIP() << ctx.info().name << " has no subgroup path to compare";
+  }
+  const auto subgroups = tiles.prepare(tiles.info, *pair->cache, cache_name, o);
+  EXPECT_EQ(subgroups->stats()["sort_subgroup_size"], ctx.info().subgroup_size);
+  const Camera camera = frame_bounds(shared->bounds(), 160.0 / 120.0, 30, 20, 0.5);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const TechniqueFrame a = shared->render(camera, tf, 160, 120);
+  const TechniqueFrame b = subgroups->render(camera, tf, 160, 120);
+  EXPECT_GT(a.stats["keys"].get<uint64_t>(), 10000u);
+  EXPECT_EQ(a.stats["keys"], b.stats["keys"]);
+  EXPECT_EQ(a.image.pixels, b.image.pixels);
 }
 
 TEST(Tiles, SlicesGiveTheSameBytes) {
