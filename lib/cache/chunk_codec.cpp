@@ -40,6 +40,12 @@ const char* to_string(Compression compression) {
 
 namespace {
 
+// memcpy for buffers that may be empty: its pointers must not be null even for 0 bytes, and an
+// empty vector's data() may be (UBSan).
+void copy_bytes(void* out, const void* in, size_t bytes) {
+  if (bytes > 0) std::memcpy(out, in, bytes);
+}
+
 void put_be32(char* at, uint32_t v) {
   for (int i = 0; i < 4; ++i) at[i] = char(v >> (24 - 8 * i));
 }
@@ -252,7 +258,7 @@ void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t 
     }
     case Compression::None:
       if (bytes != raw_bytes) throw Error("stored chunk has the wrong size");
-      if (bytes > 0) std::memcpy(out.data(), in, bytes);
+      copy_bytes(out.data(), in, bytes);
       return;
   }
 }
@@ -264,8 +270,7 @@ void shuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_by
   auto* out = static_cast<uint8_t*>(out_bytes);
   const size_t n = size ? bytes / size : 0;
   if (size <= 1 || n <= 1) {  // as HDF5: nothing to shuffle
-    // memcpy's pointers must not be null even for 0 bytes, and an empty vector's may be (UBSan).
-    if (bytes > 0) std::memcpy(out, in, bytes);
+    copy_bytes(out, in, bytes);
     return;
   }
   size_t done = 0;
@@ -282,7 +287,7 @@ void unshuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_
   auto* out = static_cast<uint8_t*>(out_bytes);
   const size_t n = size ? bytes / size : 0;
   if (size <= 1 || n <= 1) {
-    if (bytes > 0) std::memcpy(out, in, bytes);  // as shuffle_bytes
+    copy_bytes(out, in, bytes);
     return;
   }
   size_t done = 0;
@@ -374,8 +379,8 @@ void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* sto
   out.resize(raw_bytes);
   if (!(filter_mask & kShuffleBit))
     unshuffle_bytes(data, raw_bytes, codec.element_size, out.data());
-  else if (raw_bytes > 0)  // memcpy takes no null pointer, even for 0 bytes
-    std::memcpy(out.data(), data, raw_bytes);
+  else
+    copy_bytes(out.data(), data, raw_bytes);
 }
 
 }  // namespace linebake

@@ -46,12 +46,11 @@ struct RadixSorter::State {
   VkPipeline pipeline(const std::string& shader, const uint32_t* step) {
     const VkSpecializationMapEntry entry{0, 0, 4};
     const VkSpecializationInfo specialisation{1, &entry, 4, step};
-    if (subgroup_size == 0)
-      return create_compute_pipeline(ctx.device(), layout, shader,
-                                     step ? &specialisation : nullptr);
-    return create_compute_pipeline(ctx.device(), layout, shader + ":subgroups",
-                                   step ? &specialisation : nullptr,
-                                   VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT);
+    const bool subgroups = subgroup_size > 0;
+    return create_compute_pipeline(
+        ctx.device(), layout, subgroups ? shader + ":subgroups" : shader,
+        step ? &specialisation : nullptr,
+        subgroups ? VK_PIPELINE_SHADER_STAGE_CREATE_REQUIRE_FULL_SUBGROUPS_BIT : 0);
   }
 
   // Scratch for `count` pairs: grown, never shrunk; descriptor sets rewritten when it or the
