@@ -36,9 +36,9 @@ layout(set = 0, binding = 8, std430) writeonly buffer Hits { uint hit_counts[]; 
 // Keys per tile row (binning counts them, so the host can cut the frame into bands).
 layout(set = 0, binding = 12, std430) buffer RowKeys { uint row_keys[]; };
 
-// The lower bound of a key's depth, in the units of t (distance along a unit ray): keys hold
-// floor((z - near) / (far - near) * (2^bits - 1)) of the capsule's nearest view depth z, and
-// t >= z for every point of it.
+// The lower bound of a key's view depth: keys hold floor((z - near) / (far - near) * (2^bits - 1))
+// of the primitive's nearest view depth z (the composite turns it into a bound on t along each
+// pixel's ray).
 float key_depth(uint key) {
   const uint bits = frame.tiles.z;
   const float q = float(key & ((1u << bits) - 1u));

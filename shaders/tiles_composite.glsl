@@ -192,6 +192,9 @@ void insert(float t, vec4 c, uint primitive, float seam) {
   ++pending;
 }
 
+// A key's depth bound (a view depth) in the units of t along a pixel's ray (below).
+float bound_t(float bound, float t_per_z) { return bound > 0.0 ? bound * t_per_z : bound; }
+
 void main() {
   const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (entry >= slicing.tile_count) return;
@@ -231,6 +234,15 @@ void main() {
       window_colour[k] = states[state].colour[k];
     }
   }
+  const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
+  const vec3 direction =
+      normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
+  // A key's depth bound is a view depth z; along this pixel's unit ray a point at view depth z
+  // lies at t = z / dot(direction, forward), so the bound in the units of t is that much
+  // farther. Comparing hits with the view depth itself left them pending up to 20 % longer off
+  // the image's centre: on the H100's 1080p aneurysm a full window sent 483,349 pixel walks
+  // round again, up to 9 walks a tile. The factor keeps a few float steps to spare.
+  const float t_per_z = (1.0 - 4.0e-6) / dot(direction, frame.forward.xyz);
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
@@ -253,9 +265,6 @@ void main() {
     }
     barrier();
     if (inside && !done && !written) {
-      const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
-      const vec3 direction =
-          normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
       // Skipped entries need no flush: the depth bounds grow in key order, so the flush before
       // the next covering entry composites all that theirs would have.
       for (uint w = 0u; w < kBatch / 32u && !done; ++w) {
@@ -273,7 +282,7 @@ void main() {
         while (entries != 0u && !done) {
           const uint i = w * 32u + uint(findLSB(entries));
           entries &= entries - 1u;
-          flush(batch_bound[i]);
+          flush(bound_t(batch_bound[i], t_per_z));
           if (done) break;
           intersect_primitive(i, batch_primitive[i], direction);
         }
@@ -281,7 +290,8 @@ void main() {
     }
     // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
     // it takes none of them in this walk.
-    if (inside && !done && !written && floor_t > next_bound) atomicAdd(busy[parity], 1u);
+    if (inside && !done && !written && floor_t > bound_t(next_bound, t_per_z))
+      atomicAdd(busy[parity], 1u);
     barrier();
     if (busy[parity] == 0u) break;
   }

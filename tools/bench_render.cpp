@@ -174,9 +174,12 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 
 // The registry's technique behind a bench name: vrc-gpu is vrc on Vulkan compute, tiles-shared
 // is tiles with its key sort's shared-memory path (beside tiles, whose sort takes subgroups
-// where the device has them: the two paths' A/B).
+// where the device has them: the two paths' A/B), tiles-triangles is tiles over the tube mesh
+// (comparable with the reference to the last bit of coverage).
 std::string technique_of(const std::string& name) {
-  return name == "vrc-gpu" ? "vrc" : name == "tiles-shared" ? "tiles" : name;
+  return name == "vrc-gpu"                                     ? "vrc"
+         : name == "tiles-shared" || name == "tiles-triangles" ? "tiles"
+                                                               : name;
 }
 
 std::string fixed(double v, int digits) {
@@ -294,6 +297,7 @@ void bench_render(const BenchRenderArgs& args) {
         TechniqueOptions o = options;
         if (name == "vrc-gpu") o.on = "gpu";
         if (name == "tiles-shared") o.tiles_sort = "shared";
+        if (name == "tiles-triangles") o.tiles_geometry = "triangles";
         // The reference stays exact (its frames above are rendered without these).
         o.early_termination = args.early_termination && name != "reference";
         o.every_hit = args.every_hit;

@@ -444,10 +444,12 @@ Command add_bench(CLI::App& app) {
       "pass, wall, memory, PSNR/SSIM against the reference");
   rendering->add_option("caches", render->caches, "Asset caches")->required();
   rendering
-      ->add_option("--techniques", render->techniques,
-                   "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
-                   "tiles-shared, tiles with its sort's shared-memory path, when named; those "
-                   "this machine cannot run are listed as skipped, with the reason)")
+      ->add_option(
+          "--techniques", render->techniques,
+          "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
+          "tiles-shared, tiles with its sort's shared-memory path, and tiles-triangles, tiles "
+          "over the tube mesh, when named; those "
+          "this machine cannot run are listed as skipped, with the reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,

@@ -391,7 +391,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       s.bind();
     }
     std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
-    st.composite_ms += pass([&](VkCommandBuffer cmd) {
+    const double ms = pass([&](VkCommandBuffer cmd) {
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
       for (uint32_t k = 0; k < slices; ++k) {
         const auto [offset, count] = slice_lists[k];
@@ -407,12 +407,17 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
             VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
       }
     });
+    st.composite_ms += ms;
+    if (st.walk_ms.size() <= walk) st.walk_ms.resize(walk + 1), st.walk_tiles.resize(walk + 1);
+    st.walk_ms[walk] += ms;
+    st.walk_tiles[walk] += walk_tiles.size();
   };
   // The composite pass over a group of tiles, in slices of each tile's keys where the device
   // needs them, and walked again where pixels left hits for another walk (a full window):
   // the number of slices. Where an invocation was cut short (lavapipe's loop limit) the group is
   // composited again in slices a quarter the size; where a pixel had no room to keep its state
-  // for another walk, again with room.
+  // for another walk, the tiles with such pixels are composited again with room (the others
+  // are written out already, and a tile's first walk starts its pixels afresh).
   const auto composite_group = [&](const std::vector<uint32_t>& tiles_of_group) {
     auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
     for (size_t k = 0; k < tiles_of_group.size(); ++k) slots[tiles_of_group[k]] = uint32_t(k);
@@ -421,16 +426,18 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       for (uint32_t t : list) longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
       return longest;
     };
+    st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, longest_of(tiles_of_group));
     uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : longest_of(tiles_of_group);
     bool keep_states = false;
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
     auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
+    std::vector<uint32_t> first_walk = tiles_of_group;
     for (;;) {
       std::memset(again, 0, uint64_t(tiles) * 4);
       uint32_t most_slices = 0, walks = 0;
       bool cut_short = false, no_room = false;
-      for (std::vector<uint32_t> walk_tiles = tiles_of_group; !walk_tiles.empty(); ++walks) {
+      for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
         const uint32_t longest = longest_of(walk_tiles);
         const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
         most_slices = std::max(most_slices, slices);
@@ -442,7 +449,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         walk_tiles.clear();
         for (uint32_t t : tiles_of_group)
           if (again[t] != 0) walk_tiles.push_back(t), again[t] = 0;
-        if ((no_room = !walk_tiles.empty() && !had_room)) break;
+        if ((no_room = !walk_tiles.empty() && !had_room)) {
+          first_walk = walk_tiles;
+          break;
+        }
       }
       if (!cut_short && !no_room) {
         st.walks = std::max(st.walks, walks);
@@ -454,9 +464,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                                "even at one key per slice (its loop iteration limit)");
         slice_keys = std::max<uint32_t>(1, slice_keys / 4);
         ++st.resliced;
+        first_walk = tiles_of_group;
       }
       keep_states = keep_states || no_room;
-      std::memcpy(s.stats.mapped, &before, sizeof before);  // the group's overflows count again
+      std::memcpy(s.stats.mapped, &before, sizeof before);  // every overflow was a redone tile's
     }
   };
   // The band's tiles, in groups whose states fit (above): the most slices.

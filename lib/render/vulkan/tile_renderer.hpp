@@ -42,14 +42,18 @@ struct TileStats {
   uint64_t hits = 0;                                 // front crossings composited
   uint64_t window_overflows = 0;  // pixel walks that left hits for another (a full window)
   uint32_t max_depth_complexity = 0;
-  uint64_t frame_bytes = 0;   // keys, values, sort scratch, ranges, pixels
-  uint32_t rebins = 0;        // binning passes repeated for more key room
-  uint32_t slices = 1;        // composite dispatches per band (each a slice of every tile's keys)
-  uint64_t max_row_keys = 0;  // keys of the fullest row of tiles (the smallest band)
-  uint32_t bands = 1;         // bands of tile rows, each binned, sorted and composited alone
-  uint32_t resliced = 0;      // bands composited again in smaller slices (an invocation cut short)
-  uint32_t walks = 1;         // the most walks over a tile's keys (more: a full window, exact)
-  uint32_t groups = 1;        // the most groups of tiles in a band (their states fit a buffer)
+  uint64_t frame_bytes = 0;    // keys, values, sort scratch, ranges, pixels
+  uint32_t rebins = 0;         // binning passes repeated for more key room
+  uint32_t slices = 1;         // composite dispatches per band (each a slice of every tile's keys)
+  uint64_t max_row_keys = 0;   // keys of the fullest row of tiles (the smallest band)
+  uint64_t max_tile_keys = 0;  // keys of the fullest tile (one workgroup walks them in turn)
+  uint32_t bands = 1;          // bands of tile rows, each binned, sorted and composited alone
+  uint32_t resliced = 0;       // bands composited again in smaller slices (an invocation cut short)
+  uint32_t walks = 1;          // the most walks over a tile's keys (more: a full window, exact)
+  uint32_t groups = 1;         // the most groups of tiles in a band (their states fit a buffer)
+  // Per walk (0: the first), summed over bands and groups: composite GPU ms and tiles walked.
+  std::vector<double> walk_ms;
+  std::vector<uint64_t> walk_tiles;
 };
 
 struct TileFrame {
