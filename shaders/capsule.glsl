@@ -40,11 +40,14 @@ int capsule_solve_quadratic(float a, float b, float c, out float r0, out float r
 }
 
 // Crossings of origin + t direction (unit direction) with the surface `s` owns, nearest first:
-// t, the unit outward normal, and the position along the segment u in [0, 1]. The arrays are
+// t, the unit outward normal, and the position along the segment u in [0, 1]. `front_only`
+// (a constant at every call) keeps only where the ray enters: the smaller root of each
+// quadratic, where its derivative, dot(normal, direction), is negative; tiles composites no
+// other, and the neighbour tests of the back crossings cost as much again. The arrays are
 // indexed by constants only (loops of fixed trips, unrolled): a variable index into a private
 // array costs about the whole array on lavapipe (tiles_composite.glsl).
-int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t[4],
-                      out vec3 normal[4], out float u[4]) {
+int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_only,
+                      out float t[4], out vec3 normal[4], out float u[4]) {
   int count = 0;
   for (int k = 0; k < 4; ++k) {
     t[k] = 0.0;
@@ -70,7 +73,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     const int n = capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
                                           dot(w_perp, w_perp) - r * r, r0, r1);
     for (int k = 0; k < 2; ++k) {
-      if (k >= n) continue;
+      if (k >= n || (front_only && k == 1)) continue;
       const float root = k == 0 ? r0 : r1;
       const float h = dot(w + root * direction, axis);
       if (h >= 0.0 && h <= len && candidates < 4) {
@@ -91,7 +94,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
     const int n = capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
                                           dot(w, w) - r * r, r0, r1);
     for (int k = 0; k < 2; ++k) {
-      if (k >= n) continue;
+      if (k >= n || (front_only && k == 1)) continue;
       const float root = k == 0 ? r0 : r1;
       const vec3 x = origin + root * direction;
       const float h = dot(x - s.p0, axis);

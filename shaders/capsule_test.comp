@@ -35,7 +35,7 @@ void main() {
   s.flags = uint(c.p1.w);
   float t[4], u[4];
   vec3 n[4];
-  const int count = capsule_crossings(s, c.origin.xyz, c.direction.xyz, t, n, u);
+  const int count = capsule_crossings(s, c.origin.xyz, c.direction.xyz, false, t, n, u);
   Crossings r;
   r.t = vec4(t[0], t[1], t[2], t[3]);
   r.u = vec4(u[0], u[1], u[2], u[3]);

@@ -11,6 +11,6 @@ void main() {
   const uint s = gl_GlobalInvocationID.x;
   if (s >= frame.size.w) return;
   vec2 lo, hi;
-  float z_near;
-  if (screen_bounds(s, lo, hi, z_near)) emit_keys(s, lo, hi, z_near);
+  float z_near, z_far;
+  if (screen_bounds(s, lo, hi, z_near, z_far)) emit_keys(s, lo, hi, z_near);
 }

@@ -5,15 +5,16 @@ layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
 // Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
 layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
 
-// Segment s's capsule on the screen: its pixel bounds [lo, hi] and nearest view depth; false
-// when it lies behind the eye. Binning bins these bounds; the composite tests only the pixels
-// inside them, so both must use this one function.
-bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near) {
+// Segment s's capsule on the screen: its pixel bounds [lo, hi] and nearest and farthest view
+// depth; false when it lies behind the eye. Binning bins these bounds; the composite tests only
+// the pixels inside them, so both must use this one function.
+bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
   const uint first = segments[s] >> 2u;
   vec3 a = points[first].xyz, b = points[first + 1u].xyz;
   const float r = frame.params.y;
   const vec3 f = frame.forward.xyz;
   float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f);
+  z_far = max(za, zb) + r;
   // Behind the eye: culled; crossing the plane just in front of it: clipped there (pushed back
   // by the radius, so the end spheres stay in front too).
   const float near = near_clip();

@@ -54,7 +54,8 @@ void intersect_primitive(uint i, uint primitive, vec3 direction) {
   // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius
   // against the squared distance from a far eye.
   const float t0 = dot(c.p0 - frame.eye.xyz, direction);
-  const int crossings = capsule_crossings(c, frame.eye.xyz + t0 * direction, direction, t, n, u);
+  const int crossings =
+      capsule_crossings(c, frame.eye.xyz + t0 * direction, direction, true, t, n, u);
   // Two reports of one joint differ by the float error of the crossings (capsule.glsl).
   const float seam = 1e-3 * c.radius + 32.0 * 1.1920929e-7 * (abs(t0) + length(c.p0));
   for (int k = 0; k < crossings; ++k) {

@@ -25,6 +25,7 @@ layout(local_size_x = 16, local_size_y = 16) in;
 const int kWindow = 16;
 
 shared float batch_bound[kBatch];     // the key's depth bound
+shared float batch_far[kBatch];       // its primitive's farthest view depth
 shared uint batch_primitive[kBatch];  // its primitive
 
 // Pixels go to invocations in blocks of 4x2, eight consecutive invocations per block, so the
@@ -140,43 +141,44 @@ void flush(float bound) {
   if (done) pending = 0;
 }
 
-// Whether a hit of `primitive` at t is the second report of a seam: a hit of the primitive
-// before or after it (the neighbour in its line) within `seam` of t. Float error lets both sides
-// of a joint keep a crossing there (capsule.glsl keeps a doubtful one rather than lose it); the
-// CPU tracer removes such doubles the same way (lib/render/ray_tracer.cpp, resolve()).
-bool seam_double(float t, uint primitive, float seam) {
-  const bool last = abs(last_t - t) <= seam &&
-                    (last_primitive + 1u == primitive || primitive + 1u == last_primitive);
-  if (seam <= 0.0 || last) return last && seam > 0.0;
-  bool found = false;
-  for (int j = 0; j < kWindow; ++j)
-    found = found || (j < pending && abs(window_t[j] - t) <= seam &&
-                      (window_primitive[j] + 1u == primitive || primitive + 1u == window_primitive[j]));
-  return found;
+// Whether two hits are the two reports of one seam: hits of neighbouring primitives (in one
+// line) within `seam` of each other. Float error lets both sides of a joint keep a crossing
+// there (capsule.glsl keeps a doubtful one rather than lose it); the second is dropped, as the
+// CPU tracer drops it (lib/render/ray_tracer.cpp, resolve()). No seam (0): never.
+bool seam_twins(float t, uint primitive, float other_t, uint other_primitive, float seam) {
+  return seam > 0.0 && abs(other_t - t) <= seam &&
+         (other_primitive + 1u == primitive || primitive + 1u == other_primitive);
 }
 
-// Adds a hit to the window in (t, primitive) order; `seam` > 0 drops a neighbour's double
-// (above). Hits an earlier walk composited, and hits at or past the floor, are not this walk's.
+// Adds a hit to the window in (t, primitive) order, unless it is the seam twin (above) of the
+// hit composited last or of a pending one. Hits an earlier walk composited, and hits at or past
+// the floor, are not this walk's.
 void insert(float t, vec4 c, uint primitive, float seam) {
   if (!hit_before(after_t, after_primitive, t, primitive) ||
-      !hit_before(t, primitive, floor_t, floor_primitive))
+      !hit_before(t, primitive, floor_t, floor_primitive) ||
+      seam_twins(t, primitive, last_t, last_primitive, seam))
     return;
-  if (seam_double(t, primitive, seam)) return;
+  // Its place, after every pending hit before it (the window is sorted), and its twins, in one
+  // pass over the window.
+  int at = 0;
+  bool twin = false;
+  for (int j = 0; j < kWindow; ++j) {
+    if (j >= pending) continue;
+    if (hit_before(window_t[j], window_primitive[j], t, primitive)) at = j + 1;
+    twin = twin || seam_twins(t, primitive, window_t[j], window_primitive[j], seam);
+  }
+  if (twin) return;
   if (pending == kWindow) {
     // Full: the farther of the window's last and this hit becomes the floor and waits for the
     // next walk; every hit before it is still composited in order.
     const int last = kWindow - 1;
-    if (hit_before(window_t[last], window_primitive[last], t, primitive)) {
+    if (at == kWindow) {
       floor_t = t, floor_primitive = primitive;
       return;
     }
     floor_t = window_t[last], floor_primitive = window_primitive[last];
     --pending;
   }
-  // Its place: after every pending hit before it (the window is sorted).
-  int at = 0;
-  for (int j = 0; j < kWindow; ++j)
-    if (j < pending && hit_before(window_t[j], window_primitive[j], t, primitive)) at = j + 1;
   // From the back, so each slot reads its neighbour before that one is overwritten.
   for (int j = kWindow - 1; j >= 0; --j) {
     if (j > at && j <= pending) {
@@ -243,6 +245,7 @@ void main() {
   // the image's centre: on the H100's 1080p aneurysm a full window sent 483,349 pixel walks
   // round again, up to 9 walks a tile. The factor keeps a few float steps to spare.
   const float t_per_z = (1.0 - 4.0e-6) / dot(direction, frame.forward.xyz);
+  const float far_t_per_z = (1.0 + 4.0e-6) / dot(direction, frame.forward.xyz);
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
@@ -259,8 +262,9 @@ void main() {
       load_primitive(lane, primitive);
       batch_bound[lane] = key_depth(keys[first + lane]);
       vec2 lo, hi;
-      float z_near;
-      const bool bounded = screen_bounds(primitive, lo, hi, z_near);
+      float z_near, z_far;
+      const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
+      batch_far[lane] = bounded ? z_far : 1.0 / 0.0;
       mark_blocks(lane, bounded, lo, hi, vec2(tile_xy * kTile));
     }
     barrier();
@@ -282,7 +286,13 @@ void main() {
         while (entries != 0u && !done) {
           const uint i = w * 32u + uint(findLSB(entries));
           entries &= entries - 1u;
-          flush(bound_t(batch_bound[i], t_per_z));
+          // An entry whose hits all lie at or before the hits an earlier walk composited, or
+          // past the floor, has none for this walk: its test is skipped (and its flush, which
+          // the next entry's covers). This makes the walks again cheap where they pass keys
+          // their pixel is done with.
+          const float near_t = bound_t(batch_bound[i], t_per_z);
+          if (near_t > floor_t || bound_t(batch_far[i], far_t_per_z) < after_t) continue;
+          flush(near_t);
           if (done) break;
           intersect_primitive(i, batch_primitive[i], direction);
         }

@@ -5,10 +5,10 @@ layout(set = 0, binding = 1, std430) readonly buffer Vertices { vec4 vertices[];
 // Three vertex indices per triangle, counter-clockwise seen from outside.
 layout(set = 0, binding = 2, std430) readonly buffer Indices { uint indices[]; };
 
-// Triangle s on the screen: its pixel bounds [lo, hi] and nearest vertex depth; false when it
-// faces away or lies behind the eye. Binning bins these bounds; the composite tests only the
-// pixels inside them, so both must use this one function.
-bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near) {
+// Triangle s on the screen: its pixel bounds [lo, hi] and nearest and farthest vertex depth;
+// false when it faces away or lies behind the eye. Binning bins these bounds; the composite
+// tests only the pixels inside them, so both must use this one function.
+bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
   const vec3 a = vertices[2u * indices[3u * s]].xyz, b = vertices[2u * indices[3u * s + 1u]].xyz,
              c = vertices[2u * indices[3u * s + 2u]].xyz;
   // Every ray from the eye meets a plane from one side: a triangle facing away has no front hit.
@@ -16,6 +16,7 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near) {
   const vec3 f = frame.forward.xyz;
   const float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f),
               zc = dot(c - frame.eye.xyz, f);
+  z_far = max(za, max(zb, zc));
   const float near = near_clip();
   if (max(za, max(zb, zc)) <= near) return false;
   if (min(za, min(zb, zc)) <= near) {
