@@ -19,6 +19,7 @@
 #include "synth/synth.hpp"
 #include "techniques/technique.hpp"
 #include "test_util.hpp"
+#include "tubes/tube_builder.hpp"
 
 namespace linebake {
 namespace {
@@ -312,8 +313,7 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
 // 16, 16 and 8 hits), and the pixel must be the forty colours composited front to back by hand,
 // whatever the slice size. (The near half is red, the far half blue: compositing the window's
 // nearest early would put blue hits before red ones.)
-TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
-  const int count = 40;
+CapsuleSegments long_capsules_far_to_near(int count) {
   LineSet lines;
   std::vector<float> values;
   for (int k = 0; k < count; ++k) {
@@ -326,7 +326,12 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
     values.insert(values.end(), 2, k < count / 2 ? 1.0f : 0.0f);  // the far half blue
   }
   lines.attributes = {{"v", values}};
-  const CapsuleSegments capsules = build_capsule_segments(lines, 0.05f, "v");
+  return build_capsule_segments(lines, 0.05f, "v");
+}
+
+TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
+  const int count = 40;
+  const CapsuleSegments capsules = long_capsules_far_to_near(count);
   const Camera camera = looking_along_z();
   const TransferFunction tf = red_to_blue(0.15, 0.1);
   vk::TileOptions o;
@@ -355,6 +360,54 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   EXPECT_EQ(b.stats.walks, 3u);
+}
+
+// The composite's window loops that leave past the pending hits (the pipeline of GPUs) and
+// those of fixed trips (lavapipe's): the same bytes, hits and walks, over capsules and the tube
+// mesh, and with a window that overflows (the forty capsules of the test above).
+TEST(Tiles, WindowLoopsThatExitEarlyGiveTheSameBytes) {
+  vk::Context ctx;
+  {
+    const CapsuleSegments capsules = long_capsules_far_to_near(40);
+    vk::TileOptions o;
+    o.width = 33, o.height = 33;
+    const TransferFunction tf = transfer_function_preset("semi");
+    vk::TileRenderer fixed(ctx, capsules, 0, 0, true, vk::WindowLoops::fixed);
+    vk::TileRenderer exits(ctx, capsules, 0, 0, true, vk::WindowLoops::exits);
+    const vk::TileFrame a = fixed.render(looking_along_z(), tf, o);
+    const vk::TileFrame b = exits.render(looking_along_z(), tf, o);
+    EXPECT_EQ(a.stats.walks, 3u);
+    EXPECT_EQ(b.stats.walks, 3u);
+    EXPECT_EQ(a.stats.window_overflows, b.stats.window_overflows);
+    EXPECT_EQ(a.image.pixels, b.image.pixels);
+    EXPECT_EQ(a.depth_complexity, b.depth_complexity);
+  }
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
+  const Bounds bounds = compute_bounds(lines);
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
+  TubeOptions tube;
+  tube.radius = 0.004f;  // of the diagonal, as the capsules'
+  const TubeMesh mesh = build_tubes(lines, tube);
+  const Camera camera = frame_bounds(bounds, 1.0, 30, 20, 0.7);
+  vk::TileOptions o;
+  o.width = 96, o.height = 96;
+  for (const char* preset : {"semi", "transparent"}) {
+    const TransferFunction tf = transfer_function_preset(preset);
+    vk::TileRenderer fixed(ctx, capsules, 0, 0, true, vk::WindowLoops::fixed);
+    vk::TileRenderer exits(ctx, capsules, 0, 0, true, vk::WindowLoops::exits);
+    const vk::TileFrame a = fixed.render(camera, tf, o), b = exits.render(camera, tf, o);
+    EXPECT_GT(a.stats.hits, 1000u) << preset;
+    EXPECT_EQ(a.image.pixels, b.image.pixels) << preset;
+    EXPECT_EQ(a.depth_complexity, b.depth_complexity) << preset;
+    EXPECT_EQ(a.stats.hits, b.stats.hits) << preset;
+    vk::TileRenderer fixed_mesh(ctx, mesh, 0, 0, true, vk::WindowLoops::fixed);
+    vk::TileRenderer exits_mesh(ctx, mesh, 0, 0, true, vk::WindowLoops::exits);
+    const vk::TileFrame c = fixed_mesh.render(camera, tf, o), d = exits_mesh.render(camera, tf, o);
+    EXPECT_GT(c.stats.hits, 1000u) << preset;
+    EXPECT_EQ(c.image.pixels, d.image.pixels) << preset;
+    EXPECT_EQ(c.depth_complexity, d.depth_complexity) << preset;
+  }
 }
 
 }  // namespace

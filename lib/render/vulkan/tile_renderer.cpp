@@ -83,7 +83,7 @@ struct TileRenderer::State {
   // Uploads the primitives (vertex_stride floats per vertex, x y z first) and makes the passes.
   void init(const std::vector<float>& vertex_words, const std::vector<uint32_t>& primitive_words,
             uint64_t primitives, uint32_t vertex_stride, uint64_t max_buffer_bytes,
-            uint32_t slice_keys_wanted, bool triangles);
+            uint32_t slice_keys_wanted, bool triangles, WindowLoops window_loops);
 
   void bind() {
     write_buffer_set(ctx.device(), set.set,
@@ -111,7 +111,8 @@ struct TileRenderer::State {
 void TileRenderer::State::init(const std::vector<float>& vertex_words,
                                const std::vector<uint32_t>& primitive_words, uint64_t primitives,
                                uint32_t vertex_stride, uint64_t max_buffer_bytes,
-                               uint32_t slice_keys_wanted, bool triangles) {
+                               uint32_t slice_keys_wanted, bool triangles,
+                               WindowLoops window_loops) {
   primitive_count = primitives;
   glm::dvec3 lo(1e300), hi(-1e300);
   for (size_t i = 0; i + 3 <= vertex_words.size(); i += vertex_stride)
@@ -148,24 +149,29 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   slice_tiles = ctx.create_buffer(4, storage, true);
   walk_again = ctx.create_buffer(4, storage, true);
   tile_slots = ctx.create_buffer(4, storage, true);
-  slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted
-               : ctx.info().driver.find("llvmpipe") != std::string::npos ||
-                       ctx.info().name.find("llvmpipe") != std::string::npos
-                   ? kCappedSliceKeys
-                   : 0;
+  const bool lavapipe = ctx.info().driver.find("llvmpipe") != std::string::npos ||
+                        ctx.info().name.find("llvmpipe") != std::string::npos;
+  slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
   set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
+  // The composite whose window loops leave past the pending hits, except on lavapipe, where
+  // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).
+  const bool exits =
+      window_loops == WindowLoops::by_device ? !lavapipe : window_loops == WindowLoops::exits;
   const std::array<const char*, 3> shaders =
       triangles ? std::array<const char*, 3>{"tiles_bin_triangles.comp", "tiles_ranges.comp",
-                                             "tiles_composite_triangles.comp"}
-                : std::array<const char*, 3>{"tiles_bin.comp", "tiles_ranges.comp",
-                                             "tiles_composite.comp"};
+                                             exits ? "tiles_composite_triangles.comp:exits"
+                                                   : "tiles_composite_triangles.comp"}
+                : std::array<const char*, 3>{
+                      "tiles_bin.comp", "tiles_ranges.comp",
+                      exits ? "tiles_composite.comp:exits" : "tiles_composite.comp"};
   for (size_t i = 0; i < 3; ++i) pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i]);
   queries = ctx.create_timestamp_pair();
 }
 
 TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
-                           uint64_t max_buffer_bytes, uint32_t slice_keys, bool sort_subgroups)
+                           uint64_t max_buffer_bytes, uint32_t slice_keys, bool sort_subgroups,
+                           WindowLoops window_loops)
     : state_(std::make_unique<State>(context, sort_subgroups)) {
   State& s = *state_;
   s.radius = capsules.radius;
@@ -181,11 +187,11 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
     for (uint32_t w : chunk.segments)
       words.push_back((((w >> 2) + uint32_t(base)) << 2) | (w & 3u));
   }
-  s.init(points, words, words.size(), 4, max_buffer_bytes, slice_keys, false);
+  s.init(points, words, words.size(), 4, max_buffer_bytes, slice_keys, false, window_loops);
 }
 
 TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes,
-                           uint32_t slice_keys, bool sort_subgroups)
+                           uint32_t slice_keys, bool sort_subgroups, WindowLoops window_loops)
     : state_(std::make_unique<State>(context, sort_subgroups)) {
   State& s = *state_;
   s.attribute_range = mesh.attribute_range;
@@ -212,7 +218,8 @@ TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_
     for (uint32_t i : std::span(chunk.indices.data(), chunk.indices.size()))
       indices.push_back(i + uint32_t(base));
   }
-  s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true);
+  s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true,
+         window_loops);
 }
 
 TileRenderer::~TileRenderer() = default;

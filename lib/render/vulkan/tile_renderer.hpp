@@ -62,6 +62,10 @@ struct TileFrame {
   TileStats stats;
 };
 
+// The composite's window loops: leaving once past the pending hits (exits) or running every
+// trip (fixed, lavapipe's faster kind; shaders/tiles_composite.glsl). The same bytes either way.
+enum class WindowLoops { by_device, fixed, exits };
+
 class TileRenderer {
  public:
   // The capsules are uploaded once (device-local); `max_buffer_bytes` > 0 lowers the largest
@@ -69,11 +73,13 @@ class TileRenderer {
   // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all);
   // `sort_subgroups` false keeps the key sort on its shared-memory path (radix_sort.hpp).
   TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
-               uint32_t slice_keys = 0, bool sort_subgroups = true);
+               uint32_t slice_keys = 0, bool sort_subgroups = true,
+               WindowLoops window_loops = WindowLoops::by_device);
   // Triangle mode: the tube mesh's front-facing triangles, comparable with `reference` and the
   // raster techniques to the last bit of coverage.
   TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes = 0,
-               uint32_t slice_keys = 0, bool sort_subgroups = true);
+               uint32_t slice_keys = 0, bool sort_subgroups = true,
+               WindowLoops window_loops = WindowLoops::by_device);
   ~TileRenderer();
   TileRenderer(const TileRenderer&) = delete;
   TileRenderer& operator=(const TileRenderer&) = delete;
