@@ -7,6 +7,7 @@
 #include <cstring>
 #include <functional>
 #include <span>
+#include <string>
 
 #include "core/error.hpp"
 #include "render/vulkan/buffer_set.hpp"
@@ -76,7 +77,9 @@ struct TileRenderer::State {
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
-  std::array<VkPipeline, 3> pipelines{};  // bin, ranges, composite
+  // bin, ranges, composite; and where the window loops exit, the composite with the deeper
+  // window for walks again over tiles of one slice (shaders/tiles_composite.glsl)
+  std::array<VkPipeline, 4> pipelines{};
   VkQueryPool queries = VK_NULL_HANDLE;
 
   State(Context& c, bool sort_subgroups) : ctx(c), sorter(c, sort_subgroups) {}
@@ -158,14 +161,14 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).
   const bool exits =
       window_loops == WindowLoops::by_device ? !lavapipe : window_loops == WindowLoops::exits;
-  const std::array<const char*, 3> shaders =
-      triangles ? std::array<const char*, 3>{"tiles_bin_triangles.comp", "tiles_ranges.comp",
-                                             exits ? "tiles_composite_triangles.comp:exits"
-                                                   : "tiles_composite_triangles.comp"}
-                : std::array<const char*, 3>{
-                      "tiles_bin.comp", "tiles_ranges.comp",
-                      exits ? "tiles_composite.comp:exits" : "tiles_composite.comp"};
-  for (size_t i = 0; i < 3; ++i) pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i]);
+  const std::string composite =
+      triangles ? "tiles_composite_triangles.comp" : "tiles_composite.comp";
+  const std::array<std::string, 4> shaders = {
+      triangles ? "tiles_bin_triangles.comp" : "tiles_bin.comp", "tiles_ranges.comp",
+      exits ? composite + ":exits" : composite, exits ? composite + ":deep" : ""};
+  for (size_t i = 0; i < 4; ++i)
+    if (!shaders[i].empty())
+      pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str());
   queries = ctx.create_timestamp_pair();
 }
 
@@ -399,7 +402,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     }
     std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
     const double ms = pass([&](VkCommandBuffer cmd) {
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[2]);
+      // Walks again over tiles of one slice take the deeper window where there is one.
+      const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[deep ? 3 : 2]);
       for (uint32_t k = 0; k < slices; ++k) {
         const auto [offset, count] = slice_lists[k];
         const SliceInfo info{k, slice_keys, offset, count, 2, walk};
