@@ -71,8 +71,8 @@ void expect_matches(const std::string& source, const char* geometry, const char*
           << source << " " << geometry << " " << preset << " zoom " << zoom;
       EXPECT_EQ(a.stats["window_overflows"], 0) << preset;
       EXPECT_GT(a.stats["hits"].get<uint64_t>(), 1000u) << preset;
-      for (const char* field :
-           {"keys", "tiles", "bands", "frame_bytes", "gpu_ms", "depth_complexity"})
+      for (const char* field : {"keys", "tiles", "bands", "frame_bytes", "gpu_ms",
+                                "depth_complexity", "walk_ms", "walk_tiles", "max_tile_keys"})
         EXPECT_TRUE(a.stats.contains(field)) << field;
     }
   }
@@ -349,6 +349,17 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   ASSERT_EQ(a.depth_complexity[centre], uint32_t(count));
   EXPECT_GT(a.stats.window_overflows, 0u);
   EXPECT_EQ(a.stats.walks, 3u);
+  // Per walk: the composite's time and the tiles walked (the first: all 9, and the centre tile
+  // again where its pixels' states first found no room), then the centre tile alone.
+  ASSERT_EQ(a.stats.walk_tiles.size(), 3u);
+  ASSERT_EQ(a.stats.walk_ms.size(), 3u);
+  EXPECT_GE(a.stats.walk_tiles[0], uint64_t(a.stats.tiles));
+  EXPECT_EQ(a.stats.walk_tiles[1], 1u);
+  EXPECT_EQ(a.stats.walk_tiles[2], 1u);
+  EXPECT_EQ(a.stats.max_tile_keys, uint64_t(count));
+  double walks_ms = 0;
+  for (double ms : a.stats.walk_ms) walks_ms += ms;
+  EXPECT_NEAR(walks_ms, a.stats.composite_ms, 1e-9 * (1 + a.stats.composite_ms));
   std::array<double, 3> colour{};
   double alpha = 0;
   for (int k = count - 1; k >= 0; --k) {  // nearest first

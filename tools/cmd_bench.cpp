@@ -448,8 +448,8 @@ Command add_bench(CLI::App& app) {
           "--techniques", render->techniques,
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
           "tiles-shared, tiles with its sort's shared-memory path, and tiles-triangles, tiles "
-          "over the tube mesh, when named; those "
-          "this machine cannot run are listed as skipped, with the reason)")
+          "over the tube mesh, when named; those this machine cannot run are listed as "
+          "skipped, with the reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,
