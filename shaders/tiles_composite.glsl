@@ -133,7 +133,7 @@ void composite(float t, uint primitive, vec4 c) {
 // back ends lower a variable index into a private array to an if-else ladder over it).
 // Compiled with TILES_WINDOW_EXITS (the pipeline of devices other than lavapipe), the loops
 // leave once past the pending hits, so a hit costs the few pending, not the whole window; on
-// lavapipe that made the composite 45 % slower (the 1080p aneurysm, 15.1 against 22.1 s), so
+// lavapipe that made the composite 46 % slower (the 1080p aneurysm, 22.1 against 15.1 s), so
 // there every loop runs its kWindow trips.
 #ifdef TILES_WINDOW_EXITS
 const bool kWindowExits = true;

@@ -183,6 +183,31 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   EXPECT_EQ(d.image.pixels, b.image.pixels);
 }
 
+// Binning counts each tile row's keys per workgroup in shared memory for images of up to 1,024
+// tile rows (shaders/tiles_keys.glsl) and per primitive in global memory above that. An image
+// of 1,027 tile rows takes the second way: its rows' counts must plan the same bands (the host
+// refuses counts that disagree with the keys binned), with the same bytes as one band.
+TEST(Tiles, ImagesOfMoreTileRowsThanSharedMemoryCountsBinTheSame) {
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
+  const Bounds bounds = compute_bounds(lines);
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name);
+  vk::TileOptions o;
+  o.width = 32, o.height = 1027 * 16;
+  const Camera camera = frame_bounds(bounds, double(o.width) / o.height, 30, 20, 0.05);
+  const TransferFunction tf = transfer_function_preset("semi");
+  vk::Context ctx;
+  vk::TileRenderer renderer(ctx, capsules);
+  const vk::TileFrame whole = renderer.render(camera, tf, o);
+  ASSERT_EQ(whole.stats.bands, 1u);
+  EXPECT_GT(whole.stats.hits, 1000u);
+  o.max_key_bytes = std::max(whole.stats.max_row_keys, whole.stats.keys / 3) * 18;
+  const vk::TileFrame banded = renderer.render(camera, tf, o);
+  EXPECT_GE(banded.stats.bands, 3u);
+  EXPECT_EQ(banded.stats.keys, whole.stats.keys);
+  EXPECT_EQ(banded.image.pixels, whole.image.pixels);
+}
+
 // Bands of tile rows (a frame whose keys exceed the key budget) give the bytes of one band.
 TEST(Tiles, BandsGiveTheSameBytes) {
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
@@ -410,22 +435,21 @@ TEST(Tiles, WindowLoopsThatExitEarlyGiveTheSameBytes) {
   const Camera camera = frame_bounds(bounds, 1.0, 30, 20, 0.7);
   vk::TileOptions o;
   o.width = 96, o.height = 96;
-  for (const char* preset : {"semi", "transparent"}) {
-    const TransferFunction tf = transfer_function_preset(preset);
-    vk::TileRenderer fixed(ctx, capsules, 0, 0, true, vk::WindowLoops::fixed);
-    vk::TileRenderer exits(ctx, capsules, 0, 0, true, vk::WindowLoops::exits);
-    const vk::TileFrame a = fixed.render(camera, tf, o), b = exits.render(camera, tf, o);
-    EXPECT_GT(a.stats.hits, 1000u) << preset;
-    EXPECT_EQ(a.image.pixels, b.image.pixels) << preset;
-    EXPECT_EQ(a.depth_complexity, b.depth_complexity) << preset;
-    EXPECT_EQ(a.stats.hits, b.stats.hits) << preset;
-    vk::TileRenderer fixed_mesh(ctx, mesh, 0, 0, true, vk::WindowLoops::fixed);
-    vk::TileRenderer exits_mesh(ctx, mesh, 0, 0, true, vk::WindowLoops::exits);
-    const vk::TileFrame c = fixed_mesh.render(camera, tf, o), d = exits_mesh.render(camera, tf, o);
-    EXPECT_GT(c.stats.hits, 1000u) << preset;
-    EXPECT_EQ(c.image.pixels, d.image.pixels) << preset;
-    EXPECT_EQ(c.depth_complexity, d.depth_complexity) << preset;
-  }
+  // Capsules, then the tube mesh's triangles.
+  const auto expect_same = [&](const auto& primitives, const char* what) {
+    for (const char* preset : {"semi", "transparent"}) {
+      const TransferFunction tf = transfer_function_preset(preset);
+      vk::TileRenderer fixed(ctx, primitives, 0, 0, true, vk::WindowLoops::fixed);
+      vk::TileRenderer exits(ctx, primitives, 0, 0, true, vk::WindowLoops::exits);
+      const vk::TileFrame a = fixed.render(camera, tf, o), b = exits.render(camera, tf, o);
+      EXPECT_GT(a.stats.hits, 1000u) << what << " " << preset;
+      EXPECT_EQ(a.image.pixels, b.image.pixels) << what << " " << preset;
+      EXPECT_EQ(a.depth_complexity, b.depth_complexity) << what << " " << preset;
+      EXPECT_EQ(a.stats.hits, b.stats.hits) << what << " " << preset;
+    }
+  };
+  expect_same(capsules, "capsules");
+  expect_same(mesh, "triangles");
 }
 
 }  // namespace
