@@ -413,7 +413,12 @@ TEST(Vulkan, MlabEqualsTheReferenceWithEnoughNodesAndACpuMlabWithFew) {
   EXPECT_GT(off_reference, 20u);
   EXPECT_LE(off_model, 2u);
   EXPECT_GE(model_db, 50.0);
-  std::cout << "mlab: k 12 " << db << " dB (" << f.stats.critical_section << "); k 1 " << merged_db
+  // The exact image's own pixels off the reference by more than 1e-4: the device's shading noise
+  // at that threshold (on an H100 the one-node image was 110 pixels off the model; printed so a
+  // GPU run tells noise from merge order).
+  const size_t exact_off = pixels_differing(f.image, reference.image, 1e-4);
+  std::cout << "mlab: k 12 " << db << " dB (" << f.stats.critical_section << ", " << exact_off
+            << " pixels off the reference by > 1e-4); k 1 " << merged_db
             << " dB against the reference (" << off_reference << " pixels off by > 1e-4), "
             << model_db << " dB against the CPU MLAB model (" << off_model << " pixels)\n";
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
