@@ -271,8 +271,8 @@ void main() {
   // farther. Comparing hits with the view depth itself left them pending up to 20 % longer off
   // the image's centre: on the H100's 1080p aneurysm a full window sent 483,349 pixel walks
   // round again, up to 9 walks a tile. The factor keeps a few float steps to spare.
-  const float t_per_z = (1.0 - 4.0e-6) / dot(direction, frame.forward.xyz);
-  const float far_t_per_z = (1.0 + 4.0e-6) / dot(direction, frame.forward.xyz);
+  const float cos_view = dot(direction, frame.forward.xyz);
+  const float t_per_z = (1.0 - 4.0e-6) / cos_view, far_t_per_z = (1.0 + 4.0e-6) / cos_view;
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;

@@ -172,14 +172,31 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
   return row;
 }
 
-// The registry's technique behind a bench name: vrc-gpu is vrc on Vulkan compute, tiles-shared
-// is tiles with its key sort's shared-memory path (beside tiles, whose sort takes subgroups
-// where the device has them: the two paths' A/B), tiles-triangles is tiles over the tube mesh
-// (comparable with the reference to the last bit of coverage).
+// Bench names beside the registry's: a technique with one option set. vrc-gpu is vrc on Vulkan
+// compute, tiles-shared is tiles with its key sort's shared-memory path (beside tiles, whose
+// sort takes subgroups where the device has them: the two paths' A/B), tiles-triangles is tiles
+// over the tube mesh (comparable with the reference to the last bit of coverage).
+struct BenchVariant {
+  const char* name;
+  const char* technique;
+  void (*apply)(TechniqueOptions&);
+};
+constexpr BenchVariant kBenchVariants[] = {
+    {"vrc-gpu", "vrc", [](TechniqueOptions& o) { o.on = "gpu"; }},
+    {"tiles-shared", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "shared"; }},
+    {"tiles-triangles", "tiles", [](TechniqueOptions& o) { o.tiles_geometry = "triangles"; }},
+};
+
+const BenchVariant* variant_of(const std::string& name) {
+  for (const BenchVariant& v : kBenchVariants)
+    if (name == v.name) return &v;
+  return nullptr;
+}
+
+// The registry's technique behind a bench name.
 std::string technique_of(const std::string& name) {
-  return name == "vrc-gpu"                                     ? "vrc"
-         : name == "tiles-shared" || name == "tiles-triangles" ? "tiles"
-                                                               : name;
+  const BenchVariant* v = variant_of(name);
+  return v ? v->technique : name;
 }
 
 std::string fixed(double v, int digits) {
@@ -295,9 +312,7 @@ void bench_render(const BenchRenderArgs& args) {
     for (const TransferFunction& tf : tfs)
       for (const std::string& name : names) {
         TechniqueOptions o = options;
-        if (name == "vrc-gpu") o.on = "gpu";
-        if (name == "tiles-shared") o.tiles_sort = "shared";
-        if (name == "tiles-triangles") o.tiles_geometry = "triangles";
+        if (const BenchVariant* v = variant_of(name)) v->apply(o);
         // The reference stays exact (its frames above are rendered without these).
         o.early_termination = args.early_termination && name != "reference";
         o.every_hit = args.every_hit;
