@@ -8,13 +8,11 @@
 #define CAPSULE_COORDINATE_ERROR 1.0  // doubtful crossings kept; seam doubles dropped
 #include "capsule.glsl"
 
-const uint kBatch = 256;
+const uint kBatch = 256, kSlots = 256;
 shared vec4 batch_p0[kBatch];      // xyz, attribute
 shared vec4 batch_p1[kBatch];      // xyz, attribute
 shared vec4 batch_before[kBatch];  // xyz, flags
 shared vec3 batch_after[kBatch];
-
-void insert(float t, vec4 c, uint primitive, float seam);
 
 void load_primitive(uint lane, uint s) {
   const uint word = segments[s];
@@ -28,8 +26,7 @@ void load_primitive(uint lane, uint s) {
 // Whether the pixel's ray may cross batch entry i's capsule: the line of the ray passes within
 // the radius of the segment (every crossing capsule.glsl reports lies on the segment's own
 // capsule), with half a radius and the float error of the far eye to spare. A cheap test
-// before the exact one: the composite walks only the entries that pass it.
-const bool kNearTest = true;
+// before the exact one: only the entries that pass it become pairs.
 bool may_cross(uint i, vec3 direction) {
   const vec3 w = batch_p0[i].xyz - frame.eye.xyz, e = batch_p1[i].xyz - batch_p0[i].xyz;
   // The parts of w and e across the ray: the segment seen along the ray.
@@ -41,7 +38,11 @@ bool may_cross(uint i, vec3 direction) {
   return length(across + h * slope) <= frame.params.y + slack;
 }
 
-void intersect_primitive(uint i, uint primitive, vec3 direction) {
+// The nearest front crossing of the ray with batch entry i's capsule chain surface, shaded. A
+// capsule is convex, so a ray enters it once; capsule_crossings can report a second front
+// crossing only as the float double of the first, at the rim between the cylinder and an end
+// sphere, and that double is not composited again.
+bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   CapsuleSegment c;
   c.p0 = batch_p0[i].xyz;
   c.p1 = batch_p1[i].xyz;
@@ -56,16 +57,27 @@ void intersect_primitive(uint i, uint primitive, vec3 direction) {
   const float t0 = dot(c.p0 - frame.eye.xyz, direction);
   const int crossings =
       capsule_crossings(c, frame.eye.xyz + t0 * direction, direction, true, t, n, u);
-  // Two reports of one joint differ by the float error of the crossings (capsule.glsl).
-  const float seam = 1e-3 * c.radius + 32.0 * 1.1920929e-7 * (abs(t0) + length(c.p0));
-  for (int k = 0; k < crossings; ++k) {
-    t[k] += t0;
-    if (t[k] <= 0.0 || dot(n[k], direction) >= 0.0) continue;  // front crossings ahead
-    const float value = batch_p0[i].w + u[k] * (batch_p1[i].w - batch_p0[i].w);
-    const vec4 base = transfer_function(value);
-    const vec3 x = frame.eye.xyz + t[k] * direction;
-    insert(t[k], vec4(shade(x, n[k], base.rgb), base.a), primitive, seam);
+  bool found = false;
+  vec3 normal = vec3(0.0);
+  float along = 0.0;
+  t_hit = 0.0;
+  colour = vec4(0.0);
+  for (int k = 0; k < 4; ++k) {
+    if (found || k >= crossings || t[k] + t0 <= 0.0 || dot(n[k], direction) >= 0.0) continue;
+    found = true;  // a front crossing ahead
+    t_hit = t[k] + t0, normal = n[k], along = u[k];
   }
+  if (!found) return false;
+  const vec4 base = transfer_function(batch_p0[i].w + along * (batch_p1[i].w - batch_p0[i].w));
+  colour = vec4(shade(frame.eye.xyz + t_hit * direction, normal, base.rgb), base.a);
+  return true;
+}
+
+// Two reports of one joint differ by the float error of the crossings (capsule.glsl), measured
+// from the ray's point nearest the segment's start (first_hit).
+float seam_of(uint i, vec3 direction) {
+  const float t0 = dot(batch_p0[i].xyz - frame.eye.xyz, direction);
+  return 1e-3 * frame.params.y + 32.0 * 1.1920929e-7 * (abs(t0) + length(batch_p0[i].xyz));
 }
 
 #include "tiles_composite.glsl"

@@ -14,11 +14,19 @@
 // and a tile's pixels are written out by its last slice. Devices that cap the loop iterations
 // of an invocation (lavapipe: 65535) render in slices; others in one.
 //
-// The including shader defines, before this file: kBatch; load_primitive(lane, primitive),
-// which puts the primitive in its shared batch arrays; screen_bounds (as for binning);
-// kNearTest and may_cross(i, direction), a conservative test before the exact one (used where
-// kNearTest); and intersect_primitive(i, primitive, direction), which calls insert(t, colour,
-// primitive, seam) for each front hit of batch entry i along the pixel's ray from the eye.
+// Per batch a pixel first finds the entries its ray may hit (may_cross, cheap), and the
+// workgroup then computes those (pixel, entry) pairs' exact hits with every invocation on a pair
+// of any pixel, up to kSlots pairs a round: each SIMD unit computes the hits of full rows of
+// pairs, where the pixels' own walks left most of its lanes idle (on lavapipe, whose 8-lane
+// units run every statement for all lanes, 35 % of the lanes of an aneurysm frame's tests had
+// a pair). Each pixel then takes its hits, in key order, into its window.
+//
+// The including shader defines, before this file: kBatch and kSlots (at most 256);
+// load_primitive(lane, primitive), which puts the primitive in its shared batch arrays;
+// screen_bounds (as for binning); may_cross(i, direction), a test that keeps every batch entry
+// i the ray from the eye along `direction` may hit; first_hit(i, direction, t, colour), the
+// nearest front hit and its shaded colour (false: none); and seam_of(i, direction), how near
+// two hits of neighbouring primitives are one seam's (seam_twins below; 0: never).
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -50,6 +58,16 @@ shared uint block_entries[kBlocks][kBatch / 32u];
 shared uint busy[2];
 // The depth bound of the first key after the batch (+inf: none in this slice), read once.
 shared float next_bound;
+// A round's pairs: slot_pair holds the pixel's lane | the entry << 8 | the pair's place among
+// the pixel's pairs of the round << 16; a hit's t and colour. round_hits: per pixel, a bit per
+// pair of the round with a hit. Claimed slots and pixels with pairs left, by the round's parity.
+shared uint slot_pair[kSlots];
+shared float slot_t[kSlots];
+shared vec4 slot_colour[kSlots];
+shared uint round_hits[kTile * kTile];
+shared uint round_claimed[2], round_more[2];
+// A pixel's pairs in one round: one bit each in round_hits.
+const uint kPairsPerRound = 32;
 
 uvec2 pixel_in_tile(uint lane) {
   const uint block = lane / 8u, k = lane % 8u;
@@ -224,6 +242,13 @@ void insert(float t, vec4 c, uint primitive, float seam) {
 // A key's depth bound (a view depth) in the units of t along a pixel's ray (below).
 float bound_t(float bound, float t_per_z) { return bound > 0.0 ? bound * t_per_z : bound; }
 
+// The unit ray from the eye through the centre of `pixel`: one function for the pixel's own
+// walk and for the invocation that computes its pairs' hits, so both see the same ray.
+vec3 ray_direction(uvec2 pixel) {
+  const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
+  return normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
+}
+
 void main() {
   const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (entry >= slicing.tile_count) return;
@@ -263,9 +288,7 @@ void main() {
       window_colour[k] = states[state].colour[k];
     }
   }
-  const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
-  const vec3 direction =
-      normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
+  const vec3 direction = ray_direction(pixel);
   // A key's depth bound is a view depth z; along this pixel's unit ray a point at view depth z
   // lies at t = z / dot(direction, forward), so the bound in the units of t is that much
   // farther. Comparing hits with the view depth itself left them pending up to 20 % longer off
@@ -273,6 +296,8 @@ void main() {
   // round again, up to 9 walks a tile. The factor keeps a few float steps to spare.
   const float cos_view = dot(direction, frame.forward.xyz);
   const float t_per_z = (1.0 - 4.0e-6) / cos_view, far_t_per_z = (1.0 + 4.0e-6) / cos_view;
+  if (lane == 0u) round_claimed[0] = 0u, round_more[0] = 0u;
+  uint round = 0u;  // the rounds of pairs so far, the same in every invocation
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
@@ -295,36 +320,74 @@ void main() {
       mark_blocks(lane, bounded, lo, hi, vec2(tile_xy * kTile));
     }
     barrier();
-    if (inside && !done && !written) {
-      // Skipped entries need no flush: the depth bounds grow in key order, so the flush before
-      // the next covering entry composites all that theirs would have.
-      for (uint w = 0u; w < kBatch / 32u && !done; ++w) {
-        uint entries = block_entries[block][w];
-        if (kNearTest) {
-          // Each pixel keeps the entries its ray passes near: the invocations of a SIMD unit
-          // then walk their own few instead of the block's many.
-          uint near = 0u;
-          for (uint left = entries; left != 0u; left &= left - 1u) {
-            const uint bit = uint(findLSB(left));
-            if (may_cross(w * 32u + bit, direction)) near |= 1u << bit;
-          }
-          entries = near;
-        }
-        while (entries != 0u && !done) {
-          const uint i = w * 32u + uint(findLSB(entries));
-          entries &= entries - 1u;
-          // An entry whose hits all lie at or before the hits an earlier walk composited, or
-          // past the floor, has none for this walk: its test is skipped (and its flush, which
-          // the next entry's covers). This makes the walks again cheap where they pass keys
-          // their pixel is done with.
-          const float near_t = bound_t(batch_bound[i], t_per_z);
-          if (near_t > floor_t || bound_t(batch_far[i], far_t_per_z) < after_t) continue;
-          flush(near_t);
-          if (done) break;
-          intersect_primitive(i, batch_primitive[i], direction);
+    // The entries this pixel's ray may hit, in key order: bit i of near[w] for entry 32 w + i.
+    // An entry whose hits all lie at or before the hits an earlier walk composited, or past the
+    // floor, has none for this walk: this makes the walks again cheap where they pass keys
+    // their pixel is done with.
+    uint near[kBatch / 32u];
+    uint left = 0u;  // pairs not yet in a round
+    for (uint w = 0u; w < kBatch / 32u; ++w) {
+      near[w] = 0u;
+      if (!inside || done || written) continue;
+      for (uint entries = block_entries[block][w]; entries != 0u; entries &= entries - 1u) {
+        const uint i = w * 32u + uint(findLSB(entries));
+        if (bound_t(batch_bound[i], t_per_z) > floor_t ||
+            bound_t(batch_far[i], far_t_per_z) < after_t)
+          continue;
+        if (may_cross(i, direction)) near[w] |= 1u << (i % 32u);
+      }
+      left += uint(bitCount(near[w]));
+    }
+    // Rounds of pairs until every pixel has had its pairs' hits. The counters alternate by the
+    // round's parity: those of the next round are cleared in this one, after their last reads.
+    for (;; ++round) {
+      const uint r = round & 1u;
+      uint base = 0u, take = 0u;
+      if (left > 0u) {
+        const uint want = min(left, kPairsPerRound);
+        base = atomicAdd(round_claimed[r], want);
+        take = base < kSlots ? min(want, kSlots - base) : 0u;
+      }
+      round_hits[lane] = 0u;
+      if (lane == 0u) round_claimed[r ^ 1u] = 0u, round_more[r ^ 1u] = 0u;
+      uint taken = 0u;
+      for (uint w = 0u; w < kBatch / 32u; ++w) {
+        while (taken < take && near[w] != 0u) {
+          slot_pair[base + taken] = lane | ((w * 32u + uint(findLSB(near[w]))) << 8u) | (taken << 16u);
+          near[w] &= near[w] - 1u;
+          ++taken;
         }
       }
+      left -= take;
+      if (left > 0u) atomicAdd(round_more[r], 1u);
+      barrier();
+      if (lane < min(round_claimed[r], kSlots)) {
+        const uint pair = slot_pair[lane];
+        const uint p = pair & 0xFFu, i = (pair >> 8u) & 0xFFu;
+        float t;
+        vec4 c;
+        if (first_hit(i, ray_direction(tile_xy * kTile + pixel_in_tile(p)), t, c)) {
+          slot_t[lane] = t;
+          slot_colour[lane] = c;
+          atomicOr(round_hits[p], 1u << (pair >> 16u));
+        }
+      }
+      barrier();
+      // Skipped entries (no hit) need no flush: the depth bounds grow in key order, so the
+      // flush before the next hit's entry composites all that theirs would have.
+      for (uint hits = round_hits[lane]; hits != 0u && !done; hits &= hits - 1u) {
+        const uint s = base + uint(findLSB(hits));
+        const uint i = (slot_pair[s] >> 8u) & 0xFFu;
+        flush(bound_t(batch_bound[i], t_per_z));
+        if (done) break;
+        insert(slot_t[s], slot_colour[s], batch_primitive[i], seam_of(i, direction));
+      }
+      if (done) left = 0u;
+      const bool more = round_more[r] != 0u;
+      barrier();
+      if (!more) break;
     }
+    ++round;
     // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
     // it takes none of them in this walk.
     if (inside && !done && !written && floor_t > bound_t(next_bound, t_per_z))

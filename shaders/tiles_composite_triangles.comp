@@ -6,48 +6,72 @@
 #include "tiles_triangles.glsl"
 #include "shading.glsl"
 
-const uint kBatch = 256;
+// Fewer slots than capsules: the shared memory of the batch and the rounds stays within the
+// 32 KiB of lavapipe.
+const uint kBatch = 256, kSlots = 128;
 shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];  // xyz, attribute
-shared vec3 batch_na[kBatch], batch_nb[kBatch], batch_nc[kBatch];
-
-void insert(float t, vec4 c, uint primitive, float seam);
+// The vertices' normals, x, y, z of a, b, c (floats: vec3 arrays take 16 bytes an element).
+shared float batch_normals[9][kBatch];
 
 void load_primitive(uint lane, uint s) {
   const uint a = indices[3u * s], b = indices[3u * s + 1u], c = indices[3u * s + 2u];
   batch_a[lane] = vertices[2u * a];
   batch_b[lane] = vertices[2u * b];
   batch_c[lane] = vertices[2u * c];
-  batch_na[lane] = vertices[2u * a + 1u].xyz;
-  batch_nb[lane] = vertices[2u * b + 1u].xyz;
-  batch_nc[lane] = vertices[2u * c + 1u].xyz;
+  const vec3 na = vertices[2u * a + 1u].xyz, nb = vertices[2u * b + 1u].xyz,
+             nc = vertices[2u * c + 1u].xyz;
+  for (int k = 0; k < 3; ++k) {
+    batch_normals[k][lane] = na[k];
+    batch_normals[3 + k][lane] = nb[k];
+    batch_normals[6 + k][lane] = nc[k];
+  }
 }
 
-// The exact test is cheap: no test before it.
-const bool kNearTest = false;
-bool may_cross(uint i, vec3 direction) { return true; }
+vec3 batch_normal(int vertex, uint i) {
+  return vec3(batch_normals[3 * vertex][i], batch_normals[3 * vertex + 1][i],
+              batch_normals[3 * vertex + 2][i]);
+}
 
-void intersect_primitive(uint i, uint primitive, vec3 direction) {
+// The ray's front-face hit with batch entry i's triangle: t and the barycentric weights u, v of
+// b and c.
+bool triangle_hit(uint i, vec3 direction, out float t, out float u, out float v) {
+  t = 0.0, u = 0.0, v = 0.0;
   const vec3 a = batch_a[i].xyz;
   const vec3 e1 = batch_b[i].xyz - a, e2 = batch_c[i].xyz - a;
   const vec3 p = cross(direction, e2);
   const float det = dot(e1, p);
   // det = -dot(direction, n) for the outward normal n = e1 x e2 (counter-clockwise from outside):
   // positive for a front face.
-  if (det <= 0.0) return;
+  if (det <= 0.0) return false;
   const vec3 s = frame.eye.xyz - a;
-  const float u = dot(s, p) / det;
-  if (u < 0.0 || u > 1.0) return;
+  u = dot(s, p) / det;
+  if (u < 0.0 || u > 1.0) return false;
   const vec3 q = cross(s, e1);
-  const float v = dot(direction, q) / det;
-  if (v < 0.0 || u + v > 1.0) return;
-  const float t = dot(e2, q) / det;
-  if (t <= 0.0) return;
+  v = dot(direction, q) / det;
+  if (v < 0.0 || u + v > 1.0) return false;
+  t = dot(e2, q) / det;
+  return t > 0.0;
+}
+
+// The exact test is as cheap as any before it: pairs are the hits, and only those are shaded.
+bool may_cross(uint i, vec3 direction) {
+  float t, u, v;
+  return triangle_hit(i, direction, t, u, v);
+}
+
+bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
+  float u, v;
+  colour = vec4(0.0);
+  if (!triangle_hit(i, direction, t, u, v)) return false;
   const float w = 1.0 - u - v;
   const float value = w * batch_a[i].w + u * batch_b[i].w + v * batch_c[i].w;
-  const vec3 n = w * batch_na[i] + u * batch_nb[i] + v * batch_nc[i];
+  const vec3 n = w * batch_normal(0, i) + u * batch_normal(1, i) + v * batch_normal(2, i);
   const vec4 base = transfer_function(value);
-  // (No seam test: a ray meets a shared edge of two triangles with probability zero.)
-  insert(t, vec4(shade(frame.eye.xyz + t * direction, n, base.rgb), base.a), primitive, 0.0);
+  colour = vec4(shade(frame.eye.xyz + t * direction, n, base.rgb), base.a);
+  return true;
 }
+
+// A ray meets a shared edge of two triangles with probability zero: no seams.
+float seam_of(uint i, vec3 direction) { return 0.0; }
 
 #include "tiles_composite.glsl"
