@@ -189,8 +189,13 @@ bool seam_twins(float t, uint primitive, float other_t, uint other_primitive, fl
 }
 
 // Adds a hit to the window in (t, primitive) order, unless it is the seam twin (above) of the
-// hit composited last or of a pending one. Hits an earlier walk composited, and hits at or past
-// the floor, are not this walk's.
+// hit composited last or of a pending one before it. Of two twins the one before is kept, in
+// whatever order they come (the CPU tracer sorts first, then drops the second): a pending twin
+// after the hit gives way to it. Keys of equal (tile, depth) come in the order binning emitted
+// them, which varies between runs on a GPU, and twins of one joint often have equal keys (the
+// joint is the nearest point of both), so keeping the first to come made the image depend on
+// that order. Hits an earlier walk composited, and hits at or past the floor, are not this
+// walk's.
 void insert(float t, vec4 c, uint primitive, float seam) {
   if (!hit_before(after_t, after_primitive, t, primitive) ||
       !hit_before(t, primitive, floor_t, floor_primitive) ||
@@ -198,18 +203,23 @@ void insert(float t, vec4 c, uint primitive, float seam) {
     return;
   // Its place, after every pending hit before it (the window is sorted), and its twins, in one
   // pass over the window.
-  int at = 0;
-  bool twin = false;
+  int at = 0, twin_after = kWindow;
+  bool twin_before = false;
   for (int j = 0; j < kWindow; ++j) {
     if (j >= pending) {
       if (kWindowExits) break;
       continue;
     }
-    if (hit_before(window_t[j], window_primitive[j], t, primitive)) at = j + 1;
-    twin = twin || seam_twins(t, primitive, window_t[j], window_primitive[j], seam);
+    const bool before = hit_before(window_t[j], window_primitive[j], t, primitive);
+    if (before) at = j + 1;
+    if (seam_twins(t, primitive, window_t[j], window_primitive[j], seam)) {
+      twin_before = twin_before || before;
+      if (!before) twin_after = min(twin_after, j);
+    }
   }
-  if (twin) return;
-  if (pending == kWindow) {
+  if (twin_before) return;
+  const bool replaces = twin_after < kWindow;
+  if (!replaces && pending == kWindow) {
     // Full: the farther of the window's last and this hit becomes the floor and waits for the
     // next walk; every hit before it is still composited in order.
     const int last = kWindow - 1;
@@ -221,9 +231,10 @@ void insert(float t, vec4 c, uint primitive, float seam) {
     --pending;
   }
   // From `at` on, each slot takes the hit carried from the one before, up to the first free
-  // one.
+  // one, or up to the twin it replaces (which is carried out).
+  const int end = replaces ? twin_after : pending;
   for (int j = 0; j < kWindow; ++j) {
-    if (j > pending) {
+    if (j > end) {
       if (kWindowExits) break;
       continue;
     }
@@ -236,7 +247,7 @@ void insert(float t, vec4 c, uint primitive, float seam) {
     window_colour[j] = c;
     t = next_t, primitive = next_primitive, c = next_colour;
   }
-  ++pending;
+  if (!replaces) ++pending;
 }
 
 // A key's depth bound (a view depth) in the units of t along a pixel's ray (below).

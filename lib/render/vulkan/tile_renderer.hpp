@@ -30,6 +30,10 @@ struct TileOptions {
   // Device memory the pixels' states between slices and walks may take (0: one storage buffer):
   // the tiles are composited in groups whose states fit, at least one tile (112 KiB) a group.
   uint64_t max_state_bytes = 0;
+  // Bits of a (tile, depth) key (0: 24 where the tiles take at most 14, else 32; tests): the
+  // depth takes what the tile index leaves. Fewer bits tie more keys, in an order the sort
+  // leaves as binning emitted them; the image is the same for any order.
+  uint32_t key_bits = 0;
   Shading shading;
 };
 
