@@ -60,7 +60,8 @@ shared uint busy[2];
 shared float next_bound;
 // A round's pairs: slot_pair holds the pixel's lane | the entry << 8 | the pair's place among
 // the pixel's pairs of the round << 16; a hit's t and colour. round_hits: per pixel, a bit per
-// pair of the round with a hit. Claimed slots and pixels with pairs left, by the round's parity.
+// pair of the round with a hit. Claimed slots, and whether a pixel has pairs left, by the
+// round's parity.
 shared uint slot_pair[kSlots];
 shared float slot_t[kSlots];
 shared vec4 slot_colour[kSlots];
@@ -370,7 +371,7 @@ void main() {
         }
       }
       left -= take;
-      if (left > 0u) atomicAdd(round_more[r], 1u);
+      if (left > 0u) round_more[r] = 1u;  // a flag: every writer writes the same value
       barrier();
       if (lane < min(round_claimed[r], kSlots)) {
         const uint pair = slot_pair[lane];
