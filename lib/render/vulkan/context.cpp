@@ -187,6 +187,8 @@ Context::Context(const ContextOptions& options) {
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(physical_, &props);
     timestamp_period_ns_ = props.limits.timestampPeriod;
+    holds_back_timestamps_ = info_.driver.find("llvmpipe") != std::string::npos ||
+                             info_.name.find("llvmpipe") != std::string::npos;
 
     if (options.ray_tracing && !info_.ray_tracing)
       throw RayTracingUnsupported(
@@ -488,6 +490,11 @@ VkQueryPool Context::create_timestamp_pair() {
   VkQueryPool pool = VK_NULL_HANDLE;
   check(vkCreateQueryPool(device_, &q, nullptr, &pool), "vkCreateQueryPool (timestamps)");
   return pool;
+}
+
+void Context::write_first_timestamp(VkCommandBuffer cmd, VkQueryPool pair) {
+  vkCmdResetQueryPool(cmd, pair, 0, 2);
+  vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, pair, 0);
 }
 
 double Context::elapsed_ms(VkQueryPool pair) const {

@@ -194,15 +194,7 @@ struct RtScene::State {
   // Submits `record` between two timestamps; returns the GPU milliseconds (0 without them).
   template <class Record>
   double timed(Record&& record) {
-    ctx.submit([&](VkCommandBuffer cmd) {
-      if (timestamps) {
-        vkCmdResetQueryPool(cmd, timestamps, 0, 2);
-        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, timestamps, 0);
-      }
-      record(cmd);
-      if (timestamps) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, timestamps, 1);
-    });
-    return ctx.elapsed_ms(timestamps);
+    return ctx.timed_submit(timestamps, record);
   }
 
   VkAccelerationStructureBuildGeometryInfoKHR blas_info(const ChunkInput& input,

@@ -310,18 +310,12 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   };
   // Records one pass between timestamps and waits for it; its GPU milliseconds.
   const auto pass = [&](const std::function<void(VkCommandBuffer)>& record) {
-    ctx.submit([&](VkCommandBuffer cmd) {
-      if (s.queries) {
-        vkCmdResetQueryPool(cmd, s.queries, 0, 2);
-        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
-      }
+    return ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
       vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
                               0, nullptr);
       record(cmd);
-      if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
       barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
     });
-    return ctx.elapsed_ms(s.queries);
   };
   TileFrame frame;
   TileStats& st = frame.stats;

@@ -219,23 +219,17 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   for (size_t k = 0; k < s.levels.size(); ++k)
     for (size_t c = 0; c < 4; ++c) u.level_resolution[k][c] = s.levels[k][c];
   std::memcpy(s.uniforms.mapped, &u, sizeof u);
-  s.ctx.submit([&](VkCommandBuffer cmd) {
-    if (s.queries) {
-      vkCmdResetQueryPool(cmd, s.queries, 0, 2);
-      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, s.queries, 0);
-    }
+  s.gpu_ms = s.ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipeline);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.set, 0,
                             nullptr);
     vkCmdDispatch(cmd, uint32_t(o.width + 7) / 8, uint32_t(o.height + 7) / 8, 1);
-    if (s.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, s.queries, 1);
     VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
     barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
                          1, &barrier, 0, nullptr, 0, nullptr);
   });
-  s.gpu_ms = s.ctx.elapsed_ms(s.queries);
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
   PixelReadback read = s.targets.read(s.ctx);
   frame.image = std::move(read.image);
