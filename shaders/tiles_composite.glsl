@@ -365,7 +365,8 @@ void main() {
       uint taken = 0u;
       for (uint w = 0u; w < kBatch / 32u; ++w) {
         while (taken < take && near[w] != 0u) {
-          slot_pair[base + taken] = lane | ((w * 32u + uint(findLSB(near[w]))) << 8u) | (taken << 16u);
+          const uint i = w * 32u + uint(findLSB(near[w]));
+          slot_pair[base + taken] = lane | (i << 8u) | (taken << 16u);
           near[w] &= near[w] - 1u;
           ++taken;
         }
