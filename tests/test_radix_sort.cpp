@@ -73,7 +73,7 @@ TEST(RadixSort, ManyDuplicatesStayInOrder) {
 }
 
 TEST(RadixSort, LowBitsOnly) {
-  // 8 bits: one pass (and the pass that brings the pairs back); 20 bits: three passes, by the
+  // 8 bits: one pass (and the copy that brings the pairs back); 20 bits: three passes, by the
   // low 24 bits.
   expect_sorted_like_std(random_keys(9'000, 0xFFFFFFFFu, 3), 8);
   expect_sorted_like_std(random_keys(9'000, 0xFFFFFFFFu, 4), 20);

@@ -62,14 +62,16 @@ struct RadixSorter::State {
         std::max<uint64_t>(4, (count_bytes / 4 + kPartition - 1) / kPartition * 4);
     // Always rebound: a caller may reallocate its buffers under the same Buffer object.
     bool rebind = true;
-    const auto grow = [&](Buffer& b, uint64_t bytes) {
+    const auto grow = [&](Buffer& b, uint64_t bytes,
+                          VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT) {
       if (b.size >= bytes) return;
       ctx.destroy(b);
-      b = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+      b = ctx.create_buffer(bytes, usage, false);
       rebind = true;
     };
-    grow(keys2, pair_bytes);
-    grow(values2, pair_bytes);
+    grow(keys2, pair_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT);
+    grow(values2, pair_bytes,
+         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT);
     grow(counts, count_bytes);
     grow(partitions, partition_bytes);
     if (!rebind) return;
@@ -179,11 +181,8 @@ void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& 
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &b, 0, nullptr, 0, nullptr);
   };
-  // An odd number of passes ends in the scratch copy: one more pass by the last digit brings the
-  // pairs back unchanged (they are in that digit's order already, and the pass is stable).
-  const uint32_t rounds = passes + (passes % 2);
-  for (uint32_t pass = 0; pass < rounds; ++pass) {
-    const PassConstants c{count, 8 * std::min(pass, passes - 1), blocks, total};
+  for (uint32_t pass = 0; pass < passes; ++pass) {
+    const PassConstants c{count, 8 * pass, blocks, total};
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.sets[pass % 2],
                             0, nullptr);
     vkCmdPushConstants(cmd, s.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof c, &c);
@@ -203,6 +202,21 @@ void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& 
     vkCmdDispatch(cmd, blocks, 1, 1);
     barrier();
   }
+  // An odd number of passes ends in the scratch pair: copied back, a small part of a pass (it
+  // was one more pass by the last digit, so 24-bit keys cost as much as 32-bit ones).
+  if (passes % 2 == 1) {
+    const VkBufferCopy region{0, 0, uint64_t(count) * 4};
+    vkCmdCopyBuffer(cmd, s.keys2.buffer, keys.buffer, 1, &region);
+    vkCmdCopyBuffer(cmd, s.values2.buffer, values.buffer, 1, &region);
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT |
+                      VK_ACCESS_TRANSFER_READ_BIT | VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT |
+                             VK_PIPELINE_STAGE_HOST_BIT,
+                         0, 1, &b, 0, nullptr, 0, nullptr);
+  }
 }
 
 void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits) {
@@ -210,7 +224,8 @@ void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& value
   if (keys.size() > UINT32_MAX) throw Error("radix sort: more than 2^32 - 1 pairs");
   Context& ctx = state_->ctx;
   const uint64_t bytes = std::max<uint64_t>(4, keys.size() * 4);
-  const VkBufferUsageFlags usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  const VkBufferUsageFlags usage =
+      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   Buffer k = ctx.create_buffer(bytes, usage, true), v = ctx.create_buffer(bytes, usage, true);
   // std::copy, not memcpy: an empty vector's data() may be null, which memcpy may not take.
   std::copy(keys.begin(), keys.end(), static_cast<uint32_t*>(k.mapped));

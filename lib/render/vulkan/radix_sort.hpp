@@ -33,7 +33,8 @@ class RadixSorter {
   static uint64_t scratch_bytes(uint64_t count);
   // Records into `cmd` the sort of the first `count` pairs of `keys`/`values` by their low
   // `bits` bits (8 per pass, rounded up); the result is back in `keys`/`values`. The buffers
-  // are storage buffers; `scratch` is made (or grown) here and reused.
+  // are storage buffers that may be copied into (TRANSFER_DST: an odd number of passes ends
+  // in the scratch, which is copied back); the scratch is made (or grown) here and reused.
   void record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& values, uint32_t count,
               uint32_t bits = 32);
   // Host arrays through the device (tests and benchmarks): sorts `keys` and permutes `values`

@@ -143,8 +143,10 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   uniforms = ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   counters = ctx.create_buffer(sizeof(Counters), storage, true);
   stats = ctx.create_buffer(sizeof(CompositeStats), storage, true);
-  keys = ctx.create_buffer(4, storage, false);
-  values = ctx.create_buffer(4, storage, false);
+  // The key sort copies its result back into these after an odd number of passes.
+  const VkBufferUsageFlags sorted = storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+  keys = ctx.create_buffer(4, sorted, false);
+  values = ctx.create_buffer(4, sorted, false);
   ranges = ctx.create_buffer(8, storage, true);
   rows = ctx.create_buffer(4, storage, true);
   slice = ctx.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
@@ -345,8 +347,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     const uint64_t room = std::min(key_limit, keys + keys / 8);
     ctx.destroy(s.keys);
     ctx.destroy(s.values);
-    s.keys = ctx.create_buffer(room * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
-    s.values = ctx.create_buffer(room * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    const VkBufferUsageFlags sorted =
+        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    s.keys = ctx.create_buffer(room * 4, sorted, false);
+    s.values = ctx.create_buffer(room * 4, sorted, false);
     s.bind();
     ++st.rebins;
   };
