@@ -53,8 +53,9 @@ shared uint batch_primitive[kBatch];  // its primitive
 // SIMD unit runs both sides of a branch, a skip inside the loop would save nothing).
 const uint kBlocks = 32;
 shared uint block_entries[kBlocks][kBatch / 32u];
-// The tile's pixels that may still take a hit after a batch, by the batch's parity: none, and the
-// walk stops early (every pixel opaque enough, written out, or past its floor).
+// Whether a pixel of the tile may still take a hit after a batch, by the batch's parity (a flag
+// every such pixel stores): none, and the walk stops early (every pixel opaque enough, written
+// out, or past its floor).
 shared uint busy[2];
 // The depth bound of the first key after the batch (+inf: none in this slice), read once.
 shared float next_bound;
@@ -404,7 +405,7 @@ void main() {
     // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
     // it takes none of them in this walk.
     if (inside && !done && !written && floor_t > bound_t(next_bound, t_per_z))
-      atomicAdd(busy[parity], 1u);
+      busy[parity] = 1u;
     barrier();
     if (busy[parity] == 0u) break;
   }
