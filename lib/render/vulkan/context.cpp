@@ -41,6 +41,8 @@ DeviceInfo describe(VkPhysicalDevice device) {
   DeviceInfo info;
   info.name = props.properties.deviceName;
   info.driver = driver.driverName;
+  info.lavapipe = info.driver.find("llvmpipe") != std::string::npos ||
+                  info.name.find("llvmpipe") != std::string::npos;
   info.type = props.properties.deviceType;
   info.api_version = props.properties.apiVersion;
   info.fragment_shader_interlock = has_extension(device, "VK_EXT_fragment_shader_interlock");
@@ -187,8 +189,6 @@ Context::Context(const ContextOptions& options) {
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(physical_, &props);
     timestamp_period_ns_ = props.limits.timestampPeriod;
-    holds_back_timestamps_ = info_.driver.find("llvmpipe") != std::string::npos ||
-                             info_.name.find("llvmpipe") != std::string::npos;
 
     if (options.ray_tracing && !info_.ray_tracing)
       throw RayTracingUnsupported(

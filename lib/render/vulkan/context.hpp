@@ -48,6 +48,9 @@ struct DeviceInfo {
   uint32_t api_version = 0;
   bool fragment_shader_interlock = false;
   bool ray_tracing = false;  // VK_KHR_ray_tracing_pipeline + VK_KHR_acceleration_structure
+  // Mesa's lavapipe (llvmpipe): the CPU driver of the tests, whose limits and quirks some passes
+  // work around (its loop limit, its held-back timestamps, its SIMD units' branches).
+  bool lavapipe = false;
   // Compute-stage subgroups: their size (VkPhysicalDeviceSubgroupProperties::subgroupSize, what
   // a compute pipeline gets unless it asks for another), whether basic, ballot and arithmetic
   // operations are there, and whether a pipeline may require full subgroups (Vulkan 1.3's
@@ -148,7 +151,7 @@ class Context {
   // 184). Elsewhere one submission, so no host round trip is timed.
   template <class Record>
   double timed_submit(VkQueryPool pair, Record&& record) {
-    const bool apart = pair && holds_back_timestamps_;
+    const bool apart = pair && info_.lavapipe;
     if (apart) submit([&](VkCommandBuffer cmd) { write_first_timestamp(cmd, pair); });
     submit([&](VkCommandBuffer cmd) {
       if (pair && !apart) write_first_timestamp(cmd, pair);
@@ -176,7 +179,6 @@ class Context {
   VkFence fence_ = VK_NULL_HANDLE;
   uint32_t family_ = 0;
   double timestamp_period_ns_ = 1;
-  bool holds_back_timestamps_ = false;  // lavapipe (timed_submit)
   static void write_first_timestamp(VkCommandBuffer cmd, VkQueryPool pair);
   bool timestamps_ = false;
   bool ray_tracing_ = false;

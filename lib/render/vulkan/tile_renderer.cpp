@@ -29,6 +29,10 @@ constexpr uint32_t kBindings = 16;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
+// The keys and values: the key sort copies its result back into them after an odd number of
+// passes (radix_sort.hpp).
+constexpr VkBufferUsageFlags kSortedUsage =
+    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 // A pixel's state between slices (tiles_composite.comp PixelState, std430), and a tile's.
 constexpr uint64_t kPixelStateBytes = 16 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
 constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
@@ -143,10 +147,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   uniforms = ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   counters = ctx.create_buffer(sizeof(Counters), storage, true);
   stats = ctx.create_buffer(sizeof(CompositeStats), storage, true);
-  // The key sort copies its result back into these after an odd number of passes.
-  const VkBufferUsageFlags sorted = storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-  keys = ctx.create_buffer(4, sorted, false);
-  values = ctx.create_buffer(4, sorted, false);
+  keys = ctx.create_buffer(4, kSortedUsage, false);
+  values = ctx.create_buffer(4, kSortedUsage, false);
   ranges = ctx.create_buffer(8, storage, true);
   rows = ctx.create_buffer(4, storage, true);
   slice = ctx.create_buffer(sizeof(SliceInfo), storage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
@@ -154,8 +156,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   slice_tiles = ctx.create_buffer(4, storage, true);
   walk_again = ctx.create_buffer(4, storage, true);
   tile_slots = ctx.create_buffer(4, storage, true);
-  const bool lavapipe = ctx.info().driver.find("llvmpipe") != std::string::npos ||
-                        ctx.info().name.find("llvmpipe") != std::string::npos;
+  const bool lavapipe = ctx.info().lavapipe;
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
   set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
@@ -347,10 +348,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     const uint64_t room = std::min(key_limit, keys + keys / 8);
     ctx.destroy(s.keys);
     ctx.destroy(s.values);
-    const VkBufferUsageFlags sorted =
-        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-    s.keys = ctx.create_buffer(room * 4, sorted, false);
-    s.values = ctx.create_buffer(room * 4, sorted, false);
+    s.keys = ctx.create_buffer(room * 4, kSortedUsage, false);
+    s.values = ctx.create_buffer(room * 4, kSortedUsage, false);
     s.bind();
     ++st.rebins;
   };
