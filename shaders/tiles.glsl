@@ -54,6 +54,19 @@ vec3 project(vec3 p) {
   return vec3((x + 1.0) * 0.5 * float(frame.size.x), (y + 1.0) * 0.5 * float(frame.size.y), z);
 }
 
+// The pixels whose ray may hit a primitive with screen bounds [lo, hi]: those whose centre
+// (x + 0.5, y + 0.5), through which the ray passes, lies inside them, [p0, p1] (empty where p0 >
+// p1 on an axis), clamped to one pixel outside the image. Binning's tiles and the composite's
+// blocks both come from here. A small primitive between pixel centres covers none: on clouds'
+// sub-pixel segments this culled more than half the keys. Bounds that are not numbers cover the
+// whole image.
+void covered_pixels(vec2 lo, vec2 hi, out ivec2 p0, out ivec2 p1) {
+  const vec2 size = vec2(frame.size.xy);
+  if (any(isnan(lo)) || any(isnan(hi))) lo = vec2(0.0), hi = size;
+  p0 = ivec2(clamp(ceil(lo - 0.5), vec2(-1.0), size));
+  p1 = ivec2(clamp(floor(hi - 0.5), vec2(-1.0), size));
+}
+
 // The nearest distance at which binning clips: in front of the eye, scaled to the data.
 float near_clip() {
   return max(1e-6 * (frame.params.w - frame.params.z), frame.params.y * 1e-3);

@@ -5,9 +5,26 @@ layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
 // Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
 layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
 
+// The slopes x / z of the two planes through the eye that touch the sphere of radius r whose
+// centre lies at (x, z) in the view's x-z plane (z > r): solutions of m^2 (z^2 - r^2) - 2 m x z +
+// x^2 - r^2 = 0, the line x = m z at distance r from the centre. Exact extremes of x / z over
+// the sphere; the same with y for the other axis.
+vec2 tangent_slopes(float x, float z, float r) {
+  const float root = r * sqrt(max(x * x + z * z - r * r, 0.0));
+  return vec2(x * z - root, x * z + root) / (z * z - r * r);
+}
+
 // Segment s's capsule on the screen: its pixel bounds [lo, hi] and nearest and farthest view
 // depth; false when it lies behind the eye. Binning bins these bounds; the composite tests only
 // the pixels inside them, so both must use this one function.
+//
+// The bounds are those of the capsule of radius r' = 1.25 r + 128 float steps of the distances,
+// twice may_cross's slack (tiles_capsules.glsl), so that they hold every pixel whose ray passes
+// that test, and a sixteenth of a pixel for the float error of the bound itself: the exact
+// projection of its two end spheres (tangent_slopes), whose convex hull the capsule is. The
+// image is then the same to the byte as with any wider bounds, and a capsule between pixel
+// centres covers no pixel (covered_pixels, tiles.glsl). A capsule that comes within 2 r' of the
+// plane of the eye takes the older, looser bound below.
 bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
   const uint first = segments[s] >> 2u;
   vec3 a = points[first].xyz, b = points[first + 1u].xyz;
@@ -15,6 +32,25 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   const vec3 f = frame.forward.xyz;
   float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f);
   z_far = max(za, zb) + r;
+  z_near = min(za, zb) - r;
+  const float wide = 1.25 * r + 128.0 * 1.1920929e-7 * (length(a - frame.eye.xyz) + length(b - a));
+  if (min(za, zb) > 2.0 * wide + near_clip()) {
+    const vec3 right = frame.right.xyz, up = frame.up.xyz;
+    const float right_length = length(right), up_length = length(up);
+    const vec3 qa = a - frame.eye.xyz, qb = b - frame.eye.xyz;
+    const vec2 xa = tangent_slopes(dot(qa, right) / right_length, za, wide);
+    const vec2 xb = tangent_slopes(dot(qb, right) / right_length, zb, wide);
+    const vec2 ya = tangent_slopes(dot(qa, up) / up_length, za, wide);
+    const vec2 yb = tangent_slopes(dot(qb, up) / up_length, zb, wide);
+    // Slopes to pixels as project() maps them (y grows downwards).
+    const vec2 x = (vec2(min(xa.x, xb.x), max(xa.y, xb.y)) / right_length + 1.0) * 0.5 *
+                   float(frame.size.x);
+    const vec2 y = (-vec2(max(ya.y, yb.y), min(ya.x, yb.x)) / up_length + 1.0) * 0.5 *
+                   float(frame.size.y);
+    lo = vec2(x.x, y.x) - 0.0625;
+    hi = vec2(x.y, y.y) + 0.0625;
+    return true;
+  }
   // Behind the eye: culled; crossing the plane just in front of it: clipped there (pushed back
   // by the radius, so the end spheres stay in front too).
   const float near = near_clip();

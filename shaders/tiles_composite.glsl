@@ -76,14 +76,16 @@ uvec2 pixel_in_tile(uint lane) {
   return uvec2((block % 4u) * 4u + k % 4u, (block / 4u) * 2u + k / 4u);
 }
 
-// Marks batch entry `entry` in the blocks its screen bounds [lo, hi] cover in the tile whose
-// first pixel is `origin`; pixel x is covered when floor(lo.x) <= x <= floor(hi.x), the test
-// binning's tiles make (tiles_keys.glsl). Bounds it cannot use cover the whole tile.
-void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, vec2 origin) {
+// Marks batch entry `entry` in the blocks whose pixels its screen bounds [lo, hi] cover
+// (covered_pixels, as binning's tiles) in the tile whose first pixel is `origin`. Bounds it
+// cannot use cover the whole tile.
+void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
   ivec2 p0 = ivec2(0), p1 = ivec2(int(kTile) - 1);
-  if (bounded && !any(isnan(lo)) && !any(isnan(hi))) {
-    p0 = max(ivec2(clamp(floor(lo) - origin, -1.0, float(kTile))), p0);
-    p1 = min(ivec2(clamp(floor(hi) - origin, -1.0, float(kTile))), p1);
+  if (bounded) {
+    ivec2 q0, q1;
+    covered_pixels(lo, hi, q0, q1);
+    p0 = max(q0 - origin, p0);
+    p1 = min(q1 - origin, p1);
     if (p0.x > p1.x || p0.y > p1.y) return;
   }
   for (int by = p0.y / 2; by <= p1.y / 2; ++by)
@@ -330,7 +332,7 @@ void main() {
       float z_near, z_far;
       const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
       batch_far[lane] = bounded ? z_far : 1.0 / 0.0;
-      mark_blocks(lane, bounded, lo, hi, vec2(tile_xy * kTile));
+      mark_blocks(lane, bounded, lo, hi, ivec2(tile_xy * kTile));
     }
     barrier();
     // The entries this pixel's ray may hit, in key order: bit i of near[w] for entry 32 w + i.

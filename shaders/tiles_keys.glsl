@@ -1,5 +1,5 @@
 // Binning's last step, shared by the primitives' binning passes: the keys of primitive `s`, whose
-// screen bounds are [lo, hi] pixels and whose nearest view depth is z_near, one per covered tile
+// screen bounds are [lo, hi] pixels (covering the pixels of covered_pixels, tiles.glsl) and whose nearest view depth is z_near, one per covered tile
 // of this pass's band of tile rows: the tile in the high bits, the quantised depth in the low.
 // Every invocation of the workgroup calls it (`visible` false: no keys), because the workgroup
 // adds its counts up in shared memory and makes one atomic of each kind on the global counters:
@@ -20,12 +20,13 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   for (uint r = lane; r < kGroupRows; r += lanes) group_rows[r] = 0u;
   barrier();
   const ivec2 tiles = ivec2(frame.tiles.xy);
-  const bool on_screen = visible && !(hi.x < 0.0 || hi.y < 0.0 || lo.x >= float(frame.size.x) ||
-                                      lo.y >= float(frame.size.y));
+  ivec2 p0, p1;
+  covered_pixels(lo, hi, p0, p1);
+  const bool on_screen = visible && all(lessThanEqual(max(p0, ivec2(0)), min(p1, ivec2(frame.size.xy) - 1)));
   ivec2 t0 = ivec2(0), t1 = ivec2(-1);
   if (on_screen) {
-    t0 = clamp(ivec2(floor(lo / float(kTile))), ivec2(0), tiles - 1);
-    t1 = clamp(ivec2(floor(hi / float(kTile))), ivec2(0), tiles - 1);
+    t0 = clamp(p0 / int(kTile), ivec2(0), tiles - 1);
+    t1 = clamp(p1 / int(kTile), ivec2(0), tiles - 1);
   }
   // This pass's band of tile rows only; the keys of every row are counted.
   const int row0 = max(t0.y, int(frame.band.x)), row1 = min(t1.y, int(frame.band.y) - 1);

@@ -24,9 +24,11 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
     lo = vec2(0.0);
     hi = vec2(frame.size.xy);
   } else {
+    // A sixteenth of a pixel for the float error of the projection and of the composite's
+    // ray-triangle test: a pixel whose centre lies outside has no hit (covered_pixels).
     const vec3 pa = project(a), pb = project(b), pc = project(c);
-    lo = min(pa.xy, min(pb.xy, pc.xy)) - 1.0;
-    hi = max(pa.xy, max(pb.xy, pc.xy)) + 1.0;
+    lo = min(pa.xy, min(pb.xy, pc.xy)) - 0.0625;
+    hi = max(pa.xy, max(pb.xy, pc.xy)) + 0.0625;
   }
   z_near = min(za, min(zb, zc));
   return true;

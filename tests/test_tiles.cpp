@@ -348,6 +348,42 @@ TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
   }
 }
 
+// A pixel's ray passes through its centre, so a capsule whose image lies between pixel centres
+// is hit by no ray and binning emits no key for it; one around a centre gets one key and one
+// hit. 64x64 pixels, the capsule a fifth of a pixel long and a tenth of a pixel in radius at
+// depth 4: first around the corner shared by pixels (31, 31) to (32, 32), which is also the
+// corner of four tiles (the older bounds, a pixel wider, binned it into all four), then around
+// the centre of pixel (32, 32).
+TEST(Tiles, ACapsuleBetweenPixelCentresHasNoKey) {
+  const Camera camera = looking_along_z();
+  const int size = 64;
+  const Camera::ImagePlane plane = camera.image_plane(size, size);
+  const double z = 4, pixel = 2 * plane.up.y * z / size;  // a pixel's width at depth z
+  vk::TileOptions o;
+  o.width = size, o.height = size;
+  vk::Context ctx;
+  for (const bool on_centre : {false, true}) {
+    // Pixel (32, 32)'s centre lies half a pixel right of and below the image's centre (the
+    // image's right is -x here).
+    const glm::dvec3 centre =
+        glm::dvec3(0, 0, z) +
+        (on_centre ? 0.5 * pixel : 0.0) * (glm::normalize(plane.right) - glm::normalize(plane.up));
+    const glm::dvec3 along = 0.1 * pixel * glm::normalize(plane.right);
+    LineSet lines;
+    for (const glm::dvec3 p : {centre - along, centre + along})
+      lines.append_point(float(p.x), float(p.y), float(p.z));
+    lines.end_line();
+    lines.attributes = {{"v", {0.5f, 0.5f}}};
+    vk::TileRenderer renderer(ctx, build_capsule_segments(lines, float(0.1 * pixel), "v"));
+    const vk::TileFrame frame = renderer.render(camera, red_to_blue(0.5, 0.5), o);
+    EXPECT_EQ(frame.stats.keys, on_centre ? 1u : 0u) << "on centre " << on_centre;
+    EXPECT_EQ(frame.stats.hits, on_centre ? 1u : 0u) << "on centre " << on_centre;
+    if (on_centre) {
+      EXPECT_EQ(frame.depth_complexity[32 * size + 32], 1u);
+    }
+  }
+}
+
 // A stack of short lines across the view axis, each a capsule a little behind the last: the
 // centre pixel's ray meets every one (one front hit each), and so the composite of its tile
 // runs far past lavapipe's 65535 loop iterations an invocation when given all keys at once.
