@@ -102,12 +102,16 @@ layout(set = 0, binding = 10, std430) readonly buffer Slice {
 } slicing;
 layout(set = 0, binding = 13, std430) readonly buffer SliceTiles { uint slice_tiles[]; };
 const uint kDone = 1u, kWritten = 2u;  // PixelState.flags: opaque enough; pixel written out
+// The hits passed last that a pixel remembers (below).
+const int kPassed = 4;
 struct PixelState {
   vec4 colour_alpha;
   uint hits, pending, flags, last_primitive;
   float last_t, floor_t, after_t;
   uint floor_primitive;
-  uint after_primitive, pad0, pad1, pad2;
+  uint after_primitive;
+  float passed_t[kPassed - 1];
+  uint passed_primitive[kPassed - 1], pad0;
   float t[kStateWindow];
   uint primitive[kStateWindow];
   vec4 colour[kStateWindow];
@@ -122,15 +126,21 @@ layout(set = 0, binding = 14, std430) buffer WalkAgain { uint walk_again[]; };
 float window_t[kWindow];
 uint window_primitive[kWindow];
 vec4 window_colour[kWindow];
-// The hit composited last, for seams whose second report comes after it.
+// The hits passed last (composited, or seam doubles), nearest last, for seams whose second report
+// comes after them: last_t and the kPassed - 1 before it. A chain of short segments crossed at
+// one point can bring a twin after others of the chain were passed: clouds' frame 5 of 8 at
+// 640x360 has a ray through 21 consecutive segments within 1.2e-4, where a twin came after its
+// twin and one more hit had been passed.
 float last_t = -1.0;
 uint last_primitive = 0xFFFFFFFFu;
+float passed_t[kPassed - 1];
+uint passed_primitive[kPassed - 1];
 int pending = 0;
 vec3 colour = vec3(0.0);
 float alpha = 0.0;
 uint hit_count = 0u;
 bool done = false;
-// Hits at or before `after` were composited by an earlier walk; hits at or past `floor` are left
+// Hits at or before `after` were passed by an earlier walk; hits at or past `floor` are left
 // for the next (a full window dropped one there). No floor: t = +inf.
 float after_t = -1.0, floor_t = 1.0 / 0.0;
 uint after_primitive = 0u, floor_primitive = 0xFFFFFFFFu;
@@ -140,9 +150,15 @@ bool hit_before(float t, uint primitive, float other_t, uint other_primitive) {
   return t < other_t || (t == other_t && primitive < other_primitive);
 }
 
+void pass_hit(float t, uint primitive) {
+  for (int k = kPassed - 2; k > 0; --k)
+    passed_t[k] = passed_t[k - 1], passed_primitive[k] = passed_primitive[k - 1];
+  passed_t[0] = last_t, passed_primitive[0] = last_primitive;
+  last_t = t, last_primitive = primitive;
+}
+
 void composite(float t, uint primitive, vec4 c) {
-  last_t = t;
-  last_primitive = primitive;
+  pass_hit(t, primitive);
   colour += (1.0 - alpha) * c.a * c.rgb;
   alpha += (1.0 - alpha) * c.a;
   ++hit_count;
@@ -163,6 +179,12 @@ const bool kWindowExits = true;
 const bool kWindowExits = false;
 #endif
 
+// A pending hit's primitive carries kDropped when it is a seam double (insert below): it stays
+// in the window, in order, so that the hits after it are judged against it, and is not
+// composited. Primitive numbers stay below 2^31: a storage buffer holds fewer segment words or
+// triangles.
+const uint kDropped = 0x80000000u;
+
 // Drops the nearest pending hit.
 void pop_front() {
   for (int j = 0; j + 1 < kWindow; ++j) {
@@ -174,10 +196,15 @@ void pop_front() {
   --pending;
 }
 
-// Composites the pending hits nearer than `bound`, nearest first.
+// Composites the pending hits nearer than `bound`, nearest first; a seam double only becomes
+// the hit passed last.
 void flush(float bound) {
   while (pending > 0 && window_t[0] < bound && !done) {
-    composite(window_t[0], window_primitive[0], window_colour[0]);
+    if ((window_primitive[0] & kDropped) != 0u) {
+      pass_hit(window_t[0], window_primitive[0] & ~kDropped);
+    } else {
+      composite(window_t[0], window_primitive[0], window_colour[0]);
+    }
     pop_front();
   }
   if (done) pending = 0;
@@ -185,45 +212,47 @@ void flush(float bound) {
 
 // Whether two hits are the two reports of one seam: hits of neighbouring primitives (in one
 // line) within `seam` of each other. Float error lets both sides of a joint keep a crossing
-// there (capsule.glsl keeps a doubtful one rather than lose it); the second is dropped, as the
-// CPU tracer drops it (lib/render/ray_tracer.cpp, resolve()). No seam (0): never.
+// there (capsule.glsl keeps a doubtful one rather than lose it). No seam (0): never.
 bool seam_twins(float t, uint primitive, float other_t, uint other_primitive, float seam) {
   return seam > 0.0 && abs(other_t - t) <= seam &&
          (other_primitive + 1u == primitive || primitive + 1u == other_primitive);
 }
 
-// Adds a hit to the window in (t, primitive) order, unless it is the seam twin (above) of the
-// hit composited last or of a pending one before it. Of two twins the one before is kept, in
-// whatever order they come (the CPU tracer sorts first, then drops the second): a pending twin
-// after the hit gives way to it. Keys of equal (tile, depth) come in the order binning emitted
-// them, which varies between runs on a GPU, and twins of one joint often have equal keys (the
-// joint is the nearest point of both), so keeping the first to come made the image depend on
-// that order. Hits an earlier walk composited, and hits at or past the floor, are not this
-// walk's.
+// Adds a hit to the window in (t, primitive) order. A hit with a seam twin (above) before it,
+// composited or itself a double, is a seam double: the rule of the CPU tracer
+// (lib/render/ray_tracer.cpp, resolve_from()) and rtx, which decide in order. It depends only
+// on the hits, not on the order they come in: keys of equal (tile, depth) come in the order
+// binning emitted them, which varies between runs on a GPU, and the keys' depth bits change
+// which hits are pending together. A twin after the hit, pending, becomes a double; one that
+// comes later finds the hit pending or passed last. (Clouds' frame 5 of 8 at 640x360 has a ray
+// through four consecutive segments shorter than a hundredth of the radius, all crossed
+// within 4e-5; keeping only the nearer of two twins, with the other dropped from the window,
+// composited one or two of the four by the order they came in.) Hits an earlier walk passed,
+// and hits at or past the floor, are not this walk's.
 void insert(float t, vec4 c, uint primitive, float seam) {
   if (!hit_before(after_t, after_primitive, t, primitive) ||
-      !hit_before(t, primitive, floor_t, floor_primitive) ||
-      seam_twins(t, primitive, last_t, last_primitive, seam))
+      !hit_before(t, primitive, floor_t, floor_primitive))
     return;
+  bool dropped = seam_twins(t, primitive, last_t, last_primitive, seam);
+  for (int k = 0; k < kPassed - 1; ++k)
+    dropped = dropped || seam_twins(t, primitive, passed_t[k], passed_primitive[k], seam);
   // Its place, after every pending hit before it (the window is sorted), and its twins, in one
   // pass over the window.
-  int at = 0, twin_after = kWindow;
-  bool twin_before = false;
+  int at = 0;
   for (int j = 0; j < kWindow; ++j) {
     if (j >= pending) {
       if (kWindowExits) break;
       continue;
     }
-    const bool before = hit_before(window_t[j], window_primitive[j], t, primitive);
+    const uint other = window_primitive[j] & ~kDropped;
+    const bool before = hit_before(window_t[j], other, t, primitive);
     if (before) at = j + 1;
-    if (seam_twins(t, primitive, window_t[j], window_primitive[j], seam)) {
-      twin_before = twin_before || before;
-      if (!before) twin_after = min(twin_after, j);
+    if (seam_twins(t, primitive, window_t[j], other, seam)) {
+      if (before) dropped = true;
+      else window_primitive[j] |= kDropped;
     }
   }
-  if (twin_before) return;
-  const bool replaces = twin_after < kWindow;
-  if (!replaces && pending == kWindow) {
+  if (pending == kWindow) {
     // Full: the farther of the window's last and this hit becomes the floor and waits for the
     // next walk; every hit before it is still composited in order.
     const int last = kWindow - 1;
@@ -231,14 +260,13 @@ void insert(float t, vec4 c, uint primitive, float seam) {
       floor_t = t, floor_primitive = primitive;
       return;
     }
-    floor_t = window_t[last], floor_primitive = window_primitive[last];
+    floor_t = window_t[last], floor_primitive = window_primitive[last] & ~kDropped;
     --pending;
   }
-  // From `at` on, each slot takes the hit carried from the one before, up to the first free
-  // one, or up to the twin it replaces (which is carried out).
-  const int end = replaces ? twin_after : pending;
+  // From `at` on, each slot takes the hit carried from the one before, up to the first free one.
+  primitive |= dropped ? kDropped : 0u;
   for (int j = 0; j < kWindow; ++j) {
-    if (j > end) {
+    if (j > pending) {
       if (kWindowExits) break;
       continue;
     }
@@ -251,7 +279,7 @@ void insert(float t, vec4 c, uint primitive, float seam) {
     window_colour[j] = c;
     t = next_t, primitive = next_primitive, c = next_colour;
   }
-  if (!replaces) ++pending;
+  ++pending;
 }
 
 // A key's depth bound (a view depth) in the units of t along a pixel's ray (below).
@@ -282,6 +310,7 @@ void main() {
   // The first slice of the first walk starts the pixels empty; the tile's last slice writes
   // them out, or keeps them for another walk.
   const bool first_slice = slicing.slice == 0u && slicing.walk == 0u, last_slice = end == whole.y;
+  for (int k = 0; k < kPassed - 1; ++k) passed_t[k] = -1.0, passed_primitive[k] = 0xFFFFFFFFu;
   bool written = false;  // by an earlier walk
   if (inside && !first_slice) {
     colour = states[state].colour_alpha.rgb;
@@ -292,6 +321,10 @@ void main() {
     written = (states[state].flags & kWritten) != 0u;
     last_t = states[state].last_t;
     last_primitive = states[state].last_primitive;
+    for (int k = 0; k < kPassed - 1; ++k) {
+      passed_t[k] = states[state].passed_t[k];
+      passed_primitive[k] = states[state].passed_primitive[k];
+    }
     floor_t = states[state].floor_t;
     floor_primitive = states[state].floor_primitive;
     after_t = states[state].after_t;
@@ -437,6 +470,10 @@ void main() {
     states[state].flags = done ? kDone : 0u;
     states[state].last_primitive = last_primitive;
     states[state].last_t = last_t;
+    for (int k = 0; k < kPassed - 1; ++k) {
+      states[state].passed_t[k] = passed_t[k];
+      states[state].passed_primitive[k] = passed_primitive[k];
+    }
     states[state].floor_t = floor_t;
     states[state].floor_primitive = floor_primitive;
     states[state].after_t = after_t;

@@ -196,6 +196,40 @@ TEST(RayTracer, TriangleTubesGiveOneFrontHitPerTube) {
   }
 }
 
+// Three triangles over the ray's point, 1e-5 apart along it (within the seam distance of 1e-5 t
+// at t = 10): T1 shares a vertex with T2 and T2 with T3, but T1 none with T3. A front hit with a
+// front hit of an adjacent primitive just before it is a seam double, kept or itself a double,
+// so only T1 is kept; comparing with kept hits only (T3 with T1, not with the dropped T2) kept
+// T3 as well.
+TEST(RayTracer, ASeamDoubleOfASeamDoubleIsDropped) {
+  const float z1 = 2e-5f;
+  const std::vector<float> positions = {
+      -1, -1, z1, 1, -1, z1, 0, 1, z1,  // T1 at z = 2e-5 (vertex 2 shared with T2)
+      -1, -1, 0,  1, -1, 0,             // T2 through vertex 2: z = 1e-5 at the ray
+      3,  -1, 0,  0, 2,  0};            // T3 through vertex 3 at z = 0
+  const std::vector<uint32_t> indices = {0, 1, 2, 3, 4, 2, 3, 5, 6};
+  TubeMesh mesh;
+  TubeChunk chunk;
+  chunk.line_count = 1;
+  chunk.positions = Array<float>(positions.size());
+  std::copy(positions.begin(), positions.end(), chunk.positions.begin());
+  chunk.normals = Array<float>(positions.size());
+  for (size_t v = 0; v < positions.size() / 3; ++v)
+    chunk.normals[3 * v] = 0, chunk.normals[3 * v + 1] = 0, chunk.normals[3 * v + 2] = 1;
+  chunk.indices = Array<uint32_t>(indices.size());
+  std::copy(indices.begin(), indices.end(), chunk.indices.begin());
+  mesh.chunks.push_back(std::move(chunk));
+  const EmbreeScene scene = EmbreeScene::from_tubes(mesh, {});
+  TraceCounters counters;
+  const glm::dvec3 origin(0, 0, 10);
+  const auto hits = trace_hits(scene, origin, kDown, 0, 1e30, &counters);
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_EQ(hits[0].primitive, 0u);
+  EXPECT_NEAR(hits[0].t, 10 - 2e-5, 1e-6);
+  EXPECT_EQ(counters.back_hits, 0u);
+  EXPECT_EQ(counters.duplicates, 2u);
+}
+
 TEST(RayTracer, CurvesAndTrianglesAgreeOnCoverage) {
   LineSet lines;
   for (int i = 0; i < 6; ++i) {

@@ -51,6 +51,10 @@ auto key(const RawHit& h) {
   return std::tie(h.instance, h.geometry, h.primitive);
 }
 
+bool front_facing(const RawHit& h, const glm::dvec3& direction) {
+  return h.hit.Ng_x * direction.x + h.hit.Ng_y * direction.y + h.hit.Ng_z * direction.z <= 0;
+}
+
 // Sorts raw[first..] by distance and appends its front hits to `out`: repeated reports of one
 // hit, back hits and seam doubles are removed. Every decision looks back only (at raw hits and
 // front hits before the one decided), so resolving a ray in pieces, each starting past the
@@ -75,18 +79,22 @@ void resolve_from(std::vector<RawHit>& raw, size_t first, const glm::dvec3& dire
       ++counters.duplicates;
       continue;
     }
-    const double facing =
-        h.hit.Ng_x * direction.x + h.hit.Ng_y * direction.y + h.hit.Ng_z * direction.z;
-    if (facing > 0) {
+    if (!front_facing(h, direction)) {
       ++counters.back_hits;
       continue;
     }
     // A ray through a seam (a joint between segments, an edge between triangles) hits both
-    // primitives at one distance; keep the first.
+    // primitives at one distance; keep the first. A front hit is a seam double when a front hit
+    // of an adjacent primitive lies just before it, kept or itself a double: a rule of pairs,
+    // so a chain of primitives all crossed at one point (short segments of one line, a vertex's
+    // fan of triangles) keeps its first hit only, as tiles keeps it in whatever order its hits
+    // come (shaders/tiles_composite.glsl, insert()). Comparing with kept hits only kept every
+    // second link of such a chain.
     bool seam = false;
-    for (size_t k = out.size(); k-- > 0 && h.t - out[k].t <= 1e-5 * std::max(1.0, h.t);)
-      if (out[k].instance == h.instance && out[k].geometry == h.geometry &&
-          scene.adjacent(h.geometry, out[k].primitive, h.primitive)) {
+    for (size_t k = i; k-- > 0 && h.t - raw[k].t <= 1e-5 * std::max(1.0, h.t);)
+      if (raw[k].instance == h.instance && raw[k].geometry == h.geometry &&
+          front_facing(raw[k], direction) &&
+          scene.adjacent(h.geometry, raw[k].primitive, h.primitive)) {
         seam = true;
         break;
       }
