@@ -57,9 +57,9 @@ vec3 project(vec3 p) {
 // The pixels whose ray may hit a primitive with screen bounds [lo, hi]: those whose centre
 // (x + 0.5, y + 0.5), through which the ray passes, lies inside them, [p0, p1] (empty where p0 >
 // p1 on an axis), clamped to one pixel outside the image. Binning's tiles and the composite's
-// blocks both come from here. A small primitive between pixel centres covers none: on clouds'
-// sub-pixel segments this culled more than half the keys. Bounds that are not numbers cover the
-// whole image.
+// blocks both come from here. A small primitive between pixel centres covers none. With the
+// capsules' exact bounds this took 27 % of paper-small's keys (40 to 65 % with triangles; see
+// the README). Bounds that are not numbers cover the whole image.
 void covered_pixels(vec2 lo, vec2 hi, out ivec2 p0, out ivec2 p1) {
   const vec2 size = vec2(frame.size.xy);
   if (any(isnan(lo)) || any(isnan(hi))) lo = vec2(0.0), hi = size;

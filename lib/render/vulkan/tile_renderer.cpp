@@ -34,8 +34,10 @@ constexpr uint64_t kKeyBytes = 18;
 constexpr VkBufferUsageFlags kSortedUsage =
     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
 // A pixel's state between slices (tiles_composite.comp PixelState, std430), and a tile's.
-constexpr uint64_t kPixelStateBytes = 16 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
+constexpr uint64_t kPixelStateBytes = 20 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
 constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
+// The hits a pixel's state keeps pending between slices and walks (kStateWindow there).
+constexpr uint32_t kStateWindow = 16;
 // Keys per tile per dispatch where the driver caps an invocation's loop iterations (lavapipe's
 // gallivm: 65535 in all): each key costs up to about 60 (window, transfer function, crossings).
 constexpr uint32_t kCappedSliceKeys = 512;
@@ -455,6 +457,12 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       bool cut_short = false, no_room = false;
       for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
         const uint32_t longest = longest_of(walk_tiles);
+        // Each walk again passes a full window (16 hits, at most one a key) of each pixel it is
+        // for, so a tile takes at most keys / 16 + 1 walks; more means no progress (a pixel
+        // state the shader and this file disagree on hung a build once), not more work.
+        if (walks > longest_of(tiles_of_group) / kStateWindow + 1)
+          throw Error("tiles: internal error: walks again over " +
+                      std::to_string(walk_tiles.size()) + " tiles made no progress");
         const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
         most_slices = std::max(most_slices, slices);
         composite_slices(walk_tiles, walks, slice_keys, slices, keep_states);
