@@ -33,11 +33,11 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f);
   z_far = max(za, zb) + r;
   z_near = min(za, zb) - r;
-  const float wide = 1.25 * r + 128.0 * 1.1920929e-7 * (length(a - frame.eye.xyz) + length(b - a));
+  const vec3 qa = a - frame.eye.xyz, qb = b - frame.eye.xyz;
+  const float wide = 1.25 * r + 128.0 * 1.1920929e-7 * (length(qa) + length(b - a));
   if (min(za, zb) > 2.0 * wide + near_clip()) {
     const vec3 right = frame.right.xyz, up = frame.up.xyz;
     const float right_length = length(right), up_length = length(up);
-    const vec3 qa = a - frame.eye.xyz, qb = b - frame.eye.xyz;
     const vec2 xa = tangent_slopes(dot(qa, right) / right_length, za, wide);
     const vec2 xb = tangent_slopes(dot(qb, right) / right_length, zb, wide);
     const vec2 ya = tangent_slopes(dot(qa, up) / up_length, za, wide);

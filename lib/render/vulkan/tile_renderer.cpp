@@ -444,8 +444,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       for (uint32_t t : list) longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
       return longest;
     };
-    st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, longest_of(tiles_of_group));
-    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : longest_of(tiles_of_group);
+    const uint32_t group_longest = longest_of(tiles_of_group);
+    st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
+    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : group_longest;
     bool keep_states = false;
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
@@ -460,7 +461,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         // Each walk again passes a full window (16 hits, at most one a key) of each pixel it is
         // for, so a tile takes at most keys / 16 + 1 walks; more means no progress (a pixel
         // state the shader and this file disagree on hung a build once), not more work.
-        if (walks > longest_of(tiles_of_group) / kStateWindow + 1)
+        if (walks > group_longest / kStateWindow + 1)
           throw Error("tiles: internal error: walks again over " +
                       std::to_string(walk_tiles.size()) + " tiles made no progress");
         const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
