@@ -173,9 +173,10 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 }
 
 // Bench names beside the registry's: a technique with one option set. vrc-gpu is vrc on Vulkan
-// compute, tiles-shared is tiles with its key sort's shared-memory path (beside tiles, whose
-// sort takes subgroups where the device has them: the two paths' A/B), tiles-triangles is tiles
-// over the tube mesh (comparable with the reference to the last bit of coverage).
+// compute, tiles-shared and tiles-subgroups are tiles with its key sort's shared-memory and
+// subgroup path (tiles takes subgroups where the device has them, except on lavapipe: the two
+// paths' A/B), tiles-triangles is tiles over the tube mesh (comparable with the reference to the
+// last bit of coverage).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -184,6 +185,7 @@ struct BenchVariant {
 constexpr BenchVariant kBenchVariants[] = {
     {"vrc-gpu", "vrc", [](TechniqueOptions& o) { o.on = "gpu"; }},
     {"tiles-shared", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "shared"; }},
+    {"tiles-subgroups", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "subgroups"; }},
     {"tiles-triangles", "tiles", [](TechniqueOptions& o) { o.tiles_geometry = "triangles"; }},
 };
 

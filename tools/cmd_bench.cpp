@@ -447,8 +447,9 @@ Command add_bench(CLI::App& app) {
       ->add_option(
           "--techniques", render->techniques,
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
-          "tiles-shared, tiles with its sort's shared-memory path, and tiles-triangles, tiles "
-          "over the tube mesh, when named; those this machine cannot run are listed as "
+          "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
+          "path, and tiles-triangles, tiles over the tube mesh, when named; those this machine "
+          "cannot run are listed as "
           "skipped, with the reason)")
       ->delimiter(',');
   rendering

@@ -135,7 +135,8 @@ Command add_render(CLI::App& app) {
       ->check(one_of({"capsules", "triangles"}));
   sub->add_option("--tiles-sort", args->tiles_sort,
                   "tiles: the key sort's path: auto (subgroups where the device has them, "
-                  "default) | subgroups | shared (shared memory only); the same order either way")
+                  "except lavapipe; default) | subgroups | shared (shared memory only); the same "
+                  "order either way")
       ->check(one_of({"auto", "subgroups", "shared"}));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
