@@ -39,15 +39,31 @@ int capsule_solve_quadratic(float a, float b, float c, out float r0, out float r
   return 2;
 }
 
+// Whether crossing x, at t along a ray from `origin` (extent: its distance from s.p0), lies
+// inside a neighbouring segment's capsule, where the joint hands the surface over to that
+// segment: inside by more than the float error of the hit point (relative error about 2^-23 of
+// the ray's extent); the CPU code, in double, uses r (1 - 1e-6). The points' own coordinates
+// carry float error too (about 2^-23 of their magnitude): with CAPSULE_COORDINATE_ERROR 1 a
+// crossing that close to a neighbour is kept, and the caller removes the double it may make
+// (tiles does; a chain of short, slightly bent segments otherwise loses crossings that both
+// sides of a joint reject).
+bool capsule_in_neighbour(CapsuleSegment s, vec3 x, float t, float extent) {
+  const vec3 magnitude = abs(x);
+  const float inside =
+      s.radius * (1.0 - 1e-6) -
+      8.0 * 1.1920929e-7 *
+          (extent + abs(t) +
+           CAPSULE_COORDINATE_ERROR * max(magnitude.x, max(magnitude.y, magnitude.z)));
+  return ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) ||
+         ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside);
+}
+
 // Crossings of origin + t direction (unit direction) with the surface `s` owns, nearest first:
-// t, the unit outward normal, and the position along the segment u in [0, 1]. `front_only`
-// (a constant at every call) keeps only where the ray enters: the smaller root of each
-// quadratic, where its derivative, dot(normal, direction), is negative; tiles composites no
-// other, and the neighbour tests of the back crossings cost as much again. The arrays are
+// t, the unit outward normal, and the position along the segment u in [0, 1]. The arrays are
 // indexed by constants only (loops of fixed trips, unrolled): a variable index into a private
 // array costs about the whole array on lavapipe (tiles_composite.glsl).
-int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_only,
-                      out float t[4], out vec3 normal[4], out float u[4]) {
+int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t[4],
+                      out vec3 normal[4], out float u[4]) {
   int count = 0;
   for (int k = 0; k < 4; ++k) {
     t[k] = 0.0;
@@ -55,8 +71,6 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_
     u[k] = 0.0;
   }
   const float r = s.radius;
-  // Inside a neighbour by more than the float error of the hit point (relative error about
-  // 2^-23 of the ray's extent); the CPU code, in double, uses r (1 - 1e-6).
   const float extent = length(origin - s.p0);
   const vec3 axis_vector = s.p1 - s.p0;
   const float len = length(axis_vector);
@@ -73,7 +87,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_
     const int n = capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
                                           dot(w_perp, w_perp) - r * r, r0, r1);
     for (int k = 0; k < 2; ++k) {
-      if (k >= n || (front_only && k == 1)) continue;
+      if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
       const float h = dot(w + root * direction, axis);
       if (h >= 0.0 && h <= len && candidates < 4) {
@@ -94,7 +108,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_
     const int n = capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
                                           dot(w, w) - r * r, r0, r1);
     for (int k = 0; k < 2; ++k) {
-      if (k >= n || (front_only && k == 1)) continue;
+      if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
       const vec3 x = origin + root * direction;
       const float h = dot(x - s.p0, axis);
@@ -113,18 +127,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_
   for (int k = 0; k < 4; ++k) {
     if (k >= candidates) continue;
     const vec3 x = origin + candidate_t[k] * direction;
-    // The points' own coordinates carry float error too (about 2^-23 of their magnitude): with
-    // CAPSULE_COORDINATE_ERROR 1 a crossing that close to a neighbour is kept, and the caller
-    // removes the double it may make (tiles does; a chain of short, slightly bent segments
-    // otherwise loses crossings that both sides of a joint reject).
-    const vec3 magnitude = abs(x);
-    const float inside =
-        r * (1.0 - 1e-6) -
-        8.0 * 1.1920929e-7 *
-            (extent + abs(candidate_t[k]) +
-             CAPSULE_COORDINATE_ERROR * max(magnitude.x, max(magnitude.y, magnitude.z)));
-    if ((s.flags & 1u) != 0u && capsule_distance_to_segment(x, s.before, s.p0) < inside) continue;
-    if ((s.flags & 2u) != 0u && capsule_distance_to_segment(x, s.p1, s.after) < inside) continue;
+    if (capsule_in_neighbour(s, x, candidate_t[k], extent)) continue;
     // Its place: after every crossing kept so far with t' <= t; from the back, so each slot
     // reads its neighbour before that one is overwritten.
     int at = 0;
@@ -146,4 +149,67 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, bool front_
     ++count;
   }
   return count;
+}
+
+// One candidate of capsule_front_crossing, in capsule_crossings' order: taken when it is a
+// crossing there, ahead of the eye (t + origin_t > 0), entering the capsule and strictly nearer
+// than the one taken so far (capsule_crossings' stable order keeps the first of equal ones).
+void capsule_take_front(CapsuleSegment s, vec3 origin, vec3 direction, float origin_t,
+                        float extent, float len, vec3 axis, float root, vec3 outward,
+                        inout bool found, inout float t, inout vec3 normal, inout float u) {
+  if (found && !(root < t)) return;
+  const vec3 x = origin + root * direction;
+  const vec3 n = normalize(outward);
+  if (root + origin_t <= 0.0 || dot(n, direction) >= 0.0) return;
+  if (capsule_in_neighbour(s, x, root, extent)) return;
+  found = true;
+  t = root;
+  normal = n;
+  u = len > 0.0 ? clamp(dot(x - s.p0, axis) / len, 0.0, 1.0) : 0.0;
+}
+
+// The nearest crossing where the ray enters the surface `s` owns, ahead of the eye, which lies
+// origin_t before `origin` along the ray: the first of capsule_crossings' list with t + origin_t
+// > 0 and a normal against the ray, the crossing tiles composites. Only the smaller root of
+// each quadratic can enter (its derivative, dot(normal, direction), is negative), so this takes
+// those in one pass, without capsule_crossings' sorted lists or the neighbour tests of the
+// other roots; on lavapipe the whole list cost about half the composite's hit computations.
+bool capsule_front_crossing(CapsuleSegment s, vec3 origin, vec3 direction, float origin_t,
+                            out float t, out vec3 normal, out float u) {
+  t = 0.0, normal = vec3(0.0), u = 0.0;
+  bool found = false;
+  const float r = s.radius;
+  const float extent = length(origin - s.p0);
+  const vec3 axis_vector = s.p1 - s.p0;
+  const float len = length(axis_vector);
+  const vec3 axis = len > 0.0 ? axis_vector / len : vec3(0.0);
+  float r0, r1;
+  // The cylinder between the end planes.
+  if (len > 0.0) {
+    const vec3 w = origin - s.p0;
+    const vec3 d_perp = direction - dot(direction, axis) * axis;
+    const vec3 w_perp = w - dot(w, axis) * axis;
+    if (capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
+                                dot(w_perp, w_perp) - r * r, r0, r1) > 0) {
+      const float h = dot(w + r0 * direction, axis);
+      if (h >= 0.0 && h <= len)
+        capsule_take_front(s, origin, direction, origin_t, extent, len, axis, r0,
+                           w_perp + r0 * d_perp, found, t, normal, u);
+    }
+  }
+  // The end sphere beyond p1; the start sphere only on a line's first segment.
+  for (int end = 0; end < 2; ++end) {
+    if (end == 1 && (s.flags & 1u) != 0u) break;
+    const vec3 centre = end == 0 ? s.p1 : s.p0;
+    const vec3 w = origin - centre;
+    if (capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
+                                dot(w, w) - r * r, r0, r1) == 0)
+      continue;
+    const vec3 x = origin + r0 * direction;
+    const float h = dot(x - s.p0, axis);
+    if (end == 0 ? h > len : h < 0.0)
+      capsule_take_front(s, origin, direction, origin_t, extent, len, axis, r0, x - centre, found,
+                         t, normal, u);
+  }
+  return found;
 }

@@ -9,66 +9,78 @@
 #include "capsule.glsl"
 
 const uint kBatch = 256, kSlots = 256;
-shared vec4 batch_p0[kBatch];      // xyz, attribute
-shared vec4 batch_p1[kBatch];      // xyz, attribute
+shared vec4 batch_p0[kBatch];      // xyz, the key's depth bound
+shared vec4 batch_p1[kBatch];      // xyz, the farthest view depth
 shared vec4 batch_before[kBatch];  // xyz, flags
-shared vec3 batch_after[kBatch];
+shared vec4 batch_after[kBatch];   // xyz, the reach of may_cross
+shared vec2 batch_values[kBatch];  // the attribute at p0 and p1
 
-void load_primitive(uint lane, uint s) {
+void load_primitive(uint lane, uint s, float bound, float far) {
   const uint word = segments[s];
   const uint p = word >> 2u, flags = word & 3u;
-  batch_p0[lane] = points[p];
-  batch_p1[lane] = points[p + 1u];
-  batch_before[lane] = vec4((flags & 1u) != 0u ? points[p - 1u].xyz : points[p].xyz, float(flags));
-  batch_after[lane] = (flags & 2u) != 0u ? points[p + 2u].xyz : points[p + 1u].xyz;
+  const vec4 p0 = points[p], p1 = points[p + 1u];
+  batch_p0[lane] = vec4(p0.xyz, bound);
+  batch_p1[lane] = vec4(p1.xyz, far);
+  batch_values[lane] = vec2(p0.w, p1.w);
+  batch_before[lane] = vec4((flags & 1u) != 0u ? points[p - 1u].xyz : p0.xyz, float(flags));
+  // may_cross's reach: the radius, with an eighth of it and the float error of the far eye to
+  // spare; once per primitive, not per pixel.
+  const float slack = 0.125 * frame.params.y +
+                      64.0 * 1.1920929e-7 * (length(p0.xyz - frame.eye.xyz) + length(p1.xyz - p0.xyz));
+  batch_after[lane] = vec4((flags & 2u) != 0u ? points[p + 2u].xyz : p1.xyz, frame.params.y + slack);
 }
 
-// Whether the pixel's ray may cross batch entry i's capsule: the line of the ray passes within
-// the radius of the segment (every crossing capsule.glsl reports lies on the segment's own
-// capsule), with half a radius and the float error of the far eye to spare. A cheap test
-// before the exact one: only the entries that pass it become pairs.
-bool may_cross(uint i, vec3 direction) {
-  const vec3 w = batch_p0[i].xyz - frame.eye.xyz, e = batch_p1[i].xyz - batch_p0[i].xyz;
+// What may_cross reads of batch entry i (of the last word, the reach only), and the depth bound.
+const int kNearWords = 3;
+void near_words(uint i, out vec4 words[kNearWords]) {
+  words[0] = batch_p0[i];
+  words[1] = batch_p1[i];
+  words[2] = vec4(0.0, 0.0, 0.0, batch_after[i].w);
+}
+float depth_bound(uint i) { return batch_p0[i].w; }
+
+// Whether the pixel's ray may cross the capsule of a batch entry, given its near words: the
+// line of the ray passes within the reach of the segment (load_primitive: every crossing
+// capsule.glsl reports lies on the segment's own capsule). A cheap test before the exact one:
+// only the entries that pass it become pairs. Squared distances: no square root per pixel and
+// entry.
+bool may_cross(vec4 words[kNearWords], vec3 direction) {
+  const vec3 w = words[0].xyz - frame.eye.xyz, e = words[1].xyz - words[0].xyz;
   // The parts of w and e across the ray: the segment seen along the ray.
   const vec3 across = w - dot(w, direction) * direction;
   const vec3 slope = e - dot(e, direction) * direction;
   const float slope2 = dot(slope, slope);
   const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
-  const float slack = 0.125 * frame.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
-  return length(across + h * slope) <= frame.params.y + slack;
+  const vec3 miss = across + h * slope;
+  const float reach = words[2].w;
+  return dot(miss, miss) <= reach * reach;
 }
 
 // The nearest front crossing of the ray with batch entry i's capsule chain surface, shaded. A
-// capsule is convex, so a ray enters it once; capsule_crossings can report a second front
-// crossing only as the float double of the first, at the rim between the cylinder and an end
-// sphere, and that double is not composited again.
+// capsule is convex, so a ray enters it once; capsule_front_crossing can report a front crossing
+// on both sides of a joint only as the float double of one, and that double is not composited
+// again (seam_of).
 bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   CapsuleSegment c;
   c.p0 = batch_p0[i].xyz;
   c.p1 = batch_p1[i].xyz;
   c.before = batch_before[i].xyz;
-  c.after = batch_after[i];
+  c.after = batch_after[i].xyz;
   c.flags = uint(batch_before[i].w);
   c.radius = frame.params.y;
-  float t[4], u[4];
-  vec3 n[4];
   // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius
   // against the squared distance from a far eye.
   const float t0 = dot(c.p0 - frame.eye.xyz, direction);
-  const int crossings =
-      capsule_crossings(c, frame.eye.xyz + t0 * direction, direction, true, t, n, u);
-  bool found = false;
-  vec3 normal = vec3(0.0);
-  float along = 0.0;
+  float t;
+  vec3 normal;
+  float along;
   t_hit = 0.0;
   colour = vec4(0.0);
-  for (int k = 0; k < 4; ++k) {
-    if (found || k >= crossings || t[k] + t0 <= 0.0 || dot(n[k], direction) >= 0.0) continue;
-    found = true;  // a front crossing ahead
-    t_hit = t[k] + t0, normal = n[k], along = u[k];
-  }
-  if (!found) return false;
-  const vec4 base = transfer_function(batch_p0[i].w + along * (batch_p1[i].w - batch_p0[i].w));
+  if (!capsule_front_crossing(c, frame.eye.xyz + t0 * direction, direction, t0, t, normal, along))
+    return false;
+  t_hit = t + t0;
+  const vec2 ends = batch_values[i];
+  const vec4 base = transfer_function(ends.x + along * (ends.y - ends.x));
   colour = vec4(shade(frame.eye.xyz + t_hit * direction, normal, base.rgb), base.a);
   return true;
 }

@@ -22,9 +22,15 @@
 // a pair). Each pixel then takes its hits, in key order, into its window.
 //
 // The including shader defines, before this file: kBatch and kSlots (at most 256);
-// load_primitive(lane, primitive), which puts the primitive in its shared batch arrays;
-// screen_bounds (as for binning); may_cross(i, direction), a test that keeps every batch entry
-// i the ray from the eye along `direction` may hit; first_hit(i, direction, t, colour), the
+// load_primitive(lane, primitive, bound, far), which puts the primitive, its key's depth bound
+// and its farthest view depth in its shared batch arrays; screen_bounds (as for binning);
+// kNearWords and near_words(i, words), the words of batch entry i that may_cross reads, the
+// depth bound in word 0's w and the farthest depth in word 1's, and depth_bound(i) alone (what a
+// block reads per entry it walks is then a few vec4 loads, in straight-line code: on lavapipe
+// each shared load whose index differs between invocations is a loop over the 8 lanes of a SIMD
+// unit, whatever branch it is in, and these loops were most of the composite's instructions);
+// may_cross(words, direction), a test that keeps every batch entry the ray from the eye along
+// `direction` may hit; first_hit(i, direction, t, colour), the
 // nearest front hit and its shaded colour (false: none); and seam_of(i, direction), how near
 // two hits of neighbouring primitives are one seam's (seam_twins below; 0: never).
 
@@ -42,8 +48,6 @@ const int kWindow = 64;
 const int kWindow = kStateWindow;
 #endif
 
-shared float batch_bound[kBatch];     // the key's depth bound
-shared float batch_far[kBatch];       // its primitive's farthest view depth
 shared uint batch_primitive[kBatch];  // its primitive
 
 // Pixels go to invocations in blocks of 4x2, eight consecutive invocations per block, so the
@@ -60,11 +64,13 @@ shared uint busy[2];
 // The depth bound of the first key after the batch (+inf: none in this slice), read once.
 shared float next_bound;
 // A round's pairs: slot_pair holds the pixel's lane | the entry << 8 | the pair's place among
-// the pixel's pairs of the round << 16; a hit's t and colour. round_hits: per pixel, a bit per
-// pair of the round with a hit. Claimed slots, and whether a pixel has pairs left, by the
-// round's parity.
+// the pixel's pairs of the round << 16; a hit's colour, and in slot_hit the bits of its t, of
+// its entry's depth bound along the pixel's ray and of its seam distance, and its primitive:
+// what the pixel takes it into its window with, in two loads (see kNearWords). round_hits: per
+// pixel, a bit per pair of the round with a hit. Claimed slots, and whether a pixel has pairs
+// left, by the round's parity.
 shared uint slot_pair[kSlots];
-shared float slot_t[kSlots];
+shared uvec4 slot_hit[kSlots];
 shared vec4 slot_colour[kSlots];
 shared uint round_hits[kTile * kTile];
 shared uint round_claimed[2], round_more[2];
@@ -285,6 +291,12 @@ void insert(float t, vec4 c, uint primitive, float seam) {
 // A key's depth bound (a view depth) in the units of t along a pixel's ray (below).
 float bound_t(float bound, float t_per_z) { return bound > 0.0 ? bound * t_per_z : bound; }
 
+// A point at view depth z lies at t = z / dot(direction, forward) along the unit ray: the factor,
+// a few float steps nearer (the bounds of keys) or farther (of primitives' far ends).
+float t_per_z_of(vec3 direction, float steps) {
+  return (1.0 + steps * 4.0e-6) / dot(direction, frame.forward.xyz);
+}
+
 // The unit ray from the eye through the centre of `pixel`: one function for the pixel's own
 // walk and for the invocation that computes its pairs' hits, so both see the same ray.
 vec3 ray_direction(uvec2 pixel) {
@@ -342,8 +354,7 @@ void main() {
   // farther. Comparing hits with the view depth itself left them pending up to 20 % longer off
   // the image's centre: on the H100's 1080p aneurysm a full window sent 483,349 pixel walks
   // round again, up to 9 walks a tile. The factor keeps a few float steps to spare.
-  const float cos_view = dot(direction, frame.forward.xyz);
-  const float t_per_z = (1.0 - 4.0e-6) / cos_view, far_t_per_z = (1.0 + 4.0e-6) / cos_view;
+  const float t_per_z = t_per_z_of(direction, -1.0), far_t_per_z = t_per_z_of(direction, 1.0);
   if (lane == 0u) round_claimed[0] = 0u, round_more[0] = 0u;
   uint round = 0u;  // the rounds of pairs so far, the same in every invocation
   for (uint first = begin; first < end; first += kBatch) {
@@ -359,12 +370,11 @@ void main() {
     if (lane < count) {
       const uint primitive = values[first + lane];
       batch_primitive[lane] = primitive;
-      load_primitive(lane, primitive);
-      batch_bound[lane] = key_depth(keys[first + lane]);
       vec2 lo, hi;
       float z_near, z_far;
       const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
-      batch_far[lane] = bounded ? z_far : 1.0 / 0.0;
+      load_primitive(lane, primitive, key_depth(keys[first + lane]),
+                     bounded ? z_far : 1.0 / 0.0);
       mark_blocks(lane, bounded, lo, hi, ivec2(tile_xy * kTile));
     }
     barrier();
@@ -379,10 +389,11 @@ void main() {
       if (!inside || done || written) continue;
       for (uint entries = block_entries[block][w]; entries != 0u; entries &= entries - 1u) {
         const uint i = w * 32u + uint(findLSB(entries));
-        if (bound_t(batch_bound[i], t_per_z) > floor_t ||
-            bound_t(batch_far[i], far_t_per_z) < after_t)
+        vec4 words[kNearWords];
+        near_words(i, words);
+        if (bound_t(words[0].w, t_per_z) > floor_t || bound_t(words[1].w, far_t_per_z) < after_t)
           continue;
-        if (may_cross(i, direction)) near[w] |= 1u << (i % 32u);
+        if (may_cross(words, direction)) near[w] |= 1u << (i % 32u);
       }
       left += uint(bitCount(near[w]));
     }
@@ -415,8 +426,11 @@ void main() {
         const uint p = pair & 0xFFu, i = (pair >> 8u) & 0xFFu;
         float t;
         vec4 c;
-        if (first_hit(i, ray_direction(tile_xy * kTile + pixel_in_tile(p)), t, c)) {
-          slot_t[lane] = t;
+        const vec3 ray = ray_direction(tile_xy * kTile + pixel_in_tile(p));
+        if (first_hit(i, ray, t, c)) {
+          const float bound = bound_t(depth_bound(i), t_per_z_of(ray, -1.0));
+          slot_hit[lane] = uvec4(floatBitsToUint(t), floatBitsToUint(bound),
+                                 floatBitsToUint(seam_of(i, ray)), batch_primitive[i]);
           slot_colour[lane] = c;
           atomicOr(round_hits[p], 1u << (pair >> 16u));
         }
@@ -426,10 +440,10 @@ void main() {
       // flush before the next hit's entry composites all that theirs would have.
       for (uint hits = round_hits[lane]; hits != 0u && !done; hits &= hits - 1u) {
         const uint s = base + uint(findLSB(hits));
-        const uint i = (slot_pair[s] >> 8u) & 0xFFu;
-        flush(bound_t(batch_bound[i], t_per_z));
+        const uvec4 hit = slot_hit[s];
+        flush(uintBitsToFloat(hit.y));
         if (done) break;
-        insert(slot_t[s], slot_colour[s], batch_primitive[i], seam_of(i, direction));
+        insert(uintBitsToFloat(hit.x), slot_colour[s], hit.w, uintBitsToFloat(hit.z));
       }
       if (done) left = 0u;
       const bool more = round_more[r] != 0u;

@@ -9,15 +9,20 @@
 // Fewer slots than capsules: the shared memory of the batch and the rounds stays within the
 // 32 KiB of lavapipe.
 const uint kBatch = 256, kSlots = 128;
-shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];  // xyz, attribute
-// The vertices' normals, x, y, z of a, b, c (floats: vec3 arrays take 16 bytes an element).
-shared float batch_normals[9][kBatch];
+// a: xyz, the key's depth bound; b: xyz, the farthest view depth; c: xyz, c's attribute.
+shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];
+// The vertices' normals, x, y, z of a, b, c, then a's and b's attribute (floats: vec3 arrays take
+// 16 bytes an element).
+shared float batch_normals[11][kBatch];
 
-void load_primitive(uint lane, uint s) {
+void load_primitive(uint lane, uint s, float bound, float far) {
   const uint a = indices[3u * s], b = indices[3u * s + 1u], c = indices[3u * s + 2u];
-  batch_a[lane] = vertices[2u * a];
-  batch_b[lane] = vertices[2u * b];
+  const vec4 va = vertices[2u * a], vb = vertices[2u * b];
+  batch_a[lane] = vec4(va.xyz, bound);
+  batch_b[lane] = vec4(vb.xyz, far);
   batch_c[lane] = vertices[2u * c];
+  batch_normals[9][lane] = va.w;
+  batch_normals[10][lane] = vb.w;
   const vec3 na = vertices[2u * a + 1u].xyz, nb = vertices[2u * b + 1u].xyz,
              nc = vertices[2u * c + 1u].xyz;
   for (int k = 0; k < 3; ++k) {
@@ -32,12 +37,11 @@ vec3 batch_normal(int vertex, uint i) {
               batch_normals[3 * vertex + 2][i]);
 }
 
-// The ray's front-face hit with batch entry i's triangle: t and the barycentric weights u, v of
-// b and c.
-bool triangle_hit(uint i, vec3 direction, out float t, out float u, out float v) {
+// The ray's front-face hit with the triangle a, b, c: t and the barycentric weights u, v of b
+// and c.
+bool triangle_hit(vec3 a, vec3 b, vec3 c, vec3 direction, out float t, out float u, out float v) {
   t = 0.0, u = 0.0, v = 0.0;
-  const vec3 a = batch_a[i].xyz;
-  const vec3 e1 = batch_b[i].xyz - a, e2 = batch_c[i].xyz - a;
+  const vec3 e1 = b - a, e2 = c - a;
   const vec3 p = cross(direction, e2);
   const float det = dot(e1, p);
   // det = -dot(direction, n) for the outward normal n = e1 x e2 (counter-clockwise from outside):
@@ -53,18 +57,28 @@ bool triangle_hit(uint i, vec3 direction, out float t, out float u, out float v)
   return t > 0.0;
 }
 
+// What may_cross reads of batch entry i, and the depth bound.
+const int kNearWords = 3;
+void near_words(uint i, out vec4 words[kNearWords]) {
+  words[0] = batch_a[i];
+  words[1] = batch_b[i];
+  words[2] = batch_c[i];
+}
+float depth_bound(uint i) { return batch_a[i].w; }
+
 // The exact test is as cheap as any before it: pairs are the hits, and only those are shaded.
-bool may_cross(uint i, vec3 direction) {
+bool may_cross(vec4 words[kNearWords], vec3 direction) {
   float t, u, v;
-  return triangle_hit(i, direction, t, u, v);
+  return triangle_hit(words[0].xyz, words[1].xyz, words[2].xyz, direction, t, u, v);
 }
 
 bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
   float u, v;
   colour = vec4(0.0);
-  if (!triangle_hit(i, direction, t, u, v)) return false;
+  if (!triangle_hit(batch_a[i].xyz, batch_b[i].xyz, batch_c[i].xyz, direction, t, u, v))
+    return false;
   const float w = 1.0 - u - v;
-  const float value = w * batch_a[i].w + u * batch_b[i].w + v * batch_c[i].w;
+  const float value = w * batch_normals[9][i] + u * batch_normals[10][i] + v * batch_c[i].w;
   const vec3 n = w * batch_normal(0, i) + u * batch_normal(1, i) + v * batch_normal(2, i);
   const vec4 base = transfer_function(value);
   colour = vec4(shade(frame.eye.xyz + t * direction, n, base.rgb), base.a);

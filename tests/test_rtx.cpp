@@ -93,6 +93,8 @@ struct GpuCase {
 struct GpuCrossings {
   float t[4], u[4], normal[4][4];
   uint32_t count[4];
+  float front[4];  // capsule_front_crossing: t, u, found
+  float front_normal[4];
 };
 
 TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
@@ -179,8 +181,10 @@ TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
   vkDestroyDescriptorSetLayout(ctx.device(), set.set_layout, nullptr);
   for (vk::Buffer* b : {&params, &input, &output}) ctx.destroy(*b);
 
-  // Every crossing the CPU finds, the shader finds at the same place with the same normal.
-  size_t equal_counts = 0, crossings = 0;
+  // Every crossing the CPU finds, the shader finds at the same place with the same normal; and
+  // the nearest front crossing ahead of the origin (what tiles composites) is the CPU's first
+  // crossing with t > 0 and a normal against the ray.
+  size_t equal_counts = 0, crossings = 0, fronts = 0;
   for (size_t i = 0; i < cases.size(); ++i) {
     const GpuCase& c = cases[i];
     CapsuleHit cpu[4];
@@ -192,6 +196,19 @@ TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
     // float precision: the owner can differ (7 of 4000 cases here).
     if (int(gpu[i].count[0]) != n) continue;
     ++equal_counts;
+    int front = -1;
+    for (int k = 0; k < n && front < 0; ++k)
+      if (cpu[k].t > 0 && glm::dot(cpu[k].normal, direction) < 0) front = k;
+    EXPECT_EQ(gpu[i].front[2], front >= 0 ? 1.0f : 0.0f) << "case " << i;
+    if (front >= 0 && gpu[i].front[2] == 1.0f) {
+      ++fronts;
+      EXPECT_NEAR(gpu[i].front[0], cpu[front].t, 2e-4 * std::max(1.0, cpu[front].t))
+          << "case " << i;
+      EXPECT_NEAR(gpu[i].front[1], cpu[front].u, 1e-3) << "case " << i;
+      const glm::dvec3 normal(gpu[i].front_normal[0], gpu[i].front_normal[1],
+                              gpu[i].front_normal[2]);
+      EXPECT_GT(glm::dot(normal, cpu[front].normal), 0.999) << "case " << i;
+    }
     for (int k = 0; k < n; ++k) {
       EXPECT_NEAR(gpu[i].t[k], cpu[k].t, 2e-4 * std::max(1.0, cpu[k].t)) << "case " << i;
       EXPECT_NEAR(gpu[i].u[k], cpu[k].u, 1e-3) << "case " << i;
@@ -199,7 +216,8 @@ TEST(CapsuleShader, CrossingsMatchTheCpuCapsuleChain) {
       EXPECT_GT(glm::dot(normal, cpu[k].normal), 0.999) << "case " << i;
     }
   }
-  EXPECT_GT(crossings, cases.size());  // the rays do hit: about half of them twice
+  EXPECT_GT(crossings, cases.size());   // the rays do hit: about half of them twice
+  EXPECT_GT(fronts, cases.size() / 4);  // and many enter ahead of the origin
   EXPECT_GE(double(equal_counts), 0.995 * double(cases.size()));
 }
 
