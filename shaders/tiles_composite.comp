@@ -12,7 +12,7 @@ const uint kBatch = 256, kSlots = 256;
 shared vec4 batch_p0[kBatch];      // xyz, the key's depth bound
 shared vec4 batch_p1[kBatch];      // xyz, the farthest view depth
 shared vec4 batch_before[kBatch];  // xyz, flags
-shared vec4 batch_after[kBatch];   // xyz, the reach of may_cross
+shared vec3 batch_after[kBatch];
 shared vec2 batch_values[kBatch];  // the attribute at p0 and p1
 
 void load_primitive(uint lane, uint s, float bound, float far) {
@@ -23,27 +23,23 @@ void load_primitive(uint lane, uint s, float bound, float far) {
   batch_p1[lane] = vec4(p1.xyz, far);
   batch_values[lane] = vec2(p0.w, p1.w);
   batch_before[lane] = vec4((flags & 1u) != 0u ? points[p - 1u].xyz : p0.xyz, float(flags));
-  // may_cross's reach: the radius, with an eighth of it and the float error of the far eye to
-  // spare; once per primitive, not per pixel.
-  const float slack = 0.125 * frame.params.y +
-                      64.0 * 1.1920929e-7 * (length(p0.xyz - frame.eye.xyz) + length(p1.xyz - p0.xyz));
-  batch_after[lane] = vec4((flags & 2u) != 0u ? points[p + 2u].xyz : p1.xyz, frame.params.y + slack);
+  batch_after[lane] = (flags & 2u) != 0u ? points[p + 2u].xyz : p1.xyz;
 }
 
-// What may_cross reads of batch entry i (of the last word, the reach only), and the depth bound.
-const int kNearWords = 3;
+// What may_cross reads of batch entry i, and the depth bound.
+const int kNearWords = 2;
 void near_words(uint i, out vec4 words[kNearWords]) {
   words[0] = batch_p0[i];
   words[1] = batch_p1[i];
-  words[2] = vec4(0.0, 0.0, 0.0, batch_after[i].w);
 }
 float depth_bound(uint i) { return batch_p0[i].w; }
 
 // Whether the pixel's ray may cross the capsule of a batch entry, given its near words: the
-// line of the ray passes within the reach of the segment (load_primitive: every crossing
-// capsule.glsl reports lies on the segment's own capsule). A cheap test before the exact one:
-// only the entries that pass it become pairs. Squared distances: no square root per pixel and
-// entry.
+// line of the ray passes within the radius of the segment (every crossing capsule.glsl reports
+// lies on the segment's own capsule), with an eighth of a radius and the float error of the far
+// eye to spare. A cheap test before the exact one: only the entries that pass it become pairs.
+// (Computing the reach here costs less on lavapipe than a third shared load of it: README,
+// "Per-lane shared loads on lavapipe".)
 bool may_cross(vec4 words[kNearWords], vec3 direction) {
   const vec3 w = words[0].xyz - frame.eye.xyz, e = words[1].xyz - words[0].xyz;
   // The parts of w and e across the ray: the segment seen along the ray.
@@ -52,7 +48,8 @@ bool may_cross(vec4 words[kNearWords], vec3 direction) {
   const float slope2 = dot(slope, slope);
   const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
   const vec3 miss = across + h * slope;
-  const float reach = words[2].w;
+  const float slack = 0.125 * frame.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
+  const float reach = frame.params.y + slack;
   return dot(miss, miss) <= reach * reach;
 }
 
@@ -65,7 +62,7 @@ bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   c.p0 = batch_p0[i].xyz;
   c.p1 = batch_p1[i].xyz;
   c.before = batch_before[i].xyz;
-  c.after = batch_after[i].xyz;
+  c.after = batch_after[i];
   c.flags = uint(batch_before[i].w);
   c.radius = frame.params.y;
   // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius

@@ -25,14 +25,15 @@
 // load_primitive(lane, primitive, bound, far), which puts the primitive, its key's depth bound
 // and its farthest view depth in its shared batch arrays; screen_bounds (as for binning);
 // kNearWords and near_words(i, words), the words of batch entry i that may_cross reads, the
-// depth bound in word 0's w and the farthest depth in word 1's, and depth_bound(i) alone (what a
-// block reads per entry it walks is then three vec4 loads: on lavapipe each shared load whose
-// index differs between invocations is a loop over the 8 lanes of a SIMD unit, and the near
-// test's five loads were 35 % of the aneurysm's composite instructions; README, "Per-lane
-// shared loads on lavapipe"); may_cross(words, direction), a test that keeps every batch entry
-// the ray from the eye along `direction` may hit; first_hit(i, direction, t, colour), the
-// nearest front hit and its shaded colour (false: none); and seam_of(i, direction), how near two
-// hits of neighbouring primitives are one seam's (seam_twins below; 0: never).
+// depth bound in word 0's w and the farthest depth in word 1's, and depth_bound(i) alone (what
+// a block reads per entry it walks is then two or three vec4 loads: on lavapipe each shared
+// load whose index differs between invocations is a loop over the 8 lanes of a SIMD unit, and
+// the near test's five loads were 35 % of the aneurysm's composite instructions; README,
+// "Per-lane shared loads on lavapipe"); may_cross(words, direction), a test that keeps every
+// batch entry the ray from the eye along `direction` may hit; first_hit(i, direction, t,
+// colour), the nearest front hit and its shaded colour (false: none); and seam_of(i,
+// direction), how near two hits of neighbouring primitives are one seam's (seam_twins below; 0:
+// never).
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
