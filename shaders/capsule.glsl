@@ -39,6 +39,26 @@ int capsule_solve_quadratic(float a, float b, float c, out float r0, out float r
   return 2;
 }
 
+// The ray's roots against the infinite cylinder of radius s.radius about the segment's unit
+// `axis`, ascending (the count, as capsule_solve_quadratic); the outward normal at root t is
+// w_perp + t d_perp, the parts of origin - s.p0 and of direction across the axis.
+int capsule_cylinder_roots(CapsuleSegment s, vec3 origin, vec3 direction, vec3 axis,
+                           out float r0, out float r1, out vec3 w_perp, out vec3 d_perp) {
+  const vec3 w = origin - s.p0;
+  d_perp = direction - dot(direction, axis) * axis;
+  w_perp = w - dot(w, axis) * axis;
+  return capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
+                                 dot(w_perp, w_perp) - s.radius * s.radius, r0, r1);
+}
+
+// The ray's roots against the sphere of radius r about `centre`, ascending (the count).
+int capsule_sphere_roots(vec3 centre, float r, vec3 origin, vec3 direction, out float r0,
+                         out float r1) {
+  const vec3 w = origin - centre;
+  return capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
+                                 dot(w, w) - r * r, r0, r1);
+}
+
 // Whether crossing x, at t along a ray from `origin` (extent: its distance from s.p0), lies
 // inside a neighbouring segment's capsule, where the joint hands the surface over to that
 // segment: inside by more than the float error of the hit point (relative error about 2^-23 of
@@ -81,15 +101,12 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
   float r0, r1;
   // The cylinder between the end planes.
   if (len > 0.0) {
-    const vec3 w = origin - s.p0;
-    const vec3 d_perp = direction - dot(direction, axis) * axis;
-    const vec3 w_perp = w - dot(w, axis) * axis;
-    const int n = capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
-                                          dot(w_perp, w_perp) - r * r, r0, r1);
+    vec3 w_perp, d_perp;
+    const int n = capsule_cylinder_roots(s, origin, direction, axis, r0, r1, w_perp, d_perp);
     for (int k = 0; k < 2; ++k) {
       if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
-      const float h = dot(w + root * direction, axis);
+      const float h = dot(origin - s.p0 + root * direction, axis);
       if (h >= 0.0 && h <= len && candidates < 4) {
         for (int j = 0; j < 4; ++j)
           if (j == candidates) {
@@ -104,9 +121,7 @@ int capsule_crossings(CapsuleSegment s, vec3 origin, vec3 direction, out float t
   for (int end = 0; end < 2; ++end) {
     if (end == 1 && (s.flags & 1u) != 0u) break;
     const vec3 centre = end == 0 ? s.p1 : s.p0;
-    const vec3 w = origin - centre;
-    const int n = capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
-                                          dot(w, w) - r * r, r0, r1);
+    const int n = capsule_sphere_roots(centre, r, origin, direction, r0, r1);
     for (int k = 0; k < 2; ++k) {
       if (k >= n) continue;
       const float root = k == 0 ? r0 : r1;
@@ -186,12 +201,9 @@ bool capsule_front_crossing(CapsuleSegment s, vec3 origin, vec3 direction, float
   float r0, r1;
   // The cylinder between the end planes.
   if (len > 0.0) {
-    const vec3 w = origin - s.p0;
-    const vec3 d_perp = direction - dot(direction, axis) * axis;
-    const vec3 w_perp = w - dot(w, axis) * axis;
-    if (capsule_solve_quadratic(dot(d_perp, d_perp), 2.0 * dot(w_perp, d_perp),
-                                dot(w_perp, w_perp) - r * r, r0, r1) > 0) {
-      const float h = dot(w + r0 * direction, axis);
+    vec3 w_perp, d_perp;
+    if (capsule_cylinder_roots(s, origin, direction, axis, r0, r1, w_perp, d_perp) > 0) {
+      const float h = dot(origin - s.p0 + r0 * direction, axis);
       if (h >= 0.0 && h <= len)
         capsule_take_front(s, origin, direction, origin_t, extent, len, axis, r0,
                            w_perp + r0 * d_perp, found, t, normal, u);
@@ -201,10 +213,7 @@ bool capsule_front_crossing(CapsuleSegment s, vec3 origin, vec3 direction, float
   for (int end = 0; end < 2; ++end) {
     if (end == 1 && (s.flags & 1u) != 0u) break;
     const vec3 centre = end == 0 ? s.p1 : s.p0;
-    const vec3 w = origin - centre;
-    if (capsule_solve_quadratic(dot(direction, direction), 2.0 * dot(w, direction),
-                                dot(w, w) - r * r, r0, r1) == 0)
-      continue;
+    if (capsule_sphere_roots(centre, r, origin, direction, r0, r1) == 0) continue;
     const vec3 x = origin + r0 * direction;
     const float h = dot(x - s.p0, axis);
     if (end == 0 ? h > len : h < 0.0)

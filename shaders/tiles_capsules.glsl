@@ -19,8 +19,8 @@ vec2 tangent_slopes(float x, float z, float r) {
 // the pixels inside them, so both must use this one function.
 //
 // The bounds are those of the capsule of radius r' = 1.25 r + 128 float steps of the distances,
-// twice the slack of may_cross (tiles_composite.comp), so that they hold every pixel whose ray passes
-// that test, and a sixteenth of a pixel for the float error of the bound itself: the exact
+// twice the slack of may_cross (tiles_composite.comp), so that they hold every pixel whose ray
+// passes that test, and a sixteenth of a pixel for the float error of the bound itself: the exact
 // projection of its two end spheres (tangent_slopes), whose convex hull the capsule is. The
 // image is then the same to the byte as with any wider bounds, and a capsule between pixel
 // centres covers no pixel (covered_pixels, tiles.glsl). A capsule that comes within 2 r' of the

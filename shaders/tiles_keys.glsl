@@ -1,6 +1,7 @@
 // Binning's last step, shared by the primitives' binning passes: the keys of primitive `s`, whose
-// screen bounds are [lo, hi] pixels (covering the pixels of covered_pixels, tiles.glsl) and whose nearest view depth is z_near, one per covered tile
-// of this pass's band of tile rows: the tile in the high bits, the quantised depth in the low.
+// screen bounds are [lo, hi] pixels (covering the pixels of covered_pixels, tiles.glsl) and whose
+// nearest view depth is z_near, one per covered tile of this pass's band of tile rows: the tile
+// in the high bits, the quantised depth in the low.
 // Every invocation of the workgroup calls it (`visible` false: no keys), because the workgroup
 // adds its counts up in shared memory and makes one atomic of each kind on the global counters:
 // one per primitive had every invocation of the GPU queue on one address (on the H100, 55 ms of
@@ -22,7 +23,8 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   const ivec2 tiles = ivec2(frame.tiles.xy);
   ivec2 p0, p1;
   covered_pixels(lo, hi, p0, p1);
-  const bool on_screen = visible && all(lessThanEqual(max(p0, ivec2(0)), min(p1, ivec2(frame.size.xy) - 1)));
+  const bool on_screen =
+      visible && all(lessThanEqual(max(p0, ivec2(0)), min(p1, ivec2(frame.size.xy) - 1)));
   ivec2 t0 = ivec2(0), t1 = ivec2(-1);
   if (on_screen) {
     t0 = clamp(p0 / int(kTile), ivec2(0), tiles - 1);

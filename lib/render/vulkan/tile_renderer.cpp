@@ -33,11 +33,12 @@ constexpr uint64_t kKeyBytes = 18;
 // passes (radix_sort.hpp).
 constexpr VkBufferUsageFlags kSortedUsage =
     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-// A pixel's state between slices (tiles_composite.comp PixelState, std430), and a tile's.
-constexpr uint64_t kPixelStateBytes = 20 * 4 + 16 * 4 + 16 * 4 + 16 * 16;
-constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
 // The hits a pixel's state keeps pending between slices and walks (kStateWindow there).
 constexpr uint32_t kStateWindow = 16;
+// A pixel's state between slices (tiles_composite.glsl PixelState, std430: 20 words, then t,
+// primitive and an rgba colour per pending hit), and a tile's.
+constexpr uint64_t kPixelStateBytes = 20 * 4 + kStateWindow * (4 + 4 + 16);
+constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
 // Keys per tile per dispatch where the driver caps an invocation's loop iterations (lavapipe's
 // gallivm: 65535 in all): each key costs up to about 60 (window, transfer function, crossings).
 constexpr uint32_t kCappedSliceKeys = 512;
