@@ -58,6 +58,28 @@ shared uint batch_primitive[kBatch];  // its primitive
 // SIMD unit runs both sides of a branch, a skip inside the loop would save nothing).
 const uint kBlocks = 32;
 shared uint block_entries[kBlocks][kBatch / 32u];
+
+// Batch entries as bits, entry 32 w + b in bit b of word w, in key order.
+const uint kWords = kBatch / 32u;
+
+// The first entry of `words` (kBatch: none). The words are indexed by constants only, so that
+// they stay in registers; a loop over the entries with this runs once per entry, where a loop
+// per word with one inside over its bits ran at least once per word: lavapipe runs the body of
+// every loop it enters at least once, with its lanes masked off when none has work (the near
+// test's two shared loads cost that much for each of a batch's 8 words, empty or not).
+uint first_entry(uint words[kWords]) {
+  uint w = kWords, word = 0u;
+  for (int k = int(kWords) - 1; k >= 0; --k)
+    if (words[k] != 0u) w = uint(k), word = words[k];
+  return w < kWords ? w * 32u + uint(findLSB(word)) : kBatch;
+}
+
+// Sets (on) or clears entry `entry`'s bit in `words`.
+void set_entry(inout uint words[kWords], uint entry, bool on) {
+  const uint bit = 1u << (entry % 32u);
+  for (uint k = 0u; k < kWords; ++k)
+    if (k == entry / 32u) words[k] = on ? words[k] | bit : words[k] & ~bit;
+}
 // Whether a pixel of the tile may still take a hit after a batch, by the batch's parity (a flag
 // every such pixel stores): none, and the walk stops early (every pixel opaque enough, written
 // out, or past its floor).
@@ -383,20 +405,19 @@ void main() {
     // An entry whose hits all lie at or before the hits an earlier walk composited, or past the
     // floor, has none for this walk: this makes the walks again cheap where they pass keys
     // their pixel is done with.
-    uint near[kBatch / 32u];
-    uint left = 0u;  // pairs not yet in a round
-    for (uint w = 0u; w < kBatch / 32u; ++w) {
+    uint near[kWords], entries[kWords];
+    for (uint w = 0u; w < kWords; ++w) {
       near[w] = 0u;
-      if (!inside || done || written) continue;
-      for (uint entries = block_entries[block][w]; entries != 0u; entries &= entries - 1u) {
-        const uint i = w * 32u + uint(findLSB(entries));
-        vec4 words[kNearWords];
-        near_words(i, words);
-        if (bound_t(words[0].w, t_per_z) > floor_t || bound_t(words[1].w, far_t_per_z) < after_t)
-          continue;
-        if (may_cross(words, direction)) near[w] |= 1u << (i % 32u);
-      }
-      left += uint(bitCount(near[w]));
+      entries[w] = inside && !done && !written ? block_entries[block][w] : 0u;
+    }
+    uint left = 0u;  // pairs not yet in a round
+    for (uint i = first_entry(entries); i < kBatch; i = first_entry(entries)) {
+      set_entry(entries, i, false);
+      vec4 words[kNearWords];
+      near_words(i, words);
+      if (bound_t(words[0].w, t_per_z) > floor_t || bound_t(words[1].w, far_t_per_z) < after_t)
+        continue;
+      if (may_cross(words, direction)) set_entry(near, i, true), ++left;
     }
     // Rounds of pairs until every pixel has had its pairs' hits. The counters alternate by the
     // round's parity: those of the next round are cleared in this one, after their last reads.
@@ -410,14 +431,10 @@ void main() {
       }
       round_hits[lane] = 0u;
       if (lane == 0u) round_claimed[r ^ 1u] = 0u, round_more[r ^ 1u] = 0u;
-      uint taken = 0u;
-      for (uint w = 0u; w < kBatch / 32u; ++w) {
-        while (taken < take && near[w] != 0u) {
-          const uint i = w * 32u + uint(findLSB(near[w]));
-          slot_pair[base + taken] = lane | (i << 8u) | (taken << 16u);
-          near[w] &= near[w] - 1u;
-          ++taken;
-        }
+      for (uint taken = 0u; taken < take; ++taken) {
+        const uint i = first_entry(near);
+        set_entry(near, i, false);
+        slot_pair[base + taken] = lane | (i << 8u) | (taken << 16u);
       }
       left -= take;
       if (left > 0u) round_more[r] = 1u;  // a flag: every writer writes the same value
