@@ -545,7 +545,9 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
 // those of fixed trips (lavapipe's): the same bytes and hits over capsules and the tube mesh,
 // and with a window that overflows (the forty capsules of the test above), where the build that
 // exits walks again with its 64-hit window: all 24 hits left after the first walk in one walk
-// more, where the 16-hit window takes two.
+// more, where the 16-hit window takes two. Where the device has 64-bit integers (lavapipe), the
+// capsules' build of fixed trips also reads their ends as 64-bit words (tiles_composite.comp):
+// the two layouts give the same bytes too.
 TEST(Tiles, WindowLoopsThatExitEarlyGiveTheSameBytes) {
   vk::Context ctx;
   {

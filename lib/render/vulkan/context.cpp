@@ -224,6 +224,7 @@ Context::Context(const ContextOptions& options) {
     info_.fragment_shader_interlock =
         info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
     info_.compute_full_subgroups = supported13.computeFullSubgroups;
+    info_.shader_int64 = supported.features.shaderInt64;
     ray_tracing_ = options.ray_tracing;
     // Integrated and CPU devices share their memory with the host: no staging copy there.
     staging_piece_bytes_ = std::max<uint64_t>(options.staging_piece_bytes / 4 * 4, 4);
@@ -277,6 +278,7 @@ Context::Context(const ContextOptions& options) {
     features12.pNext = chain_end;
     VkPhysicalDeviceFeatures features{};
     features.fragmentStoresAndAtomics = VK_TRUE;
+    features.shaderInt64 = info_.shader_int64 ? VK_TRUE : VK_FALSE;
     const float priority = 1;
     VkDeviceQueueCreateInfo queue{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
     queue.queueFamilyIndex = family_;

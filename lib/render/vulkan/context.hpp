@@ -58,6 +58,9 @@ struct DeviceInfo {
   uint32_t subgroup_size = 0;
   bool subgroup_ballot_arithmetic = false;
   bool compute_full_subgroups = false;
+  // 64-bit integers in shaders (shaderInt64: known, and enabled, once a Context has made the
+  // device).
+  bool shader_int64 = false;
   std::array<uint8_t, 16> driver_uuid{};  // VkPhysicalDeviceIDProperties::driverUUID
 };
 

@@ -173,9 +173,15 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
       window_loops == WindowLoops::by_device ? !lavapipe : window_loops == WindowLoops::exits;
   const std::string composite =
       triangles ? "tiles_composite_triangles.comp" : "tiles_composite.comp";
+  // With loops of fixed trips, the capsules' ends in 64-bit words where the device has them
+  // (lavapipe: one shared load instead of two, tiles_composite.comp).
+  const bool wide = !exits && !triangles && ctx.info().shader_int64;
   const std::array<std::string, 4> shaders = {
       triangles ? "tiles_bin_triangles.comp" : "tiles_bin.comp", "tiles_ranges.comp",
-      exits ? composite + ":exits" : composite, exits ? composite + ":deep" : ""};
+      exits  ? composite + ":exits"
+      : wide ? composite + ":wide"
+             : composite,
+      exits ? composite + ":deep" : ""};
   for (size_t i = 0; i < 4; ++i)
     if (!shaders[i].empty())
       pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str());
