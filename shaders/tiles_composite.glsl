@@ -80,6 +80,7 @@ void set_entry(inout uint words[kWords], uint entry, bool on) {
   for (uint k = 0u; k < kWords; ++k)
     if (k == entry / 32u) words[k] = on ? words[k] | bit : words[k] & ~bit;
 }
+
 // Whether a pixel of the tile may still take a hit after a batch, by the batch's parity (a flag
 // every such pixel stores): none, and the walk stops early (every pixel opaque enough, written
 // out, or past its floor).

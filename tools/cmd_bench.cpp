@@ -449,8 +449,7 @@ Command add_bench(CLI::App& app) {
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
           "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
           "path, and tiles-triangles, tiles over the tube mesh, when named; those this machine "
-          "cannot run are listed as "
-          "skipped, with the reason)")
+          "cannot run are listed as skipped, with the reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,
