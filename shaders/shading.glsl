@@ -1,7 +1,12 @@
 // The shading that must match the CPU ray tracer (lib/render/ray_tracer.cpp): transfer function
 // interpolated in sRGB then linearised, Blinn-Phong with a headlight, straight (not
 // premultiplied) colour. Reads from the including shader's uniform block `frame`: colours,
-// opacities, tf_counts.xy, ranges.zw (transfer-function range), shading, eye.
+// opacities, tf_counts.xy, ranges.zw (transfer-function range), shading, eye. An including shader
+// may define TF_COUNTS to read the point counts (the loop bounds) from elsewhere (tiles.glsl).
+
+#ifndef TF_COUNTS
+#define TF_COUNTS frame.tf_counts
+#endif
 
 float srgb_to_linear(float c) {
   return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
@@ -15,7 +20,7 @@ vec4 tf_point(bool colour, uint i) {
 // Piecewise linear through the table's points at t, clamped to the end points; returns the
 // value columns (colour: rgb, opacity: a in .x).
 vec3 tf_interpolate(bool colour, float t) {
-  const uint n = colour ? frame.tf_counts.x : frame.tf_counts.y;
+  const uint n = colour ? TF_COUNTS.x : TF_COUNTS.y;
   if (t <= tf_point(colour, 0).x) return tf_point(colour, 0).yzw;
   if (t >= tf_point(colour, n - 1).x) return tf_point(colour, n - 1).yzw;
   for (uint i = 1; i < n; ++i) {

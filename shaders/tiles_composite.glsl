@@ -87,6 +87,8 @@ void set_entry(inout uint words[kWords], uint entry, bool on) {
 shared uint busy[2];
 // The depth bound of the first key after the batch (+inf: none in this slice), read once.
 shared float next_bound;
+// The batch's farthest view depth (float bits, at least 0), for chunk_far.
+shared uint batch_far;
 // A round's pairs: slot_pair holds the pixel's lane | the entry << 8 | the pair's place among
 // the pixel's pairs of the round << 16; a hit's colour, and in slot_hit the bits of its t, of
 // its entry's depth bound along the pixel's ray and of its seam distance, and its primitive:
@@ -150,8 +152,16 @@ struct PixelState {
 // are composited at a time (the host's groups), each group's tiles in slots 0, 1, ...
 layout(set = 0, binding = 11, std430) buffer States { PixelState states[]; };
 layout(set = 0, binding = 15, std430) readonly buffer TileSlots { uint tile_slots[]; };
-// Per tile: 1 where a pixel left hits for another walk.
+// Per tile, where a pixel left hits for another walk: the least view depth its hits may lie at
+// (float bits, the minimum over such pixels; 0: any), else all ones (the host's).
 layout(set = 0, binding = 14, std430) buffer WalkAgain { uint walk_again[]; };
+// Per tile, the farthest view depth of each kBatch keys from its first (+inf: not walked, or a
+// primitive with no bounds), in chunk ranges[tile].x / kBatch + tile on: the walks write them,
+// and the host starts a walk again at the first chunk that may reach past the tile's depth in
+// walk_again, so that it does not pass again the keys its pixels are done with (the host's
+// walk_first, the tile's first key in a walk again; slices count from there).
+layout(set = 0, binding = 16, std430) buffer ChunkFar { float chunk_far[]; };
+layout(set = 0, binding = 17, std430) readonly buffer WalkFirst { uint walk_first[]; };
 
 float window_t[kWindow];
 uint window_primitive[kWindow];
@@ -192,7 +202,7 @@ void composite(float t, uint primitive, vec4 c) {
   colour += (1.0 - alpha) * c.a * c.rgb;
   alpha += (1.0 - alpha) * c.a;
   ++hit_count;
-  if (frame.size.z != 0u && alpha >= frame.params.x) done = true;
+  if (frame_tests.size.z != 0u && alpha >= frame.params.x) done = true;
 }
 
 // The window is indexed by constants only (loops of kWindow trips, which the compiler unrolls).
@@ -341,7 +351,8 @@ void main() {
   // The pixel's state between slices and walks: its tile's slot, the pixel's lane in it.
   const uint state = tile_slots[tile] * (kTile * kTile) + lane;
   const uvec2 whole = ranges[tile];
-  const uint begin = min(whole.x + slicing.slice * slicing.slice_keys, whole.y);
+  const uint start = slicing.walk > 0u ? clamp(walk_first[tile], whole.x, whole.y) : whole.x;
+  const uint begin = min(start + slicing.slice * slicing.slice_keys, whole.y);
   const uint end = min(begin + slicing.slice_keys, whole.y);
   // The first slice of the first walk starts the pixels empty; the tile's last slice writes
   // them out, or keeps them for another walk.
@@ -385,7 +396,7 @@ void main() {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
     block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
     // Last read two batches ago, before the barriers of the batch between.
-    if (lane == 0u) busy[parity] = 0u;
+    if (lane == 0u) busy[parity] = 0u, batch_far = 0u;
     barrier();
     if (lane == 0u) {
       const uint next = first + kBatch;
@@ -397,11 +408,16 @@ void main() {
       vec2 lo, hi;
       float z_near, z_far;
       const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
-      load_primitive(lane, primitive, key_depth(keys[first + lane]),
-                     bounded ? z_far : 1.0 / 0.0);
+      const float far = bounded ? z_far : 1.0 / 0.0;
+      load_primitive(lane, primitive, key_depth(keys[first + lane]), far);
       mark_blocks(lane, bounded, lo, hi, ivec2(tile_xy * kTile));
+      atomicMax(batch_far, floatBitsToUint(max(far, 0.0)));
     }
     barrier();
+    // A batch that holds a whole chunk gives its far depth (slices and walks again start on
+    // chunks; slices of fewer keys than a batch leave the chunks unknown, walked again).
+    if (lane == 0u && (first - whole.x) % kBatch == 0u && (count == kBatch || end == whole.y))
+      chunk_far[whole.x / kBatch + tile + (first - whole.x) / kBatch] = uintBitsToFloat(batch_far);
     // The entries this pixel's ray may hit, in key order: bit i of near[w] for entry 32 w + i.
     // An entry whose hits all lie at or before the hits an earlier walk composited, or past the
     // floor, has none for this walk: this makes the walks again cheap where they pass keys
@@ -490,7 +506,11 @@ void main() {
   const bool again = last_slice && !done && floor_t < 1.0 / 0.0;
   if (again) {
     atomicAdd(stats.window_overflows, 1u);
-    walk_again[tile] = 1u;
+    // The next walk takes hits past last_t: from primitives whose far depth, in the units of t
+    // along this ray (bound_t), is last_t or more, so whose far depth is at least this (a
+    // millionth nearer for the float steps on the way; nothing behind the eye: 0, any).
+    const float least_z = last_t > 0.0 ? last_t / far_t_per_z * (1.0 - 1e-6) : 0.0;
+    atomicMin(walk_again[tile], floatBitsToUint(least_z));
     after_t = last_t, after_primitive = last_primitive;
     floor_t = 1.0 / 0.0, floor_primitive = 0xFFFFFFFFu;
   }

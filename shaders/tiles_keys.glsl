@@ -16,7 +16,7 @@ shared uint group_rows[kGroupRows];
 
 void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   const uint lane = gl_LocalInvocationIndex, lanes = gl_WorkGroupSize.x;
-  const bool rows_shared = frame.tiles.y <= kGroupRows;
+  const bool rows_shared = frame_tests.tiles.y <= kGroupRows;
   if (lane == 0u) group_keys = 0u, group_binned = 0u;
   for (uint r = lane; r < kGroupRows; r += lanes) group_rows[r] = 0u;
   barrier();
@@ -53,7 +53,7 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
     group_room = base <= frame.tiles.w && total <= frame.tiles.w - base;
   }
   if (rows_shared)
-    for (uint r = lane; r < kGroupRows && r < frame.tiles.y; r += lanes)
+    for (uint r = lane; r < kGroupRows && r < frame_tests.tiles.y; r += lanes)
       if (group_rows[r] != 0u) atomicAdd(row_keys[r], group_rows[r]);
   barrier();
   // No room for the workgroup's keys: binned again with more.

@@ -477,9 +477,24 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
 // 16, 16 and 8 hits), and the pixel must be the forty colours composited front to back by hand,
 // whatever the slice size. (The near half is red, the far half blue: compositing the window's
 // nearest early would put blue hits before red ones.)
-CapsuleSegments long_capsules_far_to_near(int count) {
+// `clutter` short capsules (value 0.5) come first in the tile of the centre pixel: nearer than
+// every long capsule's start, and off the centre pixel's ray (test below).
+CapsuleSegments long_capsules_far_to_near(int count, int clutter = 0) {
   LineSet lines;
   std::vector<float> values;
+  const Camera::ImagePlane plane = looking_along_z().image_plane(33, 33);
+  for (int k = 0; k < clutter; ++k) {
+    // Around the pixels (20..29, 20..29) of the 33x33 image, at view depths 1 to 1.36: each
+    // capsule's screen bounds lie within the centre pixel's tile (pixels 16..31).
+    const double z = 1.0 + 0.0006 * k;
+    const double px = 20 + k % 10, py = 20 + (k / 10) % 10;
+    const double nx = (px + 0.5) / 33 * 2 - 1, ny = (py + 0.5) / 33 * 2 - 1;
+    const glm::dvec3 p = z * (plane.forward + nx * plane.right - ny * plane.up);
+    lines.append_point(float(p.x), float(p.y), float(p.z));
+    lines.append_point(float(p.x) + 0.01f, float(p.y), float(p.z));
+    lines.end_line();
+    values.insert(values.end(), 2, 0.5f);
+  }
   for (int k = 0; k < count; ++k) {
     const float angle = 2.39996f * float(k);  // golden angle: the starts spread around the axis
     const float depth = 4.0f + 0.5f * float(count - 1 - k);
@@ -491,6 +506,22 @@ CapsuleSegments long_capsules_far_to_near(int count) {
   }
   lines.attributes = {{"v", values}};
   return build_capsule_segments(lines, 0.05f, "v");
+}
+
+// The centre pixel of long_capsules_far_to_near: the `count` colours composited front to back
+// by hand (ambient light only), over the background.
+std::array<double, 3> far_to_near_centre(const TransferFunction& tf, int count,
+                                         const std::array<double, 3>& background) {
+  std::array<double, 3> colour{};
+  double alpha = 0;
+  for (int k = count - 1; k >= 0; --k) {  // nearest first
+    const Rgba c = tf.at(k < count / 2 ? 1.0 : 0.0);
+    const std::array<double, 3> rgb{c.r, c.g, c.b};
+    for (int i = 0; i < 3; ++i) colour[size_t(i)] += (1 - alpha) * c.a * rgb[size_t(i)];
+    alpha += (1 - alpha) * c.a;
+  }
+  for (int i = 0; i < 3; ++i) colour[size_t(i)] += (1 - alpha) * background[size_t(i)];
+  return colour;
 }
 
 TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
@@ -524,21 +555,54 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   double walks_ms = 0;
   for (double ms : a.stats.walk_ms) walks_ms += ms;
   EXPECT_NEAR(walks_ms, a.stats.composite_ms, 1e-9 * (1 + a.stats.composite_ms));
-  std::array<double, 3> colour{};
-  double alpha = 0;
-  for (int k = count - 1; k >= 0; --k) {  // nearest first
-    const Rgba c = tf.at(k < count / 2 ? 1.0 : 0.0);
-    const std::array<double, 3> rgb{c.r, c.g, c.b};
-    for (int i = 0; i < 3; ++i) colour[size_t(i)] += (1 - alpha) * c.a * rgb[size_t(i)];
-    alpha += (1 - alpha) * c.a;
-  }
-  for (int i = 0; i < 3; ++i) {
-    const double expected = colour[size_t(i)] + (1 - alpha) * o.shading.background[size_t(i)];
-    EXPECT_NEAR(a.image.at(16, 16, i), expected, 1e-5) << "channel " << i;
-  }
+  const std::array<double, 3> expected = far_to_near_centre(tf, count, o.shading.background);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(a.image.at(16, 16, i), expected[size_t(i)], 1e-5) << "channel " << i;
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   EXPECT_EQ(b.stats.walks, 3u);
+}
+
+// The forty capsules above behind 600 short ones nearer than any of them, in the centre pixel's
+// tile but off its ray: that tile's first 512 keys (two chunks of 256) end before the hits the
+// centre pixel leaves for another walk, so each walk again starts past them (1,024 keys in the
+// two walks again of the 16-hit window, 512 in the one of the 64-hit window where loops exit).
+// Slices of 8 keys record no chunk's far depth (a batch is a whole chunk or tells nothing), so
+// their walks pass every key: the same bytes, and the centre pixel still the forty colours
+// composited by hand.
+TEST(Tiles, WalksAgainStartPastTheKeysTheirPixelsAreDoneWith) {
+  const int count = 40, clutter = 600;
+  const CapsuleSegments capsules = long_capsules_far_to_near(count, clutter);
+  const TransferFunction tf = red_to_blue(0.15, 0.1);
+  vk::TileOptions o;
+  o.width = 33, o.height = 33;
+  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
+  o.shading.background = {0.2, 0.3, 0.4};
+  vk::Context ctx;
+  const auto fixed = vk::WindowLoops::fixed;
+  vk::TileRenderer whole(ctx, capsules, 0, 1u << 20, true, fixed);
+  vk::TileRenderer fine(ctx, capsules, 0, 8, true, fixed);
+  vk::TileRenderer exits(ctx, capsules, 0, 1u << 20, true, vk::WindowLoops::exits);
+  const vk::TileFrame a = whole.render(looking_along_z(), tf, o);
+  const vk::TileFrame b = fine.render(looking_along_z(), tf, o);
+  const vk::TileFrame c = exits.render(looking_along_z(), tf, o);
+  const size_t centre = size_t(16) * o.width + 16;
+  ASSERT_EQ(a.depth_complexity[centre], uint32_t(count));
+  EXPECT_EQ(a.stats.max_tile_keys, uint64_t(count + clutter));
+  EXPECT_EQ(a.stats.walks, 3u);
+  EXPECT_EQ(a.stats.walk_skipped_keys, 1024u);
+  EXPECT_EQ(b.stats.walks, 3u);
+  EXPECT_EQ(b.stats.walk_skipped_keys, 0u);
+  EXPECT_EQ(c.stats.walks, 2u);
+  EXPECT_EQ(c.stats.walk_skipped_keys, 512u);
+  const std::array<double, 3> expected = far_to_near_centre(tf, count, o.shading.background);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(a.image.at(16, 16, i), expected[size_t(i)], 1e-5) << "channel " << i;
+  EXPECT_GT(a.stats.hits, uint64_t(clutter));  // the clutter is on screen
+  EXPECT_EQ(a.image.pixels, b.image.pixels);
+  EXPECT_EQ(a.depth_complexity, b.depth_complexity);
+  EXPECT_EQ(a.image.pixels, c.image.pixels);
+  EXPECT_EQ(a.depth_complexity, c.depth_complexity);
 }
 
 // The composite's window loops that leave past the pending hits (the pipeline of GPUs) and

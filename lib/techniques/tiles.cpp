@@ -88,6 +88,7 @@ class Tiles : public PreparedTechnique {
         {"walks", s.walks},
         {"walk_ms", s.walk_ms},
         {"walk_tiles", s.walk_tiles},
+        {"walk_skipped_keys", s.walk_skipped_keys},
         {"max_tile_keys", s.max_tile_keys},
         {"groups", s.groups},
         {"rebins", s.rebins},

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <span>
 #include <string>
 
@@ -23,9 +24,13 @@ namespace {
 constexpr uint32_t kTile = 16;
 // 0 uniforms, 1 points, 2 segments, 3 keys, 4 values, 5 counters, 6 ranges, 7 pixels, 8 hit
 // counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
-// slice, 14 the tiles to walk again, 15 each tile's state slot (shaders/tiles.glsl,
-// tiles_composite.glsl).
-constexpr uint32_t kBindings = 16;
+// slice, 14 the tiles to walk again, 15 each tile's state slot, 16 the keys' far depths by
+// chunks, 17 each tile's first key in a walk again, 18 the uniforms again as a storage buffer
+// (shaders/tiles.glsl, tiles_composite.glsl).
+constexpr uint32_t kBindings = 19;
+// Keys per chunk of chunk_far: a batch of the composite (kBatch in shaders/tiles_composite.comp
+// and tiles_composite_triangles.comp).
+constexpr uint32_t kChunkKeys = 256;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
@@ -84,7 +89,7 @@ struct TileRenderer::State {
   double extent = 0;  // radius of the bounding sphere, capsules included
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
-      slice_tiles, walk_again, tile_slots;
+      slice_tiles, walk_again, tile_slots, chunk_far, walk_first;
   uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
   PixelTargets targets;
   BufferSet set;
@@ -103,14 +108,15 @@ struct TileRenderer::State {
     write_buffer_set(ctx.device(), set.set,
                      {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
                       &targets.rgba.gpu, &targets.counts.gpu, &stats, &slice, &states, &rows,
-                      &slice_tiles, &walk_again, &tile_slots});
+                      &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first, &uniforms});
   }
 
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
-    for (Buffer* b : {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats,
-                      &slice, &states, &rows, &slice_tiles, &walk_again, &tile_slots})
+    for (Buffer* b :
+         {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats, &slice,
+          &states, &rows, &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first})
       ctx.destroy(*b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
@@ -151,7 +157,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   points = ctx.upload(vertex_words.data(), vertex_words.size() * 4, storage);
   segments = ctx.upload(primitive_words.data(), primitive_words.size() * 4, storage);
-  uniforms = ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  uniforms =
+      ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | storage, true);
   counters = ctx.create_buffer(sizeof(Counters), storage, true);
   stats = ctx.create_buffer(sizeof(CompositeStats), storage, true);
   keys = ctx.create_buffer(4, kSortedUsage, false);
@@ -163,6 +170,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   slice_tiles = ctx.create_buffer(4, storage, true);
   walk_again = ctx.create_buffer(4, storage, true);
   tile_slots = ctx.create_buffer(4, storage, true);
+  chunk_far = ctx.create_buffer(4, storage, true);
+  walk_first = ctx.create_buffer(4, storage, true);
   const bool lavapipe = ctx.info().lavapipe;
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
@@ -295,10 +304,12 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     ctx.destroy(s.rows);
     ctx.destroy(s.walk_again);
     ctx.destroy(s.tile_slots);
+    ctx.destroy(s.walk_first);
     s.ranges = ctx.create_buffer(uint64_t(tiles) * 8, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.rows = ctx.create_buffer(uint64_t(tiles_y) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.walk_again = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.tile_slots = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    s.walk_first = ctx.create_buffer(uint64_t(tiles) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
   s.bind();
   TransferFunction tf = tf_in;
@@ -385,6 +396,11 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   // One walk of the composite pass over `walk_tiles` in `slices` slices of `slice_keys` keys
   // per tile (walk 0: the band's every tile, starting its pixels).
   const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
+  auto* walk_first = static_cast<uint32_t*>(s.walk_first.mapped);
+  // A tile's keys from where walk `walk` starts (walk 0: the first; later: walk_first).
+  const auto keys_walked = [&](uint32_t t, uint32_t walk) {
+    return ranges[2 * t + 1] - (walk > 0 ? walk_first[t] : ranges[2 * t]);
+  };
   // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
   // tiles are composited in groups of that many (a tile's state takes 112 KiB: lavapipe's
   // 128 MiB hold 1,170 tiles, 1080p has 8,160).
@@ -407,8 +423,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     for (uint32_t k = 0; k < slices; ++k) {
       const size_t offset = slice_tiles.size();
       for (uint32_t t : walk_tiles)
-        if (k == 0 || ranges[2 * t + 1] - ranges[2 * t] > uint64_t(k) * slice_keys)
-          slice_tiles.push_back(t);
+        if (k == 0 || keys_walked(t, walk) > uint64_t(k) * slice_keys) slice_tiles.push_back(t);
       slice_lists.emplace_back(uint32_t(offset), uint32_t(slice_tiles.size() - offset));
     }
     if (s.slice_tiles.size < slice_tiles.size() * 4) {
@@ -450,25 +465,33 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const auto composite_group = [&](const std::vector<uint32_t>& tiles_of_group) {
     auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
     for (size_t k = 0; k < tiles_of_group.size(); ++k) slots[tiles_of_group[k]] = uint32_t(k);
-    const auto longest_of = [&](const std::vector<uint32_t>& list) {
+    const auto longest_of = [&](const std::vector<uint32_t>& list, uint32_t walk) {
       uint32_t longest = 1;
-      for (uint32_t t : list) longest = std::max(longest, ranges[2 * t + 1] - ranges[2 * t]);
+      for (uint32_t t : list) longest = std::max(longest, keys_walked(t, walk));
       return longest;
     };
-    const uint32_t group_longest = longest_of(tiles_of_group);
+    const uint32_t group_longest = longest_of(tiles_of_group, 0);
     st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
     uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : group_longest;
     bool keep_states = false;
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
     auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
+    auto* chunk_far = static_cast<float*>(s.chunk_far.mapped);
     std::vector<uint32_t> first_walk = tiles_of_group;
     for (;;) {
-      std::memset(again, 0, uint64_t(tiles) * 4);
+      std::memset(again, 0xFF, uint64_t(tiles) * 4);
+      // Every chunk unknown until a walk passes it (again after a cut-short dispatch, whose
+      // batches may have stopped part way).
+      for (uint32_t t : tiles_of_group)
+        std::fill_n(chunk_far + ranges[2 * t] / kChunkKeys + t,
+                    (ranges[2 * t + 1] - ranges[2 * t] + kChunkKeys - 1) / kChunkKeys,
+                    std::numeric_limits<float>::infinity());
       uint32_t most_slices = 0, walks = 0;
       bool cut_short = false, no_room = false;
+      uint64_t skipped = 0;  // keys the walks again started past
       for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
-        const uint32_t longest = longest_of(walk_tiles);
+        const uint32_t longest = longest_of(walk_tiles, walks);
         // Each walk again passes a full window (16 hits, at most one a key) of each pixel it is
         // for, so a tile takes at most keys / 16 + 1 walks; more means no progress (a pixel
         // state the shader and this file disagree on hung a build once), not more work.
@@ -483,8 +506,20 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         std::memcpy(&after, s.stats.mapped, sizeof after);
         if ((cut_short = after.cut_short != 0)) break;
         walk_tiles.clear();
-        for (uint32_t t : tiles_of_group)
-          if (again[t] != 0) walk_tiles.push_back(t), again[t] = 0;
+        for (uint32_t t : tiles_of_group) {
+          if (again[t] == ~0u) continue;
+          walk_tiles.push_back(t);
+          // The next walk starts at the tile's first chunk that reaches the least depth its
+          // pixels' hits may lie at: the keys before it are done with.
+          const float least_z = std::bit_cast<float>(again[t]);
+          uint32_t first_key = ranges[2 * t];
+          for (const float* chunk = chunk_far + first_key / kChunkKeys + t;
+               least_z > 0 && first_key < ranges[2 * t + 1] && *chunk < least_z; ++chunk)
+            first_key = std::min(first_key + kChunkKeys, ranges[2 * t + 1]);
+          walk_first[t] = first_key;
+          skipped += first_key - ranges[2 * t];
+          again[t] = ~0u;
+        }
         if ((no_room = !walk_tiles.empty() && !had_room)) {
           first_walk = walk_tiles;
           break;
@@ -492,6 +527,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       }
       if (!cut_short && !no_room) {
         st.walks = std::max(st.walks, walks);
+        st.walk_skipped_keys += skipped;
         return most_slices;
       }
       if (cut_short) {
@@ -539,6 +575,13 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     u.band[0] = first, u.band[1] = last;
     std::memcpy(s.uniforms.mapped, &u, sizeof u);
     std::memset(s.ranges.mapped, 0, s.ranges.size);
+    // A chunk of each tile's keys (chunk_far) at ranges.x / kChunkKeys + tile on: a tile of n
+    // keys takes n / kChunkKeys + 1 places at most.
+    if (const uint64_t chunks = keys / kChunkKeys + tiles + 1; s.chunk_far.size < chunks * 4) {
+      ctx.destroy(s.chunk_far);
+      s.chunk_far = ctx.create_buffer(chunks * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+      s.bind();
+    }
     st.sort_ms += pass([&](VkCommandBuffer cmd) {
       s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), key_bits);
       vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
@@ -559,7 +602,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   st.frame_bytes = s.keys.size + s.values.size + RadixSorter::scratch_bytes(longest_band) +
                    s.ranges.size + s.rows.size + s.targets.rgba.gpu.size +
                    s.targets.counts.gpu.size + s.slice_tiles.size + s.walk_again.size +
-                   s.tile_slots.size + (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
+                   s.tile_slots.size + s.chunk_far.size + s.walk_first.size +
+                   (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return frame;
 }

@@ -54,7 +54,8 @@ struct TileStats {
   uint32_t bands = 1;          // bands of tile rows, each binned, sorted and composited alone
   uint32_t resliced = 0;       // bands composited again in smaller slices (an invocation cut short)
   uint32_t walks = 1;          // the most walks over a tile's keys (more: a full window, exact)
-  uint32_t groups = 1;         // the most groups of tiles in a band (their states fit a buffer)
+  uint64_t walk_skipped_keys = 0;  // keys the walks again started past (their pixels done there)
+  uint32_t groups = 1;             // the most groups of tiles in a band (their states fit a buffer)
   // Per walk (0: the first), summed over bands and groups: composite GPU ms and tiles walked.
   std::vector<double> walk_ms;
   std::vector<uint64_t> walk_tiles;
