@@ -15,9 +15,10 @@ layout(set = 0, binding = 0, std140) uniform TileUniforms {
 // 22.3's lavapipe specialises a shader on the uniform-buffer values that its branches and loops
 // test alone, and compiles it again with LLVM for every command buffer that binds it: 14 to 21
 // ms a submission of the composite, which a frame makes once per walk (the paper-small aneurysm
-// at 640x360: 4 to 7 walks a frame). It leaves storage buffers alone. The other values stay in
+// at 640x360: 3 to 7 walks a frame). It leaves storage buffers alone. The other values stay in
 // the uniform buffer, whose loads lavapipe vectorises where a storage buffer's are a loop over
-// the lanes (with every value in a storage buffer, convection's composite ran 10 % slower).
+// the lanes (with every value in a storage buffer, the composite of paper-small's convection,
+// turbulence and clouds ran 10 to 20 % slower).
 layout(set = 0, binding = 18, std430) restrict readonly buffer TileTests {
 #include "tiles_frame.glsl"
 } frame_tests;
