@@ -524,15 +524,22 @@ std::array<double, 3> far_to_near_centre(const TransferFunction& tf, int count,
   return colour;
 }
 
+// The options of the tests below: 33x33 (the centre pixel's ray is the view axis), ambient light
+// only (each hit's colour is the transfer function's), a coloured background.
+vk::TileOptions far_to_near_options() {
+  vk::TileOptions o;
+  o.width = 33, o.height = 33;
+  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
+  o.shading.background = {0.2, 0.3, 0.4};
+  return o;
+}
+
 TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   const int count = 40;
   const CapsuleSegments capsules = long_capsules_far_to_near(count);
   const Camera camera = looking_along_z();
   const TransferFunction tf = red_to_blue(0.15, 0.1);
-  vk::TileOptions o;
-  o.width = 33, o.height = 33;  // the centre pixel's ray is the view axis
-  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
-  o.shading.background = {0.2, 0.3, 0.4};
+  const vk::TileOptions o = far_to_near_options();
   vk::Context ctx;
   // Loops of fixed trips: the build whose loops exit walks again with a deeper window on GPUs
   // (two walks here; Tiles.WindowLoopsThatExitEarlyGiveTheSameBytes).
@@ -574,10 +581,7 @@ TEST(Tiles, WalksAgainStartPastTheKeysTheirPixelsAreDoneWith) {
   const int count = 40, clutter = 600;
   const CapsuleSegments capsules = long_capsules_far_to_near(count, clutter);
   const TransferFunction tf = red_to_blue(0.15, 0.1);
-  vk::TileOptions o;
-  o.width = 33, o.height = 33;
-  o.shading.ambient = 1, o.shading.diffuse = 0, o.shading.specular = 0;
-  o.shading.background = {0.2, 0.3, 0.4};
+  const vk::TileOptions o = far_to_near_options();
   vk::Context ctx;
   const auto fixed = vk::WindowLoops::fixed;
   vk::TileRenderer whole(ctx, capsules, 0, 1u << 20, true, fixed);
