@@ -37,12 +37,20 @@
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
-// The pixels' states between slices and walks hold kStateWindow pending hits. A walk again runs
-// the build with TILES_DEEP_WINDOW (GPUs, one slice per tile: a walk then ends with no hit
-// pending), whose window holds 64: the pixels that fill 16 are those behind hundreds of
-// primitives, and each walk again costs a pass over their tile's keys (on the H100 a third of the
-// 1080p aneurysm's composite, 7 walks, with 16 in every walk).
+// The pixels' states between slices and walks hold kStateWindow pending hits: 16 where the
+// window's loops exit past the pending hits (GPUs), 8 where they run every trip (lavapipe, where
+// a hit costs the whole window; with walks again cheap there, paper-small's composite at
+// 640x360 took 5 to 27 % less time with 8 than with 16 on the four sets, and 4 was slower again
+// on the aneurysm, whose walks went up to 25 a tile). A walk again runs the build with
+// TILES_DEEP_WINDOW (GPUs, one slice per tile: a walk then ends with no hit pending), whose
+// window holds 64: the pixels that fill 16 are those behind hundreds of primitives, and each walk
+// again costs a pass over their tile's keys (on the H100 a third of the 1080p aneurysm's
+// composite, 7 walks, with 16 in every walk).
+#ifdef TILES_WINDOW_EXITS
 const int kStateWindow = 16;
+#else
+const int kStateWindow = 8;
+#endif
 #ifdef TILES_DEEP_WINDOW
 const int kWindow = 64;
 #else

@@ -71,7 +71,6 @@ void expect_matches(const std::string& source, const char* geometry, const char*
       const TechniqueFrame b = theirs.render(camera, tf, 160, 120);
       EXPECT_GE(psnr(display_encoded(a.image), display_encoded(b.image)), 50.0)
           << source << " " << geometry << " " << preset << " zoom " << zoom;
-      EXPECT_EQ(a.stats["window_overflows"], 0) << preset;
       EXPECT_GT(a.stats["hits"].get<uint64_t>(), 1000u) << preset;
       for (const char* field : {"keys", "tiles", "bands", "frame_bytes", "gpu_ms",
                                 "depth_complexity", "walk_ms", "walk_tiles", "max_tile_keys"})
@@ -191,10 +190,13 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
   EXPECT_GT(a.stats.hits, 100u);
-  // Storage buffers that hold the pixels' states of 4 tiles (16 x 16 pixels of 464 bytes): the
-  // 12 tiles are composited in 3 groups, one after the other, with the same bytes. (At 1080p
-  // lavapipe's 128 MiB hold 1,129 of its 8,160 tiles.)
-  vk::TileRenderer grouped(ctx, capsules, 4 * 16 * 16 * 464, 32);
+  // Storage buffers that hold the pixels' states of 4 tiles (16 x 16 pixels of 272 bytes on
+  // lavapipe, 464 where the window loops exit): the 12 tiles are composited in 3 groups, one
+  // after the other, with the same bytes. (At 1080p lavapipe's 128 MiB hold 1,927 of its 8,160
+  // tiles.)
+  const uint64_t tile_state = fine.tile_state_bytes();
+  EXPECT_EQ(tile_state, 16u * 16u * (ctx.info().lavapipe ? 272u : 464u));
+  vk::TileRenderer grouped(ctx, capsules, 4 * tile_state, 32);
   const vk::TileFrame c = grouped.render(camera, tf, o);
   EXPECT_EQ(c.stats.groups, 3u);
   EXPECT_EQ(b.stats.groups, 1u);
@@ -202,7 +204,7 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   EXPECT_EQ(c.depth_complexity, b.depth_complexity);
   // The same from a memory budget for the states (--memory-budget gives them a quarter of what
   // the image leaves): 6 tiles' states, 2 groups.
-  o.max_state_bytes = 6 * 16 * 16 * 464;
+  o.max_state_bytes = 6 * tile_state;
   const vk::TileFrame d = fine.render(camera, tf, o);
   EXPECT_EQ(d.stats.groups, 2u);
   EXPECT_EQ(d.image.pixels, b.image.pixels);
@@ -471,10 +473,11 @@ TEST(Tiles, AnInvocationCutShortIsRenderedAgainInSmallerSlices) {
 
 // Forty long capsules that all start near the eye and cross the view axis one behind the other
 // (at depths 4, 4.5, ... 23.5), those that start nearer crossing farther: every key's depth bound
-// lies before the first hit, and the hits arrive far to near, so the centre pixel's 16-hit
-// window fills before any hit may be composited. Compositing the window's nearest early would
-// misorder them; instead the tile is walked again for the hits past the window (three walks:
-// 16, 16 and 8 hits), and the pixel must be the forty colours composited front to back by hand,
+// lies before the first hit, and the hits arrive far to near, so the centre pixel's window (8
+// hits with the loops of fixed trips, 16 where they exit) fills before any hit may be
+// composited. Compositing the window's nearest early would misorder them; instead the tile is
+// walked again for the hits past the window (five walks of 8 hits with the loops of fixed
+// trips), and the pixel must be the forty colours composited front to back by hand,
 // whatever the slice size. (The near half is red, the far half blue: compositing the window's
 // nearest early would put blue hits before red ones.)
 // `clutter` short capsules (value 0.5) come first in the tile of the centre pixel: nearer than
@@ -484,10 +487,11 @@ CapsuleSegments long_capsules_far_to_near(int count, int clutter = 0) {
   std::vector<float> values;
   const Camera::ImagePlane plane = looking_along_z().image_plane(33, 33);
   for (int k = 0; k < clutter; ++k) {
-    // Around the pixels (20..29, 20..29) of the 33x33 image, at view depths 1 to 1.36: each
-    // capsule's screen bounds lie within the centre pixel's tile (pixels 16..31).
-    const double z = 1.0 + 0.0006 * k;
-    const double px = 20 + k % 10, py = 20 + (k / 10) % 10;
+    // Around the pixels (20..31, 20..31) of the 33x33 image, at view depths 1 to 1.4, sparse
+    // enough that no pixel of theirs keeps 8 hits pending: each capsule's screen bounds reach into
+    // the centre pixel's tile (pixels 16..31).
+    const double z = 1.0 + 0.4 * k / clutter;
+    const double px = 20 + k % 12, py = 20 + (k / 12) % 12;
     const double nx = (px + 0.5) / 33 * 2 - 1, ny = (py + 0.5) / 33 * 2 - 1;
     const glm::dvec3 p = z * (plane.forward + nx * plane.right - ny * plane.up);
     lines.append_point(float(p.x), float(p.y), float(p.z));
@@ -549,15 +553,14 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
   const vk::TileFrame a = whole.render(camera, tf, o), b = fine.render(camera, tf, o);
   const size_t centre = size_t(16) * o.width + 16;
   ASSERT_EQ(a.depth_complexity[centre], uint32_t(count));
-  EXPECT_GT(a.stats.window_overflows, 0u);
-  EXPECT_EQ(a.stats.walks, 3u);
+  EXPECT_EQ(a.stats.window_overflows, 4u);
+  EXPECT_EQ(a.stats.walks, 5u);
   // Per walk: the composite's time and the tiles walked (the first: all 9, and the centre tile
   // again where its pixels' states first found no room), then the centre tile alone.
-  ASSERT_EQ(a.stats.walk_tiles.size(), 3u);
-  ASSERT_EQ(a.stats.walk_ms.size(), 3u);
+  ASSERT_EQ(a.stats.walk_tiles.size(), 5u);
+  ASSERT_EQ(a.stats.walk_ms.size(), 5u);
   EXPECT_GE(a.stats.walk_tiles[0], uint64_t(a.stats.tiles));
-  EXPECT_EQ(a.stats.walk_tiles[1], 1u);
-  EXPECT_EQ(a.stats.walk_tiles[2], 1u);
+  for (size_t walk = 1; walk < 5; ++walk) EXPECT_EQ(a.stats.walk_tiles[walk], 1u) << walk;
   EXPECT_EQ(a.stats.max_tile_keys, uint64_t(count));
   double walks_ms = 0;
   for (double ms : a.stats.walk_ms) walks_ms += ms;
@@ -567,18 +570,18 @@ TEST(Tiles, AFullWindowIsWalkedAgainAndStaysExact) {
     EXPECT_NEAR(a.image.at(16, 16, i), expected[size_t(i)], 1e-5) << "channel " << i;
   EXPECT_EQ(a.image.pixels, b.image.pixels);
   EXPECT_EQ(a.depth_complexity, b.depth_complexity);
-  EXPECT_EQ(b.stats.walks, 3u);
+  EXPECT_EQ(b.stats.walks, 5u);
 }
 
-// The forty capsules above behind 600 short ones nearer than any of them, in the centre pixel's
-// tile but off its ray: that tile's first 512 keys (two chunks of 256) end before the hits the
-// centre pixel leaves for another walk, so each walk again starts past them (1,024 keys in the
-// two walks again of the 16-hit window, 512 in the one of the 64-hit window where loops exit).
+// The forty capsules above behind 300 short ones nearer than any of them, in the centre pixel's
+// tile but off its ray: that tile's first 256 keys (a chunk) end before the hits the centre
+// pixel leaves for another walk, so each walk again starts past them (1,024 keys in the four
+// walks again of the 8-hit window, 256 in the one of the 64-hit window where loops exit).
 // Slices of 8 keys record no chunk's far depth (a batch is a whole chunk or tells nothing), so
 // their walks pass every key: the same bytes, and the centre pixel still the forty colours
 // composited by hand.
 TEST(Tiles, WalksAgainStartPastTheKeysTheirPixelsAreDoneWith) {
-  const int count = 40, clutter = 600;
+  const int count = 40, clutter = 300;
   const CapsuleSegments capsules = long_capsules_far_to_near(count, clutter);
   const TransferFunction tf = red_to_blue(0.15, 0.1);
   const vk::TileOptions o = far_to_near_options();
@@ -593,12 +596,13 @@ TEST(Tiles, WalksAgainStartPastTheKeysTheirPixelsAreDoneWith) {
   const size_t centre = size_t(16) * o.width + 16;
   ASSERT_EQ(a.depth_complexity[centre], uint32_t(count));
   EXPECT_EQ(a.stats.max_tile_keys, uint64_t(count + clutter));
-  EXPECT_EQ(a.stats.walks, 3u);
+  EXPECT_EQ(a.stats.walks, 5u);
+  EXPECT_EQ(a.stats.window_overflows, 4u);  // the centre pixel's alone
   EXPECT_EQ(a.stats.walk_skipped_keys, 1024u);
-  EXPECT_EQ(b.stats.walks, 3u);
+  EXPECT_EQ(b.stats.walks, 5u);
   EXPECT_EQ(b.stats.walk_skipped_keys, 0u);
   EXPECT_EQ(c.stats.walks, 2u);
-  EXPECT_EQ(c.stats.walk_skipped_keys, 512u);
+  EXPECT_EQ(c.stats.walk_skipped_keys, 256u);
   const std::array<double, 3> expected = far_to_near_centre(tf, count, o.shading.background);
   for (int i = 0; i < 3; ++i)
     EXPECT_NEAR(a.image.at(16, 16, i), expected[size_t(i)], 1e-5) << "channel " << i;
@@ -612,10 +616,10 @@ TEST(Tiles, WalksAgainStartPastTheKeysTheirPixelsAreDoneWith) {
 // The composite's window loops that leave past the pending hits (the pipeline of GPUs) and
 // those of fixed trips (lavapipe's): the same bytes and hits over capsules and the tube mesh,
 // and with a window that overflows (the forty capsules of the test above), where the build that
-// exits walks again with its 64-hit window: all 24 hits left after the first walk in one walk
-// more, where the 16-hit window takes two. Where the device has 64-bit integers (lavapipe), the
-// capsules' build of fixed trips also reads their ends as 64-bit words (tiles_composite.comp):
-// the two layouts give the same bytes too.
+// exits walks again with its 64-hit window: all 24 hits left after its first walk (of 16) in one
+// walk more, where the 8-hit window of fixed trips takes four walks after its first. Where the
+// device has 64-bit integers (lavapipe), the capsules' build of fixed trips also reads their ends
+// as 64-bit words (tiles_composite.comp): the two layouts give the same bytes too.
 TEST(Tiles, WindowLoopsThatExitEarlyGiveTheSameBytes) {
   vk::Context ctx;
   {
@@ -627,9 +631,9 @@ TEST(Tiles, WindowLoopsThatExitEarlyGiveTheSameBytes) {
     vk::TileRenderer exits(ctx, capsules, 0, 0, true, vk::WindowLoops::exits);
     const vk::TileFrame a = fixed.render(looking_along_z(), tf, o);
     const vk::TileFrame b = exits.render(looking_along_z(), tf, o);
-    EXPECT_EQ(a.stats.walks, 3u);
+    EXPECT_EQ(a.stats.walks, 5u);
     EXPECT_EQ(b.stats.walks, 2u);
-    EXPECT_EQ(a.stats.window_overflows, 2u);
+    EXPECT_EQ(a.stats.window_overflows, 4u);
     EXPECT_EQ(b.stats.window_overflows, 1u);
     EXPECT_EQ(a.image.pixels, b.image.pixels);
     EXPECT_EQ(a.depth_complexity, b.depth_complexity);

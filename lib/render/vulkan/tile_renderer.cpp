@@ -38,12 +38,16 @@ constexpr uint64_t kKeyBytes = 18;
 // passes (radix_sort.hpp).
 constexpr VkBufferUsageFlags kSortedUsage =
     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-// The hits a pixel's state keeps pending between slices and walks (kStateWindow there).
-constexpr uint32_t kStateWindow = 16;
-// A pixel's state between slices (tiles_composite.glsl PixelState, std430: 20 words, then t,
-// primitive and an rgba colour per pending hit), and a tile's.
-constexpr uint64_t kPixelStateBytes = 20 * 4 + kStateWindow * (4 + 4 + 16);
-constexpr uint64_t kTileStateBytes = uint64_t(kTile) * kTile * kPixelStateBytes;
+// The hits a pixel's state keeps pending between slices and walks (kStateWindow in
+// tiles_composite.glsl): 16 in the composite whose window loops exit, 8 in the one of fixed trips.
+constexpr uint32_t state_window_of(bool window_exits) {
+  return window_exits ? 16 : 8;
+}
+// A tile's pixels' states between slices (tiles_composite.glsl PixelState, std430: 20 words,
+// then t, primitive and an rgba colour per pending hit).
+constexpr uint64_t tile_state_bytes_of(uint32_t state_window) {
+  return uint64_t(kTile) * kTile * (20 * 4 + state_window * (4 + 4 + 16));
+}
 // Keys per tile per dispatch to start with where the driver caps an invocation's loop iterations
 // (lavapipe's gallivm: 65535 in all): 32 trips a key. A key's entry, pair and hit take a few
 // each, and the window's loops one per hit composited; a dispatch that runs out is composited
@@ -90,7 +94,8 @@ struct TileRenderer::State {
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
       slice_tiles, walk_again, tile_slots, chunk_far, walk_first;
-  uint32_t slice_keys = 0;  // 0: a tile's keys in one dispatch
+  uint32_t slice_keys = 0;    // 0: a tile's keys in one dispatch
+  uint32_t state_window = 0;  // the composite's (above)
   PixelTargets targets;
   BufferSet set;
   // bin, ranges, composite; and where the window loops exit, the composite with the deeper
@@ -180,6 +185,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).
   const bool exits =
       window_loops == WindowLoops::by_device ? !lavapipe : window_loops == WindowLoops::exits;
+  state_window = state_window_of(exits);
   const std::string composite =
       triangles ? "tiles_composite_triangles.comp" : "tiles_composite.comp";
   // With loops of fixed trips, the capsules' ends in 64-bit words where the device has them
@@ -277,6 +283,10 @@ std::vector<std::pair<uint32_t, uint32_t>> plan_bands(const uint32_t* row_keys, 
 
 uint32_t TileRenderer::sort_subgroup_size() const {
   return state_->sorter.subgroup_size();
+}
+
+uint64_t TileRenderer::tile_state_bytes() const {
+  return tile_state_bytes_of(state_->state_window);
 }
 
 TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_in,
@@ -402,13 +412,14 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     return ranges[2 * t + 1] - (walk > 0 ? walk_first[t] : ranges[2 * t]);
   };
   // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
-  // tiles are composited in groups of that many (a tile's state takes 112 KiB: lavapipe's
-  // 128 MiB hold 1,170 tiles, 1080p has 8,160).
+  // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
+  // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
+  // 1080p has 8,160).
   const uint64_t state_limit =
       o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
   const uint32_t group_tiles =
-      uint32_t(std::clamp<uint64_t>(state_limit / kTileStateBytes, 1, tiles));
-  const uint64_t state_bytes = uint64_t(group_tiles) * kTileStateBytes;
+      uint32_t(std::clamp<uint64_t>(state_limit / tile_state_bytes_of(s.state_window), 1, tiles));
+  const uint64_t state_bytes = uint64_t(group_tiles) * tile_state_bytes_of(s.state_window);
   const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
                                     uint32_t slice_keys, uint32_t slices, bool keep_states) {
     if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
@@ -492,10 +503,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       uint64_t skipped = 0;  // keys the walks again started past
       for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
         const uint32_t longest = longest_of(walk_tiles, walks);
-        // Each walk again passes a full window (16 hits, at most one a key) of each pixel it is
-        // for, so a tile takes at most keys / 16 + 1 walks; more means no progress (a pixel
+        // Each walk again passes a full window (8 or 16 hits, at most one a key) of each pixel it
+        // is for, so a tile takes at most keys / window + 1 walks; more means no progress (a pixel
         // state the shader and this file disagree on hung a build once), not more work.
-        if (walks > group_longest / kStateWindow + 1)
+        if (walks > group_longest / s.state_window + 1)
           throw Error("tiles: internal error: walks again over " +
                       std::to_string(walk_tiles.size()) + " tiles made no progress");
         const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
