@@ -31,6 +31,8 @@ constexpr uint32_t kBindings = 19;
 // Keys per chunk of chunk_far: a batch of the composite (kBatch in shaders/tiles_composite.comp
 // and tiles_composite_triangles.comp).
 constexpr uint32_t kChunkKeys = 256;
+// walk_again of a tile none of whose pixels left hits for another walk.
+constexpr uint32_t kNoWalkAgain = 0xFFFFFFFFu;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
@@ -411,6 +413,20 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const auto keys_walked = [&](uint32_t t, uint32_t walk) {
     return ranges[2 * t + 1] - (walk > 0 ? walk_first[t] : ranges[2 * t]);
   };
+  // Tile t's chunks in chunk_far (its first, and how many), as the composite indexes them.
+  const auto first_chunk = [&](uint32_t t) { return ranges[2 * t] / kChunkKeys + t; };
+  const auto chunks_of = [&](uint32_t t) {
+    return (ranges[2 * t + 1] - ranges[2 * t] + kChunkKeys - 1) / kChunkKeys;
+  };
+  // Where tile t's next walk starts: its first chunk that reaches least_z, the least view depth
+  // its pixels' hits may lie at (0: any); the keys before it are done with.
+  const auto walk_again_from = [&](uint32_t t, float least_z) {
+    const auto* chunk_far = static_cast<const float*>(s.chunk_far.mapped) + first_chunk(t);
+    uint32_t chunk = 0;
+    if (least_z > 0)
+      while (chunk < chunks_of(t) && chunk_far[chunk] < least_z) ++chunk;
+    return std::min(ranges[2 * t] + chunk * kChunkKeys, ranges[2 * t + 1]);
+  };
   // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
   // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
   // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
@@ -488,15 +504,13 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     CompositeStats before;
     std::memcpy(&before, s.stats.mapped, sizeof before);
     auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
-    auto* chunk_far = static_cast<float*>(s.chunk_far.mapped);
     std::vector<uint32_t> first_walk = tiles_of_group;
     for (;;) {
-      std::memset(again, 0xFF, uint64_t(tiles) * 4);
+      std::fill_n(again, tiles, kNoWalkAgain);
       // Every chunk unknown until a walk passes it (again after a cut-short dispatch, whose
       // batches may have stopped part way).
       for (uint32_t t : tiles_of_group)
-        std::fill_n(chunk_far + ranges[2 * t] / kChunkKeys + t,
-                    (ranges[2 * t + 1] - ranges[2 * t] + kChunkKeys - 1) / kChunkKeys,
+        std::fill_n(static_cast<float*>(s.chunk_far.mapped) + first_chunk(t), chunks_of(t),
                     std::numeric_limits<float>::infinity());
       uint32_t most_slices = 0, walks = 0;
       bool cut_short = false, no_room = false;
@@ -518,18 +532,11 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         if ((cut_short = after.cut_short != 0)) break;
         walk_tiles.clear();
         for (uint32_t t : tiles_of_group) {
-          if (again[t] == ~0u) continue;
+          if (again[t] == kNoWalkAgain) continue;
           walk_tiles.push_back(t);
-          // The next walk starts at the tile's first chunk that reaches the least depth its
-          // pixels' hits may lie at: the keys before it are done with.
-          const float least_z = std::bit_cast<float>(again[t]);
-          uint32_t first_key = ranges[2 * t];
-          for (const float* chunk = chunk_far + first_key / kChunkKeys + t;
-               least_z > 0 && first_key < ranges[2 * t + 1] && *chunk < least_z; ++chunk)
-            first_key = std::min(first_key + kChunkKeys, ranges[2 * t + 1]);
-          walk_first[t] = first_key;
-          skipped += first_key - ranges[2 * t];
-          again[t] = ~0u;
+          walk_first[t] = walk_again_from(t, std::bit_cast<float>(again[t]));
+          skipped += walk_first[t] - ranges[2 * t];
+          again[t] = kNoWalkAgain;
         }
         if ((no_room = !walk_tiles.empty() && !had_room)) {
           first_walk = walk_tiles;
