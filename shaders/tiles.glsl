@@ -67,6 +67,14 @@ void covered_pixels(vec2 lo, vec2 hi, out ivec2 p0, out ivec2 p1) {
   p1 = ivec2(clamp(floor(hi - 0.5), vec2(-1.0), size));
 }
 
+// The unit ray from the eye through the centre of `pixel`: one function for the composite's
+// pixels, the invocations that compute their pairs' hits and binning's probes of small
+// primitives, so all see the same ray.
+vec3 ray_direction(uvec2 pixel) {
+  const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
+  return normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
+}
+
 // The nearest distance at which binning clips: in front of the eye, scaled to the data.
 float near_clip() {
   return max(1e-6 * (frame.params.w - frame.params.z), frame.params.y * 1e-3);

@@ -1,17 +1,186 @@
 #version 460
 // tiles, pass 1 over capsules: each segment's capsule is projected to the screen, culled, and
-// binned (tiles_keys.glsl) with its nearest view depth.
+// binned (tiles_keys.glsl) with its nearest view depth; a capsule whose bounds hold a few pixel
+// centres only where one of those pixels' rays may cross its surface (bin_test_pixels).
 #include "tiles.glsl"
 #include "tiles_capsules.glsl"
 // Before tiles_keys.glsl, which reads gl_WorkGroupSize.
 layout(local_size_x = 256) in;
 #include "tiles_keys.glsl"
 
+// Capsules whose bounds hold at most this many pixel centres are binned only where a pixel's ray
+// may have a front crossing on the surface the capsule owns (capsule.glsl: the chain's union
+// surface, a joint's sphere the segment's that ends there). A key costs the sort and the
+// composite whether or not a pixel hits it, and the bounds of a short capsule hold pixels whose
+// rays miss it or meet its neighbours' surface instead. The host sets how many at most
+// (frame.binning.x; 0: none tested).
+const int kTestedPixels = 4;
+
+// What one segment's pixel tests share: the segment, its neighbours' ends (flags & 1: before,
+// & 2: after), its axis, the growth of its capsule and the square of the depth inside a
+// neighbour's capsule that rules a crossing out (may_own_a_crossing).
+struct OwnerTest {
+  vec3 p0, p1, before, after, axis;
+  uint flags;
+  float len, grow, inside2;
+  // The neighbours' axes (before to p0, p1 to after) over their squared lengths (0: none).
+  vec3 before_axis, after_axis;
+};
+
+OwnerTest owner_test_of(uint s) {
+  const uint word = segments[s], first = word >> 2u;
+  OwnerTest o;
+  o.p0 = points[first].xyz;
+  o.p1 = points[first + 1u].xyz;
+  o.flags = word & 3u;
+  o.before = (o.flags & 1u) != 0u ? points[first - 1u].xyz : o.p0;
+  o.after = (o.flags & 2u) != 0u ? points[first + 2u].xyz : o.p1;
+  o.len = length(o.p1 - o.p0);
+  o.axis = o.len > 0.0 ? (o.p1 - o.p0) / o.len : vec3(0.0);
+  const float u = 1.1920929e-7, r = frame.params.y;
+  const float from_eye = length(o.p0 - frame.eye.xyz);
+  o.grow = 1e-3 * r + 64.0 * u * (from_eye + o.len);
+  // More than the composite's tolerance (capsule_in_neighbour: 1e-6 r and 8 float steps of the
+  // hit's extent, t and coordinates) and either side's float error in the distances.
+  const vec3 magnitude = abs(o.p0);
+  const float largest = max(magnitude.x, max(magnitude.y, magnitude.z));
+  const float margin = 1e-2 * r + 64.0 * u * (from_eye + o.len + r + largest);
+  o.inside2 = r > margin ? (r - margin) * (r - margin) : 0.0;
+  const vec3 before = o.p0 - o.before, after = o.after - o.p1;
+  o.before_axis = dot(before, before) > 0.0 ? before / dot(before, before) : vec3(0.0);
+  o.after_axis = dot(after, after) > 0.0 ? after / dot(after, after) : vec3(0.0);
+  return o;
+}
+
+// The smaller root of a t^2 + 2 b t + c (the cancellation-free form; +inf: none).
+float smaller_root(float a, float b, float c) {
+  const float discriminant = b * b - a * c;
+  if (discriminant < 0.0) return 1.0 / 0.0;
+  const float root = sqrt(discriminant);
+  return b >= 0.0 ? -(b + root) / a : c / (root - b);
+}
+
+// The squared distance of x from segment a-b, given (b - a) / |b - a|^2 (the per-pixel tests
+// take no division here).
+// Where the unit ray from `from_centre` (the origin less the centre) enters the sphere of
+// `radius` (+inf: never).
+float sphere_entry(vec3 from_centre, vec3 direction, float radius) {
+  const float b = dot(from_centre, direction);
+  const float discriminant = b * b - (dot(from_centre, from_centre) - radius * radius);
+  return discriminant >= 0.0 ? -b - sqrt(discriminant) : 1.0 / 0.0;
+}
+
+float distance2_to_segment(vec3 x, vec3 a, vec3 b, vec3 axis_over_length2) {
+  const float h = clamp(dot(x - a, axis_over_length2), 0.0, 1.0);
+  const vec3 miss = x - mix(a, b, h);
+  return dot(miss, miss);
+}
+
+// Whether the ray from the eye along the unit `direction` may have a front crossing on the
+// surface segment o owns, as the composite's first_hit computes it (capsule_front_crossing,
+// from the ray's point nearest o.p0). That crossing x enters the capsule, so it lies between
+// where the ray enters the capsule grown by o.grow and the ray's point nearest the segment (the
+// distance from the segment is convex along the ray), both widened by o.grow for float error;
+// the composite keeps x unless it lies inside a neighbour's capsule. The distance from a
+// neighbour is convex along the ray too: where both ends of that stretch lie inside the same
+// neighbour's capsule by the margin of o.inside2, so does x, and the ray has no crossing on this
+// segment's surface.
+bool may_own_a_crossing(OwnerTest o, vec3 direction) {
+  const float radius = frame.params.y + o.grow;
+  const vec3 origin = frame.eye.xyz + dot(o.p0 - frame.eye.xyz, direction) * direction;
+  const vec3 w = origin - o.p0, w1 = origin - o.p1;
+  // The capsule's entry: the least of its end spheres' and its cylinder's between the end
+  // planes. The spheres' roots in the plain form, without a division: the origin lies near the
+  // segment's ends in the bounds of a few pixels, where the plain form loses only float steps of
+  // the segment's length.
+  float entry = min(sphere_entry(w, direction, radius), sphere_entry(w1, direction, radius));
+  if (o.len > 0.0) {
+    const vec3 d_perp = direction - dot(direction, o.axis) * o.axis;
+    const vec3 w_perp = w - dot(w, o.axis) * o.axis;
+    const float a = dot(d_perp, d_perp);
+    // Within half a degree of the axis the cylinder's roots lose precision (the composite's
+    // too): kept.
+    if (a < 1e-4) return true;
+    const float root =
+        smaller_root(a, dot(w_perp, d_perp), dot(w_perp, w_perp) - radius * radius);
+    const float h = dot(w + root * direction, o.axis);
+    if (h >= 0.0 && h <= o.len) entry = min(entry, root);
+  }
+  if (isinf(entry)) return false;
+  // The ray's point nearest the segment: the segment's point nearest the ray's line (as the
+  // composite's near test finds it), then along the ray.
+  const vec3 e = o.p1 - o.p0;
+  const vec3 across = -w - dot(-w, direction) * direction;
+  const vec3 slope = e - dot(e, direction) * direction;
+  const float slope2 = dot(slope, slope);
+  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
+  const float nearest = dot(h * e - w, direction);
+  const vec3 x0 = origin + (entry - o.grow) * direction;
+  const vec3 x1 = origin + (nearest + o.grow) * direction;
+  if ((o.flags & 1u) != 0u &&
+      distance2_to_segment(x0, o.before, o.p0, o.before_axis) < o.inside2 &&
+      distance2_to_segment(x1, o.before, o.p0, o.before_axis) < o.inside2)
+    return false;
+  if ((o.flags & 2u) != 0u && distance2_to_segment(x0, o.p1, o.after, o.after_axis) < o.inside2 &&
+      distance2_to_segment(x1, o.p1, o.after, o.after_axis) < o.inside2)
+    return false;
+  return true;
+}
+
+// Whether the line of the ray from the eye along the unit `direction` passes within the grown
+// radius of segment o and o.grow more: a ray that does not cannot enter the grown capsule
+// (may_own_a_crossing).
+bool ray_passes_near(OwnerTest o, vec3 direction) {
+  const vec3 w = o.p0 - frame.eye.xyz, e = o.p1 - o.p0;
+  const vec3 across = w - dot(w, direction) * direction;
+  const vec3 slope = e - dot(e, direction) * direction;
+  const float slope2 = dot(slope, slope);
+  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
+  const vec3 miss = across + h * slope;
+  const float reach = frame.params.y + 2.0 * o.grow;
+  return dot(miss, miss) <= reach * reach;
+}
+
+// Pixel k of bounds of at most 4 pixels from p0 (a column, a row, or 2 x 2; no integer division,
+// which lavapipe's SIMD units do a lane at a time).
+uvec2 tested_pixel(ivec2 p0, ivec2 extent, int k) {
+  const ivec2 step = extent.x == 1   ? ivec2(0, k)
+                     : extent.x == 2 ? ivec2(k & 1, k >> 1)
+                                     : ivec2(k, 0);
+  return uvec2(p0 + step);
+}
+
+// Whether the ray of a pixel whose centre lies in segment s's bounds [lo, hi] may have a
+// crossing on its surface (true for bounds of more pixels than binning.x, untested). First the
+// cheap test of every pixel, then the full one of those that pass it, in a loop that ends at the
+// first that may cross: on lavapipe a SIMD unit runs both sides of every branch, and leaves only
+// loops early, once all its lanes are done.
+bool bin_test_pixels(uint s, vec2 lo, vec2 hi) {
+  ivec2 p0, p1;
+  covered_pixels(lo, hi, p0, p1);
+  p0 = max(p0, ivec2(0));
+  p1 = min(p1, ivec2(frame.size.xy) - 1);
+  const ivec2 extent = max(p1 - p0 + 1, ivec2(0));
+  const int pixels = extent.x * extent.y;
+  if (pixels > min(int(frame_tests.binning.x), kTestedPixels)) return true;
+  const OwnerTest o = owner_test_of(s);
+  uint near = 0u;
+  for (int k = 0; k < kTestedPixels; ++k) {
+    if (k >= pixels) break;
+    if (ray_passes_near(o, ray_direction(tested_pixel(p0, extent, k)))) near |= 1u << k;
+  }
+  bool crossing = false;
+  for (uint left = near; left != 0u && !crossing; left &= left - 1u)
+    crossing = may_own_a_crossing(o, ray_direction(tested_pixel(p0, extent, findLSB(left))));
+  return crossing;
+}
+
 void main() {
   const uint s = gl_GlobalInvocationID.x;
   vec2 lo = vec2(0.0), hi = vec2(-1.0);
   float z_near = 0.0, z_far = 0.0;
   // Every invocation takes part in emit_keys (it counts per workgroup).
-  const bool visible = s < frame.size.w && screen_bounds(s, lo, hi, z_near, z_far);
+  bool visible = s < frame.size.w && screen_bounds(s, lo, hi, z_near, z_far);
+  if (visible) visible = bin_test_pixels(s, lo, hi);
   emit_keys(s, visible, lo, hi, z_near);
 }

@@ -339,13 +339,6 @@ float t_per_z_of(vec3 direction, float steps) {
   return (1.0 + steps * 4.0e-6) / dot(direction, frame.forward.xyz);
 }
 
-// The unit ray from the eye through the centre of `pixel`: one function for the pixel's own
-// walk and for the invocation that computes its pairs' hits, so both see the same ray.
-vec3 ray_direction(uvec2 pixel) {
-  const vec2 ndc = (vec2(pixel) + 0.5) / vec2(frame.size.xy) * 2.0 - 1.0;
-  return normalize(frame.forward.xyz + ndc.x * frame.right.xyz - ndc.y * frame.up.xyz);
-}
-
 void main() {
   const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (entry >= slicing.tile_count) return;

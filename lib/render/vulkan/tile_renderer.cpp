@@ -64,7 +64,8 @@ struct TileUniforms {
   uint32_t size[4], tf_counts[4];
   float params[4];
   uint32_t tiles[4];
-  uint32_t band[4];  // first tile row, one past the last
+  uint32_t band[4];     // first tile row, one past the last
+  uint32_t binning[4];  // pixels a capsule's bounds hold at most to be tested
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
 };
@@ -339,6 +340,7 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   u.params[0] = float(o.termination_alpha), u.params[1] = s.radius;
   u.params[2] = float(near), u.params[3] = float(std::max(far, near + 1e-6));
   u.tiles[0] = tiles_x, u.tiles[1] = tiles_y, u.tiles[2] = depth_bits;
+  u.binning[0] = o.tested_pixels;
   write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
   const auto barrier = [](VkCommandBuffer cmd, VkAccessFlags dst, VkPipelineStageFlags stage) {
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
