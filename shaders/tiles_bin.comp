@@ -37,8 +37,8 @@ OwnerTest owner_test_of(uint s) {
   o.after = (o.flags & 2u) != 0u ? points[first + 2u].xyz : o.p1;
   o.len = length(o.p1 - o.p0);
   o.axis = o.len > 0.0 ? (o.p1 - o.p0) / o.len : vec3(0.0);
-  const float u = 1.1920929e-7, r = frame.params.y;
-  const float from_eye = length(o.p0 - frame.eye.xyz);
+  const float u = 1.1920929e-7, r = view.params.y;
+  const float from_eye = length(o.p0 - view.eye);
   o.grow = 1e-3 * r + 64.0 * u * (from_eye + o.len);
   // More than the composite's tolerance (capsule_in_neighbour: 1e-6 r and 8 float steps of the
   // hit's extent, t and coordinates) and either side's float error in the distances.
@@ -86,8 +86,8 @@ float distance2_to_segment(vec3 x, vec3 a, vec3 b, vec3 axis_over_length2) {
 // neighbour's capsule by the margin of o.inside2, so does x, and the ray has no crossing on this
 // segment's surface.
 bool may_own_a_crossing(OwnerTest o, vec3 direction) {
-  const float radius = frame.params.y + o.grow;
-  const vec3 origin = frame.eye.xyz + dot(o.p0 - frame.eye.xyz, direction) * direction;
+  const float radius = view.params.y + o.grow;
+  const vec3 origin = view.eye + dot(o.p0 - view.eye, direction) * direction;
   const vec3 w = origin - o.p0, w1 = origin - o.p1;
   // The capsule's entry: the least of its end spheres' and its cylinder's between the end
   // planes. The spheres' roots in the plain form, without a division: the origin lies near the
@@ -131,13 +131,13 @@ bool may_own_a_crossing(OwnerTest o, vec3 direction) {
 // radius of segment o and o.grow more: a ray that does not cannot enter the grown capsule
 // (may_own_a_crossing).
 bool ray_passes_near(OwnerTest o, vec3 direction) {
-  const vec3 w = o.p0 - frame.eye.xyz, e = o.p1 - o.p0;
+  const vec3 w = o.p0 - view.eye, e = o.p1 - o.p0;
   const vec3 across = w - dot(w, direction) * direction;
   const vec3 slope = e - dot(e, direction) * direction;
   const float slope2 = dot(slope, slope);
   const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
   const vec3 miss = across + h * slope;
-  const float reach = frame.params.y + 2.0 * o.grow;
+  const float reach = view.params.y + 2.0 * o.grow;
   return dot(miss, miss) <= reach * reach;
 }
 
@@ -159,7 +159,7 @@ bool bin_test_pixels(uint s, vec2 lo, vec2 hi) {
   ivec2 p0, p1;
   covered_pixels(lo, hi, p0, p1);
   p0 = max(p0, ivec2(0));
-  p1 = min(p1, ivec2(frame.size.xy) - 1);
+  p1 = min(p1, ivec2(view.size.xy) - 1);
   const ivec2 extent = max(p1 - p0 + 1, ivec2(0));
   const int pixels = extent.x * extent.y;
   if (pixels > min(int(frame_tests.binning.x), kTestedPixels)) return true;
@@ -176,11 +176,12 @@ bool bin_test_pixels(uint s, vec2 lo, vec2 hi) {
 }
 
 void main() {
+  load_frame_view();
   const uint s = gl_GlobalInvocationID.x;
   vec2 lo = vec2(0.0), hi = vec2(-1.0);
   float z_near = 0.0, z_far = 0.0;
   // Every invocation takes part in emit_keys (it counts per workgroup).
-  bool visible = s < frame.size.w && screen_bounds(s, lo, hi, z_near, z_far);
+  bool visible = s < view.size.w && screen_bounds(s, lo, hi, z_near, z_far);
   if (visible) visible = bin_test_pixels(s, lo, hi);
   emit_keys(s, visible, lo, hi, z_near);
 }

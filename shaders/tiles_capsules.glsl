@@ -28,15 +28,15 @@ vec2 tangent_slopes(float x, float z, float r) {
 bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
   const uint first = segments[s] >> 2u;
   vec3 a = points[first].xyz, b = points[first + 1u].xyz;
-  const float r = frame.params.y;
-  const vec3 f = frame.forward.xyz;
-  float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f);
+  const float r = view.params.y;
+  const vec3 f = view.forward;
+  float za = dot(a - view.eye, f), zb = dot(b - view.eye, f);
   z_far = max(za, zb) + r;
   z_near = min(za, zb) - r;
-  const vec3 qa = a - frame.eye.xyz, qb = b - frame.eye.xyz;
+  const vec3 qa = a - view.eye, qb = b - view.eye;
   const float wide = 1.25 * r + 128.0 * 1.1920929e-7 * (length(qa) + length(b - a));
   if (min(za, zb) > 2.0 * wide + near_clip()) {
-    const vec3 right = frame.right.xyz, up = frame.up.xyz;
+    const vec3 right = view.right, up = view.up;
     const float right_length = length(right), up_length = length(up);
     const vec2 xa = tangent_slopes(dot(qa, right) / right_length, za, wide);
     const vec2 xb = tangent_slopes(dot(qb, right) / right_length, zb, wide);
@@ -44,9 +44,9 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
     const vec2 yb = tangent_slopes(dot(qb, up) / up_length, zb, wide);
     // Slopes to pixels as project() maps them (y grows downwards).
     const vec2 x = (vec2(min(xa.x, xb.x), max(xa.y, xb.y)) / right_length + 1.0) * 0.5 *
-                   float(frame.size.x);
+                   float(view.size.x);
     const vec2 y = (-vec2(max(ya.y, yb.y), min(ya.x, yb.x)) / up_length + 1.0) * 0.5 *
-                   float(frame.size.y);
+                   float(view.size.y);
     lo = vec2(x.x, y.x) - 0.0625;
     hi = vec2(x.y, y.y) + 0.0625;
     return true;
@@ -59,8 +59,8 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   if (za < clip || zb < clip) {
     if (max(za, zb) < clip) {
       // Wholly within a radius of the eye: it may cover the whole screen.
-      a = frame.eye.xyz + clip * f + (a - frame.eye.xyz - za * f);
-      b = frame.eye.xyz + clip * f + (b - frame.eye.xyz - zb * f);
+      a = view.eye + clip * f + (a - view.eye - za * f);
+      b = view.eye + clip * f + (b - view.eye - zb * f);
       za = zb = clip;
     } else {
       const vec3 from = za < clip ? b : a, to = za < clip ? a : b;
@@ -73,8 +73,8 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   const vec3 pa = project(a), pb = project(b);
   // A sphere of radius r at depth z lies within r / (z - r) of its centre's direction in the
   // image plane at distance 1 (conservative also off axis with the factor for the corner).
-  const float focal = 0.5 * float(frame.size.y) / length(frame.up.xyz);
-  const float corner = sqrt(1.0 + dot(frame.right.xyz, frame.right.xyz) + dot(frame.up.xyz, frame.up.xyz));
+  const float focal = 0.5 * float(view.size.y) / length(view.up);
+  const float corner = sqrt(1.0 + dot(view.right, view.right) + dot(view.up, view.up));
   const float ra = r / max(za - r, near) * focal * corner + 1.0;
   const float rb = r / max(zb - r, near) * focal * corner + 1.0;
   lo = min(pa.xy - ra, pb.xy - rb);

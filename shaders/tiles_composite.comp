@@ -71,15 +71,15 @@ float depth_bound(uint i) { return batch_p0[i].w; }
 // (Computing the reach here costs less on lavapipe than a third shared load of it: README,
 // "Per-lane shared loads on lavapipe".)
 bool may_cross(vec4 words[kNearWords], vec3 direction) {
-  const vec3 w = words[0].xyz - frame.eye.xyz, e = words[1].xyz - words[0].xyz;
+  const vec3 w = words[0].xyz - view.eye, e = words[1].xyz - words[0].xyz;
   // The parts of w and e across the ray: the segment seen along the ray.
   const vec3 across = w - dot(w, direction) * direction;
   const vec3 slope = e - dot(e, direction) * direction;
   const float slope2 = dot(slope, slope);
   const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
   const vec3 miss = across + h * slope;
-  const float slack = 0.015625 * frame.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
-  const float reach = frame.params.y + slack;
+  const float slack = 0.015625 * view.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
+  const float reach = view.params.y + slack;
   return dot(miss, miss) <= reach * reach;
 }
 
@@ -96,21 +96,21 @@ bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   c.before = batch_before[i].xyz;
   c.after = batch_after[i];
   c.flags = uint(batch_before[i].w);
-  c.radius = frame.params.y;
+  c.radius = view.params.y;
   // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius
   // against the squared distance from a far eye.
-  const float t0 = dot(c.p0 - frame.eye.xyz, direction);
+  const float t0 = dot(c.p0 - view.eye, direction);
   float t;
   vec3 normal;
   float along;
   t_hit = 0.0;
   colour = vec4(0.0);
-  if (!capsule_front_crossing(c, frame.eye.xyz + t0 * direction, direction, t0, t, normal, along))
+  if (!capsule_front_crossing(c, view.eye + t0 * direction, direction, t0, t, normal, along))
     return false;
   t_hit = t + t0;
   const vec2 ends = batch_values[i];
   const vec4 base = transfer_function(ends.x + along * (ends.y - ends.x));
-  colour = vec4(shade(frame.eye.xyz + t_hit * direction, normal, base.rgb), base.a);
+  colour = vec4(shade(view.eye + t_hit * direction, normal, base.rgb), base.a);
   return true;
 }
 
@@ -119,8 +119,8 @@ bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
 float seam_of(uint i, vec3 direction) {
   vec4 words[kNearWords];
   near_words(i, words);
-  const float t0 = dot(words[0].xyz - frame.eye.xyz, direction);
-  return 1e-3 * frame.params.y + 32.0 * 1.1920929e-7 * (abs(t0) + length(words[0].xyz));
+  const float t0 = dot(words[0].xyz - view.eye, direction);
+  return 1e-3 * view.params.y + 32.0 * 1.1920929e-7 * (abs(t0) + length(words[0].xyz));
 }
 
 #include "tiles_composite.glsl"

@@ -210,7 +210,7 @@ void composite(float t, uint primitive, vec4 c) {
   colour += (1.0 - alpha) * c.a * c.rgb;
   alpha += (1.0 - alpha) * c.a;
   ++hit_count;
-  if (frame_tests.size.z != 0u && alpha >= frame.params.x) done = true;
+  if (frame_tests.size.z != 0u && alpha >= view.params.x) done = true;
 }
 
 // The window is indexed by constants only (loops of kWindow trips, which the compiler unrolls).
@@ -336,19 +336,20 @@ float bound_t(float bound, float t_per_z) { return bound > 0.0 ? bound * t_per_z
 // A point at view depth z lies at t = z / dot(direction, forward) along the unit ray: the factor,
 // a few float steps nearer (the bounds of keys) or farther (of primitives' far ends).
 float t_per_z_of(vec3 direction, float steps) {
-  return (1.0 + steps * 4.0e-6) / dot(direction, frame.forward.xyz);
+  return (1.0 + steps * 4.0e-6) / dot(direction, view.forward);
 }
 
 void main() {
+  load_frame_view();
   const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   if (entry >= slicing.tile_count) return;
   const uint tile = slice_tiles[slicing.tile_offset + entry];
-  const uvec2 tile_xy = uvec2(tile % frame.tiles.x, tile / frame.tiles.x);
+  const uvec2 tile_xy = uvec2(tile % view.tiles.x, tile / view.tiles.x);
   const uint lane = gl_LocalInvocationIndex;
   const uvec2 pixel = tile_xy * kTile + pixel_in_tile(lane);
   const uint block = lane / 8u;
-  const bool inside = pixel.x < frame.size.x && pixel.y < frame.size.y;
-  const uint index = pixel.y * frame.size.x + pixel.x;
+  const bool inside = pixel.x < view.size.x && pixel.y < view.size.y;
+  const uint index = pixel.y * view.size.x + pixel.x;
   // The pixel's state between slices and walks: its tile's slot, the pixel's lane in it.
   const uint state = tile_slots[tile] * (kTile * kTile) + lane;
   const uvec2 whole = ranges[tile];

@@ -47,7 +47,7 @@ bool triangle_hit(vec3 a, vec3 b, vec3 c, vec3 direction, out float t, out float
   // det = -dot(direction, n) for the outward normal n = e1 x e2 (counter-clockwise from outside):
   // positive for a front face.
   if (det <= 0.0) return false;
-  const vec3 s = frame.eye.xyz - a;
+  const vec3 s = view.eye - a;
   u = dot(s, p) / det;
   if (u < 0.0 || u > 1.0) return false;
   const vec3 q = cross(s, e1);
@@ -81,7 +81,7 @@ bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
   const float value = w * batch_normals[9][i] + u * batch_normals[10][i] + v * batch_c[i].w;
   const vec3 n = w * batch_normal(0, i) + u * batch_normal(1, i) + v * batch_normal(2, i);
   const vec4 base = transfer_function(value);
-  colour = vec4(shade(frame.eye.xyz + t * direction, n, base.rgb), base.a);
+  colour = vec4(shade(view.eye + t * direction, n, base.rgb), base.a);
   return true;
 }
 

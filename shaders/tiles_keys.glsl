@@ -20,18 +20,18 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   if (lane == 0u) group_keys = 0u, group_binned = 0u;
   for (uint r = lane; r < kGroupRows; r += lanes) group_rows[r] = 0u;
   barrier();
-  const ivec2 tiles = ivec2(frame.tiles.xy);
+  const ivec2 tiles = ivec2(view.tiles.xy);
   ivec2 p0, p1;
   covered_pixels(lo, hi, p0, p1);
   const bool on_screen =
-      visible && all(lessThanEqual(max(p0, ivec2(0)), min(p1, ivec2(frame.size.xy) - 1)));
+      visible && all(lessThanEqual(max(p0, ivec2(0)), min(p1, ivec2(view.size.xy) - 1)));
   ivec2 t0 = ivec2(0), t1 = ivec2(-1);
   if (on_screen) {
     t0 = clamp(p0 / int(kTile), ivec2(0), tiles - 1);
     t1 = clamp(p1 / int(kTile), ivec2(0), tiles - 1);
   }
   // This pass's band of tile rows only; the keys of every row are counted.
-  const int row0 = max(t0.y, int(frame.band.x)), row1 = min(t1.y, int(frame.band.y) - 1);
+  const int row0 = max(t0.y, int(view.band.x)), row1 = min(t1.y, int(view.band.y) - 1);
   const uint n = on_screen && row0 <= row1 ? uint((t1.x - t0.x + 1) * (row1 - row0 + 1)) : 0u;
   uint local = 0u;
   if (n > 0u) {
@@ -50,7 +50,7 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
     if (base > 0xFFFFFFFFu - total) atomicMax(counters.key_count, 0xFFFFFFFFu);
     if (group_binned > 0u) atomicAdd(counters.binned, group_binned);
     group_base = base;
-    group_room = base <= frame.tiles.w && total <= frame.tiles.w - base;
+    group_room = base <= view.tiles.w && total <= view.tiles.w - base;
   }
   if (rows_shared)
     for (uint r = lane; r < kGroupRows && r < frame_tests.tiles.y; r += lanes)
@@ -58,16 +58,16 @@ void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   barrier();
   // No room for the workgroup's keys: binned again with more.
   if (n == 0u || !group_room) return;
-  const float span = frame.params.w - frame.params.z;
-  const uint bits = frame.tiles.z;
+  const float span = view.params.w - view.params.z;
+  const uint bits = view.tiles.z;
   const float level =
-      clamp((max(z_near, frame.params.z) - frame.params.z) / span, 0.0, 1.0) *
+      clamp((max(z_near, view.params.z) - view.params.z) / span, 0.0, 1.0) *
       float((1u << bits) - 1u);
   const uint depth = min(uint(floor(level)), (1u << bits) - 1u);
   uint at = group_base + local;
   for (int ty = row0; ty <= row1; ++ty)
     for (int tx = t0.x; tx <= t1.x; ++tx) {
-      const uint tile = uint(ty) * frame.tiles.x + uint(tx);
+      const uint tile = uint(ty) * view.tiles.x + uint(tx);
       keys[at] = (tile << bits) | depth;
       values[at] = s;
       ++at;

@@ -5,10 +5,11 @@
 layout(local_size_x = 256) in;
 
 void main() {
+  load_frame_view();
   const uint i = gl_GlobalInvocationID.x;
-  const uint n = min(counters.key_count, frame.tiles.w);
+  const uint n = min(counters.key_count, view.tiles.w);
   if (i >= n) return;
-  const uint bits = frame.tiles.z;
+  const uint bits = view.tiles.z;
   const uint tile = keys[i] >> bits;
   if (i == 0u || (keys[i - 1u] >> bits) != tile) ranges[tile].x = i;
   if (i + 1u == n || (keys[i + 1u] >> bits) != tile) ranges[tile].y = i + 1u;

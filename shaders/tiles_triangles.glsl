@@ -12,17 +12,17 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   const vec3 a = vertices[2u * indices[3u * s]].xyz, b = vertices[2u * indices[3u * s + 1u]].xyz,
              c = vertices[2u * indices[3u * s + 2u]].xyz;
   // Every ray from the eye meets a plane from one side: a triangle facing away has no front hit.
-  if (dot(cross(b - a, c - a), a - frame.eye.xyz) >= 0.0) return false;
-  const vec3 f = frame.forward.xyz;
-  const float za = dot(a - frame.eye.xyz, f), zb = dot(b - frame.eye.xyz, f),
-              zc = dot(c - frame.eye.xyz, f);
+  if (dot(cross(b - a, c - a), a - view.eye) >= 0.0) return false;
+  const vec3 f = view.forward;
+  const float za = dot(a - view.eye, f), zb = dot(b - view.eye, f),
+              zc = dot(c - view.eye, f);
   z_far = max(za, max(zb, zc));
   const float near = near_clip();
   if (max(za, max(zb, zc)) <= near) return false;
   if (min(za, min(zb, zc)) <= near) {
     // Crossing the plane at the eye: its projection is unbounded, so every tile.
     lo = vec2(0.0);
-    hi = vec2(frame.size.xy);
+    hi = vec2(view.size.xy);
   } else {
     // A sixteenth of a pixel for the float error of the projection and of the composite's
     // ray-triangle test: a pixel whose centre lies outside has no hit (covered_pixels).
