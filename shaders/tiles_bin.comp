@@ -60,8 +60,6 @@ float smaller_root(float a, float b, float c) {
   return b >= 0.0 ? -(b + root) / a : c / (root - b);
 }
 
-// The squared distance of x from segment a-b, given (b - a) / |b - a|^2 (the per-pixel tests
-// take no division here).
 // Where the unit ray from `from_centre` (the origin less the centre) enters the sphere of
 // `radius` (+inf: never).
 float sphere_entry(vec3 from_centre, vec3 direction, float radius) {
@@ -70,6 +68,8 @@ float sphere_entry(vec3 from_centre, vec3 direction, float radius) {
   return discriminant >= 0.0 ? -b - sqrt(discriminant) : 1.0 / 0.0;
 }
 
+// The squared distance of x from segment a-b, given (b - a) / |b - a|^2 (the per-pixel tests
+// take no division here).
 float distance2_to_segment(vec3 x, vec3 a, vec3 b, vec3 axis_over_length2) {
   const float h = clamp(dot(x - a, axis_over_length2), 0.0, 1.0);
   const vec3 miss = x - mix(a, b, h);
