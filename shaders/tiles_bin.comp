@@ -107,13 +107,11 @@ bool may_own_a_crossing(OwnerTest o, vec3 direction) {
     if (h >= 0.0 && h <= o.len) entry = min(entry, root);
   }
   if (isinf(entry)) return false;
-  // The ray's point nearest the segment: the segment's point nearest the ray's line (as the
-  // composite's near test finds it), then along the ray.
+  // The ray's point nearest the segment: the segment's point nearest the ray's line, then along
+  // the ray.
   const vec3 e = o.p1 - o.p0;
-  const vec3 across = -w - dot(-w, direction) * direction;
-  const vec3 slope = e - dot(e, direction) * direction;
-  const float slope2 = dot(slope, slope);
-  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
+  vec3 miss;
+  const float h = nearest_on_segment(-w, e, direction, miss);
   const float nearest = dot(h * e - w, direction);
   const vec3 x0 = origin + (entry - o.grow) * direction;
   const vec3 x1 = origin + (nearest + o.grow) * direction;
@@ -131,12 +129,8 @@ bool may_own_a_crossing(OwnerTest o, vec3 direction) {
 // radius of segment o and o.grow more: a ray that does not cannot enter the grown capsule
 // (may_own_a_crossing).
 bool ray_passes_near(OwnerTest o, vec3 direction) {
-  const vec3 w = o.p0 - view.eye, e = o.p1 - o.p0;
-  const vec3 across = w - dot(w, direction) * direction;
-  const vec3 slope = e - dot(e, direction) * direction;
-  const float slope2 = dot(slope, slope);
-  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
-  const vec3 miss = across + h * slope;
+  vec3 miss;
+  nearest_on_segment(o.p0 - view.eye, o.p1 - o.p0, direction, miss);
   const float reach = view.params.y + 2.0 * o.grow;
   return dot(miss, miss) <= reach * reach;
 }

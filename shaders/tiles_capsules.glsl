@@ -82,3 +82,17 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
   z_near = min(za, zb) - r;
   return true;
 }
+
+// The place h in [0, 1] on the segment p0 + h e that comes nearest the line of the unit ray
+// `direction`, given w = p0 less a point of that line, and `miss`, that nearest approach seen
+// along the ray. The composite's near test (may_cross) and binning's pixel tests
+// (tiles_bin.comp) share it.
+float nearest_on_segment(vec3 w, vec3 e, vec3 direction, out vec3 miss) {
+  // The parts of w and e across the ray: the segment seen along the ray.
+  const vec3 across = w - dot(w, direction) * direction;
+  const vec3 slope = e - dot(e, direction) * direction;
+  const float slope2 = dot(slope, slope);
+  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
+  miss = across + h * slope;
+  return h;
+}

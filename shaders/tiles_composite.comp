@@ -72,12 +72,8 @@ float depth_bound(uint i) { return batch_p0[i].w; }
 // "Per-lane shared loads on lavapipe".)
 bool may_cross(vec4 words[kNearWords], vec3 direction) {
   const vec3 w = words[0].xyz - view.eye, e = words[1].xyz - words[0].xyz;
-  // The parts of w and e across the ray: the segment seen along the ray.
-  const vec3 across = w - dot(w, direction) * direction;
-  const vec3 slope = e - dot(e, direction) * direction;
-  const float slope2 = dot(slope, slope);
-  const float h = slope2 > 0.0 ? clamp(-dot(across, slope) / slope2, 0.0, 1.0) : 0.0;
-  const vec3 miss = across + h * slope;
+  vec3 miss;
+  nearest_on_segment(w, e, direction, miss);
   const float slack = 0.015625 * view.params.y + 64.0 * 1.1920929e-7 * (length(w) + length(e));
   const float reach = view.params.y + slack;
   return dot(miss, miss) <= reach * reach;
