@@ -208,6 +208,29 @@ assert w['every_hit'] is False and e['every_hit'] is True, (w, e)
 assert e['traversals'] == 64 * 48 and e['rays_stopped_opaque'] == 0, e
 assert w['rays_stopped_opaque'] > 0 and w['front_hits'] < e['front_hits'], (w, e)
 assert w['psnr_db'] == e['psnr_db'] and w['ssim'] == e['ssim'], (w, e)  # the same image"
+# bench shaders: the compiler's statistics where the driver reports them. lavapipe does not;
+# RADV (the same Mesa package) compiles for an AMD GPU that is not there with RADV_FORCE_FAMILY.
+check "bench shaders on lavapipe: exit 4 naming the extension it lacks" bash -c "'$bin' bench shaders 2> '$tmp/shaders.err'; [ \$? -eq 4 ] && grep -q 'no VK_KHR_pipeline_executable_properties' '$tmp/shaders.err'"
+check "bench shaders --shaders names nothing: usage error listing the shaders" bash -c "'$bin' bench shaders --shaders tiles_compsite 2> '$tmp/shaders.err'; [ \$? -eq 1 ] && grep -q \"no compute shader's name contains 'tiles_compsite'.*tiles_composite.comp:exits\" '$tmp/shaders.err'"
+radv_icd=$(ls /usr/share/vulkan/icd.d/radeon_icd.*.json 2>/dev/null | head -1)
+check "bench shaders on RADV's null device (navi21): registers of every compute shader; a deeper window takes more" env VK_ICD_FILENAMES="$radv_icd" RADV_FORCE_FAMILY=navi21 python3 -c "
+import json, subprocess
+out = subprocess.run(['$bin', 'bench', 'shaders', '--json'], check=True, capture_output=True, text=True).stdout
+j = json.loads(out)
+assert 'NAVI21' in j['device'] and j['driver'] == 'radv', j['device']
+shaders = {s['shader']: s for s in j['shaders']}
+assert len(shaders) >= 20 and 'vrc.comp' in shaders and 'radix_scatter.comp:subgroups' in shaders, sorted(shaders)
+for name, s in shaders.items():
+    v = s['statistics']['VGPRs']
+    assert isinstance(v, int) and 0 < v <= 256 and s['subgroup_size'] in (32, 64), (name, s)
+# tiles' composite holds its window of pending hits in registers: 8 hits (lavapipe's), 16 (exits),
+# 64 (deep, which does not fit: spilled to scratch memory).
+plain, exits, deep = (shaders['tiles_composite.comp' + v]['statistics'] for v in ('', ':exits', ':deep'))
+assert plain['VGPRs'] < exits['VGPRs'] <= deep['VGPRs'], (plain, exits, deep)
+assert deep['Scratch size'] > 0 and plain['Scratch size'] == 0, (plain, deep)
+text = subprocess.run(['$bin', 'bench', 'shaders', '--shaders', 'tiles_bin', '--statistics', 'VGPRs,Scratch'], check=True, capture_output=True, text=True).stdout
+assert 'tiles_bin.comp (Compute Shader, subgroup' in text and 'tiles_bin_triangles.comp' in text and 'tiles_composite' not in text, text
+assert 'VGPRs' in text and 'Scratch size' in text and 'Instructions' not in text, text"
 check "--rt-geometry is an rtx option (usage error)" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step

@@ -19,6 +19,7 @@
 #include "accel/embree_scene.hpp"
 #include "bench_isolation.hpp"
 #include "bench_render.hpp"
+#include "bench_shaders.hpp"
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/array.hpp"
@@ -485,7 +486,29 @@ Command add_bench(CLI::App& app) {
                    "Memory to touch first, e.g. 8G: a fork copies the page tables of all of it")
       ->check(byte_size());
   isolation->add_flag("--json", isolation_args->json, "Print the figures as JSON");
-  return [args, render, tubes, voxels, embree, bake, rendering, isolation, isolation_args] {
+  auto shaders_args = std::make_shared<BenchShadersArgs>();
+  auto* shaders = bench->add_subcommand(
+      "shaders",
+      "The Vulkan driver's compiler statistics of every compute shader (registers, spills, "
+      "scratch, occupancy), compiled without rendering");
+  shaders
+      ->add_option("--shaders", shaders_args->shaders,
+                   "Shaders whose names contain one of these (default: every compute shader), "
+                   "e.g. tiles_composite")
+      ->delimiter(',');
+  shaders
+      ->add_option("--statistics", shaders_args->statistics,
+                   "Statistics whose names contain one of these (default: all but hashes), "
+                   "e.g. VGPRs,Scratch")
+      ->delimiter(',');
+  shaders->add_option("--device", shaders_args->device, "Vulkan device, part of its name");
+  shaders->add_flag("--json", shaders_args->json, "Print the statistics as JSON");
+  return [args, render, tubes, voxels, embree, bake, rendering, isolation, isolation_args, shaders,
+          shaders_args] {
+    if (shaders->parsed()) {
+      bench_shaders(*shaders_args);
+      return;
+    }
     if (isolation->parsed()) {
       for (const std::string& file : isolation_args->files) check_input_file(file);
       bench_isolation(*isolation_args);

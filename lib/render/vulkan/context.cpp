@@ -49,6 +49,7 @@ DeviceInfo describe(VkPhysicalDevice device) {
   info.ray_tracing = has_extension(device, "VK_KHR_ray_tracing_pipeline") &&
                      has_extension(device, "VK_KHR_acceleration_structure") &&
                      has_extension(device, "VK_KHR_deferred_host_operations");
+  info.shader_statistics = has_extension(device, "VK_KHR_pipeline_executable_properties");
   info.subgroup_size = subgroups.subgroupSize;
   const VkSubgroupFeatureFlags wanted = VK_SUBGROUP_FEATURE_BASIC_BIT |
                                         VK_SUBGROUP_FEATURE_BALLOT_BIT |
@@ -200,16 +201,21 @@ Context::Context(const ContextOptions& options) {
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR, &supported_as};
     VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT supported_interlock{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
+    VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR supported_statistics{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
     VkPhysicalDeviceVulkan12Features supported12{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceVulkan13Features supported13{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES, &supported12};
-    // Queried chain: 1.3 -> (interlock) -> 1.2 -> (ray tracing -> acceleration structures).
+    // Queried chain: 1.3 -> (interlock) -> 1.2 -> (ray tracing -> acceleration structures)
+    // -> (executable properties).
     if (info_.fragment_shader_interlock) {
       supported_interlock.pNext = &supported12;
       supported13.pNext = &supported_interlock;
     }
-    if (options.ray_tracing) supported12.pNext = &supported_rt;
+    void** chain_tail = &supported12.pNext;
+    if (options.ray_tracing) *chain_tail = &supported_rt, chain_tail = &supported_as.pNext;
+    if (options.shader_statistics && info_.shader_statistics) *chain_tail = &supported_statistics;
     VkPhysicalDeviceFeatures2 supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2, &supported13};
     vkGetPhysicalDeviceFeatures2(physical_, &supported);
     if (!supported.features.fragmentStoresAndAtomics || !supported13.dynamicRendering)
@@ -225,6 +231,8 @@ Context::Context(const ContextOptions& options) {
         info_.fragment_shader_interlock && supported_interlock.fragmentShaderPixelInterlock;
     info_.compute_full_subgroups = supported13.computeFullSubgroups;
     info_.shader_int64 = supported.features.shaderInt64;
+    info_.shader_statistics = options.shader_statistics && info_.shader_statistics &&
+                              supported_statistics.pipelineExecutableInfo;
     ray_tracing_ = options.ray_tracing;
     // Integrated and CPU devices share their memory with the host: no staging copy there.
     staging_piece_bytes_ = std::max<uint64_t>(options.staging_piece_bytes / 4 * 4, 4);
@@ -250,6 +258,9 @@ Context::Context(const ContextOptions& options) {
     VkPhysicalDeviceFragmentShaderInterlockFeaturesEXT interlock{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FRAGMENT_SHADER_INTERLOCK_FEATURES_EXT};
     interlock.fragmentShaderPixelInterlock = VK_TRUE;
+    VkPhysicalDevicePipelineExecutablePropertiesFeaturesKHR statistics{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PIPELINE_EXECUTABLE_PROPERTIES_FEATURES_KHR};
+    statistics.pipelineExecutableInfo = VK_TRUE;
     VkPhysicalDeviceVulkan12Features features12{
         VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceVulkan13Features features13{
@@ -269,6 +280,11 @@ Context::Context(const ContextOptions& options) {
       features12.bufferDeviceAddress = VK_TRUE;
       as_features.pNext = chain_end;
       chain_end = &rt_features;
+    }
+    if (info_.shader_statistics) {
+      device_extensions.push_back("VK_KHR_pipeline_executable_properties");
+      statistics.pNext = chain_end;
+      chain_end = &statistics;
     }
     if (options.swapchain) {
       if (!has_extension(physical_, VK_KHR_SWAPCHAIN_EXTENSION_NAME))
@@ -292,6 +308,8 @@ Context::Context(const ContextOptions& options) {
     create.enabledExtensionCount = uint32_t(device_extensions.size());
     create.ppEnabledExtensionNames = device_extensions.data();
     check(vkCreateDevice(physical_, &create, nullptr, &device_), "vkCreateDevice");
+    compile_only_ = options.compile_only;
+    if (compile_only_) return;
     vkGetDeviceQueue(device_, family_, 0, &queue_);
     VkCommandPoolCreateInfo pool{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     pool.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
@@ -311,7 +329,7 @@ Context::~Context() {
 
 void Context::release() {
   if (device_) {
-    vkDeviceWaitIdle(device_);
+    if (!compile_only_) vkDeviceWaitIdle(device_);
     if (fence_) vkDestroyFence(device_, fence_, nullptr);
     if (pool_) vkDestroyCommandPool(device_, pool_, nullptr);
     vkDestroyDevice(device_, nullptr);
@@ -509,6 +527,8 @@ double Context::elapsed_ms(VkQueryPool pair) const {
 }
 
 VkCommandBuffer Context::begin_commands() {
+  if (compile_only_)
+    throw Error("Vulkan: a context made to compile pipelines only cannot record commands");
   VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
   alloc.commandPool = pool_;
   alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;

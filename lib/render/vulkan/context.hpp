@@ -34,6 +34,12 @@ struct ContextOptions {
   uint64_t staging_piece_bytes = uint64_t{64} << 20;
   // Stage even where device-local memory is host-visible (tests of the staged path on lavapipe).
   bool force_staging = false;
+  // Enable VK_KHR_pipeline_executable_properties where the device has it, so that pipelines can
+  // report their compiler's statistics (shader_statistics.hpp; DeviceInfo::shader_statistics).
+  bool shader_statistics = false;
+  // A device that only compiles pipelines: no command pool or fence, nothing submitted (RADV's
+  // null device, RADV_FORCE_FAMILY without the GPU, compiles but has no queue to run on).
+  bool compile_only = false;
 };
 
 // The chosen device cannot ray trace (lavapipe, older GPUs): the message is the one line users see.
@@ -61,6 +67,9 @@ struct DeviceInfo {
   // 64-bit integers in shaders (shaderInt64: known, and enabled, once a Context has made the
   // device).
   bool shader_int64 = false;
+  // The compiler's statistics of a pipeline (VK_KHR_pipeline_executable_properties): whether the
+  // device has them; in a Context, whether they are enabled (ContextOptions::shader_statistics).
+  bool shader_statistics = false;
   std::array<uint8_t, 16> driver_uuid{};  // VkPhysicalDeviceIDProperties::driverUUID
 };
 
@@ -185,6 +194,7 @@ class Context {
   static void write_first_timestamp(VkCommandBuffer cmd, VkQueryPool pair);
   bool timestamps_ = false;
   bool ray_tracing_ = false;
+  bool compile_only_ = false;
   bool in_place_uploads_ = false;
   uint64_t staging_piece_bytes_ = 0;
   DeviceInfo info_;

@@ -28,6 +28,12 @@ Spirv shader_spirv(const std::string& name) {
   throw Error("no embedded shader named '" + name + "'");
 }
 
+std::vector<std::string> embedded_shader_names() {
+  std::vector<std::string> names;
+  for (const Embedded& e : kShaders) names.push_back(e.name);
+  return names;
+}
+
 VkShaderModule create_shader_module(VkDevice device, const std::string& name) {
   const Spirv code = shader_spirv(name);
   VkShaderModuleCreateInfo create{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
@@ -41,9 +47,11 @@ VkShaderModule create_shader_module(VkDevice device, const std::string& name) {
 VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
                                    const std::string& name,
                                    const VkSpecializationInfo* specialisation,
-                                   VkPipelineShaderStageCreateFlags stage_flags) {
+                                   VkPipelineShaderStageCreateFlags stage_flags,
+                                   VkPipelineCreateFlags pipeline_flags) {
   VkShaderModule module = create_shader_module(device, name);
   VkComputePipelineCreateInfo create{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  create.flags = pipeline_flags;
   create.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   create.stage.flags = stage_flags;
   create.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;

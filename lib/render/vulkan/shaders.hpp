@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace linebake::vk {
 
@@ -16,13 +17,17 @@ struct Spirv {
 
 // By source file name, e.g. "tube.vert" or "ll_resolve.comp"; throws for other names.
 Spirv shader_spirv(const std::string& name);
+// Every embedded shader's name, variants ("NAME:variant", shaders/CMakeLists.txt) included.
+std::vector<std::string> embedded_shader_names();
 // A shader module of one embedded shader (the caller destroys it).
 VkShaderModule create_shader_module(VkDevice device, const std::string& name);
 // A compute pipeline of one embedded shader's `main` with `layout` and, where given, its
-// specialisation constants and stage flags (the caller destroys it). Throws naming the shader.
+// specialisation constants, stage flags and pipeline flags (the caller destroys it). Throws naming
+// the shader.
 VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
                                    const std::string& name,
                                    const VkSpecializationInfo* specialisation = nullptr,
-                                   VkPipelineShaderStageCreateFlags stage_flags = 0);
+                                   VkPipelineShaderStageCreateFlags stage_flags = 0,
+                                   VkPipelineCreateFlags pipeline_flags = 0);
 
 }  // namespace linebake::vk
