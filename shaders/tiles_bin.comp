@@ -8,13 +8,11 @@
 layout(local_size_x = 256) in;
 #include "tiles_keys.glsl"
 
-// Capsules whose bounds hold at most this many pixel centres are binned only where a pixel's ray
-// may have a front crossing on the surface the capsule owns (capsule.glsl: the chain's union
-// surface, a joint's sphere the segment's that ends there). A key costs the sort and the
-// composite whether or not a pixel hits it, and the bounds of a short capsule hold pixels whose
-// rays miss it or meet its neighbours' surface instead. The host sets how many at most
-// (frame.binning.x; 0: none tested).
-const int kTestedPixels = 4;
+// Capsules whose bounds hold at most kTestedPixels pixel centres (tiles_keys.glsl) are binned
+// only where a pixel's ray may have a front crossing on the surface the capsule owns
+// (capsule.glsl: the chain's union surface, a joint's sphere the segment's that ends there). A
+// key costs the sort and the composite whether or not a pixel hits it, and the bounds of a short
+// capsule hold pixels whose rays miss it or meet its neighbours' surface instead.
 
 // What one segment's pixel tests share: the segment, its neighbours' ends (flags & 1: before,
 // & 2: after), its axis, the growth of its capsule and the square of the depth inside a
@@ -135,28 +133,15 @@ bool ray_passes_near(OwnerTest o, vec3 direction) {
   return dot(miss, miss) <= reach * reach;
 }
 
-// Pixel k of bounds of at most 4 pixels from p0 (a column, a row, or 2 x 2; no integer division,
-// which lavapipe's SIMD units do a lane at a time).
-uvec2 tested_pixel(ivec2 p0, ivec2 extent, int k) {
-  const ivec2 step = extent.x == 1   ? ivec2(0, k)
-                     : extent.x == 2 ? ivec2(k & 1, k >> 1)
-                                     : ivec2(k, 0);
-  return uvec2(p0 + step);
-}
-
 // Whether the ray of a pixel whose centre lies in segment s's bounds [lo, hi] may have a
 // crossing on its surface (true for bounds of more pixels than binning.x, untested). First the
 // cheap test of every pixel, then the full one of those that pass it, in a loop that ends at the
 // first that may cross: on lavapipe a SIMD unit runs both sides of every branch, and leaves only
 // loops early, once all its lanes are done.
 bool bin_test_pixels(uint s, vec2 lo, vec2 hi) {
-  ivec2 p0, p1;
-  covered_pixels(lo, hi, p0, p1);
-  p0 = max(p0, ivec2(0));
-  p1 = min(p1, ivec2(view.size.xy) - 1);
-  const ivec2 extent = max(p1 - p0 + 1, ivec2(0));
-  const int pixels = extent.x * extent.y;
-  if (pixels > min(int(frame_tests.binning.x), kTestedPixels)) return true;
+  ivec2 p0, extent;
+  const int pixels = tested_pixels(lo, hi, p0, extent);
+  if (pixels < 0) return true;
   const OwnerTest o = owner_test_of(s);
   uint near = 0u;
   for (int k = 0; k < kTestedPixels; ++k) {

@@ -13,6 +13,6 @@ uvec4 tf_counts;  // colour points, opacity points, 0, 0
 vec4 params;      // termination alpha, capsule radius, key depth near, key depth far
 uvec4 tiles;      // tiles across, tiles down, depth bits of a key, key capacity
 uvec4 band;       // the tile rows of this pass: first, one past the last
-uvec4 binning;    // pixels a capsule's bounds hold at most to be tested (tiles_bin.comp), 0, 0, 0
+uvec4 binning;    // pixels a primitive's bounds hold at most to be tested (tiles_keys.glsl), 0, ...
 vec4 colours[kMaxTfPoints];    // x, sRGB r, g, b
 vec4 opacities[kMaxTfPoints];  // x, opacity

@@ -14,6 +14,32 @@ shared bool group_room;
 const uint kGroupRows = 1024;
 shared uint group_rows[kGroupRows];
 
+// Binning's pixel tests: primitives whose bounds hold at most this many pixel centres are binned
+// only where one of those pixels may hit them (tiles_bin.comp, tiles_bin_triangles.comp). The
+// host sets how many at most (frame.binning.x; 0: none tested).
+const int kTestedPixels = 4;
+
+// The pixel centres inside bounds [lo, hi] on the screen, from p0 over extent, and how many:
+// -1 where the bounds hold more than binning tests (the primitive is binned untested).
+int tested_pixels(vec2 lo, vec2 hi, out ivec2 p0, out ivec2 extent) {
+  ivec2 p1;
+  covered_pixels(lo, hi, p0, p1);
+  p0 = max(p0, ivec2(0));
+  p1 = min(p1, ivec2(view.size.xy) - 1);
+  extent = max(p1 - p0 + 1, ivec2(0));
+  const int pixels = extent.x * extent.y;
+  return pixels > min(int(frame_tests.binning.x), kTestedPixels) ? -1 : pixels;
+}
+
+// Pixel k of bounds of at most 4 pixels from p0 (a column, a row, or 2 x 2; no integer division,
+// which lavapipe's SIMD units do a lane at a time).
+uvec2 tested_pixel(ivec2 p0, ivec2 extent, int k) {
+  const ivec2 step = extent.x == 1   ? ivec2(0, k)
+                     : extent.x == 2 ? ivec2(k & 1, k >> 1)
+                                     : ivec2(k, 0);
+  return uvec2(p0 + step);
+}
+
 void emit_keys(uint s, bool visible, vec2 lo, vec2 hi, float z_near) {
   const uint lane = gl_LocalInvocationIndex, lanes = gl_WorkGroupSize.x;
   const bool rows_shared = frame_tests.tiles.y <= kGroupRows;

@@ -8,9 +8,15 @@ layout(set = 0, binding = 2, std430) readonly buffer Indices { uint indices[]; }
 // Triangle s on the screen: its pixel bounds [lo, hi] and nearest and farthest vertex depth;
 // false when it faces away or lies behind the eye. Binning bins these bounds; the composite
 // tests only the pixels inside them, so both must use this one function.
+void triangle_corners(uint s, out vec3 a, out vec3 b, out vec3 c) {
+  a = vertices[2u * indices[3u * s]].xyz;
+  b = vertices[2u * indices[3u * s + 1u]].xyz;
+  c = vertices[2u * indices[3u * s + 2u]].xyz;
+}
+
 bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
-  const vec3 a = vertices[2u * indices[3u * s]].xyz, b = vertices[2u * indices[3u * s + 1u]].xyz,
-             c = vertices[2u * indices[3u * s + 2u]].xyz;
+  vec3 a, b, c;
+  triangle_corners(s, a, b, c);
   // Every ray from the eye meets a plane from one side: a triangle facing away has no front hit.
   if (dot(cross(b - a, c - a), a - view.eye) >= 0.0) return false;
   const vec3 f = view.forward;

@@ -428,9 +428,66 @@ TEST(Tiles, ShortCapsulesGetKeysOnlyWhereAPixelMayCrossTheirSurface) {
   EXPECT_EQ(tested.depth_complexity, all.depth_complexity);
 }
 
+// Two right triangles smaller than a pixel facing the eye, each with one pixel centre inside its
+// bounds. In pixels from that centre (x right, y down), the first has its corners at (-0.45,
+// -0.45), (0.2, -0.45) and (-0.45, 0.2): its hypotenuse, x + y = -0.25, passes 0.18 pixels short
+// of the centre, more than binning's margin of a sixteenth. The second, at (-0.2, -0.2), (0.45,
+// -0.2) and (-0.2, 0.45), holds its centre 0.18 pixels inside. With pixels tested only the second
+// gets a key; one hit either way, on its pixel.
+TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
+  const Camera camera = looking_along_z();
+  const int size = 64;
+  const Camera::ImagePlane plane = camera.image_plane(size, size);
+  const double z = 4, pixel = 2 * plane.up.y * z / size;  // a pixel's width at depth z
+  const glm::dvec3 right = glm::normalize(plane.right), down = -glm::normalize(plane.up);
+  // Pixel (32, 32)'s centre lies half a pixel right of and below the image's centre.
+  const auto centre_of = [&](int x, int y) {
+    return glm::dvec3(0, 0, z) + (x - 31.5) * pixel * right + (y - 31.5) * pixel * down;
+  };
+  TubeChunk chunk;
+  std::vector<glm::dvec3> corners;
+  const auto add_triangle = [&](glm::dvec3 centre, double leg, double tip) {
+    glm::dvec3 a = centre + pixel * (leg * right + leg * down);
+    glm::dvec3 b = centre + pixel * (tip * right + leg * down);
+    glm::dvec3 c = centre + pixel * (leg * right + tip * down);
+    // Facing the eye: counter-clockwise seen from it, the normal towards -z.
+    if (glm::cross(b - a, c - a).z > 0) std::swap(b, c);
+    corners.insert(corners.end(), {a, b, c});
+  };
+  add_triangle(centre_of(32, 32), -0.45, 0.2);  // misses its centre
+  add_triangle(centre_of(40, 32), -0.2, 0.45);  // holds its centre
+  chunk.line_count = 2;
+  chunk.positions = Array<float>(corners.size() * 3);
+  chunk.normals = Array<float>(corners.size() * 3);
+  chunk.indices = Array<uint32_t>(corners.size());
+  for (size_t v = 0; v < corners.size(); ++v) {
+    for (int k = 0; k < 3; ++k) chunk.positions[3 * v + k] = float(corners[v][k]);
+    chunk.normals[3 * v] = 0, chunk.normals[3 * v + 1] = 0, chunk.normals[3 * v + 2] = -1;
+    chunk.indices[v] = uint32_t(v);
+  }
+  TubeMesh mesh;
+  mesh.chunks.push_back(std::move(chunk));
+  vk::Context ctx;
+  vk::TileRenderer renderer(ctx, mesh);
+  vk::TileOptions o;
+  o.width = size, o.height = size;
+  o.tested_pixels = 0;
+  const vk::TileFrame all = renderer.render(camera, red_to_blue(0.5, 0.5), o);
+  o.tested_pixels = 4;
+  const vk::TileFrame tested = renderer.render(camera, red_to_blue(0.5, 0.5), o);
+  EXPECT_EQ(all.stats.keys, 2u);
+  EXPECT_EQ(tested.stats.keys, 1u);
+  EXPECT_EQ(all.stats.hits, 1u);
+  EXPECT_EQ(tested.stats.hits, 1u);
+  EXPECT_EQ(tested.depth_complexity[32 * size + 40], 1u);
+  EXPECT_EQ(tested.image.pixels, all.image.pixels);
+  EXPECT_EQ(tested.depth_complexity, all.depth_complexity);
+}
+
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments
-// (clouds: most shorter than the radius; convection) seen whole and zoomed in, fewer keys and
-// the same bytes, hits and depth complexity as binning by the bounds alone.
+// (clouds: most shorter than the radius; convection) seen whole and zoomed in, and on tube
+// meshes, fewer keys and the same bytes, hits and depth complexity as binning by the bounds
+// alone.
 TEST(Tiles, TestedPixelsLeaveOutKeysWithoutChangingAByte) {
   vk::Context ctx;
   const TransferFunction tf = transfer_function_preset("semi");
@@ -439,6 +496,26 @@ TEST(Tiles, TestedPixelsLeaveOutKeysWithoutChangingAByte) {
     const Bounds bounds = compute_bounds(lines);
     vk::TileRenderer renderer(
         ctx, build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name));
+    vk::TileOptions o;
+    o.width = 160, o.height = 120;
+    for (const double zoom : {1.0, 0.4}) {
+      const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, zoom);
+      o.tested_pixels = 0;
+      const vk::TileFrame all = renderer.render(camera, tf, o);
+      o.tested_pixels = 4;
+      const vk::TileFrame tested = renderer.render(camera, tf, o);
+      EXPECT_GT(all.stats.hits, 1000u) << source;
+      EXPECT_LT(tested.stats.keys, all.stats.keys) << source << ", zoom " << zoom;
+      EXPECT_EQ(tested.stats.hits, all.stats.hits) << source << ", zoom " << zoom;
+      EXPECT_EQ(tested.image.pixels, all.image.pixels) << source << ", zoom " << zoom;
+      EXPECT_EQ(tested.depth_complexity, all.depth_complexity) << source << ", zoom " << zoom;
+    }
+  }
+  // The tube mesh's triangles, most smaller than a pixel here: the same.
+  for (const char* source : {"synth:aneurysm?scale=0.01", "synth:convection?scale=0.01"}) {
+    const LineSet lines = synth::generate(synth::parse_synth_source(source));
+    const Bounds bounds = compute_bounds(lines);
+    vk::TileRenderer renderer(ctx, build_tubes(lines, TubeOptions{}));
     vk::TileOptions o;
     o.width = 160, o.height = 120;
     for (const double zoom : {1.0, 0.4}) {

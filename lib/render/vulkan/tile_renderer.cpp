@@ -65,7 +65,7 @@ struct TileUniforms {
   float params[4];
   uint32_t tiles[4];
   uint32_t band[4];     // first tile row, one past the last
-  uint32_t binning[4];  // pixels a capsule's bounds hold at most to be tested
+  uint32_t binning[4];  // pixels a primitive's bounds hold at most to be tested
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
 };

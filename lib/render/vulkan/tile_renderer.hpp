@@ -34,10 +34,11 @@ struct TileOptions {
   // depth takes what the tile index leaves. Fewer bits tie more keys, in an order the sort
   // leaves as binning emitted them; the image is the same for any order.
   uint32_t key_bits = 0;
-  // Capsules whose screen bounds hold at most this many pixel centres (at most 4) get a key only
-  // where one of those pixels' rays may cross the surface they own (shaders/tiles_bin.comp); 0:
-  // every capsule is binned by its bounds. The image is the same either way, with fewer keys to
-  // sort and walk (tests compare). Triangles are binned by their bounds.
+  // Primitives whose screen bounds hold at most this many pixel centres (at most 4) get a key
+  // only where one of those pixels may hit them: capsules where a pixel's ray may cross the
+  // surface they own (shaders/tiles_bin.comp), triangles where a pixel centre lies inside them
+  // on the screen (shaders/tiles_bin_triangles.comp); 0: every primitive is binned by its bounds.
+  // The image is the same either way, with fewer keys to sort and walk (tests compare).
   uint32_t tested_pixels = 4;
   Shading shading;
 };
