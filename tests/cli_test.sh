@@ -231,6 +231,14 @@ assert deep['Scratch size'] > 0 and plain['Scratch size'] == 0, (plain, deep)
 text = subprocess.run(['$bin', 'bench', 'shaders', '--shaders', 'tiles_bin', '--statistics', 'VGPRs,Scratch'], check=True, capture_output=True, text=True).stdout
 assert 'tiles_bin.comp (Compute Shader, subgroup' in text and 'tiles_bin_triangles.comp' in text and 'tiles_composite' not in text, text
 assert 'VGPRs' in text and 'Scratch size' in text and 'Instructions' not in text, text"
+check "bench shaders: every compute shader compiles for GCN, CDNA2 and RDNA2 (RADV's null devices vega10, aldebaran, navi21)" python3 -c "
+import json, os, subprocess
+names = []
+for family in ('vega10', 'aldebaran', 'navi21'):
+    env = dict(os.environ, VK_ICD_FILENAMES='$radv_icd', RADV_FORCE_FAMILY=family)
+    out = subprocess.run(['$bin', 'bench', 'shaders', '--statistics', 'VGPRs', '--json'], env=env, check=True, capture_output=True, text=True).stdout
+    names.append(sorted(s['shader'] for s in json.loads(out)['shaders']))
+assert names[0] == names[1] == names[2] and len(names[0]) >= 20, names"
 check "--rt-geometry is an rtx option (usage error)" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique vrc --rt-geometry capsules --size 32x24 -o "$tmp/x.png"
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step
