@@ -388,6 +388,28 @@ TEST(Tiles, ACapsuleBetweenPixelCentresHasNoKey) {
   }
 }
 
+// One frame rendered with binning's pixel tests off (all) and on (tested, 4 pixels).
+struct TestedAndAll {
+  vk::TileFrame all, tested;
+};
+TestedAndAll render_tested_and_all(vk::TileRenderer& renderer, const Camera& camera,
+                                   const TransferFunction& tf, int width, int height) {
+  vk::TileOptions o;
+  o.width = width, o.height = height;
+  o.tested_pixels = 0;
+  TestedAndAll frames{renderer.render(camera, tf, o), {}};
+  o.tested_pixels = 4;
+  frames.tested = renderer.render(camera, tf, o);
+  return frames;
+}
+
+// The tests leave out only keys without a hit: the same hits, bytes and depth complexity.
+void expect_the_same_frame(const TestedAndAll& f, const std::string& what) {
+  EXPECT_EQ(f.tested.stats.hits, f.all.stats.hits) << what;
+  EXPECT_EQ(f.tested.image.pixels, f.all.image.pixels) << what;
+  EXPECT_EQ(f.tested.depth_complexity, f.all.depth_complexity) << what;
+}
+
 // A straight chain of 8 capsules, each an eighth of a pixel long and 0.15 pixel in radius, whose
 // middle (the middle of segment 3) lies on the centre of pixel (32, 32). Every segment's bounds
 // (1.25 radii and a sixteenth of a pixel wide, tiles_capsules.glsl) hold only that pixel's
@@ -413,19 +435,12 @@ TEST(Tiles, ShortCapsulesGetKeysOnlyWhereAPixelMayCrossTheirSurface) {
   lines.attributes = {{"v", std::vector<float>(9, 0.5f)}};
   vk::Context ctx;
   vk::TileRenderer renderer(ctx, build_capsule_segments(lines, float(0.15 * pixel), "v"));
-  vk::TileOptions o;
-  o.width = size, o.height = size;
-  o.tested_pixels = 0;
-  const vk::TileFrame all = renderer.render(camera, red_to_blue(0.5, 0.5), o);
-  o.tested_pixels = 4;
-  const vk::TileFrame tested = renderer.render(camera, red_to_blue(0.5, 0.5), o);
-  EXPECT_EQ(all.stats.keys, 5u);
-  EXPECT_EQ(tested.stats.keys, 1u);
-  EXPECT_EQ(all.stats.hits, 1u);
-  EXPECT_EQ(tested.stats.hits, 1u);
-  EXPECT_EQ(tested.depth_complexity[32 * size + 32], 1u);
-  EXPECT_EQ(tested.image.pixels, all.image.pixels);
-  EXPECT_EQ(tested.depth_complexity, all.depth_complexity);
+  const TestedAndAll f = render_tested_and_all(renderer, camera, red_to_blue(0.5, 0.5), size, size);
+  EXPECT_EQ(f.all.stats.keys, 5u);
+  EXPECT_EQ(f.tested.stats.keys, 1u);
+  EXPECT_EQ(f.all.stats.hits, 1u);
+  EXPECT_EQ(f.tested.depth_complexity[32 * size + 32], 1u);
+  expect_the_same_frame(f, "capsules");
 }
 
 // Two right triangles smaller than a pixel facing the eye, each with one pixel centre inside its
@@ -469,19 +484,12 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
   mesh.chunks.push_back(std::move(chunk));
   vk::Context ctx;
   vk::TileRenderer renderer(ctx, mesh);
-  vk::TileOptions o;
-  o.width = size, o.height = size;
-  o.tested_pixels = 0;
-  const vk::TileFrame all = renderer.render(camera, red_to_blue(0.5, 0.5), o);
-  o.tested_pixels = 4;
-  const vk::TileFrame tested = renderer.render(camera, red_to_blue(0.5, 0.5), o);
-  EXPECT_EQ(all.stats.keys, 2u);
-  EXPECT_EQ(tested.stats.keys, 1u);
-  EXPECT_EQ(all.stats.hits, 1u);
-  EXPECT_EQ(tested.stats.hits, 1u);
-  EXPECT_EQ(tested.depth_complexity[32 * size + 40], 1u);
-  EXPECT_EQ(tested.image.pixels, all.image.pixels);
-  EXPECT_EQ(tested.depth_complexity, all.depth_complexity);
+  const TestedAndAll f = render_tested_and_all(renderer, camera, red_to_blue(0.5, 0.5), size, size);
+  EXPECT_EQ(f.all.stats.keys, 2u);
+  EXPECT_EQ(f.tested.stats.keys, 1u);
+  EXPECT_EQ(f.all.stats.hits, 1u);
+  EXPECT_EQ(f.tested.depth_complexity[32 * size + 40], 1u);
+  expect_the_same_frame(f, "triangles");
 }
 
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments
@@ -491,45 +499,29 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
 TEST(Tiles, TestedPixelsLeaveOutKeysWithoutChangingAByte) {
   vk::Context ctx;
   const TransferFunction tf = transfer_function_preset("semi");
+  const auto expect_fewer_keys = [&](vk::TileRenderer& renderer, const Bounds& bounds,
+                                     const std::string& what) {
+    for (const double zoom : {1.0, 0.4}) {
+      const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, zoom);
+      const TestedAndAll f = render_tested_and_all(renderer, camera, tf, 160, 120);
+      const std::string where = what + ", zoom " + std::to_string(zoom);
+      EXPECT_GT(f.all.stats.hits, 1000u) << where;
+      EXPECT_LT(f.tested.stats.keys, f.all.stats.keys) << where;
+      expect_the_same_frame(f, where);
+    }
+  };
   for (const char* source : {"synth:clouds?scale=0.01", "synth:convection?scale=0.01"}) {
     const LineSet lines = synth::generate(synth::parse_synth_source(source));
     const Bounds bounds = compute_bounds(lines);
-    vk::TileRenderer renderer(
+    vk::TileRenderer capsules(
         ctx, build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name));
-    vk::TileOptions o;
-    o.width = 160, o.height = 120;
-    for (const double zoom : {1.0, 0.4}) {
-      const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, zoom);
-      o.tested_pixels = 0;
-      const vk::TileFrame all = renderer.render(camera, tf, o);
-      o.tested_pixels = 4;
-      const vk::TileFrame tested = renderer.render(camera, tf, o);
-      EXPECT_GT(all.stats.hits, 1000u) << source;
-      EXPECT_LT(tested.stats.keys, all.stats.keys) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.stats.hits, all.stats.hits) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.image.pixels, all.image.pixels) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.depth_complexity, all.depth_complexity) << source << ", zoom " << zoom;
-    }
+    expect_fewer_keys(capsules, bounds, std::string(source) + " capsules");
   }
-  // The tube mesh's triangles, most smaller than a pixel here: the same.
+  // The tube mesh's triangles, most smaller than a pixel here.
   for (const char* source : {"synth:aneurysm?scale=0.01", "synth:convection?scale=0.01"}) {
     const LineSet lines = synth::generate(synth::parse_synth_source(source));
-    const Bounds bounds = compute_bounds(lines);
-    vk::TileRenderer renderer(ctx, build_tubes(lines, TubeOptions{}));
-    vk::TileOptions o;
-    o.width = 160, o.height = 120;
-    for (const double zoom : {1.0, 0.4}) {
-      const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, zoom);
-      o.tested_pixels = 0;
-      const vk::TileFrame all = renderer.render(camera, tf, o);
-      o.tested_pixels = 4;
-      const vk::TileFrame tested = renderer.render(camera, tf, o);
-      EXPECT_GT(all.stats.hits, 1000u) << source;
-      EXPECT_LT(tested.stats.keys, all.stats.keys) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.stats.hits, all.stats.hits) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.image.pixels, all.image.pixels) << source << ", zoom " << zoom;
-      EXPECT_EQ(tested.depth_complexity, all.depth_complexity) << source << ", zoom " << zoom;
-    }
+    vk::TileRenderer triangles(ctx, build_tubes(lines, TubeOptions{}));
+    expect_fewer_keys(triangles, compute_bounds(lines), std::string(source) + " triangles");
   }
 }
 
