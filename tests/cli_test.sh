@@ -187,11 +187,13 @@ vrc = rows['vrc']
 assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'] > 0 and 10 < vrc['psnr_db'] < 60, vrc
 assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
 assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
-check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference" python3 -c "
+check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference; tiles-raster-order" python3 -c "
 import json, subprocess
-j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'tiles,tiles-triangles', '--frames', '1', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
+j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'tiles,tiles-triangles,tiles-raster-order', '--frames', '1', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
 rows = {r['technique']: r for r in j['runs'][0]['rows']}
-assert list(rows) == ['tiles', 'tiles-triangles'], rows
+assert list(rows) == ['tiles', 'tiles-triangles', 'tiles-raster-order'], rows
+# The old tile order, the same image.
+assert rows['tiles-raster-order']['psnr_db'] == rows['tiles']['psnr_db'], rows
 for r in rows.values():
     assert r['frames'] == 1 and {'bin', 'sort', 'composite'} <= set(r['passes']), r
 assert rows['tiles-triangles']['psnr_db'] >= 50, rows  # the reference's surface

@@ -492,6 +492,43 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
   expect_the_same_frame(f, "triangles");
 }
 
+// The composite's workgroups take the crowded tiles first; in raster order the image, hits and
+// walks are the same: each workgroup writes its own tile, whatever the order they run.
+// The aneurysm seen from afar, so that its few central tiles are crowded (more than 8 times the
+// mean keys), in slices and with walks again, as capsules and as triangles.
+TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
+  vk::Context ctx;
+  const TransferFunction tf = transfer_function_preset("transparent");
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
+  const Bounds bounds = compute_bounds(lines);
+  const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, 2.5);
+  const auto expect_same = [&](vk::TileRenderer& renderer, const char* what) {
+    vk::TileOptions o;
+    o.width = 160, o.height = 120;
+    const vk::TileFrame first = renderer.render(camera, tf, o);
+    o.most_keys_first = false;
+    const vk::TileFrame raster = renderer.render(camera, tf, o);
+    EXPECT_GT(first.stats.slices, 1u) << what;
+    EXPECT_GT(first.stats.crowded_tiles, 0u) << what;
+    EXPECT_EQ(raster.stats.crowded_tiles, 0u) << what;
+    EXPECT_GT(first.stats.walks, 1u) << what;
+    EXPECT_EQ(first.image.pixels, raster.image.pixels) << what;
+    EXPECT_EQ(first.depth_complexity, raster.depth_complexity) << what;
+    EXPECT_EQ(first.stats.hits, raster.stats.hits) << what;
+    EXPECT_EQ(first.stats.walks, raster.stats.walks) << what;
+    EXPECT_EQ(first.stats.window_overflows, raster.stats.window_overflows) << what;
+  };
+  // Slices of 64 keys.
+  vk::TileRenderer capsules(
+      ctx, build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name), 0,
+      64);
+  expect_same(capsules, "capsules");
+  TubeOptions tube;
+  tube.radius = 0.004f;
+  vk::TileRenderer triangles(ctx, build_tubes(lines, tube), 0, 64);
+  expect_same(triangles, "triangles");
+}
+
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments
 // (clouds: most shorter than the radius; convection) seen whole and zoomed in, and on tube
 // meshes, fewer keys and the same bytes, hits and depth complexity as binning by the bounds

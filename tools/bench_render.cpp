@@ -176,7 +176,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 // compute, tiles-shared and tiles-subgroups are tiles with its key sort's shared-memory and
 // subgroup path (tiles takes subgroups where the device has them, except on lavapipe: the two
 // paths' A/B), tiles-triangles is tiles over the tube mesh (comparable with the reference to the
-// last bit of coverage).
+// last bit of coverage), tiles-raster-order is tiles dispatching every tile in raster order
+// instead of the crowded ones first (the A/B of that order).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -187,6 +188,7 @@ constexpr BenchVariant kBenchVariants[] = {
     {"tiles-shared", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "shared"; }},
     {"tiles-subgroups", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "subgroups"; }},
     {"tiles-triangles", "tiles", [](TechniqueOptions& o) { o.tiles_geometry = "triangles"; }},
+    {"tiles-raster-order", "tiles", [](TechniqueOptions& o) { o.tiles_most_keys_first = false; }},
 };
 
 const BenchVariant* variant_of(const std::string& name) {

@@ -449,7 +449,8 @@ Command add_bench(CLI::App& app) {
           "--techniques", render->techniques,
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
           "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
-          "path, and tiles-triangles, tiles over the tube mesh, when named; those this machine "
+          "path, tiles-triangles, tiles over the tube mesh, and tiles-raster-order, tiles "
+          "dispatching its tiles in raster order, when named; those this machine "
           "cannot run are listed as skipped, with the reason)")
       ->delimiter(',');
   rendering

@@ -82,6 +82,9 @@ struct TechniqueOptions {
   std::string tiles_geometry = "capsules";  // capsules (the lines) | triangles (the tube mesh)
   // The key sort's path: auto (subgroups where the device has them) | subgroups | shared.
   std::string tiles_sort = "auto";
+  // The composite takes the crowded tiles first (false: every tile in raster order; bench
+  // render's tiles-raster-order, no command-line option).
+  bool tiles_most_keys_first = true;
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
   // in bands of tile rows to stay within it.
   uint64_t memory_budget = 0;

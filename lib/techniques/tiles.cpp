@@ -56,6 +56,7 @@ class Tiles : public PreparedTechnique {
       radius_ = radius;
     }
     options_.early_termination = o.early_termination;
+    options_.most_keys_first = o.tiles_most_keys_first;
     memory_budget_ = o.memory_budget;
   }
 
@@ -90,6 +91,7 @@ class Tiles : public PreparedTechnique {
         {"walk_tiles", s.walk_tiles},
         {"walk_skipped_keys", s.walk_skipped_keys},
         {"max_tile_keys", s.max_tile_keys},
+        {"crowded_tiles", s.crowded_tiles},
         {"groups", s.groups},
         {"rebins", s.rebins},
         {"slices", s.slices},

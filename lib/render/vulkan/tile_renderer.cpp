@@ -33,6 +33,9 @@ constexpr uint32_t kBindings = 19;
 constexpr uint32_t kChunkKeys = 256;
 // walk_again of a tile none of whose pixels left hits for another walk.
 constexpr uint32_t kNoWalkAgain = 0xFFFFFFFFu;
+// A tile with more than this many times the mean keys of a walk's tiles is crowded: the
+// composite dispatches it first (TileOptions::most_keys_first).
+constexpr uint64_t kCrowded = 8;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
@@ -438,6 +441,12 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   const uint32_t group_tiles =
       uint32_t(std::clamp<uint64_t>(state_limit / tile_state_bytes_of(s.state_window), 1, tiles));
   const uint64_t state_bytes = uint64_t(group_tiles) * tile_state_bytes_of(s.state_window);
+  // The keys past which a tile of `list` is crowded in walk `walk` (kCrowded times the mean).
+  const auto crowded_keys = [&](const std::vector<uint32_t>& list, uint32_t walk) {
+    uint64_t total = 0;
+    for (uint32_t t : list) total += keys_walked(t, walk);
+    return list.empty() ? uint64_t{0} : kCrowded * total / list.size();
+  };
   const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
                                     uint32_t slice_keys, uint32_t slices, bool keep_states) {
     if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
@@ -445,13 +454,25 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
       s.bind();
     }
+    // Workgroups start roughly in the order of their IDs: the crowded tiles (more than
+    // kCrowded times the mean keys to walk) go first, the most keys first, and the rest follow in
+    // raster order, in which neighbouring tiles, which share primitives, run together.
+    std::vector<uint32_t> order = walk_tiles;
+    if (o.most_keys_first) {
+      const uint64_t crowded = crowded_keys(walk_tiles, walk);
+      const auto first = std::stable_partition(
+          order.begin(), order.end(), [&](uint32_t t) { return keys_walked(t, walk) > crowded; });
+      std::stable_sort(order.begin(), first, [&](uint32_t a, uint32_t b) {
+        return keys_walked(a, walk) > keys_walked(b, walk);
+      });
+    }
     // Each slice dispatches only the tiles with keys in it (the first: every tile, which starts
     // its pixels), so one crowded tile does not cost a dispatch of the whole band per slice.
     std::vector<uint32_t> slice_tiles;
     std::vector<std::pair<uint32_t, uint32_t>> slice_lists;  // offset, count
     for (uint32_t k = 0; k < slices; ++k) {
       const size_t offset = slice_tiles.size();
-      for (uint32_t t : walk_tiles)
+      for (uint32_t t : order)
         if (k == 0 || keys_walked(t, walk) > uint64_t(k) * slice_keys) slice_tiles.push_back(t);
       slice_lists.emplace_back(uint32_t(offset), uint32_t(slice_tiles.size() - offset));
     }
@@ -501,6 +522,10 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     };
     const uint32_t group_longest = longest_of(tiles_of_group, 0);
     st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
+    if (o.most_keys_first) {
+      const uint64_t crowded = crowded_keys(tiles_of_group, 0);
+      for (uint32_t t : tiles_of_group) st.crowded_tiles += keys_walked(t, 0) > crowded;
+    }
     uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : group_longest;
     bool keep_states = false;
     CompositeStats before;

@@ -40,6 +40,12 @@ struct TileOptions {
   // on the screen (shaders/tiles_bin_triangles.comp); 0: every primitive is binned by its bounds.
   // The image is the same either way, with fewer keys to sort and walk (tests compare).
   uint32_t tested_pixels = 4;
+  // The composite's workgroups take the crowded tiles (more than 8 times the mean keys to walk)
+  // first, the most keys first (longest processing time first), so that one does not start last
+  // while the rest of the GPU runs out of tiles; the others follow in raster order, neighbours
+  // together. false: all in raster order (bench render's tiles-raster-order, the A/B). The image
+  // is the same either way: each workgroup writes its own tile.
+  bool most_keys_first = true;
   Shading shading;
 };
 
@@ -57,6 +63,7 @@ struct TileStats {
   uint32_t slices = 1;         // composite dispatches per band (each a slice of every tile's keys)
   uint64_t max_row_keys = 0;   // keys of the fullest row of tiles (the smallest band)
   uint64_t max_tile_keys = 0;  // keys of the fullest tile (one workgroup walks them in turn)
+  uint32_t crowded_tiles = 0;  // tiles the first walk took first (TileOptions::most_keys_first)
   uint32_t bands = 1;          // bands of tile rows, each binned, sorted and composited alone
   uint32_t resliced = 0;       // bands composited again in smaller slices (an invocation cut short)
   uint32_t walks = 1;          // the most walks over a tile's keys (more: a full window, exact)
