@@ -5,15 +5,16 @@ layout(set = 0, binding = 1, std430) readonly buffer Vertices { vec4 vertices[];
 // Three vertex indices per triangle, counter-clockwise seen from outside.
 layout(set = 0, binding = 2, std430) readonly buffer Indices { uint indices[]; };
 
-// Triangle s on the screen: its pixel bounds [lo, hi] and nearest and farthest vertex depth;
-// false when it faces away or lies behind the eye. Binning bins these bounds; the composite
-// tests only the pixels inside them, so both must use this one function.
+// Triangle s's corners, counter-clockwise seen from outside.
 void triangle_corners(uint s, out vec3 a, out vec3 b, out vec3 c) {
   a = vertices[2u * indices[3u * s]].xyz;
   b = vertices[2u * indices[3u * s + 1u]].xyz;
   c = vertices[2u * indices[3u * s + 2u]].xyz;
 }
 
+// Triangle s on the screen: its pixel bounds [lo, hi] and nearest and farthest vertex depth;
+// false when it faces away or lies behind the eye. Binning bins these bounds; the composite
+// tests only the pixels inside them, so both must use this one function.
 bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
   vec3 a, b, c;
   triangle_corners(s, a, b, c);
