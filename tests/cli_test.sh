@@ -194,6 +194,13 @@ rows = {r['technique']: r for r in j['runs'][0]['rows']}
 assert list(rows) == ['tiles', 'tiles-triangles', 'tiles-raster-order'], rows
 # The old tile order, the same image.
 assert rows['tiles-raster-order']['psnr_db'] == rows['tiles']['psnr_db'], rows
+# What tiles' time follows, per frame, and its composite split into the first walk and the rest.
+t = rows['tiles']['tiles']
+assert len(t['frames']) == 1 and t['frames'][0]['keys'] > 0 and t['frames'][0]['walks'] >= 1, t
+assert t['frames'][0]['max_tile_keys'] <= t['frames'][0]['keys'], t
+walks = t['first_walk_ms']['median'] + t['walks_again_ms']['median']
+assert abs(walks - rows['tiles']['passes']['composite']['median']) <= 1e-6 * max(walks, 1), (t, rows['tiles']['passes'])
+assert rows['tiles-raster-order']['tiles']['frames'][0]['crowded_tiles'] == 0, rows
 for r in rows.values():
     assert r['frames'] == 1 and {'bin', 'sort', 'composite'} <= set(r['passes']), r
 assert rows['tiles-triangles']['psnr_db'] >= 50, rows  # the reference's surface

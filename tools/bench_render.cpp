@@ -114,6 +114,10 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
     uint64_t frame_bytes = 0;
     nlohmann::json layers = nlohmann::json::array();
     bool capped = false;
+    // tiles: per frame, what its GPU time follows (keys, the fullest tile, the crowded tiles,
+    // walks), and its composite's first walk apart from the walks again.
+    nlohmann::json tiles_frames = nlohmann::json::array();
+    std::vector<double> first_walk_ms, walks_again_ms;
     double frames_s = 0;  // the technique's own frames, not the reference's
     for (int f : plan.frames) {
       throw_if_interrupted();
@@ -131,6 +135,17 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
         if (frame.stats.contains(count))
           row[count] = row.value(count, uint64_t{0}) + frame.stats[count].get<uint64_t>();
       if (frame.stats.contains("every_hit")) row["every_hit"] = frame.stats["every_hit"];
+      if (frame.stats.contains("walk_ms") && frame.stats.contains("keys")) {
+        tiles_frames.push_back({{"keys", frame.stats["keys"]},
+                                {"max_tile_keys", frame.stats["max_tile_keys"]},
+                                {"crowded_tiles", frame.stats["crowded_tiles"]},
+                                {"walks", frame.stats["walks"]}});
+        const std::vector<double> walks = frame.stats["walk_ms"].get<std::vector<double>>();
+        double again = 0;
+        for (size_t w = 1; w < walks.size(); ++w) again += walks[w];
+        first_walk_ms.push_back(walks.empty() ? 0.0 : walks[0]);
+        walks_again_ms.push_back(again);
+      }
       if (technique.info.name == "dp" && frame.stats.contains("layers")) {
         layers.push_back(frame.stats["layers"]);
         capped = capped || frame.stats.value("layers_capped", false);
@@ -160,6 +175,10 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
       row["passes"] = p;
     }
     row["frame_bytes"] = frame_bytes;
+    if (!tiles_frames.empty())
+      row["tiles"] = {{"frames", tiles_frames},
+                      {"first_walk_ms", spread(first_walk_ms)},
+                      {"walks_again_ms", spread(walks_again_ms)}};
     if (!layers.empty()) {
       row["dp_layers"] = layers;
       row["dp_layers_capped"] = capped;
