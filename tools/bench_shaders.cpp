@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "cli_contract.hpp"
 #include "core/error.hpp"
 #include "render/vulkan/shader_statistics.hpp"
 
@@ -69,11 +70,14 @@ void bench_shaders(const BenchShadersArgs& args) {
   nlohmann::ordered_json json = {{"device", device.name}, {"driver", device.driver}};
   json["shaders"] = nlohmann::json::array();
   if (!args.json) std::cout << "device: " << device.name << " (" << device.driver << ")\n";
+  std::vector<std::string> reported;  // every statistic name the driver gave, in its order
   for (const std::string& name : shaders) {
     for (const vk::ShaderExecutable& e : vk::compute_shader_statistics(context, name)) {
       nlohmann::ordered_json statistics = nlohmann::ordered_json::object();
       std::vector<std::string> items;
       for (const vk::ShaderStatistic& s : e.statistics) {
+        if (std::find(reported.begin(), reported.end(), s.name) == reported.end())
+          reported.push_back(s.name);
         if (!matches(s.name, args.statistics)) continue;
         if (s.integer)
           statistics[s.name] = int64_t(s.value);
@@ -101,6 +105,15 @@ void bench_shaders(const BenchShadersArgs& args) {
     }
   }
   if (args.json) std::cout << json.dump(2) << "\n";
+  // A --statistics part that names none of the driver's statistics (each driver has its own).
+  for (const std::string& part : args.statistics)
+    if (std::none_of(reported.begin(), reported.end(),
+                     [&](const std::string& n) { return matches(n, {part}); })) {
+      std::string list;
+      for (const std::string& n : reported) list += (list.empty() ? "" : ", ") + n;
+      warn("bench shaders --statistics: " + device.driver + " reports no statistic named like '" +
+           part + "'; it reports: " + list);
+    }
 }
 
 }  // namespace linebake::cli
