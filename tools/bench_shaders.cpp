@@ -26,6 +26,12 @@ bool matches(const std::string& name, const std::vector<std::string>& parts) {
   });
 }
 
+std::string comma_list(const std::vector<std::string>& names) {
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
 std::string format_value(const vk::ShaderStatistic& s) {
   std::ostringstream out;
   if (s.integer)
@@ -41,10 +47,8 @@ std::vector<std::string> chosen_shaders(const std::vector<std::string>& parts) {
   for (const std::string& part : parts)
     if (std::none_of(all.begin(), all.end(),
                      [&](const std::string& n) { return matches(n, {part}); })) {
-      std::string list;
-      for (const std::string& n : all) list += (list.empty() ? "" : ", ") + n;
       throw UsageError("--shaders: no compute shader's name contains '" + part +
-                       "'; the compute shaders: " + list);
+                       "'; the compute shaders: " + comma_list(all));
     }
   std::vector<std::string> chosen;
   for (const std::string& n : all)
@@ -109,10 +113,8 @@ void bench_shaders(const BenchShadersArgs& args) {
   for (const std::string& part : args.statistics)
     if (std::none_of(reported.begin(), reported.end(),
                      [&](const std::string& n) { return matches(n, {part}); })) {
-      std::string list;
-      for (const std::string& n : reported) list += (list.empty() ? "" : ", ") + n;
       warn("bench shaders --statistics: " + device.driver + " reports no statistic named like '" +
-           part + "'; it reports: " + list);
+           part + "'; it reports: " + comma_list(reported));
     }
 }
 
