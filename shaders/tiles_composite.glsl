@@ -16,10 +16,11 @@
 //
 // Per batch a pixel first finds the entries its ray may hit (may_cross, cheap), and the
 // workgroup then computes those (pixel, entry) pairs' exact hits with every invocation on a pair
-// of any pixel, up to kSlots pairs a round: each SIMD unit computes the hits of full rows of
-// pairs, where the pixels' own walks left most of its lanes idle (on lavapipe, whose 8-lane
-// units run every statement for all lanes, 35 % of the lanes of an aneurysm frame's tests had
-// a pair). Each pixel then takes its hits, in key order, into its window.
+// of any pixel, up to kSlots pairs a round (no more than it has invocations): each SIMD unit
+// computes the hits of full rows of pairs, where the pixels' own walks left most of its lanes
+// idle (on lavapipe, whose 8-lane units run every statement for all lanes, 35 % of the lanes of
+// an aneurysm frame's tests had a pair). Each pixel then takes its hits, in key order, into its
+// window.
 //
 // The including shader defines, before this file: kBatch and kSlots (at most 256);
 // load_primitive(lane, primitive, bound, far), which puts the primitive, its key's depth bound
@@ -35,7 +36,21 @@
 // direction), how near two hits of neighbouring primitives are one seam's (seam_twins below; 0:
 // never).
 
-layout(local_size_x = 16, local_size_y = 16) in;
+// Compiled with TILES_STRIPS (a choice of the host's, TileOptions::strips), a tile's pixels
+// are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
+// keys: a crowded tile is shared by four workgroups, and a workgroup waiting at a barrier holds
+// a quarter of the invocations. Where a pixel takes 240 registers (README, "Registers: what
+// the GPU compilers make of the composite"), an H100 SM runs one 256-invocation workgroup, so
+// that a barrier leaves it idle; it runs four of 64. Each key's primitive is loaded and its
+// blocks marked four times instead of once. The same pixels, the same hits in the same order:
+// the same bytes.
+#ifdef TILES_STRIPS
+const uint kStrips = 4;
+#else
+const uint kStrips = 1;
+#endif
+const uint kLanes = kTile * kTile / kStrips;  // a workgroup's invocations, one per pixel
+layout(local_size_x = kLanes) in;
 
 // The pixels' states between slices and walks hold kStateWindow pending hits: 16 where the
 // window's loops exit past the pending hits (GPUs), 8 where they run every trip (lavapipe, where
@@ -64,7 +79,7 @@ shared uint batch_primitive[kBatch];  // its primitive
 // per batch entry whose screen bounds cover it: a block walks only those, in key order, so a
 // small capsule costs the pixels near it instead of the whole tile's 256 (on lavapipe, where a
 // SIMD unit runs both sides of a branch, a skip inside the loop would save nothing).
-const uint kBlocks = 32;
+const uint kBlocks = kLanes / 8u;  // a workgroup's
 shared uint block_entries[kBlocks][kBatch / 32u];
 
 // Batch entries as bits, entry 32 w + b in bit b of word w, in key order.
@@ -103,24 +118,28 @@ shared uint batch_far;
 // what the pixel takes it into its window with, in two loads (see kNearWords). round_hits: per
 // pixel, a bit per pair of the round with a hit. Claimed slots, and whether a pixel has pairs
 // left, by the round's parity.
-shared uint slot_pair[kSlots];
-shared uvec4 slot_hit[kSlots];
-shared vec4 slot_colour[kSlots];
-shared uint round_hits[kTile * kTile];
+// A round computes a pair an invocation at most.
+const uint kRoundSlots = min(kSlots, kLanes);
+shared uint slot_pair[kRoundSlots];
+shared uvec4 slot_hit[kRoundSlots];
+shared vec4 slot_colour[kRoundSlots];
+shared uint round_hits[kLanes];
 shared uint round_claimed[2], round_more[2];
 // A pixel's pairs in one round: one bit each in round_hits.
 const uint kPairsPerRound = 32;
 
+// The pixel of the tile's `lane`th (in the tile's blocks of 4x2, four blocks a row; a strip is
+// eight consecutive blocks).
 uvec2 pixel_in_tile(uint lane) {
   const uint block = lane / 8u, k = lane % 8u;
   return uvec2((block % 4u) * 4u + k % 4u, (block / 4u) * 2u + k / 4u);
 }
 
 // Marks batch entry `entry` in the blocks whose pixels its screen bounds [lo, hi] cover
-// (covered_pixels, as binning's tiles) in the tile whose first pixel is `origin`. Bounds it
-// cannot use cover the whole tile.
+// (covered_pixels, as binning's tiles) in the workgroup's pixels, kTile wide, whose first pixel
+// is `origin`. Bounds it cannot use cover them all.
 void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
-  ivec2 p0 = ivec2(0), p1 = ivec2(int(kTile) - 1);
+  ivec2 p0 = ivec2(0), p1 = ivec2(int(kTile) - 1, int(kLanes / kTile) - 1);
   if (bounded) {
     ivec2 q0, q1;
     covered_pixels(lo, hi, q0, q1);
@@ -341,17 +360,20 @@ float t_per_z_of(vec3 direction, float steps) {
 
 void main() {
   load_frame_view();
-  const uint entry = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  const uint entry = group / kStrips, strip = group % kStrips;
   if (entry >= slicing.tile_count) return;
   const uint tile = slice_tiles[slicing.tile_offset + entry];
   const uvec2 tile_xy = uvec2(tile % view.tiles.x, tile / view.tiles.x);
-  const uint lane = gl_LocalInvocationIndex;
-  const uvec2 pixel = tile_xy * kTile + pixel_in_tile(lane);
+  const uint lane = gl_LocalInvocationIndex, tile_lane = strip * kLanes + lane;
+  // The workgroup's pixels: the tile's, or a strip of them.
+  const uvec2 origin = tile_xy * kTile + uvec2(0u, strip * (kLanes / kTile));
+  const uvec2 pixel = tile_xy * kTile + pixel_in_tile(tile_lane);
   const uint block = lane / 8u;
   const bool inside = pixel.x < view.size.x && pixel.y < view.size.y;
   const uint index = pixel.y * view.size.x + pixel.x;
   // The pixel's state between slices and walks: its tile's slot, the pixel's lane in it.
-  const uint state = tile_slots[tile] * (kTile * kTile) + lane;
+  const uint state = tile_slots[tile] * (kTile * kTile) + tile_lane;
   const uvec2 whole = ranges[tile];
   const uint start = slicing.walk > 0u ? clamp(walk_first[tile], whole.x, whole.y) : whole.x;
   const uint begin = min(start + slicing.slice * slicing.slice_keys, whole.y);
@@ -396,7 +418,8 @@ void main() {
   uint round = 0u;  // the rounds of pairs so far, the same in every invocation
   for (uint first = begin; first < end; first += kBatch) {
     const uint count = min(kBatch, end - first), parity = ((first - begin) / kBatch) & 1u;
-    block_entries[lane / (kBatch / 32u)][lane % (kBatch / 32u)] = 0u;
+    for (uint k = lane; k < kBlocks * kWords; k += kLanes)
+      block_entries[k / kWords][k % kWords] = 0u;
     // Last read two batches ago, before the barriers of the batch between.
     if (lane == 0u) busy[parity] = 0u, batch_far = 0u;
     barrier();
@@ -404,20 +427,21 @@ void main() {
       const uint next = first + kBatch;
       next_bound = next < end ? key_depth(keys[next]) : 1.0 / 0.0;
     }
-    if (lane < count) {
-      const uint primitive = values[first + lane];
-      batch_primitive[lane] = primitive;
+    for (uint e = lane; e < count; e += kLanes) {
+      const uint primitive = values[first + e];
+      batch_primitive[e] = primitive;
       vec2 lo, hi;
       float z_near, z_far;
       const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
       const float far = bounded ? z_far : 1.0 / 0.0;
-      load_primitive(lane, primitive, key_depth(keys[first + lane]), far);
-      mark_blocks(lane, bounded, lo, hi, ivec2(tile_xy * kTile));
+      load_primitive(e, primitive, key_depth(keys[first + e]), far);
+      mark_blocks(e, bounded, lo, hi, ivec2(origin));
       atomicMax(batch_far, floatBitsToUint(max(far, 0.0)));
     }
     barrier();
     // A batch that holds a whole chunk gives its far depth (slices and walks again start on
     // chunks; slices of fewer keys than a batch leave the chunks unknown, walked again).
+    // (Every strip of a tile that walks a chunk writes the same value.)
     if (lane == 0u && (first - whole.x) % kBatch == 0u && (count == kBatch || end == whole.y))
       chunk_far[whole.x / kBatch + tile + (first - whole.x) / kBatch] = uintBitsToFloat(batch_far);
     // The entries this pixel's ray may hit, in key order: bit i of near[w] for entry 32 w + i.
@@ -446,7 +470,7 @@ void main() {
       if (left > 0u) {
         const uint want = min(left, kPairsPerRound);
         base = atomicAdd(round_claimed[r], want);
-        take = base < kSlots ? min(want, kSlots - base) : 0u;
+        take = base < kRoundSlots ? min(want, kRoundSlots - base) : 0u;
       }
       round_hits[lane] = 0u;
       if (lane == 0u) round_claimed[r ^ 1u] = 0u, round_more[r ^ 1u] = 0u;
@@ -458,12 +482,12 @@ void main() {
       left -= take;
       if (left > 0u) round_more[r] = 1u;  // a flag: every writer writes the same value
       barrier();
-      if (lane < min(round_claimed[r], kSlots)) {
+      if (lane < min(round_claimed[r], kRoundSlots)) {
         const uint pair = slot_pair[lane];
         const uint p = pair & 0xFFu, i = (pair >> 8u) & 0xFFu;
         float t;
         vec4 c;
-        const vec3 ray = ray_direction(tile_xy * kTile + pixel_in_tile(p));
+        const vec3 ray = ray_direction(tile_xy * kTile + pixel_in_tile(strip * kLanes + p));
         if (first_hit(i, ray, t, c)) {
           const float bound = bound_t(depth_bound(i), t_per_z_of(ray, -1.0));
           slot_hit[lane] = uvec4(floatBitsToUint(t), floatBitsToUint(bound),

@@ -529,6 +529,54 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
   expect_same(triangles, "triangles");
 }
 
+// Four workgroups a tile, each over a strip of 16x4 pixels, composite the same pixels with the
+// same hits in the same order as one workgroup a tile: the same bytes, hits, walks and
+// overflows. The aneurysm from afar in an image whose last row and column of tiles are cut
+// (150x110: the last row's last strip has no pixel on the image), through walks again, as
+// capsules and as triangles, with the loops of fixed trips in slices of 64 keys and with the
+// loops that exit in one slice (walks again with the deep window; the triangles' 16-hit window
+// has room enough here).
+TEST(Tiles, StripsOfATileGiveTheSameBytes) {
+  vk::Context ctx;
+  const TransferFunction tf = transfer_function_preset("transparent");
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
+  const Bounds bounds = compute_bounds(lines);
+  const Camera camera = frame_bounds(bounds, 150.0 / 110.0, 30, 20, 1.0);
+  const auto expect_same = [&](vk::TileRenderer& renderer, const std::string& what,
+                               bool walks_again) {
+    vk::TileOptions o;
+    o.width = 150, o.height = 110;
+    // A frame first, so that both below find the pixels' states' buffer made (the first walk
+    // that needs it composites its tiles again: more workgroups).
+    renderer.render(camera, tf, o);
+    const vk::TileFrame whole = renderer.render(camera, tf, o);
+    o.strips = true;
+    const vk::TileFrame strips = renderer.render(camera, tf, o);
+    EXPECT_GE(whole.stats.walks, walks_again ? 2u : 1u) << what;
+    EXPECT_GT(whole.stats.hits, 5000u) << what;
+    EXPECT_EQ(strips.stats.composite_workgroups, 4 * whole.stats.composite_workgroups) << what;
+    EXPECT_EQ(whole.image.pixels, strips.image.pixels) << what;
+    EXPECT_EQ(whole.depth_complexity, strips.depth_complexity) << what;
+    EXPECT_EQ(whole.stats.hits, strips.stats.hits) << what;
+    EXPECT_EQ(whole.stats.walks, strips.stats.walks) << what;
+    EXPECT_EQ(whole.stats.window_overflows, strips.stats.window_overflows) << what;
+  };
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
+  TubeOptions tube;
+  tube.radius = 0.004f;
+  const TubeMesh mesh = build_tubes(lines, tube);
+  for (const bool exits : {false, true}) {
+    const vk::WindowLoops loops = exits ? vk::WindowLoops::exits : vk::WindowLoops::fixed;
+    const uint32_t slice_keys = exits ? 0 : 64;
+    const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
+    vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
+    expect_same(over_capsules, "capsules" + how, true);
+    vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
+    expect_same(over_triangles, "triangles" + how, !exits);
+  }
+}
+
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments
 // (clouds: most shorter than the radius; convection) seen whole and zoomed in, and on tube
 // meshes, fewer keys and the same bytes, hits and depth complexity as binning by the bounds

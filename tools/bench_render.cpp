@@ -139,7 +139,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
         tiles_frames.push_back({{"keys", frame.stats["keys"]},
                                 {"max_tile_keys", frame.stats["max_tile_keys"]},
                                 {"crowded_tiles", frame.stats["crowded_tiles"]},
-                                {"walks", frame.stats["walks"]}});
+                                {"walks", frame.stats["walks"]},
+                                {"workgroups", frame.stats["composite_workgroups"]}});
         const std::vector<double> walks = frame.stats["walk_ms"].get<std::vector<double>>();
         double again = 0;
         for (size_t w = 1; w < walks.size(); ++w) again += walks[w];
@@ -196,7 +197,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 // subgroup path (tiles takes subgroups where the device has them, except on lavapipe: the two
 // paths' A/B), tiles-triangles is tiles over the tube mesh (comparable with the reference to the
 // last bit of coverage), tiles-raster-order is tiles dispatching every tile in raster order
-// instead of the crowded ones first (the A/B of that order).
+// instead of the crowded ones first (the A/B of that order), tiles-strips is tiles with four
+// workgroups a tile, each over a strip of 16x4 pixels (the A/B of workgroups of 64 against 256).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -208,6 +210,7 @@ constexpr BenchVariant kBenchVariants[] = {
     {"tiles-subgroups", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "subgroups"; }},
     {"tiles-triangles", "tiles", [](TechniqueOptions& o) { o.tiles_geometry = "triangles"; }},
     {"tiles-raster-order", "tiles", [](TechniqueOptions& o) { o.tiles_most_keys_first = false; }},
+    {"tiles-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = true; }},
 };
 
 const BenchVariant* variant_of(const std::string& name) {

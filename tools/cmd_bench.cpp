@@ -449,9 +449,10 @@ Command add_bench(CLI::App& app) {
           "--techniques", render->techniques,
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
           "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
-          "path, tiles-triangles, tiles over the tube mesh, and tiles-raster-order, tiles "
-          "dispatching its tiles in raster order, when named; those this machine "
-          "cannot run are listed as skipped, with the reason)")
+          "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
+          "dispatching its tiles in raster order, and tiles-strips, tiles with four workgroups "
+          "a tile, when named; those this machine cannot run are listed as skipped, with the "
+          "reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,

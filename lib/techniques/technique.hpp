@@ -85,6 +85,9 @@ struct TechniqueOptions {
   // The composite takes the crowded tiles first (false: every tile in raster order; bench
   // render's tiles-raster-order, no command-line option).
   bool tiles_most_keys_first = true;
+  // The composite's workgroups take strips of 16x4 pixels, four a tile (bench render's
+  // tiles-strips, no command-line option).
+  bool tiles_strips = false;
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
   // in bands of tile rows to stay within it.
   uint64_t memory_budget = 0;

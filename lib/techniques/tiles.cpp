@@ -57,6 +57,7 @@ class Tiles : public PreparedTechnique {
     }
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
+    options_.strips = o.tiles_strips;
     memory_budget_ = o.memory_budget;
   }
 
@@ -92,6 +93,7 @@ class Tiles : public PreparedTechnique {
         {"walk_skipped_keys", s.walk_skipped_keys},
         {"max_tile_keys", s.max_tile_keys},
         {"crowded_tiles", s.crowded_tiles},
+        {"composite_workgroups", s.composite_workgroups},
         {"groups", s.groups},
         {"rebins", s.rebins},
         {"slices", s.slices},

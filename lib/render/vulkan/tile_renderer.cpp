@@ -36,6 +36,8 @@ constexpr uint32_t kNoWalkAgain = 0xFFFFFFFFu;
 // A tile with more than this many times the mean keys of a walk's tiles is crowded: the
 // composite dispatches it first (TileOptions::most_keys_first).
 constexpr uint64_t kCrowded = 8;
+// Workgroups a tile with TileOptions::strips (kStrips in shaders/tiles_composite.glsl).
+constexpr uint32_t kStrips = 4;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
 constexpr uint64_t kKeyBytes = 18;
@@ -105,8 +107,11 @@ struct TileRenderer::State {
   PixelTargets targets;
   BufferSet set;
   // bin, ranges, composite; and where the window loops exit, the composite with the deeper
-  // window for walks again over tiles of one slice (shaders/tiles_composite.glsl)
-  std::array<VkPipeline, 4> pipelines{};
+  // window for walks again over tiles of one slice (shaders/tiles_composite.glsl); then the two
+  // composites again over strips of tiles (TileOptions::strips), made when first used.
+  static constexpr size_t kMadeAtInit = 4;  // the rest: when first used
+  std::array<std::string, 6> shaders;
+  std::array<VkPipeline, 6> pipelines{};
   VkQueryPool queries = VK_NULL_HANDLE;
 
   State(Context& c, bool sort_subgroups) : ctx(c), sorter(c, sort_subgroups) {}
@@ -114,6 +119,13 @@ struct TileRenderer::State {
   void init(const std::vector<float>& vertex_words, const std::vector<uint32_t>& primitive_words,
             uint64_t primitives, uint32_t vertex_stride, uint64_t max_buffer_bytes,
             uint32_t slice_keys_wanted, bool triangles, WindowLoops window_loops);
+
+  // Pipeline i, made now if it was left for its first use ("": none).
+  VkPipeline pipeline(size_t i) {
+    if (!pipelines[i] && !shaders[i].empty())
+      pipelines[i] = create_compute_pipeline(ctx.device(), set.layout, shaders[i].c_str());
+    return pipelines[i];
+  }
 
   void bind() {
     write_buffer_set(ctx.device(), set.set,
@@ -197,13 +209,15 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   // With loops of fixed trips, the capsules' ends in 64-bit words where the device has them
   // (lavapipe: one shared load instead of two, tiles_composite.comp).
   const bool wide = !exits && !triangles && ctx.info().shader_int64;
-  const std::array<std::string, 4> shaders = {
-      triangles ? "tiles_bin_triangles.comp" : "tiles_bin.comp", "tiles_ranges.comp",
-      exits  ? composite + ":exits"
-      : wide ? composite + ":wide"
-             : composite,
-      exits ? composite + ":deep" : ""};
-  for (size_t i = 0; i < 4; ++i)
+  const std::string variant = exits ? ":exits" : wide ? ":wide" : "";
+  shaders = {triangles ? "tiles_bin_triangles.comp" : "tiles_bin.comp",
+             "tiles_ranges.comp",
+             composite + variant,
+             exits ? composite + ":deep" : "",
+             composite + (variant.empty() ? ":strips" : variant + "-strips"),
+             exits ? composite + ":deep-strips" : ""};
+  // The composites of strips are made when a frame first asks for them.
+  for (size_t i = 0; i < kMadeAtInit; ++i)
     if (!shaders[i].empty())
       pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str());
   queries = ctx.create_timestamp_pair();
@@ -483,10 +497,11 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
       s.bind();
     }
     std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
+    // Walks again over tiles of one slice take the deeper window where there is one.
+    const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
+    const VkPipeline pipeline = s.pipeline((deep ? 3 : 2) + (o.strips ? 2 : 0));
     const double ms = pass([&](VkCommandBuffer cmd) {
-      // Walks again over tiles of one slice take the deeper window where there is one.
-      const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[deep ? 3 : 2]);
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
       for (uint32_t k = 0; k < slices; ++k) {
         const auto [offset, count] = slice_lists[k];
         const SliceInfo info{k, slice_keys, offset, count, 2, walk};
@@ -494,7 +509,9 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
         barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
         // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
-        vkCmdDispatch(cmd, std::min<uint32_t>(count, 65535), (count + 65534) / 65535, 1);
+        const uint32_t groups = count * (o.strips ? kStrips : 1);
+        st.composite_workgroups += groups;
+        vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
         barrier(
             cmd,
             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,

@@ -46,6 +46,13 @@ struct TileOptions {
   // together. false: all in raster order (bench render's tiles-raster-order, the A/B). The image
   // is the same either way: each workgroup writes its own tile.
   bool most_keys_first = true;
+  // Each tile is composited by four workgroups of 64 invocations, a strip of 16x4 pixels each,
+  // instead of one of 256 (shaders/tiles_composite.glsl, TILES_STRIPS): a crowded tile is shared
+  // by four, and a workgroup waiting at a barrier idles a quarter of the invocations. Each walks
+  // all of the tile's keys. The image is the same either way (bench render's tiles-strips, the
+  // A/B; on lavapipe the composite takes 17 and 21 % longer, paper-small's aneurysm and
+  // convection at 640x360).
+  bool strips = false;
   Shading shading;
 };
 
@@ -69,6 +76,7 @@ struct TileStats {
   uint32_t walks = 1;          // the most walks over a tile's keys (more: a full window, exact)
   uint64_t walk_skipped_keys = 0;  // keys the walks again started past (their pixels done there)
   uint32_t groups = 1;             // the most groups of tiles in a band (their states fit a buffer)
+  uint64_t composite_workgroups = 0;  // dispatched, all bands, walks and slices (strips: 4 a tile)
   // Per walk (0: the first), summed over bands and groups: composite GPU ms and tiles walked.
   std::vector<double> walk_ms;
   std::vector<uint64_t> walk_tiles;
