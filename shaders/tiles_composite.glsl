@@ -40,10 +40,10 @@
 // are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
 // keys: a crowded tile is shared by four workgroups, and a workgroup waiting at a barrier holds
 // a quarter of the invocations. Where a pixel takes 240 registers (README, "Registers: what
-// the GPU compilers make of the composite"), an H100 SM runs one 256-invocation workgroup, so
-// that a barrier leaves it idle; it runs four of 64. Each key's primitive is loaded and its
-// blocks marked four times instead of once. The same pixels, the same hits in the same order:
-// the same bytes.
+// the GPU compilers make of the composite"), a GPU core (an AMD CU; an H100 SM, if NVIDIA's
+// compiler needs as many) runs one 256-invocation workgroup, which a barrier leaves idle; it
+// runs four of 64. Each key's screen bounds are computed four times instead of once. The same
+// pixels, the same hits in the same order: the same bytes.
 #ifdef TILES_STRIPS
 const uint kStrips = 4;
 #else
@@ -137,19 +137,20 @@ uvec2 pixel_in_tile(uint lane) {
 
 // Marks batch entry `entry` in the blocks whose pixels its screen bounds [lo, hi] cover
 // (covered_pixels, as binning's tiles) in the workgroup's pixels, kTile wide, whose first pixel
-// is `origin`. Bounds it cannot use cover them all.
-void mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
+// is `origin`. Bounds it cannot use cover them all. Whether it marked any.
+bool mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
   ivec2 p0 = ivec2(0), p1 = ivec2(int(kTile) - 1, int(kLanes / kTile) - 1);
   if (bounded) {
     ivec2 q0, q1;
     covered_pixels(lo, hi, q0, q1);
     p0 = max(q0 - origin, p0);
     p1 = min(q1 - origin, p1);
-    if (p0.x > p1.x || p0.y > p1.y) return;
+    if (p0.x > p1.x || p0.y > p1.y) return false;
   }
   for (int by = p0.y / 2; by <= p1.y / 2; ++by)
     for (int bx = p0.x / 4; bx <= p1.x / 4; ++bx)
       atomicOr(block_entries[by * 4 + bx][entry / 32u], 1u << (entry % 32u));
+  return true;
 }
 
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
@@ -434,8 +435,9 @@ void main() {
       float z_near, z_far;
       const bool bounded = screen_bounds(primitive, lo, hi, z_near, z_far);
       const float far = bounded ? z_far : 1.0 / 0.0;
-      load_primitive(e, primitive, key_depth(keys[first + e]), far);
-      mark_blocks(e, bounded, lo, hi, ivec2(origin));
+      // Only the blocks that an entry marks read it (a strip's: a quarter of the tile's).
+      if (mark_blocks(e, bounded, lo, hi, ivec2(origin)))
+        load_primitive(e, primitive, key_depth(keys[first + e]), far);
       atomicMax(batch_far, floatBitsToUint(max(far, 0.0)));
     }
     barrier();

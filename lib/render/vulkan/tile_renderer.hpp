@@ -50,7 +50,7 @@ struct TileOptions {
   // instead of one of 256 (shaders/tiles_composite.glsl, TILES_STRIPS): a crowded tile is shared
   // by four, and a workgroup waiting at a barrier idles a quarter of the invocations. Each walks
   // all of the tile's keys. The image is the same either way (bench render's tiles-strips, the
-  // A/B; on lavapipe the composite takes 17 and 21 % longer, paper-small's aneurysm and
+  // A/B; on lavapipe the composite takes 10 to 33 % longer, paper-small's aneurysm and
   // convection at 640x360).
   bool strips = false;
   Shading shading;
