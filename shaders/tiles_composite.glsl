@@ -155,10 +155,12 @@ bool mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
 
 layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
-// for the tiles slice_tiles[tile_offset, tile_offset + tile_count), one workgroup each. `walk`
-// > 0: a walk again over tiles whose pixels left hits for it (their state carries over).
+// for the tiles slice_tiles[tile_offset, tile_offset + tile_count). `walk` > 0: a walk again
+// over tiles whose pixels left hits for it (their state carries over). The first `strip_tiles`
+// of them are the strips build's, four workgroups each; the others, the build of whole tiles',
+// one workgroup each (two dispatches of one slice, which may run at once).
 layout(set = 0, binding = 10, std430) readonly buffer Slice {
-  uint slice, slice_keys, tile_offset, tile_count, sentinel, walk;
+  uint slice, slice_keys, tile_offset, tile_count, sentinel, walk, strip_tiles;
 } slicing;
 layout(set = 0, binding = 13, std430) readonly buffer SliceTiles { uint slice_tiles[]; };
 const uint kDone = 1u, kWritten = 2u;  // PixelState.flags: opaque enough; pixel written out
@@ -362,8 +364,13 @@ float t_per_z_of(vec3 direction, float steps) {
 void main() {
   load_frame_view();
   const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+#ifdef TILES_STRIPS
   const uint entry = group / kStrips, strip = group % kStrips;
+  if (entry >= slicing.strip_tiles) return;
+#else
+  const uint entry = slicing.strip_tiles + group, strip = 0u;
   if (entry >= slicing.tile_count) return;
+#endif
   const uint tile = slice_tiles[slicing.tile_offset + entry];
   const uvec2 tile_xy = uvec2(tile % view.tiles.x, tile / view.tiles.x);
   const uint lane = gl_LocalInvocationIndex, tile_lane = strip * kLanes + lane;

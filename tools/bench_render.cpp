@@ -198,7 +198,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 // paths' A/B), tiles-triangles is tiles over the tube mesh (comparable with the reference to the
 // last bit of coverage), tiles-raster-order is tiles dispatching every tile in raster order
 // instead of the crowded ones first (the A/B of that order), tiles-strips is tiles with four
-// workgroups a tile, each over a strip of 16x4 pixels (the A/B of workgroups of 64 against 256).
+// workgroups a tile, each over a strip of 16x4 pixels, and tiles-crowded-strips with four for
+// the crowded tiles and the small walks again (the A/B of workgroups of 64 against 256).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -210,7 +211,8 @@ constexpr BenchVariant kBenchVariants[] = {
     {"tiles-subgroups", "tiles", [](TechniqueOptions& o) { o.tiles_sort = "subgroups"; }},
     {"tiles-triangles", "tiles", [](TechniqueOptions& o) { o.tiles_geometry = "triangles"; }},
     {"tiles-raster-order", "tiles", [](TechniqueOptions& o) { o.tiles_most_keys_first = false; }},
-    {"tiles-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = true; }},
+    {"tiles-crowded-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = "crowded"; }},
+    {"tiles-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = "all"; }},
 };
 
 const BenchVariant* variant_of(const std::string& name) {

@@ -450,8 +450,9 @@ Command add_bench(CLI::App& app) {
           "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
           "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
           "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
-          "dispatching its tiles in raster order, and tiles-strips, tiles with four workgroups "
-          "a tile, when named; those this machine cannot run are listed as skipped, with the "
+          "dispatching its tiles in raster order, tiles-strips, tiles with four workgroups "
+          "a tile, and tiles-crowded-strips, with four for the crowded tiles and the walks "
+          "again, when named; those this machine cannot run are listed as skipped, with the "
           "reason)")
       ->delimiter(',');
   rendering

@@ -85,9 +85,10 @@ struct TechniqueOptions {
   // The composite takes the crowded tiles first (false: every tile in raster order; bench
   // render's tiles-raster-order, no command-line option).
   bool tiles_most_keys_first = true;
-  // The composite's workgroups take strips of 16x4 pixels, four a tile (bench render's
-  // tiles-strips, no command-line option).
-  bool tiles_strips = false;
+  // The tiles whose composite takes four workgroups, a strip of 16x4 pixels each: none |
+  // crowded | all (vk::TileStrips; bench render's tiles-crowded-strips and tiles-strips, no
+  // command-line option).
+  std::string tiles_strips = "none";
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
   // in bands of tile rows to stay within it.
   uint64_t memory_budget = 0;

@@ -15,12 +15,20 @@
 namespace linebake {
 namespace {
 
+vk::TileStrips strips_of(const std::string& name) {
+  if (name == "none") return vk::TileStrips::none;
+  if (name == "crowded") return vk::TileStrips::crowded;
+  if (name == "all") return vk::TileStrips::all;
+  throw UsageError("tiles: the strips are none, crowded or all, not '" + name + "'");
+}
+
 class Tiles : public PreparedTechnique {
  public:
   Tiles(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
       : context_(o, false), triangles_(o.tiles_geometry == "triangles") {
     if (o.tiles_sort != "auto" && o.tiles_sort != "subgroups" && o.tiles_sort != "shared")
       throw UsageError("tiles: the sort is auto, subgroups or shared, not '" + o.tiles_sort + "'");
+    options_.strips = strips_of(o.tiles_strips);
     // auto: the subgroup path where the device has it, except on lavapipe, whose subgroup
     // operations are emulated across its 8-lane SIMD units: there the shared-memory path sorted
     // paper-small's keys 20 to 30 % faster (README, "Sorting").
@@ -57,7 +65,6 @@ class Tiles : public PreparedTechnique {
     }
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
-    options_.strips = o.tiles_strips;
     memory_budget_ = o.memory_budget;
   }
 

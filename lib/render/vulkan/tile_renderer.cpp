@@ -36,7 +36,7 @@ constexpr uint32_t kNoWalkAgain = 0xFFFFFFFFu;
 // A tile with more than this many times the mean keys of a walk's tiles is crowded: the
 // composite dispatches it first (TileOptions::most_keys_first).
 constexpr uint64_t kCrowded = 8;
-// Workgroups a tile with TileOptions::strips (kStrips in shaders/tiles_composite.glsl).
+// Workgroups a tile in strips (kStrips in shaders/tiles_composite.glsl; TileOptions::strips).
 constexpr uint32_t kStrips = 4;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
 // radix sort's scratch (8 bytes a key and its digit counts).
@@ -84,9 +84,10 @@ struct CompositeStats {
 // Slice `slice` composites keys [slice * slice_keys, (slice + 1) * slice_keys) of the tiles
 // slice_tiles[tile_offset, tile_offset + tile_count): those that have keys there (slice 0: all).
 // `sentinel`: the trips of the loop that tells an invocation cut short (tiles_composite.glsl);
-// `walk` > 0: a walk again over tiles whose pixels left hits for it.
+// `walk` > 0: a walk again over tiles whose pixels left hits for it; the first `strip_tiles` of
+// the tiles go to the composite of strips (TileOptions::strips), the rest to the other.
 struct SliceInfo {
-  uint32_t slice, slice_keys, tile_offset, tile_count, sentinel, walk;
+  uint32_t slice, slice_keys, tile_offset, tile_count, sentinel, walk, strip_tiles;
 };
 
 }  // namespace
@@ -472,23 +473,38 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     // kCrowded times the mean keys to walk) go first, the most keys first, and the rest follow in
     // raster order, in which neighbouring tiles, which share primitives, run together.
     std::vector<uint32_t> order = walk_tiles;
-    if (o.most_keys_first) {
+    size_t crowded_count = 0;
+    if (o.most_keys_first || o.strips == TileStrips::crowded) {
       const uint64_t crowded = crowded_keys(walk_tiles, walk);
       const auto first = std::stable_partition(
           order.begin(), order.end(), [&](uint32_t t) { return keys_walked(t, walk) > crowded; });
-      std::stable_sort(order.begin(), first, [&](uint32_t a, uint32_t b) {
-        return keys_walked(a, walk) > keys_walked(b, walk);
-      });
+      crowded_count = size_t(first - order.begin());
+      if (o.most_keys_first)
+        std::stable_sort(order.begin(), first, [&](uint32_t a, uint32_t b) {
+          return keys_walked(a, walk) > keys_walked(b, walk);
+        });
     }
+    // The first `strip_count` tiles of `order` go to the composite of strips.
+    const size_t strip_count = o.strips == TileStrips::all       ? order.size()
+                               : o.strips != TileStrips::crowded ? 0
+                               : order.size() < o.few_tiles      ? order.size()
+                                                                 : crowded_count;
     // Each slice dispatches only the tiles with keys in it (the first: every tile, which starts
     // its pixels), so one crowded tile does not cost a dispatch of the whole band per slice.
     std::vector<uint32_t> slice_tiles;
-    std::vector<std::pair<uint32_t, uint32_t>> slice_lists;  // offset, count
+    struct SliceList {
+      uint32_t offset, count, strip_tiles;
+    };
+    std::vector<SliceList> slice_lists;
     for (uint32_t k = 0; k < slices; ++k) {
-      const size_t offset = slice_tiles.size();
-      for (uint32_t t : order)
-        if (k == 0 || keys_walked(t, walk) > uint64_t(k) * slice_keys) slice_tiles.push_back(t);
-      slice_lists.emplace_back(uint32_t(offset), uint32_t(slice_tiles.size() - offset));
+      SliceList list{uint32_t(slice_tiles.size()), 0, 0};
+      for (size_t i = 0; i < order.size(); ++i) {
+        if (k > 0 && keys_walked(order[i], walk) <= uint64_t(k) * slice_keys) continue;
+        slice_tiles.push_back(order[i]);
+        ++list.count;
+        list.strip_tiles += i < strip_count;
+      }
+      slice_lists.push_back(list);
     }
     if (s.slice_tiles.size < slice_tiles.size() * 4) {
       ctx.destroy(s.slice_tiles);
@@ -499,19 +515,25 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
     std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
     // Walks again over tiles of one slice take the deeper window where there is one.
     const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-    const VkPipeline pipeline = s.pipeline((deep ? 3 : 2) + (o.strips ? 2 : 0));
+    const VkPipeline tiles_whole = s.pipeline(deep ? 3 : 2);
+    const VkPipeline tiles_strips = strip_count > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
     const double ms = pass([&](VkCommandBuffer cmd) {
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+      // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
+      const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {
+        if (groups == 0) return;
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+        vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
+        st.composite_workgroups += groups;
+      };
       for (uint32_t k = 0; k < slices; ++k) {
-        const auto [offset, count] = slice_lists[k];
-        const SliceInfo info{k, slice_keys, offset, count, 2, walk};
+        const SliceList& list = slice_lists[k];
+        const SliceInfo info{k, slice_keys, list.offset, list.count, 2, walk, list.strip_tiles};
         vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
         barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-        // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
-        const uint32_t groups = count * (o.strips ? kStrips : 1);
-        st.composite_workgroups += groups;
-        vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
+        // The strips' tiles and the others', disjoint: the two dispatches may overlap.
+        dispatch(tiles_strips, list.strip_tiles * kStrips);
+        dispatch(tiles_whole, list.count - list.strip_tiles);
         barrier(
             cmd,
             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,

@@ -20,6 +20,17 @@
 
 namespace linebake::vk {
 
+// A tile in strips is composited by four workgroups of 64 invocations, a strip of 16x4 pixels
+// each, instead of one of 256 (shaders/tiles_composite.glsl, TILES_STRIPS): a crowded tile is
+// shared by four, and a workgroup waiting at a barrier idles a quarter of the invocations. Each
+// strip walks all of the tile's keys. none: no tile in strips; crowded: in each walk the crowded
+// tiles (more than 8 times the walk's mean keys), and every tile of a walk over fewer than 512
+// (walks again: few tiles, the rest of a GPU idle); all: every tile. The image is the same
+// either way (bench render's tiles-crowded-strips and tiles-strips, the A/B; on lavapipe all
+// tiles in strips take the composite 6 to 33 % longer, paper-small's aneurysm and convection at
+// 640x360).
+enum class TileStrips { none, crowded, all };
+
 struct TileOptions {
   int width = 1280, height = 720;
   bool early_termination = false;
@@ -46,13 +57,12 @@ struct TileOptions {
   // together. false: all in raster order (bench render's tiles-raster-order, the A/B). The image
   // is the same either way: each workgroup writes its own tile.
   bool most_keys_first = true;
-  // Each tile is composited by four workgroups of 64 invocations, a strip of 16x4 pixels each,
-  // instead of one of 256 (shaders/tiles_composite.glsl, TILES_STRIPS): a crowded tile is shared
-  // by four, and a workgroup waiting at a barrier idles a quarter of the invocations. Each walks
-  // all of the tile's keys. The image is the same either way (bench render's tiles-strips, the
-  // A/B; on lavapipe the composite takes 10 to 33 % longer, paper-small's aneurysm and
-  // convection at 640x360).
-  bool strips = false;
+  // Which tiles get four composite workgroups of 64 invocations, a strip of 16x4 pixels each,
+  // instead of one of 256 (TileStrips).
+  TileStrips strips = TileStrips::none;
+  // TileStrips::crowded takes every tile of a walk over fewer tiles than this in strips (tests
+  // lower it to 0: then only the crowded).
+  uint32_t few_tiles = 512;
   Shading shading;
 };
 
