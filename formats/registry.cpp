@@ -41,13 +41,9 @@ const FormatInfo& format_info(Format format) {
 Format parse_format(const std::string& name) {
   for (const FormatInfo& f : format_table())
     if (name == f.name) return f.format;
-  std::string known;
   std::vector<std::string> names;
-  for (const FormatInfo& f : format_table()) {
-    known += std::string(known.empty() ? "" : ", ") + f.name;
-    names.push_back(f.name);
-  }
-  throw UsageError("unknown format '" + name + "' (known: " + known + ")" +
+  for (const FormatInfo& f : format_table()) names.push_back(f.name);
+  throw UsageError("unknown format '" + name + "' (known: " + name_list(names) + ")" +
                    did_you_mean(name, names));
 }
 

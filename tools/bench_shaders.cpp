@@ -8,6 +8,7 @@
 
 #include "cli_contract.hpp"
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 #include "render/vulkan/shader_statistics.hpp"
 
 namespace linebake::cli {
@@ -26,12 +27,6 @@ bool matches(const std::string& name, const std::vector<std::string>& parts) {
   });
 }
 
-std::string comma_list(const std::vector<std::string>& names) {
-  std::string list;
-  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
-  return list;
-}
-
 std::string format_value(const vk::ShaderStatistic& s) {
   std::ostringstream out;
   if (s.integer)
@@ -48,7 +43,7 @@ std::vector<std::string> chosen_shaders(const std::vector<std::string>& parts) {
     if (std::none_of(all.begin(), all.end(),
                      [&](const std::string& n) { return matches(n, {part}); })) {
       throw UsageError("--shaders: no compute shader's name contains '" + part +
-                       "'; the compute shaders: " + comma_list(all));
+                       "'; the compute shaders: " + name_list(all));
     }
   std::vector<std::string> chosen;
   for (const std::string& n : all)
@@ -114,7 +109,7 @@ void bench_shaders(const BenchShadersArgs& args) {
     if (std::none_of(reported.begin(), reported.end(),
                      [&](const std::string& n) { return matches(n, {part}); })) {
       warn("bench shaders --statistics: " + device.driver + " reports no statistic named like '" +
-           part + "'; it reports: " + comma_list(reported));
+           part + "'; it reports: " + name_list(reported));
     }
 }
 

@@ -93,8 +93,7 @@ CLI::Validator grid_check() {
 }
 
 CLI::Validator one_of(const std::vector<std::string>& names) {
-  std::string list;
-  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  const std::string list = name_list(names);
   return CLI::Validator(
       [names, list](std::string& text) -> std::string {
         if (std::find(names.begin(), names.end(), text) != names.end()) return {};

@@ -97,11 +97,8 @@ Command add_convert(CLI::App& app) {
     for (const std::string& name : args->derive) {
       const auto& known = derived_attribute_names();
       if (std::find(known.begin(), known.end(), name) == known.end())
-        throw UsageError("--derive: unknown derived attribute '" + name + "' (" + [&] {
-          std::string list;
-          for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-          return list;
-        }() + ")" + did_you_mean(name, known));
+        throw UsageError("--derive: unknown derived attribute '" + name + "' (" + name_list(known) +
+                         ")" + did_you_mean(name, known));
     }
     const Format f = args->format;
     refuse_unless(sub, {"ascii"}, f == Format::vtk || f == Format::vtp, "for vtk and vtp outputs");
@@ -139,10 +136,8 @@ Command add_convert(CLI::App& app) {
     // Nothing silent: what the output format cannot hold is named.
     const std::vector<std::string> lost = lost_in_format(lines, *write.format, write);
     if (!lost.empty()) {
-      std::string list;
-      for (const std::string& l : lost) list += (list.empty() ? "" : ", ") + l;
       const std::string message = args->output + ": " + format_info(*write.format).name +
-                                  " cannot hold " + list + "; they are not written";
+                                  " cannot hold " + name_list(lost) + "; they are not written";
       if (args->strict) throw Error(message + " (--strict)");
       warn(message + " (hdf5, vtk and vtp keep line attributes and metadata)");
     }

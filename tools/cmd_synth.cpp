@@ -7,6 +7,7 @@
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/interrupt.hpp"
+#include "core/nearest.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "synth/synth.hpp"
@@ -60,10 +61,8 @@ Command add_synth(CLI::App& app) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     // What the format cannot hold is named (the generator's parameters are metadata).
-    std::string lost;
-    for (const std::string& l :
-         lost_in_format(generator->header(), resolve_output_format(args->output, write.format)))
-      lost += (lost.empty() ? "" : ", ") + l;
+    const std::string lost = name_list(
+        lost_in_format(generator->header(), resolve_output_format(args->output, write.format)));
     progress.finish();
     say(args->params.name + ": " + std::to_string(generator->lines_read()) + " lines, " +
         std::to_string(segments) + " segments");

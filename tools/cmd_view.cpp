@@ -405,10 +405,8 @@ Command add_view(CLI::App& app) {
   check_when_parsed(sub, [sub, options, on] {
     const auto& names = view_techniques();
     if (std::find(names.begin(), names.end(), options->technique) == names.end()) {
-      std::string list;
-      for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
-      throw UsageError("--technique: unknown technique '" + options->technique + "' (" + list +
-                       ")" + did_you_mean(options->technique, names));
+      throw UsageError("--technique: unknown technique '" + options->technique + "' (" +
+                       name_list(names) + ")" + did_you_mean(options->technique, names));
     }
     refuse_unless(sub, {"on"}, options->technique == "vrc", "with --technique vrc");
     if (*on == "gpu") options->technique = "vrc-gpu";

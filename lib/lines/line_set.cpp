@@ -187,8 +187,7 @@ void throw_unknown_attribute(const LineSet& lines, const std::string& option,
   for (const Attribute& a : lines.attributes) names.push_back(a.name);
   if (!vertex_only)
     for (const Attribute& a : lines.line_attributes) names.push_back(a.name);
-  std::string list;
-  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  const std::string list = name_list(names);
   throw UsageError(option + ": no " + (vertex_only ? "vertex " : "") + "attribute named '" + name +
                    "' in these lines (" + (list.empty() ? std::string("they have none") : list) +
                    ")" + did_you_mean(name, names));

@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/json_file.hpp"
+#include "core/nearest.hpp"
 #include "render/transfer_function.hpp"
 #include "techniques/technique.hpp"
 
@@ -85,12 +86,6 @@ std::vector<std::string> names_at(const nlohmann::json& j, const char* key,
 
 bool listed(const std::vector<std::string>& only, const std::string& name) {
   return only.empty() || std::find(only.begin(), only.end(), name) != only.end();
-}
-
-std::string joined(const std::vector<std::string>& names) {
-  std::string s;
-  for (const std::string& n : names) s += (s.empty() ? "" : ", ") + n;
-  return s;
 }
 
 std::string key_of(const std::vector<std::string>& parts) {
@@ -400,10 +395,10 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         render.key = key_of(rparts);
         if (!listed(t.only_datasets, d.name))
           render.skip_reason = "left out of this pipeline on " + d.name + " (it runs on " +
-                               joined(t.only_datasets) + ")";
+                               name_list(t.only_datasets) + ")";
         else if (!listed(t.only_transfer_functions, tf))
           render.skip_reason = "left out of this pipeline for " + tf + " (it runs with " +
-                               joined(t.only_transfer_functions) + ")";
+                               name_list(t.only_transfer_functions) + ")";
         else if (info.ray_tracing && !context.ray_tracing)
           render.skip_reason = "no Vulkan device with ray tracing";
         else if (!context.vulkan && (info.vulkan || (t.technique == "vrc" &&

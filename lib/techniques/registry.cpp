@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 #include "render/vulkan/context.hpp"
 #include "techniques/families.hpp"
 
@@ -145,9 +146,7 @@ std::vector<std::string> technique_names() {
 const Technique& find_technique(const std::string& name) {
   for (const Technique& t : techniques())
     if (t.info.name == name) return t;
-  std::string known;
-  for (const std::string& n : technique_names()) known += (known.empty() ? "" : ", ") + n;
-  throw Error("unknown technique '" + name + "' (" + known + ")");
+  throw Error("unknown technique '" + name + "' (" + name_list(technique_names()) + ")");
 }
 
 std::optional<std::string> technique_unavailable(const Technique& technique,
