@@ -1,6 +1,7 @@
 // tiles, pass 3, shared by the primitives' composite passes (tiles_composite.comp for capsules,
-// tiles_composite_triangles.comp): one workgroup per 16x16 tile walks the tile's primitives in
-// key order, a batch of 256 at a time through shared memory. Each pixel intersects its ray with
+// tiles_composite_triangles.comp): one workgroup per 16x16 tile (or four, one per strip of 16x4
+// pixels: TILES_STRIPS below) walks the tile's primitives in key order, a batch of 256 at a time
+// through shared memory. Each pixel intersects its ray with
 // the primitives whose screen bounds cover its block of 4x2 pixels and keeps its hits in a small
 // window sorted by (t, primitive). A hit is composited once no later primitive can come nearer:
 // every later key's depth bound is past it. When the window is full the farther of its last hit
@@ -104,8 +105,8 @@ void set_entry(inout uint words[kWords], uint entry, bool on) {
     if (k == entry / 32u) words[k] = on ? words[k] | bit : words[k] & ~bit;
 }
 
-// Whether a pixel of the tile may still take a hit after a batch, by the batch's parity (a flag
-// every such pixel stores): none, and the walk stops early (every pixel opaque enough, written
+// Whether a pixel of the workgroup may still take a hit after a batch, by the batch's parity (a
+// flag every such pixel stores): none, and the walk stops early (every pixel opaque enough, written
 // out, or past its floor).
 shared uint busy[2];
 // The depth bound of the first key after the batch (+inf: none in this slice), read once.

@@ -16,6 +16,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
+#include "core/nearest.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
 
@@ -391,8 +392,7 @@ the same memory).)doc")
            "(voxels + 1,) uint32, chords (c, 2) uint32 packed words, line_counts (z, y, x) "
            "uint8, density: list of (z, y, x) float32 levels.")
       .def("__repr__", [](const PyCache& c) {
-        std::string assets;
-        for (const std::string& a : c.reader().assets()) assets += (assets.empty() ? "" : ", ") + a;
+        const std::string assets = name_list(c.reader().assets());
         return "<linebake.Cache " + c.path() + (assets.empty() ? "" : ": " + assets) + ">";
       });
 

@@ -8,6 +8,7 @@
 #include "cli_contract.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 #include "formats/registry.hpp"
 #include "lines/derived.hpp"
 #include "lines/line_info.hpp"
@@ -140,10 +141,8 @@ void write(const PyLineSet& set, const std::string& path, const std::optional<st
   check_output_location(path);
   const std::vector<std::string> lost = lost_in_format(set.lines, *options.format, options);
   if (!lost.empty()) {
-    std::string list;
-    for (const std::string& l : lost) list += (list.empty() ? "" : ", ") + l;
     const std::string message = path + ": " + format_info(*options.format).name + " cannot hold " +
-                                list + "; they are not written";
+                                name_list(lost) + "; they are not written";
     if (strict) throw Error(message + " (strict)");
     PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1);
   }

@@ -34,7 +34,8 @@ constexpr uint32_t kChunkKeys = 256;
 // walk_again of a tile none of whose pixels left hits for another walk.
 constexpr uint32_t kNoWalkAgain = 0xFFFFFFFFu;
 // A tile with more than this many times the mean keys of a walk's tiles is crowded: the
-// composite dispatches it first (TileOptions::most_keys_first).
+// composite dispatches it first (TileOptions::most_keys_first), in strips with
+// TileStrips::crowded.
 constexpr uint64_t kCrowded = 8;
 // Workgroups a tile in strips (kStrips in shaders/tiles_composite.glsl; TileOptions::strips).
 constexpr uint32_t kStrips = 4;

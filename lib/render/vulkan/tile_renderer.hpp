@@ -54,8 +54,9 @@ struct TileOptions {
   // The composite's workgroups take the crowded tiles (more than 8 times the mean keys to walk)
   // first, the most keys first (longest processing time first), so that one does not start last
   // while the rest of the GPU runs out of tiles; the others follow in raster order, neighbours
-  // together. false: all in raster order (bench render's tiles-raster-order, the A/B). The image
-  // is the same either way: each workgroup writes its own tile.
+  // together. false: all in raster order (bench render's tiles-raster-order, the A/B), except
+  // that TileStrips::crowded still dispatches the crowded tiles first, in raster order. The image
+  // is the same either way: each workgroup writes its own pixels.
   bool most_keys_first = true;
   // Which tiles get four composite workgroups of 64 invocations, a strip of 16x4 pixels each,
   // instead of one of 256 (TileStrips).
