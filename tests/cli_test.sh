@@ -110,6 +110,20 @@ assert a['frames'][0]['keys'] == s['frames'][0]['keys'] > 0, (a, s)
 \"
 "
 check "--tiles-sort is auto, subgroups or shared" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique tiles --tiles-sort warp --size 32x24 -o "$tmp/x.png"
+check "tiles: strips give the bytes of whole tiles (the frame of the sort check), four workgroups a tile" bash -c "
+set -e
+for strips in all crowded; do
+  '$bin' render '$tmp/t.lbc.h5' --technique tiles --tiles-strips \$strips --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/tstrips_'\$strips.pfm --stats '$tmp/tstrips_'\$strips.json 2>/dev/null
+  cmp '$tmp/ts_auto.pfm' '$tmp/tstrips_'\$strips.pfm
+done
+python3 -c \"
+import json
+whole, every, crowded = (json.load(open(f))['frames'][0] for f in ('$tmp/ts_auto.json', '$tmp/tstrips_all.json', '$tmp/tstrips_crowded.json'))
+# 96x64: 24 tiles, fewer than 512, so crowded takes them all in strips too.
+assert whole['composite_workgroups'] >= 24 and every['composite_workgroups'] == 4 * whole['composite_workgroups'] == crowded['composite_workgroups'], (whole, every, crowded)
+\"
+"
+check "--tiles-strips is none, crowded or all" exit_code 1 "$bin" render "$tmp/t.lbc.h5" --technique tiles --tiles-strips some --size 32x24 -o "$tmp/x.png"
 check "voxels-only bake" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/v.lbc.h5' --assets voxels --grid 32 > /dev/null 2>&1"
 check "reference without tubes is an error" exit_code 2 "$bin" render "$tmp/v.lbc.h5" --technique reference --size 32x24 -o "$tmp/x.png"
 check "curves render without tubes" "$bin" render "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/v.png"

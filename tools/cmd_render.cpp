@@ -94,7 +94,8 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device, on = "cpu";
     bool no_early_termination = false, no_skip = false;
-    std::string rt_geometry, tiles_geometry = "capsules", tiles_sort = "auto";
+    std::string rt_geometry, tiles_geometry = "capsules", tiles_sort = "auto",
+                tiles_strips = "none";
     bool rebuild = false, no_compaction = false;
     int max_iterations = 1024;
     uint64_t capacity = 0;
@@ -138,6 +139,11 @@ Command add_render(CLI::App& app) {
                   "except lavapipe; default) | subgroups | shared (shared memory only); the same "
                   "order either way")
       ->check(one_of({"auto", "subgroups", "shared"}));
+  sub->add_option("--tiles-strips", args->tiles_strips,
+                  "tiles: the tiles composited by four workgroups of 64, a strip of 16x4 pixels "
+                  "each, instead of one of 256: none (default) | crowded (the crowded tiles and "
+                  "the walks over fewer than 512 tiles) | all; the same image either way")
+      ->check(one_of({"none", "crowded", "all"}));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
   sub->add_flag("--rtx-no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
@@ -271,6 +277,7 @@ Command add_render(CLI::App& app) {
     o.rt_geometry = args->rt_geometry;
     o.tiles_geometry = args->tiles_geometry;
     o.tiles_sort = args->tiles_sort;
+    o.tiles_strips = args->tiles_strips;
     o.rebuild = args->rebuild, o.compaction = !args->no_compaction;
     o.max_iterations = args->max_iterations;
     // The depth complexity costs embree and reference every hit of every ray: only when shown.

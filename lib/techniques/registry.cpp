@@ -108,7 +108,7 @@ const std::vector<Technique>& techniques() {
         "pixel in exact order",
         A{"lines"}, true, false, true,
         A{"device", "validation", "radius", "attribute", "early-termination",
-          "no-early-termination", "tiles-geometry", "tiles-sort"}},
+          "no-early-termination", "tiles-geometry", "tiles-sort", "tiles-strips"}},
        prepare_tiles,
        cpu_tracing_frame_bytes},
   };

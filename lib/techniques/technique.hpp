@@ -86,8 +86,8 @@ struct TechniqueOptions {
   // render's tiles-raster-order, no command-line option).
   bool tiles_most_keys_first = true;
   // The tiles whose composite takes four workgroups, a strip of 16x4 pixels each: none |
-  // crowded | all (vk::TileStrips; bench render's tiles-crowded-strips and tiles-strips, no
-  // command-line option).
+  // crowded | all (vk::TileStrips; render --tiles-strips, bench render's tiles-crowded-strips
+  // and tiles-strips).
   std::string tiles_strips = "none";
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
   // in bands of tile rows to stay within it.

@@ -25,6 +25,7 @@ const std::vector<std::string> kRenderKeywords = {"on",
                                                   "rtx_geometry",
                                                   "tiles_geometry",
                                                   "tiles_sort",
+                                                  "tiles_strips",
                                                   "rebuild",
                                                   "rtx_no_compaction",
                                                   "max_iterations",
@@ -84,6 +85,7 @@ TechniqueOptions technique_options(const py::kwargs& kw, int width, int height) 
   set_from(kw, "rtx_geometry", o.rt_geometry);
   set_from(kw, "tiles_geometry", o.tiles_geometry);
   set_from(kw, "tiles_sort", o.tiles_sort);
+  set_from(kw, "tiles_strips", o.tiles_strips);
   set_from(kw, "rebuild", o.rebuild);
   set_from(kw, "max_iterations", o.max_iterations);
   // The CLI's negative flags.

@@ -79,6 +79,20 @@ def test_availability_is_the_clis(baked):
                 linebake.render(cache, technique=name, size=SIZE)
 
 
+def test_tiles_strips_change_no_pixel(baked):
+    if not vulkan_available():
+        pytest.skip("no Vulkan device")
+    cache, _ = baked
+    whole, stats = linebake.render(cache, technique="tiles", tf="semi", size=SIZE, frame=FRAME)
+    strips, strip_stats = linebake.render(cache, technique="tiles", tf="semi", size=SIZE,
+                                          frame=FRAME, tiles_strips="all")
+    np.testing.assert_array_equal(strips, whole)
+    workgroups = stats["frames"][0]["composite_workgroups"]
+    assert workgroups >= 24 and strip_stats["frames"][0]["composite_workgroups"] == 4 * workgroups
+    with pytest.raises(linebake.UsageError, match="none, crowded or all"):
+        linebake.render(cache, technique="tiles", size=SIZE, tiles_strips="some")
+
+
 def test_technique_options_are_checked_as_the_cli_does(baked, tmp_path):
     cache, _ = baked
     with pytest.raises(linebake.UsageError) as caught:
