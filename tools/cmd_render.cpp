@@ -94,8 +94,8 @@ Command add_render(CLI::App& app) {
                                                     quality = "medium", hits = "filter";
     std::string sort = "heap", device, on = "cpu";
     bool no_early_termination = false, no_skip = false;
-    std::string rt_geometry, tiles_geometry = "capsules", tiles_sort = "auto",
-                tiles_strips = "none";
+    std::string rt_geometry, tiles_geometry = "capsules", tiles_sort = "auto";
+    std::string tiles_strips = "none";
     bool rebuild = false, no_compaction = false;
     int max_iterations = 1024;
     uint64_t capacity = 0;
