@@ -304,6 +304,26 @@ Camera looking_along_z() {
   return camera;
 }
 
+// The pixels of a size x size image of looking_along_z() at depth z: a pixel's width there, the
+// image's unit right (-x here) and down, and where a pixel's centre lies (that of pixel (32, 32)
+// of 64 half a pixel right of and below the image's centre).
+struct PixelGrid {
+  int size;
+  double z, pixel;
+  glm::dvec3 right, down;
+
+  glm::dvec3 centre_of(double x, double y) const {
+    const double middle = (size - 1) / 2.0;
+    return glm::dvec3(0, 0, z) + (x - middle) * pixel * right + (y - middle) * pixel * down;
+  }
+};
+
+PixelGrid pixel_grid(int size, double z) {
+  const Camera::ImagePlane plane = looking_along_z().image_plane(size, size);
+  return {size, z, 2 * plane.up.y * z / size, glm::normalize(plane.right),
+          -glm::normalize(plane.up)};
+}
+
 // Red at attribute 0 and blue at 1, with those opacities.
 TransferFunction red_to_blue(double red_opacity, double blue_opacity) {
   TransferFunction tf;
@@ -361,24 +381,20 @@ TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
 TEST(Tiles, ACapsuleBetweenPixelCentresHasNoKey) {
   const Camera camera = looking_along_z();
   const int size = 64;
-  const Camera::ImagePlane plane = camera.image_plane(size, size);
-  const double z = 4, pixel = 2 * plane.up.y * z / size;  // a pixel's width at depth z
+  const PixelGrid grid = pixel_grid(size, 4);
   vk::TileOptions o;
   o.width = size, o.height = size;
   vk::Context ctx;
   for (const bool on_centre : {false, true}) {
-    // Pixel (32, 32)'s centre lies half a pixel right of and below the image's centre (the
-    // image's right is -x here).
-    const glm::dvec3 centre =
-        glm::dvec3(0, 0, z) +
-        (on_centre ? 0.5 * pixel : 0.0) * (glm::normalize(plane.right) - glm::normalize(plane.up));
-    const glm::dvec3 along = 0.1 * pixel * glm::normalize(plane.right);
+    const double at = on_centre ? 32 : 31.5;
+    const glm::dvec3 centre = grid.centre_of(at, at);
+    const glm::dvec3 along = 0.1 * grid.pixel * grid.right;
     LineSet lines;
     for (const glm::dvec3 p : {centre - along, centre + along})
       lines.append_point(float(p.x), float(p.y), float(p.z));
     lines.end_line();
     lines.attributes = {{"v", {0.5f, 0.5f}}};
-    vk::TileRenderer renderer(ctx, build_capsule_segments(lines, float(0.1 * pixel), "v"));
+    vk::TileRenderer renderer(ctx, build_capsule_segments(lines, float(0.1 * grid.pixel), "v"));
     const vk::TileFrame frame = renderer.render(camera, red_to_blue(0.5, 0.5), o);
     EXPECT_EQ(frame.stats.keys, on_centre ? 1u : 0u) << "on centre " << on_centre;
     EXPECT_EQ(frame.stats.hits, on_centre ? 1u : 0u) << "on centre " << on_centre;
@@ -421,14 +437,12 @@ void expect_the_same_frame(const TestedAndAll& f, const std::string& what) {
 TEST(Tiles, ShortCapsulesGetKeysOnlyWhereAPixelMayCrossTheirSurface) {
   const Camera camera = looking_along_z();
   const int size = 64;
-  const Camera::ImagePlane plane = camera.image_plane(size, size);
-  const double z = 4, pixel = 2 * plane.up.y * z / size;  // a pixel's width at depth z
-  // Pixel (32, 32)'s centre lies half a pixel right of and below the image's centre.
-  const glm::dvec3 right = glm::normalize(plane.right), up = glm::normalize(plane.up);
-  const glm::dvec3 centre = glm::dvec3(0, 0, z) + 0.5 * pixel * (right - up);
+  const PixelGrid grid = pixel_grid(size, 4);
+  const glm::dvec3 centre = grid.centre_of(32, 32);
+  const double pixel = grid.pixel;
   LineSet lines;
   for (int k = 0; k <= 8; ++k) {
-    const glm::dvec3 p = centre + (k - 3.5) / 8 * pixel * right;
+    const glm::dvec3 p = centre + (k - 3.5) / 8 * pixel * grid.right;
     lines.append_point(float(p.x), float(p.y), float(p.z));
   }
   lines.end_line();
@@ -452,13 +466,9 @@ TEST(Tiles, ShortCapsulesGetKeysOnlyWhereAPixelMayCrossTheirSurface) {
 TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
   const Camera camera = looking_along_z();
   const int size = 64;
-  const Camera::ImagePlane plane = camera.image_plane(size, size);
-  const double z = 4, pixel = 2 * plane.up.y * z / size;  // a pixel's width at depth z
-  const glm::dvec3 right = glm::normalize(plane.right), down = -glm::normalize(plane.up);
-  // Pixel (32, 32)'s centre lies half a pixel right of and below the image's centre.
-  const auto centre_of = [&](int x, int y) {
-    return glm::dvec3(0, 0, z) + (x - 31.5) * pixel * right + (y - 31.5) * pixel * down;
-  };
+  const PixelGrid grid = pixel_grid(size, 4);
+  const double pixel = grid.pixel;
+  const glm::dvec3 right = grid.right, down = grid.down;
   TubeChunk chunk;
   std::vector<glm::dvec3> corners;
   const auto add_triangle = [&](glm::dvec3 centre, double leg, double tip) {
@@ -469,8 +479,8 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
     if (glm::cross(b - a, c - a).z > 0) std::swap(b, c);
     corners.insert(corners.end(), {a, b, c});
   };
-  add_triangle(centre_of(32, 32), -0.45, 0.2);  // misses its centre
-  add_triangle(centre_of(40, 32), -0.2, 0.45);  // holds its centre
+  add_triangle(grid.centre_of(32, 32), -0.45, 0.2);  // misses its centre
+  add_triangle(grid.centre_of(40, 32), -0.2, 0.45);  // holds its centre
   chunk.line_count = 2;
   chunk.positions = Array<float>(corners.size() * 3);
   chunk.normals = Array<float>(corners.size() * 3);
@@ -534,9 +544,9 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
 // overflows, for every tile in strips and for the crowded ones only (beside the others' one
 // workgroup each, in the same slice). The aneurysm framed a little closer than whole in an image
 // whose last row and column of tiles are cut (150x108: the last column's strips hold 6 of their
-// 16 columns of pixels, the last row's fourth strip no pixel), through walks again, as capsules and as triangles, with the loops of fixed trips
-// in slices of 64 keys and with the loops that exit in one slice (walks again with the deep
-// window; the triangles' 16-hit window has room enough here).
+// 16 columns of pixels, the last row's fourth strip no pixel), through walks again, as capsules and
+// as triangles, with the loops of fixed trips in slices of 64 keys and with the loops that exit in
+// one slice (walks again with the deep window; the triangles' 16-hit window has room enough here).
 TEST(Tiles, StripsOfATileGiveTheSameBytes) {
   vk::Context ctx;
   const TransferFunction tf = transfer_function_preset("transparent");
