@@ -28,7 +28,7 @@ layout(set = 0, binding = 18, std430) restrict readonly buffer TileTests {
 // first (load_frame_view), where all lanes run together. lavapipe (gallivm) appears to load a
 // uniform-buffer value lane by lane inside branches and loops whose lanes part: reading binning's
 // values at the top of main took 1.2 of 15.6 billion JIT instructions off a paper-small clouds
-// frame at 320x180 under callgrind, the copy in every pass another 0.2 (README, "Keys only
+// frame at 320x180 under callgrind, the copy in every pass another 0.2 (docs/tiles.md, "Keys only
 // where a pixel may hit"). Values that a branch or loop tests alone stay in frame_tests.
 struct FrameView {
   vec3 eye, forward, right, up;
@@ -79,7 +79,7 @@ vec3 project(vec3 p) {
 // p1 on an axis), clamped to one pixel outside the image. Binning's tiles and the composite's
 // blocks both come from here. A small primitive between pixel centres covers none. With the
 // capsules' exact bounds this took 27 % of paper-small's keys (40 to 65 % with triangles; see
-// the README). Bounds that are not numbers cover the whole image.
+// docs/tiles.md). Bounds that are not numbers cover the whole image.
 void covered_pixels(vec2 lo, vec2 hi, out ivec2 p0, out ivec2 p1) {
   const vec2 size = vec2(view.size.xy);
   if (any(isnan(lo)) || any(isnan(hi))) lo = vec2(0.0), hi = size;

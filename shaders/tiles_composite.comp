@@ -16,8 +16,8 @@ const uint kBatch = 256, kSlots = 256;
 // The segment's ends in 64-bit words, two floats each (p0.xy, p0.z and the key's depth bound,
 // p1.xy, p1.z and the farthest view depth): the near test reads them in one shared load. On
 // lavapipe each such load is a loop over the 8 lanes of a SIMD unit, with a step per component
-// (README, "Per-lane shared loads on lavapipe"); one load of four 64-bit words ran 3.6 % fewer
-// of the paper-small convection frame's JIT instructions than two of four floats.
+// (docs/tiles.md, "Per-lane shared loads on lavapipe"); one load of four 64-bit words ran 3.6 %
+// fewer of the paper-small convection frame's JIT instructions than two of four floats.
 shared u64vec4 batch_ends[kBatch];
 #else
 shared vec4 batch_p0[kBatch];      // xyz, the key's depth bound
@@ -67,9 +67,9 @@ float depth_bound(uint i) { return batch_p0[i].w; }
 // eye to spare. A cheap test before the exact one: only the entries that pass it become pairs.
 // With an eighth of a radius to spare, 18 % of the pairs of paper-small's convection frame 1 at
 // 640x360 lay in that margin, none with a hit; a 64th gives 15 % fewer pairs and rounds and the
-// same bytes (13 frames of the four sets and three transfer functions, README).
-// (Computing the reach here costs less on lavapipe than a third shared load of it: README,
-// "Per-lane shared loads on lavapipe".)
+// same bytes (13 frames of the four sets and three transfer functions, docs/tiles.md).
+// (Computing the reach here costs less on lavapipe than a third shared load of it:
+// docs/tiles.md, "Per-lane shared loads on lavapipe".)
 bool may_cross(vec4 words[kNearWords], vec3 direction) {
   const vec3 w = words[0].xyz - view.eye, e = words[1].xyz - words[0].xyz;
   vec3 miss;

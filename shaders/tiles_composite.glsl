@@ -30,18 +30,18 @@
 // depth bound in word 0's w and the farthest depth in word 1's, and depth_bound(i) alone (what
 // a block reads per entry it walks is then two or three vec4 loads: on lavapipe each shared
 // load whose index differs between invocations is a loop over the 8 lanes of a SIMD unit, and
-// the near test's five loads were 35 % of the aneurysm's composite instructions; README,
-// "Per-lane shared loads on lavapipe"); may_cross(words, direction), a test that keeps every
-// batch entry the ray from the eye along `direction` may hit; first_hit(i, direction, t,
-// colour), the nearest front hit and its shaded colour (false: none); and seam_of(i,
-// direction), how near two hits of neighbouring primitives are one seam's (seam_twins below; 0:
-// never).
+// the near test's five loads were 35 % of the aneurysm's composite instructions;
+// docs/tiles.md, "Per-lane shared loads on lavapipe"); may_cross(words, direction), a test
+// that keeps every batch entry the ray from the eye along `direction` may hit; first_hit(i,
+// direction, t, colour), the nearest front hit and its shaded colour (false: none); and
+// seam_of(i, direction), how near two hits of neighbouring primitives are one seam's
+// (seam_twins below; 0: never).
 
 // Compiled with TILES_STRIPS (a choice of the host's, TileOptions::strips), a tile's pixels
 // are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
 // keys: a crowded tile is shared by four workgroups, and a workgroup waiting at a barrier holds
-// a quarter of the invocations. Where a pixel takes 240 registers (README, "Registers: what
-// the GPU compilers make of the composite"), a GPU core (an AMD CU; an H100 SM, if NVIDIA's
+// a quarter of the invocations. Where a pixel takes 240 registers (docs/tiles.md, "Registers:
+// what the GPU compilers make of the composite"), a GPU core (an AMD CU; an H100 SM, if NVIDIA's
 // compiler needs as many) runs one 256-invocation workgroup, which a barrier leaves idle; it
 // runs four of 64. Each key's screen bounds are computed four times instead of once. The same
 // pixels, the same hits in the same order: the same bytes.
