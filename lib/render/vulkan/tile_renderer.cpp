@@ -301,32 +301,174 @@ std::vector<std::pair<uint32_t, uint32_t>> plan_bands(const uint32_t* row_keys, 
   return bands;
 }
 
+void memory_barrier(VkCommandBuffer cmd, VkAccessFlags dst, VkPipelineStageFlags stage) {
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  b.dstAccessMask = dst;
+  vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       stage, 0, 1, &b, 0, nullptr, 0, nullptr);
+}
+
+// Each tile's keys in its band's sorted keys, as the ranges pass and the composite left them in
+// host-visible buffers: `ranges` (per tile its first key and one past its last), `walk_first`
+// (where a tile's walk again starts) and `chunk_far` (the farthest depth of each chunk of
+// kChunkKeys of a tile's keys). Read where the buffers are mapped at the time of the call.
+struct TileKeys {
+  const Buffer& ranges;
+  const Buffer& walk_first;
+  const Buffer& chunk_far;
+
+  uint32_t first(uint32_t t) const { return static_cast<const uint32_t*>(ranges.mapped)[2 * t]; }
+  uint32_t end(uint32_t t) const { return static_cast<const uint32_t*>(ranges.mapped)[2 * t + 1]; }
+  // A tile's keys from where walk `walk` starts (walk 0: the first; later: walk_first).
+  uint32_t walked(uint32_t t, uint32_t walk) const {
+    return end(t) - (walk > 0 ? static_cast<const uint32_t*>(walk_first.mapped)[t] : first(t));
+  }
+  // Tile t's chunks in chunk_far (its first, and how many), as the composite indexes them.
+  uint32_t first_chunk(uint32_t t) const { return first(t) / kChunkKeys + t; }
+  uint32_t chunks(uint32_t t) const { return (end(t) - first(t) + kChunkKeys - 1) / kChunkKeys; }
+  // Where tile t's next walk starts: its first chunk that reaches least_z, the least view depth
+  // its pixels' hits may lie at (0: any); the keys before it are done with.
+  uint32_t walk_again_from(uint32_t t, float least_z) const {
+    const auto* far = static_cast<const float*>(chunk_far.mapped) + first_chunk(t);
+    uint32_t chunk = 0;
+    if (least_z > 0)
+      while (chunk < chunks(t) && far[chunk] < least_z) ++chunk;
+    return std::min(first(t) + chunk * kChunkKeys, end(t));
+  }
+  // The keys past which a tile of `list` is crowded in walk `walk` (kCrowded times the mean).
+  uint64_t crowded(const std::vector<uint32_t>& list, uint32_t walk) const {
+    uint64_t total = 0;
+    for (uint32_t t : list) total += walked(t, walk);
+    return list.empty() ? uint64_t{0} : kCrowded * total / list.size();
+  }
+  // The most keys a tile of `list` walks in walk `walk`, at least 1.
+  uint32_t longest(const std::vector<uint32_t>& list, uint32_t walk) const {
+    uint32_t most = 1;
+    for (uint32_t t : list) most = std::max(most, walked(t, walk));
+    return most;
+  }
+};
+
+// The order a walk dispatches its tiles in, the first `strip_tiles` of them to the composite of
+// strips (TileOptions::strips).
+struct WalkOrder {
+  std::vector<uint32_t> tiles;
+  size_t strip_tiles = 0;
+};
+
+// Workgroups start roughly in the order of their IDs: the crowded tiles (more than kCrowded
+// times the mean keys to walk) go first, the most keys first, and the rest follow in raster
+// order, in which neighbouring tiles, which share primitives, run together.
+WalkOrder order_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk,
+                     const TileKeys& tile_keys, const TileOptions& o) {
+  WalkOrder order{walk_tiles, 0};
+  size_t crowded_count = 0;
+  if (o.most_keys_first || o.strips == TileStrips::crowded) {
+    const uint64_t crowded = tile_keys.crowded(walk_tiles, walk);
+    const auto first =
+        std::stable_partition(order.tiles.begin(), order.tiles.end(),
+                              [&](uint32_t t) { return tile_keys.walked(t, walk) > crowded; });
+    crowded_count = size_t(first - order.tiles.begin());
+    if (o.most_keys_first)
+      std::stable_sort(order.tiles.begin(), first, [&](uint32_t a, uint32_t b) {
+        return tile_keys.walked(a, walk) > tile_keys.walked(b, walk);
+      });
+  }
+  const size_t all = order.tiles.size();
+  order.strip_tiles = o.strips == TileStrips::all       ? all
+                      : o.strips != TileStrips::crowded ? 0
+                      : all < o.few_tiles               ? all
+                                                        : crowded_count;
+  return order;
+}
+
+// The tiles each slice of a walk dispatches: slice k takes tiles[lists[k].offset, + count), the
+// first strip_tiles of them in strips.
+struct SlicePlan {
+  struct List {
+    uint32_t offset, count, strip_tiles;
+  };
+  std::vector<uint32_t> tiles;
+  std::vector<List> lists;
+};
+
+// Each slice dispatches only the tiles with keys in it (the first: every tile, which starts its
+// pixels), so one crowded tile does not cost a dispatch of the whole band per slice.
+SlicePlan plan_slices(const WalkOrder& order, uint32_t walk, uint32_t slices, uint32_t slice_keys,
+                      const TileKeys& tile_keys) {
+  SlicePlan plan;
+  for (uint32_t k = 0; k < slices; ++k) {
+    SlicePlan::List list{uint32_t(plan.tiles.size()), 0, 0};
+    for (size_t i = 0; i < order.tiles.size(); ++i) {
+      const uint32_t t = order.tiles[i];
+      if (k > 0 && tile_keys.walked(t, walk) <= uint64_t(k) * slice_keys) continue;
+      plan.tiles.push_back(t);
+      ++list.count;
+      list.strip_tiles += i < order.strip_tiles;
+    }
+    plan.lists.push_back(list);
+  }
+  return plan;
+}
+
 }  // namespace
 
-uint32_t TileRenderer::sort_subgroup_size() const {
-  return state_->sorter.subgroup_size();
-}
+// One frame: binning of the whole image to count its keys, then per band of tile rows binning
+// again where needed, the key sort and the tiles' ranges, and the composite over groups of
+// tiles, each in walks (again where a full window left hits) and slices (where the device caps
+// an invocation's loops).
+struct TileRenderer::Frame {
+  State& s;
+  Context& ctx;
+  const TileOptions& o;
+  const std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+  uint32_t tiles_x = 0, tiles_y = 0, tiles = 0;
+  uint32_t key_bits = 0;
+  TileUniforms u{};
+  uint64_t key_limit = 0;    // keys one band may hold
+  uint32_t group_tiles = 0;  // tiles whose pixels' states one group holds
+  uint64_t state_bytes = 0;  // those states
+  TileKeys tile_keys;
+  TileFrame frame;
+  TileStats& st = frame.stats;
 
-uint64_t TileRenderer::tile_state_bytes() const {
-  return tile_state_bytes_of(state_->state_window);
-}
+  Frame(State& state, const Camera& camera, const TransferFunction& tf, const TileOptions& options);
+  TileFrame render();
 
-TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_in,
-                               const TileOptions& o) {
+  // Records one pass between timestamps and waits for it; its GPU milliseconds.
+  double pass(const std::function<void(VkCommandBuffer)>& record);
+  // Binning of the tile rows [first, last): the keys it emitted (it wrote them if they fit).
+  Counters bin(uint32_t first, uint32_t last);
+  void grow_keys(uint64_t keys);
+  // The band's `keys` keys sorted, and each tile's range of them.
+  void sort(uint32_t first, uint32_t last, uint64_t keys);
+  // The composite over the band's tiles in groups whose states fit: the most slices.
+  uint32_t composite_band(uint32_t first, uint32_t last);
+  uint32_t composite_group(const std::vector<uint32_t>& group);
+  // One walk over `walk_tiles` in `slices` slices of `slice_keys` keys per tile (walk 0: the
+  // band's every tile, starting its pixels).
+  void composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk, uint32_t slice_keys,
+                      uint32_t slices, bool keep_states);
+};
+
+TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFunction& tf_in,
+                           const TileOptions& options)
+    : s(state),
+      ctx(state.ctx),
+      o(options),
+      tile_keys{state.ranges, state.walk_first, state.chunk_far} {
   if (o.width < 1 || o.height < 1) throw Error("tiles: empty image size");
-  const auto start = std::chrono::steady_clock::now();
-  State& s = *state_;
-  Context& ctx = s.ctx;
   const bool resized = s.targets.resize(ctx, o.width, o.height);
-  const uint32_t tiles_x = (uint32_t(o.width) + kTile - 1) / kTile;
-  const uint32_t tiles_y = (uint32_t(o.height) + kTile - 1) / kTile;
-  const uint32_t tiles = tiles_x * tiles_y;
+  tiles_x = (uint32_t(o.width) + kTile - 1) / kTile;
+  tiles_y = (uint32_t(o.height) + kTile - 1) / kTile;
+  tiles = tiles_x * tiles_y;
   // At least one tile bit: shifts by 32 are undefined in SPIR-V.
   const uint32_t tile_bits = std::max(1u, uint32_t(std::bit_width(tiles - 1)));
   // Keys of 24 bits sort in three radix passes instead of four. The depth then has 10 bits or
   // more (1,024 steps over the frame's depth range; 1920x1080 has 8,160 tiles, 13 bits): a
   // coarser depth bound only keeps hits pending a little longer.
-  const uint32_t key_bits = o.key_bits > 0 ? o.key_bits : tile_bits <= 14 ? 24 : 32;
+  key_bits = o.key_bits > 0 ? o.key_bits : tile_bits <= 14 ? 24 : 32;
   if (key_bits > 32 || key_bits < tile_bits + 1)
     throw UsageError("tiles: keys of " + std::to_string(key_bits) + " bits cannot hold " +
                      std::to_string(tiles) + " tiles and a depth");
@@ -347,7 +489,6 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   TransferFunction tf = tf_in;
   if (tf.range[0] == 0 && tf.range[1] == 0)
     tf.range = {double(s.attribute_range[0]), double(s.attribute_range[1])};
-  TileUniforms u{};
   write_view(u, camera, o.width, o.height, o.shading);
   const glm::dvec3 forward = camera.image_plane(o.width, o.height).forward;
   u.ranges[2] = float(tf.range[0]), u.ranges[3] = float(tf.range[1]);
@@ -361,55 +502,218 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
   u.tiles[0] = tiles_x, u.tiles[1] = tiles_y, u.tiles[2] = depth_bits;
   u.binning[0] = o.tested_pixels;
   write_transfer_table(tf, u.colours, u.opacities, u.tf_counts);
-  const auto barrier = [](VkCommandBuffer cmd, VkAccessFlags dst, VkPipelineStageFlags stage) {
-    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-    b.dstAccessMask = dst;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                         stage, 0, 1, &b, 0, nullptr, 0, nullptr);
-  };
-  // Records one pass between timestamps and waits for it; its GPU milliseconds.
-  const auto pass = [&](const std::function<void(VkCommandBuffer)>& record) {
-    return ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
-      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
-                              0, nullptr);
-      record(cmd);
-      barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
-    });
-  };
-  TileFrame frame;
-  TileStats& st = frame.stats;
   st.primitives = s.primitive_count;
   st.tiles = tiles;
   // Keys one band may hold: within one storage buffer each for keys and values (with an eighth
   // more for the next frame), and within the frame's key budget where one is set.
-  uint64_t key_limit = s.max_buffer / 4 / 9 * 8;
+  key_limit = s.max_buffer / 4 / 9 * 8;
   if (o.max_key_bytes > 0) key_limit = std::min(key_limit, o.max_key_bytes / kKeyBytes);
   key_limit = std::min<uint64_t>(key_limit, UINT32_MAX - 1);
-  // Binning of the tile rows [first, last): the keys it emitted (it wrote them if they fit).
-  const auto bin = [&](uint32_t first, uint32_t last) {
-    u.band[0] = first, u.band[1] = last;
-    u.tiles[3] = uint32_t(std::min<uint64_t>(s.keys.size / 4, UINT32_MAX));
-    std::memcpy(s.uniforms.mapped, &u, sizeof u);
-    std::memset(s.counters.mapped, 0, sizeof(Counters));
-    std::memset(s.rows.mapped, 0, s.rows.size);
-    st.bin_ms += pass([&](VkCommandBuffer cmd) {
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[0]);
-      vkCmdDispatch(cmd, uint32_t((s.primitive_count + 255) / 256), 1, 1);
-    });
-    Counters c;
-    std::memcpy(&c, s.counters.mapped, sizeof c);
-    return c;
-  };
-  const auto grow_keys = [&](uint64_t keys) {
-    const uint64_t room = std::min(key_limit, keys + keys / 8);
-    ctx.destroy(s.keys);
-    ctx.destroy(s.values);
-    s.keys = ctx.create_buffer(room * 4, kSortedUsage, false);
-    s.values = ctx.create_buffer(room * 4, kSortedUsage, false);
+  // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
+  // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
+  // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
+  // 1080p has 8,160).
+  const uint64_t state_limit =
+      o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
+  group_tiles =
+      uint32_t(std::clamp<uint64_t>(state_limit / tile_state_bytes_of(s.state_window), 1, tiles));
+  state_bytes = uint64_t(group_tiles) * tile_state_bytes_of(s.state_window);
+}
+
+double TileRenderer::Frame::pass(const std::function<void(VkCommandBuffer)>& record) {
+  return ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set, 0,
+                            nullptr);
+    record(cmd);
+    memory_barrier(cmd, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_HOST_BIT);
+  });
+}
+
+Counters TileRenderer::Frame::bin(uint32_t first, uint32_t last) {
+  u.band[0] = first, u.band[1] = last;
+  u.tiles[3] = uint32_t(std::min<uint64_t>(s.keys.size / 4, UINT32_MAX));
+  std::memcpy(s.uniforms.mapped, &u, sizeof u);
+  std::memset(s.counters.mapped, 0, sizeof(Counters));
+  std::memset(s.rows.mapped, 0, s.rows.size);
+  st.bin_ms += pass([&](VkCommandBuffer cmd) {
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[0]);
+    vkCmdDispatch(cmd, uint32_t((s.primitive_count + 255) / 256), 1, 1);
+  });
+  Counters c;
+  std::memcpy(&c, s.counters.mapped, sizeof c);
+  return c;
+}
+
+void TileRenderer::Frame::grow_keys(uint64_t keys) {
+  const uint64_t room = std::min(key_limit, keys + keys / 8);
+  ctx.destroy(s.keys);
+  ctx.destroy(s.values);
+  s.keys = ctx.create_buffer(room * 4, kSortedUsage, false);
+  s.values = ctx.create_buffer(room * 4, kSortedUsage, false);
+  s.bind();
+  ++st.rebins;
+}
+
+void TileRenderer::Frame::sort(uint32_t first, uint32_t last, uint64_t keys) {
+  u.band[0] = first, u.band[1] = last;
+  std::memcpy(s.uniforms.mapped, &u, sizeof u);
+  std::memset(s.ranges.mapped, 0, s.ranges.size);
+  // A chunk of each tile's keys (chunk_far) at ranges.x / kChunkKeys + tile on: a tile of n
+  // keys takes n / kChunkKeys + 1 places at most.
+  if (const uint64_t chunks = keys / kChunkKeys + tiles + 1; s.chunk_far.size < chunks * 4) {
+    ctx.destroy(s.chunk_far);
+    s.chunk_far = ctx.create_buffer(chunks * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
     s.bind();
-    ++st.rebins;
-  };
+  }
+  st.sort_ms += pass([&](VkCommandBuffer cmd) {
+    s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), key_bits);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set, 0,
+                            nullptr);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[1]);
+    vkCmdDispatch(cmd, uint32_t((keys + 255) / 256) + 1, 1, 1);
+  });
+}
+
+void TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk,
+                                         uint32_t slice_keys, uint32_t slices, bool keep_states) {
+  if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
+    ctx.destroy(s.states);
+    s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    s.bind();
+  }
+  const WalkOrder order = order_walk(walk_tiles, walk, tile_keys, o);
+  const SlicePlan plan = plan_slices(order, walk, slices, slice_keys, tile_keys);
+  if (s.slice_tiles.size < plan.tiles.size() * 4) {
+    ctx.destroy(s.slice_tiles);
+    s.slice_tiles =
+        ctx.create_buffer(plan.tiles.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    s.bind();
+  }
+  std::copy(plan.tiles.begin(), plan.tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
+  // Walks again over tiles of one slice take the deeper window where there is one.
+  const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
+  const VkPipeline tiles_whole = s.pipeline(deep ? 3 : 2);
+  const VkPipeline tiles_strips = order.strip_tiles > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
+  const double ms = pass([&](VkCommandBuffer cmd) {
+    // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
+    const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {
+      if (groups == 0) return;
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+      vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
+      st.composite_workgroups += groups;
+    };
+    for (uint32_t k = 0; k < slices; ++k) {
+      const SlicePlan::List& list = plan.lists[k];
+      const SliceInfo info{k, slice_keys, list.offset, list.count, 2, walk, list.strip_tiles};
+      vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
+      memory_barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
+                     VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+      // The strips' tiles and the others', disjoint: the two dispatches may overlap.
+      dispatch(tiles_strips, list.strip_tiles * kStrips);
+      dispatch(tiles_whole, list.count - list.strip_tiles);
+      memory_barrier(
+          cmd,
+          VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
+    }
+  });
+  st.composite_ms += ms;
+  if (st.walk_ms.size() <= walk) st.walk_ms.resize(walk + 1), st.walk_tiles.resize(walk + 1);
+  st.walk_ms[walk] += ms;
+  st.walk_tiles[walk] += walk_tiles.size();
+}
+
+// The composite pass over a group of tiles, in slices of each tile's keys where the device needs
+// them, and walked again where pixels left hits for another walk (a full window): the number of
+// slices. Where an invocation was cut short (lavapipe's loop limit) the group is composited
+// again in slices a quarter the size; where a pixel had no room to keep its state for another
+// walk, the tiles with such pixels are composited again with room (the others are written out
+// already, and a tile's first walk starts its pixels afresh).
+uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group) {
+  auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
+  for (size_t k = 0; k < group.size(); ++k) slots[group[k]] = uint32_t(k);
+  const uint32_t group_longest = tile_keys.longest(group, 0);
+  st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
+  if (o.most_keys_first) {
+    const uint64_t crowded = tile_keys.crowded(group, 0);
+    for (uint32_t t : group) st.crowded_tiles += tile_keys.walked(t, 0) > crowded;
+  }
+  uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : group_longest;
+  bool keep_states = false;
+  CompositeStats before;
+  std::memcpy(&before, s.stats.mapped, sizeof before);
+  auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
+  auto* walk_first = static_cast<uint32_t*>(s.walk_first.mapped);
+  std::vector<uint32_t> first_walk = group;
+  for (;;) {
+    std::fill_n(again, tiles, kNoWalkAgain);
+    // Every chunk unknown until a walk passes it (again after a cut-short dispatch, whose
+    // batches may have stopped part way).
+    for (uint32_t t : group)
+      std::fill_n(static_cast<float*>(s.chunk_far.mapped) + tile_keys.first_chunk(t),
+                  tile_keys.chunks(t), std::numeric_limits<float>::infinity());
+    uint32_t most_slices = 0, walks = 0;
+    bool cut_short = false, no_room = false;
+    uint64_t skipped = 0;  // keys the walks again started past
+    for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
+      const uint32_t longest = tile_keys.longest(walk_tiles, walks);
+      // Each walk again passes a full window (8 or 16 hits, at most one a key) of each pixel it
+      // is for, so a tile takes at most keys / window + 1 walks; more means no progress (a pixel
+      // state the shader and this file disagree on hung a build once), not more work.
+      if (walks > group_longest / s.state_window + 1)
+        throw Error("tiles: internal error: walks again over " + std::to_string(walk_tiles.size()) +
+                    " tiles made no progress");
+      const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
+      most_slices = std::max(most_slices, slices);
+      composite_walk(walk_tiles, walks, slice_keys, slices, keep_states);
+      const bool had_room = s.states.size >= state_bytes;
+      CompositeStats after;
+      std::memcpy(&after, s.stats.mapped, sizeof after);
+      if ((cut_short = after.cut_short != 0)) break;
+      walk_tiles.clear();
+      for (uint32_t t : group) {
+        if (again[t] == kNoWalkAgain) continue;
+        walk_tiles.push_back(t);
+        walk_first[t] = tile_keys.walk_again_from(t, std::bit_cast<float>(again[t]));
+        skipped += walk_first[t] - tile_keys.first(t);
+        again[t] = kNoWalkAgain;
+      }
+      if ((no_room = !walk_tiles.empty() && !had_room)) {
+        first_walk = walk_tiles;
+        break;
+      }
+    }
+    if (!cut_short && !no_room) {
+      st.walks = std::max(st.walks, walks);
+      st.walk_skipped_keys += skipped;
+      return most_slices;
+    }
+    if (cut_short) {
+      if (slice_keys == 1)
+        throw BudgetExceeded("tiles: " + ctx.info().name + " cut a composite invocation short " +
+                             "even at one key per slice (its loop iteration limit)");
+      slice_keys = std::max<uint32_t>(1, slice_keys / 4);
+      if (s.slice_keys > 0) s.slice_keys = slice_keys;  // for the later groups and frames
+      ++st.resliced;
+      first_walk = group;
+    }
+    keep_states = keep_states || no_room;
+    std::memcpy(s.stats.mapped, &before, sizeof before);  // every overflow was a redone tile's
+  }
+}
+
+uint32_t TileRenderer::Frame::composite_band(uint32_t first, uint32_t last) {
+  uint32_t slices = 0, groups = 0;
+  for (uint32_t t = first * tiles_x; t < last * tiles_x; t += group_tiles, ++groups) {
+    std::vector<uint32_t> group;
+    for (uint32_t k = t; k < std::min(t + group_tiles, last * tiles_x); ++k) group.push_back(k);
+    slices = std::max(slices, composite_group(group));
+  }
+  st.groups = std::max(st.groups, groups);
+  return slices;
+}
+
+TileFrame TileRenderer::Frame::render() {
   // The whole frame first: every key counted, per tile row.
   const Counters whole = bin(0, tiles_y);
   st.keys = whole.key_count;
@@ -426,219 +730,6 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                          (o.max_key_bytes > 0 ? ", or the memory budget" : "") +
                          "); a smaller image renders");
   }
-  // One walk of the composite pass over `walk_tiles` in `slices` slices of `slice_keys` keys
-  // per tile (walk 0: the band's every tile, starting its pixels).
-  const auto* ranges = static_cast<const uint32_t*>(s.ranges.mapped);
-  auto* walk_first = static_cast<uint32_t*>(s.walk_first.mapped);
-  // A tile's keys from where walk `walk` starts (walk 0: the first; later: walk_first).
-  const auto keys_walked = [&](uint32_t t, uint32_t walk) {
-    return ranges[2 * t + 1] - (walk > 0 ? walk_first[t] : ranges[2 * t]);
-  };
-  // Tile t's chunks in chunk_far (its first, and how many), as the composite indexes them.
-  const auto first_chunk = [&](uint32_t t) { return ranges[2 * t] / kChunkKeys + t; };
-  const auto chunks_of = [&](uint32_t t) {
-    return (ranges[2 * t + 1] - ranges[2 * t] + kChunkKeys - 1) / kChunkKeys;
-  };
-  // Where tile t's next walk starts: its first chunk that reaches least_z, the least view depth
-  // its pixels' hits may lie at (0: any); the keys before it are done with.
-  const auto walk_again_from = [&](uint32_t t, float least_z) {
-    const auto* chunk_far = static_cast<const float*>(s.chunk_far.mapped) + first_chunk(t);
-    uint32_t chunk = 0;
-    if (least_z > 0)
-      while (chunk < chunks_of(t) && chunk_far[chunk] < least_z) ++chunk;
-    return std::min(ranges[2 * t] + chunk * kChunkKeys, ranges[2 * t + 1]);
-  };
-  // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
-  // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
-  // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
-  // 1080p has 8,160).
-  const uint64_t state_limit =
-      o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
-  const uint32_t group_tiles =
-      uint32_t(std::clamp<uint64_t>(state_limit / tile_state_bytes_of(s.state_window), 1, tiles));
-  const uint64_t state_bytes = uint64_t(group_tiles) * tile_state_bytes_of(s.state_window);
-  // The keys past which a tile of `list` is crowded in walk `walk` (kCrowded times the mean).
-  const auto crowded_keys = [&](const std::vector<uint32_t>& list, uint32_t walk) {
-    uint64_t total = 0;
-    for (uint32_t t : list) total += keys_walked(t, walk);
-    return list.empty() ? uint64_t{0} : kCrowded * total / list.size();
-  };
-  const auto composite_slices = [&](const std::vector<uint32_t>& walk_tiles, uint32_t walk,
-                                    uint32_t slice_keys, uint32_t slices, bool keep_states) {
-    if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
-      ctx.destroy(s.states);
-      s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
-      s.bind();
-    }
-    // Workgroups start roughly in the order of their IDs: the crowded tiles (more than
-    // kCrowded times the mean keys to walk) go first, the most keys first, and the rest follow in
-    // raster order, in which neighbouring tiles, which share primitives, run together.
-    std::vector<uint32_t> order = walk_tiles;
-    size_t crowded_count = 0;
-    if (o.most_keys_first || o.strips == TileStrips::crowded) {
-      const uint64_t crowded = crowded_keys(walk_tiles, walk);
-      const auto first = std::stable_partition(
-          order.begin(), order.end(), [&](uint32_t t) { return keys_walked(t, walk) > crowded; });
-      crowded_count = size_t(first - order.begin());
-      if (o.most_keys_first)
-        std::stable_sort(order.begin(), first, [&](uint32_t a, uint32_t b) {
-          return keys_walked(a, walk) > keys_walked(b, walk);
-        });
-    }
-    // The first `strip_count` tiles of `order` go to the composite of strips.
-    const size_t strip_count = o.strips == TileStrips::all       ? order.size()
-                               : o.strips != TileStrips::crowded ? 0
-                               : order.size() < o.few_tiles      ? order.size()
-                                                                 : crowded_count;
-    // Each slice dispatches only the tiles with keys in it (the first: every tile, which starts
-    // its pixels), so one crowded tile does not cost a dispatch of the whole band per slice.
-    std::vector<uint32_t> slice_tiles;
-    struct SliceList {
-      uint32_t offset, count, strip_tiles;
-    };
-    std::vector<SliceList> slice_lists;
-    for (uint32_t k = 0; k < slices; ++k) {
-      SliceList list{uint32_t(slice_tiles.size()), 0, 0};
-      for (size_t i = 0; i < order.size(); ++i) {
-        if (k > 0 && keys_walked(order[i], walk) <= uint64_t(k) * slice_keys) continue;
-        slice_tiles.push_back(order[i]);
-        ++list.count;
-        list.strip_tiles += i < strip_count;
-      }
-      slice_lists.push_back(list);
-    }
-    if (s.slice_tiles.size < slice_tiles.size() * 4) {
-      ctx.destroy(s.slice_tiles);
-      s.slice_tiles =
-          ctx.create_buffer(slice_tiles.size() * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-      s.bind();
-    }
-    std::copy(slice_tiles.begin(), slice_tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
-    // Walks again over tiles of one slice take the deeper window where there is one.
-    const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-    const VkPipeline tiles_whole = s.pipeline(deep ? 3 : 2);
-    const VkPipeline tiles_strips = strip_count > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
-    const double ms = pass([&](VkCommandBuffer cmd) {
-      // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
-      const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {
-        if (groups == 0) return;
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
-        vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
-        st.composite_workgroups += groups;
-      };
-      for (uint32_t k = 0; k < slices; ++k) {
-        const SliceList& list = slice_lists[k];
-        const SliceInfo info{k, slice_keys, list.offset, list.count, 2, walk, list.strip_tiles};
-        vkCmdUpdateBuffer(cmd, s.slice.buffer, 0, sizeof info, &info);
-        barrier(cmd, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
-                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-        // The strips' tiles and the others', disjoint: the two dispatches may overlap.
-        dispatch(tiles_strips, list.strip_tiles * kStrips);
-        dispatch(tiles_whole, list.count - list.strip_tiles);
-        barrier(
-            cmd,
-            VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-            VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT);
-      }
-    });
-    st.composite_ms += ms;
-    if (st.walk_ms.size() <= walk) st.walk_ms.resize(walk + 1), st.walk_tiles.resize(walk + 1);
-    st.walk_ms[walk] += ms;
-    st.walk_tiles[walk] += walk_tiles.size();
-  };
-  // The composite pass over a group of tiles, in slices of each tile's keys where the device
-  // needs them, and walked again where pixels left hits for another walk (a full window):
-  // the number of slices. Where an invocation was cut short (lavapipe's loop limit) the group is
-  // composited again in slices a quarter the size; where a pixel had no room to keep its state
-  // for another walk, the tiles with such pixels are composited again with room (the others
-  // are written out already, and a tile's first walk starts its pixels afresh).
-  const auto composite_group = [&](const std::vector<uint32_t>& tiles_of_group) {
-    auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
-    for (size_t k = 0; k < tiles_of_group.size(); ++k) slots[tiles_of_group[k]] = uint32_t(k);
-    const auto longest_of = [&](const std::vector<uint32_t>& list, uint32_t walk) {
-      uint32_t longest = 1;
-      for (uint32_t t : list) longest = std::max(longest, keys_walked(t, walk));
-      return longest;
-    };
-    const uint32_t group_longest = longest_of(tiles_of_group, 0);
-    st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
-    if (o.most_keys_first) {
-      const uint64_t crowded = crowded_keys(tiles_of_group, 0);
-      for (uint32_t t : tiles_of_group) st.crowded_tiles += keys_walked(t, 0) > crowded;
-    }
-    uint32_t slice_keys = s.slice_keys > 0 ? s.slice_keys : group_longest;
-    bool keep_states = false;
-    CompositeStats before;
-    std::memcpy(&before, s.stats.mapped, sizeof before);
-    auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
-    std::vector<uint32_t> first_walk = tiles_of_group;
-    for (;;) {
-      std::fill_n(again, tiles, kNoWalkAgain);
-      // Every chunk unknown until a walk passes it (again after a cut-short dispatch, whose
-      // batches may have stopped part way).
-      for (uint32_t t : tiles_of_group)
-        std::fill_n(static_cast<float*>(s.chunk_far.mapped) + first_chunk(t), chunks_of(t),
-                    std::numeric_limits<float>::infinity());
-      uint32_t most_slices = 0, walks = 0;
-      bool cut_short = false, no_room = false;
-      uint64_t skipped = 0;  // keys the walks again started past
-      for (std::vector<uint32_t> walk_tiles = first_walk; !walk_tiles.empty(); ++walks) {
-        const uint32_t longest = longest_of(walk_tiles, walks);
-        // Each walk again passes a full window (8 or 16 hits, at most one a key) of each pixel it
-        // is for, so a tile takes at most keys / window + 1 walks; more means no progress (a pixel
-        // state the shader and this file disagree on hung a build once), not more work.
-        if (walks > group_longest / s.state_window + 1)
-          throw Error("tiles: internal error: walks again over " +
-                      std::to_string(walk_tiles.size()) + " tiles made no progress");
-        const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
-        most_slices = std::max(most_slices, slices);
-        composite_slices(walk_tiles, walks, slice_keys, slices, keep_states);
-        const bool had_room = s.states.size >= state_bytes;
-        CompositeStats after;
-        std::memcpy(&after, s.stats.mapped, sizeof after);
-        if ((cut_short = after.cut_short != 0)) break;
-        walk_tiles.clear();
-        for (uint32_t t : tiles_of_group) {
-          if (again[t] == kNoWalkAgain) continue;
-          walk_tiles.push_back(t);
-          walk_first[t] = walk_again_from(t, std::bit_cast<float>(again[t]));
-          skipped += walk_first[t] - ranges[2 * t];
-          again[t] = kNoWalkAgain;
-        }
-        if ((no_room = !walk_tiles.empty() && !had_room)) {
-          first_walk = walk_tiles;
-          break;
-        }
-      }
-      if (!cut_short && !no_room) {
-        st.walks = std::max(st.walks, walks);
-        st.walk_skipped_keys += skipped;
-        return most_slices;
-      }
-      if (cut_short) {
-        if (slice_keys == 1)
-          throw BudgetExceeded("tiles: " + ctx.info().name + " cut a composite invocation short " +
-                               "even at one key per slice (its loop iteration limit)");
-        slice_keys = std::max<uint32_t>(1, slice_keys / 4);
-        if (s.slice_keys > 0) s.slice_keys = slice_keys;  // for the later groups and frames
-        ++st.resliced;
-        first_walk = tiles_of_group;
-      }
-      keep_states = keep_states || no_room;
-      std::memcpy(s.stats.mapped, &before, sizeof before);  // every overflow was a redone tile's
-    }
-  };
-  // The band's tiles, in groups whose states fit (above): the most slices.
-  const auto composite = [&](uint32_t first, uint32_t last) {
-    uint32_t slices = 0, groups = 0;
-    for (uint32_t t = first * tiles_x; t < last * tiles_x; t += group_tiles, ++groups) {
-      std::vector<uint32_t> group;
-      for (uint32_t k = t; k < std::min(t + group_tiles, last * tiles_x); ++k) group.push_back(k);
-      slices = std::max(slices, composite_group(group));
-    }
-    st.groups = std::max(st.groups, groups);
-    return slices;
-  };
   st.bands = uint32_t(bands.size());
   uint64_t longest_band = 0;
   std::memset(s.stats.mapped, 0, sizeof(CompositeStats));
@@ -657,24 +748,8 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                              " keys where their rows counted " + std::to_string(keys) +
                              " (past 2^32 keys); a smaller image renders");
     }
-    u.band[0] = first, u.band[1] = last;
-    std::memcpy(s.uniforms.mapped, &u, sizeof u);
-    std::memset(s.ranges.mapped, 0, s.ranges.size);
-    // A chunk of each tile's keys (chunk_far) at ranges.x / kChunkKeys + tile on: a tile of n
-    // keys takes n / kChunkKeys + 1 places at most.
-    if (const uint64_t chunks = keys / kChunkKeys + tiles + 1; s.chunk_far.size < chunks * 4) {
-      ctx.destroy(s.chunk_far);
-      s.chunk_far = ctx.create_buffer(chunks * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-      s.bind();
-    }
-    st.sort_ms += pass([&](VkCommandBuffer cmd) {
-      s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), key_bits);
-      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set,
-                              0, nullptr);
-      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[1]);
-      vkCmdDispatch(cmd, uint32_t((keys + 255) / 256) + 1, 1, 1);
-    });
-    st.slices = std::max(st.slices, composite(first, last));
+    sort(first, last, keys);
+    st.slices = std::max(st.slices, composite_band(first, last));
   }
   CompositeStats cs;
   std::memcpy(&cs, s.stats.mapped, sizeof cs);
@@ -690,7 +765,20 @@ TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf_
                    s.tile_slots.size + s.chunk_far.size + s.walk_first.size +
                    (st.slices > 1 || st.walks > 1 ? s.states.size : 0);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return frame;
+  return std::move(frame);
+}
+
+uint32_t TileRenderer::sort_subgroup_size() const {
+  return state_->sorter.subgroup_size();
+}
+
+uint64_t TileRenderer::tile_state_bytes() const {
+  return tile_state_bytes_of(state_->state_window);
+}
+
+TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf,
+                               const TileOptions& options) {
+  return Frame(*state_, camera, tf, options).render();
 }
 
 }  // namespace linebake::vk

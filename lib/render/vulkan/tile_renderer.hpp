@@ -107,7 +107,7 @@ class TileRenderer {
  public:
   // The capsules are uploaded once (device-local); `max_buffer_bytes` > 0 lowers the largest
   // storage buffer, `slice_keys` > 0 sets the keys per tile per composite dispatch (tests; by
-  // default 512 on lavapipe, whose invocations stop after 65535 loop iterations, else all);
+  // default 2,048 on lavapipe, whose invocations stop after 65535 loop iterations, else all);
   // `sort_subgroups` false keeps the key sort on its shared-memory path (radix_sort.hpp).
   TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
                uint32_t slice_keys = 0, bool sort_subgroups = true,
@@ -130,6 +130,7 @@ class TileRenderer {
 
  private:
   struct State;
+  struct Frame;  // one frame's passes over the state
   std::unique_ptr<State> state_;
 };
 
