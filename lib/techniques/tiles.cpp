@@ -31,7 +31,7 @@ class Tiles : public PreparedTechnique {
     options_.strips = strips_of(o.tiles_strips);
     // auto: the subgroup path where the device has it, except on lavapipe, whose subgroup
     // operations are emulated across its 8-lane SIMD units: there the shared-memory path sorted
-    // paper-small's keys 20 to 30 % faster (docs/tiles.md, "How it works").
+    // paper-small's keys 20 to 30 % faster (docs/tiles.md, "Per-lane shared loads on lavapipe").
     const bool sort_subgroups =
         o.tiles_sort == "subgroups" || (o.tiles_sort == "auto" && !context_->info().lavapipe);
     if (o.tiles_sort == "subgroups" && !vk::RadixSorter::subgroups_supported(context_->info()))
