@@ -434,6 +434,8 @@ struct TileRenderer::Frame {
   TileStats& st = frame.stats;
 
   Frame(State& state, const Camera& camera, const TransferFunction& tf, const TileOptions& options);
+  Frame(const Frame&) = delete;  // `st` refers to this frame's own stats
+  Frame& operator=(const Frame&) = delete;
   TileFrame render();
 
   // Records one pass between timestamps and waits for it; its GPU milliseconds.
