@@ -12,6 +12,9 @@ check "info help" "$bin" info --help
 check "convert help" "$bin" convert --help
 check "synth help" "$bin" synth --help
 check "version" bash -c "'$bin' --version | grep -q '[0-9]\.[0-9]'"
+# The build's sources: the checkout's commit (this file's), "+modified" for changes to tracked
+# files, or "unknown" outside git. Built before the commit it names? Build again.
+check "version --json: the commit the sources are at" bash -c "rev=\$('$bin' version --json | python3 -c 'import json, sys; print(json.load(sys.stdin)[\"source_revision\"])') && want=\$(git -C '$(dirname "$0")' rev-parse --short=10 HEAD 2> /dev/null || echo unknown) && [ \"\${rev%+modified}\" = \"\$want\" ]"
 check "no subcommand is a usage error" exit_code 1 "$bin"
 check "unknown option is a usage error" exit_code 1 "$bin" info --bogus x
 
@@ -185,13 +188,18 @@ check "render --stats in a missing directory: exit 3 before the image is written
 check "synth to a format linebake cannot write: exit 3 before generating, the writable ones listed" bash -c "'$bin' synth clouds --scale 2 -o '$tmp/pre.nc' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'pre.nc: writing netcdf is not supported (writable: ' '$tmp/pre.err' && [ ! -e '$tmp/pre.nc' ]"
 check "depth-complexity -o x.txt and bake -o nodir/: exit 3" bash -c "'$bin' depth-complexity '$tmp/t.lbc.h5' -o '$tmp/pre.txt' 2> /dev/null; [ \$? -eq 3 ] && '$bin' bake '$tmp/c.binlines' -o '$tmp/nodir/pre.lbc.h5' 2> '$tmp/pre.err'; [ \$? -eq 3 ] && grep -q 'nodir does not exist' '$tmp/pre.err' && [ ! -e '$tmp/nodir' ]"
 check "render --tf semii: the presets and the nearest named, exit 1, before any work" bash -c "'$bin' render '$tmp/t.lbc.h5' --tf semii -o '$tmp/pre.png' 2> '$tmp/pre.err'; [ \$? -eq 1 ] && grep -q \"semii: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?\" '$tmp/pre.err' && [ ! -e '$tmp/pre.png' ]"
-check "bench render --json: per technique GPU passes, wall, memory, PSNR against the reference" python3 -c "
+check "bench render --json: per technique GPU passes, wall, memory, PSNR against the reference, a warm-up frame" python3 -c "
 import json, subprocess
 j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', 'reference,ll,vrc,rtx', '--frames', '2', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
-assert j['size'] == [64, 48] and j['frames'] == 2 and len(j['runs']) == 1, j
+assert j['size'] == [64, 48] and j['frames'] == 2 and j['warm_up'] == 1 and len(j['runs']) == 1, j
+# The build the figures came from, as version names it.
+version = json.loads(subprocess.run(['$bin', 'version', '--json'], check=True, capture_output=True, text=True).stdout)
+assert (j['linebake'], j['source_revision']) == (version['linebake'], version['source_revision']), (j, version)
 run = j['runs'][0]
 assert run['cache'] == 't' and run['segments'] == 495000, run
 rows = {r['technique']: r for r in run['rows']}
+# One frame first, not counted, in every row that rendered.
+assert all(r['warm_up_s'] > 0 for r in rows.values() if 'skipped' not in r), rows
 assert list(rows) == ['reference', 'll', 'vrc', 'rtx'] and all(r['transfer_function'] == 'semi' for r in rows.values()), rows
 ll = rows['ll']
 assert ll['frames'] == 2 and 'llvmpipe' in ll['device'] and ll['frame_bytes'] > 0, ll
@@ -201,12 +209,13 @@ vrc = rows['vrc']
 assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'] > 0 and 10 < vrc['psnr_db'] < 60, vrc
 assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
 assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
-check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference; tiles-raster-order; tiles-strips" python3 -c "
+check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference; tiles-raster-order; tiles-strips; --warm-up 0" python3 -c "
 import json, subprocess
 variants = ['tiles', 'tiles-triangles', 'tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips']
-j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', ','.join(variants), '--frames', '1', '--size', '64x48', '--json'], check=True, capture_output=True, text=True).stdout)
+j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', ','.join(variants), '--frames', '1', '--size', '64x48', '--warm-up', '0', '--json'], check=True, capture_output=True, text=True).stdout)
 rows = {r['technique']: r for r in j['runs'][0]['rows']}
 assert list(rows) == variants, rows
+assert j['warm_up'] == 0 and not any('warm_up_s' in r for r in rows.values()), rows
 # The old tile order, and four workgroups a tile (every tile; the crowded, and every tile of a
 # walk over fewer than 512, so here every tile too): the same image.
 for v in ('tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips'):

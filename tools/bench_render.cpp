@@ -22,6 +22,7 @@
 #include "metrics/image_metrics.hpp"
 #include "render/image.hpp"
 #include "render/vulkan/context.hpp"
+#include "source_revision.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -118,6 +119,19 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
     // walks), and its composite's first walk apart from the walks again.
     nlohmann::json tiles_frames = nlohmann::json::array();
     std::vector<double> first_walk_ms, walks_again_ms;
+    // Frames before the flight, not counted: the first frame of a technique pays for what it
+    // makes when first used (lavapipe compiles a pipeline at its first dispatch, tiles allocates
+    // its pixels' states when a frame first needs them) and, on a GPU that has idled, for its
+    // clocks (docs/cli.md, "bench render").
+    if (args.warm_up > 0) {
+      const auto warm_start = std::chrono::steady_clock::now();
+      for (int w = 0; w < args.warm_up; ++w) {
+        throw_if_interrupted();
+        prepared->render(plan.cameras[size_t(plan.frames.front())], tf, options.width,
+                         options.height);
+      }
+      row["warm_up_s"] = seconds_since(warm_start);
+    }
     double frames_s = 0;  // the technique's own frames, not the reference's
     for (int f : plan.frames) {
       throw_if_interrupted();
@@ -325,10 +339,15 @@ void bench_render(const BenchRenderArgs& args) {
     }
     options.context = &*context;
   }
-  nlohmann::json result = {
-      {"size", {width, height}},     {"frames", args.frames},
-      {"flight", "orbit-zoom"},      {"early_termination", args.early_termination},
-      {"every_hit", args.every_hit}, {"runs", nlohmann::json::array()}};
+  nlohmann::json result = {{"linebake", LINEBAKE_VERSION},
+                           {"source_revision", LINEBAKE_SOURCE_REVISION},
+                           {"size", {width, height}},
+                           {"frames", args.frames},
+                           {"warm_up", args.warm_up},
+                           {"flight", "orbit-zoom"},
+                           {"early_termination", args.early_termination},
+                           {"every_hit", args.every_hit},
+                           {"runs", nlohmann::json::array()}};
   for (const std::string& path : args.caches) {
     const CacheReader cache(path);
     nlohmann::json run = {{"cache", std::filesystem::path(path).stem().stem().string()},

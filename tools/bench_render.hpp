@@ -11,6 +11,7 @@ struct BenchRenderArgs {
   std::vector<std::string> techniques;  // empty: every technique of the registry
   std::vector<std::string> transfer_functions{"semi"};
   int frames = 8;
+  int warm_up = 1;  // frames rendered before the flight's, not counted
   std::string size = "1920x1080", device;
   double max_seconds = 0;  // per technique and transfer function: stop after the frame past it
   bool early_termination = false;  // as render's: embree, ll, rtx, tiles (never reference)

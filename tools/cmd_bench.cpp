@@ -461,6 +461,10 @@ Command add_bench(CLI::App& app) {
       ->delimiter(',');
   rendering->add_option("--frames", render->frames, "Frames of the orbit-zoom flight (default 8)")
       ->check(CLI::Range(1, 100000));
+  rendering
+      ->add_option("--warm-up", render->warm_up,
+                   "Frames each technique renders before the flight's, not counted (default 1)")
+      ->check(CLI::Range(0, 100));
   rendering->add_option("--size", render->size, "Image size WxH (default 1920x1080)")
       ->check(image_size_check());
   rendering->add_option("--device", render->device, "Vulkan device, part of its name");

@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
+#include "source_revision.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -132,6 +133,7 @@ Command add_version(CLI::App& app) {
     unsigned major = 0, minor = 0, release = 0;
     H5get_libversion(&major, &minor, &release);
     const nlohmann::json v = {{"linebake", LINEBAKE_VERSION},
+                              {"source_revision", LINEBAKE_SOURCE_REVISION},
                               {"hdf5", std::to_string(major) + "." + std::to_string(minor) + "." +
                                            std::to_string(release)},
                               {"embree", RTC_VERSION_STRING}};
@@ -140,7 +142,8 @@ Command add_version(CLI::App& app) {
       return;
     }
     std::cout << "linebake " << LINEBAKE_VERSION << " (HDF5 " << v["hdf5"].get<std::string>()
-              << ", Embree " << RTC_VERSION_STRING << ")\n";
+              << ", Embree " << RTC_VERSION_STRING << "), source " << LINEBAKE_SOURCE_REVISION
+              << "\n";
   };
 }
 
