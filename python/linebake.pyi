@@ -136,6 +136,8 @@ class Renderer:
         cache: Union[Cache, StrPath],
         technique: str = "embree",
         size: Union[Tuple[int, int], str] = (1280, 720),
+        *,
+        memory_budget: Optional[str] = None,
         **options: Any,
     ) -> None: ...
     def render(

@@ -8,6 +8,7 @@
 
 #include "accel/embree_scene.hpp"
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 #include "render/ray_tracer.hpp"
 #include "test_util.hpp"
 #include "tubes/tube_builder.hpp"
@@ -445,6 +446,49 @@ TEST(EmbreeScene, ReportsBuildFiguresAndRejectsBadInput) {
   EXPECT_EQ(scene.stats().buffer_bytes, (6 + 1) * 16u + 4 * 4u + 4u);
   EXPECT_THROW(EmbreeScene::from_lines(lines, 0.0f, "", {}), Error);
   EXPECT_THROW(EmbreeScene::from_lines(lines, kRadius, "nope", {}), Error);
+}
+
+TEST(EmbreeScene, ABvhPastItsMemoryLimitIsRefusedWithTheFigures) {
+  // Enough lines for a BVH of some megabytes, as curves and as the tube mesh (the reference's).
+  const LineSet lines = stacked_lines(20000);
+  TubeOptions t;
+  t.radius = kRadius;
+  const TubeMesh mesh = build_tubes(lines, t);
+  for (const bool triangles : {false, true}) {
+    SCOPED_TRACE(triangles ? "triangles" : "curves");
+    const auto build = [&](uint64_t limit) {
+      EmbreeOptions o;
+      o.max_memory_bytes = limit;
+      return triangles ? EmbreeScene::from_tubes(mesh, o)
+                       : EmbreeScene::from_lines(lines, kRadius, "", o);
+    };
+    const BvhStats free = build(0).stats();
+    ASSERT_GT(free.bvh_peak_bytes, 1u << 20);
+    // Twice what it took: built, within the limit, the same scene.
+    const uint64_t room = free.buffer_bytes + 2 * free.bvh_peak_bytes;
+    const BvhStats within = build(room).stats();
+    EXPECT_EQ(within.primitives, free.primitives);
+    EXPECT_LE(within.buffer_bytes + within.bvh_peak_bytes, room);
+    // Half of what its BVH took: Embree's monitor stops the build, and the error says why.
+    const uint64_t half = free.buffer_bytes + free.bvh_peak_bytes / 2;
+    try {
+      build(half);
+      ADD_FAILURE() << "a build past its limit was not refused";
+    } catch (const BudgetExceeded& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("Embree's BVH over " + std::to_string(free.primitives) +
+                          (triangles ? " triangles" : " segments") + " needs more than the " +
+                          format_bytes(half)),
+                std::string::npos)
+          << what;
+      EXPECT_NE(what.find("raise --memory-budget"), std::string::npos) << what;
+    }
+    // Less than its own input buffers (curves: linebake's; triangles share the mesh's): refused
+    // before Embree builds anything.
+    if (!triangles) {
+      EXPECT_THROW(build(free.buffer_bytes / 2), BudgetExceeded);
+    }
+  }
 }
 
 TEST(Camera, CentreRayIsTheViewDirectionAndTheBoundsFit) {

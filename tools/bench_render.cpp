@@ -18,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render/image.hpp"
@@ -51,7 +52,9 @@ std::string camera_key(const Camera& c) {
 }
 
 // The reference's frame 0 per camera (techniques frame their own bounds: curves and voxels can
-// differ from the tube mesh), rendered when first asked for.
+// differ from the tube mesh), rendered when first asked for. Asked for once a cache's techniques
+// have all run and let go of their scenes (FirstFrame): the reference's BVH and a technique's
+// scene are never held at once, and the reference is prepared once per cache.
 class ReferenceFrames {
  public:
   ReferenceFrames(const CacheReader& cache, const std::string& name, const TechniqueOptions& o)
@@ -90,17 +93,26 @@ class ReferenceFrames {
 
 std::string fixed(double v, int digits);
 
-// One technique on one cache with one transfer function.
+// A technique's frame 0, kept (display-encoded) for its quality against the reference.
+struct FirstFrame {
+  Camera camera;
+  Image image;
+};
+
+// One technique on one cache with one transfer function; its frame 0 into `first` (none for
+// the reference itself).
 nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique,
                          const CacheReader& cache, const std::string& cache_name,
                          const TransferFunction& tf, const TechniqueOptions& options,
-                         ReferenceFrames& references) {
+                         std::optional<FirstFrame>& first) {
   nlohmann::json row = {{"technique", technique.info.name}, {"transfer_function", tf.name}};
   if (auto reason = technique_unavailable(technique, options, &cache)) {
     row["skipped"] = *reason;
     return row;
   }
   try {
+    check_frame_memory(technique.info.name, args.size, estimate_frame_bytes(technique, options),
+                       args.memory_budget);
     const auto start = std::chrono::steady_clock::now();
     std::unique_ptr<PreparedTechnique> prepared =
         technique.prepare(technique.info, cache, cache_name, options);
@@ -165,15 +177,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
         layers.push_back(frame.stats["layers"]);
         capped = capped || frame.stats.value("layers_capped", false);
       }
-      if (f == 0 && technique.info.name != "reference") {
-        if (const Image* truth = references.at(camera, tf, options.width, options.height)) {
-          const Image image = display_encoded(frame.image);
-          row["psnr_db"] = psnr(image, *truth);
-          row["ssim"] = ssim(image, *truth);
-        } else {
-          row["quality_skipped"] = "no reference: " + references.why_not();
-        }
-      }
+      if (f == 0 && technique.info.name != "reference")
+        first = FirstFrame{camera, display_encoded(frame.image)};
       if (args.max_seconds > 0 && frames_s > args.max_seconds && f + 1 < args.frames) {
         row["stopped"] = "after " + std::to_string(f + 1) + " of " + std::to_string(args.frames) +
                          " frames (--max-seconds " +
@@ -320,6 +325,9 @@ void bench_render(const BenchRenderArgs& args) {
   TechniqueOptions options;
   options.width = width, options.height = height;
   options.device = args.device;
+  if (!args.memory_budget.empty() && args.memory_budget != "unlimited")
+    options.memory_budget = linebake::parse_size(args.memory_budget);
+  options.memory_unlimited = args.memory_budget == "unlimited";
   // One Vulkan context for every technique, with ray tracing where the device has it: a context
   // per technique costs an instance each, and NVIDIA's driver refused new instances after about
   // thirty in one process (H100, driver 580).
@@ -349,13 +357,16 @@ void bench_render(const BenchRenderArgs& args) {
                            {"every_hit", args.every_hit},
                            {"runs", nlohmann::json::array()}};
   for (const std::string& path : args.caches) {
-    const CacheReader cache(path);
+    // The techniques' reader; the reference gets its own, once this one and the pages of the
+    // cache it mapped are gone.
+    std::optional<CacheReader> cache(std::in_place, path);
     nlohmann::json run = {{"cache", std::filesystem::path(path).stem().stem().string()},
                           {"path", path},
                           {"rows", nlohmann::json::array()}};
-    if (const auto lines = cache.provenance("/lines"))
+    if (const auto lines = cache->provenance("/lines"))
       run["segments"] = lines->stats.value("segments", uint64_t{0});
-    ReferenceFrames references(cache, path, options);
+    // Each row's frame 0 (and its transfer function), for the quality figures at the end.
+    std::vector<std::tuple<size_t, const TransferFunction*, FirstFrame>> firsts;
     for (const TransferFunction& tf : tfs)
       for (const std::string& name : names) {
         TechniqueOptions o = options;
@@ -363,8 +374,10 @@ void bench_render(const BenchRenderArgs& args) {
         // The reference stays exact (its frames above are rendered without these).
         o.early_termination = args.early_termination && name != "reference";
         o.every_hit = args.every_hit;
+        std::optional<FirstFrame> first;
         nlohmann::json row =
-            bench_one(args, find_technique(technique_of(name)), cache, path, tf, o, references);
+            bench_one(args, find_technique(technique_of(name)), *cache, path, tf, o, first);
+        if (first) firsts.emplace_back(run["rows"].size(), &tf, std::move(*first));
         row["technique"] = name;
         std::cerr << "bench render: " << run["cache"].get<std::string>() << " " << tf.name << " "
                   << name << ": "
@@ -376,6 +389,22 @@ void bench_render(const BenchRenderArgs& args) {
                   << "\n";
         run["rows"].push_back(row);
       }
+    // Quality last, every technique's scene let go: frame 0 against the reference's.
+    if (!firsts.empty()) {
+      std::cerr << "bench render: " << run["cache"].get<std::string>()
+                << ": the reference's frames for PSNR and SSIM\n";
+      cache.emplace(path);
+      ReferenceFrames references(*cache, path, options);
+      for (const auto& [index, tf, first] : firsts) {
+        nlohmann::json& row = run["rows"][index];
+        if (const Image* truth = references.at(first.camera, *tf, width, height)) {
+          row["psnr_db"] = psnr(first.image, *truth);
+          row["ssim"] = ssim(first.image, *truth);
+        } else {
+          row["quality_skipped"] = "no reference: " + references.why_not();
+        }
+      }
+    }
     result["runs"].push_back(std::move(run));
   }
   if (args.json)

@@ -13,7 +13,8 @@ struct BenchRenderArgs {
   int frames = 8;
   int warm_up = 1;  // frames rendered before the flight's, not counted
   std::string size = "1920x1080", device;
-  double max_seconds = 0;  // per technique and transfer function: stop after the frame past it
+  double max_seconds = 0;     // per technique and transfer function: stop after the frame past it
+  std::string memory_budget;  // as render's: "" (half of physical memory), "8G", "unlimited"
   bool early_termination = false;  // as render's: embree, ll, rtx, tiles (never reference)
   bool every_hit = false;          // embree, reference: every hit of every ray, no interval walk
   bool json = false;

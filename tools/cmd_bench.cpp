@@ -473,6 +473,12 @@ Command add_bench(CLI::App& app) {
                    "Per technique and transfer function, stop after the frame that passes "
                    "this many seconds (dp on large sets); default: render every frame")
       ->check(non_negative());
+  rendering
+      ->add_option("--memory-budget", render->memory_budget,
+                   "As render's, for every technique and the reference: refuse a frame past it; "
+                   "embree's and reference's BVH within what it leaves (default: half of "
+                   "physical memory); unlimited")
+      ->check(byte_size());
   rendering->add_flag("--early-termination", render->early_termination,
                       "Stop compositing at opacity 0.99, as render (never the reference)");
   rendering->add_flag("--every-hit", render->every_hit,

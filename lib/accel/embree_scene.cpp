@@ -8,6 +8,7 @@
 #include "accel/capsule_chain.hpp"
 #include "core/error.hpp"
 #include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake {
 namespace {
@@ -58,6 +59,11 @@ struct EmbreeScene::State {
   RTCScene top = nullptr;
   std::vector<RTCScene> sub_scenes;
   std::atomic<int64_t> current{0}, peak{0};
+  // What Embree may allocate (0: no limit), and whether the monitor cancelled an allocation
+  // past it.
+  int64_t limit = 0;
+  std::atomic<bool> over_limit{false};
+  std::atomic<int64_t> refused_bytes{0}, held_when_refused{0};  // the first allocation refused
   BvhStats stats;
   EmbreeGeometry geometry = EmbreeGeometry::LinearCurve;
   std::vector<Part> parts;
@@ -81,9 +87,20 @@ struct EmbreeScene::State {
     range = {r.min, r.max};
   }
 
-  static bool monitor(void* user, ssize_t bytes, bool /*post*/) {
+  // Embree calls this from its build threads before or after (post) each large allocation and
+  // free. Returning false cancels the operation with RTC_ERROR_OUT_OF_MEMORY; an allocation
+  // refused before it happened is not counted, one reported after it is (Embree frees it).
+  static bool monitor(void* user, ssize_t bytes, bool post) {
     auto* self = static_cast<State*>(user);
     const int64_t now = self->current.fetch_add(bytes) + bytes;
+    if (bytes > 0 && self->limit > 0 && now > self->limit) {
+      if (!self->over_limit.exchange(true)) {
+        self->refused_bytes = bytes;
+        self->held_when_refused = now - bytes;
+      }
+      if (!post) self->current.fetch_sub(bytes);
+      return false;
+    }
     int64_t peak = self->peak.load();
     while (now > peak && !self->peak.compare_exchange_weak(peak, now)) {
     }
@@ -138,10 +155,28 @@ struct EmbreeScene::State {
     return g;
   }
 
+  [[noreturn]] void throw_over_limit(uint64_t max_bytes) const {
+    const std::string what = "Embree's BVH over " + std::to_string(stats.primitives) + " " +
+                             (geometry == EmbreeGeometry::Triangles ? "triangles" : "segments") +
+                             " needs more than the " + format_bytes(max_bytes) +
+                             " the memory budget leaves for the scene (input buffers " +
+                             format_bytes(stats.buffer_bytes);
+    const std::string build =
+        over_limit ? "; the build asked for " + format_bytes(uint64_t(refused_bytes.load())) +
+                         " more while holding " +
+                         format_bytes(uint64_t(std::max<int64_t>(held_when_refused.load(), 0)))
+                   : "";
+    throw BudgetExceeded(what + build + "); raise --memory-budget");
+  }
+
   // Parts into scenes: one scene when everything fits, else consecutive parts grouped into
   // sub-scenes of at most max_primitives_per_scene, instanced with the identity transform.
   void commit(const EmbreeOptions& o) {
     const auto start = std::chrono::steady_clock::now();
+    if (o.max_memory_bytes > 0) {
+      if (stats.buffer_bytes >= o.max_memory_bytes) throw_over_limit(o.max_memory_bytes);
+      limit = int64_t(o.max_memory_bytes - stats.buffer_bytes);
+    }
     top = new_scene(o);
     const bool instanced = stats.primitives > o.max_primitives_per_scene && parts.size() > 1;
     RTCScene current_scene = instanced ? nullptr : top;
@@ -161,6 +196,7 @@ struct EmbreeScene::State {
     }
     for (size_t s = 0; s < sub_scenes.size(); ++s) {
       rtcCommitScene(sub_scenes[s]);
+      if (over_limit) throw_over_limit(o.max_memory_bytes);
       RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
       rtcSetGeometryInstancedScene(inst, sub_scenes[s]);
       const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
@@ -170,6 +206,7 @@ struct EmbreeScene::State {
       rtcReleaseGeometry(inst);
     }
     rtcCommitScene(top);
+    if (over_limit) throw_over_limit(o.max_memory_bytes);
     throw_on_device_error(device, "the BVH build");
     stats.commit_s = seconds_since(start);
     stats.instanced = instanced;

@@ -39,6 +39,11 @@ struct EmbreeOptions {
   // Primitives per Embree scene. Past it the geometry is split at line (chunk) boundaries into
   // sub-scenes, instanced into one top-level scene: Embree's primitive ids are 32-bit.
   uint64_t max_primitives_per_scene = 0xFFFFFFFFull;
+  // The most memory the scene may take (0: no limit): the input buffers it prepares and what
+  // Embree allocates for the BVH. Embree's memory monitor cancels the build at the allocation
+  // that would pass it, and the builder throws BudgetExceeded with the figures: a BVH that does
+  // not fit the memory budget is refused, not left to the kernel.
+  uint64_t max_memory_bytes = 0;
 };
 
 struct BvhStats {

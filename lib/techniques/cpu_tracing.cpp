@@ -6,11 +6,17 @@
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 #include "render/ray_tracer.hpp"
 #include "techniques/curve_defaults.hpp"
 #include "techniques/families.hpp"
 
 namespace linebake {
+
+uint64_t cpu_tracing_frame_bytes(const TechniqueInfo&, const TechniqueOptions& o) {
+  return uint64_t(o.width) * uint64_t(o.height) * 16;  // hit lists of a tile, alpha, counts
+}
+
 namespace {
 
 nlohmann::json to_json(const BvhStats& s) {
@@ -25,6 +31,56 @@ nlohmann::json to_json(const BvhStats& s) {
           {"bvh_peak_bytes", s.bvh_peak_bytes}};
 }
 
+// What the memory budget leaves the Embree scene (its buffers and BVH) once the process holds
+// its data (render --memory-budget; none given: half of physical memory), less the frame's own
+// buffers; and the figures behind it, for a refusal.
+struct SceneBudget {
+  uint64_t bytes = 0;  // 0: unlimited
+  std::string figures;
+};
+
+uint64_t budget_bytes(const TechniqueOptions& o) {
+  return o.memory_budget > 0 ? o.memory_budget : default_memory_budget();
+}
+
+// Refuses, before it is read, data whose size in memory (the cache's provenance says) does not
+// fit what the budget leaves.
+void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,
+                     const std::string& group, const std::string& data) {
+  const auto provenance = cache.provenance(group);
+  if (o.memory_unlimited || !provenance) return;
+  const MemoryBudget budget(budget_bytes(o));
+  if (provenance->memory_bytes > budget.available())
+    throw BudgetExceeded(
+        info.name + ": the " + data + " take " + format_bytes(provenance->memory_bytes) +
+        " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
+        " of " + format_bytes(budget.total()) + "); raise --memory-budget");
+}
+
+SceneBudget scene_budget(const TechniqueInfo& info, const TechniqueOptions& o,
+                         const std::string& data) {
+  if (o.memory_unlimited) return {};
+  const MemoryBudget budget(budget_bytes(o));
+  const std::string figures =
+      format_bytes(budget.total()) + (o.memory_budget > 0 ? "" : ", half of physical memory") +
+      "; the process held " + format_bytes(budget.baseline()) + " with the " + data + " loaded";
+  const uint64_t frame = cpu_tracing_frame_bytes(info, o);
+  if (budget.available() <= frame)
+    throw BudgetExceeded(info.name + ": nothing is left for Embree's BVH; raise --memory-budget (" +
+                         figures + ")");
+  return {budget.available() - frame, figures};
+}
+
+// Builds the scene, naming the technique and the budget's figures where it is refused.
+template <class Build>
+void build_within(const TechniqueInfo& info, const SceneBudget& budget, Build&& build) {
+  try {
+    build();
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded(info.name + ": " + e.what() + " (" + budget.figures + ")");
+  }
+}
+
 class CpuTracing : public PreparedTechnique {
  public:
   CpuTracing(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
@@ -35,11 +91,17 @@ class CpuTracing : public PreparedTechnique {
     if (info.name == "reference") {
       if (!has_tubes)
         throw_missing_asset(cache_name, "tubes", "the reference renders the tube mesh");
+      check_data_fits(info, o, cache, "/assets/tubes", "tube mesh's buffers");
       tubes_ = load_tubes(cache);
-      scene_.emplace(EmbreeScene::from_tubes(tubes_, options));
+      const SceneBudget budget = scene_budget(info, o, "tube mesh");
+      options.max_memory_bytes = budget.bytes;
+      build_within(info, budget, [&] { scene_.emplace(EmbreeScene::from_tubes(tubes_, options)); });
     } else {
       // The curves take the cached tubes' radius and attribute, from their provenance.
+      check_data_fits(info, o, cache, "/lines", "lines");
       lines_ = load_lines(cache);
+      const SceneBudget budget = scene_budget(info, o, "lines");
+      options.max_memory_bytes = budget.bytes;
       options.geometry = parse_embree_geometry(o.geometry);
       const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
       const auto [radius, attribute] =
@@ -52,12 +114,14 @@ class CpuTracing : public PreparedTechnique {
             stored->attribute != attribute)
           stored.reset();
       }
-      if (stored)
-        scene_.emplace(
-            EmbreeScene::from_prepared(lines_, std::move(stored->parts), attribute, options));
-      else
-        scene_.emplace(EmbreeScene::from_lines(lines_, radius, attribute, options));
       from_cache_ = stored.has_value();
+      build_within(info, budget, [&] {
+        if (stored)
+          scene_.emplace(
+              EmbreeScene::from_prepared(lines_, std::move(stored->parts), attribute, options));
+        else
+          scene_.emplace(EmbreeScene::from_lines(lines_, radius, attribute, options));
+      });
     }
     trace_.width = o.width, trace_.height = o.height;
     trace_.early_termination = o.early_termination;
@@ -112,10 +176,6 @@ class CpuTracing : public PreparedTechnique {
 };
 
 }  // namespace
-
-uint64_t cpu_tracing_frame_bytes(const TechniqueInfo&, const TechniqueOptions& o) {
-  return uint64_t(o.width) * uint64_t(o.height) * 16;  // hit lists of a tile, alpha, counts
-}
 
 std::unique_ptr<PreparedTechnique> prepare_cpu_tracing(const TechniqueInfo& info,
                                                        const CacheReader& cache,

@@ -90,8 +90,11 @@ struct TechniqueOptions {
   // and tiles-strips).
   std::string tiles_strips = "none";
   // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
-  // in bands of tile rows to stay within it.
+  // in bands of tile rows to stay within it; embree and reference build their BVH within what it
+  // leaves of the process's resident memory (none given: half of physical memory) and refuse
+  // one that does not fit. memory_unlimited (--memory-budget unlimited): no limit at all.
   uint64_t memory_budget = 0;
+  bool memory_unlimited = false;
 };
 
 struct TechniqueFrame {

@@ -19,7 +19,8 @@ namespace {
 
 // The technique options of `linebake render` as keyword arguments ('_' for '-'); common ones
 // (tf, size, frame, ...) are render()'s own parameters.
-const std::vector<std::string> kRenderKeywords = {"on",
+const std::vector<std::string> kRenderKeywords = {"memory_budget",
+                                                  "on",
                                                   "no_early_termination",
                                                   "no_skip",
                                                   "rtx_geometry",
@@ -94,6 +95,14 @@ TechniqueOptions technique_options(const py::kwargs& kw, int width, int height) 
     o.vrc_early_termination = !kw["no_early_termination"].cast<bool>();
   if (kw.contains("no_skip")) o.skip_empty_space = !kw["no_skip"].cast<bool>();
   if (kw.contains("rtx_no_compaction")) o.compaction = !kw["rtx_no_compaction"].cast<bool>();
+  // What the scene may take (embree, reference: the BVH) and tiles' bands: '40G', 'unlimited'.
+  if (kw.contains("memory_budget") && !kw["memory_budget"].is_none()) {
+    const std::string budget = kw["memory_budget"].cast<std::string>();
+    if (budget == "unlimited")
+      o.memory_unlimited = true;
+    else
+      o.memory_budget = parse_size(budget);
+  }
   return o;
 }
 
@@ -290,7 +299,9 @@ A technique prepared over a cache, for rendering several frames:
 Renderer(cache, technique="embree", size=(1280, 720), **options). cache: a Cache or a path.
 options: the technique's options of `linebake render`, '_' for '-' (layers, moments,
 moment_basis, sort, on, device, embree_geometry, ...); one the technique does not read is
-linebake.UsageError, a technique this machine cannot run linebake.Error with the reason.)doc")
+linebake.UsageError, a technique this machine cannot run linebake.Error with the reason.
+memory_budget ('40G', 'unlimited'; default half of physical memory): embree's and reference's
+BVH is built within what it leaves, or refused with linebake.BudgetExceeded.)doc")
       .def(py::init<const py::object&, const std::string&, const py::object&, const py::kwargs&>(),
            py::arg("cache"), py::arg("technique") = "embree",
            py::arg("size") = py::make_tuple(1280, 720))
@@ -311,7 +322,10 @@ stats: the fields of `linebake render --stats`. Releases the GIL.)doc")
          const py::object& size, int frame, int frame_count, const std::string& flight,
          const std::optional<py::dict>& camera, const std::optional<std::string>& memory_budget,
          const py::kwargs& options) {
-        PyRenderer renderer(cache, technique, size, options);
+        // The budget bounds the scene (the Renderer's option) and checks the frame.
+        auto all = py::reinterpret_steal<py::kwargs>(PyDict_Copy(options.ptr()));
+        if (memory_budget) all["memory_budget"] = *memory_budget;
+        PyRenderer renderer(cache, technique, size, all);
         return renderer.render(tf, camera, frame, frame_count, flight, py::none(), memory_budget);
       },
       py::arg("cache"), py::kw_only(), py::arg("technique") = "embree", py::arg("tf") = "semi",

@@ -109,3 +109,20 @@ def test_render_needs_a_cache(tmp_path):
         linebake.render("synth:aneurysm?scale=0.01", technique="reference")
     assert str(caught.value) == cli_error("render", "synth:aneurysm?scale=0.01", "-o",
                                           tmp_path / "x.png")
+
+
+def test_the_scene_is_built_within_the_memory_budget(baked, tmp_path):
+    cache, _ = baked
+    # No room for the tube mesh: refused before it is read, as the CLI refuses it.
+    with pytest.raises(linebake.BudgetExceeded) as caught:
+        linebake.render(cache, technique="reference", size=(16, 16), memory_budget="1M")
+    expected = cli_error("render", cache, "--technique", "reference", "--size", "16x16",
+                         "--memory-budget", "1M", "-o", tmp_path / "x.png")
+    assert str(caught.value) == expected
+    assert "the tube mesh's buffers take" in expected
+    with pytest.raises(linebake.BudgetExceeded):
+        linebake.Renderer(cache, "embree", size=(16, 16), memory_budget="1M")
+    # Unlimited: the same frame as under the default budget.
+    unlimited, _ = linebake.render(cache, technique="reference", size=SIZE, frame=FRAME,
+                                   memory_budget="unlimited")
+    np.testing.assert_array_equal(unlimited, render(cache, "reference")[0])
