@@ -114,7 +114,8 @@ def main():
                           f"{fmt(tiles.get('walks_again_ms', {}).get('median'))}")
         notes = "; ".join(text for text in (
             row.get("skipped"), "failed: " + row["failed"] if "failed" in row else None,
-            "stopped " + row["stopped"] if "stopped" in row else None) if text)
+            "stopped " + row["stopped"] if "stopped" in row else None,
+            row.get("quality_skipped")) if text)
         memory = fmt(row["frame_bytes"] / 2**20) if "frame_bytes" in row else ""
         print(f"| {cache} | `{name(key_of(row))}` | {passes} | {memory} | {quality} | "
               f"{tiles_text} | {notes} |")

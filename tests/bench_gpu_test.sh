@@ -40,20 +40,43 @@ for set in aneurysm convection; do
   rows=$(q "sum(1 for run in r['runs'] for row in run['rows'] if row['gpu_ms']['median'] > 0 and row['psnr_db'] > 0)" "$(render $set)")
   [ "$rows" = 3 ] || fail "render-$set.json: $rows rows with figures, 3 expected"
 done
-median() { q "[row['gpu_ms']['median'] for run in r['runs'] for row in run['rows'] if row['technique'] == '$2'][0]" "$(render "$1")"; }
-# Every GPU time and every ratio of ll's time to another's, as summary.md prints them.
+gpu() { q "[row['gpu_ms']['$3'] for run in r['runs'] for row in run['rows'] if row['technique'] == '$2'][0]" "$(render "$1")"; }
+# cell N SET COLUMN: the cell of summary.md's Nth table in SET's row, under COLUMN's header
+# (the Markdown read here on its own).
+cell() {
+  python3 - "$tmp/out/summary.md" "$@" << 'EOF'
+import sys
+path, n, wanted_set, column = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+tables, rows = [], None
+for line in open(path, encoding="utf-8").read().splitlines():
+    if not line.startswith("|"):
+        rows = None
+        continue
+    if rows is None:
+        rows = []
+        tables.append(rows)
+    rows.append([c.strip() for c in line.strip("|").split("|")])
+header, *body = tables[n - 1]
+print(next(r for r in body[1:] if r[0].split(" (")[0] == wanted_set)[header.index(column)])
+EOF
+}
+# Every GPU time (median and max) in its column, and every ratio of ll's time to another's.
 for set in aneurysm convection; do
   for t in tiles ll tiles-triangles; do
-    want=$(awk -v ms="$(median "$set" "$t")" 'BEGIN { printf "%.1f", ms }')
-    line=$(grep "^| $set (" "$tmp/out/summary.md" | head -1)
-    [[ "$line" == *"$want ("* ]] || fail "summary.md: $set $t's $want ms not in '$line'"
+    want=$(awk -v a="$(gpu "$set" "$t" median)" -v b="$(gpu "$set" "$t" max)" 'BEGIN { printf "%.1f (%.1f)", a, b }')
+    got=$(cell 1 "$set" "\`$t\`")
+    [ "$got" = "$want" ] || fail "summary.md: $set $t: '$got', not '$want'"
   done
-  ratio=$(awk -v a="$(median "$set" ll)" -v b="$(median "$set" tiles)" 'BEGIN { printf "%.2f", a / b }')
-  line=$(grep "^| $set (" "$tmp/out/summary.md" | sed -n 2p)
-  [[ "$line" == "| $set ("*"| $ratio |"* ]] || fail "summary.md: ll / tiles $ratio not in '$line'"
+  for t in tiles tiles-triangles; do
+    want=$(awk -v a="$(gpu "$set" ll median)" -v b="$(gpu "$set" "$t" median)" 'BEGIN { printf "%.2f", a / b }')
+    got=$(cell 2 "$set" "\`$t\`")
+    [ "$got" = "$want" ] || fail "summary.md: ll / $t on $set: '$got', not '$want'"
+  done
 done
 # A tiles row carries its keys and walks; ll's row none.
 grep -q "^| aneurysm | \`tiles\` | bin .*(median), 1, " "$tmp/out/summary.md" || fail "tiles' keys"
+[ "$(awk -F'|' '$2 ~ /aneurysm/ && $3 ~ /`ll`/ { gsub(/ /, "", $7); print "[" $7 "]" }' "$tmp/out/summary.md")" = "[]" ] ||
+  fail "ll's row has tiles' figures"
 
 # The same scale again: the caches are kept; --steps render alone renders them.
 "${bench[@]}" --scale 0.002 --sets aneurysm,convection --techniques tiles --steps data,render \
@@ -93,13 +116,37 @@ grep -q "1 passed, 1 failed" "$tmp/run5.txt" && grep -q "the failure's output" "
   fail "the failed test is not reported"
 
 # Bad arguments: exit 2 before any work.
-for args in "--bogus" "--out" "--steps fly" "--linebake /nonexistent" "--tests /nonexistent"; do
+while IFS='|' read -r args why; do
   # shellcheck disable=SC2086
-  "$repo/scripts/bench-gpu" --out "$tmp/bad" $args > "$tmp/bad.txt" 2>&1
+  "$repo/scripts/bench-gpu" --linebake "$bin" --out "$tmp/bad" $args > "$tmp/bad.txt" 2>&1
   rc=$?
   [ "$rc" = 2 ] || fail "'$args' exited $rc"
+  grep -qF -e "$why" "$tmp/bad.txt" || fail "'$args' did not say '$why': $(cat "$tmp/bad.txt")"
   [ -e "$tmp/bad" ] && fail "'$args' wrote $tmp/bad"
-done
+done << 'EOF'
+--bogus|unknown argument '--bogus'
+--out|--out needs a value
+--steps fly|unknown step 'fly'
+--tests /nonexistent|no test binary at /nonexistent
+--linebake /nonexistent|no linebake at /nonexistent
+EOF
+
+# A set that fails to bake: said, the others baked and rendered, exit 1; a test filter that
+# matches nothing: exit 1.
+"${bench[@]}" --scale 0.002 --sets nosuchset,aneurysm --techniques tiles --steps data,render \
+  > "$tmp/run7.txt" 2>&1
+rc=$?
+[ "$rc" = 1 ] || fail "a failed bake: exit $rc"
+grep -q "baking nosuchset failed" "$tmp/run7.txt" && grep -q "render-aneurysm.json in" "$tmp/run7.txt" ||
+  fail "a failed bake stopped the run: $(cat "$tmp/run7.txt")"
+# A run split by set: the summary is of every set rendered into DIR, the aneurysm's from above.
+"${bench[@]}" --scale 0.002 --sets convection --techniques tiles --steps data,render \
+  > "$tmp/run9.txt" 2>&1 || fail "convection alone"
+grep -q "^| aneurysm (" "$tmp/out/summary.md" && grep -q "^| convection (" "$tmp/out/summary.md" ||
+  fail "the summary lost the set of an earlier call"
+"${bench[@]}" --steps tests --tests-filter 'NoSuchSuite.*' > "$tmp/run8.txt" 2>&1
+rc=$?
+[ "$rc" = 1 ] && grep -q "no test matches NoSuchSuite" "$tmp/run8.txt" || fail "an empty filter: exit $rc"
 
 # Where the driver reports compiler statistics, shaders.json has them.
 radv=/usr/share/vulkan/icd.d/radeon_icd.x86_64.json

@@ -12,9 +12,10 @@ check "info help" "$bin" info --help
 check "convert help" "$bin" convert --help
 check "synth help" "$bin" synth --help
 check "version" bash -c "'$bin' --version | grep -q '[0-9]\.[0-9]'"
-# The build's sources: the checkout's commit (this file's), "+modified" for changes to tracked
-# files, or "unknown" outside git. Built before the commit it names? Build again.
-check "version --json: the commit the sources are at" bash -c "rev=\$('$bin' version --json | python3 -c 'import json, sys; print(json.load(sys.stdin)[\"source_revision\"])') && want=\$(git -C '$(dirname "$0")' rev-parse --short=10 HEAD 2> /dev/null || echo unknown) && [ \"\${rev%+modified}\" = \"\$want\" ]"
+# The build's sources: a commit of this checkout's history (HEAD, or before it where the build
+# predates the last commit), ten hex digits and "+modified" for changes to tracked files; or
+# "unknown" outside git.
+check "version --json: the commit the sources are at" bash -c "rev=\$('$bin' version --json | python3 -c 'import json, sys; print(json.load(sys.stdin)[\"source_revision\"])') && if git -C '$(dirname "$0")' rev-parse HEAD > /dev/null 2>&1; then [[ \"\$rev\" =~ ^[0-9a-f]{10}(\+modified)?\$ ]] && git -C '$(dirname "$0")' merge-base --is-ancestor \"\${rev%+modified}\" HEAD; else [ \"\$rev\" = unknown ]; fi"
 check "no subcommand is a usage error" exit_code 1 "$bin"
 check "unknown option is a usage error" exit_code 1 "$bin" info --bogus x
 

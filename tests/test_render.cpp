@@ -454,16 +454,20 @@ TEST(EmbreeScene, ABvhPastItsMemoryLimitIsRefusedWithTheFigures) {
   TubeOptions t;
   t.radius = kRadius;
   const TubeMesh mesh = build_tubes(lines, t);
-  for (const bool triangles : {false, true}) {
-    SCOPED_TRACE(triangles ? "triangles" : "curves");
+  // Curves in one scene and in instanced sub-scenes of 5,000 segments, and triangles.
+  for (const int kind : {0, 1, 2}) {
+    const bool triangles = kind == 2;
+    SCOPED_TRACE(kind == 0 ? "curves" : kind == 1 ? "curves in sub-scenes" : "triangles");
     const auto build = [&](uint64_t limit) {
       EmbreeOptions o;
       o.max_memory_bytes = limit;
+      if (kind == 1) o.max_primitives_per_scene = 5000;
       return triangles ? EmbreeScene::from_tubes(mesh, o)
                        : EmbreeScene::from_lines(lines, kRadius, "", o);
     };
     const BvhStats free = build(0).stats();
     ASSERT_GT(free.bvh_peak_bytes, 1u << 20);
+    EXPECT_EQ(free.instanced, kind == 1);
     // Twice what it took: built, within the limit, the same scene.
     const uint64_t room = free.buffer_bytes + 2 * free.bvh_peak_bytes;
     const BvhStats within = build(room).stats();

@@ -18,7 +18,6 @@
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/measure.hpp"
-#include "core/memory_budget.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render/image.hpp"
@@ -54,7 +53,8 @@ std::string camera_key(const Camera& c) {
 // The reference's frame 0 per camera (techniques frame their own bounds: curves and voxels can
 // differ from the tube mesh), rendered when first asked for. Asked for once a cache's techniques
 // have all run and let go of their scenes (FirstFrame): the reference's BVH and a technique's
-// scene are never held at once, and the reference is prepared once per cache.
+// scene are never held at once, and the reference's frames are prepared once per cache (a
+// `reference` row prepares its own scene for its timings).
 class ReferenceFrames {
  public:
   ReferenceFrames(const CacheReader& cache, const std::string& name, const TechniqueOptions& o)
@@ -325,9 +325,7 @@ void bench_render(const BenchRenderArgs& args) {
   TechniqueOptions options;
   options.width = width, options.height = height;
   options.device = args.device;
-  if (!args.memory_budget.empty() && args.memory_budget != "unlimited")
-    options.memory_budget = linebake::parse_size(args.memory_budget);
-  options.memory_unlimited = args.memory_budget == "unlimited";
+  set_memory_budget(options, args.memory_budget);
   // One Vulkan context for every technique, with ray tracing where the device has it: a context
   // per technique costs an instance each, and NVIDIA's driver refused new instances after about
   // thirty in one process (H100, driver 580).
@@ -371,7 +369,7 @@ void bench_render(const BenchRenderArgs& args) {
       for (const std::string& name : names) {
         TechniqueOptions o = options;
         if (const BenchVariant* v = variant_of(name)) v->apply(o);
-        // The reference stays exact (its frames above are rendered without these).
+        // The reference stays exact (its frames for quality are rendered with `options`).
         o.early_termination = args.early_termination && name != "reference";
         o.every_hit = args.every_hit;
         std::optional<FirstFrame> first;

@@ -282,9 +282,7 @@ Command add_render(CLI::App& app) {
     o.max_iterations = args->max_iterations;
     // The depth complexity costs embree and reference every hit of every ray: only when shown.
     o.every_hit = !args->stats.empty() || args->json || !args->depth_image.empty();
-    if (!args->memory_budget.empty() && args->memory_budget != "unlimited")
-      o.memory_budget = linebake::parse_size(args->memory_budget);
-    o.memory_unlimited = args->memory_budget == "unlimited";
+    set_memory_budget(o, args->memory_budget);
     check_frame_memory(args->technique, args->size,
                        estimate_frame_bytes(find_technique(args->technique), o),
                        args->memory_budget);

@@ -86,6 +86,7 @@ class Viewer {
  public:
   struct Options {
     std::string cache, technique = "ll", tf = "semi", device, script, flight = "orbit-zoom";
+    std::string memory_budget;  // embree's and reference's scenes (--memory-budget)
     int width = 1280, height = 720, frame_count = 64;
     bool validation = false;
   };
@@ -204,7 +205,7 @@ class Viewer {
 
   void switch_technique(const std::string& name) {
     try {
-      source_ = make_view_source(name, cache_, *context_);
+      source_ = make_view_source(name, cache_, *context_, options_.memory_budget);
       technique_ = name;
       status_.clear();
       if (flight_camera_) set_flight_frame(flight_frame_);
@@ -351,7 +352,8 @@ class Viewer {
   // PSNR / SSIM of the last frame against the ground truth (the reference) from the same camera.
   void compare() {
     if (frame_.image.pixels.empty()) return;
-    if (!reference_) reference_ = make_view_source("reference", cache_, *context_);
+    if (!reference_)
+      reference_ = make_view_source("reference", cache_, *context_, options_.memory_budget);
     const TransferFunction tf = resolve_transfer_function(tf_);
     const ViewFrame truth = reference_->render(camera(), tf, width_, height_);
     const Image a = as_png_values(frame_.image), b = as_png_values(truth.image);
@@ -398,6 +400,10 @@ Command add_view(CLI::App& app) {
   sub->add_option("--device", options->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", options->validation,
                 "Vulkan: enable the Khronos validation layer; validation errors end the session");
+  sub->add_option("--memory-budget", options->memory_budget,
+                  "As render's: embree's and reference's BVH within what it leaves (default: half "
+                  "of physical memory); unlimited")
+      ->check(byte_size());
   sub->add_option("--script", options->script,
                   "Commands to run, one per frame (docs/viewer.md); the session ends after the "
                   "last");

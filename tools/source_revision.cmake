@@ -7,12 +7,12 @@
 set(revision unknown)
 find_package(Git QUIET)
 if(GIT_FOUND)
-  execute_process(COMMAND ${GIT_EXECUTABLE} -C ${SOURCE_DIR} rev-parse --short=10 HEAD
+  execute_process(COMMAND "${GIT_EXECUTABLE}" -C "${SOURCE_DIR}" rev-parse --short=10 HEAD
                   OUTPUT_VARIABLE commit OUTPUT_STRIP_TRAILING_WHITESPACE ERROR_QUIET
                   RESULT_VARIABLE failed)
   if(NOT failed AND commit)
-    set(revision ${commit})
-    execute_process(COMMAND ${GIT_EXECUTABLE} -C ${SOURCE_DIR} status --porcelain --untracked-files=no
+    set(revision "${commit}")
+    execute_process(COMMAND "${GIT_EXECUTABLE}" -C "${SOURCE_DIR}" status --porcelain --untracked-files=no
                     OUTPUT_VARIABLE changes OUTPUT_STRIP_TRAILING_WHITESPACE ERROR_QUIET)
     if(changes)
       string(APPEND revision "+modified")
@@ -20,9 +20,9 @@ if(GIT_FOUND)
   endif()
 endif()
 set(text "#pragma once\n#define LINEBAKE_SOURCE_REVISION \"${revision}\"\n")
-if(EXISTS ${OUTPUT})
-  file(READ ${OUTPUT} old)
+if(EXISTS "${OUTPUT}")
+  file(READ "${OUTPUT}" old)
 endif()
 if(NOT old STREQUAL text)
-  file(WRITE ${OUTPUT} "${text}")
+  file(WRITE "${OUTPUT}" "${text}")
 endif()

@@ -38,11 +38,13 @@ const std::vector<std::string>& view_techniques() {
 }
 
 std::unique_ptr<ViewSource> make_view_source(const std::string& technique, const CacheReader& cache,
-                                             vk::Context& context) {
+                                             vk::Context& context,
+                                             const std::string& memory_budget) {
   const bool vrc_gpu = technique == "vrc-gpu";
   const Technique& t = find_technique(vrc_gpu ? "vrc" : technique);
   TechniqueOptions options;
   options.context = &context;
+  set_memory_budget(options, memory_budget);
   if (vrc_gpu) options.on = "gpu";
   if (auto reason = technique_unavailable(t, options, &cache)) throw Error(*reason);
   return std::make_unique<TechniqueSource>(t.prepare(t.info, cache, cache.path(), options));

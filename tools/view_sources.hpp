@@ -35,8 +35,10 @@ class ViewSource {
 const std::vector<std::string>& view_techniques();
 
 // A source for `technique` (a view_techniques() name) over `cache`; the Vulkan techniques render
-// on `context`. Throws Error naming what is missing (an asset, a device feature).
+// on `context`, embree's and reference's scenes within `memory_budget` (--memory-budget's text).
+// Throws Error naming what is missing (an asset, a device feature) or does not fit.
 std::unique_ptr<ViewSource> make_view_source(const std::string& technique, const CacheReader& cache,
-                                             vk::Context& context);
+                                             vk::Context& context,
+                                             const std::string& memory_budget = "");
 
 }  // namespace linebake::cli

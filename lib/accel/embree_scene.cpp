@@ -87,24 +87,44 @@ struct EmbreeScene::State {
     range = {r.min, r.max};
   }
 
-  // Embree calls this from its build threads before or after (post) each large allocation and
-  // free. Returning false cancels the operation with RTC_ERROR_OUT_OF_MEMORY; an allocation
-  // refused before it happened is not counted, one reported after it is (Embree frees it).
+  // Embree calls this from its build threads, concurrently, before or after (post) each large
+  // allocation and free. Returning false cancels the operation with RTC_ERROR_OUT_OF_MEMORY: an
+  // allocation refused before it happened is not counted, one reported after it is (Embree
+  // frees it). An allocation is granted only if it fits with what is held (a compare-exchange,
+  // so that no thread sees another's refused bytes), and none after the first refusal.
   static bool monitor(void* user, ssize_t bytes, bool post) {
     auto* self = static_cast<State*>(user);
-    const int64_t now = self->current.fetch_add(bytes) + bytes;
-    if (bytes > 0 && self->limit > 0 && now > self->limit) {
-      if (!self->over_limit.exchange(true)) {
-        self->refused_bytes = bytes;
-        self->held_when_refused = now - bytes;
-      }
-      if (!post) self->current.fetch_sub(bytes);
-      return false;
+    int64_t held = self->current.load();
+    if (bytes > 0 && self->limit > 0) {
+      do {
+        if (self->over_limit || held + bytes > self->limit) {
+          if (!self->over_limit.exchange(true)) {
+            self->refused_bytes = bytes;
+            self->held_when_refused = held;
+          }
+          if (post) self->note_peak(self->current.fetch_add(bytes) + bytes);
+          return false;
+        }
+      } while (!self->current.compare_exchange_weak(held, held + bytes));
+    } else {
+      held = self->current.fetch_add(bytes);
     }
-    int64_t peak = self->peak.load();
-    while (now > peak && !self->peak.compare_exchange_weak(peak, now)) {
-    }
+    self->note_peak(held + bytes);
     return true;
+  }
+
+  void note_peak(int64_t now) {
+    int64_t high = peak.load();
+    while (now > high && !peak.compare_exchange_weak(high, now)) {
+    }
+  }
+
+  // What linebake holds for the scene besides the mesh or lines it views: the prepared input
+  // buffers, each segment's first point, and the attribute's copy.
+  uint64_t held_bytes() const {
+    uint64_t bytes = stats.buffer_bytes + attribute.bytes();
+    for (const Part& part : parts) bytes += part.segment_point.bytes();
+    return bytes;
   }
 
   void create_device() {
@@ -159,8 +179,8 @@ struct EmbreeScene::State {
     const std::string what = "Embree's BVH over " + std::to_string(stats.primitives) + " " +
                              (geometry == EmbreeGeometry::Triangles ? "triangles" : "segments") +
                              " needs more than the " + format_bytes(max_bytes) +
-                             " the memory budget leaves for the scene (input buffers " +
-                             format_bytes(stats.buffer_bytes);
+                             " the memory budget leaves for the scene (linebake's buffers " +
+                             format_bytes(held_bytes());
     const std::string build =
         over_limit ? "; the build asked for " + format_bytes(uint64_t(refused_bytes.load())) +
                          " more while holding " +
@@ -174,8 +194,8 @@ struct EmbreeScene::State {
   void commit(const EmbreeOptions& o) {
     const auto start = std::chrono::steady_clock::now();
     if (o.max_memory_bytes > 0) {
-      if (stats.buffer_bytes >= o.max_memory_bytes) throw_over_limit(o.max_memory_bytes);
-      limit = int64_t(o.max_memory_bytes - stats.buffer_bytes);
+      if (held_bytes() >= o.max_memory_bytes) throw_over_limit(o.max_memory_bytes);
+      limit = int64_t(o.max_memory_bytes - held_bytes());
     }
     top = new_scene(o);
     const bool instanced = stats.primitives > o.max_primitives_per_scene && parts.size() > 1;
@@ -338,7 +358,22 @@ EmbreeScene EmbreeScene::from_lines(const LineSet& lines, float radius,
   const bool linear = options.geometry != EmbreeGeometry::BezierCurve;
   CurvePartPlanner planner(curve_part_limit(options));
   for (size_t l = 0; l < lines.line_count(); ++l) planner.add(lines.line_size(l));
-  for (const CurvePart& plan : planner.finish()) {
+  const std::vector<CurvePart> plans = planner.finish();
+  // The buffers below, refused before they are made where they alone pass the limit.
+  if (options.max_memory_bytes > 0) {
+    uint64_t planned = state->attribute.bytes(), segments = 0;
+    for (const CurvePart& plan : plans) {
+      planned += 16 * (curve_vertices(plan, options.geometry) + 1) +
+                 plan.segments * (4 + 4 + (linear ? 1 : 0));
+      segments += plan.segments;
+    }
+    if (planned >= options.max_memory_bytes)
+      throw BudgetExceeded("Embree's input buffers for " + std::to_string(segments) +
+                           " segments take " + format_bytes(planned) + ", more than the " +
+                           format_bytes(options.max_memory_bytes) +
+                           " the memory budget leaves for the scene; raise --memory-budget");
+  }
+  for (const CurvePart& plan : plans) {
     Part part;
     part.primitives = plan.segments;
     part.first_point = plan.first_point;

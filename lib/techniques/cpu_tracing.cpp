@@ -64,7 +64,7 @@ SceneBudget scene_budget(const TechniqueInfo& info, const TechniqueOptions& o,
   const std::string figures =
       format_bytes(budget.total()) + (o.memory_budget > 0 ? "" : ", half of physical memory") +
       "; the process held " + format_bytes(budget.baseline()) + " with the " + data + " loaded";
-  const uint64_t frame = cpu_tracing_frame_bytes(info, o);
+  const uint64_t frame = frame_output_bytes(o) + cpu_tracing_frame_bytes(info, o);
   if (budget.available() <= frame)
     throw BudgetExceeded(info.name + ": nothing is left for Embree's BVH; raise --memory-budget (" +
                          figures + ")");
@@ -109,6 +109,16 @@ class CpuTracing : public PreparedTechnique {
       // Bake's prepared buffers, when they are these curves, spare the preparation.
       std::optional<StoredCurves> stored;
       if (cache.exists(kEmbreeGroup)) {
+        // Read only where they fit what the budget leaves (the provenance's figure, which
+        // includes the BVH where bake built it).
+        const auto provenance = cache.provenance(kEmbreeGroup);
+        if (budget.bytes > 0 && provenance && provenance->memory_bytes >= budget.bytes)
+          throw BudgetExceeded(info.name + ": the cache's Embree buffers take " +
+                               format_bytes(provenance->memory_bytes) +
+                               " in memory (bake's figure), more than the " +
+                               format_bytes(budget.bytes) +
+                               " the memory budget leaves for the scene; raise --memory-budget (" +
+                               budget.figures + ")");
         stored = load_embree(cache);
         if (stored->geometry != options.geometry || stored->radius != radius ||
             stored->attribute != attribute)

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "render/vulkan/context.hpp"
 #include "techniques/families.hpp"
@@ -115,9 +116,17 @@ const std::vector<Technique>& techniques() {
   return table;
 }
 
+uint64_t frame_output_bytes(const TechniqueOptions& options) {
+  return uint64_t(options.width) * uint64_t(options.height) * (16 + 16 + 4);
+}
+
 uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions& options) {
-  const uint64_t pixels = uint64_t(options.width) * uint64_t(options.height);
-  return pixels * (16 + 16 + 4) + technique.frame_bytes(technique.info, options);
+  return frame_output_bytes(options) + technique.frame_bytes(technique.info, options);
+}
+
+void set_memory_budget(TechniqueOptions& options, const std::string& budget) {
+  options.memory_unlimited = budget == "unlimited";
+  options.memory_budget = budget.empty() || options.memory_unlimited ? 0 : parse_size(budget);
 }
 
 TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexity, double seconds,

@@ -140,6 +140,10 @@ struct Technique {
 // depth-complexity counts, and the technique's own buffers (on lavapipe and integrated GPUs
 // device memory is host memory too). Errs high.
 uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions& options);
+// The image, output and depth-complexity part of that, which every technique's frame holds.
+uint64_t frame_output_bytes(const TechniqueOptions& options);
+// --memory-budget's text into `options`: "" (none given), "unlimited", or a size ("8G").
+void set_memory_budget(TechniqueOptions& options, const std::string& budget);
 
 // Every technique, in the order the commands list them.
 const std::vector<Technique>& techniques();

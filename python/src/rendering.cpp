@@ -96,13 +96,8 @@ TechniqueOptions technique_options(const py::kwargs& kw, int width, int height) 
   if (kw.contains("no_skip")) o.skip_empty_space = !kw["no_skip"].cast<bool>();
   if (kw.contains("rtx_no_compaction")) o.compaction = !kw["rtx_no_compaction"].cast<bool>();
   // What the scene may take (embree, reference: the BVH) and tiles' bands: '40G', 'unlimited'.
-  if (kw.contains("memory_budget") && !kw["memory_budget"].is_none()) {
-    const std::string budget = kw["memory_budget"].cast<std::string>();
-    if (budget == "unlimited")
-      o.memory_unlimited = true;
-    else
-      o.memory_budget = parse_size(budget);
-  }
+  if (kw.contains("memory_budget") && !kw["memory_budget"].is_none())
+    set_memory_budget(o, kw["memory_budget"].cast<std::string>());
   return o;
 }
 
@@ -157,6 +152,8 @@ class PyRenderer {
                                             : std::make_shared<PyCache>(py::str(cache));
     const auto [width, height] = size_from(size);
     options_ = technique_options(options, width, height);
+    if (options.contains("memory_budget") && !options["memory_budget"].is_none())
+      memory_budget_ = options["memory_budget"].cast<std::string>();
     // The availability check of `linebake techniques`, with the cache's assets.
     if (auto reason = technique_unavailable(*technique_, options_, &cache_->reader()))
       throw Error(technique + ": cannot run here: " + *reason);
@@ -176,7 +173,8 @@ class PyRenderer {
     TechniqueOptions sized = options_;
     sized.width = width, sized.height = height;
     cli::check_frame_memory(name_, std::to_string(width) + "x" + std::to_string(height),
-                            estimate_frame_bytes(*technique_, sized), memory_budget.value_or(""));
+                            estimate_frame_bytes(*technique_, sized),
+                            memory_budget.value_or(memory_budget_));
     const TransferFunction tf = resolve_transfer_function(tf_name);
     Camera c;
     std::string flight_kind = "camera";
@@ -224,6 +222,7 @@ class PyRenderer {
 
  private:
   std::string name_;
+  std::string memory_budget_;  // the Renderer's (""; none given): what render() checks by default
   const Technique* technique_ = nullptr;
   std::shared_ptr<PyCache> cache_;
   TechniqueOptions options_;
@@ -301,7 +300,8 @@ options: the technique's options of `linebake render`, '_' for '-' (layers, mome
 moment_basis, sort, on, device, embree_geometry, ...); one the technique does not read is
 linebake.UsageError, a technique this machine cannot run linebake.Error with the reason.
 memory_budget ('40G', 'unlimited'; default half of physical memory): embree's and reference's
-BVH is built within what it leaves, or refused with linebake.BudgetExceeded.)doc")
+BVH is built within what it leaves, or refused with linebake.BudgetExceeded; render() checks
+its frames against it unless given another.)doc")
       .def(py::init<const py::object&, const std::string&, const py::object&, const py::kwargs&>(),
            py::arg("cache"), py::arg("technique") = "embree",
            py::arg("size") = py::make_tuple(1280, 720))
