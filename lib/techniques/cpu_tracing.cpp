@@ -104,8 +104,12 @@ class CpuTracing : public PreparedTechnique {
       options.max_memory_bytes = budget.bytes;
       options.geometry = parse_embree_geometry(o.geometry);
       const auto tube_provenance = has_tubes ? cache.provenance("/assets/tubes") : std::nullopt;
-      const auto [radius, attribute] =
+      // Named, not a structured binding: the build's lambda below uses them (clang 14 cannot
+      // capture a binding).
+      const std::pair<float, std::string> curves =
           curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
+      const float radius = curves.first;
+      const std::string& attribute = curves.second;
       // Bake's prepared buffers, when they are these curves, spare the preparation.
       std::optional<StoredCurves> stored;
       if (cache.exists(kEmbreeGroup)) {
