@@ -115,14 +115,7 @@ class CpuTracing : public PreparedTechnique {
       if (cache.exists(kEmbreeGroup)) {
         // Read only where they fit what the budget leaves (the provenance's figure, which
         // includes the BVH where bake built it).
-        const auto provenance = cache.provenance(kEmbreeGroup);
-        if (budget.bytes > 0 && provenance && provenance->memory_bytes >= budget.bytes)
-          throw BudgetExceeded(info.name + ": the cache's Embree buffers take " +
-                               format_bytes(provenance->memory_bytes) +
-                               " in memory (bake's figure), more than the " +
-                               format_bytes(budget.bytes) +
-                               " the memory budget leaves for the scene; raise --memory-budget (" +
-                               budget.figures + ")");
+        check_data_fits(info, o, cache, kEmbreeGroup, "cache's Embree buffers");
         stored = load_embree(cache);
         if (stored->geometry != options.geometry || stored->radius != radius ||
             stored->attribute != attribute)
