@@ -2,10 +2,14 @@
 // cannot run here; and the device-local uploads the Vulkan techniques read their meshes from.
 
 #include <gtest/gtest.h>
+#include <sys/mman.h>
 
 #include <algorithm>
+#include <cstring>
 #include <iostream>
 
+#include "cache/line_store.hpp"
+#include "cache/tube_store.hpp"
 #include "core/error.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
@@ -206,6 +210,159 @@ TEST(Techniques, EmbreeScenesAreBuiltWithinTheMemoryBudget) {
   options.memory_budget = 1;
   options.memory_unlimited = true;
   EXPECT_NO_THROW(reference.prepare(reference.info, cache, o.cache, options));
+}
+
+// Where the device's memory is the machine's (lavapipe here), the Context's allocations are held
+// within the budget two ways: by its own count against what the budget left when it was set
+// (memory allocated is resident only once written), and by the process's resident memory.
+TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {
+  vk::Context ctx;
+  if (!ctx.memory_is_host()) GTEST_SKIP() << ctx.info().name << " has memory of its own";
+  constexpr uint64_t MiB = uint64_t{1} << 20;
+  const uint64_t before = ctx.host_bytes();
+  vk::Buffer one = ctx.create_buffer(MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  EXPECT_GE(one.host_bytes, MiB);
+  EXPECT_EQ(ctx.host_bytes(), before + one.host_bytes);
+  ctx.destroy(one);
+  EXPECT_EQ(ctx.host_bytes(), before);
+  EXPECT_EQ(ctx.host_bytes_left(), vk::Context::kNoHostLimit);
+
+  // 8 MiB left: 6 MiB, never written, is taken; 6 MiB more passes the count though not the
+  // resident memory, and is refused with the figures.
+  const uint64_t total = current_rss_bytes() + 8 * MiB;
+  ctx.set_host_budget(total);
+  EXPECT_LE(ctx.host_bytes_left(), 8 * MiB);
+  EXPECT_GT(ctx.host_bytes_left(), 7 * MiB);
+  vk::Buffer six = ctx.create_buffer(6 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  try {
+    ctx.create_buffer(6 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    ADD_FAILURE() << "12 MiB were allocated within 8";
+  } catch (const BudgetExceeded& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("Vulkan: allocating 6.00 MiB on " + ctx.info().name +
+                             ", whose memory is this machine's, would pass the memory budget of " +
+                             format_bytes(total) + " (the device's allocations hold ",
+                         0),
+              0u)
+        << what;
+  }
+  EXPECT_EQ(ctx.host_bytes(), before + six.host_bytes);
+  ctx.destroy(six);
+
+  // The host's own memory counts too: 6 MiB written by the host leave about 2 MiB, so 4 MiB more
+  // is refused though the count alone would allow it.
+  // (Pages of their own: malloc may hand back pages that are resident already.)
+  ctx.set_host_budget(current_rss_bytes() + 8 * MiB);
+  void* host = mmap(nullptr, 6 * MiB, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+  ASSERT_NE(host, MAP_FAILED);
+  std::memset(host, 1, 6 * MiB);
+  EXPECT_THROW(ctx.create_buffer(4 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false),
+               BudgetExceeded);
+  vk::Buffer small = ctx.create_buffer(MiB / 2, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  ctx.destroy(small);
+  munmap(host, 6 * MiB);
+  // No budget: nothing refused.
+  ctx.set_host_budget(0);
+  vk::Buffer big = ctx.create_buffer(64 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  ctx.destroy(big);
+  EXPECT_EQ(ctx.host_bytes(), before);
+}
+
+// The raster techniques upload the tube mesh a chunk at a time (the host never holds all of
+// it) with the same image and bounds as the whole mesh's, and on lavapipe their device copy is
+// held within the budget: one budget that leaves three quarters of the mesh is refused with the
+// figures, one that leaves twice it renders the same bytes.
+TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
+  TempDir dir;
+  BakeOptions o;
+  o.input = "synth:aneurysm?scale=0.05";
+  o.cache = dir.file("aneurysm.lbc.h5");
+  o.progress = false;
+  o.tubes.max_chunk_bytes = 2u << 20;
+  bake(o);
+  const CacheReader cache(o.cache);
+  const TubeMesh whole = load_tubes(cache);
+  ASSERT_GE(whole.chunks.size(), 4u);
+  const Bounds bounds = compute_bounds(whole);
+  const Bounds streamed = load_tube_bounds(cache);
+  EXPECT_EQ(streamed.min, bounds.min);
+  EXPECT_EQ(streamed.max, bounds.max);
+  const uint64_t tubes = cache.provenance("/assets/tubes")->memory_bytes;
+  EXPECT_EQ(tubes, whole.bytes());
+
+  vk::Context ctx;
+  const Technique& ll = find_technique("ll");
+  TechniqueOptions options;
+  options.context = &ctx;
+  options.width = 48, options.height = 32;
+  options.memory_unlimited = true;
+  const TransferFunction tf = transfer_function_preset("semi");
+  const Camera camera = frame_bounds(bounds, 1.5, 30, 20, 0.05);
+  Image unlimited;
+  {
+    const auto prepared = ll.prepare(ll.info, cache, o.cache, options);
+    EXPECT_EQ(prepared->bounds().min, bounds.min);
+    EXPECT_EQ(prepared->bounds().max, bounds.max);
+    unlimited = prepared->render(camera, tf, options.width, options.height).image;
+    // The mesh uploaded whole gives the same image.
+    vk::RasterRenderer renderer(ctx, whole);
+    vk::RasterOptions raster;
+    raster.technique = vk::RasterTechnique::LinkedLists;
+    raster.width = options.width, raster.height = options.height;
+    EXPECT_EQ(renderer.render(camera, tf, raster).image.pixels, unlimited.pixels);
+  }
+  const uint64_t idle = ctx.host_bytes();
+  if (!ctx.memory_is_host()) GTEST_SKIP() << ctx.info().name << " has memory of its own";
+  options.memory_unlimited = false;
+  options.memory_budget = current_rss_bytes() + tubes * 3 / 4;
+  try {
+    ll.prepare(ll.info, cache, o.cache, options);
+    ADD_FAILURE() << "a device copy past the budget was made";
+  } catch (const BudgetExceeded& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("ll: Vulkan: allocating ", 0), 0u) << what;
+    EXPECT_NE(what.find("would pass the memory budget of " + format_bytes(options.memory_budget)),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("; raise --memory-budget"), std::string::npos) << what;
+  }
+  // What a refusal allocated is given back, and the budget lifted with the technique.
+  EXPECT_EQ(ctx.host_bytes(), idle);
+  EXPECT_EQ(ctx.host_budget(), 0u);
+  options.memory_budget = current_rss_bytes() + tubes * 2;
+  const auto prepared = ll.prepare(ll.info, cache, o.cache, options);
+  EXPECT_GT(ctx.host_budget(), 0u);
+  EXPECT_GE(ctx.host_bytes(), tubes);
+  EXPECT_EQ(prepared->render(camera, tf, options.width, options.height).image.pixels,
+            unlimited.pixels);
+}
+
+// vrc frames the tube mesh's bounds, read a chunk at a time, else the lines' kept in their
+// provenance: the same boxes as the whole mesh's and the lines' own.
+TEST(Techniques, VrcFramesTheBoundsWithoutReadingTheWholeMeshOrLines) {
+  TempDir dir;
+  BakeOptions o;
+  o.input = "synth:convection?scale=0.02";
+  o.cache = dir.file("convection.lbc.h5");
+  o.progress = false;
+  o.assets = {"voxels"};
+  bake(o);
+  const CacheReader cache(o.cache);
+  ASSERT_FALSE(cache.exists("/assets/tubes"));
+  const LineSet lines = load_lines(cache);
+  const Bounds expected = compute_bounds(lines);
+  const Bounds kept = line_stats_from_json(cache.provenance("/lines")->stats, cache.path()).bounds;
+  EXPECT_EQ(kept.min, expected.min);
+  EXPECT_EQ(kept.max, expected.max);
+  const Technique& vrc = find_technique("vrc");
+  TechniqueOptions options;
+  options.width = 16, options.height = 16;
+  const auto prepared = vrc.prepare(vrc.info, cache, o.cache, options);
+  const double radius = prepared->stats()["radius"].get<double>();
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_FLOAT_EQ(prepared->bounds().min[k], float(expected.min[k] - radius));
+    EXPECT_FLOAT_EQ(prepared->bounds().max[k], float(expected.max[k] + radius));
+  }
 }
 
 }  // namespace

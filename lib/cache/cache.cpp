@@ -670,6 +670,25 @@ CacheReader::CacheReader(const std::string& path, bool verify) : path_(path), ve
   if (fd >= 0) ::close(fd);
 }
 
+namespace {
+
+// A view's owner: it keeps the mapping alive and, when the last copy of the view goes, drops the
+// view's whole pages from the process's resident set (MADV_DONTNEED on a shared read-only file
+// mapping: the page cache keeps them, and another view over them faults them back in). Without
+// it every array read through views stays in the process's RSS for the reader's life, and the
+// memory budget, which counts RSS, would count a mesh already uploaded and let go.
+std::shared_ptr<const void> mapped_view(const std::shared_ptr<const void>& mapping, uint64_t offset,
+                                        uint64_t bytes) {
+  const auto* base = static_cast<const unsigned char*>(mapping.get());
+  const uint64_t page = uint64_t(sysconf(_SC_PAGESIZE));
+  const uint64_t first = (offset + page - 1) / page * page, end = (offset + bytes) / page * page;
+  return std::shared_ptr<const void>(base + offset, [mapping, base, first, end](const void*) {
+    if (end > first) madvise(const_cast<unsigned char*>(base) + first, end - first, MADV_DONTNEED);
+  });
+}
+
+}  // namespace
+
 CacheReader::~CacheReader() = default;
 
 bool CacheReader::exists(const std::string& object) const {
@@ -749,8 +768,8 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
                        "the file is truncated (data ends at byte " +
                            std::to_string(offset + bytes) + ", file has " +
                            std::to_string(file_size_) + ")");
-    out = Array<unsigned char>(mapping_, static_cast<const unsigned char*>(mapping_.get()) + offset,
-                               bytes);
+    out = Array<unsigned char>(mapped_view(mapping_, offset, bytes),
+                               static_cast<const unsigned char*>(mapping_.get()) + offset, bytes);
   } else {
     try {
       out = Array<unsigned char>(bytes);

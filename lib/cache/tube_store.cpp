@@ -212,7 +212,7 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
   cache.write_provenance(kTubesGroup, provenance);
 }
 
-TubeMesh load_tubes(const CacheReader& cache) {
+TubeMesh load_tube_description(const CacheReader& cache) {
   const std::string where = std::string("group ") + kTubesGroup;
   const auto text = cache.attribute(kTubesGroup, "mesh");
   if (!text) throw InputError(cache.path(), where, "no tube mesh in this cache (run bake)");
@@ -245,26 +245,59 @@ TubeMesh load_tubes(const CacheReader& cache) {
     } catch (const std::exception& e) {
       throw InputError(cache.path(), "group " + g, std::string("bad line range: ") + e.what());
     }
-    chunk.positions = cache.read<float>(g + "/positions");
-    if (chunk.positions.size() % 3)
-      throw InputError(cache.path(), "dataset " + g + "/positions", "not 3 floats per vertex");
-    const uint64_t v = chunk.vertex_count();
-    if (mesh.normals == NormalEncoding::Float32)
-      chunk.normals = cache.read<float>(g + "/normals", 3 * v);
-    else
-      chunk.normals_oct = cache.read<int16_t>(g + "/normals_oct", 2 * v);
-    if (!mesh.attribute.empty()) chunk.attribute = cache.read<uint16_t>(g + "/attribute", v);
-    chunk.indices = cache.read<uint32_t>(g + "/indices");
-    if (chunk.indices.size() % 3)
-      throw InputError(cache.path(), "dataset " + g + "/indices", "not 3 indices per triangle");
-    // The hash guards the bytes; this guards a renderer against a cache written wrongly.
-    for (size_t i = 0; i < chunk.indices.size(); ++i)
-      if (chunk.indices[i] >= v)
-        throw InputError(cache.path(), "dataset " + g + "/indices",
-                         "index " + std::to_string(chunk.indices[i]) + " at " + std::to_string(i) +
-                             " is past the " + std::to_string(v) + " vertices");
   }
   return mesh;
+}
+
+namespace {
+
+Array<float> read_positions(const CacheReader& cache, const std::string& g) {
+  Array<float> positions = cache.read<float>(g + "/positions");
+  if (positions.size() % 3)
+    throw InputError(cache.path(), "dataset " + g + "/positions", "not 3 floats per vertex");
+  return positions;
+}
+
+}  // namespace
+
+TubeChunk load_tube_chunk(const CacheReader& cache, const TubeMesh& description, size_t index) {
+  TubeChunk chunk;
+  chunk.first_line = description.chunks.at(index).first_line;
+  chunk.line_count = description.chunks.at(index).line_count;
+  const std::string g = chunk_group(index);
+  chunk.positions = read_positions(cache, g);
+  const uint64_t v = chunk.vertex_count();
+  if (description.normals == NormalEncoding::Float32)
+    chunk.normals = cache.read<float>(g + "/normals", 3 * v);
+  else
+    chunk.normals_oct = cache.read<int16_t>(g + "/normals_oct", 2 * v);
+  if (!description.attribute.empty()) chunk.attribute = cache.read<uint16_t>(g + "/attribute", v);
+  chunk.indices = cache.read<uint32_t>(g + "/indices");
+  if (chunk.indices.size() % 3)
+    throw InputError(cache.path(), "dataset " + g + "/indices", "not 3 indices per triangle");
+  // The hash guards the bytes; this guards a renderer against a cache written wrongly.
+  for (size_t i = 0; i < chunk.indices.size(); ++i)
+    if (chunk.indices[i] >= v)
+      throw InputError(cache.path(), "dataset " + g + "/indices",
+                       "index " + std::to_string(chunk.indices[i]) + " at " + std::to_string(i) +
+                           " is past the " + std::to_string(v) + " vertices");
+  return chunk;
+}
+
+TubeMesh load_tubes(const CacheReader& cache) {
+  TubeMesh mesh = load_tube_description(cache);
+  for (size_t c = 0; c < mesh.chunks.size(); ++c) mesh.chunks[c] = load_tube_chunk(cache, mesh, c);
+  return mesh;
+}
+
+Bounds load_tube_bounds(const CacheReader& cache) {
+  const TubeMesh description = load_tube_description(cache);
+  Bounds bounds;
+  for (size_t c = 0; c < description.chunks.size(); ++c) {
+    const Array<float> positions = read_positions(cache, chunk_group(c));
+    include_points(bounds, std::span<const float>(positions.data(), positions.size()));
+  }
+  return bounds;
 }
 
 }  // namespace linebake

@@ -44,5 +44,12 @@ class TubeStoreSink : public TubeSink {
 };
 // Loads the mesh; uncompressed chunks are views of the mapped file.
 TubeMesh load_tubes(const CacheReader& cache);
+// The mesh's description (sides, radius, normal encoding, attribute, each chunk's lines) with
+// its chunks' arrays empty; load_tube_chunk reads one chunk, so that a consumer which uploads or
+// reduces a chunk at a time never holds the whole mesh.
+TubeMesh load_tube_description(const CacheReader& cache);
+TubeChunk load_tube_chunk(const CacheReader& cache, const TubeMesh& description, size_t index);
+// compute_bounds of the mesh, reading one chunk's positions at a time.
+Bounds load_tube_bounds(const CacheReader& cache);
 
 }  // namespace linebake

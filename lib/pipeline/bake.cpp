@@ -924,27 +924,41 @@ BakeResult bake(const BakeOptions& options_in) {
         embree_stats(options.embree, curves, embree_clock.wall_s, embree_writer->buffer_bytes());
     p.memory_bytes = embree_writer->buffer_bytes();
     // The BVH is built and measured where it fits the budget: the line set, the buffers and
-    // Embree's BVH (about the buffers' size again for linear curves) in memory at once.
+    // Embree's BVH (about the buffers' size again for linear curves) in memory at once. The
+    // estimate decides whether to try; Embree's memory monitor holds the build to what the
+    // budget leaves beside the line set, so an estimate that errs low costs the BVH, not the
+    // budget.
     const uint64_t needed = stats.total_bytes() + 3 * embree_writer->buffer_bytes();
+    std::string not_built;
     if (budget.unlimited() || needed <= budget.available()) {
       Stage stage(result, "embree bvh", {&embree_clock});
       const LineSet whole = read_all(*replay());
-      const EmbreeScene scene =
-          EmbreeScene::from_lines(whole, curves.radius, curves.attribute, options.embree);
-      const BvhStats& b = scene.stats();
-      p.stats["primitives"] = b.primitives;
-      p.stats["parts"] = b.parts;
-      p.stats["instanced"] = b.instanced;
-      p.stats["commit_s"] = b.commit_s;
-      p.stats["bvh_bytes"] = b.bvh_bytes;
-      p.stats["bvh_peak_bytes"] = b.bvh_peak_bytes;
-      // What ray tracing needs resident: the prepared buffers and the BVH.
-      p.memory_bytes = b.buffer_bytes + b.bvh_bytes;
+      EmbreeOptions embree = options.embree;
+      if (!budget.unlimited())
+        embree.max_memory_bytes = std::max<uint64_t>(budget.available() - stats.total_bytes(), 1);
+      try {
+        const EmbreeScene scene =
+            EmbreeScene::from_lines(whole, curves.radius, curves.attribute, embree);
+        const BvhStats& b = scene.stats();
+        p.stats["primitives"] = b.primitives;
+        p.stats["parts"] = b.parts;
+        p.stats["instanced"] = b.instanced;
+        p.stats["commit_s"] = b.commit_s;
+        p.stats["bvh_bytes"] = b.bvh_bytes;
+        p.stats["bvh_peak_bytes"] = b.bvh_peak_bytes;
+        // What ray tracing needs resident: the prepared buffers and the BVH.
+        p.memory_bytes = b.buffer_bytes + b.bvh_bytes;
+      } catch (const BudgetExceeded& e) {
+        not_built = "not built at bake: " + std::string(e.what()) + "; render builds it";
+      }
     } else {
-      p.stats["bvh"] = "not built at bake: the line set, buffers and BVH need about " +
-                       format_bytes(needed) + ", the memory budget leaves " +
-                       format_bytes(budget.available()) + "; render builds it";
-      result.notes.push_back("embree: " + p.stats["bvh"].get<std::string>());
+      not_built = "not built at bake: the line set, buffers and BVH need about " +
+                  format_bytes(needed) + ", the memory budget leaves " +
+                  format_bytes(budget.available()) + "; render builds it";
+    }
+    if (!not_built.empty()) {
+      p.stats["bvh"] = not_built;
+      result.notes.push_back("embree: " + not_built);
     }
     embree_writer->close(p);
   }

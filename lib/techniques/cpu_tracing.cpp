@@ -39,28 +39,10 @@ struct SceneBudget {
   std::string figures;
 };
 
-uint64_t budget_bytes(const TechniqueOptions& o) {
-  return o.memory_budget > 0 ? o.memory_budget : default_memory_budget();
-}
-
-// Refuses, before it is read, data whose size in memory (the cache's provenance says) does not
-// fit what the budget leaves.
-void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,
-                     const std::string& group, const std::string& data) {
-  const auto provenance = cache.provenance(group);
-  if (o.memory_unlimited || !provenance) return;
-  const MemoryBudget budget(budget_bytes(o));
-  if (provenance->memory_bytes > budget.available())
-    throw BudgetExceeded(
-        info.name + ": the " + data + " take " + format_bytes(provenance->memory_bytes) +
-        " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
-        " of " + format_bytes(budget.total()) + "); raise --memory-budget");
-}
-
 SceneBudget scene_budget(const TechniqueInfo& info, const TechniqueOptions& o,
                          const std::string& data) {
   if (o.memory_unlimited) return {};
-  const MemoryBudget budget(budget_bytes(o));
+  const MemoryBudget budget(process_budget(o));
   const std::string figures =
       format_bytes(budget.total()) + (o.memory_budget > 0 ? "" : ", half of physical memory") +
       "; the process held " + format_bytes(budget.baseline()) + " with the " + data + " loaded";

@@ -2,6 +2,7 @@
 // The families of techniques registry.cpp lists, one file each: each prepares a technique of its
 // family (info.name says which) from a cache.
 
+#include "core/error.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake {
@@ -45,18 +46,45 @@ TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexi
 [[noreturn]] void throw_missing_asset(const std::string& cache_name, const std::string& asset,
                                       const std::string& why);
 
+// The process's memory budget a technique works within: --memory-budget's bytes, half of
+// physical memory when none was given, 0 for unlimited.
+uint64_t process_budget(const TechniqueOptions& options);
+// Refuses, before it is read, data whose size in memory (the provenance of the cache's `group`)
+// does not fit what the budget leaves the process: BudgetExceeded naming the technique and `data`.
+void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& options,
+                     const CacheReader& cache, const std::string& group, const std::string& data);
+// Runs `work`, naming the technique in a refusal by the memory budget (a Vulkan allocation past
+// what ContextHolder::budget_host_memory allows).
+template <class Work>
+decltype(auto) within_budget(const TechniqueInfo& info, Work&& work) {
+  try {
+    return work();
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded(info.name + ": " + e.what() + "; raise --memory-budget");
+  }
+}
+
 // A Vulkan context for a technique: the shared one when given, else one of its own.
 class ContextHolder {
  public:
   ContextHolder(const TechniqueOptions& options, bool ray_tracing);
+  ~ContextHolder();
+  ContextHolder(const ContextHolder&) = delete;
+  ContextHolder& operator=(const ContextHolder&) = delete;
   vk::Context& operator*() const { return *context_; }
   vk::Context* operator->() const { return context_; }
   // Throws when the validation layer reported errors (they fail the frame).
   void check_validation() const;
+  // Holds the context's allocations of host memory (all of them on lavapipe and integrated GPUs,
+  // where device memory is the machine's) within the process's budget, less the frame's image
+  // (vk::Context::set_host_budget). Called once the technique's data is loaded, so that what the
+  // process holds then counts; lifted when the technique goes, on a context it shares.
+  void budget_host_memory(const TechniqueOptions& options);
 
  private:
   std::unique_ptr<vk::Context> owned_;
   vk::Context* context_ = nullptr;
+  bool budgeted_ = false;
 };
 
 }  // namespace linebake

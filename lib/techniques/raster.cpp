@@ -13,11 +13,21 @@ class Raster : public PreparedTechnique {
  public:
   Raster(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
          const TechniqueOptions& o)
-      : context_(o, false) {
+      : info_(info), context_(o, false) {
     if (!cache.exists("/assets/tubes"))
       throw_missing_asset(cache_name, "tubes", "the Vulkan techniques draw the tube mesh");
-    tubes_ = load_tubes(cache);
-    renderer_ = std::make_unique<vk::RasterRenderer>(*context_, tubes_);
+    // The mesh goes to the device a chunk at a time, each read from the cache and let go once
+    // uploaded: the host holds one chunk, never the whole mesh beside the device's copy. Where
+    // that copy is in the machine's memory too (lavapipe, integrated GPUs) the budget refuses the
+    // allocation that would pass it.
+    const TubeMesh description = load_tube_description(cache);
+    context_.budget_host_memory(o);
+    within_budget(info_, [&] {
+      renderer_ = std::make_unique<vk::RasterRenderer>(
+          *context_, description, [&](size_t c) { return load_tube_chunk(cache, description, c); });
+    });
+    bounds_ = renderer_->bounds();
+    context_.budget_host_memory(o);  // again, now that the last chunk is let go
     options_.technique = vk::parse_raster_technique(info.name);
     options_.width = o.width, options_.height = o.height;
     options_.sort = vk::parse_list_sort(o.sort);
@@ -38,7 +48,8 @@ class Raster : public PreparedTechnique {
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
     options_.width = width, options_.height = height;
-    vk::RasterFrame frame = renderer_->render(camera, tf, options_);
+    vk::RasterFrame frame =
+        within_budget(info_, [&] { return renderer_->render(camera, tf, options_); });
     context_.check_validation();
     const vk::RasterStats& s = frame.stats;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
@@ -72,7 +83,7 @@ class Raster : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return compute_bounds(tubes_); }
+  Bounds bounds() const override { return bounds_; }
 
   nlohmann::json stats() const override {
     nlohmann::json j = {{"device", context_->info().name},
@@ -95,8 +106,9 @@ class Raster : public PreparedTechnique {
   std::string device() const override { return context_->info().name; }
 
  private:
+  TechniqueInfo info_;
   ContextHolder context_;
-  TubeMesh tubes_;
+  Bounds bounds_;
   std::unique_ptr<vk::RasterRenderer> renderer_;
   vk::RasterOptions options_;
 };

@@ -211,6 +211,32 @@ ContextHolder::ContextHolder(const TechniqueOptions& options, bool ray_tracing) 
   context_ = owned_.get();
 }
 
+ContextHolder::~ContextHolder() {
+  if (budgeted_ && !owned_) context_->set_host_budget(0);
+}
+
+void ContextHolder::budget_host_memory(const TechniqueOptions& options) {
+  context_->set_host_budget(process_budget(options), frame_output_bytes(options));
+  budgeted_ = true;
+}
+
+uint64_t process_budget(const TechniqueOptions& o) {
+  if (o.memory_unlimited) return 0;
+  return o.memory_budget > 0 ? o.memory_budget : default_memory_budget();
+}
+
+void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,
+                     const std::string& group, const std::string& data) {
+  const auto provenance = cache.provenance(group);
+  if (o.memory_unlimited || !provenance) return;
+  const MemoryBudget budget(process_budget(o));
+  if (provenance->memory_bytes > budget.available())
+    throw BudgetExceeded(
+        info.name + ": the " + data + " take " + format_bytes(provenance->memory_bytes) +
+        " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
+        " of " + format_bytes(budget.total()) + "); raise --memory-budget");
+}
+
 void ContextHolder::check_validation() const {
   if (context_->validation_errors() > 0)
     throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +

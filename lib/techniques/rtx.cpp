@@ -17,8 +17,9 @@ namespace {
 
 class Rtx : public PreparedTechnique {
  public:
-  Rtx(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
-      : context_(make_context(o)) {
+  Rtx(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
+      const TechniqueOptions& o)
+      : info_(info), context_(make_context(o)) {
     // The geometry: the option, else what the cache's BLAS were built over, else triangles.
     std::optional<StoredRtx> stored;
     if (cache.exists(kRtxGroup)) stored = load_rtx(cache);
@@ -32,18 +33,22 @@ class Rtx : public PreparedTechnique {
       if (!has_tubes)
         throw_missing_asset(cache_name, "tubes",
                             "rtx traces the tube mesh's triangles (or --rtx-geometry capsules)");
+      check_data_fits(info, o, cache, "/assets/tubes", "tube mesh's buffers");
       tubes_ = load_tubes(cache);
       bounds_ = compute_bounds(tubes_);
-      scene_.emplace(*context_, tubes_);
+      context_.budget_host_memory(o);
+      within_budget(info, [&] { scene_.emplace(*context_, tubes_); });
       source = tube_provenance ? tube_provenance->key : "";
     } else if (geometry == "capsules") {
+      check_data_fits(info, o, cache, "/lines", "lines");
       lines_ = load_lines(cache);
       const auto [radius, attribute] =
           curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
       capsules_ = build_capsule_segments(lines_, radius, attribute);
       bounds_ = compute_bounds(lines_);
       for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
-      scene_.emplace(*context_, capsules_);
+      context_.budget_host_memory(o);
+      within_budget(info, [&] { scene_.emplace(*context_, capsules_); });
       const auto lines_provenance = cache.provenance("/lines");
       source = rtx_capsules_source(
           lines_provenance ? lines_provenance->stats.value("content_hash", "") : "", radius,
@@ -66,7 +71,7 @@ class Rtx : public PreparedTechnique {
     if (!rebuild_reason_.empty()) {
       if (stored && !o.rebuild)
         warnings.push_back("cached BLAS not used (" + rebuild_reason_ + "); rebuilding");
-      scene_->build(o.compaction);
+      within_budget(info, [&] { scene_->build(o.compaction); });
     }
     renderer_.emplace(*context_);
     options_.width = o.width, options_.height = o.height;
@@ -78,7 +83,8 @@ class Rtx : public PreparedTechnique {
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
     options_.width = width, options_.height = height;
-    vk::RtFrame frame = renderer_->render(*scene_, camera, tf, options_);
+    vk::RtFrame frame =
+        within_budget(info_, [&] { return renderer_->render(*scene_, camera, tf, options_); });
     context_.check_validation();
     const vk::RtStats& s = frame.stats;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
@@ -124,6 +130,7 @@ class Rtx : public PreparedTechnique {
     }
   }
 
+  TechniqueInfo info_;
   ContextHolder context_;
   TubeMesh tubes_;
   LineSet lines_;
@@ -137,10 +144,10 @@ class Rtx : public PreparedTechnique {
 
 }  // namespace
 
-std::unique_ptr<PreparedTechnique> prepare_rtx(const TechniqueInfo&, const CacheReader& cache,
+std::unique_ptr<PreparedTechnique> prepare_rtx(const TechniqueInfo& info, const CacheReader& cache,
                                                const std::string& cache_name,
                                                const TechniqueOptions& options) {
-  return std::make_unique<Rtx>(cache, cache_name, options);
+  return std::make_unique<Rtx>(info, cache, cache_name, options);
 }
 
 }  // namespace linebake

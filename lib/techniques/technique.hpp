@@ -89,10 +89,13 @@ struct TechniqueOptions {
   // crowded | all (vk::TileStrips; render --tiles-strips, bench render's tiles-crowded-strips
   // and tiles-strips).
   std::string tiles_strips = "none";
-  // The frame's memory budget in bytes (render --memory-budget; 0: none given). tiles renders
-  // in bands of tile rows to stay within it; embree and reference build their BVH within what it
-  // leaves of the process's resident memory (none given: half of physical memory) and refuse
-  // one that does not fit. memory_unlimited (--memory-budget unlimited): no limit at all.
+  // The process's memory budget in bytes (render --memory-budget; 0: none given, half of
+  // physical memory). Data is read only where the cache's provenance says it fits; embree and
+  // reference build their BVH within what it leaves of the process's resident memory; the
+  // Vulkan techniques' allocations in the machine's memory are held within it
+  // (vk::Context::set_host_budget); tiles renders in bands of tile rows to fit what it leaves
+  // (where the device has memory of its own: these bytes, when given). memory_unlimited
+  // (--memory-budget unlimited): no limit at all.
   uint64_t memory_budget = 0;
   bool memory_unlimited = false;
 };

@@ -24,8 +24,9 @@ vk::TileStrips strips_of(const std::string& name) {
 
 class Tiles : public PreparedTechnique {
  public:
-  Tiles(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o)
-      : context_(o, false), triangles_(o.tiles_geometry == "triangles") {
+  Tiles(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
+        const TechniqueOptions& o)
+      : info_(info), context_(o, false), triangles_(o.tiles_geometry == "triangles") {
     if (o.tiles_sort != "auto" && o.tiles_sort != "subgroups" && o.tiles_sort != "shared")
       throw UsageError("tiles: the sort is auto, subgroups or shared, not '" + o.tiles_sort + "'");
     options_.strips = strips_of(o.tiles_strips);
@@ -39,6 +40,8 @@ class Tiles : public PreparedTechnique {
                   " lacks what the sort's subgroup path needs (compute subgroups of 8 to 128 "
                   "invocations with basic, ballot and arithmetic operations, and full "
                   "subgroups); --tiles-sort shared or auto run everywhere");
+    // Each mode's data is read only where it fits the budget; the context's allocations are held
+    // within what is left once it is loaded, and again once the host's copies are let go.
     if (triangles_) {
       if (!cache.exists("/assets/tubes"))
         throw_missing_asset(cache_name, "tubes",
@@ -47,11 +50,14 @@ class Tiles : public PreparedTechnique {
         throw UsageError(
             "--radius and --attribute are the capsules' (the tube mesh has its own); "
             "not with --tiles-geometry triangles");
+      check_data_fits(info, o, cache, "/assets/tubes", "tube mesh's buffers");
       const TubeMesh mesh = load_tubes(cache);
       bounds_ = compute_bounds(mesh);
       radius_ = mesh.radius;
-      renderer_.emplace(*context_, mesh, 0, 0, sort_subgroups);
+      context_.budget_host_memory(o);
+      within_budget(info, [&] { renderer_.emplace(*context_, mesh, 0, 0, sort_subgroups); });
     } else {
+      check_data_fits(info, o, cache, "/lines", "lines");
       const LineSet lines = load_lines(cache);
       const auto tube_provenance =
           cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
@@ -60,12 +66,19 @@ class Tiles : public PreparedTechnique {
       const CapsuleSegments capsules = build_capsule_segments(lines, radius, attribute);
       bounds_ = compute_bounds(lines);
       for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
-      renderer_.emplace(*context_, capsules, 0, 0, sort_subgroups);
+      context_.budget_host_memory(o);
+      within_budget(info, [&] { renderer_.emplace(*context_, capsules, 0, 0, sort_subgroups); });
       radius_ = radius;
     }
+    context_.budget_host_memory(o);
+    // The frames' keys and states: where the device's memory is the machine's, what the budget
+    // leaves now that the scene is held; elsewhere --memory-budget's bytes where given.
+    if (context_->memory_is_host() && context_->host_budget() > 0)
+      frame_budget_ = std::max<uint64_t>(context_->host_bytes_left(), 1);
+    else
+      frame_budget_ = o.memory_budget;
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
-    memory_budget_ = o.memory_budget;
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
@@ -74,12 +87,13 @@ class Tiles : public PreparedTechnique {
     // What the budget leaves once the image's own buffers are counted: a quarter for the pixels'
     // states (tiles composited in groups that fit), the rest for the keys (bands that fit).
     const uint64_t image_bytes = uint64_t(width) * uint64_t(height) * (16 + 4);
-    if (memory_budget_ > 0) {
-      const uint64_t left = memory_budget_ > image_bytes ? memory_budget_ - image_bytes : 4;
+    if (frame_budget_ > 0) {
+      const uint64_t left = frame_budget_ > image_bytes ? frame_budget_ - image_bytes : 4;
       options_.max_state_bytes = std::max<uint64_t>(left / 4, 1);
       options_.max_key_bytes = left - left / 4;
     }
-    vk::TileFrame frame = renderer_->render(camera, tf, options_);
+    vk::TileFrame frame =
+        within_budget(info_, [&] { return renderer_->render(camera, tf, options_); });
     context_.check_validation();
     const vk::TileStats& s = frame.stats;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
@@ -124,21 +138,23 @@ class Tiles : public PreparedTechnique {
   std::string device() const override { return context_->info().name; }
 
  private:
+  TechniqueInfo info_;
   ContextHolder context_;
   bool triangles_ = false;
   Bounds bounds_;
   float radius_ = 0;
   std::optional<vk::TileRenderer> renderer_;
   vk::TileOptions options_;
-  uint64_t memory_budget_ = 0;
+  uint64_t frame_budget_ = 0;  // the frames' memory (0: none)
 };
 
 }  // namespace
 
-std::unique_ptr<PreparedTechnique> prepare_tiles(const TechniqueInfo&, const CacheReader& cache,
+std::unique_ptr<PreparedTechnique> prepare_tiles(const TechniqueInfo& info,
+                                                 const CacheReader& cache,
                                                  const std::string& cache_name,
                                                  const TechniqueOptions& options) {
-  return std::make_unique<Tiles>(cache, cache_name, options);
+  return std::make_unique<Tiles>(info, cache, cache_name, options);
 }
 
 }  // namespace linebake

@@ -16,9 +16,12 @@ namespace {
 
 class Vrc : public PreparedTechnique {
  public:
-  Vrc(const CacheReader& cache, const std::string& cache_name, const TechniqueOptions& o) {
+  Vrc(const TechniqueInfo& info, const CacheReader& cache, const std::string& cache_name,
+      const TechniqueOptions& o)
+      : info_(info) {
     if (!cache.exists(kVoxelsGroup))
       throw_missing_asset(cache_name, "voxels", "vrc ray casts the voxel line grid");
+    check_data_fits(info, o, cache, kVoxelsGroup, "voxel grid's arrays");
     grid_ = load_voxels(cache);
     options_.width = o.width, options_.height = o.height;
     options_.early_termination = o.vrc_early_termination;
@@ -30,10 +33,15 @@ class Vrc : public PreparedTechnique {
         tube_provenance->stats.contains("radius_world"))
       options_.radius = tube_provenance->stats["radius_world"].get<double>();
     radius_ = vrc_radius(grid_, options_.radius);  // what the casters use
+    // The bounds without the whole mesh or line set in memory: the mesh's positions a chunk at a
+    // time, else the lines' bounds kept in their provenance (older caches: the lines read).
+    const auto lines_provenance = cache.provenance("/lines");
     if (tube_provenance) {
-      bounds_ = compute_bounds(load_tubes(cache));
+      bounds_ = load_tube_bounds(cache);
     } else {
-      bounds_ = compute_bounds(load_lines(cache));
+      bounds_ = lines_provenance && lines_provenance->stats.contains("bounds")
+                    ? line_stats_from_json(lines_provenance->stats, cache.path()).bounds
+                    : compute_bounds(load_lines(cache));
       for (size_t k = 0; k < 3; ++k) {
         bounds_.min[k] -= float(radius_);
         bounds_.max[k] += float(radius_);
@@ -42,7 +50,9 @@ class Vrc : public PreparedTechnique {
     occupancy_ = build_occupancy(grid_);
     if (o.on == "gpu") {
       context_.emplace(o, false);
-      caster_.emplace(**context_, grid_, occupancy_);
+      context_->budget_host_memory(o);
+      within_budget(info, [&] { caster_.emplace(**context_, grid_, occupancy_); });
+      context_->budget_host_memory(o);
     } else if (o.on != "cpu") {
       throw Error("vrc: --on cpu or gpu, not '" + o.on + "'");
     }
@@ -51,8 +61,9 @@ class Vrc : public PreparedTechnique {
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
     options_.width = width, options_.height = height;
-    VrcFrame frame = caster_ ? caster_->render(camera, tf, options_)
-                             : cast_voxel_frame(grid_, occupancy_, camera, tf, options_);
+    VrcFrame frame =
+        caster_ ? within_budget(info_, [&] { return caster_->render(camera, tf, options_); })
+                : cast_voxel_frame(grid_, occupancy_, camera, tf, options_);
     if (context_) context_->check_validation();
     const VrcStats& s = frame.stats;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
@@ -92,6 +103,7 @@ class Vrc : public PreparedTechnique {
   std::string device() const override { return context_ ? (*context_)->info().name : ""; }
 
  private:
+  TechniqueInfo info_;
   std::optional<ContextHolder> context_;
   VoxelGrid grid_;
   OccupancyPyramid occupancy_;
@@ -103,10 +115,10 @@ class Vrc : public PreparedTechnique {
 
 }  // namespace
 
-std::unique_ptr<PreparedTechnique> prepare_vrc(const TechniqueInfo&, const CacheReader& cache,
+std::unique_ptr<PreparedTechnique> prepare_vrc(const TechniqueInfo& info, const CacheReader& cache,
                                                const std::string& cache_name,
                                                const TechniqueOptions& options) {
-  return std::make_unique<Vrc>(cache, cache_name, options);
+  return std::make_unique<Vrc>(info, cache, cache_name, options);
 }
 
 }  // namespace linebake

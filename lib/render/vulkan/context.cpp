@@ -4,6 +4,8 @@
 #include <cstring>
 
 #include "core/error.hpp"
+#include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake::vk {
 namespace {
@@ -387,11 +389,7 @@ Buffer Context::create_buffer(uint64_t size, VkBufferUsageFlags usage, bool host
         alloc.memoryTypeIndex = memory_type(req.memoryTypeBits, host);
       }
     }
-    const VkResult r = vkAllocateMemory(device_, &alloc, nullptr, &b.memory);
-    if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
-      throw Error("Vulkan: out of memory allocating " + std::to_string(b.size) + " bytes on " +
-                  info_.name);
-    check(r, "vkAllocateMemory");
+    b.memory = allocate_memory(alloc, b.host_bytes);
     check(vkBindBufferMemory(device_, b.buffer, b.memory, 0), "vkBindBufferMemory");
     if (host_visible)
       check(vkMapMemory(device_, b.memory, 0, VK_WHOLE_SIZE, 0, &b.mapped), "vkMapMemory");
@@ -456,8 +454,58 @@ Buffer Context::upload(const void* data, uint64_t bytes, VkBufferUsageFlags usag
 
 void Context::destroy(Buffer& b) {
   if (b.buffer) vkDestroyBuffer(device_, b.buffer, nullptr);
-  if (b.memory) vkFreeMemory(device_, b.memory, nullptr);
+  free_memory(b.memory, b.host_bytes);
   b = Buffer{};
+}
+
+bool Context::memory_is_host() const {
+  return info_.type == VK_PHYSICAL_DEVICE_TYPE_CPU ||
+         info_.type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;
+}
+
+void Context::set_host_budget(uint64_t total, uint64_t reserved) {
+  host_total_ = total, host_reserved_ = reserved;
+  host_limit_ = kNoHostLimit;
+  if (total == 0) return;
+  const uint64_t used = current_rss_bytes() + reserved;
+  host_limit_ = host_bytes_ + (total > used ? total - used : 0);
+}
+
+uint64_t Context::host_bytes_left() const {
+  if (host_total_ == 0) return kNoHostLimit;
+  const uint64_t used = current_rss_bytes() + host_reserved_;
+  const uint64_t process = host_total_ > used ? host_total_ - used : 0;
+  return std::min(process, host_limit_ > host_bytes_ ? host_limit_ - host_bytes_ : 0);
+}
+
+VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64_t& host_bytes) {
+  VkPhysicalDeviceMemoryProperties memory;
+  vkGetPhysicalDeviceMemoryProperties(physical_, &memory);
+  const uint32_t heap = memory.memoryTypes[info.memoryTypeIndex].heapIndex;
+  const bool host =
+      memory_is_host() || (memory.memoryHeaps[heap].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) == 0;
+  host_bytes = host ? info.allocationSize : 0;
+  if (host_bytes > 0 && host_bytes > host_bytes_left())
+    throw BudgetExceeded(
+        "Vulkan: allocating " + format_bytes(host_bytes) + " on " + info_.name +
+        (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
+        " would pass the memory budget of " + format_bytes(host_total_) +
+        " (the device's allocations hold " + format_bytes(host_bytes_) + ", the process " +
+        format_bytes(current_rss_bytes()) + " resident)");
+  VkDeviceMemory out = VK_NULL_HANDLE;
+  const VkResult r = vkAllocateMemory(device_, &info, nullptr, &out);
+  if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
+    throw Error("Vulkan: out of memory allocating " + std::to_string(info.allocationSize) +
+                " bytes on " + info_.name);
+  check(r, "vkAllocateMemory");
+  host_bytes_ += host_bytes;
+  return out;
+}
+
+void Context::free_memory(VkDeviceMemory memory, uint64_t host_bytes) {
+  if (!memory) return;
+  vkFreeMemory(device_, memory, nullptr);
+  host_bytes_ -= std::min(host_bytes, host_bytes_);
 }
 
 void Context::destroy(ResultBuffer& r) {

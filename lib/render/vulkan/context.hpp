@@ -83,7 +83,8 @@ struct Buffer {
   VkBuffer buffer = VK_NULL_HANDLE;
   VkDeviceMemory memory = VK_NULL_HANDLE;
   uint64_t size = 0;
-  void* mapped = nullptr;  // host-visible buffers stay mapped
+  void* mapped = nullptr;   // host-visible buffers stay mapped
+  uint64_t host_bytes = 0;  // what its memory takes of the machine's (Context::host_bytes)
 };
 
 // A buffer the GPU writes and the host reads (images, per-pixel counts, counters). On a GPU with
@@ -143,6 +144,29 @@ class Context {
   void destroy(ResultBuffer& result);
   uint32_t memory_type(uint32_t type_bits, VkMemoryPropertyFlags properties) const;
 
+  // The machine's memory that this Context's allocations hold: all of them where the device's
+  // memory is the host's (lavapipe, integrated GPUs), else those from heaps that are not
+  // device-local (staging buffers, readback mirrors).
+  uint64_t host_bytes() const { return host_bytes_; }
+  // Whether every allocation is of the machine's memory (device type CPU or integrated GPU).
+  bool memory_is_host() const;
+  // Holds those allocations within --memory-budget: `total` bytes of resident memory for the
+  // whole process (0: no budget), of which `reserved` are kept for what the host holds besides
+  // (a frame's image). From this call on an allocation is refused with BudgetExceeded and the
+  // figures when the host_bytes() would pass what the budget left at the call (the process's
+  // resident memory then counted as held: the techniques call it once their data is loaded), or
+  // when the process's resident memory with it would pass the budget. Allocated memory is
+  // resident only once written, so neither count alone is enough.
+  void set_host_budget(uint64_t total, uint64_t reserved = 0);
+  uint64_t host_budget() const { return host_total_; }
+  // What one allocation may still take of the host's memory (kNoHostLimit without a budget).
+  static constexpr uint64_t kNoHostLimit = UINT64_MAX;
+  uint64_t host_bytes_left() const;
+  // vkAllocateMemory within the limit: `host_bytes` gets what it took of the machine's memory
+  // (for free_memory). Out-of-memory results are an Error naming the bytes and the device.
+  VkDeviceMemory allocate_memory(const VkMemoryAllocateInfo& info, uint64_t& host_bytes);
+  void free_memory(VkDeviceMemory memory, uint64_t host_bytes);
+
   // Records `record` into a fresh command buffer, submits it and waits.
   template <class Record>
   void submit(Record&& record) {
@@ -197,6 +221,7 @@ class Context {
   bool compile_only_ = false;
   bool in_place_uploads_ = false;
   uint64_t staging_piece_bytes_ = 0;
+  uint64_t host_bytes_ = 0, host_limit_ = kNoHostLimit, host_total_ = 0, host_reserved_ = 0;
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
   std::string last_validation_error_;

@@ -143,7 +143,7 @@ void RasterRenderer::State::destroy_image(Image2D& i) {
   VkDevice d = ctx.device();
   if (i.view) vkDestroyImageView(d, i.view, nullptr);
   if (i.image) vkDestroyImage(d, i.image, nullptr);
-  if (i.memory) vkFreeMemory(d, i.memory, nullptr);
+  ctx.free_memory(i.memory, i.host_bytes);
   i = Image2D{};
 }
 
@@ -174,8 +174,13 @@ Image2D RasterRenderer::State::make_image(VkFormat format, VkImageUsageFlags usa
   VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   alloc.allocationSize = req.size;
   alloc.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
-  check(vkAllocateMemory(ctx.device(), &alloc, nullptr, &i.memory), "vkAllocateMemory");
-  check(vkBindImageMemory(ctx.device(), i.image, i.memory, 0), "vkBindImageMemory");
+  try {
+    i.memory = ctx.allocate_memory(alloc, i.host_bytes);
+    check(vkBindImageMemory(ctx.device(), i.image, i.memory, 0), "vkBindImageMemory");
+  } catch (...) {
+    destroy_image(i);
+    throw;
+  }
   VkImageViewCreateInfo view{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   view.image = i.image;
   view.viewType = VK_IMAGE_VIEW_TYPE_2D;
@@ -185,39 +190,36 @@ Image2D RasterRenderer::State::make_image(VkFormat format, VkImageUsageFlags usa
   return i;
 }
 
-void RasterRenderer::State::upload(const TubeMesh& mesh) {
-  attribute_range = mesh.attribute_range;
-  bounds = compute_bounds(mesh);
+void RasterRenderer::State::upload(const TubeChunk& chunk) {
+  include_points(bounds, std::span<const float>(chunk.positions.data(), chunk.positions.size()));
+  if (chunk.triangle_count() == 0) return;
   const VkBufferUsageFlags vertex = VK_BUFFER_USAGE_VERTEX_BUFFER_BIT;
-  for (const TubeChunk& chunk : mesh.chunks) {
-    if (chunk.triangle_count() == 0) continue;
-    ChunkBuffers b;
-    const uint64_t n = chunk.vertex_count();
-    // Device-local, filled piece by piece (Context::create_filled): every pass reads the mesh.
-    b.positions = ctx.upload(chunk.positions.data(), chunk.positions.bytes(), vertex);
-    b.normals = ctx.create_filled(n * 12, vertex, [&](void* dst, uint64_t offset, uint64_t count) {
-      auto* out = static_cast<float*>(dst);
-      for (uint64_t f = offset / 4; f < (offset + count) / 4; ++f) {
-        const uint64_t v = f / 3, k = f % 3;
-        if (!chunk.normals.empty()) {
-          *out++ = chunk.normals[f];
-        } else {
-          const auto d = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
-          *out++ = d[size_t(k)];
-        }
+  // In the list before its buffers, so that the destructor frees them if one is refused.
+  ChunkBuffers& b = chunks.emplace_back();
+  const uint64_t n = chunk.vertex_count();
+  // Device-local, filled piece by piece (Context::create_filled): every pass reads the mesh.
+  b.positions = ctx.upload(chunk.positions.data(), chunk.positions.bytes(), vertex);
+  b.normals = ctx.create_filled(n * 12, vertex, [&](void* dst, uint64_t offset, uint64_t count) {
+    auto* out = static_cast<float*>(dst);
+    for (uint64_t f = offset / 4; f < (offset + count) / 4; ++f) {
+      const uint64_t v = f / 3, k = f % 3;
+      if (!chunk.normals.empty()) {
+        *out++ = chunk.normals[f];
+      } else {
+        const auto d = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
+        *out++ = d[size_t(k)];
       }
-    });
-    if (chunk.attribute.empty())
-      b.attribute = ctx.create_filled(
-          n * 2, vertex, [](void* dst, uint64_t, uint64_t count) { std::memset(dst, 0, count); });
-    else
-      b.attribute = ctx.upload(chunk.attribute.data(), n * 2, vertex);
-    b.indices =
-        ctx.upload(chunk.indices.data(), chunk.indices.bytes(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
-    b.index_count = uint32_t(chunk.indices.size());
-    mesh_bytes += b.positions.size + b.normals.size + b.attribute.size + b.indices.size;
-    chunks.push_back(b);
-  }
+    }
+  });
+  if (chunk.attribute.empty())
+    b.attribute = ctx.create_filled(
+        n * 2, vertex, [](void* dst, uint64_t, uint64_t count) { std::memset(dst, 0, count); });
+  else
+    b.attribute = ctx.upload(chunk.attribute.data(), n * 2, vertex);
+  b.indices =
+      ctx.upload(chunk.indices.data(), chunk.indices.bytes(), VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+  b.index_count = uint32_t(chunk.indices.size());
+  mesh_bytes += b.positions.size + b.normals.size + b.attribute.size + b.indices.size;
 }
 
 void RasterRenderer::State::create_layout() {
@@ -676,7 +678,16 @@ void RasterRenderer::State::count_fragments(RasterFrame& frame) {
 
 RasterRenderer::RasterRenderer(Context& context, const TubeMesh& mesh)
     : state_(std::make_unique<State>(context)) {
-  state_->upload(mesh);
+  state_->attribute_range = mesh.attribute_range;
+  for (const TubeChunk& chunk : mesh.chunks) state_->upload(chunk);
+  state_->create_layout();
+}
+
+RasterRenderer::RasterRenderer(Context& context, const TubeMesh& description,
+                               const std::function<TubeChunk(size_t)>& chunk)
+    : state_(std::make_unique<State>(context)) {
+  state_->attribute_range = description.attribute_range;
+  for (size_t c = 0; c < description.chunks.size(); ++c) state_->upload(chunk(c));
   state_->create_layout();
 }
 
@@ -684,6 +695,10 @@ RasterRenderer::~RasterRenderer() = default;
 
 uint64_t RasterRenderer::mesh_bytes() const {
   return state_->mesh_bytes;
+}
+
+Bounds RasterRenderer::bounds() const {
+  return state_->bounds;
 }
 
 namespace {

@@ -11,6 +11,7 @@
 //   mboit   moment-based OIT: 4, 6 or 8 power moments or 2, 3 or 4 trigonometric moments
 //   wboit   weighted blended OIT, the cheap baseline
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -104,6 +105,11 @@ class RasterRenderer {
  public:
   // Uploads the mesh (every chunk its own vertex and index buffers, drawn in chunk order).
   RasterRenderer(Context& context, const TubeMesh& mesh);
+  // The same, a chunk at a time: `description` lists the chunks (its arrays may be empty) and
+  // `chunk(i)` gives chunk i, which is uploaded and let go before the next is asked for, so the
+  // host never holds more than one chunk (cache/tube_store.hpp's load_tube_chunk).
+  RasterRenderer(Context& context, const TubeMesh& description,
+                 const std::function<TubeChunk(size_t)>& chunk);
   RasterRenderer(const RasterRenderer&) = delete;
   RasterRenderer& operator=(const RasterRenderer&) = delete;
   ~RasterRenderer();
@@ -116,6 +122,7 @@ class RasterRenderer {
                               int height);
 
   uint64_t mesh_bytes() const;
+  Bounds bounds() const;  // of the mesh's vertices
 
   struct State;
 

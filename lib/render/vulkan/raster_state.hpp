@@ -51,6 +51,7 @@ struct Image2D {
   VkImage image = VK_NULL_HANDLE;
   VkDeviceMemory memory = VK_NULL_HANDLE;
   VkImageView view = VK_NULL_HANDLE;
+  uint64_t host_bytes = 0;  // Context::allocate_memory's
 };
 
 // How one pass draws the tubes. Colour targets: 1 = RGBA32F, 2 = RGBA32F + R32F,
@@ -105,7 +106,7 @@ struct RasterRenderer::State {
 
   uint64_t pixels() const { return uint64_t(width) * uint64_t(height); }
 
-  void upload(const TubeMesh& mesh);
+  void upload(const TubeChunk& chunk);  // one chunk's buffers, its positions into `bounds`
   void create_layout();
   VkPipeline graphics(const DrawSetup& setup);
   VkPipeline compute(const std::string& name, const std::vector<uint32_t>& constants = {});
