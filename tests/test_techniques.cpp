@@ -330,11 +330,21 @@ TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
   EXPECT_EQ(ctx.host_bytes(), idle);
   EXPECT_EQ(ctx.host_budget(), 0u);
   options.memory_budget = current_rss_bytes() + tubes * 2;
-  const auto prepared = ll.prepare(ll.info, cache, o.cache, options);
+  auto prepared = ll.prepare(ll.info, cache, o.cache, options);
   EXPECT_GT(ctx.host_budget(), 0u);
   EXPECT_GE(ctx.host_bytes(), tubes);
   EXPECT_EQ(prepared->render(camera, tf, options.width, options.height).image.pixels,
             unlimited.pixels);
+  // The viewer prepares the next technique before the last goes: the last one's going leaves the
+  // next one's budget in place, and the next one's going lifts it.
+  options.memory_budget = current_rss_bytes() + tubes * 4;
+  auto next = ll.prepare(ll.info, cache, o.cache, options);
+  const uint64_t budget = ctx.host_budget();
+  EXPECT_EQ(budget, options.memory_budget);
+  prepared.reset();
+  EXPECT_EQ(ctx.host_budget(), budget);
+  next.reset();
+  EXPECT_EQ(ctx.host_budget(), 0u);
 }
 
 // vrc frames the tube mesh's bounds, read a chunk at a time, else the lines' kept in their

@@ -78,13 +78,14 @@ class ContextHolder {
   // Holds the context's allocations of host memory (all of them on lavapipe and integrated GPUs,
   // where device memory is the machine's) within the process's budget, less the frame's image
   // (vk::Context::set_host_budget). Called once the technique's data is loaded, so that what the
-  // process holds then counts; lifted when the technique goes, on a context it shares.
+  // process holds then counts; lifted when the technique goes, on a context it shares, unless
+  // a technique prepared since has set its own.
   void budget_host_memory(const TechniqueOptions& options);
 
  private:
   std::unique_ptr<vk::Context> owned_;
   vk::Context* context_ = nullptr;
-  bool budgeted_ = false;
+  uint64_t budget_serial_ = 0;  // the budget it set on the context (0: none)
 };
 
 }  // namespace linebake

@@ -212,12 +212,11 @@ ContextHolder::ContextHolder(const TechniqueOptions& options, bool ray_tracing) 
 }
 
 ContextHolder::~ContextHolder() {
-  if (budgeted_ && !owned_) context_->set_host_budget(0);
+  if (budget_serial_ && !owned_) context_->lift_host_budget(budget_serial_);
 }
 
 void ContextHolder::budget_host_memory(const TechniqueOptions& options) {
-  context_->set_host_budget(process_budget(options), frame_output_bytes(options));
-  budgeted_ = true;
+  budget_serial_ = context_->set_host_budget(process_budget(options), frame_output_bytes(options));
 }
 
 uint64_t process_budget(const TechniqueOptions& o) {

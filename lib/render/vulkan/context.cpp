@@ -463,12 +463,18 @@ bool Context::memory_is_host() const {
          info_.type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;
 }
 
-void Context::set_host_budget(uint64_t total, uint64_t reserved) {
+uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved) {
   host_total_ = total, host_reserved_ = reserved;
   host_limit_ = kNoHostLimit;
-  if (total == 0) return;
-  const uint64_t used = current_rss_bytes() + reserved;
-  host_limit_ = host_bytes_ + (total > used ? total - used : 0);
+  if (total > 0) {
+    const uint64_t used = current_rss_bytes() + reserved;
+    host_limit_ = host_bytes_ + (total > used ? total - used : 0);
+  }
+  return ++host_budget_serial_;
+}
+
+void Context::lift_host_budget(uint64_t serial) {
+  if (serial == host_budget_serial_) set_host_budget(0);
 }
 
 uint64_t Context::host_bytes_left() const {

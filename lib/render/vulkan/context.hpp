@@ -157,7 +157,11 @@ class Context {
   // resident memory then counted as held: the techniques call it once their data is loaded), or
   // when the process's resident memory with it would pass the budget. Allocated memory is
   // resident only once written, so neither count alone is enough.
-  void set_host_budget(uint64_t total, uint64_t reserved = 0);
+  // Returns the budget's number, for lift_host_budget.
+  uint64_t set_host_budget(uint64_t total, uint64_t reserved = 0);
+  // Lifts the budget if it is still the one numbered `serial` (a technique that goes lifts its
+  // own budget, not the one a technique prepared after it set: the viewer's switch).
+  void lift_host_budget(uint64_t serial);
   uint64_t host_budget() const { return host_total_; }
   // What one allocation may still take of the host's memory (kNoHostLimit without a budget).
   static constexpr uint64_t kNoHostLimit = UINT64_MAX;
@@ -222,6 +226,7 @@ class Context {
   bool in_place_uploads_ = false;
   uint64_t staging_piece_bytes_ = 0;
   uint64_t host_bytes_ = 0, host_limit_ = kNoHostLimit, host_total_ = 0, host_reserved_ = 0;
+  uint64_t host_budget_serial_ = 0;
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
   std::string last_validation_error_;
