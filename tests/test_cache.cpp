@@ -54,6 +54,7 @@ Mapping mapping_of(const void* p) {
   return m;
 }
 
+using test::quiet_bake;
 using test::TempDir;
 
 LineSet curly_lines(int count) {
@@ -372,10 +373,7 @@ TEST(Bake, EmbreeBuffersRoundTripAndRebuildToTheSameScene) {
 // give the same bytes.
 TEST(Cache, MappedViewsGiveTheirPagesBackWhenTheyGo) {
   TempDir dir;
-  BakeOptions o;
-  o.input = "synth:aneurysm?scale=0.05";
-  o.cache = dir.file("none.lbc.h5");
-  o.progress = false;
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.05", "none.lbc.h5");
   o.compression = Compression::None;
   bake(o);
   const CacheReader cache(o.cache);
@@ -415,10 +413,7 @@ TEST(Cache, MappedViewsGiveTheirPagesBackWhenTheyGo) {
 // render builds the BVH. A budget with room builds it.
 TEST(Bake, EmbreeBvhAtBakeStaysWithinTheBudget) {
   TempDir dir;
-  BakeOptions o;
-  o.input = "synth:aneurysm?scale=0.05";
-  o.cache = dir.file("unlimited.lbc.h5");
-  o.progress = false;
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.05", "unlimited.lbc.h5");
   o.assets = {"embree"};
   o.memory_budget = BakeOptions::kUnlimited;
   bake(o);

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "lines/line_set.hpp"
+#include "pipeline/bake.hpp"
 
 namespace linebake::test {
 
@@ -41,6 +42,17 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// Bake options for `input` (a file or a synth: source) into `cache` in `dir`, without progress:
+// the tests set what they need beside these and call bake().
+inline BakeOptions quiet_bake(const TempDir& dir, const std::string& input,
+                              const std::string& cache) {
+  BakeOptions o;
+  o.input = input;
+  o.cache = dir.file(cache);
+  o.progress = false;
+  return o;
+}
 
 inline std::string read_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

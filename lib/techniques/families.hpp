@@ -3,6 +3,7 @@
 // family (info.name says which) from a cache.
 
 #include "core/error.hpp"
+#include "render/vulkan/context.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake {
@@ -53,13 +54,13 @@ uint64_t process_budget(const TechniqueOptions& options);
 // does not fit what the budget leaves the process: BudgetExceeded naming the technique and `data`.
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& options,
                      const CacheReader& cache, const std::string& group, const std::string& data);
-// Runs `work`, naming the technique in a refusal by the memory budget (a Vulkan allocation past
-// what ContextHolder::budget_host_memory allows).
+// Runs `work`, naming the technique in the refusal of a Vulkan allocation past what
+// ContextHolder::budget_host_memory allows (the renderers' own refusals name it already).
 template <class Work>
 decltype(auto) within_budget(const TechniqueInfo& info, Work&& work) {
   try {
     return work();
-  } catch (const BudgetExceeded& e) {
+  } catch (const vk::HostBudgetExceeded& e) {
     throw BudgetExceeded(info.name + ": " + e.what() + "; raise --memory-budget");
   }
 }
@@ -78,14 +79,15 @@ class ContextHolder {
   // Holds the context's allocations of host memory (all of them on lavapipe and integrated GPUs,
   // where device memory is the machine's) within the process's budget, less the frame's image
   // (vk::Context::set_host_budget). Called once the technique's data is loaded, so that what the
-  // process holds then counts; lifted when the technique goes, on a context it shares, unless
-  // a technique prepared since has set its own.
+  // process holds then counts. On a context it shares, the budget it found is put back when it
+  // goes, unless a technique prepared since has set its own (vk::Context::restore_host_budget).
   void budget_host_memory(const TechniqueOptions& options);
 
  private:
   std::unique_ptr<vk::Context> owned_;
   vk::Context* context_ = nullptr;
-  uint64_t budget_serial_ = 0;  // the budget it set on the context (0: none)
+  uint64_t budget_serial_ = 0;     // the budget it set on the context (0: none)
+  vk::Context::HostBudget found_;  // the one in force before, put back when it goes
 };
 
 }  // namespace linebake

@@ -212,10 +212,11 @@ ContextHolder::ContextHolder(const TechniqueOptions& options, bool ray_tracing) 
 }
 
 ContextHolder::~ContextHolder() {
-  if (budget_serial_ && !owned_) context_->lift_host_budget(budget_serial_);
+  if (budget_serial_ && !owned_) context_->restore_host_budget(budget_serial_, found_);
 }
 
 void ContextHolder::budget_host_memory(const TechniqueOptions& options) {
+  if (!budget_serial_) found_ = context_->host_budget_state();
   budget_serial_ = context_->set_host_budget(process_budget(options), frame_output_bytes(options));
 }
 

@@ -66,14 +66,14 @@ class Rtx : public PreparedTechnique {
     else if (stored->source != source)
       rebuild_reason_ = "the cached BLAS were built from other " +
                         std::string(geometry == "triangles" ? "tubes" : "capsules");
-    else if (auto problem = scene_->load(stored->blobs))
+    else if (auto problem = within_budget(info, [&] { return scene_->load(stored->blobs); }))
       rebuild_reason_ = *problem;
     if (!rebuild_reason_.empty()) {
       if (stored && !o.rebuild)
         warnings.push_back("cached BLAS not used (" + rebuild_reason_ + "); rebuilding");
       within_budget(info, [&] { scene_->build(o.compaction); });
     }
-    renderer_.emplace(*context_);
+    within_budget(info, [&] { renderer_.emplace(*context_); });
     options_.width = o.width, options_.height = o.height;
     options_.early_termination = o.early_termination;
     options_.max_iterations = uint32_t(o.max_iterations);

@@ -39,9 +39,12 @@ class Vrc : public PreparedTechnique {
     if (tube_provenance) {
       bounds_ = load_tube_bounds(cache);
     } else {
-      bounds_ = lines_provenance && lines_provenance->stats.contains("bounds")
-                    ? line_stats_from_json(lines_provenance->stats, cache.path()).bounds
-                    : compute_bounds(load_lines(cache));
+      if (lines_provenance && lines_provenance->stats.contains("bounds")) {
+        bounds_ = line_stats_from_json(lines_provenance->stats, cache.path()).bounds;
+      } else {
+        check_data_fits(info, o, cache, "/lines", "lines");
+        bounds_ = compute_bounds(load_lines(cache));
+      }
       for (size_t k = 0; k < 3; ++k) {
         bounds_.min[k] -= float(radius_);
         bounds_.max[k] += float(radius_);

@@ -410,9 +410,14 @@ Buffer Context::create_filled(uint64_t bytes, VkBufferUsageFlags usage, const Fi
   const uint64_t size = std::max<uint64_t>((bytes + 3) / 4 * 4, 4);
   if (in_place_uploads_) {
     Buffer out = create_buffer(size, usage, true);
-    auto* dst = static_cast<uint8_t*>(out.mapped);
-    if (bytes > 0) write(dst, 0, bytes);
-    std::memset(dst + bytes, 0, size - bytes);
+    try {
+      auto* dst = static_cast<uint8_t*>(out.mapped);
+      if (bytes > 0) write(dst, 0, bytes);
+      std::memset(dst + bytes, 0, size - bytes);
+    } catch (...) {
+      destroy(out);
+      throw;
+    }
     return out;
   }
   const uint64_t piece = std::min(size, staging_piece_bytes_);
@@ -473,8 +478,14 @@ uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved) {
   return ++host_budget_serial_;
 }
 
-void Context::lift_host_budget(uint64_t serial) {
-  if (serial == host_budget_serial_) set_host_budget(0);
+Context::HostBudget Context::host_budget_state() const {
+  return {host_total_, host_reserved_, host_limit_, host_budget_serial_};
+}
+
+void Context::restore_host_budget(uint64_t serial, const HostBudget& previous) {
+  if (serial != host_budget_serial_) return;
+  host_total_ = previous.total, host_reserved_ = previous.reserved, host_limit_ = previous.limit;
+  host_budget_serial_ = previous.serial;
 }
 
 uint64_t Context::host_bytes_left() const {
@@ -492,7 +503,7 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
       memory_is_host() || (memory.memoryHeaps[heap].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) == 0;
   host_bytes = host ? info.allocationSize : 0;
   if (host_bytes > 0 && host_bytes > host_bytes_left())
-    throw BudgetExceeded(
+    throw HostBudgetExceeded(
         "Vulkan: allocating " + format_bytes(host_bytes) + " on " + info_.name +
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
         " would pass the memory budget of " + format_bytes(host_total_) +

@@ -42,6 +42,12 @@ struct ContextOptions {
   bool compile_only = false;
 };
 
+// An allocation refused by the memory budget (Context::set_host_budget).
+class HostBudgetExceeded : public BudgetExceeded {
+ public:
+  using BudgetExceeded::BudgetExceeded;
+};
+
 // The chosen device cannot ray trace (lavapipe, older GPUs): the message is the one line users see.
 class RayTracingUnsupported : public Error {
  public:
@@ -150,6 +156,7 @@ class Context {
   uint64_t host_bytes() const { return host_bytes_; }
   // Whether every allocation is of the machine's memory (device type CPU or integrated GPU).
   bool memory_is_host() const;
+  static constexpr uint64_t kNoHostLimit = UINT64_MAX;
   // Holds those allocations within --memory-budget: `total` bytes of resident memory for the
   // whole process (0: no budget), of which `reserved` are kept for what the host holds besides
   // (a frame's image). From this call on an allocation is refused with BudgetExceeded and the
@@ -157,14 +164,19 @@ class Context {
   // resident memory then counted as held: the techniques call it once their data is loaded), or
   // when the process's resident memory with it would pass the budget. Allocated memory is
   // resident only once written, so neither count alone is enough.
-  // Returns the budget's number, for lift_host_budget.
+  // Returns the budget's number, for restore_host_budget.
   uint64_t set_host_budget(uint64_t total, uint64_t reserved = 0);
-  // Lifts the budget if it is still the one numbered `serial` (a technique that goes lifts its
-  // own budget, not the one a technique prepared after it set: the viewer's switch).
-  void lift_host_budget(uint64_t serial);
+  // The budget in force (the default: none), and putting it back: `previous` is put back only
+  // if the budget in force is still the one numbered `serial`. A technique that goes puts back
+  // the budget it found; one whose preparation fails so puts back the budget of the technique
+  // the viewer keeps, and one that goes after a later one set its own leaves that in force.
+  struct HostBudget {
+    uint64_t total = 0, reserved = 0, limit = kNoHostLimit, serial = 0;
+  };
+  HostBudget host_budget_state() const;
+  void restore_host_budget(uint64_t serial, const HostBudget& previous);
   uint64_t host_budget() const { return host_total_; }
   // What one allocation may still take of the host's memory (kNoHostLimit without a budget).
-  static constexpr uint64_t kNoHostLimit = UINT64_MAX;
   uint64_t host_bytes_left() const;
   // vkAllocateMemory within the limit: `host_bytes` gets what it took of the machine's memory
   // (for free_memory). Out-of-memory results are an Error naming the bytes and the device.

@@ -226,7 +226,13 @@ void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& value
   const uint64_t bytes = std::max<uint64_t>(4, keys.size() * 4);
   const VkBufferUsageFlags usage =
       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
-  Buffer k = ctx.create_buffer(bytes, usage, true), v = ctx.create_buffer(bytes, usage, true);
+  Buffer k = ctx.create_buffer(bytes, usage, true), v;
+  try {
+    v = ctx.create_buffer(bytes, usage, true);
+  } catch (...) {
+    ctx.destroy(k);
+    throw;
+  }
   // std::copy, not memcpy: an empty vector's data() may be null, which memcpy may not take.
   std::copy(keys.begin(), keys.end(), static_cast<uint32_t*>(k.mapped));
   std::copy(values.begin(), values.end(), static_cast<uint32_t*>(v.mapped));

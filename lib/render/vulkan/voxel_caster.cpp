@@ -87,10 +87,15 @@ struct VoxelCaster::State {
                                    uint32_t shift) {
     std::vector<Buffer> pages;
     const uint64_t page = (uint64_t{1} << shift) * unit;
-    for (uint64_t first = 0; first < bytes; first += page)
-      pages.push_back(ctx.upload(static_cast<const uint8_t*>(data) + first,
-                                 std::min(page, bytes - first),
-                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT));
+    try {
+      for (uint64_t first = 0; first < bytes; first += page)
+        pages.push_back(ctx.upload(static_cast<const uint8_t*>(data) + first,
+                                   std::min(page, bytes - first),
+                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT));
+    } catch (...) {  // a page refused (the memory budget): the pages before it go too
+      for (Buffer& b : pages) ctx.destroy(b);
+      throw;
+    }
     return pages;
   }
 
