@@ -26,13 +26,13 @@ struct OwnerTest {
 };
 
 OwnerTest owner_test_of(uint s) {
-  const uint word = segments[s], first = word >> 2u;
+  const uint word = segment_at(s), first = word >> 2u;
   OwnerTest o;
-  o.p0 = points[first].xyz;
-  o.p1 = points[first + 1u].xyz;
+  o.p0 = point_at(first).xyz;
+  o.p1 = point_at(first + 1u).xyz;
   o.flags = word & 3u;
-  o.before = (o.flags & 1u) != 0u ? points[first - 1u].xyz : o.p0;
-  o.after = (o.flags & 2u) != 0u ? points[first + 2u].xyz : o.p1;
+  o.before = (o.flags & 1u) != 0u ? point_at(first - 1u).xyz : o.p0;
+  o.after = (o.flags & 2u) != 0u ? point_at(first + 2u).xyz : o.p1;
   o.len = length(o.p1 - o.p0);
   o.axis = o.len > 0.0 ? (o.p1 - o.p0) / o.len : vec3(0.0);
   const float u = 1.1920929e-7, r = view.params.y;

@@ -5,6 +5,44 @@ layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
 // Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
 layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
 
+// Points and segment words past one storage buffer (specialisation constant 0, set where they
+// do not fit: 128 MiB on lavapipe, 4 GiB on NVIDIA): pages of 2^kPointShift points and
+// 2^kSegmentShift words, page 0 at bindings 1 and 2 and the rest at bindings 19 and 20, reached
+// by constant index as shaders/pages.glsl does (no descriptor-indexing feature needed). Off,
+// every access goes straight to bindings 1 and 2.
+layout(constant_id = 0) const bool kPagedPrimitives = false;
+layout(constant_id = 1) const uint kPointShift = 31u;
+layout(constant_id = 2) const uint kSegmentShift = 31u;
+const uint kPointPages = 8u, kSegmentPages = 4u;  // TileRenderer's kPointPages, kSegmentPages
+layout(set = 0, binding = 19, std430) readonly buffer PointPages { vec4 v[]; }
+point_pages[kPointPages - 1u];
+layout(set = 0, binding = 20, std430) readonly buffer SegmentPages { uint v[]; }
+segment_pages[kSegmentPages - 1u];
+
+#define POINT(n) case n: return point_pages[n - 1].v[j];
+vec4 point_at(uint i) {
+  if (!kPagedPrimitives) return points[i];
+  const uint j = i & ((1u << kPointShift) - 1u);
+  switch (i >> kPointShift) {
+    case 0: return points[j];
+    POINT(1) POINT(2) POINT(3) POINT(4) POINT(5) POINT(6)
+    default: return point_pages[6].v[j];
+  }
+}
+#undef POINT
+
+#define SEGMENT(n) case n: return segment_pages[n - 1].v[j];
+uint segment_at(uint s) {
+  if (!kPagedPrimitives) return segments[s];
+  const uint j = s & ((1u << kSegmentShift) - 1u);
+  switch (s >> kSegmentShift) {
+    case 0: return segments[j];
+    SEGMENT(1) SEGMENT(2)
+    default: return segment_pages[2].v[j];
+  }
+}
+#undef SEGMENT
+
 // The slopes x / z of the two planes through the eye that touch the sphere of radius r whose
 // centre lies at (x, z) in the view's x-z plane (z > r): solutions of m^2 (z^2 - r^2) - 2 m x z +
 // x^2 - r^2 = 0, the line x = m z at distance r from the centre. Exact extremes of x / z over
@@ -26,8 +64,8 @@ vec2 tangent_slopes(float x, float z, float r) {
 // centres covers no pixel (covered_pixels, tiles.glsl). A capsule that comes within 2 r' of the
 // plane of the eye takes the older, looser bound below.
 bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float z_far) {
-  const uint first = segments[s] >> 2u;
-  vec3 a = points[first].xyz, b = points[first + 1u].xyz;
+  const uint first = segment_at(s) >> 2u;
+  vec3 a = point_at(first).xyz, b = point_at(first + 1u).xyz;
   const float r = view.params.y;
   const vec3 f = view.forward;
   float za = dot(a - view.eye, f), zb = dot(b - view.eye, f);

@@ -28,9 +28,9 @@ shared vec3 batch_after[kBatch];
 shared vec2 batch_values[kBatch];  // the attribute at p0 and p1
 
 void load_primitive(uint lane, uint s, float bound, float far) {
-  const uint word = segments[s];
+  const uint word = segment_at(s);
   const uint p = word >> 2u, flags = word & 3u;
-  const vec4 p0 = points[p], p1 = points[p + 1u];
+  const vec4 p0 = point_at(p), p1 = point_at(p + 1u);
 #ifdef TILES_WIDE_WORDS
   batch_ends[lane] = u64vec4(packUint2x32(floatBitsToUint(p0.xy)),
                              packUint2x32(floatBitsToUint(vec2(p0.z, bound))),
@@ -41,8 +41,8 @@ void load_primitive(uint lane, uint s, float bound, float far) {
   batch_p1[lane] = vec4(p1.xyz, far);
 #endif
   batch_values[lane] = vec2(p0.w, p1.w);
-  batch_before[lane] = vec4((flags & 1u) != 0u ? points[p - 1u].xyz : p0.xyz, float(flags));
-  batch_after[lane] = (flags & 2u) != 0u ? points[p + 2u].xyz : p1.xyz;
+  batch_before[lane] = vec4((flags & 1u) != 0u ? point_at(p - 1u).xyz : p0.xyz, float(flags));
+  batch_after[lane] = (flags & 2u) != 0u ? point_at(p + 2u).xyz : p1.xyz;
 }
 
 // What may_cross reads of batch entry i, and the depth bound.

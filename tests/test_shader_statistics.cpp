@@ -38,14 +38,18 @@ TEST(SpirvLayout, ReadsTheBindingsTheShaderUses) {
 
   // tiles' composite over capsules: the uniforms (binding 0) and every storage buffer of
   // tiles.glsl, tiles_capsules.glsl and tiles_composite.glsl but binning's counters (5) and
-  // per-row key counts (12), which it never touches.
+  // per-row key counts (12), which it never touches; 19 and 20 are the capsules' pages past the
+  // first, arrays of 7 and 3.
   const vk::SpirvLayout composite =
       vk::reflect_layout(vk::shader_spirv("tiles_composite.comp"), "tiles_composite.comp");
   EXPECT_FALSE(composite.push_constants);
   EXPECT_EQ(binding_numbers(composite, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER),
             (std::vector<uint32_t>{0}));
-  EXPECT_EQ(binding_numbers(composite, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER),
-            (std::vector<uint32_t>{1, 2, 3, 4, 6, 7, 8, 9, 10, 11, 13, 14, 15, 16, 17, 18}));
+  EXPECT_EQ(
+      binding_numbers(composite, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER),
+      (std::vector<uint32_t>{1, 2, 3, 4, 6, 7, 8, 9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20}));
+  for (const vk::SpirvBinding& b : composite.bindings)
+    EXPECT_EQ(b.count, b.binding == 19 ? 7u : b.binding == 20 ? 3u : 1u) << b.binding;
 
   // A vertex shader is read as one.
   EXPECT_EQ(vk::reflect_layout(vk::shader_spirv("tube.vert"), "tube.vert").stage,

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <bit>
 #include <cmath>
 #include <glm/glm.hpp>
 #include <memory>
@@ -261,6 +262,48 @@ TEST(Tiles, BandsGiveTheSameBytes) {
   // Fewer keys than one row of tiles holds: refused, naming the budget.
   o.max_key_bytes = 18;
   EXPECT_THROW(renderer.render(camera, tf, o), BudgetExceeded);
+}
+
+// Capsules whose points or segment words pass one storage buffer go in pages (lavapipe's
+// 128 MiB held 610 MiB of clouds' points at scale 1.0 in 5): with a buffer of 2^k bytes at least
+// twice the point count, the points take up to 8 pages and the segment words 2 or more, with the
+// same bytes as in one buffer each. Past 8 pages they are refused, naming the device.
+TEST(Tiles, CapsulesPastOneStorageBufferGoInPagesWithTheSameBytes) {
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
+  const Bounds bounds = compute_bounds(lines);
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name);
+  uint64_t points = 0, words = 0;
+  for (const CapsuleChunk& chunk : capsules.chunks)
+    points += chunk.points.size() / 4, words += chunk.segments.size();
+  const uint64_t buffer = std::bit_ceil(2 * points);
+  ASSERT_LT(buffer, 4 * words) << "no buffer size pages both here";
+  const Camera camera = frame_bounds(bounds, 0.5, 30, 20);
+  const TransferFunction tf = transfer_function_preset("semi");
+  vk::Context ctx;
+  vk::TileOptions o;
+  o.width = 64, o.height = 128;  // eight tile rows: a row's keys within the small buffer's
+  vk::TileRenderer whole(ctx, capsules), paged(ctx, capsules, buffer);
+  EXPECT_EQ(whole.primitive_buffers(), 2u);
+  const size_t point_pages = (16 * points + buffer - 1) / buffer,
+               word_pages = (4 * words + buffer - 1) / buffer;
+  EXPECT_GE(point_pages, 5u);
+  EXPECT_GE(word_pages, 2u);
+  EXPECT_EQ(paged.primitive_buffers(), point_pages + word_pages);
+  const vk::TileFrame a = whole.render(camera, tf, o), b = paged.render(camera, tf, o);
+  EXPECT_GT(a.stats.hits, 300u);
+  EXPECT_EQ(b.stats.keys, a.stats.keys);
+  EXPECT_EQ(b.image.pixels, a.image.pixels);
+  EXPECT_EQ(b.depth_complexity, a.depth_complexity);
+  try {
+    vk::TileRenderer(ctx, capsules, buffer / 2);
+    ADD_FAILURE() << "points in more than 8 pages";
+  } catch (const BudgetExceeded& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("tiles: the points take ", 0), 0u) << what;
+    EXPECT_NE(what.find(" MiB, more than 8 storage buffers of "), std::string::npos) << what;
+    EXPECT_NE(what.find(ctx.info().name), std::string::npos) << what;
+  }
 }
 
 // Keys of fewer bits tie more of them (a coarser depth), and tied keys keep the order binning

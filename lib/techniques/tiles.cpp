@@ -133,7 +133,8 @@ class Tiles : public PreparedTechnique {
             {"geometry", triangles_ ? "triangles" : "capsules"},
             {"radius", radius_},
             {"early_termination", options_.early_termination},
-            {"sort_subgroup_size", renderer_->sort_subgroup_size()}};
+            {"sort_subgroup_size", renderer_->sort_subgroup_size()},
+            {"primitive_buffers", renderer_->primitive_buffers()}};
   }
   std::string device() const override { return context_->info().name; }
 

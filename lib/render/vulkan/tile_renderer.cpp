@@ -4,11 +4,13 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <functional>
 #include <limits>
 #include <span>
 #include <string>
+#include <tuple>
 
 #include "core/error.hpp"
 #include "render/vulkan/buffer_set.hpp"
@@ -26,8 +28,13 @@ constexpr uint32_t kTile = 16;
 // counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
 // slice, 14 the tiles to walk again, 15 each tile's state slot, 16 the keys' far depths by
 // chunks, 17 each tile's first key in a walk again, 18 the uniforms again as a storage buffer
-// (shaders/tiles.glsl, tiles_composite.glsl).
+// (shaders/tiles.glsl, tiles_composite.glsl); 19 and 20 (arrays) the capsules' points and
+// segment words past one storage buffer, pages 1 on (shaders/tiles_capsules.glsl).
 constexpr uint32_t kBindings = 19;
+// Pages of points and of segment words, the first at bindings 1 and 2: 8 and 4 keep the set's
+// storage buffers within Mesa gallium's 32 a stage (shaders/pages.glsl), and hold 2^30 points
+// (the most a segment word addresses) and 2^31 segments on NVIDIA's 4 GiB buffers.
+constexpr uint32_t kPointPages = 8, kSegmentPages = 4;
 // Keys per chunk of chunk_far: a batch of the composite (kBatch in shaders/tiles_composite.comp
 // and tiles_composite_triangles.comp).
 constexpr uint32_t kChunkKeys = 256;
@@ -104,6 +111,18 @@ struct TileRenderer::State {
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
       slice_tiles, walk_again, tile_slots, chunk_far, walk_first;
+  // The points' and segment words' pages past the first (capsules that pass one storage buffer),
+  // and the shaders' specialisation: paged or not, and 2^shift points and words a page.
+  std::vector<Buffer> point_pages, segment_pages;
+  struct Paging {
+    VkBool32 paged = VK_FALSE;
+    uint32_t point_shift = 31, segment_shift = 31;
+  } paging;
+  std::array<VkSpecializationMapEntry, 3> paging_entries{
+      {{0, offsetof(Paging, paged), sizeof(VkBool32)},
+       {1, offsetof(Paging, point_shift), sizeof(uint32_t)},
+       {2, offsetof(Paging, segment_shift), sizeof(uint32_t)}}};
+  VkSpecializationInfo paging_info{3, paging_entries.data(), sizeof(Paging), &paging};
   uint32_t slice_keys = 0;    // 0: a tile's keys in one dispatch
   uint32_t state_window = 0;  // the composite's (above)
   PixelTargets targets;
@@ -125,7 +144,8 @@ struct TileRenderer::State {
   // Pipeline i, made now if it was left for its first use ("": none).
   VkPipeline pipeline(size_t i) {
     if (!pipelines[i] && !shaders[i].empty())
-      pipelines[i] = create_compute_pipeline(ctx.device(), set.layout, shaders[i].c_str());
+      pipelines[i] =
+          create_compute_pipeline(ctx.device(), set.layout, shaders[i].c_str(), &paging_info);
     return pipelines[i];
   }
 
@@ -134,7 +154,22 @@ struct TileRenderer::State {
                      {&uniforms, &points, &segments, &keys, &values, &counters, &ranges,
                       &targets.rgba.gpu, &targets.counts.gpu, &stats, &slice, &states, &rows,
                       &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first, &uniforms});
+    // Pages not there are bound to the first, which the shaders then never read through them.
+    for (const auto& [binding, first, pages, count] :
+         {std::tuple{kBindings, &points, &point_pages, kPointPages},
+          std::tuple{kBindings + 1, &segments, &segment_pages, kSegmentPages}}) {
+      std::vector<const Buffer*> bound;
+      for (size_t i = 0; i + 1 < count; ++i)
+        bound.push_back(i < pages->size() ? &(*pages)[i] : first);
+      write_buffer_array(ctx.device(), set.set, binding, bound);
+    }
   }
+
+  // `words` in a first buffer and pages of 2^shift units of `unit` words after it, `shift` the
+  // largest that one storage buffer holds when they do not fit one; refused past `most` pages.
+  void upload_paged(const void* data, uint64_t units, uint64_t unit_bytes, uint32_t most,
+                    const std::string& name, Buffer& first, std::vector<Buffer>& pages,
+                    uint32_t& shift);
 
   ~State() {
     VkDevice d = ctx.device();
@@ -143,6 +178,8 @@ struct TileRenderer::State {
          {&uniforms, &points, &segments, &keys, &values, &counters, &ranges, &stats, &slice,
           &states, &rows, &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first})
       ctx.destroy(*b);
+    for (std::vector<Buffer>* pages : {&point_pages, &segment_pages})
+      for (Buffer& b : *pages) ctx.destroy(b);
     targets.release(ctx);
     for (VkPipeline p : pipelines)
       if (p) vkDestroyPipeline(d, p, nullptr);
@@ -171,17 +208,26 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   vkGetPhysicalDeviceProperties(ctx.physical_device(), &props);
   max_buffer = props.limits.maxStorageBufferRange;
   if (max_buffer_bytes > 0) max_buffer = std::min(max_buffer, max_buffer_bytes);
-  for (const auto& [name, bytes] :
-       {std::pair<const char*, uint64_t>{"vertices", vertex_words.size() * 4},
-        {"primitives", primitive_words.size() * 4}})
-    if (bytes > max_buffer)
-      throw BudgetExceeded("tiles: the " + std::string(name) + " take " +
-                           std::to_string(bytes >> 20) + " MiB, more than one storage buffer " +
-                           "holds on " + ctx.info().name + " (" + std::to_string(max_buffer >> 20) +
-                           " MiB)");
   const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  points = ctx.upload(vertex_words.data(), vertex_words.size() * 4, storage);
-  segments = ctx.upload(primitive_words.data(), primitive_words.size() * 4, storage);
+  if (triangles) {
+    for (const auto& [name, bytes] :
+         {std::pair<const char*, uint64_t>{"vertices", vertex_words.size() * 4},
+          {"primitives", primitive_words.size() * 4}})
+      if (bytes > max_buffer)
+        throw BudgetExceeded("tiles: the " + std::string(name) + " take " +
+                             std::to_string(bytes >> 20) + " MiB, more than one storage buffer " +
+                             "holds on " + ctx.info().name + " (" +
+                             std::to_string(max_buffer >> 20) + " MiB)");
+    points = ctx.upload(vertex_words.data(), vertex_words.size() * 4, storage);
+    segments = ctx.upload(primitive_words.data(), primitive_words.size() * 4, storage);
+  } else {
+    // Capsules past one storage buffer go in pages (shaders/tiles_capsules.glsl).
+    upload_paged(vertex_words.data(), vertex_words.size() / 4, 16, kPointPages, "points", points,
+                 point_pages, paging.point_shift);
+    upload_paged(primitive_words.data(), primitive_words.size(), 4, kSegmentPages, "segment words",
+                 segments, segment_pages, paging.segment_shift);
+    paging.paged = point_pages.empty() && segment_pages.empty() ? VK_FALSE : VK_TRUE;
+  }
   uniforms =
       ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | storage, true);
   counters = ctx.create_buffer(sizeof(Counters), storage, true);
@@ -200,7 +246,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   const bool lavapipe = ctx.info().lavapipe;
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
-  set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT);
+  set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT,
+                          {kPointPages - 1, kSegmentPages - 1});
   // The composite whose window loops leave past the pending hits, except on lavapipe, where
   // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).
   const bool exits =
@@ -221,8 +268,31 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   // The composites of strips are made when a frame first asks for them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
     if (!shaders[i].empty())
-      pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str());
+      pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str(), &paging_info);
   queries = ctx.create_timestamp_pair();
+}
+
+void TileRenderer::State::upload_paged(const void* data, uint64_t units, uint64_t unit_bytes,
+                                       uint32_t most, const std::string& name, Buffer& first,
+                                       std::vector<Buffer>& pages, uint32_t& shift) {
+  const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  const auto* bytes = static_cast<const uint8_t*>(data);
+  if (units * unit_bytes <= max_buffer) {
+    first = ctx.upload(data, units * unit_bytes, storage);
+    return;
+  }
+  shift = uint32_t(std::bit_width(max_buffer / unit_bytes) - 1);
+  const uint64_t per_page = uint64_t{1} << shift;
+  const uint64_t count = (units + per_page - 1) / per_page;
+  if (count > most)
+    throw BudgetExceeded(
+        "tiles: the " + name + " take " + std::to_string((units * unit_bytes) >> 20) +
+        " MiB, more than " + std::to_string(most) + " storage buffers of " +
+        std::to_string((per_page * unit_bytes) >> 20) + " MiB hold on " + ctx.info().name);
+  first = ctx.upload(bytes, per_page * unit_bytes, storage);
+  for (uint64_t p = 1; p < count; ++p)
+    pages.push_back(ctx.upload(bytes + p * per_page * unit_bytes,
+                               std::min(per_page, units - p * per_page) * unit_bytes, storage));
 }
 
 TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
@@ -243,6 +313,9 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
     for (uint32_t w : chunk.segments)
       words.push_back((((w >> 2) + uint32_t(base)) << 2) | (w & 3u));
   }
+  // The composite marks dropped hits in a primitive number's top bit.
+  if (words.size() >= (uint64_t{1} << 31))
+    throw Error("tiles: more than 2^31 - 1 segments; not supported yet");
   s.init(points, words, words.size(), 4, max_buffer_bytes, slice_keys, false, window_loops);
 }
 
@@ -776,6 +849,10 @@ uint32_t TileRenderer::sort_subgroup_size() const {
 
 uint64_t TileRenderer::tile_state_bytes() const {
   return tile_state_bytes_of(state_->state_window);
+}
+
+size_t TileRenderer::primitive_buffers() const {
+  return 2 + state_->point_pages.size() + state_->segment_pages.size();
 }
 
 TileFrame TileRenderer::render(const Camera& camera, const TransferFunction& tf,
