@@ -1,47 +1,11 @@
 // The capsule primitives of `tiles` (the default geometry): the lines' points and segments.
 
-// x, y, z and the attribute value per point.
-layout(set = 0, binding = 1, std430) readonly buffer Points { vec4 points[]; };
-// Per segment: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
-layout(set = 0, binding = 2, std430) readonly buffer Segments { uint segments[]; };
+#include "tiles_pages.glsl"
 
-// Points and segment words past one storage buffer (specialisation constant 0, set where they
-// do not fit: 128 MiB on lavapipe, 4 GiB on NVIDIA): pages of 2^kPointShift points and
-// 2^kSegmentShift words, page 0 at bindings 1 and 2 and the rest at bindings 19 and 20, reached
-// by constant index as shaders/pages.glsl does (no descriptor-indexing feature needed). Off,
-// every access goes straight to bindings 1 and 2.
-layout(constant_id = 0) const bool kPagedPrimitives = false;
-layout(constant_id = 1) const uint kPointShift = 31u;
-layout(constant_id = 2) const uint kSegmentShift = 31u;
-const uint kPointPages = 8u, kSegmentPages = 4u;  // TileRenderer's kPointPages, kSegmentPages
-layout(set = 0, binding = 19, std430) readonly buffer PointPages { vec4 v[]; }
-point_pages[kPointPages - 1u];
-layout(set = 0, binding = 20, std430) readonly buffer SegmentPages { uint v[]; }
-segment_pages[kSegmentPages - 1u];
-
-#define POINT(n) case n: return point_pages[n - 1].v[j];
-vec4 point_at(uint i) {
-  if (!kPagedPrimitives) return points[i];
-  const uint j = i & ((1u << kPointShift) - 1u);
-  switch (i >> kPointShift) {
-    case 0: return points[j];
-    POINT(1) POINT(2) POINT(3) POINT(4) POINT(5) POINT(6)
-    default: return point_pages[6].v[j];
-  }
-}
-#undef POINT
-
-#define SEGMENT(n) case n: return segment_pages[n - 1].v[j];
-uint segment_at(uint s) {
-  if (!kPagedPrimitives) return segments[s];
-  const uint j = s & ((1u << kSegmentShift) - 1u);
-  switch (s >> kSegmentShift) {
-    case 0: return segments[j];
-    SEGMENT(1) SEGMENT(2)
-    default: return segment_pages[2].v[j];
-  }
-}
-#undef SEGMENT
+// x, y, z and the attribute value of point i.
+vec4 point_at(uint i) { return unit_at(i); }
+// Segment s's word: its first point << 2 | neighbour flags (accel/capsule_segments.hpp).
+uint segment_at(uint s) { return word_at(s); }
 
 // The slopes x / z of the two planes through the eye that touch the sphere of radius r whose
 // centre lies at (x, z) in the view's x-z plane (z > r): solutions of m^2 (z^2 - r^2) - 2 m x z +

@@ -16,15 +16,14 @@ shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];
 shared float batch_normals[11][kBatch];
 
 void load_primitive(uint lane, uint s, float bound, float far) {
-  const uint a = indices[3u * s], b = indices[3u * s + 1u], c = indices[3u * s + 2u];
-  const vec4 va = vertices[2u * a], vb = vertices[2u * b];
+  const uint a = index_at(3u * s), b = index_at(3u * s + 1u), c = index_at(3u * s + 2u);
+  const vec4 va = vertex_at(a), vb = vertex_at(b);
   batch_a[lane] = vec4(va.xyz, bound);
   batch_b[lane] = vec4(vb.xyz, far);
-  batch_c[lane] = vertices[2u * c];
+  batch_c[lane] = vertex_at(c);
   batch_normals[9][lane] = va.w;
   batch_normals[10][lane] = vb.w;
-  const vec3 na = vertices[2u * a + 1u].xyz, nb = vertices[2u * b + 1u].xyz,
-             nc = vertices[2u * c + 1u].xyz;
+  const vec3 na = normal_at(a).xyz, nb = normal_at(b).xyz, nc = normal_at(c).xyz;
   for (int k = 0; k < 3; ++k) {
     batch_normals[k][lane] = na[k];
     batch_normals[3 + k][lane] = nb[k];

@@ -1,15 +1,18 @@
 // The triangle primitives of `tiles --tiles-geometry triangles`: the cached tube mesh.
 
-// Per vertex: x, y, z, attribute value; then the normal (x, y, z, 0).
-layout(set = 0, binding = 1, std430) readonly buffer Vertices { vec4 vertices[]; };
-// Three vertex indices per triangle, counter-clockwise seen from outside.
-layout(set = 0, binding = 2, std430) readonly buffer Indices { uint indices[]; };
+#include "tiles_pages.glsl"
+
+// Vertex v: x, y, z and the attribute value; its normal (x, y, z, 0).
+vec4 vertex_at(uint v) { return unit_at(2u * v); }
+vec4 normal_at(uint v) { return unit_at(2u * v + 1u); }
+// Index k: three per triangle, counter-clockwise seen from outside.
+uint index_at(uint k) { return word_at(k); }
 
 // Triangle s's corners, counter-clockwise seen from outside.
 void triangle_corners(uint s, out vec3 a, out vec3 b, out vec3 c) {
-  a = vertices[2u * indices[3u * s]].xyz;
-  b = vertices[2u * indices[3u * s + 1u]].xyz;
-  c = vertices[2u * indices[3u * s + 2u]].xyz;
+  a = vertex_at(index_at(3u * s)).xyz;
+  b = vertex_at(index_at(3u * s + 1u)).xyz;
+  c = vertex_at(index_at(3u * s + 2u)).xyz;
 }
 
 // Triangle s on the screen: its pixel bounds [lo, hi] and nearest and farthest vertex depth;

@@ -264,11 +264,12 @@ TEST(Tiles, BandsGiveTheSameBytes) {
   EXPECT_THROW(renderer.render(camera, tf, o), BudgetExceeded);
 }
 
-// Capsules whose points or segment words pass one storage buffer go in pages (lavapipe's
-// 128 MiB held 610 MiB of clouds' points at scale 1.0 in 5): with a buffer of 2^k bytes at least
-// twice the point count, the points take up to 8 pages and the segment words 2 or more, with the
-// same bytes as in one buffer each. Past 8 pages they are refused, naming the device.
-TEST(Tiles, CapsulesPastOneStorageBufferGoInPagesWithTheSameBytes) {
+// Primitives whose arrays pass one storage buffer go in pages (lavapipe's 128 MiB held 610 MiB
+// of clouds' points at scale 1.0 in 5): with a buffer of 2^k bytes at least twice the point
+// count, the points take up to 8 pages and the segment words 2 or more, with the same bytes as in
+// one buffer each; past 8 pages they are refused, naming the device. The same for the triangles'
+// vertices and indices.
+TEST(Tiles, PrimitivesPastOneStorageBufferGoInPagesWithTheSameBytes) {
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.005"));
   const Bounds bounds = compute_bounds(lines);
   const CapsuleSegments capsules =
@@ -304,6 +305,22 @@ TEST(Tiles, CapsulesPastOneStorageBufferGoInPagesWithTheSameBytes) {
     EXPECT_NE(what.find(" MiB, more than 8 storage buffers of "), std::string::npos) << what;
     EXPECT_NE(what.find(ctx.info().name), std::string::npos) << what;
   }
+
+  const TubeMesh mesh = build_tubes(lines, TubeOptions{});
+  const uint64_t vertices = mesh.vertex_count(), indices = 3 * mesh.triangle_count();
+  const uint64_t mesh_buffer = std::bit_ceil(4 * vertices);  // 8 pages of 2 units a vertex
+  ASSERT_LT(mesh_buffer, 2 * 4 * indices);
+  vk::TileRenderer triangles(ctx, mesh), paged_triangles(ctx, mesh, mesh_buffer);
+  EXPECT_EQ(triangles.primitive_buffers(), 2u);
+  EXPECT_EQ(paged_triangles.primitive_buffers(), (32 * vertices + mesh_buffer - 1) / mesh_buffer +
+                                                     (4 * indices + mesh_buffer - 1) / mesh_buffer);
+  EXPECT_GE(paged_triangles.primitive_buffers(), 2u + 2u);
+  const vk::TileFrame c = triangles.render(camera, tf, o),
+                      d = paged_triangles.render(camera, tf, o);
+  EXPECT_GT(c.stats.hits, 100u);
+  EXPECT_EQ(d.image.pixels, c.image.pixels);
+  EXPECT_EQ(d.depth_complexity, c.depth_complexity);
+  EXPECT_THROW(vk::TileRenderer(ctx, mesh, mesh_buffer / 2), BudgetExceeded);
 }
 
 // Keys of fewer bits tie more of them (a coarser depth), and tied keys keep the order binning

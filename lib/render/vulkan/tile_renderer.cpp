@@ -28,13 +28,14 @@ constexpr uint32_t kTile = 16;
 // counts, 9 stats, 10 the slice, 11 pixel states, 12 keys per tile row, 13 the tiles of each
 // slice, 14 the tiles to walk again, 15 each tile's state slot, 16 the keys' far depths by
 // chunks, 17 each tile's first key in a walk again, 18 the uniforms again as a storage buffer
-// (shaders/tiles.glsl, tiles_composite.glsl); 19 and 20 (arrays) the capsules' points and
-// segment words past one storage buffer, pages 1 on (shaders/tiles_capsules.glsl).
+// (shaders/tiles.glsl, tiles_composite.glsl); 19 and 20 (arrays) the primitives' units and
+// words past one storage buffer, pages 1 on (shaders/tiles_pages.glsl).
 constexpr uint32_t kBindings = 19;
-// Pages of points and of segment words, the first at bindings 1 and 2: 8 and 4 keep the set's
-// storage buffers within Mesa gallium's 32 a stage (shaders/pages.glsl), and hold 2^30 points
-// (the most a segment word addresses) and 2^31 segments on NVIDIA's 4 GiB buffers.
-constexpr uint32_t kPointPages = 8, kSegmentPages = 4;
+// Pages of units (points; vertices, two each) and of words (segment words; indices), the first
+// at bindings 1 and 2: 8 and 4 keep the set's storage buffers within Mesa gallium's 32 a stage
+// (shaders/pages.glsl), and on NVIDIA (pages of 2 GiB) hold 2^30 points, the most a segment word
+// addresses, and 2^31 words.
+constexpr uint32_t kUnitPages = 8, kWordPages = 4;
 // Keys per chunk of chunk_far: a batch of the composite (kBatch in shaders/tiles_composite.comp
 // and tiles_composite_triangles.comp).
 constexpr uint32_t kChunkKeys = 256;
@@ -111,17 +112,18 @@ struct TileRenderer::State {
   float radius = 0;   // capsules; 0 for triangles
   Buffer uniforms, points, segments, keys, values, counters, ranges, stats, slice, states, rows,
       slice_tiles, walk_again, tile_slots, chunk_far, walk_first;
-  // The points' and segment words' pages past the first (capsules that pass one storage buffer),
-  // and the shaders' specialisation: paged or not, and 2^shift points and words a page.
+  // The units' and words' pages past the first (primitives that pass one storage buffer; `points`
+  // and `segments` hold the vertices and indices in triangle mode), and the shaders'
+  // specialisation: paged or not, and 2^shift units and words a page.
   std::vector<Buffer> point_pages, segment_pages;
   struct Paging {
     VkBool32 paged = VK_FALSE;
-    uint32_t point_shift = 31, segment_shift = 31;
+    uint32_t unit_shift = 31, word_shift = 31;
   } paging;
   std::array<VkSpecializationMapEntry, 3> paging_entries{
       {{0, offsetof(Paging, paged), sizeof(VkBool32)},
-       {1, offsetof(Paging, point_shift), sizeof(uint32_t)},
-       {2, offsetof(Paging, segment_shift), sizeof(uint32_t)}}};
+       {1, offsetof(Paging, unit_shift), sizeof(uint32_t)},
+       {2, offsetof(Paging, word_shift), sizeof(uint32_t)}}};
   VkSpecializationInfo paging_info{3, paging_entries.data(), sizeof(Paging), &paging};
   uint32_t slice_keys = 0;    // 0: a tile's keys in one dispatch
   uint32_t state_window = 0;  // the composite's (above)
@@ -156,8 +158,8 @@ struct TileRenderer::State {
                       &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first, &uniforms});
     // Pages not there are bound to the first, which the shaders then never read through them.
     for (const auto& [binding, first, pages, count] :
-         {std::tuple{kBindings, &points, &point_pages, kPointPages},
-          std::tuple{kBindings + 1, &segments, &segment_pages, kSegmentPages}}) {
+         {std::tuple{kBindings, &points, &point_pages, kUnitPages},
+          std::tuple{kBindings + 1, &segments, &segment_pages, kWordPages}}) {
       std::vector<const Buffer*> bound;
       for (size_t i = 0; i + 1 < count; ++i)
         bound.push_back(i < pages->size() ? &(*pages)[i] : first);
@@ -209,25 +211,12 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   max_buffer = props.limits.maxStorageBufferRange;
   if (max_buffer_bytes > 0) max_buffer = std::min(max_buffer, max_buffer_bytes);
   const VkBufferUsageFlags storage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  if (triangles) {
-    for (const auto& [name, bytes] :
-         {std::pair<const char*, uint64_t>{"vertices", vertex_words.size() * 4},
-          {"primitives", primitive_words.size() * 4}})
-      if (bytes > max_buffer)
-        throw BudgetExceeded("tiles: the " + std::string(name) + " take " +
-                             std::to_string(bytes >> 20) + " MiB, more than one storage buffer " +
-                             "holds on " + ctx.info().name + " (" +
-                             std::to_string(max_buffer >> 20) + " MiB)");
-    points = ctx.upload(vertex_words.data(), vertex_words.size() * 4, storage);
-    segments = ctx.upload(primitive_words.data(), primitive_words.size() * 4, storage);
-  } else {
-    // Capsules past one storage buffer go in pages (shaders/tiles_capsules.glsl).
-    upload_paged(vertex_words.data(), vertex_words.size() / 4, 16, kPointPages, "points", points,
-                 point_pages, paging.point_shift);
-    upload_paged(primitive_words.data(), primitive_words.size(), 4, kSegmentPages, "segment words",
-                 segments, segment_pages, paging.segment_shift);
-    paging.paged = point_pages.empty() && segment_pages.empty() ? VK_FALSE : VK_TRUE;
-  }
+  // Past one storage buffer, in pages (shaders/tiles_pages.glsl).
+  upload_paged(vertex_words.data(), vertex_words.size() / 4, 16, kUnitPages,
+               triangles ? "vertices" : "points", points, point_pages, paging.unit_shift);
+  upload_paged(primitive_words.data(), primitive_words.size(), 4, kWordPages,
+               triangles ? "indices" : "segment words", segments, segment_pages, paging.word_shift);
+  paging.paged = point_pages.empty() && segment_pages.empty() ? VK_FALSE : VK_TRUE;
   uniforms =
       ctx.create_buffer(sizeof(TileUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | storage, true);
   counters = ctx.create_buffer(sizeof(Counters), storage, true);
@@ -247,7 +236,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
   set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT,
-                          {kPointPages - 1, kSegmentPages - 1});
+                          {kUnitPages - 1, kWordPages - 1});
   // The composite whose window loops leave past the pending hits, except on lavapipe, where
   // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).
   const bool exits =
