@@ -6,8 +6,8 @@
 // bindings 19 and 20, reached by constant index as shaders/pages.glsl does (no
 // descriptor-indexing feature needed). Off, every access goes straight to bindings 1 and 2.
 
-layout(set = 0, binding = 1, std430) readonly buffer Units { vec4 units[]; };
-layout(set = 0, binding = 2, std430) readonly buffer Words { uint words[]; };
+layout(set = 0, binding = 1, std430) readonly buffer Units { vec4 first_units[]; };
+layout(set = 0, binding = 2, std430) readonly buffer Words { uint first_words[]; };
 
 layout(constant_id = 0) const bool kPagedPrimitives = false;
 layout(constant_id = 1) const uint kUnitShift = 31u;
@@ -20,10 +20,10 @@ word_pages[kWordPages - 1u];
 
 #define UNIT(n) case n: return unit_pages[n - 1].v[j];
 vec4 unit_at(uint i) {
-  if (!kPagedPrimitives) return units[i];
+  if (!kPagedPrimitives) return first_units[i];
   const uint j = i & ((1u << kUnitShift) - 1u);
   switch (i >> kUnitShift) {
-    case 0: return units[j];
+    case 0: return first_units[j];
     UNIT(1) UNIT(2) UNIT(3) UNIT(4) UNIT(5) UNIT(6)
     default: return unit_pages[6].v[j];
   }
@@ -32,10 +32,10 @@ vec4 unit_at(uint i) {
 
 #define WORD(n) case n: return word_pages[n - 1].v[j];
 uint word_at(uint i) {
-  if (!kPagedPrimitives) return words[i];
+  if (!kPagedPrimitives) return first_words[i];
   const uint j = i & ((1u << kWordShift) - 1u);
   switch (i >> kWordShift) {
-    case 0: return words[j];
+    case 0: return first_words[j];
     WORD(1) WORD(2)
     default: return word_pages[2].v[j];
   }

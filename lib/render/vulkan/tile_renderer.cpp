@@ -33,8 +33,8 @@ constexpr uint32_t kTile = 16;
 constexpr uint32_t kBindings = 19;
 // Pages of units (points; vertices, two each) and of words (segment words; indices), the first
 // at bindings 1 and 2: 8 and 4 keep the set's storage buffers within Mesa gallium's 32 a stage
-// (shaders/pages.glsl), and on NVIDIA (pages of 2 GiB) hold 2^30 points, the most a segment word
-// addresses, and 2^31 words.
+// (shaders/pages.glsl), and on NVIDIA (pages of 2 GiB) hold 2^30 points, more than a segment word
+// addresses (2^30 - 1), and 2^31 words.
 constexpr uint32_t kUnitPages = 8, kWordPages = 4;
 // Keys per chunk of chunk_far: a batch of the composite (kBatch in shaders/tiles_composite.comp
 // and tiles_composite_triangles.comp).
@@ -270,6 +270,9 @@ void TileRenderer::State::upload_paged(const void* data, uint64_t units, uint64_
     first = ctx.upload(data, units * unit_bytes, storage);
     return;
   }
+  if (max_buffer < unit_bytes)
+    throw Error("tiles: a storage buffer of " + std::to_string(max_buffer) +
+                " bytes holds none of the " + name);
   shift = uint32_t(std::bit_width(max_buffer / unit_bytes) - 1);
   const uint64_t per_page = uint64_t{1} << shift;
   const uint64_t count = (units + per_page - 1) / per_page;
@@ -297,7 +300,7 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
   for (const CapsuleChunk& chunk : capsules.chunks) {
     const uint64_t base = points.size() / 4;
     if (base + chunk.points.size() / 4 >= (uint64_t{1} << 30))
-      throw Error("tiles: more than 2^30 points; not supported yet");
+      throw Error("tiles: 2^30 points or more; not supported yet");
     points.insert(points.end(), chunk.points.begin(), chunk.points.end());
     for (uint32_t w : chunk.segments)
       words.push_back((((w >> 2) + uint32_t(base)) << 2) | (w & 3u));

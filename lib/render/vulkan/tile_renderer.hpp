@@ -128,7 +128,7 @@ class TileRenderer {
   // hits: 8 with the window loops of fixed trips, 16 with those that exit).
   uint64_t tile_state_bytes() const;
   // The storage buffers the primitives take: 2 where the points and the segment words (or the
-  // vertices and the indices) fit one each, more where the capsules' go in pages.
+  // vertices and the indices) fit one each, more where they go in pages.
   size_t primitive_buffers() const;
 
  private:
