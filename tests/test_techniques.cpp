@@ -16,6 +16,7 @@
 #include "pipeline/bake.hpp"
 #include "render/vulkan/context.hpp"
 #include "render/vulkan/raster_renderer.hpp"
+#include "render/vulkan/tile_renderer.hpp"
 #include "render/vulkan/voxel_caster.hpp"
 #include "synth/synth.hpp"
 #include "techniques/technique.hpp"
@@ -356,6 +357,40 @@ TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
   next.reset();
   EXPECT_EQ(ctx.host_budget_state().serial, kept.serial);
   EXPECT_EQ(ctx.host_budget(), kept.total);
+}
+
+// tiles over the tube mesh's triangles also takes the mesh a chunk at a time into its arrays,
+// sized by the datasets' shapes: the same image and bounds as from the whole mesh.
+TEST(Techniques, TilesTakesTheTubeMeshAChunkAtATime) {
+  TempDir dir;
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.02", "aneurysm.lbc.h5");
+  o.tubes.max_chunk_bytes = 1u << 20;
+  bake(o);
+  const CacheReader cache(o.cache);
+  const TubeMesh whole = load_tubes(cache);
+  ASSERT_GE(whole.chunks.size(), 3u);
+  const TubeCounts counts = load_tube_counts(cache);
+  EXPECT_EQ(counts.vertices, whole.vertex_count());
+  EXPECT_EQ(counts.triangles, whole.triangle_count());
+  vk::Context ctx;
+  const Technique& tiles = find_technique("tiles");
+  TechniqueOptions options;
+  options.context = &ctx;
+  options.tiles_geometry = "triangles";
+  options.width = 48, options.height = 32;
+  const auto prepared = tiles.prepare(tiles.info, cache, o.cache, options);
+  const Bounds bounds = compute_bounds(whole);
+  EXPECT_EQ(prepared->bounds().min, bounds.min);
+  EXPECT_EQ(prepared->bounds().max, bounds.max);
+  const TransferFunction tf = transfer_function_preset("semi");
+  const Camera camera = frame_bounds(bounds, 1.5, 30, 20);
+  const TechniqueFrame frame = prepared->render(camera, tf, options.width, options.height);
+  vk::TileRenderer renderer(ctx, whole);
+  vk::TileOptions tile_options;
+  tile_options.width = options.width, tile_options.height = options.height;
+  const vk::TileFrame expected = renderer.render(camera, tf, tile_options);
+  EXPECT_GT(expected.stats.hits, 100u);
+  EXPECT_EQ(frame.image.pixels, expected.image.pixels);
 }
 
 // vrc frames the tube mesh's bounds, read a chunk at a time, else the lines' bounds kept in their

@@ -290,6 +290,21 @@ TubeMesh load_tubes(const CacheReader& cache) {
   return mesh;
 }
 
+TubeCounts load_tube_counts(const CacheReader& cache) {
+  const TubeMesh description = load_tube_description(cache);
+  TubeCounts counts;
+  for (size_t c = 0; c < description.chunks.size(); ++c) {
+    const std::string g = chunk_group(c);
+    const std::vector<uint64_t> positions = cache.shape(g + "/positions"),
+                                indices = cache.shape(g + "/indices");
+    if (positions.empty() || indices.empty())
+      throw InputError(cache.path(), "group " + g, "positions or indices without a shape");
+    counts.vertices += positions[0];
+    counts.triangles += indices[0];
+  }
+  return counts;
+}
+
 Bounds load_tube_bounds(const CacheReader& cache) {
   const TubeMesh description = load_tube_description(cache);
   Bounds bounds;

@@ -51,5 +51,7 @@ TubeMesh load_tube_description(const CacheReader& cache);
 TubeChunk load_tube_chunk(const CacheReader& cache, const TubeMesh& description, size_t index);
 // compute_bounds of the mesh, reading one chunk's positions at a time.
 Bounds load_tube_bounds(const CacheReader& cache);
+// The mesh's vertices and triangles from its datasets' shapes, reading none of them.
+TubeCounts load_tube_counts(const CacheReader& cache);
 
 }  // namespace linebake

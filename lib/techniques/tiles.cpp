@@ -50,12 +50,22 @@ class Tiles : public PreparedTechnique {
         throw UsageError(
             "--radius and --attribute are the capsules' (the tube mesh has its own); "
             "not with --tiles-geometry triangles");
+      // The mesh a chunk at a time into the renderer's arrays, each chunk let go once copied.
       check_data_fits(info, o, cache, "/assets/tubes", "tube mesh's buffers");
-      const TubeMesh mesh = load_tubes(cache);
-      bounds_ = compute_bounds(mesh);
-      radius_ = mesh.radius;
+      const TubeMesh description = load_tube_description(cache);
+      radius_ = description.radius;
       context_.budget_host_memory(o);
-      within_budget(info, [&] { renderer_.emplace(*context_, mesh, 0, 0, sort_subgroups); });
+      within_budget(info, [&] {
+        renderer_.emplace(
+            *context_, description, load_tube_counts(cache),
+            [&](size_t c) {
+              TubeChunk chunk = load_tube_chunk(cache, description, c);
+              include_points(
+                  bounds_, std::span<const float>(chunk.positions.data(), chunk.positions.size()));
+              return chunk;
+            },
+            0, 0, sort_subgroups);
+      });
     } else {
       check_data_fits(info, o, cache, "/lines", "lines");
       const LineSet lines = load_lines(cache);

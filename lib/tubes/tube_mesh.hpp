@@ -51,6 +51,11 @@ struct TubeMesh {
   uint64_t bytes() const;
 };
 
+// A mesh's size without its arrays (cache/tube_store.hpp's load_tube_counts).
+struct TubeCounts {
+  uint64_t vertices = 0, triangles = 0;
+};
+
 // Bounding box of every vertex position (the tube surface, radius included).
 Bounds compute_bounds(const TubeMesh& mesh);
 

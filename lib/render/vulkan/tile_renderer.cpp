@@ -311,34 +311,59 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
   s.init(points, words, words.size(), 4, max_buffer_bytes, slice_keys, false, window_loops);
 }
 
+namespace {
+
+// Appends a tube chunk's vertices (x, y, z, attribute value, then the normal) and its indices,
+// re-based past the vertices before it.
+void append_tube_chunk(const TubeChunk& chunk, const std::array<float, 2>& attribute_range,
+                       std::vector<float>& vertices, std::vector<uint32_t>& indices) {
+  const uint64_t base = vertices.size() / 8;
+  if (base + chunk.vertex_count() > UINT32_MAX)
+    throw Error("tiles: more than 2^32 tube vertices; not supported yet");
+  for (uint64_t v = 0; v < chunk.vertex_count(); ++v) {
+    const float value =
+        chunk.attribute.empty() ? 0.0f : decode_unorm16(chunk.attribute[v], attribute_range);
+    std::array<float, 3> n{0, 0, 1};
+    if (!chunk.normals.empty())
+      n = {chunk.normals[3 * v], chunk.normals[3 * v + 1], chunk.normals[3 * v + 2]};
+    else if (!chunk.normals_oct.empty())
+      n = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
+    vertices.insert(vertices.end(), {chunk.positions[3 * v], chunk.positions[3 * v + 1],
+                                     chunk.positions[3 * v + 2], value, n[0], n[1], n[2], 0.0f});
+  }
+  for (uint32_t i : std::span(chunk.indices.data(), chunk.indices.size()))
+    indices.push_back(i + uint32_t(base));
+}
+
+}  // namespace
+
 TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes,
                            uint32_t slice_keys, bool sort_subgroups, WindowLoops window_loops)
     : state_(std::make_unique<State>(context, sort_subgroups)) {
   State& s = *state_;
   s.attribute_range = mesh.attribute_range;
-  // Per vertex x, y, z, attribute value, then the normal; indices re-based over the chunks.
   std::vector<float> vertices;
   std::vector<uint32_t> indices;
   vertices.reserve(mesh.vertex_count() * 8);
   indices.reserve(mesh.triangle_count() * 3);
-  for (const TubeChunk& chunk : mesh.chunks) {
-    const uint64_t base = vertices.size() / 8;
-    if (base + chunk.vertex_count() > UINT32_MAX)
-      throw Error("tiles: more than 2^32 tube vertices; not supported yet");
-    for (uint64_t v = 0; v < chunk.vertex_count(); ++v) {
-      const float value =
-          chunk.attribute.empty() ? 0.0f : decode_unorm16(chunk.attribute[v], mesh.attribute_range);
-      std::array<float, 3> n{0, 0, 1};
-      if (!chunk.normals.empty())
-        n = {chunk.normals[3 * v], chunk.normals[3 * v + 1], chunk.normals[3 * v + 2]};
-      else if (!chunk.normals_oct.empty())
-        n = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
-      vertices.insert(vertices.end(), {chunk.positions[3 * v], chunk.positions[3 * v + 1],
-                                       chunk.positions[3 * v + 2], value, n[0], n[1], n[2], 0.0f});
-    }
-    for (uint32_t i : std::span(chunk.indices.data(), chunk.indices.size()))
-      indices.push_back(i + uint32_t(base));
-  }
+  for (const TubeChunk& chunk : mesh.chunks)
+    append_tube_chunk(chunk, mesh.attribute_range, vertices, indices);
+  s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true,
+         window_loops);
+}
+
+TileRenderer::TileRenderer(Context& context, const TubeMesh& description, const TubeCounts& counts,
+                           const std::function<TubeChunk(size_t)>& chunk, uint64_t max_buffer_bytes,
+                           uint32_t slice_keys, bool sort_subgroups, WindowLoops window_loops)
+    : state_(std::make_unique<State>(context, sort_subgroups)) {
+  State& s = *state_;
+  s.attribute_range = description.attribute_range;
+  std::vector<float> vertices;
+  std::vector<uint32_t> indices;
+  vertices.reserve(counts.vertices * 8);
+  indices.reserve(counts.triangles * 3);
+  for (size_t c = 0; c < description.chunks.size(); ++c)
+    append_tube_chunk(chunk(c), description.attribute_range, vertices, indices);
   s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true,
          window_loops);
 }

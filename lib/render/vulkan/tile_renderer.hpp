@@ -7,6 +7,7 @@
 // primitives front to back through a per-pixel sorted window (shaders/tiles_*.comp).
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -115,6 +116,13 @@ class TileRenderer {
   // Triangle mode: the tube mesh's front-facing triangles, comparable with `reference` and the
   // raster techniques to the last bit of coverage.
   TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes = 0,
+               uint32_t slice_keys = 0, bool sort_subgroups = true,
+               WindowLoops window_loops = WindowLoops::by_device);
+  // The same, a chunk at a time: `description` lists the chunks (its arrays may be empty),
+  // `counts` sizes the device's arrays, and `chunk(i)` gives chunk i, let go once its vertices
+  // are copied, so the host never holds the whole mesh beside them (load_tube_chunk).
+  TileRenderer(Context& context, const TubeMesh& description, const TubeCounts& counts,
+               const std::function<TubeChunk(size_t)>& chunk, uint64_t max_buffer_bytes = 0,
                uint32_t slice_keys = 0, bool sort_subgroups = true,
                WindowLoops window_loops = WindowLoops::by_device);
   ~TileRenderer();
