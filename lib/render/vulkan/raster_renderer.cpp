@@ -676,12 +676,9 @@ void RasterRenderer::State::count_fragments(RasterFrame& frame) {
   read_depth_complexity(frame);
 }
 
+// The chunks' arrays are shared, not copied (Array's copies are views of one owner).
 RasterRenderer::RasterRenderer(Context& context, const TubeMesh& mesh)
-    : state_(std::make_unique<State>(context)) {
-  state_->attribute_range = mesh.attribute_range;
-  for (const TubeChunk& chunk : mesh.chunks) state_->upload(chunk);
-  state_->create_layout();
-}
+    : RasterRenderer(context, mesh, [&mesh](size_t c) { return mesh.chunks[c]; }) {}
 
 RasterRenderer::RasterRenderer(Context& context, const TubeMesh& description,
                                const std::function<TubeChunk(size_t)>& chunk)

@@ -337,20 +337,13 @@ void append_tube_chunk(const TubeChunk& chunk, const std::array<float, 2>& attri
 
 }  // namespace
 
+// The chunks' arrays are shared, not copied (Array's copies are views of one owner).
 TileRenderer::TileRenderer(Context& context, const TubeMesh& mesh, uint64_t max_buffer_bytes,
                            uint32_t slice_keys, bool sort_subgroups, WindowLoops window_loops)
-    : state_(std::make_unique<State>(context, sort_subgroups)) {
-  State& s = *state_;
-  s.attribute_range = mesh.attribute_range;
-  std::vector<float> vertices;
-  std::vector<uint32_t> indices;
-  vertices.reserve(mesh.vertex_count() * 8);
-  indices.reserve(mesh.triangle_count() * 3);
-  for (const TubeChunk& chunk : mesh.chunks)
-    append_tube_chunk(chunk, mesh.attribute_range, vertices, indices);
-  s.init(vertices, indices, indices.size() / 3, 8, max_buffer_bytes, slice_keys, true,
-         window_loops);
-}
+    : TileRenderer(
+          context, mesh, TubeCounts{mesh.vertex_count(), mesh.triangle_count()},
+          [&mesh](size_t c) { return mesh.chunks[c]; }, max_buffer_bytes, slice_keys,
+          sort_subgroups, window_loops) {}
 
 TileRenderer::TileRenderer(Context& context, const TubeMesh& description, const TubeCounts& counts,
                            const std::function<TubeChunk(size_t)>& chunk, uint64_t max_buffer_bytes,
