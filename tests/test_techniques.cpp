@@ -268,6 +268,21 @@ TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {
   vk::Buffer small = ctx.create_buffer(MiB / 2, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
   ctx.destroy(small);
   munmap(host, 6 * MiB);
+  // A reserve grown by 6 MiB (the viewer's window grown) leaves 6 MiB less for allocations, by
+  // both counts; shrunk back, the 6 MiB are allowed again. The budget's number stays.
+  const uint64_t serial = ctx.set_host_budget(current_rss_bytes() + 16 * MiB, MiB);
+  const uint64_t left = ctx.host_bytes_left();
+  EXPECT_GT(left, 12 * MiB);
+  ctx.set_host_reserve(7 * MiB);
+  EXPECT_LE(ctx.host_bytes_left(), left - 6 * MiB);
+  EXPECT_GT(ctx.host_bytes_left(), left - 7 * MiB);
+  EXPECT_THROW(ctx.create_buffer(left - 5 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false),
+               BudgetExceeded);
+  ctx.set_host_reserve(MiB);
+  EXPECT_EQ(ctx.host_budget_state().serial, serial);
+  EXPECT_EQ(ctx.host_budget_state().reserved, MiB);
+  vk::Buffer back = ctx.create_buffer(left - 5 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  ctx.destroy(back);
   // No budget: nothing refused.
   ctx.set_host_budget(0);
   vk::Buffer big = ctx.create_buffer(64 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);

@@ -41,7 +41,7 @@ std::vector<ScriptLine> read_script(const std::string& path) {
   if (!in) throw InputError(path, "", "cannot open the script");
   static const std::map<std::string, size_t> arity{
       {"technique", 1}, {"tf", 1},   {"frame", 1},      {"orbit", 2},   {"zoom", 1}, {"key", 1},
-      {"wait", 1},      {"hold", 1}, {"screenshot", 1}, {"compare", 0}, {"quit", 0}};
+      {"wait", 1},      {"hold", 1}, {"screenshot", 1}, {"compare", 0}, {"quit", 0}, {"size", 2}};
   std::vector<ScriptLine> script;
   std::string text;
   for (int number = 1; std::getline(in, text); ++number) {
@@ -86,7 +86,7 @@ class Viewer {
  public:
   struct Options {
     std::string cache, technique = "ll", tf = "semi", device, script, flight = "orbit-zoom";
-    std::string memory_budget;  // embree's and reference's scenes (--memory-budget)
+    std::string memory_budget;  // --memory-budget, for every technique and frame
     int width = 1280, height = 720, frame_count = 64;
     bool validation = false;
   };
@@ -135,6 +135,7 @@ class Viewer {
       static_cast<Viewer*>(glfwGetWindowUserPointer(w))->zoom(std::pow(0.9, dy));
     });
     tf_ = options.tf;
+    width_ = options.width, height_ = options.height;
     switch_technique(options.technique);
     if (!source_) throw Error("view: " + status_);
     set_flight_frame(0);
@@ -205,7 +206,8 @@ class Viewer {
 
   void switch_technique(const std::string& name) {
     try {
-      source_ = make_view_source(name, cache_, *context_, options_.memory_budget);
+      source_ = make_view_source(name, cache_, *context_, width_, height_, options_.memory_budget);
+      fitted_.reset();
       technique_ = name;
       status_.clear();
       if (flight_camera_) set_flight_frame(flight_frame_);
@@ -289,6 +291,12 @@ class Viewer {
         throw InputError(path, "line " + std::to_string(line.line),
                          "unknown key '" + line.args[0] + "' (t f s c r q left right escape)");
       on_key(key->second);
+    } else if (c == "size") {
+      const double w = number_arg(path, line, 0), h = number_arg(path, line, 1);
+      if (w < 1 || h < 1 || w > 16384 || h > 16384 || w != std::floor(w) || h != std::floor(h))
+        throw InputError(path, "line " + std::to_string(line.line),
+                         "size takes a width and a height of 1..16384 pixels");
+      resize_window(int(w), int(h));
     } else if (c == "wait") {
       wait_frames = int(std::max(0.0, number_arg(path, line, 0)));
     } else if (c == "hold") {
@@ -308,6 +316,21 @@ class Viewer {
     }
   }
 
+  // Sets the window's size and waits (up to 2 s) for the window system to apply it.
+  void resize_window(int width, int height) {
+    glfwSetWindowSize(window_, width, height);
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    int w = 0, h = 0;
+    do {
+      glfwPollEvents();
+      glfwGetFramebufferSize(window_, &w, &h);
+      if (w == width && h == height) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    } while (std::chrono::steady_clock::now() < until);
+    std::cerr << "view: the window is " << w << "x" << h << ", not " << width << "x" << height
+              << "\n";
+  }
+
   void draw() {
     int w = 0, h = 0;
     glfwGetFramebufferSize(window_, &w, &h);
@@ -319,27 +342,54 @@ class Viewer {
       }
     }
     const TransferFunction tf = resolve_transfer_function(tf_);
-    frame_ = source_->render(camera(), tf, width_, height_);
-    Image shown = frame_.image;
+    // A frame past the memory budget (a window grown past what it allows, a view whose lists
+    // outgrow it) is refused with the figures on the status line; the viewer goes on, and draws
+    // again once the window, the view or the technique changes (each frame tries again).
+    std::string refused;
+    try {
+      if (fitted_ != std::pair{width_, height_}) {
+        source_->fit_frame(width_, height_);
+        fitted_ = std::pair{width_, height_};
+      }
+      frame_ = source_->render(camera(), tf, width_, height_);
+    } catch (const BudgetExceeded& e) {
+      refused = technique_ + " at " + std::to_string(width_) + "x" + std::to_string(height_) +
+                ": " + e.what();
+      frame_ = ViewFrame{};
+    }
+    if (refused != refused_) {
+      if (!refused.empty()) std::cerr << "view: refused: " << refused << "\n";
+      refused_ = refused;
+    }
+    Image shown = refused.empty() ? frame_.image : Image(width_, height_);
     char line[256];
-    std::snprintf(line, sizeof line, "%s | %s | %.1f ms | %s per frame%s%s", technique_.c_str(),
-                  tf_.c_str(), frame_.seconds * 1e3, format_bytes(frame_.frame_bytes).c_str(),
-                  comparison_.empty() ? "" : " | ", comparison_.c_str());
-    draw_status_line(shown, line, 0, height_ >= 400 ? 2 : 1);
-    if (!status_.empty())
-      draw_status_line(shown, status_, height_ - (height_ >= 400 ? 18 : 9), height_ >= 400 ? 2 : 1);
+    if (refused.empty())
+      std::snprintf(line, sizeof line, "%s | %s | %.1f ms | %s per frame%s%s", technique_.c_str(),
+                    tf_.c_str(), frame_.seconds * 1e3, format_bytes(frame_.frame_bytes).c_str(),
+                    comparison_.empty() ? "" : " | ", comparison_.c_str());
+    else
+      std::snprintf(line, sizeof line, "%s | %s | refused: past the memory budget",
+                    technique_.c_str(), tf_.c_str());
+    const int scale = height_ >= 400 ? 2 : 1;
+    draw_status_line(shown, line, 0, scale);
+    const std::string& bottom = refused.empty() ? status_ : refused;
+    if (!bottom.empty()) draw_status_line(shown, bottom, height_ - 9 * scale, scale);
     presenter_->present(shown, width_, height_);
     if (context_->validation_errors() > 0)
       throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +
                   " error(s); last: " + context_->last_validation_error());
-    if (!options_.script.empty())  // a log for scripted sessions, not a flood at 60 Hz
-      std::cout << "frame: " << technique_ << " " << tf_ << " " << frame_.seconds << " s "
-                << frame_.frame_bytes << " bytes\n";
+    if (!options_.script.empty() && refused.empty())  // a log for scripts, not a flood at 60 Hz
+      std::cout << "frame: " << technique_ << " " << tf_ << " " << width_ << "x" << height_ << " "
+                << frame_.seconds << " s " << frame_.frame_bytes << " bytes\n";
   }
 
   // The last frame as the technique drew it (no status line), as `render` would write it.
   void screenshot(std::string path) {
-    if (frame_.image.pixels.empty()) return;
+    if (frame_.image.pixels.empty()) {
+      std::cerr << "view: no screenshot: "
+                << (refused_.empty() ? "no frame drawn yet" : "the frame was refused") << "\n";
+      return;
+    }
     if (path.empty()) {
       char name[64];
       std::snprintf(name, sizeof name, "linebake-view-%03d.png", screenshots_++);
@@ -353,7 +403,8 @@ class Viewer {
   void compare() {
     if (frame_.image.pixels.empty()) return;
     if (!reference_)
-      reference_ = make_view_source("reference", cache_, *context_, options_.memory_budget);
+      reference_ =
+          make_view_source("reference", cache_, *context_, width_, height_, options_.memory_budget);
     const TransferFunction tf = resolve_transfer_function(tf_);
     const ViewFrame truth = reference_->render(camera(), tf, width_, height_);
     const Image a = as_png_values(frame_.image), b = as_png_values(truth.image);
@@ -370,6 +421,8 @@ class Viewer {
   std::optional<vk::Presenter> presenter_;
   std::unique_ptr<ViewSource> source_, reference_;
   std::string technique_, tf_, status_, comparison_;
+  std::string refused_;                        // the refusal last reported ("" : none)
+  std::optional<std::pair<int, int>> fitted_;  // the size source_ was fitted to (fit_frame)
   std::optional<Camera> flight_camera_;
   int flight_frame_ = 0, width_ = 0, height_ = 0, screenshots_ = 0;
   double azimuth_ = 0, elevation_ = 20, distance_ = 1;
@@ -401,8 +454,8 @@ Command add_view(CLI::App& app) {
   sub->add_flag("--validation", options->validation,
                 "Vulkan: enable the Khronos validation layer; validation errors end the session");
   sub->add_option("--memory-budget", options->memory_budget,
-                  "As render's: embree's and reference's BVH within what it leaves (default: half "
-                  "of physical memory); unlimited")
+                  "As render's, for every technique: a frame past it is not drawn and the status "
+                  "line says why (default: half of physical memory); unlimited")
       ->check(byte_size());
   sub->add_option("--script", options->script,
                   "Commands to run, one per frame (docs/viewer.md); the session ends after the "

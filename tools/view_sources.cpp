@@ -1,6 +1,7 @@
 #include "view_sources.hpp"
 
 #include "core/error.hpp"
+#include "flight_plan.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -9,16 +10,31 @@ namespace {
 // A registry technique prepared on the window's context: the same calls as `linebake render`.
 class TechniqueSource : public ViewSource {
  public:
-  explicit TechniqueSource(std::unique_ptr<PreparedTechnique> prepared)
-      : prepared_(std::move(prepared)) {}
+  TechniqueSource(const Technique& technique, const TechniqueOptions& options,
+                  const std::string& memory_budget, std::unique_ptr<PreparedTechnique> prepared)
+      : technique_(technique),
+        options_(options),
+        memory_budget_(memory_budget),
+        prepared_(std::move(prepared)) {}
   ViewFrame render(const Camera& camera, const TransferFunction& tf, int width,
                    int height) override {
     TechniqueFrame frame = prepared_->render(camera, tf, width, height);
     return {std::move(frame.image), frame.seconds, frame.frame_bytes};
   }
   Bounds bounds() const override { return prepared_->bounds(); }
+  void fit_frame(int width, int height) override {
+    TechniqueOptions o = options_;
+    o.width = width, o.height = height;
+    check_frame_memory(technique_.info.name, std::to_string(width) + "x" + std::to_string(height),
+                       estimate_frame_bytes(technique_, o), memory_budget_);
+    // The budget in force is this technique's (the viewer keeps one source at a time).
+    if (o.context->host_budget() > 0) o.context->set_host_reserve(frame_output_bytes(o));
+  }
 
  private:
+  const Technique& technique_;
+  TechniqueOptions options_;
+  std::string memory_budget_;
   std::unique_ptr<PreparedTechnique> prepared_;
 };
 
@@ -38,16 +54,20 @@ const std::vector<std::string>& view_techniques() {
 }
 
 std::unique_ptr<ViewSource> make_view_source(const std::string& technique, const CacheReader& cache,
-                                             vk::Context& context,
+                                             vk::Context& context, int width, int height,
                                              const std::string& memory_budget) {
   const bool vrc_gpu = technique == "vrc-gpu";
   const Technique& t = find_technique(vrc_gpu ? "vrc" : technique);
   TechniqueOptions options;
   options.context = &context;
+  options.width = width, options.height = height;
   set_memory_budget(options, memory_budget);
   if (vrc_gpu) options.on = "gpu";
   if (auto reason = technique_unavailable(t, options, &cache)) throw Error(*reason);
-  return std::make_unique<TechniqueSource>(t.prepare(t.info, cache, cache.path(), options));
+  const std::string size = std::to_string(width) + "x" + std::to_string(height);
+  check_frame_memory(t.info.name, size, estimate_frame_bytes(t, options), memory_budget);
+  return std::make_unique<TechniqueSource>(t, options, memory_budget,
+                                           t.prepare(t.info, cache, cache.path(), options));
 }
 
 }  // namespace linebake::cli

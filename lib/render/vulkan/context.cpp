@@ -488,6 +488,16 @@ void Context::restore_host_budget(uint64_t serial, const HostBudget& previous) {
   host_budget_serial_ = previous.serial;
 }
 
+void Context::set_host_reserve(uint64_t reserved) {
+  if (host_limit_ != kNoHostLimit) {
+    if (reserved > host_reserved_)
+      host_limit_ -= std::min(host_limit_, reserved - host_reserved_);
+    else
+      host_limit_ += host_reserved_ - reserved;
+  }
+  host_reserved_ = reserved;
+}
+
 uint64_t Context::host_bytes_left() const {
   if (host_total_ == 0) return kNoHostLimit;
   const uint64_t used = current_rss_bytes() + host_reserved_;

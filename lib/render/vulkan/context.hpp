@@ -175,6 +175,10 @@ class Context {
   };
   HostBudget host_budget_state() const;
   void restore_host_budget(uint64_t serial, const HostBudget& previous);
+  // Changes the budget in force's reserve for what the host holds besides (the viewer's window
+  // grown or shrunk: its frame's image); what allocations may take moves by the change. Its
+  // number stays.
+  void set_host_reserve(uint64_t reserved);
   uint64_t host_budget() const { return host_total_; }
   // What one allocation may still take of the host's memory (kNoHostLimit without a budget).
   uint64_t host_bytes_left() const;
