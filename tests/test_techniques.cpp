@@ -13,6 +13,7 @@
 #include "core/error.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
+#include "flight_plan.hpp"
 #include "pipeline/bake.hpp"
 #include "render/vulkan/context.hpp"
 #include "render/vulkan/raster_renderer.hpp"
@@ -222,6 +223,23 @@ TEST(Techniques, EmbreeScenesAreBuiltWithinTheMemoryBudget) {
 // Where the device's memory is the machine's (lavapipe here), the Context's allocations are held
 // within the budget two ways: by its own count against what the budget left when it was set
 // (memory allocated is resident only once written), and by the process's resident memory.
+// bench render keeps each row's frame 0 until the reference renders: those bytes count with a
+// later row's estimate, and the refusal names both figures.
+TEST(Techniques, FramesKeptForQualityCountAgainstTheBudget) {
+  constexpr uint64_t MiB = 1 << 20;
+  EXPECT_NO_THROW(cli::check_frame_memory("ll", "64x64", 60 * MiB, "100M", 40 * MiB));
+  try {
+    cli::check_frame_memory("ll", "64x64", 60 * MiB, "100M", 41 * MiB);
+    ADD_FAILURE() << "101 MiB within 100";
+  } catch (const BudgetExceeded& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "a 64x64 ll frame needs about 60.00 MiB, and the earlier rows' frames 0, kept for "
+              "the quality figures, hold 41.00 MiB: more than the memory budget of 100.00 MiB; "
+              "lower --size or --capacity, or raise --memory-budget");
+  }
+  EXPECT_NO_THROW(cli::check_frame_memory("ll", "64x64", 60 * MiB, "unlimited", 100 * MiB));
+}
+
 TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {
   vk::Context ctx;
   if (!ctx.memory_is_host()) GTEST_SKIP() << ctx.info().name << " has memory of its own";

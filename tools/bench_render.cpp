@@ -100,10 +100,11 @@ struct FirstFrame {
 };
 
 // One technique on one cache with one transfer function; its frame 0 into `first` (none for
-// the reference itself).
+// the reference itself). `kept`: the bytes of the earlier rows' frames 0, which count against
+// the memory budget with the frame's estimate.
 nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique,
                          const CacheReader& cache, const std::string& cache_name,
-                         const TransferFunction& tf, const TechniqueOptions& options,
+                         const TransferFunction& tf, const TechniqueOptions& options, uint64_t kept,
                          std::optional<FirstFrame>& first) {
   nlohmann::json row = {{"technique", technique.info.name}, {"transfer_function", tf.name}};
   if (auto reason = technique_unavailable(technique, options, &cache)) {
@@ -112,7 +113,7 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
   }
   try {
     check_frame_memory(technique.info.name, args.size, estimate_frame_bytes(technique, options),
-                       args.memory_budget);
+                       args.memory_budget, kept);
     const auto start = std::chrono::steady_clock::now();
     std::unique_ptr<PreparedTechnique> prepared =
         technique.prepare(technique.info, cache, cache_name, options);
@@ -365,6 +366,7 @@ void bench_render(const BenchRenderArgs& args) {
       run["segments"] = lines->stats.value("segments", uint64_t{0});
     // Each row's frame 0 (and its transfer function), for the quality figures at the end.
     std::vector<std::tuple<size_t, const TransferFunction*, FirstFrame>> firsts;
+    uint64_t kept = 0;  // their images' bytes
     for (const TransferFunction& tf : tfs)
       for (const std::string& name : names) {
         TechniqueOptions o = options;
@@ -374,8 +376,11 @@ void bench_render(const BenchRenderArgs& args) {
         o.every_hit = args.every_hit;
         std::optional<FirstFrame> first;
         nlohmann::json row =
-            bench_one(args, find_technique(technique_of(name)), *cache, path, tf, o, first);
-        if (first) firsts.emplace_back(run["rows"].size(), &tf, std::move(*first));
+            bench_one(args, find_technique(technique_of(name)), *cache, path, tf, o, kept, first);
+        if (first) {
+          kept += first->image.pixels.size() * sizeof(float);
+          firsts.emplace_back(run["rows"].size(), &tf, std::move(*first));
+        }
         row["technique"] = name;
         std::cerr << "bench render: " << run["cache"].get<std::string>() << " " << tf.name << " "
                   << name << ": "

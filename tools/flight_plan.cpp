@@ -70,12 +70,16 @@ void check_depth_image_output(const std::string& path) {
 }
 
 void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
-                        const std::string& budget) {
+                        const std::string& budget, uint64_t kept) {
   if (budget == "unlimited") return;
   const uint64_t limit = budget.empty() ? default_memory_budget() : linebake::parse_size(budget);
-  if (bytes > limit)
+  if (bytes + kept > limit)
     throw BudgetExceeded("a " + size + " " + what + " frame needs about " + format_bytes(bytes) +
-                         ", more than the memory budget of " + format_bytes(limit) +
+                         (kept > 0 ? ", and the earlier rows' frames 0, kept for the quality "
+                                     "figures, hold " +
+                                         format_bytes(kept) + ":"
+                                   : ",") +
+                         " more than the memory budget of " + format_bytes(limit) +
                          "; lower --size" + (what == "ll" ? " or --capacity" : "") +
                          ", or raise --memory-budget");
 }

@@ -36,9 +36,10 @@ FlightPlan plan_flight(const std::string& flight, int frame_count, int frame,
                        const std::string& frames, const Bounds& bounds, int width, int height);
 
 // Throws BudgetExceeded with the figures when a frame of `bytes` (estimate_frame_bytes in
-// lib/techniques for a technique; `what` names it) exceeds `budget` ("": half of physical
-// memory).
+// lib/techniques for a technique; `what` names it), with `kept` bytes the command holds besides
+// (bench render's frames 0, kept for the quality figures), exceeds `budget` ("": half of
+// physical memory).
 void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
-                        const std::string& budget);
+                        const std::string& budget, uint64_t kept = 0);
 
 }  // namespace linebake::cli
