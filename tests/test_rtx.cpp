@@ -287,6 +287,16 @@ TEST(RtxStore, BlobsAndDescriptionRoundTripThroughTheCache) {
   EXPECT_EQ(back.driver_uuid, rtx.driver_uuid);
   EXPECT_EQ(back.blobs, rtx.blobs);
   EXPECT_EQ(cache.provenance(kRtxGroup)->step, "rtx");
+  // The description alone gives the blobs' sizes (what rtx checks against the budget before it
+  // reads them) and no blobs; reading them then gives the same bytes.
+  StoredRtx described = load_rtx_description(cache);
+  EXPECT_TRUE(described.blobs.empty());
+  EXPECT_EQ(described.blas, 2u);
+  EXPECT_EQ(described.blob_bytes, 1003u);
+  EXPECT_EQ(described.largest_blob_bytes, 1000u);
+  EXPECT_EQ(described.source, rtx.source);
+  load_rtx_blobs(cache, described);
+  EXPECT_EQ(described.blobs, rtx.blobs);
 }
 
 bool device_has_ray_tracing() {

@@ -20,6 +20,7 @@
 #include "render/vulkan/tile_renderer.hpp"
 #include "render/vulkan/voxel_caster.hpp"
 #include "synth/synth.hpp"
+#include "techniques/families.hpp"
 #include "techniques/technique.hpp"
 #include "test_util.hpp"
 #include "tubes/tube_builder.hpp"
@@ -238,6 +239,25 @@ TEST(Techniques, FramesKeptForQualityCountAgainstTheBudget) {
               "lower --size or --capacity, or raise --memory-budget");
   }
   EXPECT_NO_THROW(cli::check_frame_memory("ll", "64x64", 60 * MiB, "unlimited", 100 * MiB));
+}
+
+// What rtx checks its cached BLAS with before reading them (and check_data_fits a cache's
+// arrays): the bytes against what the budget leaves the process now.
+TEST(Techniques, DataIsCheckedAgainstWhatTheBudgetLeaves) {
+  constexpr uint64_t MiB = 1 << 20;
+  TechniqueOptions o;
+  o.memory_budget = current_rss_bytes() + 64 * MiB;
+  EXPECT_FALSE(data_does_not_fit(o, 16 * MiB, "cached BLAS"));
+  const auto why = data_does_not_fit(o, 128 * MiB, "cached BLAS");
+  ASSERT_TRUE(why);
+  EXPECT_EQ(why->rfind("the cached BLAS take 128.00 MiB in memory, more than the memory budget "
+                       "leaves (",
+                       0),
+            0u)
+      << *why;
+  EXPECT_NE(why->find(" of " + format_bytes(o.memory_budget) + ")"), std::string::npos) << *why;
+  o.memory_unlimited = true;
+  EXPECT_FALSE(data_does_not_fit(o, uint64_t(1) << 50, "cached BLAS"));
 }
 
 TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {

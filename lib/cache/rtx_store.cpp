@@ -1,5 +1,6 @@
 #include "cache/rtx_store.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "core/error.hpp"
@@ -28,6 +29,12 @@ void store_rtx(CacheWriter& cache, const StoredRtx& rtx, Provenance provenance) 
 }
 
 StoredRtx load_rtx(const CacheReader& cache) {
+  StoredRtx r = load_rtx_description(cache);
+  load_rtx_blobs(cache, r);
+  return r;
+}
+
+StoredRtx load_rtx_description(const CacheReader& cache) {
   const std::string where = std::string("group ") + kRtxGroup;
   const auto text = cache.attribute(kRtxGroup, "acceleration_structures");
   if (!text)
@@ -52,11 +59,26 @@ StoredRtx load_rtx(const CacheReader& cache) {
   }
   if (r.geometry != "triangles" && r.geometry != "capsules")
     throw InputError(cache.path(), where, "unknown geometry '" + r.geometry + "'");
+  r.blas = count;
   for (size_t i = 0; i < count; ++i) {
-    const Array<uint8_t> blob = cache.read<uint8_t>(blas_dataset(i));
-    r.blobs.emplace_back(blob.data(), blob.data() + blob.size());
+    const std::vector<uint64_t> shape = cache.shape(blas_dataset(i));
+    if (shape.size() != 1)
+      throw InputError(
+          cache.path(), "dataset " + blas_dataset(i),
+          "a serialised BLAS is one dimension of bytes, not " + std::to_string(shape.size()));
+    r.blob_bytes += shape[0];
+    r.largest_blob_bytes = std::max(r.largest_blob_bytes, shape[0]);
   }
   return r;
+}
+
+void load_rtx_blobs(const CacheReader& cache, StoredRtx& rtx) {
+  rtx.blobs.clear();
+  rtx.blobs.reserve(rtx.blas);
+  for (size_t i = 0; i < rtx.blas; ++i) {
+    const Array<uint8_t> blob = cache.read<uint8_t>(blas_dataset(i));
+    rtx.blobs.emplace_back(blob.data(), blob.data() + blob.size());
+  }
 }
 
 std::string rtx_capsules_source(const std::string& lines_hash, float radius,

@@ -246,10 +246,14 @@ static std::string curve_attribute(const LineSet& lines, const TubeOptions& t) {
 // from the cache being written, or the old one) or over capsules (the whole line set), then
 // serialised into `out` with the figures in the provenance.
 static void build_rtx_step(vk::Context& context, const BakeOptions& options,
-                           const std::function<LineSet()>& whole_lines,
+                           const MemoryBudget& budget, const std::function<LineSet()>& whole_lines,
                            const std::function<std::optional<TubeMesh>()>& tubes,
                            const std::string& lines_hash, const std::string& tubes_step_key,
                            StoredRtx& out, Provenance& p) {
+  // The device's allocations of host memory (all of them on an integrated GPU; staging,
+  // scratch and the serialisation's targets elsewhere) and the serialised copies within the
+  // budget: past it the bake ends with BudgetExceeded and the figures, as its other steps do.
+  context.set_host_budget(budget.total());
   std::optional<vk::RtScene> scene;
   std::optional<TubeMesh> mesh;
   CapsuleSegments capsules;
@@ -982,8 +986,12 @@ BakeResult bake(const BakeOptions& options_in) {
         writer.flush();
         return load_tubes(CacheReader(writer.temp_path(), false));
       };
-      build_rtx_step(*rt_context, options, whole_lines, tube_mesh, lines_hash, tubes_step_key, rtx,
-                     p);
+      try {
+        build_rtx_step(*rt_context, options, budget, whole_lines, tube_mesh, lines_hash,
+                       tubes_step_key, rtx, p);
+      } catch (const vk::HostBudgetExceeded& e) {
+        throw BudgetExceeded("rtx: " + std::string(e.what()) + "; raise --memory-budget");
+      }
     });
     const nlohmann::json figures = p.stats;
     const uint64_t resident = p.memory_bytes;

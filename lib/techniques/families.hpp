@@ -2,6 +2,9 @@
 // The families of techniques registry.cpp lists, one file each: each prepares a technique of its
 // family (info.name says which) from a cache.
 
+#include <optional>
+#include <string>
+
 #include "core/error.hpp"
 #include "render/vulkan/context.hpp"
 #include "techniques/technique.hpp"
@@ -50,6 +53,10 @@ TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexi
 // The process's memory budget a technique works within: --memory-budget's bytes, half of
 // physical memory when none was given, 0 for unlimited.
 uint64_t process_budget(const TechniqueOptions& options);
+// Why `bytes` of `data` do not fit what the budget leaves the process now ("the DATA take ...
+// in memory, more than the memory budget leaves (... of ...)"), or nullopt.
+std::optional<std::string> data_does_not_fit(const TechniqueOptions& options, uint64_t bytes,
+                                             const std::string& data);
 // Refuses, before it is read, data whose size in memory (the provenance of the cache's `group`)
 // does not fit what the budget leaves the process: BudgetExceeded naming the technique and `data`.
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& options,

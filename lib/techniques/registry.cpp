@@ -225,16 +225,22 @@ uint64_t process_budget(const TechniqueOptions& o) {
   return o.memory_budget > 0 ? o.memory_budget : default_memory_budget();
 }
 
+std::optional<std::string> data_does_not_fit(const TechniqueOptions& o, uint64_t bytes,
+                                             const std::string& data) {
+  if (o.memory_unlimited) return std::nullopt;
+  const MemoryBudget budget(process_budget(o));
+  if (bytes <= budget.available()) return std::nullopt;
+  return "the " + data + " take " + format_bytes(bytes) +
+         " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
+         " of " + format_bytes(budget.total()) + ")";
+}
+
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,
                      const std::string& group, const std::string& data) {
   const auto provenance = cache.provenance(group);
-  if (o.memory_unlimited || !provenance) return;
-  const MemoryBudget budget(process_budget(o));
-  if (provenance->memory_bytes > budget.available())
-    throw BudgetExceeded(
-        info.name + ": the " + data + " take " + format_bytes(provenance->memory_bytes) +
-        " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
-        " of " + format_bytes(budget.total()) + "); raise --memory-budget");
+  if (!provenance) return;
+  if (auto why = data_does_not_fit(o, provenance->memory_bytes, data))
+    throw BudgetExceeded(info.name + ": " + *why + "; raise --memory-budget");
 }
 
 void ContextHolder::check_validation() const {

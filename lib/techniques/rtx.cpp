@@ -22,7 +22,7 @@ class Rtx : public PreparedTechnique {
       : info_(info), context_(make_context(o)) {
     // The geometry: the option, else what the cache's BLAS were built over, else triangles.
     std::optional<StoredRtx> stored;
-    if (cache.exists(kRtxGroup)) stored = load_rtx(cache);
+    if (cache.exists(kRtxGroup)) stored = load_rtx_description(cache);
     const std::string geometry = !o.rt_geometry.empty() ? o.rt_geometry
                                  : stored               ? stored->geometry
                                                         : "triangles";
@@ -66,8 +66,15 @@ class Rtx : public PreparedTechnique {
     else if (stored->source != source)
       rebuild_reason_ = "the cached BLAS were built from other " +
                         std::string(geometry == "triangles" ? "tubes" : "capsules");
-    else if (auto problem = within_budget(info, [&] { return scene_->load(stored->blobs); }))
-      rebuild_reason_ = *problem;
+    else if (auto why = data_does_not_fit(o, stored->blob_bytes + stored->largest_blob_bytes,
+                                          "cached BLAS"))
+      rebuild_reason_ = *why;  // a build on the device instead: its host memory is counted
+    else {
+      load_rtx_blobs(cache, *stored);
+      if (auto problem = within_budget(info, [&] { return scene_->load(stored->blobs); }))
+        rebuild_reason_ = *problem;
+      stored->blobs = {};
+    }
     if (!rebuild_reason_.empty()) {
       if (stored && !o.rebuild)
         warnings.push_back("cached BLAS not used (" + rebuild_reason_ + "); rebuilding");

@@ -6,6 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 #include "render/vulkan/rt_functions.hpp"
 #include "render/vulkan/serialized_as.hpp"
 
@@ -549,6 +550,16 @@ std::vector<std::vector<uint8_t>> RtScene::serialize() {
     check(vkGetQueryPoolResults(d, pool, 0, q.queryCount, sizes.size() * 8, sizes.data(), 8,
                                 VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
           "vkGetQueryPoolResults (serialisation sizes)");
+    // The blobs are copied to the host: within what the Context's budget leaves, with the
+    // host-visible targets they are copied from.
+    uint64_t total = 0;
+    for (uint64_t size : sizes) total += size;
+    if (total > s.ctx.host_bytes_left() / 2)
+      throw HostBudgetExceeded("serialising " + std::to_string(sizes.size()) + " BLAS takes " +
+                               format_bytes(total) +
+                               " of host memory twice (the buffers and the copies), more than "
+                               "the memory budget of " +
+                               format_bytes(s.ctx.host_budget()) + " leaves");
     std::vector<VkDeviceAddress> offsets;
     for (uint64_t size : sizes) {
       targets.push_back(s.ctx.create_buffer(
