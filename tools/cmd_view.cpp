@@ -185,8 +185,8 @@ class Viewer {
                         distance_);
   }
 
+  // The flight's camera for `frame`, planned at the window's aspect (as render --size WxH).
   void set_flight_frame(int frame) {
-    width_ = options_.width, height_ = options_.height;
     const FlightPlan plan = plan_flight(options_.flight, options_.frame_count, frame, "",
                                         source_->bounds(), width_, height_);
     flight_camera_ = plan.cameras.at(size_t(frame));
@@ -323,12 +323,20 @@ class Viewer {
     int w = 0, h = 0;
     do {
       glfwPollEvents();
-      glfwGetFramebufferSize(window_, &w, &h);
+      glfwGetWindowSize(window_, &w, &h);
       if (w == width && h == height) return;
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     } while (std::chrono::steady_clock::now() < until);
     std::cerr << "view: the window is " << w << "x" << h << ", not " << width << "x" << height
               << "\n";
+  }
+
+  // A refusal goes to standard error once per technique, size and kind, not once per frame (an
+  // allocation's figures change from frame to frame); "" clears it.
+  void report_refusal(const std::string& key, const std::string& message) {
+    if (key == refused_key_) return;
+    refused_key_ = key;
+    if (!message.empty()) std::cerr << "view: refused: " << message << "\n";
   }
 
   void draw() {
@@ -337,14 +345,13 @@ class Viewer {
     if (w <= 0 || h <= 0) return;
     if (w != width_ || h != height_) {
       width_ = w, height_ = h;
-      if (flight_camera_) {  // a resized window keeps the flight's view at the new aspect
-        flight_camera_.reset();
-      }
+      if (flight_camera_) set_flight_frame(flight_frame_);  // the same frame at the new aspect
     }
+    const std::string size = std::to_string(width_) + "x" + std::to_string(height_);
     const TransferFunction tf = resolve_transfer_function(tf_);
     // A frame past the memory budget (a window grown past what it allows, a view whose lists
-    // outgrow it) is refused with the figures on the status line; the viewer goes on, and draws
-    // again once the window, the view or the technique changes (each frame tries again).
+    // outgrow it) is refused with the figures on the status line; the viewer goes on, and each
+    // frame tries again, so it draws once the window, the view or the technique lets it.
     std::string refused;
     try {
       if (fitted_ != std::pair{width_, height_}) {
@@ -353,14 +360,11 @@ class Viewer {
       }
       frame_ = source_->render(camera(), tf, width_, height_);
     } catch (const BudgetExceeded& e) {
-      refused = technique_ + " at " + std::to_string(width_) + "x" + std::to_string(height_) +
-                ": " + e.what();
+      refused = technique_ + " at " + size + ": " + e.what();
       frame_ = ViewFrame{};
     }
-    if (refused != refused_) {
-      if (!refused.empty()) std::cerr << "view: refused: " << refused << "\n";
-      refused_ = refused;
-    }
+    if (!refused.empty()) report_refusal(technique_ + " " + size, refused);
+    refused_ = refused;
     Image shown = refused.empty() ? frame_.image : Image(width_, height_);
     char line[256];
     if (refused.empty())
@@ -372,15 +376,27 @@ class Viewer {
                     technique_.c_str(), tf_.c_str());
     const int scale = height_ >= 400 ? 2 : 1;
     draw_status_line(shown, line, 0, scale);
-    const std::string& bottom = refused.empty() ? status_ : refused;
-    if (!bottom.empty()) draw_status_line(shown, bottom, height_ - 9 * scale, scale);
-    presenter_->present(shown, width_, height_);
+    // At the bottom: the refusal, and above it the last error (a technique that could not be
+    // switched to, a comparison that could not be made).
+    int bottom = height_ - 9 * scale;
+    if (!refused.empty()) {
+      draw_status_line(shown, refused, bottom, scale);
+      bottom -= 9 * scale;
+    }
+    if (!status_.empty()) draw_status_line(shown, status_, bottom, scale);
+    try {
+      presenter_->present(shown, width_, height_);
+    } catch (const BudgetExceeded& e) {  // its staging buffer, on a context held to the budget
+      report_refusal("present " + size, "presenting a " + size + " window: " + e.what());
+      return;
+    }
+    if (refused.empty()) report_refusal("", "");  // drawn: a later refusal is news again
     if (context_->validation_errors() > 0)
       throw Error("Vulkan validation: " + std::to_string(context_->validation_errors()) +
                   " error(s); last: " + context_->last_validation_error());
     if (!options_.script.empty() && refused.empty())  // a log for scripts, not a flood at 60 Hz
-      std::cout << "frame: " << technique_ << " " << tf_ << " " << width_ << "x" << height_ << " "
-                << frame_.seconds << " s " << frame_.frame_bytes << " bytes\n";
+      std::cout << "frame: " << technique_ << " " << tf_ << " " << size << " " << frame_.seconds
+                << " s " << frame_.frame_bytes << " bytes\n";
   }
 
   // The last frame as the technique drew it (no status line), as `render` would write it.
@@ -402,11 +418,19 @@ class Viewer {
   // PSNR / SSIM of the last frame against the ground truth (the reference) from the same camera.
   void compare() {
     if (frame_.image.pixels.empty()) return;
-    if (!reference_)
-      reference_ =
-          make_view_source("reference", cache_, *context_, width_, height_, options_.memory_budget);
     const TransferFunction tf = resolve_transfer_function(tf_);
-    const ViewFrame truth = reference_->render(camera(), tf, width_, height_);
+    ViewFrame truth;
+    try {
+      if (!reference_)
+        reference_ = make_view_source("reference", cache_, *context_, width_, height_,
+                                      options_.memory_budget);
+      reference_->fit_frame(width_, height_);
+      truth = reference_->render(camera(), tf, width_, height_);
+    } catch (const Error& e) {  // shown on screen, as a technique that cannot be switched to
+      status_ = std::string("compare: ") + e.what();
+      std::cerr << "view: " << status_ << "\n";
+      return;
+    }
     const Image a = as_png_values(frame_.image), b = as_png_values(truth.image);
     char text[128];
     std::snprintf(text, sizeof text, "PSNR %.2f dB SSIM %.4f", psnr(a, b), ssim(a, b));
@@ -421,7 +445,8 @@ class Viewer {
   std::optional<vk::Presenter> presenter_;
   std::unique_ptr<ViewSource> source_, reference_;
   std::string technique_, tf_, status_, comparison_;
-  std::string refused_;                        // the refusal last reported ("" : none)
+  std::string refused_;                        // why the last frame was refused ("": it was drawn)
+  std::string refused_key_;                    // the refusal last reported (report_refusal)
   std::optional<std::pair<int, int>> fitted_;  // the size source_ was fitted to (fit_frame)
   std::optional<Camera> flight_camera_;
   int flight_frame_ = 0, width_ = 0, height_ = 0, screenshots_ = 0;

@@ -27,13 +27,15 @@ class TechniqueSource : public ViewSource {
     o.width = width, o.height = height;
     check_frame_memory(technique_.info.name, std::to_string(width) + "x" + std::to_string(height),
                        estimate_frame_bytes(technique_, o), memory_budget_);
-    // The budget in force is this technique's (the viewer keeps one source at a time).
-    if (o.context->host_budget() > 0) o.context->set_host_reserve(frame_output_bytes(o));
+    // A Vulkan technique set the budget in force when it was prepared (the viewer keeps one at
+    // a time); the CPU techniques set none.
+    if (vulkan_ && o.context->host_budget() > 0) o.context->set_host_reserve(frame_output_bytes(o));
   }
 
  private:
   const Technique& technique_;
   TechniqueOptions options_;
+  bool vulkan_ = technique_.info.vulkan || options_.on == "gpu";
   std::string memory_budget_;
   std::unique_ptr<PreparedTechnique> prepared_;
 };

@@ -253,7 +253,7 @@ static void build_rtx_step(vk::Context& context, const BakeOptions& options,
   // The device's allocations of host memory (all of them on an integrated GPU; staging,
   // scratch and the serialisation's targets elsewhere) and the serialised copies within the
   // budget: past it the bake ends with BudgetExceeded and the figures, as its other steps do.
-  context.set_host_budget(budget.total());
+  context.set_host_budget(budget.total(), budget.reserved());
   std::optional<vk::RtScene> scene;
   std::optional<TubeMesh> mesh;
   CapsuleSegments capsules;

@@ -468,41 +468,44 @@ bool Context::memory_is_host() const {
          info_.type == VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU;
 }
 
+// What allocations may hold under `b` with its reserve: the room left beside the reserve.
+static uint64_t host_limit(const Context::HostBudget& b) {
+  if (b.total == 0) return Context::kNoHostLimit;
+  return b.held + (b.room > b.reserved ? b.room - b.reserved : 0);
+}
+
 uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved) {
-  host_total_ = total, host_reserved_ = reserved;
-  host_limit_ = kNoHostLimit;
+  HostBudget b;
+  b.total = total, b.reserved = reserved, b.serial = ++host_budgets_set_;
   if (total > 0) {
-    const uint64_t used = current_rss_bytes() + reserved;
-    host_limit_ = host_bytes_ + (total > used ? total - used : 0);
+    const uint64_t resident = current_rss_bytes();
+    b.held = host_bytes_;
+    b.room = total > resident ? total - resident : 0;
   }
-  return ++host_budget_serial_;
+  b.limit = host_limit(b);
+  host_budget_ = b;
+  return b.serial;
 }
 
 Context::HostBudget Context::host_budget_state() const {
-  return {host_total_, host_reserved_, host_limit_, host_budget_serial_};
+  return host_budget_;
 }
 
 void Context::restore_host_budget(uint64_t serial, const HostBudget& previous) {
-  if (serial != host_budget_serial_) return;
-  host_total_ = previous.total, host_reserved_ = previous.reserved, host_limit_ = previous.limit;
-  host_budget_serial_ = previous.serial;
+  if (serial == host_budget_.serial) host_budget_ = previous;
 }
 
 void Context::set_host_reserve(uint64_t reserved) {
-  if (host_limit_ != kNoHostLimit) {
-    if (reserved > host_reserved_)
-      host_limit_ -= std::min(host_limit_, reserved - host_reserved_);
-    else
-      host_limit_ += host_reserved_ - reserved;
-  }
-  host_reserved_ = reserved;
+  host_budget_.reserved = reserved;
+  host_budget_.limit = host_limit(host_budget_);
 }
 
 uint64_t Context::host_bytes_left() const {
-  if (host_total_ == 0) return kNoHostLimit;
-  const uint64_t used = current_rss_bytes() + host_reserved_;
-  const uint64_t process = host_total_ > used ? host_total_ - used : 0;
-  return std::min(process, host_limit_ > host_bytes_ ? host_limit_ - host_bytes_ : 0);
+  const HostBudget& b = host_budget_;
+  if (b.total == 0) return kNoHostLimit;
+  const uint64_t used = current_rss_bytes() + b.reserved;
+  const uint64_t process = b.total > used ? b.total - used : 0;
+  return std::min(process, b.limit > host_bytes_ ? b.limit - host_bytes_ : 0);
 }
 
 VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64_t& host_bytes) {
@@ -516,7 +519,7 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
     throw HostBudgetExceeded(
         "Vulkan: allocating " + format_bytes(host_bytes) + " on " + info_.name +
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
-        " would pass the memory budget of " + format_bytes(host_total_) +
+        " would pass the memory budget of " + format_bytes(host_budget_.total) +
         " (the device's allocations hold " + format_bytes(host_bytes_) + ", the process " +
         format_bytes(current_rss_bytes()) + " resident)");
   VkDeviceMemory out = VK_NULL_HANDLE;

@@ -172,6 +172,10 @@ class Context {
   // the viewer keeps, and one that goes after a later one set its own leaves that in force.
   struct HostBudget {
     uint64_t total = 0, reserved = 0, limit = kNoHostLimit, serial = 0;
+    // At the call: what the device's allocations held, and the budget less the process's
+    // resident memory (0 where none was left). The limit is held + room - reserved, at least
+    // held, whatever reserve set_host_reserve gives it later.
+    uint64_t held = 0, room = 0;
   };
   HostBudget host_budget_state() const;
   void restore_host_budget(uint64_t serial, const HostBudget& previous);
@@ -179,7 +183,7 @@ class Context {
   // grown or shrunk: its frame's image); what allocations may take moves by the change. Its
   // number stays.
   void set_host_reserve(uint64_t reserved);
-  uint64_t host_budget() const { return host_total_; }
+  uint64_t host_budget() const { return host_budget_.total; }
   // What one allocation may still take of the host's memory (kNoHostLimit without a budget).
   uint64_t host_bytes_left() const;
   // vkAllocateMemory within the limit: `host_bytes` gets what it took of the machine's memory
@@ -241,8 +245,9 @@ class Context {
   bool compile_only_ = false;
   bool in_place_uploads_ = false;
   uint64_t staging_piece_bytes_ = 0;
-  uint64_t host_bytes_ = 0, host_limit_ = kNoHostLimit, host_total_ = 0, host_reserved_ = 0;
-  uint64_t host_budget_serial_ = 0;
+  uint64_t host_bytes_ = 0;
+  HostBudget host_budget_;         // in force
+  uint64_t host_budgets_set_ = 0;  // numbers them
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
   std::string last_validation_error_;
