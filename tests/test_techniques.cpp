@@ -326,6 +326,16 @@ TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {
   EXPECT_EQ(ctx.host_budget_state().reserved, MiB);
   vk::Buffer back = ctx.create_buffer(left + MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
   ctx.destroy(back);
+  // What the reserve holds already (the viewer's copy of a frame for its window) is counted but
+  // not refused; past the scope, refusals again.
+  {
+    const vk::Context::ReservedAllocations reserved(ctx);
+    vk::Buffer over = ctx.create_buffer(32 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+    EXPECT_EQ(ctx.host_bytes(), before + over.host_bytes);
+    ctx.destroy(over);
+  }
+  EXPECT_THROW(ctx.create_buffer(32 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false),
+               BudgetExceeded);
   // No budget: nothing refused.
   ctx.set_host_budget(0);
   vk::Buffer big = ctx.create_buffer(64 * MiB, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);

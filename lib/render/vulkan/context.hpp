@@ -179,6 +179,20 @@ class Context {
   };
   HostBudget host_budget_state() const;
   void restore_host_budget(uint64_t serial, const HostBudget& previous);
+  // While one lives, allocations are counted but not refused: for what the budget's reserve
+  // holds already (the viewer's copy of a frame for its window, part of frame_output_bytes).
+  class ReservedAllocations {
+   public:
+    explicit ReservedAllocations(Context& context) : context_(context) {
+      ++context_.reserved_scopes_;
+    }
+    ~ReservedAllocations() { --context_.reserved_scopes_; }
+    ReservedAllocations(const ReservedAllocations&) = delete;
+    ReservedAllocations& operator=(const ReservedAllocations&) = delete;
+
+   private:
+    Context& context_;
+  };
   // Changes the budget in force's reserve for what the host holds besides (the viewer's window
   // grown or shrunk: its frame's image); what allocations may take moves by the change. Its
   // number stays.
@@ -247,6 +261,7 @@ class Context {
   uint64_t staging_piece_bytes_ = 0;
   uint64_t host_bytes_ = 0;
   HostBudget host_budget_;         // in force
+  int reserved_scopes_ = 0;        // live ReservedAllocations
   uint64_t host_budgets_set_ = 0;  // numbers them
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
