@@ -5,6 +5,7 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 
@@ -236,6 +237,24 @@ TEST(Techniques, FramesKeptForQualityCountAgainstTheBudget) {
               "lower --size or --capacity, or raise --memory-budget");
   }
   EXPECT_NO_THROW(cli::check_frame_memory("ll", "64x64", 60 * MiB, "unlimited", 100 * MiB));
+}
+
+// Memory freed into the middle of the C library's heap stays resident (below a live block, the
+// heap cannot shrink); the budget's resident count gives it back first (trimmed_rss_bytes), as
+// lavapipe's freed device memory is.
+TEST(Techniques, FreedHeapMemoryIsNotCountedAsHeld) {
+  constexpr uint64_t MiB = 1 << 20;
+  const uint64_t base = trimmed_rss_bytes();
+  std::vector<void*> blocks(1024);
+  for (void*& b : blocks) std::memset(b = std::malloc(64 << 10), 1, 64 << 10);
+  void* fence = std::malloc(96 << 10);  // above them: carved from the top of the heap
+  ASSERT_NE(fence, nullptr);
+  std::memset(fence, 1, 96 << 10);
+  ASSERT_GE(current_rss_bytes(), base + 56 * MiB);
+  for (void* b : blocks) std::free(b);
+  EXPECT_GE(current_rss_bytes(), base + 48 * MiB) << "freed, still resident";
+  EXPECT_LE(trimmed_rss_bytes(), base + 16 * MiB) << "given back";
+  std::free(fence);
 }
 
 // What rtx checks its cached BLAS with before reading them (and check_data_fits a cache's

@@ -26,6 +26,8 @@ wait 1
 technique vrc-gpu
 key t             # vrc-gpu -> rtx: here (lavapipe) the status line says why not, vrc-gpu stays
 wait 1
+key t             # the one after rtx, tiles, where a GPU ray traces too
+wait 1
 quit
 SCRIPT
 mkdir -p "$tmp/fb"
@@ -50,6 +52,7 @@ grep -Eq '^compare: ll transparent PSNR [0-9.]+ dB SSIM 0\.9[0-9]+' "$tmp/view.o
 grep -q '^frame: mlab transparent' "$tmp/view.out" || fail "the t key did not switch to mlab"
 grep -q '^view: rtx: ray tracing is not supported on this device' "$tmp/view.out" ||
   grep -q '^frame: rtx transparent' "$tmp/view.out" || fail "rtx neither shown nor refused"
+grep -q '^frame: tiles transparent' "$tmp/view.out" || fail "the t key did not go on past rtx to tiles"
 
 # The window (at the screen's origin, no window manager) shows the screenshot's pixels below the
 # status line, and the image is not blank.

@@ -204,22 +204,33 @@ class Viewer {
     distance_ = std::clamp(distance_ * factor, 0.05, 20.0);
   }
 
+  // Prepares `name` while the shown technique stays, so that one that cannot be prepared (a
+  // missing asset, a device feature, the memory budget with the shown one held) leaves the view
+  // as it was. (Letting the shown one go first does not make room reliably: on lavapipe the
+  // process stays resident well above what the freed technique held, in LLVM's compiled shaders
+  // and the heap, so the shown one could then not come back either.)
   void switch_technique(const std::string& name) {
+    tried_ = name;
     try {
-      source_ = make_view_source(name, cache_, *context_, width_, height_, options_.memory_budget);
-      fitted_.reset();
-      technique_ = name;
+      prepare_source(name);
       status_.clear();
-      if (flight_camera_) set_flight_frame(flight_frame_);
     } catch (const Error& e) {
       status_ = name + ": " + e.what();  // shown on screen; the last source stays
       std::cerr << "view: " << status_ << "\n";
     }
   }
 
+  void prepare_source(const std::string& name) {
+    source_ = make_view_source(name, cache_, *context_, width_, height_, options_.memory_budget);
+    fitted_.reset();
+    technique_ = name;
+    if (flight_camera_) set_flight_frame(flight_frame_);
+  }
+
+  // The technique after the one last tried (a refused one too, so that T walks the list).
   void next_technique() {
     const auto& names = view_techniques();
-    auto it = std::find(names.begin(), names.end(), technique_);
+    auto it = std::find(names.begin(), names.end(), tried_.empty() ? technique_ : tried_);
     const size_t i = it == names.end() ? 0 : size_t(it - names.begin());
     switch_technique(names[(i + 1) % names.size()]);
   }
@@ -447,6 +458,7 @@ class Viewer {
   std::string technique_, tf_, status_, comparison_;
   std::string refused_;                        // why the last frame was refused ("": it was drawn)
   std::string refused_key_;                    // the refusal last reported (report_refusal)
+  std::string tried_;                          // the technique last switched to, or tried
   std::optional<std::pair<int, int>> fitted_;  // the size source_ was fitted to (fit_frame)
   std::optional<Camera> flight_camera_;
   int flight_frame_ = 0, width_ = 0, height_ = 0, screenshots_ = 0;

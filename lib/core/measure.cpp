@@ -1,5 +1,6 @@
 #include "core/measure.hpp"
 
+#include <malloc.h>
 #include <sys/resource.h>
 
 #include <fstream>
@@ -24,6 +25,12 @@ uint64_t status_field(const char* name) {
 
 uint64_t current_rss_bytes() {
   return status_field("VmRSS");
+}
+uint64_t trimmed_rss_bytes() {
+#ifdef __GLIBC__
+  malloc_trim(0);
+#endif
+  return current_rss_bytes();
 }
 uint64_t peak_rss_bytes() {
   return status_field("VmHWM");

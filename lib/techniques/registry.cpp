@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "render/vulkan/context.hpp"
@@ -228,6 +229,8 @@ uint64_t process_budget(const TechniqueOptions& o) {
 std::optional<std::string> data_does_not_fit(const TechniqueOptions& o, uint64_t bytes,
                                              const std::string& data) {
   if (o.memory_unlimited) return std::nullopt;
+  if (bytes <= MemoryBudget(process_budget(o)).available()) return std::nullopt;
+  trimmed_rss_bytes();  // memory freed but still resident in the heap is not held
   const MemoryBudget budget(process_budget(o));
   if (bytes <= budget.available()) return std::nullopt;
   return "the " + data + " take " + format_bytes(bytes) +

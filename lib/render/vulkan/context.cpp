@@ -515,7 +515,10 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
   const bool host =
       memory_is_host() || (memory.memoryHeaps[heap].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT) == 0;
   host_bytes = host ? info.allocationSize : 0;
-  if (host_bytes > 0 && reserved_scopes_ == 0 && host_bytes > host_bytes_left())
+  // Device memory freed before (lavapipe's comes from malloc) can stay resident in the C
+  // library's heap: it is given back before the resident count refuses.
+  const auto refused = [&] { return host_bytes > 0 && host_bytes > host_bytes_left(); };
+  if (reserved_scopes_ == 0 && refused() && trimmed_rss_bytes() > 0 && refused())
     throw HostBudgetExceeded(
         "Vulkan: allocating " + format_bytes(host_bytes) + " on " + info_.name +
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
