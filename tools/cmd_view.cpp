@@ -232,7 +232,13 @@ class Viewer {
     const auto& names = view_techniques();
     auto it = std::find(names.begin(), names.end(), tried_.empty() ? technique_ : tried_);
     const size_t i = it == names.end() ? 0 : size_t(it - names.begin());
-    switch_technique(names[(i + 1) % names.size()]);
+    const std::string& next = names[(i + 1) % names.size()];
+    if (next == technique_) {  // round the list past the refused ones: the one shown stays
+      tried_ = next;
+      status_.clear();
+      return;
+    }
+    switch_technique(next);
   }
 
   void next_tf() {
@@ -396,6 +402,11 @@ class Viewer {
     }
     if (!status_.empty()) draw_status_line(shown, status_, bottom, scale);
     try {
+      // The window's copy (the presenter's staging buffer) of a frame the technique was allowed
+      // is part of the frame's reserve (frame_output_bytes): refusing it would leave a rendered
+      // frame unshown. A refused frame's blank window is held to the budget.
+      std::optional<vk::Context::ReservedAllocations> reserved;
+      if (refused.empty()) reserved.emplace(*context_);
       presenter_->present(shown, width_, height_);
     } catch (const BudgetExceeded& e) {  // its staging buffer, on a context held to the budget
       report_refusal("present " + size, "presenting a " + size + " window: " + e.what());

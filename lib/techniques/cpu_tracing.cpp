@@ -6,6 +6,7 @@
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
+#include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "render/ray_tracer.hpp"
 #include "techniques/curve_defaults.hpp"
@@ -42,6 +43,7 @@ struct SceneBudget {
 SceneBudget scene_budget(const TechniqueInfo& info, const TechniqueOptions& o,
                          const std::string& data) {
   if (o.memory_unlimited) return {};
+  trimmed_rss_bytes();  // memory freed but still resident in the heap is not held
   const MemoryBudget budget(process_budget(o));
   const std::string figures =
       format_bytes(budget.total()) + (o.memory_budget > 0 ? "" : ", half of physical memory") +

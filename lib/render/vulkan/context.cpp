@@ -478,7 +478,7 @@ uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved) {
   HostBudget b;
   b.total = total, b.reserved = reserved, b.serial = ++host_budgets_set_;
   if (total > 0) {
-    const uint64_t resident = current_rss_bytes();
+    const uint64_t resident = trimmed_rss_bytes();  // freed memory still in the heap is not held
     b.held = host_bytes_;
     b.room = total > resident ? total - resident : 0;
   }
@@ -518,7 +518,8 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
   // Device memory freed before (lavapipe's comes from malloc) can stay resident in the C
   // library's heap: it is given back before the resident count refuses.
   const auto refused = [&] { return host_bytes > 0 && host_bytes > host_bytes_left(); };
-  if (reserved_scopes_ == 0 && refused() && trimmed_rss_bytes() > 0 && refused())
+  if (reserved_scopes_ == 0 && refused()) trimmed_rss_bytes();
+  if (reserved_scopes_ == 0 && refused())
     throw HostBudgetExceeded(
         "Vulkan: allocating " + format_bytes(host_bytes) + " on " + info_.name +
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +

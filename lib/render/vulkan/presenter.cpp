@@ -128,9 +128,6 @@ void Presenter::present(const Image& frame, int width, int height) {
   const uint64_t bytes = std::max<uint64_t>(uint64_t(w) * h * 4, 4);
   if (staging_.size < bytes) {
     context_.destroy(staging_);
-    // The window's copy of a frame the technique was allowed is part of the frame's reserve
-    // (frame_output_bytes): refusing it would leave a rendered frame unshown.
-    const Context::ReservedAllocations reserved(context_);
     staging_ = context_.create_buffer(bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
   }
   const bool bgr = format_ == VK_FORMAT_B8G8R8A8_UNORM || format_ == VK_FORMAT_B8G8R8A8_SRGB;
