@@ -503,9 +503,11 @@ void Context::set_host_reserve(uint64_t reserved) {
 uint64_t Context::host_bytes_left() const {
   const HostBudget& b = host_budget_;
   if (b.total == 0) return kNoHostLimit;
-  const uint64_t used = current_rss_bytes() + b.reserved;
+  // What the reserve's own allocations hold is resident and counted already.
+  const uint64_t credit = reserve_credit(), limit = b.limit + credit;
+  const uint64_t used = current_rss_bytes() + (b.reserved - credit);
   const uint64_t process = b.total > used ? b.total - used : 0;
-  return std::min(process, b.limit > host_bytes_ ? b.limit - host_bytes_ : 0);
+  return std::min(process, limit > host_bytes_ ? limit - host_bytes_ : 0);
 }
 
 VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64_t& host_bytes) {
@@ -533,6 +535,10 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
                 " bytes on " + info_.name);
   check(r, "vkAllocateMemory");
   host_bytes_ += host_bytes;
+  if (reserved_scopes_ > 0 && host_bytes > 0) {
+    reserve_allocations_.emplace_back(out, host_bytes);
+    reserve_taken_ += host_bytes;
+  }
   return out;
 }
 
@@ -540,6 +546,12 @@ void Context::free_memory(VkDeviceMemory memory, uint64_t host_bytes) {
   if (!memory) return;
   vkFreeMemory(device_, memory, nullptr);
   host_bytes_ -= std::min(host_bytes, host_bytes_);
+  const auto taken = std::find_if(reserve_allocations_.begin(), reserve_allocations_.end(),
+                                  [&](const auto& a) { return a.first == memory; });
+  if (taken != reserve_allocations_.end()) {
+    reserve_taken_ -= taken->second;
+    reserve_allocations_.erase(taken);
+  }
 }
 
 void Context::destroy(ResultBuffer& r) {

@@ -6,10 +6,12 @@
 
 #include <vulkan/vulkan.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/error.hpp"
@@ -181,6 +183,8 @@ class Context {
   void restore_host_budget(uint64_t serial, const HostBudget& previous);
   // While one lives, allocations are counted but not refused: for what the budget's reserve
   // holds already (the viewer's copy of a frame for its window, part of frame_output_bytes).
+  // Until freed they are taken from the reserve (up to its size), so they are not counted a
+  // second time against what other allocations may hold.
   class ReservedAllocations {
    public:
     explicit ReservedAllocations(Context& context) : context_(context) {
@@ -260,8 +264,13 @@ class Context {
   bool in_place_uploads_ = false;
   uint64_t staging_piece_bytes_ = 0;
   uint64_t host_bytes_ = 0;
-  HostBudget host_budget_;         // in force
-  int reserved_scopes_ = 0;        // live ReservedAllocations
+  HostBudget host_budget_;   // in force
+  int reserved_scopes_ = 0;  // live ReservedAllocations
+  // Host bytes of the live allocations made in such a scope, and their memory (few: the
+  // presenter's staging buffer).
+  uint64_t reserve_taken_ = 0;
+  std::vector<std::pair<VkDeviceMemory, uint64_t>> reserve_allocations_;
+  uint64_t reserve_credit() const { return std::min(reserve_taken_, host_budget_.reserved); }
   uint64_t host_budgets_set_ = 0;  // numbers them
   DeviceInfo info_;
   uint64_t validation_errors_ = 0;
