@@ -2,7 +2,8 @@
 # linebake-mpi: 1, 2 and 3 ranks (3 oversubscribed on CI's 2 cores) bake a multi-file input into
 # caches whose datasets equal the serial bake's (the stored block hashes, and h5diff of the values
 # through stock HDF5); the serial linebake renders and reuses them; a corrupt file read by rank 1
-# stops every rank, naming the rank and the file, and leaves no file behind.
+# stops every rank, naming the rank and the file, and leaves no file behind; so does a write
+# that fails in the collective writing.
 # Usage: mpi_test.sh <linebake> <linebake-mpi>
 set -u
 bin=$(realpath "$1")
@@ -107,6 +108,19 @@ check "a corrupt file on rank 1 exits 2" test "$code" -eq 2
 check "the error names rank 1 and the file" grep -q "rank 1: bad/part_3.binlines" out.txt
 check "no cache, temporary or spill file is left" \
   bash -c "! ls -a | grep -E 'bad\.lbc\.h5|\.tmp-'"
+
+# A write that fails inside the collective writing on one rank (a file size limit on rank 1
+# standing in for a full disk; its spill fits, the tubes do not) cannot be agreed on: that rank
+# ends the job with exit 3 at once (it hung before: it closed the file collectively while rank 0
+# waited in the next write), and neither the cache, its temporary nor a spill file is left.
+mkdir full
+timeout 120 mpirun -np 2 --mca btl self,tcp bash -c \
+  "trap '' XFSZ; [ \$OMPI_COMM_WORLD_RANK = 1 ] && ulimit -f 2000; exec '$mpi' bake run/part_0.binlines -o full.lbc.h5" \
+  >full/out.txt 2>&1 </dev/null
+code=$?
+check "a failed collective write on rank 1 ends the job with exit 3, not a hang" test "$code" -eq 3
+check "it names the rank and the dataset" grep -q "rank 1: full.lbc.h5: dataset /" full/out.txt
+check "no cache, temporary or spill file is left" bash -c "! ls -a | grep -E '^full\.lbc\.h5'"
 
 echo "mpi: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

@@ -51,6 +51,10 @@ int main(int argc, char** argv) {
   };
   try {
     run();
+  } catch (const linebake::CollectiveWriteFailed& e) {
+    // Only this rank knows; the others may wait in the collective write for ever.
+    std::cerr << "linebake-mpi: error: " << e.what() << "; stopping every rank\n";
+    MPI_Abort(MPI_COMM_WORLD, e.exit_code());
   } catch (const linebake::Interrupted& e) {
     if (rank == 0)
       std::cerr << "linebake-mpi: " << e.what() << "; its temporary files are removed\n";

@@ -198,7 +198,7 @@ void CacheWriter::open(hid_t fapl) {
 }
 
 CacheWriter::~CacheWriter() {
-  h5_.reset();
+  if (!h5::LeaveOpenOnUnwind::now()) h5_.reset();
 }
 
 void CacheWriter::set_progress(ProgressFn progress, uint64_t total_bytes) {

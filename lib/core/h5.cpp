@@ -12,6 +12,8 @@
 
 namespace linebake::h5 {
 
+thread_local int LeaveOpenOnUnwind::depth_ = 0;
+
 void init() {
   static std::once_flag once;
   std::call_once(once, [] {

@@ -4,17 +4,37 @@
 
 #include <hdf5.h>
 
+#include <exception>
 #include <string>
 #include <vector>
 
 namespace linebake::h5 {
+
+// While one lives on this thread (a parallel write, whose closes are collective), the handles
+// that an exception's unwinding destroys are left open: a rank whose write failed would
+// otherwise wait in a collective close for ranks that wait in another collective, for ever.
+// The process must end soon after (MPI_Abort: bake_mpi's CollectiveWriteFailed).
+class LeaveOpenOnUnwind {
+ public:
+  LeaveOpenOnUnwind() { ++depth_; }
+  ~LeaveOpenOnUnwind() { --depth_; }
+  LeaveOpenOnUnwind(const LeaveOpenOnUnwind&) = delete;
+  LeaveOpenOnUnwind& operator=(const LeaveOpenOnUnwind&) = delete;
+  // Whether a handle destroyed now is left open.
+  static bool now() { return depth_ > 0 && std::uncaught_exceptions() > 0; }
+
+ private:
+  static thread_local int depth_;
+};
 
 // Owns an HDF5 id and closes it with the matching function.
 class Handle {
  public:
   Handle() = default;
   Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() { reset(); }
+  ~Handle() {
+    if (!LeaveOpenOnUnwind::now()) reset();
+  }
   Handle(Handle&& other) noexcept : id_(other.id_), close_(other.close_) { other.id_ = -1; }
   Handle& operator=(Handle&& other) noexcept {
     if (this != &other) {

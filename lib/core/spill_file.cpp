@@ -17,11 +17,13 @@ SpillFile::SpillFile(const std::string& output, const std::string& tag)
   if (fd_ < 0)
     throw OutputError(output,
                       "cannot create the spill file " + path_ + ": " + std::strerror(errno));
+  // Unnamed at once: only the descriptor holds it, so a process killed outright (SIGKILL, the
+  // kernel's OOM killer, an MPI job aborted by another rank) leaves no spill behind.
+  ::unlink(path_.c_str());
 }
 
 SpillFile::~SpillFile() {
   if (fd_ >= 0) ::close(fd_);
-  ::unlink(path_.c_str());
 }
 
 uint64_t SpillFile::append(const void* data, size_t bytes) {

@@ -1,8 +1,8 @@
 #pragma once
 // A temporary file for data that does not fit the memory budget: written once front to back,
-// read back by offset. It lives beside an output (the same file system, which the output's space
-// check covers) under a temporary name, and is removed when the object goes, on success, on an
-// error and on an interruption alike.
+// read back by offset. It is created beside an output (the same file system, which the output's
+// space check covers) under a temporary name and unlinked at once: its space is given back when
+// the object goes, on success, on an error, on an interruption, or when the process is killed.
 
 #include <cstddef>
 #include <cstdint>
@@ -12,7 +12,8 @@ namespace linebake {
 
 class SpillFile {
  public:
-  // Creates `<output>.<tag>.tmp-<host>-<pid>-<n>`. Throws OutputError when it cannot.
+  // Creates `<output>.<tag>.tmp-<host>-<pid>-<n>` and unlinks it. Throws OutputError when it
+  // cannot.
   SpillFile(const std::string& output, const std::string& tag);
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;

@@ -328,6 +328,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const auto build_start = std::chrono::steady_clock::now();
   StepMeter meter;
   try {
+    // An error past here unwinds this rank alone: its handles are left open, not closed
+    // collectively with ranks that are elsewhere (which would wait for ever).
+    const h5::LeaveOpenOnUnwind leave_open;
     using h5::Handle;
     Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
     H5Pset_fapl_mpio(fapl, comm, MPI_INFO_NULL);
@@ -576,11 +579,14 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     }
     writer.commit();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "linebake-mpi: rank %d: error: %s; stopping every rank\n", ranks.rank,
-                 e.what());
     std::remove(temp.c_str());
     spool.reset();
-    MPI_Abort(comm, e.what()[0] ? 3 : 4);
+    const auto* interrupted = dynamic_cast<const Interrupted*>(&e);
+    const bool output = dynamic_cast<const OutputError*>(&e) != nullptr;
+    throw CollectiveWriteFailed("rank " + std::to_string(ranks.rank) + ": " + e.what(),
+                                interrupted ? 128 + interrupted->signal()
+                                : output    ? 3
+                                            : 4);
   }
   spool.reset();
   MPI_Barrier(comm);  // rank 0 has renamed the file

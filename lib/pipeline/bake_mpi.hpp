@@ -8,6 +8,7 @@
 
 #include <mpi.h>
 
+#include "core/error.hpp"
 #include "pipeline/bake.hpp"
 
 namespace linebake {
@@ -15,8 +16,23 @@ namespace linebake {
 // Collective over `comm`. An error on any rank throws on every rank, naming the rank (InputError
 // and OutputError keep their kind); nothing is left under the cache's name or beside it. Errors
 // inside a collective write (a full disk) cannot be agreed on: that rank removes the temporary
-// file and aborts the job (MPI_Abort).
+// file and throws CollectiveWriteFailed.
 BakeResult bake_mpi(const BakeOptions& options, MPI_Comm comm);
+
+// Thrown on a rank whose part of a collective write failed, once it has removed the temporary
+// file. The other ranks may be waiting in a collective that will never complete, so the caller
+// must end the job (MPI_Abort with exit_code(): 3 for an output that could not be written,
+// 128 + the signal for an interruption, 4 otherwise): nothing else stops them. The rank's HDF5
+// handles were left open on the way (h5::LeaveOpenOnUnwind): closing them is collective.
+class CollectiveWriteFailed : public Error {
+ public:
+  CollectiveWriteFailed(const std::string& message, int exit_code)
+      : Error(message), exit_code_(exit_code) {}
+  int exit_code() const { return exit_code_; }
+
+ private:
+  int exit_code_;
+};
 
 // The figures of one rank, as the provenance keeps them (stats.ranks).
 struct RankFigures {
