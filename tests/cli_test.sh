@@ -61,6 +61,27 @@ check "second bake reuses" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc
 check "render --geometry (deprecated): rewritten to --embree-geometry, warns" bash -c "'$bin' render '$tmp/c.lbc.h5' --geometry bezier --size 24x16 -o '$tmp/dep.png' --stats '$tmp/dep.json' 2> '$tmp/dep.err' && grep -q 'render --geometry is deprecated; use --embree-geometry' '$tmp/dep.err' && grep -q '\"geometry\": \"bezier\"' '$tmp/dep.json'"
 check "a cache under any name is a line source" bash -c "cp '$tmp/c.lbc.h5' '$tmp/cache.data' && '$bin' info '$tmp/cache.data' --json | grep -q '\"segments\": 495000' && '$bin' convert '$tmp/cache.data' -o '$tmp/fromcache.binlines' 2>/dev/null && cmp '$tmp/c.binlines' '$tmp/fromcache.binlines'"
 check "--force rebuilds" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --force 2>&1 >/dev/null | grep -q 'tubes: built'"
+# An output never replaces an input of its command, and two outputs are never one file: refused
+# before any work (exit 3), the files as they were.
+refused_keeps() {  # name, the file that must stay unchanged, the command...
+  local name="$1" keep="$2"
+  shift 2
+  cp "$keep" "$tmp/kept.copy"
+  check "$name" bash -c "\"\$@\" 2> '$tmp/refused.err'; [ \$? -eq 3 ] && cmp '$keep' '$tmp/kept.copy' && grep -Eq 'never replaces its input|each output needs a file of its own' '$tmp/refused.err'" _ "$@"
+}
+refused_keeps "render --stats naming the cache is refused" "$tmp/c.lbc.h5" \
+  "$bin" render "$tmp/c.lbc.h5" --technique embree --size 24x16 -o "$tmp/r.png" --stats "$tmp/c.lbc.h5"
+refused_keeps "depth-complexity --stats naming the cache is refused" "$tmp/c.lbc.h5" \
+  "$bin" depth-complexity "$tmp/c.lbc.h5" --size 24x16 -o "$tmp/d.png" --stats "$tmp/c.lbc.h5"
+check "render: an image and its depth complexity in one file (named two ways) are refused, nothing written" bash -c "cd '$tmp' && '$(realpath "$bin")' render c.lbc.h5 --technique embree --size 24x16 -o both.png --depth-complexity ../\$(basename '$tmp')/./both.png 2> both.err; [ \$? -eq 3 ] && grep -q 'is also the output' both.err && [ ! -e both.png ]"
+check "render --frames all: a numbered frame naming the cache is refused" bash -c "cp '$tmp/c.lbc.h5' '$tmp/f_001.png'; '$bin' render '$tmp/f_001.png' --technique embree --size 24x16 --frames all --frame-count 2 -o '$tmp/f.png' 2> '$tmp/f.err'; [ \$? -eq 3 ] && grep -q 'never replaces its input' '$tmp/f.err' && cmp '$tmp/c.lbc.h5' '$tmp/f_001.png'"
+cp "$tmp/c.lbc.h5" "$tmp/m.bin"
+refused_keeps "export: a .gltf whose .bin would be the cache is refused" "$tmp/m.bin" \
+  "$bin" export "$tmp/m.bin" -o "$tmp/m.gltf"
+cp "$tmp/c.binlines" "$tmp/victim.binlines"
+refused_keeps "bench bake with -o naming its input is refused, the input kept" "$tmp/victim.binlines" \
+  "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
+check "standard output that cannot be written fails the command (exit 3)" bash -c "'$bin' info '$tmp/c.binlines' --json > /dev/full 2> '$tmp/full.err'; [ \$? -eq 3 ] && grep -q 'standard output: a write failed' '$tmp/full.err'"
 check "new sides rebuild tubes only" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: up to date, reused linebake: tubes: built'"
 check "--compression applies to /lines as well" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: built linebake: tubes: built' && h5dump -p -H -d /lines/points '$tmp/c.lbc.h5' | grep -q DEFLATE"
 check "report markdown" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep -q '^| c | 5,153 | 495,000 |'"
@@ -97,6 +118,8 @@ check "render stats json" bash -c "grep -q '\"back_hits_rejected\"' '$tmp/e.json
 check "render reference pfm" "$bin" render "$tmp/t.lbc.h5" --technique reference --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/r.pfm"
 check "compare pfm against png of one render" bash -c "'$bin' compare '$tmp/e.png' '$tmp/e.png' | grep -q '60.0000 dB'"
 check "compare embree to reference" bash -c "'$bin' compare '$tmp/e.png' '$tmp/r.pfm' --json --error-image '$tmp/err.png' | grep -q '\"ssim\"' && test -s '$tmp/err.png'"
+refused_keeps "compare --error-image naming a compared image is refused" "$tmp/e.png" \
+  "$bin" compare "$tmp/e.png" "$tmp/r.pfm" --error-image "$tmp/e.png"
 check "render all frames" bash -c "'$bin' render '$tmp/t.lbc.h5' --frames all --frame-count 3 --size 32x24 -o '$tmp/f.png' 2>/dev/null && test -s '$tmp/f_000.png' && test -s '$tmp/f_002.png'"
 check "tiles: the key sort's two paths give the same bytes, --stats says which ran, auto takes shared memory on lavapipe" bash -c "
 set -e

@@ -319,6 +319,8 @@ void bench_bake(const BenchArgs& args) {
       args.output.empty()
           ? std::filesystem::path(default_cache_path(args.input)).stem().string() + ".bench.lbc.h5"
           : args.output;
+  // Each run starts from no cache, so the output is removed first: never the input.
+  refuse_input_as_output(options.cache, {args.input});
   std::vector<BakeResult> runs;
   for (int r = 0; r < args.repeat; ++r) {
     std::filesystem::remove(options.cache);

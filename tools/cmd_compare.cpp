@@ -33,6 +33,7 @@ Command add_compare(CLI::App& app) {
     check_input_file(args->image);
     check_input_file(args->reference);
     check_output_location(args->error_image);
+    refuse_input_as_output(args->error_image, {args->image, args->reference});
     const Image a = display_encoded(read_image(args->image));
     const Image b = display_encoded(read_image(args->reference));
     if (a.width != b.width || a.height != b.height)

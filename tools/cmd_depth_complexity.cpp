@@ -94,6 +94,9 @@ Command add_depth_complexity(CLI::App& app) {
     const auto [width, height] = parse_size(args->size);
     check_depth_image_output(args->output);
     check_output_location(args->stats);
+    check_frame_outputs({args->output}, {args->stats},
+                        planned_frames(args->frame_count, args->frame, args->frames),
+                        {args->cache, args->tf, args->flight});
     check_frame_memory("depth-complexity", args->size,
                        uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16),
                        args->memory_budget);

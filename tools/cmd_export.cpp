@@ -103,10 +103,12 @@ Command add_export(CLI::App& app) {
   const auto body = [args] {
     check_cache_input(args->cache);
     for (const std::string& out : {args->glb, args->vdb})
-      if (!out.empty()) {
-        refuse_input_as_output(out, {args->cache});
-        check_output_location(out);
-      }
+      if (!out.empty()) check_output_location(out);
+    // A .gltf's buffer goes beside it, as a .bin (formats/gltf.cpp).
+    std::string buffer;
+    if (std::filesystem::path(args->glb).extension() == ".gltf")
+      buffer = std::filesystem::path(args->glb).replace_extension(".bin").string();
+    refuse_clashing_outputs({args->glb, buffer, args->vdb}, {args->cache});
     args->gltf.axes = args->axes == "raw" ? GltfAxes::Raw : GltfAxes::ZUp;
     if (!args->glb.empty() && args->colors != "none") {
       const TransferFunction tf = resolve_transfer_function(args->colors);

@@ -252,6 +252,9 @@ Command add_render(CLI::App& app) {
     check_image_output(args->output);
     check_output_location(args->stats);
     check_depth_image_output(args->depth_image);
+    check_frame_outputs({args->output, args->depth_image}, {args->stats},
+                        planned_frames(args->frame_count, args->frame, args->frames),
+                        {args->cache, args->tf, args->flight});
     TechniqueOptions o;
     o.width = width, o.height = height;
     o.early_termination = args->early;

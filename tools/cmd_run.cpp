@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 #include "cli_contract.hpp"
@@ -52,12 +53,16 @@ int run_child(const std::vector<std::string>& args, const std::string& stdout_fi
   argv.push_back(name.data());
   for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
+  // Its standard output goes to a temporary file (removed unless the step passes), renamed
+  // into place once the step exits 0: linebake fails a command whose output could not be
+  // written, so that name only ever holds a whole output.
+  std::optional<AtomicFile> output;
+  if (!stdout_file.empty()) output.emplace(stdout_file);
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  const std::string partial = stdout_file + ".partial";
-  if (!stdout_file.empty())
-    posix_spawn_file_actions_addopen(&actions, 1, partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
+  if (output)
+    posix_spawn_file_actions_addopen(&actions, 1, output->temp_path().c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
   // The step runs in its own process group, so a Ctrl-C at the terminal reaches only this
   // process, which passes it on once: the step stops at its next safe point and cleans up.
   posix_spawnattr_t attributes;
@@ -79,12 +84,7 @@ int run_child(const std::vector<std::string>& args, const std::string& stdout_fi
     }
   }
   const int code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  if (!stdout_file.empty()) {
-    if (code == 0)
-      std::filesystem::rename(partial, stdout_file);
-    else
-      std::filesystem::remove(partial);
-  }
+  if (output && code == 0) output->commit();
   return code;
 }
 
@@ -254,12 +254,16 @@ Command add_run(CLI::App& app) {
     if (args->dry_run) return;
     const std::vector<CacheSummary> caches = pipeline_caches(p);
     const nlohmann::json evaluation = evaluation_json(p, caches, steps, machine_info());
+    // The reports and their plots are renamed into place together, or none is: never a new
+    // report.json beside an old report.html.
+    OutputGroup reports;
     write_file_atomically(p.output + "/report.json", evaluation.dump(2) + "\n");
     const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
     std::filesystem::create_directories(p.output + "/plots");
     for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);
     write_file_atomically(p.output + "/report.md", evaluation_markdown(p, caches, evaluation));
     write_file_atomically(p.output + "/report.html", evaluation_html(p, caches, evaluation, plots));
+    reports.commit();
     std::cerr << "linebake: run: " << ran << " step(s) run, " << reused << " reused, " << skipped
               << " skipped\n";
     std::cout << p.output << "/report.html\n" << p.output << "/report.md\n";

@@ -55,11 +55,27 @@ FlightPlan plan_flight(const std::string& flight_name, int frame_count, int fram
   FlightPlan plan;
   plan.kind = flight.kind;
   plan.cameras = make_flight(bounds, double(width) / height, flight);
-  if (frames == "all")
-    for (int i = 0; i < frame_count; ++i) plan.frames.push_back(i);
-  else
-    plan.frames.push_back(frame);
+  plan.frames = planned_frames(frame_count, frame, frames);
   return plan;
+}
+
+std::vector<int> planned_frames(int frame_count, int frame, const std::string& frames) {
+  std::vector<int> planned;
+  if (frames == "all")
+    for (int i = 0; i < frame_count; ++i) planned.push_back(i);
+  else
+    planned.push_back(frame);
+  return planned;
+}
+
+void check_frame_outputs(const std::vector<std::string>& per_frame,
+                         const std::vector<std::string>& once, const std::vector<int>& frames,
+                         const std::vector<std::string>& inputs) {
+  std::vector<std::string> outputs = once;
+  for (const std::string& path : per_frame)
+    if (!path.empty())
+      for (const int frame : frames) outputs.push_back(frame_path(path, frame, frames.size() > 1));
+  refuse_clashing_outputs(outputs, inputs);
 }
 
 void check_depth_image_output(const std::string& path) {

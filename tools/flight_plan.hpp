@@ -31,6 +31,16 @@ struct FlightPlan {
   std::vector<int> frames;  // --frame F, or every frame for --frames all
 };
 
+// The frames drawn: --frame `frame`, or every frame of `frame_count` for --frames all.
+std::vector<int> planned_frames(int frame_count, int frame, const std::string& frames);
+
+// Before any work: the files of `per_frame` outputs (images; numbered as for `frames`) and of
+// `once` outputs (--stats) are none of the command's `inputs` and each its own. Throws
+// OutputError (refuse_clashing_outputs).
+void check_frame_outputs(const std::vector<std::string>& per_frame,
+                         const std::vector<std::string>& once, const std::vector<int>& frames,
+                         const std::vector<std::string>& inputs);
+
 // flight: orbit-zoom | orbit | KEYFRAMES.json; frames: "" or "all".
 FlightPlan plan_flight(const std::string& flight, int frame_count, int frame,
                        const std::string& frames, const Bounds& bounds, int width, int height);

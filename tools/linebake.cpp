@@ -1,7 +1,9 @@
 // linebake: converters, exports and renders for large 3D line sets.
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 
 #include "cli_contract.hpp"
@@ -87,6 +89,13 @@ int main(int argc, char** argv) {
     linebake::install_interrupt_handlers();
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
+    // What a command printed (--json, a report) is one of its outputs: a write that failed
+    // there (a full disk behind a redirection) fails the command, so that nothing, `run`
+    // included, takes a cut-short output for a whole one.
+    std::cout.flush();
+    if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout))
+      throw linebake::OutputError("standard output",
+                                  std::string("a write failed: ") + std::strerror(errno));
     return kOk;
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";

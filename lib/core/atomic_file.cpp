@@ -99,6 +99,25 @@ void refuse_input_as_output(const std::string& output, const std::vector<std::st
   }
 }
 
+void refuse_clashing_outputs(const std::vector<std::string>& outputs,
+                             const std::vector<std::string>& inputs) {
+  std::vector<std::pair<std::filesystem::path, const std::string*>> seen;
+  for (const std::string& output : outputs) {
+    if (output.empty()) continue;
+    refuse_input_as_output(output, inputs);
+    // Absolute first: weakly_canonical leaves a relative path to a new file relative.
+    const std::filesystem::path absolute = std::filesystem::absolute(output).lexically_normal();
+    std::error_code ec;
+    std::filesystem::path resolved = std::filesystem::weakly_canonical(absolute, ec);
+    if (ec) resolved = absolute;
+    for (const auto& [path, name] : seen)
+      if (path == resolved)
+        throw OutputError(output, "is also the output " + *name +
+                                      " of this command; each output needs a file of its own");
+    seen.emplace_back(std::move(resolved), &output);
+  }
+}
+
 void check_output_location(const std::string& path) {
   if (path.empty()) return;
   const std::filesystem::path p(path);

@@ -80,6 +80,10 @@ uint64_t remove_stale_temporaries(const std::string& path);
 // Throws OutputError when `output` is one of `inputs` (the same file, whatever the path):
 // an output never replaces an input of its command.
 void refuse_input_as_output(const std::string& output, const std::vector<std::string>& inputs);
+// Before any work: refuse_input_as_output for each of `outputs` ("" skipped), and an
+// OutputError when two of them are one file (the later would replace the earlier).
+void refuse_clashing_outputs(const std::vector<std::string>& outputs,
+                             const std::vector<std::string>& inputs);
 // Before any work: throws OutputError naming `path` when its directory does not exist or is not
 // writable, or when `path` is a directory. "" passes (no such output).
 void check_output_location(const std::string& path);
