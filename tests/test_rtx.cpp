@@ -76,6 +76,9 @@ TEST(CapsuleSegments, WordsFlagsBoxesAndChunksFollowTheLines) {
   }
   // At most 3 segments per chunk: the lines split at their boundary, points renumbered.
   const CapsuleSegments split = build_capsule_segments(lines, 0.25f, "", 3);
+  // What the budget is checked against before building: what the chunks hold, split or not.
+  EXPECT_EQ(capsule_segments_bytes(lines), one.bytes());
+  EXPECT_EQ(capsule_segments_bytes(lines), split.bytes());
   ASSERT_EQ(split.chunks.size(), 2u);
   EXPECT_EQ(split.chunks[0].line_count, 1u);
   EXPECT_EQ(split.chunks[1].first_line, 1u);

@@ -415,6 +415,14 @@ TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
   const Bounds streamed = load_tube_bounds(cache);
   EXPECT_EQ(streamed.min, bounds.min);
   EXPECT_EQ(streamed.max, bounds.max);
+  // Read in pieces of 1,000 vertices, the same bounds; each chunk's bytes from the shapes are
+  // what reading it holds.
+  const Bounds pieces = load_tube_bounds(cache, 1000);
+  EXPECT_EQ(pieces.min, bounds.min);
+  EXPECT_EQ(pieces.max, bounds.max);
+  const TubeMesh description = load_tube_description(cache);
+  for (size_t c = 0; c < whole.chunks.size(); ++c)
+    EXPECT_EQ(tube_chunk_bytes(cache, description, c), whole.chunks[c].bytes()) << c;
   const uint64_t tubes = cache.provenance("/assets/tubes")->memory_bytes;
   EXPECT_EQ(tubes, whole.bytes());
 

@@ -302,8 +302,8 @@ void bench_tubes(const BenchArgs& args) {
 
 // A whole bake, as `linebake bake` runs it (forced, so every step builds), per stage: wall and
 // CPU time and the resident high-water mark; then the bytes written per second against the
-// machine's memcpy bandwidth from the same run (over 256 MiB buffers, measured after the bakes
-// so it does not count in their memory).
+// machine's memcpy bandwidth from the same run (over buffers of up to 256 MiB that fit the
+// budget, measured after the bakes so it does not count in their memory).
 void bench_bake(const BenchArgs& args) {
   BakeOptions options;
   options.input = args.input;
@@ -326,7 +326,15 @@ void bench_bake(const BenchArgs& args) {
     std::filesystem::remove(options.cache);
     runs.push_back(bake(options));
   }
-  const double bandwidth = memcpy_bandwidth(5, size_t{256} << 20);
+  // Its two buffers (256 MiB each at most) take no more than two thirds of what the budget
+  // leaves the process after the bakes.
+  const uint64_t budget = options.memory_budget == BakeOptions::kDefaultBudget
+                              ? default_memory_budget()
+                              : options.memory_budget;
+  const uint64_t resident = trimmed_rss_bytes();
+  const uint64_t copy_bytes = std::clamp<uint64_t>((budget > resident ? budget - resident : 0) / 3,
+                                                   uint64_t{1} << 20, uint64_t{256} << 20);
+  const double bandwidth = memcpy_bandwidth(5, size_t(copy_bytes));
   if (!args.keep) std::filesystem::remove(options.cache);
   std::vector<double> walls;
   for (const BakeResult& r : runs) walls.push_back(r.wall_s);

@@ -15,10 +15,13 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/measure.hpp"
+#include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "render/ray_tracer.hpp"
 #include "render/vulkan/raster_renderer.hpp"
+#include "techniques/families.hpp"
 
 namespace linebake::cli {
 namespace {
@@ -97,9 +100,12 @@ Command add_depth_complexity(CLI::App& app) {
     check_frame_outputs({args->output}, {args->stats},
                         planned_frames(args->frame_count, args->frame, args->frames),
                         {args->cache, args->tf, args->flight});
-    check_frame_memory("depth-complexity", args->size,
-                       uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16),
-                       args->memory_budget);
+    const uint64_t frame_bytes = uint64_t(width) * uint64_t(height) * (16 + 16 + 4 + 16);
+    check_frame_memory("depth-complexity", args->size, frame_bytes, args->memory_budget);
+    // The mesh, the device's copy of it (--on gpu) or Embree's BVH (--on cpu) are held within
+    // the budget as render's techniques hold them.
+    TechniqueOptions budget;
+    set_memory_budget(budget, args->memory_budget);
     const TransferFunction tf = resolve_transfer_function(args->tf);
     const CacheReader cache(args->cache);
     if (!cache.exists("/assets/tubes"))
@@ -107,7 +113,23 @@ Command add_depth_complexity(CLI::App& app) {
                        "missing: depth complexity counts the tube mesh; add it with: linebake "
                        "bake " +
                            args->cache + " --assets tubes");
+    if (const auto provenance = cache.provenance("/assets/tubes"))
+      if (auto why = data_does_not_fit(budget, provenance->memory_bytes, "tube mesh's buffers"))
+        throw BudgetExceeded("depth-complexity: " + *why + "; raise --memory-budget");
     const TubeMesh tubes = load_tubes(cache);
+    // What the budget leaves with the mesh loaded, less the frames' (0: no limit).
+    uint64_t left = 0;
+    if (!budget.memory_unlimited) {
+      trimmed_rss_bytes();
+      const MemoryBudget held(process_budget(budget));
+      if (held.available() <= frame_bytes)
+        throw BudgetExceeded(
+            "depth-complexity: the tube mesh leaves nothing of the memory budget "
+            "of " +
+            format_bytes(held.total()) + " for the " + (args->on == "gpu" ? "device" : "BVH") +
+            "; raise --memory-budget");
+      left = held.available() - frame_bytes;
+    }
     const FlightPlan plan = plan_flight(args->flight, args->frame_count, args->frame, args->frames,
                                         compute_bounds(tubes), width, height);
     const bool numbered = plan.frames.size() > 1;
@@ -123,10 +145,13 @@ Command add_depth_complexity(CLI::App& app) {
       options.device = args->device;
       options.validation = args->validation;
       context.emplace(options);
+      if (left > 0) context->set_host_budget(process_budget(budget), frame_bytes);
       renderer.emplace(*context, tubes);
       stats["device"] = context->info().name;
     } else {
-      scene.emplace(EmbreeScene::from_tubes(tubes, {}));
+      EmbreeOptions embree;
+      embree.max_memory_bytes = left;
+      scene.emplace(EmbreeScene::from_tubes(tubes, embree));
     }
     TerminalProgress progress("depth-complexity");
     std::vector<std::string> lines;

@@ -20,6 +20,10 @@ uint64_t CapsuleSegments::bytes() const {
   return n;
 }
 
+uint64_t capsule_segments_bytes(const LineSet& lines) {
+  return 4 * (4 * uint64_t(lines.point_count()) + 7 * lines.segment_count());
+}
+
 CapsuleSegments build_capsule_segments(const LineSet& lines, float radius,
                                        const std::string& attribute,
                                        uint64_t max_segments_per_chunk) {

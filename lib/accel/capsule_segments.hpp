@@ -36,6 +36,10 @@ struct CapsuleSegments {
   uint64_t bytes() const;
 };
 
+// What build_capsule_segments holds for `lines` (points with their values, segment words,
+// boxes), to check against a memory budget before building.
+uint64_t capsule_segments_bytes(const LineSet& lines);
+
 // Throws Error for a non-positive radius, an unknown attribute or max_segments_per_chunk < 1;
 // a single line longer than the chunk limit gets a chunk of its own (2^30 segments at most).
 CapsuleSegments build_capsule_segments(const LineSet& lines, float radius,

@@ -305,12 +305,35 @@ TubeCounts load_tube_counts(const CacheReader& cache) {
   return counts;
 }
 
-Bounds load_tube_bounds(const CacheReader& cache) {
+uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description, size_t index) {
+  const std::string g = chunk_group(index);
+  const std::vector<uint64_t> positions = cache.shape(g + "/positions"),
+                              indices = cache.shape(g + "/indices");
+  if (positions.empty() || indices.empty())
+    throw InputError(cache.path(), "group " + g, "positions or indices without a shape");
+  const uint64_t per_vertex =
+      3 * sizeof(float) +
+      (description.normals == NormalEncoding::Float32 ? 3 * sizeof(float) : 2 * sizeof(int16_t)) +
+      (description.attribute.empty() ? 0 : sizeof(uint16_t));
+  return positions[0] * per_vertex + indices[0] * 3 * sizeof(uint32_t);
+}
+
+Bounds load_tube_bounds(const CacheReader& cache, uint64_t rows_per_read) {
   const TubeMesh description = load_tube_description(cache);
+  const uint64_t kRows = std::max<uint64_t>(rows_per_read, 1);
   Bounds bounds;
+  std::vector<float> piece;
   for (size_t c = 0; c < description.chunks.size(); ++c) {
-    const Array<float> positions = read_positions(cache, chunk_group(c));
-    include_points(bounds, std::span<const float>(positions.data(), positions.size()));
+    const std::string d = chunk_group(c) + "/positions";
+    const std::vector<uint64_t> shape = cache.shape(d);
+    if (shape.size() != 2 || shape[1] != 3)
+      throw InputError(cache.path(), "dataset " + d, "not 3 floats per vertex");
+    for (uint64_t first = 0; first < shape[0]; first += kRows) {
+      const uint64_t rows = std::min(kRows, shape[0] - first);
+      piece.resize(3 * rows);
+      cache.read_rows(d, first, rows, piece.data());
+      include_points(bounds, std::span<const float>(piece.data(), piece.size()));
+    }
   }
   return bounds;
 }

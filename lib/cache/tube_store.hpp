@@ -49,8 +49,12 @@ TubeMesh load_tubes(const CacheReader& cache);
 // reduces a chunk at a time never holds the whole mesh.
 TubeMesh load_tube_description(const CacheReader& cache);
 TubeChunk load_tube_chunk(const CacheReader& cache, const TubeMesh& description, size_t index);
-// compute_bounds of the mesh, reading one chunk's positions at a time.
-Bounds load_tube_bounds(const CacheReader& cache);
+// What load_tube_chunk holds for chunk `index`, from its datasets' shapes (reading none), so
+// that a consumer can check it against a memory budget first.
+uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description, size_t index);
+// compute_bounds of the mesh, reading its positions `rows_per_read` vertices (12 MiB by
+// default) at a time.
+Bounds load_tube_bounds(const CacheReader& cache, uint64_t rows_per_read = uint64_t{1} << 20);
 // The mesh's vertices and triangles from its datasets' shapes, reading none of them.
 TubeCounts load_tube_counts(const CacheReader& cache);
 

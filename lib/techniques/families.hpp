@@ -61,6 +61,10 @@ std::optional<std::string> data_does_not_fit(const TechniqueOptions& options, ui
 // does not fit what the budget leaves the process: BudgetExceeded naming the technique and `data`.
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& options,
                      const CacheReader& cache, const std::string& group, const std::string& data);
+// Refuses, before they are built, `bytes` of `data` that do not fit what the budget leaves the
+// process: BudgetExceeded as check_data_fits.
+void check_bytes_fit(const TechniqueInfo& info, const TechniqueOptions& options, uint64_t bytes,
+                     const std::string& data);
 // Runs `work`, naming the technique in the refusal of a Vulkan allocation past what
 // ContextHolder::budget_host_memory allows (the renderers' own refusals name it already).
 template <class Work>

@@ -23,8 +23,12 @@ class Raster : public PreparedTechnique {
     const TubeMesh description = load_tube_description(cache);
     context_.budget_host_memory(o);
     within_budget(info_, [&] {
-      renderer_ = std::make_unique<vk::RasterRenderer>(
-          *context_, description, [&](size_t c) { return load_tube_chunk(cache, description, c); });
+      renderer_ = std::make_unique<vk::RasterRenderer>(*context_, description, [&](size_t c) {
+        check_bytes_fit(info_, o, tube_chunk_bytes(cache, description, c),
+                        "tube mesh's buffers of chunk " + std::to_string(c) +
+                            " (bake --chunk-bytes sets a chunk's size)");
+        return load_tube_chunk(cache, description, c);
+      });
     });
     bounds_ = renderer_->bounds();
     context_.budget_host_memory(o);  // again, now that the last chunk is let go

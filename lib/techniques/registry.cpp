@@ -241,8 +241,12 @@ std::optional<std::string> data_does_not_fit(const TechniqueOptions& o, uint64_t
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,
                      const std::string& group, const std::string& data) {
   const auto provenance = cache.provenance(group);
-  if (!provenance) return;
-  if (auto why = data_does_not_fit(o, provenance->memory_bytes, data))
+  if (provenance) check_bytes_fit(info, o, provenance->memory_bytes, data);
+}
+
+void check_bytes_fit(const TechniqueInfo& info, const TechniqueOptions& o, uint64_t bytes,
+                     const std::string& data) {
+  if (auto why = data_does_not_fit(o, bytes, data))
     throw BudgetExceeded(info.name + ": " + *why + "; raise --memory-budget");
 }
 

@@ -44,6 +44,7 @@ class Rtx : public PreparedTechnique {
       lines_ = load_lines(cache);
       const auto [radius, attribute] =
           curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
+      check_bytes_fit(info, o, capsule_segments_bytes(lines_), "capsule segments");
       capsules_ = build_capsule_segments(lines_, radius, attribute);
       bounds_ = compute_bounds(lines_);
       for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;

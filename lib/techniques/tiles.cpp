@@ -59,6 +59,9 @@ class Tiles : public PreparedTechnique {
         renderer_.emplace(
             *context_, description, load_tube_counts(cache),
             [&](size_t c) {
+              check_bytes_fit(info, o, tube_chunk_bytes(cache, description, c),
+                              "tube mesh's buffers of chunk " + std::to_string(c) +
+                                  " (bake --chunk-bytes sets a chunk's size)");
               TubeChunk chunk = load_tube_chunk(cache, description, c);
               include_points(
                   bounds_, std::span<const float>(chunk.positions.data(), chunk.positions.size()));
@@ -73,6 +76,11 @@ class Tiles : public PreparedTechnique {
           cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
       const auto [radius, attribute] =
           curve_defaults(o.radius, o.attribute, tube_provenance, lines);
+      check_bytes_fit(
+          info, o,
+          capsule_segments_bytes(lines) +
+              vk::TileRenderer::capsule_upload_bytes(lines.point_count(), lines.segment_count()),
+          "capsule segments (with their copy for the upload)");
       const CapsuleSegments capsules = build_capsule_segments(lines, radius, attribute);
       bounds_ = compute_bounds(lines);
       for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;

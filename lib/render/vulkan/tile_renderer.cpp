@@ -297,6 +297,10 @@ TileRenderer::TileRenderer(Context& context, const CapsuleSegments& capsules,
   // One array of points and one of segment words over all chunks (words re-based).
   std::vector<float> points;
   std::vector<uint32_t> words;
+  uint64_t point_values = 0;
+  for (const CapsuleChunk& chunk : capsules.chunks) point_values += chunk.points.size();
+  points.reserve(point_values);  // exactly: capsule_upload_bytes
+  words.reserve(capsules.segment_count());
   for (const CapsuleChunk& chunk : capsules.chunks) {
     const uint64_t base = points.size() / 4;
     if (base + chunk.points.size() / 4 >= (uint64_t{1} << 30))

@@ -110,6 +110,11 @@ class TileRenderer {
   // storage buffer, `slice_keys` > 0 sets the keys per tile per composite dispatch (tests; by
   // default 2,048 on lavapipe, whose invocations stop after 65535 loop iterations, else all);
   // `sort_subgroups` false keeps the key sort on its shared-memory path (radix_sort.hpp).
+  // What the constructor holds on the host besides the capsules while it uploads them (their
+  // points and segment words merged over the chunks), for a budget's check before building.
+  static uint64_t capsule_upload_bytes(uint64_t points, uint64_t segments) {
+    return 16 * points + 4 * segments;
+  }
   TileRenderer(Context& context, const CapsuleSegments& capsules, uint64_t max_buffer_bytes = 0,
                uint32_t slice_keys = 0, bool sort_subgroups = true,
                WindowLoops window_loops = WindowLoops::by_device);
