@@ -36,8 +36,10 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
                    hid_t file_type, hid_t memory_type, const void* data,
                    std::vector<hsize_t> dims) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  H5Pset_obj_track_times(dcpl, false);  // the same input, the same bytes: no write times
   Handle dataset(
-      H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+      H5Dcreate2(location, name.c_str(), file_type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
       H5Dclose);
   if (!dataset.valid())
     throw OutputError(path, "cannot create dataset " + name + ": " + h5::last_error());
@@ -300,6 +302,7 @@ std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions
 void write_hdf5(const LineSet& lines, const std::string& path, const WriteOptions& options) {
   h5::init();
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  H5Pset_obj_track_times(fcpl, false);  // nor for the root group
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG);  // an error path closes everything in the file
   Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl), H5Fclose);
@@ -316,6 +319,7 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
     // Creation order is tracked so attributes read back in the order written.
     Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
     H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
+    H5Pset_obj_track_times(gcpl, false);
     Handle g(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
     if (!g.valid()) throw OutputError(path, std::string("cannot create group ") + group);
     for (const Attribute& a : list)

@@ -28,6 +28,9 @@ done
 check "info text" bash -c "'$bin' info '$tmp/c.binlines' | grep -q 'segments    495000'"
 check "info of a synth source" bash -c "'$bin' info 'synth:aneurysm?scale=0.002&seed=5' | grep -q 'segments    4600'"
 
+# The same input, the same bytes: an HDF5 line file written a second later is the same file (no
+# object write times in its headers).
+check "convert to .h5 twice, a second apart: the same bytes" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/t1.h5' 2>/dev/null && sleep 1.1 && '$bin' convert '$tmp/c.binlines' -o '$tmp/t2.h5' 2>/dev/null && cmp '$tmp/t1.h5' '$tmp/t2.h5'"
 # every writable format and back gives the same bytes
 for ext in obj vtk h5 csv vtp binlines; do
   check "convert to $ext" "$bin" convert "$tmp/c.binlines" -o "$tmp/c2.$ext"
@@ -82,6 +85,11 @@ cp "$tmp/c.binlines" "$tmp/victim.binlines"
 refused_keeps "bench bake with -o naming its input is refused, the input kept" "$tmp/victim.binlines" \
   "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
 check "standard output that cannot be written fails the command (exit 3)" bash -c "'$bin' info '$tmp/c.binlines' --json > /dev/full 2> '$tmp/full.err'; [ \$? -eq 3 ] && grep -q 'standard output: a write failed' '$tmp/full.err'"
+# The 71 MiB tube mesh (one chunk) does not fit what these budgets leave: refused before it is
+# read, with the figures, not left to grow (depth-complexity loaded it unchecked; ll read the
+# whole chunk before the budget saw it).
+check "depth-complexity: a mesh past the budget is refused before it is read (exit 4)" bash -c "'$bin' depth-complexity '$tmp/c.lbc.h5' --size 24x16 -o '$tmp/dcb.png' --memory-budget 50M 2> '$tmp/dcb.err'; [ \$? -eq 4 ] && grep -q \"tube mesh's buffers take 71.19 MiB\" '$tmp/dcb.err' && [ ! -e '$tmp/dcb.png' ]"
+check "ll: a tube chunk past what the budget leaves is refused before it is read (exit 4)" bash -c "'$bin' render '$tmp/c.lbc.h5' --technique ll --size 24x16 -o '$tmp/llb.png' --memory-budget 120M 2> '$tmp/llb.err'; [ \$? -eq 4 ] && grep -q \"chunk 0 (bake --chunk-bytes sets a chunk's size) take 71.19 MiB\" '$tmp/llb.err'"
 check "new sides rebuild tubes only" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: up to date, reused linebake: tubes: built'"
 check "--compression applies to /lines as well" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/c.lbc.h5' --tube-sides 4 --compression deflate 2>&1 >/dev/null | tr '\n' ' ' | grep -q 'lines: built linebake: tubes: built' && h5dump -p -H -d /lines/points '$tmp/c.lbc.h5' | grep -q DEFLATE"
 check "report markdown" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep -q '^| c | 5,153 | 495,000 |'"

@@ -50,6 +50,9 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
     if (!args.depth_image.empty() && !frame.depth_complexity.empty())
       write_png_counts(frame.depth_complexity, options.width, options.height,
                        frame_path(args.depth_image, number, numbered));
+    if (!args.depth_image.empty() && frame.depth_complexity.empty() && i == 0)
+      warn(args.technique + ": counts no hits per pixel, so --depth-complexity writes nothing " +
+           "(`linebake depth-complexity` counts the tube mesh's fragments)");
     nlohmann::json entry = frame.stats;
     entry["frame"] = number;
     entry["seconds"] = frame.seconds;

@@ -170,6 +170,9 @@ void CacheWriter::open(hid_t fapl) {
     require_filter(kBloscFilter, "blosc-zstd", "hdf5-filter-plugin-blosc-serial");
   Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
   H5Pset_link_creation_order(fcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
+  // No write times in the objects' headers: the datasets of the same input and options are the
+  // same bytes, and so is the file but for the provenance.
+  H5Pset_obj_track_times(fcpl, false);
   // Closing the file closes every object still open in it: an error path that leaves a dataset
   // open must not keep the file open until HDF5's shutdown at exit, which then flushes it to a
   // full disk (and crashes in 1.10).
@@ -209,11 +212,21 @@ void CacheWriter::set_progress(ProgressFn progress, uint64_t total_bytes) {
 
 void CacheWriter::create_group(const std::string& group) {
   if (H5Lexists(h5_, group.c_str(), H5P_DEFAULT) > 0) return;
-  Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
-  H5Pset_create_intermediate_group(lcpl, 1);
+  // The missing groups above it as HDF5's intermediate groups are (members by name), but made
+  // here: HDF5 gives its own intermediate groups write times.
+  for (size_t slash = group.find('/', 1); slash != std::string::npos;
+       slash = group.find('/', slash + 1)) {
+    const std::string parent = group.substr(0, slash);
+    if (H5Lexists(h5_, parent.c_str(), H5P_DEFAULT) > 0) continue;
+    Handle plain(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+    H5Pset_obj_track_times(plain, false);
+    Handle g(H5Gcreate2(h5_, parent.c_str(), H5P_DEFAULT, plain, H5P_DEFAULT), H5Gclose);
+    if (!g.valid()) throw OutputError(path(), "cannot create group " + parent);
+  }
   Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
   H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
-  Handle g(H5Gcreate2(h5_, group.c_str(), lcpl, gcpl, H5P_DEFAULT), H5Gclose);
+  H5Pset_obj_track_times(gcpl, false);
+  Handle g(H5Gcreate2(h5_, group.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
   if (!g.valid()) throw OutputError(path(), "cannot create group " + group);
 }
 
@@ -517,6 +530,7 @@ DatasetStream CacheWriter::open_stream(const std::string& dataset, hid_t type, s
   const hsize_t dims[2] = {rows, s->columns};
   Handle space(H5Screate_simple(s->rank, dims, nullptr), H5Sclose);
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  H5Pset_obj_track_times(dcpl, false);
   s->chunked = compression_ != Compression::None && rows > 0;
   if (s->chunked) {
     // About 1 MiB per chunk: large enough for the codecs, small enough for HDF5's chunk cache.

@@ -1,6 +1,7 @@
 #include "pipeline/bake.hpp"
 
 #include <sys/stat.h>
+#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_invoke.h>
 
@@ -24,6 +25,14 @@
 #include "synth/synth.hpp"
 
 namespace linebake {
+
+uint64_t build_threads() {
+  // The machine's, or fewer under a tbb::global_control (bench --threads).
+  const size_t allowed =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  return std::min<uint64_t>(uint64_t(tbb::info::default_concurrency()), uint64_t(allowed));
+}
+
 namespace {
 
 // Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
@@ -36,7 +45,7 @@ constexpr uint64_t kEmbreeVersion = 1;
 constexpr uint64_t kRtxVersion = 1;
 
 uint64_t threads() {
-  return static_cast<uint64_t>(tbb::info::default_concurrency());
+  return build_threads();
 }
 
 // The input's identity: its bytes (each file's hash, from `file_hashes` where given), or for a

@@ -143,4 +143,7 @@ nlohmann::json to_json(const EmbreeOptions& embree, const TubeOptions& tubes);
 StoredCurves embree_curves(const BakeOptions& options, const LineSet& header,
                            const LineSetStats& stats);
 
+// The threads the builders may use, as the provenance records them.
+uint64_t build_threads();
+
 }  // namespace linebake

@@ -1,7 +1,6 @@
 #include "pipeline/bake_mpi.hpp"
 
 #include <hdf5.h>
-#include <tbb/info.h>
 
 #include <algorithm>
 #include <chrono>
@@ -389,7 +388,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     const auto finish = [&](Provenance& p, const std::string& step) {
       p.step = step;
       p.created = utc_now_iso8601();
-      p.threads = uint64_t(tbb::info::default_concurrency());
+      p.threads = build_threads();
       p.compression = to_string(options.compression);
       p.memory_budget = budget_bytes;
       p.build.wall_s = seconds_since(build_start) + read_s;
