@@ -31,6 +31,10 @@ check "info of a synth source" bash -c "'$bin' info 'synth:aneurysm?scale=0.002&
 # The same input, the same bytes: an HDF5 line file written a second later is the same file (no
 # object write times in its headers).
 check "convert to .h5 twice, a second apart: the same bytes" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/t1.h5' 2>/dev/null && sleep 1.1 && '$bin' convert '$tmp/c.binlines' -o '$tmp/t2.h5' 2>/dev/null && cmp '$tmp/t1.h5' '$tmp/t2.h5'"
+# convert streams into .binlines in bounded memory; a format written whole (or read whole) is held
+# within --memory-budget, refused with the figures before anything is written.
+check "convert to .binlines under a 40M budget streams: the same bytes" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/stream.binlines' --memory-budget 40M 2>/dev/null && cmp '$tmp/c.binlines' '$tmp/stream.binlines'"
+check "convert to .vtp past a 40M budget is refused (exit 4), nothing written" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/big.vtp' --memory-budget 40M 2> '$tmp/big.err'; [ \$? -eq 4 ] && grep -q 'vtp is written whole: the first .* points take .* with writing them, more than the memory budget of 40.00 MiB leaves' '$tmp/big.err' && [ ! -e '$tmp/big.vtp' ]"
 # every writable format and back gives the same bytes
 for ext in obj vtk h5 csv vtp binlines; do
   check "convert to $ext" "$bin" convert "$tmp/c.binlines" -o "$tmp/c2.$ext"
