@@ -41,6 +41,10 @@ for ext in obj vtk h5 csv vtp binlines; do
   check "convert back from $ext" "$bin" convert "$tmp/c2.$ext" -o "$tmp/back-$ext.binlines"
   check "$ext round trip is exact" cmp "$tmp/c.binlines" "$tmp/back-$ext.binlines"
 done
+# info reads a streamable file a batch at a time and a VTP whole: the same statistics and
+# validation (an independent path: compute_stats over the whole set).
+info_body() { "$bin" info "$1" --json | python3 -c "import json, sys; d = json.load(sys.stdin); [d.pop(k) for k in ('source', 'format', 'metadata')]; print(json.dumps(d, sort_keys=True))"; }
+check "info streamed (binlines, h5) and whole (vtp): the same figures" bash -c "$(declare -f info_body); bin='$bin'; a=\$(info_body '$tmp/c.binlines') && [ \"\$a\" = \"\$(info_body '$tmp/c2.vtp')\" ] && [ \"\$a\" = \"\$(info_body '$tmp/c2.h5')\" ]"
 check "convert X X is refused, X unchanged" bash -c "cp '$tmp/c.binlines' '$tmp/same.binlines'; '$bin' convert '$tmp/same.binlines' -o '$tmp/same.binlines' 2> '$tmp/same.err'; [ \$? -eq 3 ] && grep -q 'never replaces its input' '$tmp/same.err' && cmp '$tmp/c.binlines' '$tmp/same.binlines'"
 check "vtk ascii round trip" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/a.vtk' --ascii && '$bin' convert '$tmp/a.vtk' -o '$tmp/a.binlines' && cmp '$tmp/c.binlines' '$tmp/a.binlines'"
 check "format override" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/c.data' --to hdf5 && '$bin' info '$tmp/c.data' --from hdf5 | grep -q 495000"
@@ -88,6 +92,7 @@ refused_keeps "export: a .gltf whose .bin would be the cache is refused" "$tmp/m
 cp "$tmp/c.binlines" "$tmp/victim.binlines"
 refused_keeps "bench bake with -o naming its input is refused, the input kept" "$tmp/victim.binlines" \
   "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
+check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 200M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 284.77 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
 check "standard output that cannot be written fails the command (exit 3)" bash -c "'$bin' info '$tmp/c.binlines' --json > /dev/full 2> '$tmp/full.err'; [ \$? -eq 3 ] && grep -q 'standard output: a write failed' '$tmp/full.err'"
 # The 71 MiB tube mesh (one chunk) does not fit what these budgets leave: refused before it is
 # read, with the figures, not left to grow (depth-complexity loaded it unchecked; ll read the

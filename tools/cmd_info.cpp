@@ -6,10 +6,13 @@
 
 #include "cli_contract.hpp"
 #include "commands.hpp"
+#include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "lines/line_info.hpp"
+#include "lines/line_reader.hpp"
 #include "lines/validate.hpp"
+#include "synth/synth.hpp"
 
 namespace linebake::cli {
 
@@ -27,20 +30,38 @@ Command add_info(CLI::App& app) {
     check_input_file(args->input);
     ReadOptions read;
     if (!args->from.empty()) read.format = parse_format(args->from);
-    LineSet lines;
+    // Statistics and validation gathered a batch (a million points) at a time: the set is never
+    // held whole, but by the formats that cannot be read piece by piece (OBJ, VTK, VTP).
+    LineSetStats s;
+    ValidationReport v;
+    std::map<std::string, std::string> metadata;
     {
       TerminalProgress progress("reading");
       read.progress = progress.callback();
-      lines = read_line_set(args->input, read);
+      const std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
+      metadata = input->header().metadata;
+      if (std::optional<LineSet> whole = input->take_whole()) {
+        s = compute_stats(*whole);
+        v = inspect(*whole);
+        metadata = whole->metadata;
+      } else {
+        LineStatsBuilder builder(input->header());
+        LineSet batch;
+        while (input->next(batch, uint64_t{1} << 20)) {
+          throw_if_interrupted();
+          builder.add(batch);
+          v.add(inspect(batch));
+        }
+        s = builder.stats();
+      }
     }
+    if (!synth::is_synth_source(args->input)) metadata.emplace("source", args->input);
     if (args->json) {
       const nlohmann::json j =
-          line_set_info(lines, args->input, source_format_name(args->input, read));
+          line_set_info(s, v, metadata, args->input, source_format_name(args->input, read));
       std::cout << j.dump(2) << "\n";
       return;
     }
-    const LineSetStats s = compute_stats(lines);
-    const ValidationReport v = inspect(lines);
     std::printf("source      %s (%s)\n", args->input.c_str(),
                 source_format_name(args->input, read).c_str());
     std::printf("lines       %llu\n", static_cast<unsigned long long>(s.lines));

@@ -17,8 +17,12 @@ nlohmann::json string_or_null(const std::string& s) {
 
 nlohmann::json line_set_info(const LineSet& lines, const std::string& source,
                              const std::string& format) {
-  const LineSetStats s = compute_stats(lines);
-  const ValidationReport v = inspect(lines);
+  return line_set_info(compute_stats(lines), inspect(lines), lines.metadata, source, format);
+}
+
+nlohmann::json line_set_info(const LineSetStats& s, const ValidationReport& v,
+                             const std::map<std::string, std::string>& metadata,
+                             const std::string& source, const std::string& format) {
   nlohmann::json j;
   j["linebake_version"] = LINEBAKE_VERSION;
   j["source"] = string_or_null(source);
@@ -43,7 +47,7 @@ nlohmann::json line_set_info(const LineSet& lines, const std::string& source,
                      {"short_lines", v.short_lines},
                      {"attribute_length_mismatches", v.attribute_length_mismatches},
                      {"nonfinite_attribute_values", v.nonfinite_attribute_values}};
-  j["metadata"] = lines.metadata;
+  j["metadata"] = metadata;
   return j;
 }
 
