@@ -20,6 +20,7 @@
 #include "lines/line_reader.hpp"
 #include "lines/validate.hpp"
 #include "synth/synth.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 
@@ -38,20 +39,6 @@ bool add_derived(LineSet& lines, const std::string& name) {
       }
   (is_line_attribute(name) ? lines.line_attributes : lines.attributes).push_back(std::move(a));
   return replaced;
-}
-
-// What writing a format whole takes besides the lines it holds, as a multiple of their bytes
-// (measured on convection at scale 0.2, 2 million segments: vtp's compressed blocks and their
-// encoding 3.4, vtk 1.6, obj, csv and h5 1.1); .binlines streams and takes none.
-double writing_overhead(Format format) {
-  switch (format) {
-    case Format::vtp:
-      return 3.5;
-    case Format::vtk:
-      return 1.75;
-    default:
-      return 1.25;
-  }
 }
 
 // Points per batch: a sixteenth of what the budget leaves (at 16 bytes a point with one
@@ -161,41 +148,27 @@ Command add_convert(CLI::App& app) {
     // they come, in bounded memory; the other formats are written whole at the end, and their
     // lines are held within --memory-budget (refused with the figures past it, before anything
     // is written). Formats that cannot be read piece by piece are read whole first.
-    const MemoryBudget budget(args->memory_budget == "unlimited" ? 0
-                              : args->memory_budget.empty()      ? default_memory_budget()
-                                                                 : parse_size(args->memory_budget));
+    const MemoryBudget budget(memory_budget_bytes(args->memory_budget));
     const InvalidPolicy policy = parse_invalid_policy(args->on_invalid);
     TerminalProgress progress("converting");
     read.progress = progress.callback();
-    const uint64_t before = trimmed_rss_bytes();  // what the process held before any lines
-    std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
-    ValidationReport report;
-    std::optional<LineSet> whole;
     // The lines held whole (a format read whole, or an output written whole), with what writing
     // them takes, within what the budget left before them; past it, refused with the figures
     // before anything is written.
-    const bool output_streams = *write.format == Format::binlines;  // open_line_writer's
-    const double writing = output_streams ? 0.0 : writing_overhead(*write.format);
-    const auto check_held = [&](uint64_t held, uint64_t points, double overhead,
-                                const std::string& why) {
-      const uint64_t needed = held + uint64_t(double(held) * overhead);
-      if (budget.unlimited() || before + needed <= budget.total()) return;
-      throw BudgetExceeded(args->input + ": " + why + " " + std::to_string(points) +
-                           " points take " + format_bytes(held) +
-                           (overhead > 0 ? ", about " + format_bytes(needed) + " with writing them"
-                                         : std::string()) +
-                           ", more than the memory budget of " + format_bytes(budget.total()) +
-                           " leaves (" +
-                           format_bytes(budget.total() > before ? budget.total() - before : 0) +
-                           "); convert to .binlines (written as it is read), or raise "
-                           "--memory-budget");
-    };
+    const WholeOutput whole_output(args->memory_budget, *write.format);
+    const std::string advice = "convert to .binlines (written as it is read)";
+    std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
+    ValidationReport report;
+    std::optional<LineSet> whole;
     if (!input->streams()) {
       whole = input->take_whole();
       // Held whole, and again by an output written whole (its copy, and the writing).
-      check_held(line_set_bytes(*whole), whole->point_count(), output_streams ? 0.0 : 1.0 + writing,
-                 std::string(format_info(resolve_input_format(args->input, read.format)).name) +
-                     " is read whole: its");
+      whole_output.check(
+          line_set_bytes(*whole), whole->point_count(),
+          whole_output.streams() ? 0.0 : 1.0 + whole_output.writing(), args->input,
+          std::string(format_info(resolve_input_format(args->input, read.format)).name) +
+              " is read whole: its",
+          advice);
       report = validate(*whole, policy, args->input);
       input = MemoryLineReader::view(*whole);
     }
@@ -229,8 +202,10 @@ Command add_convert(CLI::App& app) {
       if (!output->streams()) {
         held += line_set_bytes(batch);
         if (!whole)
-          check_held(held, points, writing,
-                     std::string(format_info(*write.format).name) + " is written whole: the first");
+          whole_output.check(
+              held, points, whole_output.writing(), args->input,
+              std::string(format_info(*write.format).name) + " is written whole: the first",
+              advice);
       }
       output->write(batch);
     }

@@ -18,6 +18,7 @@
 #include "formats/gltf.hpp"
 #include "formats/vdb.hpp"
 #include "render/transfer_function.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 namespace {
@@ -46,8 +47,7 @@ template <class Args>
 void check_export_memory(const Args& args, const CacheReader& cache) {
   if (args.memory_budget == "unlimited") return;
   trimmed_rss_bytes();
-  const MemoryBudget budget(args.memory_budget.empty() ? default_memory_budget()
-                                                       : parse_size(args.memory_budget));
+  const MemoryBudget budget(memory_budget_bytes(args.memory_budget));
   const auto bytes_of = [&](const std::string& group) -> uint64_t {
     const auto provenance = cache.exists(group) ? cache.provenance(group) : std::nullopt;
     return provenance ? provenance->memory_bytes : 0;

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <iostream>
 
+#include "cache/line_store.hpp"
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
@@ -11,6 +12,7 @@
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "synth/synth.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 
@@ -20,7 +22,7 @@ Command add_synth(CLI::App& app) {
                                  "turbulence, clouds)");
   struct Args {
     synth::SynthParams params;
-    std::string output, to;
+    std::string output, to, memory_budget;
     bool adaptive = false;
   };
   auto args = std::make_shared<Args>();
@@ -35,6 +37,10 @@ Command add_synth(CLI::App& app) {
   sub->add_option("--seed", args->params.seed, "Random seed (default 1)");
   sub->add_flag("--adaptive", args->adaptive, "Adaptive RK4 step (default: fixed step)");
   sub->add_option("--to", args->to, "Output format, overriding the extension");
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "Resident memory at most, e.g. 8G (default: half of physical memory); "
+                  "unlimited")
+      ->check(byte_size());
   return [args] {
     args->params.adaptive = args->adaptive;
     const auto start = std::chrono::steady_clock::now();
@@ -50,11 +56,23 @@ Command add_synth(CLI::App& app) {
         synth::open_generator(args->params, progress.callback());
     const std::unique_ptr<LineWriter> writer =
         open_line_writer(args->output, generator->header(), write);
+    // Collected for a format written whole: held within --memory-budget with what writing it
+    // takes, refused with the figures past it, before anything is written.
+    const WholeOutput whole(args->memory_budget, resolve_output_format(args->output, write.format));
     LineSet batch;
-    uint64_t segments = 0;
+    uint64_t segments = 0, points = 0, held = 0;
     while (generator->next(batch, uint64_t{1} << 20)) {
       throw_if_interrupted();
       segments += batch.segment_count();
+      points += batch.point_count();
+      if (!whole.streams()) {
+        held += line_set_bytes(batch);
+        whole.check(
+            held, points, whole.writing(), args->output,
+            std::string(format_info(resolve_output_format(args->output, write.format)).name) +
+                " is written whole: the first",
+            "write .binlines (written as it is generated)");
+      }
       writer->write(batch);
     }
     writer->close();
