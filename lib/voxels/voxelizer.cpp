@@ -13,6 +13,7 @@
 
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/measure.hpp"
 #include "core/spill_file.hpp"
 
 #if defined(__SSE2__)
@@ -398,7 +399,10 @@ void VoxelStreamBuilder::State::emit(const Piece& p, uint32_t line, bool first_i
 // mix freely: the merge reads each where it is. Returns where the run's records are to be put.
 Record* VoxelStreamBuilder::State::place_run(Run& run, uint64_t count) {
   const uint64_t bytes = count * sizeof(Record);
-  if (held_bytes + bytes > memory.records_bytes && !memory.spill_near.empty()) {
+  const bool past_share = held_bytes + bytes > memory.records_bytes;
+  const bool past_resident =
+      memory.resident_limit > 0 && current_rss_bytes() + bytes > memory.resident_limit;
+  if ((past_share || past_resident) && !memory.spill_near.empty()) {
     if (!spill) spill = std::make_unique<SpillFile>(memory.spill_near, "voxels-spill");
     run.spilled = true;
     if (spill_buffer.size() < count) spill_buffer = Array<Record>(count);

@@ -66,6 +66,10 @@ struct VoxelMemory {
   std::string spill_near;  // "" : never spill
   uint64_t records_bytes = UINT64_MAX;
   uint64_t merge_bytes = uint64_t{1} << 30;
+  // A run is spilled, too, when the process's resident memory with it would pass this (0:
+  // never): a guard for what the shares above do not count (another step's buffers side by
+  // side, the allocator's slack). Where the records go does not change the grid.
+  uint64_t resident_limit = 0;
 };
 
 // A chord on its way to its voxel: what walking a line makes, and what the ranks of a
