@@ -592,6 +592,45 @@ TEST(Camera, KeyframesInterpolateAndBadFilesNameThePlace) {
   } catch (const InputError& e) {
     EXPECT_EQ(e.where(), "keyframe 0");
   }
+  // An up along the view direction makes no camera (its rays would be NaN): refused, naming
+  // the keyframe and the reason.
+  const std::string parallel = dir.file("parallel.json");
+  std::ofstream(parallel) << R"({"keyframes": [{"eye": [0, 0, 10], "target": [0, 0, 0]},
+                                 {"eye": [0, 3, 0], "target": [0, 0, 0], "up": [0, 2, 0]}]})";
+  o.keyframes_file = parallel;
+  try {
+    make_flight(b, 1.0, o);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "keyframe 1");
+    EXPECT_NE(std::string(e.what()).find("up lies along the view direction"), std::string::npos);
+  }
+}
+
+// Each thing that makes a camera unusable, by hand, and a good one.
+TEST(Camera, ProblemsAreNamed) {
+  Camera c;
+  EXPECT_EQ(camera_problem(c), "");
+  Camera on = c;
+  on.eye = on.target;
+  EXPECT_EQ(camera_problem(on), "the eye is on the target");
+  Camera nan = c;
+  nan.eye.x = std::nan("");
+  EXPECT_EQ(camera_problem(nan), "eye, target and up must be finite numbers (below 1e150)");
+  Camera huge = c;
+  huge.eye.z = 1e300;
+  EXPECT_EQ(camera_problem(huge), camera_problem(nan));
+  Camera flat = c;
+  flat.up = {0, 0, -3};  // along eye - target
+  EXPECT_EQ(camera_problem(flat), "up lies along the view direction");
+  Camera zero = c;
+  zero.up = {0, 0, 0};
+  EXPECT_EQ(camera_problem(zero), "up has zero length");
+  for (double fov : {0.0, 180.0, -30.0, std::nan("")}) {
+    Camera f = c;
+    f.fov_y_degrees = fov;
+    EXPECT_EQ(camera_problem(f), "fov must be in (0, 180) degrees") << fov;
+  }
 }
 
 TEST(TransferFunction, PresetsAndJsonRoundTrip) {

@@ -32,6 +32,10 @@ void init() {
       if (dir[0] && std::filesystem::is_directory(dir, ec)) H5PLappend(dir);
     }
   });
+  // HDF5's error printing is a per-thread setting in a thread-safe build: turned off on each
+  // thread that reaches HDF5 through here (Python threads baking printed HDF5-DIAG stacks).
+  thread_local bool quiet = false;
+  if (!quiet) H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr), quiet = true;
 }
 
 bool is_hdf5_file(const std::string& path) {

@@ -10,6 +10,22 @@
 #include "core/json_file.hpp"
 
 namespace linebake {
+
+std::string camera_problem(const Camera& c) {
+  const auto usable = [](const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && glm::length(v) < 1e150;
+  };
+  if (!usable(c.eye) || !usable(c.target) || !usable(c.up))
+    return "eye, target and up must be finite numbers (below 1e150)";
+  const glm::dvec3 view = c.target - c.eye;
+  if (!(glm::length(view) > 0)) return "the eye is on the target";
+  if (!(glm::length(c.up) > 0)) return "up has zero length";
+  if (glm::length(glm::cross(glm::normalize(view), glm::normalize(c.up))) < 1e-9)
+    return "up lies along the view direction";
+  if (!(c.fov_y_degrees > 0 && c.fov_y_degrees < 180)) return "fov must be in (0, 180) degrees";
+  return "";
+}
+
 namespace {
 
 double radians(double degrees) {
@@ -64,9 +80,8 @@ std::vector<Camera> read_keyframes(const std::string& file) {
     if (k.contains("fov") && !k["fov"].is_number())
       throw InputError(file, "keyframe " + std::to_string(i), "fov: expected a number");
     c.fov_y_degrees = k.value("fov", 40.0);
-    if (glm::length(c.target - c.eye) == 0 || !(c.fov_y_degrees > 0 && c.fov_y_degrees < 180))
-      throw InputError(file, "keyframe " + std::to_string(i),
-                       "eye equals target, or fov is outside (0, 180)");
+    if (const std::string problem = camera_problem(c); !problem.empty())
+      throw InputError(file, "keyframe " + std::to_string(i), problem);
     keys.push_back(c);
   }
   return keys;

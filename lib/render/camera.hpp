@@ -28,6 +28,12 @@ struct Camera {
   glm::dvec3 forward() const { return glm::normalize(target - eye); }
 };
 
+// What makes `camera` unusable, or "" when nothing does: a coordinate that is not finite (or so
+// large that the view's arithmetic overflows), an eye on its target, an up of zero length or
+// along the view direction, a field of view outside (0, 180) degrees. Renderers are handed only
+// cameras without one (Embree asserts on the NaN rays the others would make).
+std::string camera_problem(const Camera& camera);
+
 // The camera that looks at the centre of `bounds` from direction (azimuth, elevation), at the
 // nearest distance where the whole box fits the view from every azimuth at this elevation (plus
 // 5%), times `distance_scale`: an orbit keeps one distance and elongated data fills the frame.

@@ -265,18 +265,18 @@ PyCache::PyCache(const std::string& path) : path_(path) {
 }
 
 const TubeMesh& PyCache::tubes() {
-  if (!tubes_) {  // load_tubes says what is missing, as the CLI does
-    py::gil_scoped_release unlocked;
-    tubes_ = std::make_shared<TubeMesh>(load_tubes(*reader_));
-  }
+  py::gil_scoped_release unlocked;
+  const std::lock_guard<std::mutex> once(*load_);
+  // load_tubes says what is missing, as the CLI does
+  if (!tubes_) tubes_ = std::make_shared<TubeMesh>(load_tubes(*reader_));
   return *tubes_;
 }
 
 const VoxelGrid& PyCache::voxels() {
-  if (!voxels_) {  // load_voxels says what is missing, as the CLI does
-    py::gil_scoped_release unlocked;
-    voxels_ = std::make_shared<VoxelGrid>(load_voxels(*reader_));
-  }
+  py::gil_scoped_release unlocked;
+  const std::lock_guard<std::mutex> once(*load_);
+  // load_voxels says what is missing, as the CLI does
+  if (!voxels_) voxels_ = std::make_shared<VoxelGrid>(load_voxels(*reader_));
   return *voxels_;
 }
 

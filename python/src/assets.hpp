@@ -2,6 +2,7 @@
 // An asset cache opened from Python, shared by the asset and the rendering bindings.
 
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "cache/cache.hpp"
@@ -25,6 +26,9 @@ class PyCache {
   std::shared_ptr<CacheReader> reader_;
   std::shared_ptr<TubeMesh> tubes_;
   std::shared_ptr<VoxelGrid> voxels_;
+  // The first tubes() or voxels() loads (with the GIL released); threads that ask at once wait
+  // for that load and get the same memory (a shared_ptr assigned from two threads crashed).
+  std::shared_ptr<std::mutex> load_ = std::make_shared<std::mutex>();
 };
 
 }  // namespace linebake::python

@@ -144,7 +144,8 @@ void write(const PyLineSet& set, const std::string& path, const std::optional<st
     const std::string message = path + ": " + format_info(*options.format).name + " cannot hold " +
                                 name_list(lost) + "; they are not written";
     if (strict) throw Error(message + " (strict)");
-    PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1);
+    // A warnings filter may turn the warning into an error: then nothing is written.
+    if (PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1) != 0) throw py::error_already_set();
   }
   py::gil_scoped_release unlocked;
   write_line_set(set.lines, path, options);

@@ -63,6 +63,9 @@ PYBIND11_MODULE(linebake, module) {
       "linebake: 3D line sets (streamlines, trajectories) to tube meshes, voxel grids and asset "
       "caches; renders with transparency techniques; PSNR and SSIM.";
   module.attr("__version__") = LINEBAKE_VERSION;
+  // pybind11 looks NumPy's C API up on first use, under a static guard that waits holding the
+  // GIL: threads making their first arrays at once deadlocked. Looked up here, once.
+  (void)py::array_t<float>(0);
   bind_errors(module);
   bind_line_sets(module);
   bind_assets(module);

@@ -120,6 +120,8 @@ Camera camera_from(const py::dict& d) {
   c.target = vec(d["target"]);
   if (d.contains("up")) c.up = vec(d["up"]);
   if (d.contains("fov")) c.fov_y_degrees = d["fov"].cast<double>();
+  if (const std::string problem = camera_problem(c); !problem.empty())
+    throw py::value_error("camera: " + problem);
   return c;
 }
 

@@ -1,6 +1,8 @@
 """bake() and open_cache() against the CLI's `report --json` of the same cache, and the cached
 arrays against figures computed here from the line set."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 
@@ -68,6 +70,19 @@ def test_cached_arrays_are_views(baked):
     expected = np.array(first)
     del opened
     np.testing.assert_array_equal(first, expected)
+
+
+def test_threads_loading_at_once_share_one_load(baked):
+    # Eight threads asking a fresh Cache for its tubes and voxels at once: one load each, the
+    # same memory for all (two threads assigning the lazily loaded mesh crashed).
+    cache, _ = baked
+    for _ in range(3):
+        opened = linebake.open_cache(cache)
+        with ThreadPoolExecutor(8) as pool:
+            tubes = list(pool.map(lambda _: opened.tubes()["chunks"][0]["positions"], range(8)))
+            voxels = list(pool.map(lambda _: opened.voxels()["offsets"], range(8)))
+        assert len({address(a) for a in tubes}) == 1
+        assert len({address(a) for a in voxels}) == 1
 
 
 def test_voxels_match_provenance(baked):

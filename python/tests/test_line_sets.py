@@ -2,6 +2,8 @@
 errors naming the file, CF trajectories written by xarray and netCDF4."""
 
 import os
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -43,6 +45,33 @@ def test_arrays_in_and_out():
     np.testing.assert_array_equal(lines.line_attributes["seed_id"], [7, 8, 9])
     np.testing.assert_array_equal(lines.line(1), points[4:11])
     assert lines.metadata == {"units": "km"}
+
+
+def test_threads_making_the_first_arrays_do_not_deadlock():
+    # In a fresh interpreter, eight threads make the module's first NumPy arrays at once (a line
+    # set's views): pybind11's first lookup of NumPy's API, under a guard that waits holding the
+    # GIL, hung them until the module looked it up at import.
+    script = (
+        "import threading, numpy as np, linebake\n"
+        "points = np.zeros((4, 3), np.float32); offsets = np.array([0, 4], np.uint64)\n"
+        "def make(): linebake.LineSet(points, offsets).points.sum()\n"
+        "threads = [threading.Thread(target=make) for _ in range(8)]\n"
+        "[t.start() for t in threads]; [t.join() for t in threads]\n"
+        "print('done')\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120, env=os.environ)
+    assert done.returncode == 0 and done.stdout.strip() == "done", done.stderr
+
+
+def test_a_warning_made_an_error_writes_nothing(tmp_path):
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes, line_attributes)
+    path = tmp_path / "lines.obj"  # OBJ cannot hold the line attributes: a warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="cannot hold"):
+            linebake.write(lines, str(path))
+    assert not path.exists()
 
 
 @pytest.mark.parametrize("fmt", writable_formats(), ids=lambda f: f["name"])

@@ -65,6 +65,15 @@ def test_renderer_reuses_its_scene(baked):
     np.testing.assert_array_equal(first, again)
     image, stats = renderer.render(camera={"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 30})
     assert stats["frames"][0]["camera"]["eye"] == [0, 0, 5]
+    # A camera no renderer can use is a ValueError naming why (Embree aborted the process on
+    # the NaN rays of an eye on its target).
+    for camera, why in [({"eye": [0, 0, 0], "target": [0, 0, 0]}, "the eye is on the target"),
+                        ({"eye": [0, 0, float("nan")], "target": [0, 0, 0]}, "finite"),
+                        ({"eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 0, 1]},
+                         "along the view direction"),
+                        ({"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 180}, "fov")]:
+        with pytest.raises(ValueError, match=why):
+            renderer.render(camera=camera)
 
 
 def test_availability_is_the_clis(baked):
