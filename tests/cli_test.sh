@@ -94,6 +94,10 @@ refused_keeps "bench bake with -o naming its input is refused, the input kept" "
   "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
 check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 200M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 284.77 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
 check "synth to a format written whole past the budget is refused (exit 4), nothing written" bash -c "'$bin' synth convection --scale 0.1 -o '$tmp/sb.vtp' --memory-budget 40M 2> '$tmp/sb.err'; [ \$? -eq 4 ] && grep -q 'vtp is written whole: the first .* points take .*, more than the memory budget of 40.00 MiB leaves' '$tmp/sb.err' && [ ! -e '$tmp/sb.vtp' ]"
+# An output that is not a regular file is not renamed over (as root, /dev/null would have become
+# a file); a symbolic link is written through and stays a link.
+check "convert onto a FIFO is refused (exit 3), the FIFO kept" bash -c "mkfifo '$tmp/fifo.binlines' && '$bin' convert '$tmp/c.binlines' -o '$tmp/fifo.binlines' 2> '$tmp/fifo.err'; [ \$? -eq 3 ] && grep -q 'is not a regular file' '$tmp/fifo.err' && [ -p '$tmp/fifo.binlines' ]"
+check "convert onto a symbolic link writes the file it names, the link kept" bash -c "mkdir -p '$tmp/real' && ln -sf '$tmp/real/target.binlines' '$tmp/link.binlines' && '$bin' convert '$tmp/c.binlines' -o '$tmp/link.binlines' 2>/dev/null && [ -L '$tmp/link.binlines' ] && cmp '$tmp/c.binlines' '$tmp/real/target.binlines'"
 check "standard output that cannot be written fails the command (exit 3)" bash -c "'$bin' info '$tmp/c.binlines' --json > /dev/full 2> '$tmp/full.err'; [ \$? -eq 3 ] && grep -q 'standard output: a write failed' '$tmp/full.err'"
 # The 71 MiB tube mesh (one chunk) does not fit what these budgets leave: refused before it is
 # read, with the figures, not left to grow (depth-complexity loaded it unchecked; ll read the

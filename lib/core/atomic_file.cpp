@@ -120,6 +120,7 @@ void refuse_clashing_outputs(const std::vector<std::string>& outputs,
 
 void check_output_location(const std::string& path) {
   if (path.empty()) return;
+  output_target(path);  // a device, FIFO or socket is refused before any work
   const std::filesystem::path p(path);
   const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
   std::error_code ec;
@@ -171,8 +172,28 @@ void sync_directory_of(const std::string& path, const std::string& name) {
                                 std::strerror(error));
 }
 
+std::string output_target(const std::string& path) {
+  std::error_code ec;
+  std::string target = path;
+  // A symbolic link is written through, as editors do: the file it names gets the bytes (its
+  // temporary beside it, so the rename stays on its file system) and the link stays a link.
+  // (Followed link by link: weakly_canonical does not follow a link to a file not yet there.)
+  for (int links = 0; links < 40 && std::filesystem::is_symlink(target, ec); ++links) {
+    const std::filesystem::path link(target), to = std::filesystem::read_symlink(link, ec);
+    if (ec) break;
+    target = (to.is_absolute() ? to : link.parent_path() / to).lexically_normal().string();
+  }
+  const auto status = std::filesystem::status(target, ec);
+  if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
+    throw OutputError(path, std::filesystem::is_directory(status)
+                                ? "is a directory"
+                                : "is not a regular file (a device, FIFO or socket): linebake "
+                                  "writes files, renamed into place when complete");
+  return target;
+}
+
 AtomicFile::AtomicFile(std::string final_path)
-    : final_path_(std::move(final_path)), temp_path_(temporary_name(final_path_)) {
+    : final_path_(output_target(final_path)), temp_path_(temporary_name(final_path_)) {
   remove_stale_temporaries(final_path_);
 }
 

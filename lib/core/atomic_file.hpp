@@ -84,8 +84,13 @@ void refuse_input_as_output(const std::string& output, const std::vector<std::st
 // OutputError when two of them are one file (the later would replace the earlier).
 void refuse_clashing_outputs(const std::vector<std::string>& outputs,
                              const std::vector<std::string>& inputs);
+// Where an output at `path` is written: `path`, or the file a symbolic link there names (the
+// link is kept). Throws OutputError when that exists and is not a regular file (a device such as
+// /dev/null, a FIFO, a socket, a directory): renaming over it would replace it.
+std::string output_target(const std::string& path);
 // Before any work: throws OutputError naming `path` when its directory does not exist or is not
-// writable, or when `path` is a directory. "" passes (no such output).
+// writable, or when `path` is a directory or another file that is not a regular one. "" passes
+// (no such output).
 void check_output_location(const std::string& path);
 // Bytes free for this user on the file system that holds `path` (or would: its directory).
 uint64_t free_bytes_for(const std::string& path);
