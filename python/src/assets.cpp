@@ -14,6 +14,8 @@
 #include "cache/voxel_store.hpp"
 #include "cli_contract.hpp"
 #include "core/atomic_file.hpp"
+#include "formats/registry.hpp"
+#include "synth/synth.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
@@ -221,6 +223,9 @@ py::dict bake_lines(const py::object& lines_or_path, const std::optional<std::st
     if (o.format) throw UsageError("format: read only when baking a file");
     if (!o.dry_run) check_output_location(o.cache);
     const PyLineSet& set = lines_or_path.cast<const PyLineSet&>();
+    // The file the set was read from is its input too: a cache never replaces it.
+    if (!set.source.empty() && !synth::is_synth_source(set.source))
+      refuse_input_as_output(o.cache, {set.source});
     py::gil_scoped_release unlocked;
     temporary.emplace(set, o.cache);
   } else {
@@ -379,6 +384,10 @@ the same memory).)doc")
               py::gil_scoped_release unlocked;
               set->lines = load_lines(c.reader());
             }
+            // Read from the cache: writing or baking it over the cache is refused, as for a
+            // set read from any file.
+            set->source = c.path();
+            set->format = source_format_name(c.path());
             return set;
           },
           "The cached line set (/lines), as a LineSet (a copy).")

@@ -117,6 +117,20 @@ def test_bake_a_line_set_from_arrays(tmp_path):
     assert sum(c["positions"].shape[0] for c in tubes["chunks"]) == 4 * 40
     # The temporary input file is gone.
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arrays.lbc.h5"]
+    # A set read from a file never replaces it: not baked over it, not written over the cache
+    # it came from.
+    before = (tmp_path / "arrays.lbc.h5").read_bytes()
+    from_cache = opened.lines()
+    assert from_cache.source == cache
+    with pytest.raises(linebake.OutputError, match="never replaces its input"):
+        linebake.write(from_cache, cache, format="hdf5")
+    source = str(tmp_path / "source.h5")
+    linebake.write(lines, source)
+    read_back = linebake.read(source)
+    with pytest.raises(linebake.OutputError, match="never replaces its input"):
+        linebake.bake(read_back, source, force=True)
+    assert (tmp_path / "arrays.lbc.h5").read_bytes() == before
+    assert linebake.read(source).same_data(lines)
 
 
 def test_bake_options_are_checked(tmp_path):
