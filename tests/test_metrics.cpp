@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 
 #include "core/error.hpp"
 #include "metrics/image_metrics.hpp"
@@ -67,6 +68,16 @@ TEST(Metrics, MatchScikitImage) {
 TEST(Metrics, RejectMismatchedOrTinyImages) {
   EXPECT_THROW(psnr(constant(0, 16, 16), constant(0, 16, 17)), Error);
   EXPECT_THROW(ssim(constant(0, 10, 10), constant(0, 10, 10)), Error);
+}
+
+// The first non-finite channel is named by its pixel, row by row; a finite image has none.
+TEST(Metrics, NonFinitePixelsAreNamed) {
+  Image image(4, 3, 3);
+  EXPECT_EQ(first_nonfinite_pixel(image), "");
+  image.pixels[3 * (2 * 4 + 1) + 2] = std::numeric_limits<float>::infinity();  // (1, 2), blue
+  EXPECT_EQ(first_nonfinite_pixel(image), "pixel (1, 2)");
+  image.pixels[3 * (0 * 4 + 3) + 0] = std::nanf("");  // (3, 0), red: comes first
+  EXPECT_EQ(first_nonfinite_pixel(image), "pixel (3, 0)");
 }
 
 TEST(Metrics, ErrorImageIsWhiteWhereEqual) {

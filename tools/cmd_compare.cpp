@@ -42,6 +42,10 @@ Command add_compare(CLI::App& app) {
                            ", but the reference " + args->reference + " is " +
                            std::to_string(b.width) + "x" + std::to_string(b.height) +
                            ": images of one size compare");
+    for (const auto& [image, path] : {std::pair(&a, args->image), std::pair(&b, args->reference)})
+      if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
+        throw InputError(path, place,
+                         "not a finite value (NaN or infinity): PSNR and SSIM need finite values");
     const double p = psnr(a, b), s = ssim(a, b);
     if (!args->error_image.empty())
       write_png(error_image(a, b, args->error_scale), args->error_image, 8);

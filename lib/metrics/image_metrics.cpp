@@ -54,6 +54,16 @@ std::vector<double> window_means(const std::vector<double>& plane, int width, in
 
 }  // namespace
 
+std::string first_nonfinite_pixel(const Image& image) {
+  const size_t channels = size_t(std::max(image.channels, 1));
+  for (size_t i = 0; i < image.pixels.size(); ++i)
+    if (!std::isfinite(image.pixels[i])) {
+      const size_t pixel = i / channels, width = size_t(std::max(image.width, 1));
+      return "pixel (" + std::to_string(pixel % width) + ", " + std::to_string(pixel / width) + ")";
+    }
+  return "";
+}
+
 double psnr(const Image& a, const Image& b) {
   require_same_shape(a, b);
   double sum = 0;

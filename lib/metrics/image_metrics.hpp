@@ -2,11 +2,18 @@
 // Image-quality metrics as the paper reports them (techniques.md section 11). Both run on the
 // values as given in [0, 1]: compare display-encoded images with display-encoded ones.
 
+#include <string>
+
 #include "render/image.hpp"
 
 namespace linebake {
 
 constexpr double kPsnrCap = 60.0;  // dB; the paper's value for identical images
+
+// The first pixel, as "pixel (x, y)", with a channel that is not finite (NaN or infinity), or ""
+// when there is none: PSNR and SSIM have no meaning there (a NaN made any image "identical",
+// 60 dB), so callers refuse such an image naming the place.
+std::string first_nonfinite_pixel(const Image& image);
 
 // -10 log10(MSE) over all pixels and channels, capped at 60 dB.
 double psnr(const Image& a, const Image& b);

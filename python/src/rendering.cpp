@@ -258,6 +258,11 @@ py::dict compare(const py::object& a, const py::object& b, bool srgb_encoded) {
     throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
                 ", but the reference is " + std::to_string(second.width) + "x" +
                 std::to_string(second.height) + ": images of one size compare");
+  for (const auto& [image, which] : {std::pair(&first, "image"), std::pair(&second, "reference")})
+    if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
+      throw py::value_error(std::string("compare: the ") + which + "'s " + place +
+                            " is not a finite value (NaN or infinity): PSNR and SSIM need "
+                            "finite values");
   double p = 0, s = 0;
   {
     py::gil_scoped_release unlocked;

@@ -55,6 +55,11 @@ def test_compare_equals_the_clis(baked, tmp_path):
     # Identical images: the 60 dB cap and SSIM 1.
     same = linebake.compare(reference, reference)
     assert same["psnr_db"] == 60 and same["ssim"] == pytest.approx(1)
+    # A NaN is not a value to compare (it made any image "identical", 60 dB): named by pixel.
+    broken = np.array(reference[..., :3], dtype=np.float32)
+    broken[3, 5, 1] = np.nan
+    with pytest.raises(ValueError, match=r"the image's pixel \(5, 3\) is not a finite value"):
+        linebake.compare(broken, reference)
 
 
 def test_renderer_reuses_its_scene(baked):
