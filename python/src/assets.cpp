@@ -5,8 +5,10 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <optional>
+#include <type_traits>
 
 #include "bindings.hpp"
 #include "cache/line_store.hpp"
@@ -14,13 +16,13 @@
 #include "cache/voxel_store.hpp"
 #include "cli_contract.hpp"
 #include "core/atomic_file.hpp"
-#include "formats/registry.hpp"
-#include "synth/synth.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
+#include "formats/registry.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
+#include "synth/synth.hpp"
 
 namespace linebake::python {
 
@@ -93,7 +95,19 @@ void refuse_unused(const py::kwargs& given, const std::vector<std::string>& asse
 template <class T>
 std::optional<T> keyword(const py::kwargs& options, const char* name) {
   if (!options.contains(name)) return std::nullopt;
-  return options[name].cast<T>();
+  try {
+    return options[name].cast<T>();
+  } catch (const py::cast_error&) {
+    // pybind11's own message names neither the keyword nor what it wanted.
+    const char* wanted = std::is_same_v<T, bool>                   ? "True or False"
+                         : std::is_same_v<T, std::string>          ? "a str"
+                         : std::is_floating_point_v<T>             ? "a number"
+                         : std::is_same_v<T, std::array<float, 2>> ? "two numbers (lo, hi)"
+                         : std::is_unsigned_v<T> ? "a non-negative integer in range"
+                                                 : "an integer in range";
+    throw py::type_error(std::string("bake: ") + name + ": expected " + wanted + ", got " +
+                         std::string(py::repr(options[name])));
+  }
 }
 
 // 2G, 512M, unlimited, or a number of bytes.
@@ -129,7 +143,12 @@ BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& a
   if (auto v = keyword<bool>(kw, "caps")) o.tubes.caps = *v;
   o.tubes.normals = parse_normal_encoding(keyword<std::string>(kw, "normals").value_or("float32"));
   if (auto v = keyword<std::string>(kw, "attribute")) o.tubes.attribute = *v;
-  if (auto v = keyword<std::array<float, 2>>(kw, "attribute_range")) o.tubes.attribute_range = *v;
+  if (auto v = keyword<std::array<float, 2>>(kw, "attribute_range")) {
+    if (!(std::isfinite((*v)[0]) && std::isfinite((*v)[1]) && (*v)[0] < (*v)[1]))
+      throw py::value_error("bake: attribute_range: expected two finite numbers lo < hi, got (" +
+                            std::to_string((*v)[0]) + ", " + std::to_string((*v)[1]) + ")");
+    o.tubes.attribute_range = *v;
+  }
   if (auto v = keyword<uint64_t>(kw, "chunk_bytes")) o.tubes.max_chunk_bytes = *v;
   if (kw.contains("grid")) parse_grid(py::str(kw["grid"]), o.voxels);
   if (auto v = keyword<uint32_t>(kw, "quantization")) o.voxels.quantization = *v;

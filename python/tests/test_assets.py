@@ -141,6 +141,18 @@ def test_bake_options_are_checked(tmp_path):
         linebake.bake(SYNTH, cache, grid=64)
     with pytest.raises(linebake.Error):
         linebake.bake(SYNTH, cache, assets=["tubes", "meshes"])
+    # A value of the wrong kind names the keyword and what it wanted (pybind11 named neither).
+    for keywords, wanted in [({"tube_sides": "8"}, "tube_sides: expected an integer"),
+                             ({"tube_sides": 8.5}, "tube_sides: expected an integer"),
+                             ({"chunk_bytes": -1}, "chunk_bytes: expected a non-negative"),
+                             ({"caps": "yes"}, "caps: expected True or False")]:
+        with pytest.raises(TypeError, match=wanted):
+            linebake.bake(SYNTH, cache, **keywords)
+    # An attribute range that maps nothing (it failed only when the mesh was read back).
+    for bad in [(float("nan"), 1), (float("-inf"), float("inf")), (1, 0), (5, 5)]:
+        with pytest.raises(ValueError, match="attribute_range: expected two finite numbers"):
+            linebake.bake(SYNTH, cache, attribute_range=bad)
+    assert not (tmp_path / "x.lbc.h5").exists()
 
 
 def test_open_cache_errors_are_the_clis(tmp_path):
