@@ -441,7 +441,10 @@ std::string uri_of(const std::string& name) {
 
 // .gltf: the JSON, and the buffer in a .bin file beside it.
 void write_gltf_json(const std::string& path, tinygltf::Model& model) {
-  const std::filesystem::path bin = std::filesystem::path(path).replace_extension(".bin");
+  // Beside the file the JSON goes to (a symbolic link's target: AtomicFile writes through it),
+  // so that its relative uri finds it.
+  const std::filesystem::path bin =
+      std::filesystem::path(output_target(path)).replace_extension(".bin");
   const std::vector<unsigned char> data = std::move(model.buffers[0].data);
   model.buffers[0].data.clear();
   std::ostringstream text;

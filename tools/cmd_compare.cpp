@@ -34,18 +34,20 @@ Command add_compare(CLI::App& app) {
     check_input_file(args->reference);
     check_output_location(args->error_image);
     refuse_input_as_output(args->error_image, {args->image, args->reference});
-    const Image a = display_encoded(read_image(args->image));
-    const Image b = display_encoded(read_image(args->reference));
+    // Checked as read: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
+    const Image raw_a = read_image(args->image), raw_b = read_image(args->reference);
+    for (const auto& [image, path] :
+         {std::pair(&raw_a, args->image), std::pair(&raw_b, args->reference)})
+      if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
+        throw InputError(path, place,
+                         "not a finite value (NaN or infinity): PSNR and SSIM need finite values");
+    const Image a = display_encoded(raw_a), b = display_encoded(raw_b);
     if (a.width != b.width || a.height != b.height)
       throw InputError(args->image, "",
                        std::to_string(a.width) + "x" + std::to_string(a.height) +
                            ", but the reference " + args->reference + " is " +
                            std::to_string(b.width) + "x" + std::to_string(b.height) +
                            ": images of one size compare");
-    for (const auto& [image, path] : {std::pair(&a, args->image), std::pair(&b, args->reference)})
-      if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
-        throw InputError(path, place,
-                         "not a finite value (NaN or infinity): PSNR and SSIM need finite values");
     const double p = psnr(a, b), s = ssim(a, b);
     if (!args->error_image.empty())
       write_png(error_image(a, b, args->error_scale), args->error_image, 8);

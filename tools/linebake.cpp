@@ -92,10 +92,16 @@ int main(int argc, char** argv) {
     // What a command printed (--json, a report) is one of its outputs: a write that failed
     // there (a full disk behind a redirection) fails the command, so that nothing, `run`
     // included, takes a cut-short output for a whole one.
+    errno = 0;
     std::cout.flush();
-    if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout))
-      throw linebake::OutputError("standard output",
-                                  std::string("a write failed: ") + std::strerror(errno));
+    const bool flushed = std::fflush(stdout) == 0;
+    const int error = errno;
+    if (!std::cout || !flushed || std::ferror(stdout))
+      // The reason only where this flush failed: an earlier write's errno is gone.
+      throw linebake::OutputError(
+          "standard output",
+          std::string("a write failed") +
+              (!flushed && error != 0 ? std::string(": ") + std::strerror(error) : std::string()));
     return kOk;
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";

@@ -212,22 +212,19 @@ void CacheWriter::set_progress(ProgressFn progress, uint64_t total_bytes) {
 
 void CacheWriter::create_group(const std::string& group) {
   if (H5Lexists(h5_, group.c_str(), H5P_DEFAULT) > 0) return;
-  // The missing groups above it as HDF5's intermediate groups are (members by name), but made
-  // here: HDF5 gives its own intermediate groups write times.
-  for (size_t slash = group.find('/', 1); slash != std::string::npos;
-       slash = group.find('/', slash + 1)) {
-    const std::string parent = group.substr(0, slash);
-    if (H5Lexists(h5_, parent.c_str(), H5P_DEFAULT) > 0) continue;
-    Handle plain(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
-    H5Pset_obj_track_times(plain, false);
-    Handle g(H5Gcreate2(h5_, parent.c_str(), H5P_DEFAULT, plain, H5P_DEFAULT), H5Gclose);
-    if (!g.valid()) throw OutputError(path(), "cannot create group " + parent);
-  }
+  // Members in creation order, no write times; the missing groups above it made the same way
+  // here (HDF5's own intermediate groups carry write times).
   Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
   H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
   H5Pset_obj_track_times(gcpl, false);
-  Handle g(H5Gcreate2(h5_, group.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
-  if (!g.valid()) throw OutputError(path(), "cannot create group " + group);
+  for (size_t slash = group.find('/', 1);; slash = group.find('/', slash + 1)) {
+    const std::string name = group.substr(0, slash);
+    if (H5Lexists(h5_, name.c_str(), H5P_DEFAULT) <= 0) {
+      Handle g(H5Gcreate2(h5_, name.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
+      if (!g.valid()) throw OutputError(path(), "cannot create group " + name);
+    }
+    if (slash == std::string::npos) break;
+  }
 }
 
 void CacheWriter::copy_group(const std::string& source_path, const std::string& group) {

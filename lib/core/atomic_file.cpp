@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <mutex>
 
 #include "core/error.hpp"
@@ -101,20 +102,20 @@ void refuse_input_as_output(const std::string& output, const std::vector<std::st
 
 void refuse_clashing_outputs(const std::vector<std::string>& outputs,
                              const std::vector<std::string>& inputs) {
-  std::vector<std::pair<std::filesystem::path, const std::string*>> seen;
+  // Each output's file, resolved as the kernel would (links and ".." in order), with the output
+  // that named it first: a flight's 100,000 frames are checked in a sorted map, not pairwise.
+  std::map<std::filesystem::path, const std::string*> seen;
   for (const std::string& output : outputs) {
     if (output.empty()) continue;
     refuse_input_as_output(output, inputs);
-    // Absolute first: weakly_canonical leaves a relative path to a new file relative.
-    const std::filesystem::path absolute = std::filesystem::absolute(output).lexically_normal();
+    const std::filesystem::path absolute = std::filesystem::absolute(output);
     std::error_code ec;
     std::filesystem::path resolved = std::filesystem::weakly_canonical(absolute, ec);
     if (ec) resolved = absolute;
-    for (const auto& [path, name] : seen)
-      if (path == resolved)
-        throw OutputError(output, "is also the output " + *name +
-                                      " of this command; each output needs a file of its own");
-    seen.emplace_back(std::move(resolved), &output);
+    const auto [at, added] = seen.emplace(resolved, &output);
+    if (!added)
+      throw OutputError(output, "is also the output " + *at->second +
+                                    " of this command; each output needs a file of its own");
   }
 }
 
@@ -181,7 +182,8 @@ std::string output_target(const std::string& path) {
   for (int links = 0; links < 40 && std::filesystem::is_symlink(target, ec); ++links) {
     const std::filesystem::path link(target), to = std::filesystem::read_symlink(link, ec);
     if (ec) break;
-    target = (to.is_absolute() ? to : link.parent_path() / to).lexically_normal().string();
+    // Not lexically normalised: a ".." after a linked directory is the kernel's to resolve.
+    target = (to.is_absolute() ? to : link.parent_path() / to).string();
   }
   const auto status = std::filesystem::status(target, ec);
   if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))

@@ -252,17 +252,19 @@ Image image_from(const py::object& source, bool srgb_encoded) {
 }
 
 py::dict compare(const py::object& a, const py::object& b, bool srgb_encoded) {
-  const Image first = display_encoded(image_from(a, srgb_encoded));
-  const Image second = display_encoded(image_from(b, srgb_encoded));
-  if (first.width != second.width || first.height != second.height)
-    throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
-                ", but the reference is " + std::to_string(second.width) + "x" +
-                std::to_string(second.height) + ": images of one size compare");
-  for (const auto& [image, which] : {std::pair(&first, "image"), std::pair(&second, "reference")})
+  // Checked as given: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
+  const Image raw_first = image_from(a, srgb_encoded), raw_second = image_from(b, srgb_encoded);
+  for (const auto& [image, which] :
+       {std::pair(&raw_first, "image"), std::pair(&raw_second, "reference")})
     if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
       throw py::value_error(std::string("compare: the ") + which + "'s " + place +
                             " is not a finite value (NaN or infinity): PSNR and SSIM need "
                             "finite values");
+  const Image first = display_encoded(raw_first), second = display_encoded(raw_second);
+  if (first.width != second.width || first.height != second.height)
+    throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
+                ", but the reference is " + std::to_string(second.width) + "x" +
+                std::to_string(second.height) + ": images of one size compare");
   double p = 0, s = 0;
   {
     py::gil_scoped_release unlocked;

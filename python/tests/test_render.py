@@ -60,6 +60,11 @@ def test_compare_equals_the_clis(baked, tmp_path):
     broken[3, 5, 1] = np.nan
     with pytest.raises(ValueError, match=r"the image's pixel \(5, 3\) is not a finite value"):
         linebake.compare(broken, reference)
+    # An infinity too (the display encoding would clamp it to 1 and measure it).
+    broken[3, 5, 1] = 0
+    broken[7, 2, 0] = np.inf
+    with pytest.raises(ValueError, match=r"the reference's pixel \(2, 7\) is not a finite"):
+        linebake.compare(reference, broken)
 
 
 def test_renderer_reuses_its_scene(baked):
