@@ -121,6 +121,12 @@ code=$?
 check "a failed collective write on rank 1 ends the job with exit 3, not a hang" test "$code" -eq 3
 check "it names the rank and the dataset" grep -q "rank 1: full.lbc.h5: dataset /" full/out.txt
 check "no cache, temporary or spill file is left" bash -c "! ls -a | grep -E '^full\.lbc\.h5'"
+# A cache path that is a symbolic link is written through, as the serial bake does.
+mkdir linked
+ln -s linked/target.lbc.h5 link.lbc.h5
+check "np 2 bakes through a symbolic link: the link kept, the file it names a cache" bash -c "
+  mpirun -np 2 '$mpi' bake run/part_0.binlines -o link.lbc.h5 > /dev/null 2>&1 &&
+  [ -L link.lbc.h5 ] && '$bin' report --json linked/target.lbc.h5 | grep -q '\"ranks\": 2'"
 
 echo "mpi: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

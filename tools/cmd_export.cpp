@@ -151,7 +151,8 @@ Command add_export(CLI::App& app) {
     // A .gltf's buffer goes beside it, as a .bin (formats/gltf.cpp).
     std::string buffer;
     if (std::filesystem::path(args->glb).extension() == ".gltf")
-      buffer = std::filesystem::path(args->glb).replace_extension(".bin").string();
+      buffer = std::filesystem::path(output_target(args->glb)).replace_extension(".bin").string();
+    check_output_location(buffer);  // a FIFO or directory there, before the export is built
     refuse_clashing_outputs({args->glb, buffer, args->vdb}, {args->cache});
     args->gltf.axes = args->axes == "raw" ? GltfAxes::Raw : GltfAxes::ZUp;
     if (!args->glb.empty() && args->colors != "none") {

@@ -184,6 +184,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   std::string temp;
   ranks.agree([&] {
     if (ranks.rank != 0) return;
+    // Written through a symbolic link, as the serial bake's AtomicFile does; a device refused.
+    result.cache = output_target(result.cache);
     if (!synth::is_synth_source(inputs[0])) refuse_input_as_output(result.cache, inputs);
     if (std::filesystem::exists(result.cache) && !options.force && !is_linebake_cache(result.cache))
       throw OutputError(result.cache, "exists and is not a linebake cache; --force replaces it");
@@ -191,6 +193,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     temp = temporary_name(result.cache);
   });
   temp = ranks.broadcast(temp);
+  result.cache = ranks.broadcast(result.cache);
 
   // Lines per file: from the header where the format has it, else by reading the file; the
   // files are counted round robin.
