@@ -231,11 +231,11 @@ class TemporaryInput {
   std::string path_;
 };
 
-py::dict bake_lines(const py::object& lines_or_path, const std::optional<std::string>& cache,
+py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
                     const std::vector<std::string>& assets, bool progress,
                     const py::kwargs& options) {
   BakeOptions o = bake_options(options, assets, progress);
-  o.cache = cache.value_or("");
+  o.cache = cache.is_none() ? "" : path_arg(cache, "bake: cache");
   std::optional<TemporaryInput> temporary;
   if (py::isinstance<PyLineSet>(lines_or_path)) {
     if (o.cache.empty()) throw UsageError("bake: a LineSet needs a cache path");
@@ -248,7 +248,7 @@ py::dict bake_lines(const py::object& lines_or_path, const std::optional<std::st
     py::gil_scoped_release unlocked;
     temporary.emplace(set, o.cache);
   } else {
-    o.input = py::str(lines_or_path);  // a str or an os.PathLike
+    o.input = path_arg(lines_or_path, "bake");  // a str or an os.PathLike
     cli::check_input_file(o.input);
     if (!o.dry_run) check_output_location(o.cache);
   }
@@ -425,7 +425,10 @@ the same memory).)doc")
       });
 
   module.def(
-      "open_cache", [](const std::string& path) { return std::make_shared<PyCache>(path); },
+      "open_cache",
+      [](const py::object& path) {
+        return std::make_shared<PyCache>(path_arg(path, "open_cache"));
+      },
       py::arg("path"), "Opens an asset cache; linebake.InputError if it is not one.");
   module.def("bake", &bake_lines, py::arg("lines_or_path"), py::arg("cache") = py::none(),
              py::arg("assets") = std::vector<std::string>{"tubes"}, py::kw_only(),

@@ -27,6 +27,18 @@ struct PyLineSet {
   std::string format;  // that source's format name
 };
 
+// A str, bytes or os.PathLike (pathlib.Path) argument as a path string, as the stub's StrPath
+// says (a TypeError naming `what` otherwise).
+inline std::string path_arg(const py::handle& value, const char* what) {
+  try {
+    const py::object path = py::module_::import("os").attr("fspath")(value);
+    return path.cast<std::string>();  // str, or bytes as they are
+  } catch (const py::error_already_set&) {
+    throw py::type_error(std::string(what) + ": expected a str or os.PathLike, got " +
+                         std::string(py::repr(value)));
+  }
+}
+
 // nlohmann::json -> dict, list, str, int, float, bool or None.
 py::object to_python(const nlohmann::json& value);
 

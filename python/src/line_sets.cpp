@@ -111,8 +111,9 @@ py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle se
   return views;
 }
 
-std::shared_ptr<PyLineSet> read(const std::string& source,
+std::shared_ptr<PyLineSet> read(const py::object& source_arg,
                                 const std::optional<std::string>& format) {
+  const std::string source = path_arg(source_arg, "read");
   cli::check_input_file(source);  // the CLI's "no such file" / "is a directory"
   ReadOptions options;
   if (format) options.format = parse_format(*format);
@@ -127,9 +128,10 @@ std::shared_ptr<PyLineSet> read(const std::string& source,
 }
 
 // As `linebake convert`: what the format cannot hold is a warning, or an Error when strict.
-void write(const PyLineSet& set, const std::string& path, const std::optional<std::string>& format,
-           bool ascii, uint32_t binlines_version, const std::string& vtp_encoding,
-           bool vtp_compress, bool strict) {
+void write(const PyLineSet& set, const py::object& path_object,
+           const std::optional<std::string>& format, bool ascii, uint32_t binlines_version,
+           const std::string& vtp_encoding, bool vtp_compress, bool strict) {
+  const std::string path = path_arg(path_object, "write");
   if (!set.source.empty()) refuse_input_as_output(path, {set.source});
   WriteOptions options;
   options.format =
@@ -263,11 +265,13 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
       .def("__len__", [](const PyLineSet& s) { return s.lines.line_count(); })
       .def(
           "line",
-          [](py::object self, size_t index) {
+          [](py::object self, int64_t at) {
             const LineSet& l = self.cast<const PyLineSet&>().lines;
-            if (index >= l.line_count())
-              throw py::index_error("line " + std::to_string(index) + " of " +
-                                    std::to_string(l.line_count()));
+            // Negative from the end, as Python's sequences count.
+            const int64_t count = int64_t(l.line_count());
+            if (at < -count || at >= count)
+              throw py::index_error("line " + std::to_string(at) + " of " + std::to_string(count));
+            const size_t index = size_t(at < 0 ? at + count : at);
             return view(l.positions.data() + 3 * l.line_offsets[index], l.line_size(index), {3},
                         self);
           },

@@ -44,7 +44,31 @@ def test_arrays_in_and_out():
         np.testing.assert_array_equal(lines.attributes[name], values)
     np.testing.assert_array_equal(lines.line_attributes["seed_id"], [7, 8, 9])
     np.testing.assert_array_equal(lines.line(1), points[4:11])
+    # Negative indices count from the end, as for Python's sequences.
+    np.testing.assert_array_equal(lines.line(-1), points[11:13])
+    np.testing.assert_array_equal(lines.line(-3), points[0:4])
+    for out_of_range in (3, -4):
+        with pytest.raises(IndexError):
+            lines.line(out_of_range)
     assert lines.metadata == {"units": "km"}
+
+
+def test_paths_may_be_pathlib_paths(tmp_path):
+    # The stub's StrPath: a pathlib.Path works wherever a str does; anything else is a TypeError
+    # naming the call.
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, attributes, line_attributes)
+    path = tmp_path / "lines.h5"
+    linebake.write(lines, path)
+    back = linebake.read(path)
+    assert back.same_data(lines) and back.source == str(path)
+    cache = tmp_path / "lines.lbc.h5"
+    linebake.bake(path, cache, tube_sides=4)
+    assert linebake.open_cache(cache).lines().same_data(lines)
+    with pytest.raises(TypeError, match="read: expected a str or os.PathLike"):
+        linebake.read(42)
+    with pytest.raises(TypeError, match="bake: expected a str or os.PathLike, got None"):
+        linebake.bake(None, str(cache))
 
 
 def test_threads_making_the_first_arrays_do_not_deadlock():
