@@ -39,6 +39,18 @@ inline std::string path_arg(const py::handle& value, const char* what) {
   }
 }
 
+// Any mapping (a dict, types.MappingProxyType, ...) or iterable of pairs as a dict, as the stub's
+// Mapping says (a TypeError naming `what` otherwise).
+inline py::dict mapping_arg(const py::handle& value, const char* what) {
+  if (py::isinstance<py::dict>(value)) return py::reinterpret_borrow<py::dict>(value);
+  try {
+    return py::dict(py::reinterpret_borrow<py::object>(value));
+  } catch (const py::error_already_set&) {
+    throw py::type_error(std::string(what) + ": expected a mapping, got " +
+                         std::string(py::repr(value)));
+  }
+}
+
 // nlohmann::json -> dict, list, str, int, float, bool or None.
 py::object to_python(const nlohmann::json& value);
 

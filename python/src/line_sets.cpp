@@ -55,7 +55,7 @@ std::vector<uint64_t> offsets_from(const py::array& offsets, size_t points) {
 std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, const char* what) {
   std::vector<Attribute> attributes;
   if (mapping.is_none()) return attributes;
-  for (const auto& [key, value] : mapping.cast<py::dict>()) {
+  for (const auto& [key, value] : mapping_arg(mapping, what)) {
     Attribute attribute;
     attribute.name = py::str(key);
     const FloatArray values = FloatArray::ensure(value);
@@ -79,7 +79,13 @@ std::shared_ptr<PyLineSet> make_line_set(const py::array& points, const py::arra
   lines.line_offsets = offsets_from(offsets, lines.point_count());
   lines.attributes = attributes_from(attributes, lines.point_count(), "attribute");
   lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
-  if (!metadata.is_none()) lines.metadata = metadata.cast<std::map<std::string, std::string>>();
+  if (!metadata.is_none())
+    for (const auto& [key, value] : mapping_arg(metadata, "metadata")) {
+      if (!py::isinstance<py::str>(key) || !py::isinstance<py::str>(value))
+        throw py::type_error("metadata: keys and values are str, got " +
+                             std::string(py::repr(key)) + ": " + std::string(py::repr(value)));
+      lines.metadata[key.cast<std::string>()] = value.cast<std::string>();
+    }
   return result;
 }
 

@@ -163,8 +163,8 @@ class PyRenderer {
     prepared_ = technique_->prepare(technique_->info, cache_->reader(), cache_->path(), options_);
   }
 
-  py::tuple render(const std::string& tf_name, const std::optional<py::dict>& camera, int frame,
-                   int frame_count, const std::string& flight, const py::object& size,
+  py::tuple render(const std::string& tf_name, const py::object& camera, int frame, int frame_count,
+                   const std::string& flight, const py::object& size,
                    const std::optional<std::string>& memory_budget) {
     const auto [width, height] =
         size.is_none() ? std::array{options_.width, options_.height} : size_from(size);
@@ -180,8 +180,8 @@ class PyRenderer {
     const TransferFunction tf = resolve_transfer_function(tf_name);
     Camera c;
     std::string flight_kind = "camera";
-    if (camera) {
-      c = camera_from(*camera);
+    if (!camera.is_none()) {
+      c = camera_from(mapping_arg(camera, "camera"));
     } else {
       // The CLI's flight: the same cameras for the same bounds, size and frame count.
       const cli::FlightPlan plan =
@@ -329,7 +329,7 @@ stats: the fields of `linebake render --stats`. Releases the GIL.)doc")
       "render",
       [](const py::object& cache, const std::string& technique, const std::string& tf,
          const py::object& size, int frame, int frame_count, const std::string& flight,
-         const std::optional<py::dict>& camera, const std::optional<std::string>& memory_budget,
+         const py::object& camera, const std::optional<std::string>& memory_budget,
          const py::kwargs& options) {
         // The budget bounds the scene (the Renderer's option) and checks the frame.
         auto all = py::reinterpret_steal<py::kwargs>(PyDict_Copy(options.ptr()));

@@ -4,6 +4,7 @@ errors naming the file, CF trajectories written by xarray and netCDF4."""
 import os
 import subprocess
 import sys
+import types
 import warnings
 
 import numpy as np
@@ -51,6 +52,20 @@ def test_arrays_in_and_out():
         with pytest.raises(IndexError):
             lines.line(out_of_range)
     assert lines.metadata == {"units": "km"}
+
+
+def test_mappings_may_be_any_mapping():
+    # The stub's Mapping: a read-only mapping or pairs work as a dict does; a non-str metadata
+    # value is a TypeError naming it (it was "Unable to cast").
+    points, offsets, attributes, line_attributes = sample_arrays()
+    proxy = linebake.LineSet(points, offsets, types.MappingProxyType(attributes),
+                             list(line_attributes.items()), types.MappingProxyType({"u": "km"}))
+    assert proxy.same_data(linebake.LineSet(points, offsets, attributes, line_attributes))
+    assert proxy.metadata == {"u": "km"}
+    with pytest.raises(TypeError, match="metadata: keys and values are str, got 'u': 1"):
+        linebake.LineSet(points, offsets, metadata={"u": 1})
+    with pytest.raises(TypeError, match="attribute: expected a mapping, got 5"):
+        linebake.LineSet(points, offsets, attributes=5)
 
 
 def test_paths_may_be_pathlib_paths(tmp_path):

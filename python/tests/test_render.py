@@ -1,6 +1,8 @@
 """render() against `linebake render -o x.pfm` for the same cache, camera, frame and size;
 compare() against `linebake compare --json`; the CLI's availability check."""
 
+import types
+
 import numpy as np
 import pytest
 
@@ -75,6 +77,10 @@ def test_renderer_reuses_its_scene(baked):
     np.testing.assert_array_equal(first, again)
     image, stats = renderer.render(camera={"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 30})
     assert stats["frames"][0]["camera"]["eye"] == [0, 0, 5]
+    # Any mapping is a camera (the stub's Mapping): the same image.
+    proxied, _ = renderer.render(camera=types.MappingProxyType(
+        {"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 30}))
+    np.testing.assert_array_equal(proxied, image)
     # A camera no renderer can use is a ValueError naming why (Embree aborted the process on
     # the NaN rays of an eye on its target).
     for camera, why in [({"eye": [0, 0, 0], "target": [0, 0, 0]}, "the eye is on the target"),
