@@ -69,14 +69,26 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
   return attributes;
 }
 
-std::shared_ptr<PyLineSet> make_line_set(const py::array& points, const py::array& offsets,
+// Array-likes (lists, tuples, arrays of any dtype), as NumPy's asarray takes them.
+py::array array_like(const py::object& value, const char* what) {
+  py::array array = py::array::ensure(value);
+  if (!array) {
+    PyErr_Clear();
+    throw py::type_error(std::string(what) + ": expected an array-like, got " +
+                         std::string(py::repr(value)));
+  }
+  return array;
+}
+
+std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
+                                         const py::object& offsets_like,
                                          const py::object& attributes,
                                          const py::object& line_attributes,
                                          const py::object& metadata) {
   auto result = std::make_shared<PyLineSet>();
   LineSet& lines = result->lines;
-  lines.positions = positions_from(points);
-  lines.line_offsets = offsets_from(offsets, lines.point_count());
+  lines.positions = positions_from(array_like(points_like, "points"));
+  lines.line_offsets = offsets_from(array_like(offsets_like, "offsets"), lines.point_count());
   lines.attributes = attributes_from(attributes, lines.point_count(), "attribute");
   lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
   if (!metadata.is_none())

@@ -54,6 +54,13 @@ def test_arrays_in_and_out():
     assert lines.metadata == {"units": "km"}
 
 
+def test_arrays_may_be_lists():
+    # The stub's ArrayLike: nested lists as np.asarray takes them, the same line set.
+    points, offsets, _, _ = sample_arrays()
+    from_lists = linebake.LineSet(points.tolist(), [int(o) for o in offsets])
+    assert from_lists.same_data(linebake.LineSet(points, offsets))
+
+
 def test_mappings_may_be_any_mapping():
     # The stub's Mapping: a read-only mapping or pairs work as a dict does; a non-str metadata
     # value is a TypeError naming it (it was "Unable to cast").
