@@ -110,16 +110,26 @@ std::array<int, 2> size_from(const py::object& size) {
 
 Camera camera_from(const py::dict& d) {
   Camera c;
-  const auto vec = [](const py::handle& v) {
-    const auto xyz = v.cast<std::array<double, 3>>();
-    return glm::dvec3(xyz[0], xyz[1], xyz[2]);
+  const auto vec = [&](const char* key) {
+    try {
+      const auto xyz = d[key].cast<std::array<double, 3>>();
+      return glm::dvec3(xyz[0], xyz[1], xyz[2]);
+    } catch (const py::cast_error&) {
+      throw py::type_error(std::string("camera: ") + key + ": expected three numbers, got " +
+                           std::string(py::repr(d[key])));
+    }
   };
   if (!d.contains("eye") || !d.contains("target"))
     throw py::value_error("camera: needs 'eye' and 'target' (and optionally 'up', 'fov')");
-  c.eye = vec(d["eye"]);
-  c.target = vec(d["target"]);
-  if (d.contains("up")) c.up = vec(d["up"]);
-  if (d.contains("fov")) c.fov_y_degrees = d["fov"].cast<double>();
+  c.eye = vec("eye");
+  c.target = vec("target");
+  if (d.contains("up")) c.up = vec("up");
+  if (d.contains("fov")) {
+    if (!py::isinstance<py::float_>(d["fov"]) && !py::isinstance<py::int_>(d["fov"]))
+      throw py::type_error("camera: fov: expected a number, got " +
+                           std::string(py::repr(d["fov"])));
+    c.fov_y_degrees = d["fov"].cast<double>();
+  }
   if (const std::string problem = camera_problem(c); !problem.empty())
     throw py::value_error("camera: " + problem);
   return c;

@@ -90,6 +90,13 @@ def test_renderer_reuses_its_scene(baked):
                         ({"eye": [0, 0, 5], "target": [0, 0, 0], "fov": 180}, "fov")]:
         with pytest.raises(ValueError, match=why):
             renderer.render(camera=camera)
+    # Values of the wrong kind name the key.
+    for camera, why in [({"eye": "abc", "target": [0, 0, 0]}, "camera: eye: expected three"),
+                        ({"eye": [0, 0], "target": [0, 0, 0]}, "camera: eye: expected three"),
+                        ({"eye": [0, 0, 5], "target": [0, 0, 0], "fov": "x"},
+                         "camera: fov: expected a number")]:
+        with pytest.raises(TypeError, match=why):
+            renderer.render(camera=camera)
 
 
 def test_availability_is_the_clis(baked):
