@@ -399,15 +399,21 @@ TEST(Techniques, VulkanAllocationsOfHostMemoryAreHeldWithinTheBudget) {
   EXPECT_EQ(ctx.host_bytes(), before);
 }
 
+// The synthetic aneurysm at `scale`, baked with tube chunks of at most `chunk_bytes`.
+BakeOptions chunked_aneurysm(const TempDir& dir, const std::string& scale, uint64_t chunk_bytes) {
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=" + scale, "aneurysm.lbc.h5");
+  o.tubes.max_chunk_bytes = chunk_bytes;
+  bake(o);
+  return o;
+}
+
 // The raster techniques upload the tube mesh a chunk at a time (the host never holds all of
 // it) with the same image and bounds as the whole mesh's, and on lavapipe their device copy is
 // held within the budget: one budget that leaves three quarters of the mesh is refused with the
 // figures, one that leaves three times it renders the same bytes.
 TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
   TempDir dir;
-  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.05", "aneurysm.lbc.h5");
-  o.tubes.max_chunk_bytes = 2u << 20;
-  bake(o);
+  const BakeOptions o = chunked_aneurysm(dir, "0.05", 2u << 20);
   const CacheReader cache(o.cache);
   const TubeMesh whole = load_tubes(cache);
   ASSERT_GE(whole.chunks.size(), 4u);
@@ -495,9 +501,7 @@ TEST(Techniques, RasterScenesAreUploadedAChunkAtATimeWithinTheBudget) {
 // sized by the datasets' shapes: the same image and bounds as from the whole mesh.
 TEST(Techniques, TilesTakesTheTubeMeshAChunkAtATime) {
   TempDir dir;
-  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.02", "aneurysm.lbc.h5");
-  o.tubes.max_chunk_bytes = 1u << 20;
-  bake(o);
+  const BakeOptions o = chunked_aneurysm(dir, "0.02", 1u << 20);
   const CacheReader cache(o.cache);
   const TubeMesh whole = load_tubes(cache);
   ASSERT_GE(whole.chunks.size(), 3u);
