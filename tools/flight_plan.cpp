@@ -6,6 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 
@@ -88,7 +89,7 @@ void check_depth_image_output(const std::string& path) {
 void check_frame_memory(const std::string& what, const std::string& size, uint64_t bytes,
                         const std::string& budget, uint64_t kept) {
   if (budget == "unlimited") return;
-  const uint64_t limit = budget.empty() ? default_memory_budget() : linebake::parse_size(budget);
+  const uint64_t limit = memory_budget_bytes(budget);
   if (bytes + kept > limit)
     throw BudgetExceeded("a " + size + " " + what + " frame needs about " + format_bytes(bytes) +
                          (kept > 0 ? ", and the earlier rows' frames 0, kept for the quality "
