@@ -2,6 +2,11 @@
 // Per-pixel linked lists, resolve pass: copy the pixel's list (up to kMaxFragments nodes) into
 // local arrays, sort by depth and blend front to back over the background. Longer lists are
 // reported through `longest` and the host re-runs the resolve with room for them.
+//
+// Fragments of equal depth (coincident tubes: repeated lines are common in real data) are
+// ordered by their colour's bits. A list holds its fragments in the order they arrived, which a
+// GPU does not fix from run to run; without the tie-break, equal depths blended in that order and
+// the same input could give different images.
 #include "frame.glsl"
 #include "ll_nodes.glsl"
 
@@ -17,6 +22,25 @@ layout(set = 0, binding = 5, std430) buffer Stats { uint longest; uint depth_com
 float depth_of[kMaxFragments];
 uint node_of[kMaxFragments];
 
+// Whether node a's colour orders before node b's (their words compared in turn): any fixed total
+// order of the colours does, since fragments equal in depth and colour blend alike in any order.
+bool colour_before(uint a, uint b) {
+  for (uint k = 0u; k < (wide_nodes() ? 4u : 1u); ++k) {
+    const uint x = node_load(a, k), y = node_load(b, k);
+    if (x != y) return x < y;
+  }
+  return false;
+}
+
+// Whether fragment (d, n) blends before fragment (other_d, other_n).
+bool before(float d, uint n, float other_d, uint other_n) {
+  return d < other_d || (d == other_d && colour_before(n, other_n));
+}
+
+bool entry_before(uint i, uint j) {
+  return before(depth_of[i], node_of[i], depth_of[j], node_of[j]);
+}
+
 void swap_entries(uint i, uint j) {
   const float d = depth_of[i];
   depth_of[i] = depth_of[j];
@@ -31,7 +55,7 @@ void insertion_sort(uint count, uint gap) {
     const float d = depth_of[i];
     const uint n = node_of[i];
     uint j = i;
-    while (j >= gap && depth_of[j - gap] > d) {
+    while (j >= gap && before(d, n, depth_of[j - gap], node_of[j - gap])) {
       depth_of[j] = depth_of[j - gap];
       node_of[j] = node_of[j - gap];
       j -= gap;
@@ -47,7 +71,7 @@ void insertion_sort_range(uint lo, uint hi) {
     const float d = depth_of[i];
     const uint n = node_of[i];
     uint j = i;
-    while (j > lo && depth_of[j - 1u] > d) {
+    while (j > lo && before(d, n, depth_of[j - 1u], node_of[j - 1u])) {
       depth_of[j] = depth_of[j - 1u];
       node_of[j] = node_of[j - 1u];
       --j;
@@ -73,14 +97,15 @@ void quick_hybrid_sort(uint count) {
       continue;
     }
     const uint mid = lo + (hi - lo) / 2u;
-    if (depth_of[mid] < depth_of[lo]) swap_entries(mid, lo);
-    if (depth_of[hi - 1u] < depth_of[lo]) swap_entries(hi - 1u, lo);
-    if (depth_of[hi - 1u] < depth_of[mid]) swap_entries(hi - 1u, mid);
+    if (entry_before(mid, lo)) swap_entries(mid, lo);
+    if (entry_before(hi - 1u, lo)) swap_entries(hi - 1u, lo);
+    if (entry_before(hi - 1u, mid)) swap_entries(hi - 1u, mid);
     const float pivot = depth_of[mid];
+    const uint pivot_node = node_of[mid];
     uint i = lo, j = hi - 1u;
     for (;;) {  // Hoare partition: [lo, j] <= pivot <= [j + 1, hi)
-      while (depth_of[i] < pivot) ++i;
-      while (depth_of[j] > pivot) --j;
+      while (before(depth_of[i], node_of[i], pivot, pivot_node)) ++i;
+      while (before(pivot, pivot_node, depth_of[j], node_of[j])) --j;
       if (i >= j) break;
       swap_entries(i, j);
       ++i;
@@ -101,8 +126,8 @@ void sift_down(uint i, uint count) {
   for (;;) {
     const uint l = 2u * i + 1u, r = l + 1u;
     uint m = i;
-    if (l < count && depth_of[l] < depth_of[m]) m = l;
-    if (r < count && depth_of[r] < depth_of[m]) m = r;
+    if (l < count && entry_before(l, m)) m = l;
+    if (r < count && entry_before(r, m)) m = r;
     if (m == i) return;
     swap_entries(i, m);
     i = m;
