@@ -3,13 +3,17 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <mutex>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/memory_budget.hpp"
 #include "formats/vdb_module.h"
 
@@ -61,6 +65,47 @@ LinebakeVdbWrite load_vdb_module(const std::string& output) {
                       "which was not found or did not load (" +
                           failure + ")");
   return write;
+}
+
+// A VDB file starts with the magic number (8 bytes), the file format version and the library's
+// major and minor version (4 bytes each), a flag for grid offsets (1 byte) and the file's UUID,
+// 36 characters that OpenVDB's writer draws at random (io::File has no way to set them). So that
+// the same grid gives the same file, they are replaced by a UUID made from the bytes after them:
+// version 8 (RFC 9562: custom), the rest from their XXH3-128. A header laid out otherwise (an
+// OpenVDB of another format version) is left as it is.
+constexpr std::streamoff kVdbUuidOffset = 21;
+constexpr size_t kVdbUuidChars = 36;
+
+bool looks_like_uuid(const char* text) {
+  for (size_t i = 0; i < kVdbUuidChars; ++i) {
+    const bool dash = i == 8 || i == 13 || i == 18 || i == 23;
+    if (dash ? text[i] != '-' : !std::isxdigit(static_cast<unsigned char>(text[i]))) return false;
+  }
+  return true;
+}
+
+void stamp_content_uuid(const std::string& file, const std::string& output) {
+  std::fstream io(file, std::ios::binary | std::ios::in | std::ios::out);
+  char header[kVdbUuidOffset + kVdbUuidChars];
+  if (!io.read(header, sizeof header))
+    throw OutputError(output, "cannot read back the VDB header (" + file + ")");
+  uint32_t format_version = 0;
+  std::memcpy(&format_version, header + 8, 4);
+  if (std::memcmp(header, " BDV\0\0\0\0", 8) != 0 || format_version < 220 ||
+      !looks_like_uuid(header + kVdbUuidOffset))
+    return;
+  Hasher hasher;
+  std::vector<char> block(size_t{1} << 20);
+  while (io.read(block.data(), std::streamsize(block.size())) || io.gcount() > 0)
+    hasher.update(block.data(), size_t(io.gcount()));
+  const std::string h = hasher.hex();  // 32 hex digits
+  const char variant = "89ab"[std::stoi(h.substr(16, 1), nullptr, 16) & 3];
+  const std::string uuid = h.substr(0, 8) + "-" + h.substr(8, 4) + "-8" + h.substr(13, 3) + "-" +
+                           variant + h.substr(17, 3) + "-" + h.substr(20, 12);
+  io.clear();
+  io.seekp(kVdbUuidOffset);
+  if (!io.write(uuid.data(), std::streamsize(uuid.size())) || !io.flush())
+    throw OutputError(output, "cannot write the VDB header (" + file + ")");
 }
 
 }  // namespace
@@ -146,6 +191,7 @@ void write_vdb(const std::string& path, const VoxelGrid& grid) {
                                 std::to_string(expected) + " bytes reached the file (" +
                                 format_bytes(free_bytes_for(path)) + " free there) (" +
                                 out.temp_path() + ")");
+  stamp_content_uuid(out.temp_path(), path);
   out.commit();
 }
 

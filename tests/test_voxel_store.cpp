@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 
 #include "cache/voxel_store.hpp"
 #include "formats/vdb.hpp"
@@ -125,6 +126,40 @@ TEST(VoxelStore, VdbRoundTrip) {
   EXPECT_NEAR(centre[0], g.origin[0] + 3.5 * g.voxel_size, 1e-5);
   EXPECT_NEAR(centre[1], g.origin[1] + 5.5 * g.voxel_size, 1e-5);
   EXPECT_NEAR(centre[2], g.origin[2] + 7.5 * g.voxel_size, 1e-5);
+}
+
+// OpenVDB's writer puts a random UUID in the header; write_vdb replaces it with one made from
+// the file's other bytes, so the same grid gives the same bytes, and another grid another UUID.
+TEST(VoxelStore, TheSameGridGivesTheSameVdbBytes) {
+  test::TempDir dir;
+  VoxelOptions o;
+  o.grid = 32;
+  const VoxelGrid g = voxelize(wavy_lines(), o);
+  write_vdb(dir.file("a.vdb"), g);
+  write_vdb(dir.file("b.vdb"), g);
+  o.grid = 31;
+  write_vdb(dir.file("c.vdb"), voxelize(wavy_lines(), o));
+  const auto bytes = [&](const char* name) {
+    std::ifstream in(dir.file(name), std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string a = bytes("a.vdb"), c = bytes("c.vdb");
+  EXPECT_EQ(a, bytes("b.vdb"));
+  const std::string uuid = a.substr(21, 36), other = c.substr(21, 36);
+  EXPECT_NE(uuid, other);
+  for (const std::string& u : {uuid, other}) {
+    EXPECT_EQ(u.size(), 36u);
+    EXPECT_EQ(u[14], '8') << u;  // version 8 (RFC 9562)
+    EXPECT_NE(std::string("89ab").find(u[19]), std::string::npos) << u;
+    EXPECT_EQ(u.find_first_not_of("0123456789abcdef-"), std::string::npos) << u;
+  }
+  // OpenVDB reads it and reports that UUID.
+  openvdb::initialize();
+  openvdb::io::File file(dir.file("a.vdb"));
+  file.open();
+  EXPECT_EQ(file.getUniqueTag(), uuid);
+  EXPECT_TRUE(file.readGrid("density"));
+  file.close();
 }
 
 }  // namespace
