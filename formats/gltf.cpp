@@ -17,11 +17,16 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
+#include <typeinfo>
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/progress.hpp"
+#include "core/spill_file.hpp"
 
 namespace linebake {
 namespace {
@@ -31,30 +36,48 @@ constexpr int kElementArrayBuffer = 34963;
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
 constexpr uint64_t kGlbLimit = 0xFFFFFFFFull;
 
-// Builds the single binary buffer and the views/accessors that point into it.
+// Where the binary buffer's bytes go: nowhere while the file is laid out (the first of the two
+// passes, write_gltf), to the file in the second.
+using ByteSink = std::function<void(const void* data, size_t bytes)>;
+
+// Lays out the single binary buffer and the views/accessors that point into it, handing each
+// view's bytes (after zeros up to its 4-byte alignment) to the sink.
 class ModelBuilder {
  public:
-  ModelBuilder(tinygltf::Model& model, bool glb) : model_(model), glb_(glb) {
+  ModelBuilder(tinygltf::Model& model, bool glb, ByteSink sink)
+      : model_(model), glb_(glb), sink_(std::move(sink)) {
     model_.buffers.emplace_back();
   }
 
   // Appends bytes (4-byte aligned) as a new buffer view; returns its index.
   int add_view(const void* data, size_t bytes, int target, size_t stride = 0) {
-    auto& buffer = model_.buffers[0].data;
-    buffer.resize((buffer.size() + 3) & ~size_t{3});
+    const uint64_t offset = aligned(size_);
+    if (glb_ && offset + bytes > kGlbLimit)
+      throw Error("the export exceeds GLB's 4 GiB limit (write .gltf, whose .bin has none)");
+    if (sink_) {
+      static constexpr char kZeros[4] = {};
+      sink_(kZeros, size_t(offset - size_));
+      sink_(data, bytes);
+    }
+    size_ = offset + bytes;
     tinygltf::BufferView view;
     view.buffer = 0;
-    view.byteOffset = buffer.size();
+    view.byteOffset = offset;
     view.byteLength = bytes;
     view.byteStride = stride;
     view.target = target;
-    const auto* p = static_cast<const unsigned char*>(data);
-    buffer.insert(buffer.end(), p, p + bytes);
-    if (glb_ && buffer.size() > kGlbLimit)
-      throw Error("the export exceeds GLB's 4 GiB limit (write .gltf, whose .bin has none)");
     model_.bufferViews.push_back(std::move(view));
     return int(model_.bufferViews.size() - 1);
   }
+
+  // The buffer's length, padded to 4 bytes (the padding goes to the sink).
+  uint64_t finish() {
+    static constexpr char kZeros[4] = {};
+    if (sink_) sink_(kZeros, size_t(aligned(size_) - size_));
+    return size_ = aligned(size_);
+  }
+
+  static uint64_t aligned(uint64_t bytes) { return (bytes + 3) & ~uint64_t{3}; }
 
   int add_accessor(int view, size_t offset, int component, int type, size_t count,
                    bool normalized = false, std::vector<double> min = {},
@@ -75,6 +98,8 @@ class ModelBuilder {
  private:
   tinygltf::Model& model_;
   bool glb_;
+  ByteSink sink_;
+  uint64_t size_ = 0;
 };
 
 void bounds_of(const float* xyz, size_t count, std::vector<double>& min, std::vector<double>& max) {
@@ -263,17 +288,47 @@ tinygltf::Value attribute_extras(const std::string& name, std::array<float, 2> r
                                               tinygltf::Value(double(range[1]))})}});
 }
 
-void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tubes,
-               const GltfOptions& options) {
+// Draco's encoded chunks, kept from the pass that lays the file out for the pass that writes
+// it (write_gltf): encoding is the slow part, and the bytes, the output's size, go to a spill
+// file beside the output instead of memory.
+struct DracoChunks {
+  struct Entry {
+    DracoChunk chunk;  // its bytes in the spill
+    uint64_t offset = 0, bytes = 0;
+    std::vector<double> min, max;
+  };
+  std::unique_ptr<SpillFile> spill;
+  std::vector<std::optional<Entry>> entries;  // per chunk; none for an empty chunk
+};
+
+// The tube mesh's primitives. With Draco, the first pass (`draco->entries` empty) encodes each
+// chunk and keeps it; the second writes what was kept, reading no chunk. `chunk_done` after each.
+void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& chunks,
+               const GltfOptions& options, DracoChunks* draco,
+               const std::function<void()>& chunk_done) {
+  const TubeMesh& tubes = chunks.description;
   tinygltf::Mesh mesh;
   mesh.name = "tubes";
   const bool has_attribute = !tubes.attribute.empty();
-  for (const TubeChunk& chunk : tubes.chunks) {
-    if (chunk.vertex_count() == 0) continue;
-    const uint64_t v = chunk.vertex_count();
+  const bool encoded = options.draco && !draco->entries.empty();
+  for (size_t c = 0; c < tubes.chunks.size(); ++c, chunk_done()) {
     tinygltf::Primitive primitive;
     primitive.mode = TINYGLTF_MODE_TRIANGLES;
     primitive.material = 0;
+    if (encoded) {
+      if (!draco->entries[c]) continue;
+      const DracoChunks::Entry& e = *draco->entries[c];
+      DracoChunk d = e.chunk;
+      d.bytes.resize(e.bytes);
+      draco->spill->read(e.offset, d.bytes.data(), e.bytes);
+      add_draco_primitive(builder, primitive, d, e.min, e.max);
+      mesh.primitives.push_back(std::move(primitive));
+      continue;
+    }
+    const TubeChunk chunk = chunks.chunk(c);
+    if (options.draco) draco->entries.emplace_back();
+    if (chunk.vertex_count() == 0) continue;
+    const uint64_t v = chunk.vertex_count();
     const std::vector<float> positions = in_axes(chunk.positions.data(), v, options.axes);
     const std::vector<float> raw_normals = float_normals(chunk);
     const std::vector<float> normals = in_axes(raw_normals.data(), v, options.axes);
@@ -283,10 +338,16 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeMesh& tu
         has_attribute ? attribute_arrays(chunk.attribute.data(), v, tubes.attribute_range, options)
                       : AttributeArrays{};
     if (options.draco) {
-      add_draco_primitive(
-          builder, primitive,
-          encode_draco(chunk, positions, normals, has_attribute ? &attribute : nullptr, options),
-          min, max);
+      DracoChunk d =
+          encode_draco(chunk, positions, normals, has_attribute ? &attribute : nullptr, options);
+      add_draco_primitive(builder, primitive, d, min, max);
+      DracoChunks::Entry& e = draco->entries.back().emplace();
+      e.bytes = d.bytes.size();
+      e.offset = draco->spill->append(d.bytes.data(), d.bytes.size());
+      d.bytes = {};
+      e.chunk = std::move(d);
+      e.min = std::move(min);
+      e.max = std::move(max);
     } else {
       primitive.attributes["POSITION"] = builder.add_accessor(
           builder.add_view(positions.data(), positions.size() * sizeof(float), kArrayBuffer), 0,
@@ -439,52 +500,49 @@ std::string uri_of(const std::string& name) {
   return out;
 }
 
-// .gltf: the JSON, and the buffer in a .bin file beside it.
-void write_gltf_json(const std::string& path, tinygltf::Model& model) {
-  // Beside the file the JSON goes to (a symbolic link's target: AtomicFile writes through it),
-  // so that its relative uri finds it.
-  const std::filesystem::path bin =
-      std::filesystem::path(output_target(path)).replace_extension(".bin");
-  const std::vector<unsigned char> data = std::move(model.buffers[0].data);
-  model.buffers[0].data.clear();
+// The model's JSON with the one buffer of `bytes` (`uri`: in a file of that name; empty: the
+// GLB's BIN chunk).
+nlohmann::json model_json(const tinygltf::Model& model, uint64_t bytes, const std::string& uri) {
   std::ostringstream text;
   tinygltf::TinyGLTF writer;
-  writer.WriteGltfSceneToStream(&model, text, true, false);
+  writer.WriteGltfSceneToStream(&model, text, false, false);
   nlohmann::json doc = nlohmann::json::parse(text.str());
-  doc["buffers"][0] = {{"byteLength", data.size()}, {"uri", uri_of(bin.filename().string())}};
-  write_output(bin.string(), [&](std::ostream& out) {
-    return bool(
-        out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size())));
-  });
-  write_output(path, [&](std::ostream& out) { return bool(out << doc.dump(2) << '\n'); });
+  doc["buffers"][0] = {{"byteLength", bytes}};
+  if (!uri.empty()) doc["buffers"][0]["uri"] = uri;
+  return doc;
 }
 
-}  // namespace
+void put_u32(std::ostream& out, uint32_t value) {
+  const char bytes[4] = {char(value & 0xFF), char((value >> 8) & 0xFF), char((value >> 16) & 0xFF),
+                         char(value >> 24)};
+  out.write(bytes, 4);
+}
 
-void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
-                const GltfOptions& options) {
-  if (!tubes && !lines) throw Error("glTF export: nothing to export");
-  const bool glb = std::filesystem::path(path).extension() != ".gltf";
+// The model of an export, built by one pass over the data (write_gltf).
+struct Pass {
   tinygltf::Model model;
+  uint64_t buffer_bytes = 0;
+};
+
+Pass run_pass(const TubeChunks* tubes, const LineSet* lines, const GltfOptions& options, bool glb,
+              DracoChunks* draco, ByteSink sink, const std::function<void()>& chunk_done) {
+  Pass pass;
+  tinygltf::Model& model = pass.model;
   model.asset.version = "2.0";
   model.asset.generator = "linebake " LINEBAKE_VERSION;
   model.asset.extras = tinygltf::Value(tinygltf::Value::Object{
       {"linebake_axes", tinygltf::Value(std::string(options.axes == GltfAxes::ZUp
                                                         ? "z-up: glTF (x, y, z) = data (x, z, -y)"
                                                         : "raw: data coordinates as stored"))}});
-  ModelBuilder builder(model, glb);
+  ModelBuilder builder(model, glb, std::move(sink));
   tinygltf::Material material;
   material.name = "tubes";
   material.pbrMetallicRoughness.metallicFactor = 0.0;
   material.pbrMetallicRoughness.roughnessFactor = 0.6;
   model.materials.push_back(material);
+  if (tubes) add_tubes(model, builder, *tubes, options, draco, chunk_done);
+  if (lines) add_lines(model, builder, *lines, options);
   tinygltf::Scene scene;
-  try {
-    if (tubes) add_tubes(model, builder, *tubes, options);
-    if (lines) add_lines(model, builder, *lines, options);
-  } catch (const Error& e) {
-    throw OutputError(path, e.what());
-  }
   for (size_t m = 0; m < model.meshes.size(); ++m) {
     tinygltf::Node node;
     node.mesh = int(m);
@@ -498,12 +556,85 @@ void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* l
     model.extensionsUsed.push_back(kDraco);
     model.extensionsRequired.push_back(kDraco);
   }
-  model.buffers[0].data.resize((model.buffers[0].data.size() + 3) & ~size_t{3});
-  if (!glb) return write_gltf_json(path, model);
+  pass.buffer_bytes = builder.finish();
+  return pass;
+}
+
+}  // namespace
+
+void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet* lines,
+                const GltfOptions& options) {
+  if (!tubes && !lines) throw Error("glTF export: nothing to export");
+  const bool glb = std::filesystem::path(path).extension() != ".gltf";
+  const size_t chunks = tubes ? tubes->description.chunks.size() : 0;
+  TerminalProgress progress("export " + std::filesystem::path(path).filename().string());
+  size_t chunks_done = 0;
+  const auto chunk_done = [&] { progress.update(++chunks_done, 2 * chunks); };
+  DracoChunks draco;
+  if (options.draco && tubes) draco.spill = std::make_unique<SpillFile>(path, "draco");
+  Pass layout;
+  try {
+    layout = run_pass(tubes, lines, options, glb, &draco, nullptr, chunk_done);
+  } catch (const Error& e) {
+    // What the export itself cannot do (the GLB limit, lines glTF cannot hold, Draco) is about
+    // the output; an input's or the budget's error stays what it is.
+    if (typeid(e) != typeid(Error)) throw;
+    throw OutputError(path, e.what());
+  }
+  // The second pass writes the buffer's bytes; its layout must be the first's.
+  const auto write_buffer = [&](std::ostream& out) {
+    const Pass written = run_pass(
+        tubes, lines, options, glb, &draco,
+        [&](const void* data, size_t bytes) { out.write(static_cast<const char*>(data), bytes); },
+        chunk_done);
+    if (written.buffer_bytes != layout.buffer_bytes ||
+        written.model.bufferViews.size() != layout.model.bufferViews.size())
+      throw OutputError(path, "the data changed between the export's two passes (" +
+                                  std::to_string(layout.buffer_bytes) + " then " +
+                                  std::to_string(written.buffer_bytes) + " buffer bytes)");
+    return bool(out);
+  };
+  if (!glb) {
+    // The buffer in a .bin beside the file the JSON goes to (a symbolic link's target:
+    // AtomicFile writes through it), so that its relative uri finds it.
+    const std::filesystem::path bin =
+        std::filesystem::path(output_target(path)).replace_extension(".bin");
+    const nlohmann::json doc =
+        model_json(layout.model, layout.buffer_bytes, uri_of(bin.filename().string()));
+    write_output(bin.string(), write_buffer);
+    write_output(path, [&](std::ostream& out) { return bool(out << doc.dump(2) << '\n'); });
+    return;
+  }
+  // GLB (glTF 2.0, section 4.4): a 12-byte header, the JSON chunk padded with spaces, the BIN
+  // chunk padded with zeros (the buffer is padded already).
+  std::string json = model_json(layout.model, layout.buffer_bytes, "").dump();
+  json.resize(ModelBuilder::aligned(json.size()), ' ');
+  const uint64_t length =
+      12 + 8 + json.size() + (layout.buffer_bytes ? 8 + layout.buffer_bytes : 0);
+  if (length > kGlbLimit)
+    throw OutputError(path,
+                      "the export exceeds GLB's 4 GiB limit (write .gltf, whose .bin has none)");
   write_output(path, [&](std::ostream& out) {
-    tinygltf::TinyGLTF writer;
-    return writer.WriteGltfSceneToStream(&model, out, false, true);
+    out.write("glTF", 4);
+    put_u32(out, 2);
+    put_u32(out, uint32_t(length));
+    put_u32(out, uint32_t(json.size()));
+    out.write("JSON", 4);
+    out.write(json.data(), std::streamsize(json.size()));
+    if (layout.buffer_bytes == 0) return bool(out);
+    put_u32(out, uint32_t(layout.buffer_bytes));
+    out.write("BIN\0", 4);
+    return write_buffer(out);
   });
+}
+
+void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
+                const GltfOptions& options) {
+  if (!tubes) return write_gltf(path, static_cast<const TubeChunks*>(nullptr), lines, options);
+  TubeMesh description = *tubes;  // the chunks' arrays are shared views
+  const TubeChunks chunks{std::move(description),
+                          [tubes](size_t index) { return tubes->chunks[index]; }};
+  write_gltf(path, &chunks, lines, options);
 }
 
 }  // namespace linebake

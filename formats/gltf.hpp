@@ -16,6 +16,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -39,9 +40,26 @@ struct GltfOptions {
   bool line_strips = false;  // the lines as one LINE_STRIP per polyline
 };
 
+// The tube mesh a chunk at a time (cache/tube_store.hpp's load_tube_description and
+// load_tube_chunk): `description` has every chunk's place (its arrays may be empty) and
+// `chunk(i)` gives chunk i whole. The export holds one chunk and its glTF arrays at a time.
+struct TubeChunks {
+  TubeMesh description;
+  std::function<TubeChunk(size_t index)> chunk;
+};
+
 // Either may be null (but not both). The format from the extension: .glb, or .gltf with
 // PATH-without-extension.bin. Throws OutputError when a file cannot be written or a GLB would
-// exceed 4 GiB.
+// exceed 4 GiB (before writing anything).
+//
+// Written in two passes over the data: the first lays the file out (the JSON, with every
+// view's offset and every accessor's bounds, and Draco's compressed sizes), the second writes
+// the binary buffer a view at a time behind it. So memory holds the JSON, the lines and one tube
+// chunk with its glTF arrays (with Draco, its encoder), never the whole buffer; the price is that
+// each chunk is read, converted and, with Draco, encoded twice.
+void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet* lines,
+                const GltfOptions& options = {});
+// The same for a mesh in memory.
 void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
                 const GltfOptions& options = {});
 

@@ -92,7 +92,13 @@ refused_keeps "export: a .gltf whose .bin would be the cache is refused" "$tmp/m
 cp "$tmp/c.binlines" "$tmp/victim.binlines"
 refused_keeps "bench bake with -o naming its input is refused, the input kept" "$tmp/victim.binlines" \
   "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
-check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 200M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 284.77 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
+# The tube mesh (one chunk of 71.19 MiB: 1,500,459 vertices of 26 bytes, 2,970,000 triangles of
+# 12) needs 2.5 times its chunk: 177.98 MiB.
+check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 150M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 177.98 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
+check "export: a mesh in 8 MB chunks is written a chunk at a time within 60M, the same bytes as unlimited, Draco's spill gone" bash -c "
+  bin='$(realpath "$bin")' && mkdir -p '$tmp/ec' && cd '$tmp/ec' && \"\$bin\" bake ../c.binlines -o ec.lbc.h5 --assets tubes --chunk-bytes 8000000 2>/dev/null &&
+  \"\$bin\" export ec.lbc.h5 -o a.glb --memory-budget 60M 2>/dev/null && \"\$bin\" export ec.lbc.h5 -o b.glb --memory-budget unlimited 2>/dev/null && cmp a.glb b.glb &&
+  \"\$bin\" export ec.lbc.h5 -o d.gltf --draco --memory-budget unlimited 2>/dev/null && [ \"\$(ls | tr '\\n' ' ')\" = 'a.glb b.glb d.bin d.gltf ec.lbc.h5 ' ]"
 check "synth to a format written whole past the budget is refused (exit 4), nothing written" bash -c "'$bin' synth convection --scale 0.1 -o '$tmp/sb.vtp' --memory-budget 40M 2> '$tmp/sb.err'; [ \$? -eq 4 ] && grep -q 'vtp is written whole: the first .* points take .*, more than the memory budget of 40.00 MiB leaves' '$tmp/sb.err' && [ ! -e '$tmp/sb.vtp' ]"
 # An output that is not a regular file is not renamed over (as root, /dev/null would have become
 # a file); a symbolic link is written through and stays a link.

@@ -278,9 +278,65 @@ TEST(Gltf, DefaultAxesColoursAndIndexedLines) {
     EXPECT_NEAR(uv[2 * p] / 65535.0, (values[p] - lo) / (hi - lo), 1.0 / 65535);
 }
 
+// A mesh given a chunk at a time: each chunk is read twice (laid out, then written) and never
+// kept, Draco's chunks encoded once (kept in a spill file, which goes), the bytes those of the
+// whole mesh's export; a chunk that changes between the passes is an error, and nothing is left.
+TEST(Gltf, ChunksAreReadOneAtATimeInTwoPasses) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(40);
+  TubeOptions o;
+  o.max_chunk_bytes = 40000;
+  const TubeMesh mesh = build_tubes(lines, o);
+  ASSERT_GT(mesh.chunks.size(), 2u);
+  TubeMesh description = mesh;
+  for (TubeChunk& chunk : description.chunks) {
+    TubeChunk place;
+    place.first_line = chunk.first_line;
+    place.line_count = chunk.line_count;
+    chunk = place;
+  }
+  std::vector<int> reads(mesh.chunks.size(), 0);
+  TubeChunks chunks{description, [&](size_t index) {
+                      ++reads.at(index);
+                      return mesh.chunks.at(index);
+                    }};
+  for (const bool draco : {false, true}) {
+    GltfOptions g;
+    g.draco = draco;
+    std::fill(reads.begin(), reads.end(), 0);
+    write_gltf(dir.file("chunks.glb"), &chunks, &lines, g);
+    EXPECT_EQ(reads, std::vector<int>(mesh.chunks.size(), draco ? 1 : 2)) << draco;
+    write_gltf(dir.file("whole.glb"), &mesh, &lines, g);
+    EXPECT_EQ(read_bytes(dir.file("chunks.glb")), read_bytes(dir.file("whole.glb"))) << draco;
+  }
+  EXPECT_EQ(dir.entries().size(), 2u);  // no spill file left
+
+  // The second pass finds a chunk other than the first did.
+  TubeChunk shorter = mesh.chunks[1];
+  shorter.indices =
+      Array<uint32_t>(shorter.indices.owner(), shorter.indices.data(), shorter.indices.size() - 3);
+  std::fill(reads.begin(), reads.end(), 0);
+  const TubeChunks changing{description, [&](size_t index) {
+                              return ++reads.at(index) == 2 && index == 1 ? shorter
+                                                                          : mesh.chunks.at(index);
+                            }};
+  try {
+    write_gltf(dir.file("changed.glb"), &changing, nullptr);
+    FAIL() << "a chunk that changed between the passes was written";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("changed between the export's two passes"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(dir.entries().size(), 2u);
+}
+
 TEST(Gltf, NothingToExportIsAnError) {
   test::TempDir dir;
-  EXPECT_THROW(write_gltf(dir.file("x.glb"), nullptr, nullptr), Error);
+  EXPECT_THROW(write_gltf(dir.file("x.glb"), static_cast<const TubeMesh*>(nullptr), nullptr),
+               Error);
+  EXPECT_THROW(write_gltf(dir.file("x.glb"), static_cast<const TubeChunks*>(nullptr), nullptr),
+               Error);
   EXPECT_TRUE(dir.entries().empty());
 }
 

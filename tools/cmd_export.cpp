@@ -38,11 +38,13 @@ std::vector<std::array<uint8_t, 3>> colour_map_of(const TransferFunction& tf) {
 
 namespace {
 
-// The exports are built whole in memory (tinygltf's model and its buffer, Draco's encoder,
-// OpenVDB's grids) before they are written. What each takes at its peak, as a multiple of the
-// cached data it is made of (measured on convection at scale 0.2 on the development VM: a glTF
-// of the 285 MiB tube mesh 3.9, with Draco 11.6; of the 31 MiB lines 6.8; a VDB of the 14 MiB
-// grid 6.8), is checked against what --memory-budget leaves before anything is read.
+// What each export holds at its peak, checked against what --memory-budget leaves before
+// anything is read. The glTF is written a tube chunk at a time (formats/gltf.hpp): it holds the
+// largest chunk and its glTF arrays, about 2.2 times the chunk's bytes (13.6 with Draco's
+// encoder), and the lines whole, about 3.5 times their bytes, with --line-strips 7 KiB more a
+// line for its primitive; a VDB is built whole, 6.8 times the grid's bytes. (Measured on
+// convection at scale 0.2 on the development VM: a 285 MiB mesh in one chunk and in nine of
+// 32 MiB, its 31 MiB of lines in 20,608 lines, a 14 MiB grid. The factors below add a margin.)
 template <class Args>
 void check_export_memory(const Args& args, const CacheReader& cache) {
   if (args.memory_budget == "unlimited") return;
@@ -55,9 +57,18 @@ void check_export_memory(const Args& args, const CacheReader& cache) {
   // The VDB is written and let go before the glTF is built: the larger of the two counts.
   const uint64_t vdb = args.vdb.empty() ? 0 : uint64_t(7.0 * double(bytes_of("/assets/voxels")));
   uint64_t gltf = 0;
-  if (!args.glb.empty() && !args.no_tubes)
-    gltf += uint64_t((args.gltf.draco ? 12.0 : 4.0) * double(bytes_of("/assets/tubes")));
-  if (!args.glb.empty() && args.lines) gltf += uint64_t(7.0 * double(bytes_of("/lines")));
+  if (!args.glb.empty() && !args.no_tubes) {
+    const TubeMesh description = load_tube_description(cache);
+    uint64_t largest = 0;
+    for (size_t c = 0; c < description.chunks.size(); ++c)
+      largest = std::max(largest, tube_chunk_bytes(cache, description, c));
+    gltf += uint64_t((args.gltf.draco ? 14.0 : 2.5) * double(largest));
+  }
+  if (!args.glb.empty() && args.lines) {
+    gltf += uint64_t(4.0 * double(bytes_of("/lines")));
+    if (args.gltf.line_strips && cache.exists("/lines/line_offsets"))
+      gltf += 8192 * cache.shape("/lines/line_offsets").at(0);
+  }
   const uint64_t needed = std::max(vdb, gltf);
   const std::string what = vdb > gltf      ? "the voxel grid's VDB"
                            : args.no_tubes ? "the lines' glTF"
@@ -164,9 +175,15 @@ Command add_export(CLI::App& app) {
     check_export_memory(*args, cache);
     if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
     if (args->glb.empty()) return;
-    TubeMesh tubes;
+    // The tube mesh a chunk at a time (formats/gltf.hpp reads each twice).
+    TubeChunks tubes;
+    if (!args->no_tubes) {
+      tubes.description = load_tube_description(cache);
+      tubes.chunk = [&cache, &tubes](size_t index) {
+        return load_tube_chunk(cache, tubes.description, index);
+      };
+    }
     LineSet lines;
-    if (!args->no_tubes) tubes = load_tubes(cache);
     if (args->lines) lines = load_lines(cache);
     write_gltf(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
                args->gltf);
