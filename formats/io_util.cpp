@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 
 namespace linebake::io {
 
@@ -302,6 +303,16 @@ void Writer::close() {
   fd_ = -1;
   if (::close(fd) != 0)
     throw OutputError(path_, std::string("write failed: ") + std::strerror(errno));
+}
+
+void check_read_memory(const std::string& path, const char* format, double bytes,
+                       const std::string& place, uint64_t limit) {
+  if (limit == 0 || bytes <= double(limit)) return;
+  throw BudgetExceeded(path + ": " + format + " is read whole: at " + place + " it holds about " +
+                       (bytes < 1e19 ? format_bytes(uint64_t(bytes)) : std::string("16 EiB")) +
+                       ", more than the " + format_bytes(limit) +
+                       " the memory budget leaves for reading it; raise --memory-budget "
+                       "(.binlines and .h5 inputs are read piece by piece)");
 }
 
 }  // namespace linebake::io

@@ -210,4 +210,11 @@ class Writer {
   uint64_t offset_ = 0;  // where the buffer starts in the file
 };
 
+// What a reader of a format read whole will hold at `place` (its arrays and the line set
+// gathered from them), checked against ReadOptions::memory_limit (0: none) before it allocates:
+// past it, BudgetExceeded naming the file, the place and the figures. In double: the counts come
+// from the file, and their products must not wrap.
+void check_read_memory(const std::string& path, const char* format, double bytes,
+                       const std::string& place, uint64_t limit);
+
 }  // namespace linebake::io

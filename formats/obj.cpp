@@ -2,6 +2,7 @@
 // 1-based or negative relative indices), an optional `a name0 name1 ...` line naming the
 // attributes (spaces in names as %20). Faces, normals, groups and materials are ignored.
 
+#include <algorithm>
 #include <numeric>
 
 #include "formats/formats.hpp"
@@ -18,8 +19,24 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   std::vector<std::string> names;
   std::vector<uint64_t> indices;
   std::vector<uint64_t> offsets{0};
+  // What reading it holds (ReadOptions::memory_limit), checked at every `l` line and every 65,536
+  // lines: the arrays (resident as far as they are filled), the largest of them once more while
+  // they grow (a vector copies itself as it grows), and the line set to be gathered along the
+  // indices so far.
+  const auto check_memory = [&](bool growing) {
+    const double attribute_floats = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
+    const double arrays[] = {4.0 * double(positions.size()), 4.0 * double(vt.size()),
+                             8.0 * double(indices.size()), 8.0 * double(offsets.size())};
+    double held = 0, largest = 0;
+    for (const double bytes : arrays) held += bytes, largest = std::max(largest, bytes);
+    io::check_read_memory(
+        path, "obj",
+        held + (growing ? largest : 0) + (12 + 4 * attribute_floats) * double(indices.size()),
+        at_line(in.line_number()), options.memory_limit);
+  };
   std::string_view line;
   while (in.next(line)) {
+    if (in.line_number() % 65536 == 0) check_memory(true);
     line = io::trim(line);
     if (line.empty() || line[0] == '#') continue;
     const auto tokens = io::split_whitespace(line);
@@ -61,6 +78,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
         indices.push_back(static_cast<uint64_t>(zero_based));
       }
       offsets.push_back(indices.size());
+      check_memory(true);
     } else if (key == "a") {
       names.clear();
       for (size_t k = 1; k < tokens.size(); ++k) names.push_back(io::decode_name(tokens[k]));
@@ -78,6 +96,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
                      "the `a` line names " + std::to_string(names.size()) +
                          " attributes, vt lines have " + std::to_string(attribute_count));
 
+  check_memory(false);
   LineSet lines;
   lines.line_offsets = std::move(offsets);
   // Lines that walk the vertices in file order (what most writers produce) keep the arrays

@@ -340,11 +340,23 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   std::vector<Attribute> point_attributes, cell_attributes;
   std::map<std::string, std::string> metadata;
 
+  // What reading it holds (ReadOptions::memory_limit), checked before each array is allocated:
+  // the arrays so far, and the new one with its copy while it is split into attributes.
+  double held = 0;
+  const auto hold = [&](double bytes, double transient, const std::string& place) {
+    io::check_read_memory(path, "vtk", held + bytes + transient, place, options.memory_limit);
+    held += bytes;
+  };
+  double point_floats = 3;  // per point: position and point attributes
+
   auto read_array = [&](const std::string& name, size_t components, const std::string& type) {
     if (target == Target::none) in.fail("attribute data before POINT_DATA or CELL_DATA");
     if (binary) in.skip_line();
     checked_count(in, target_tuples, components,
                   "array " + name + " (POINT_DATA or CELL_DATA count)");
+    const double bytes = 4.0 * double(components) * double(target_tuples);
+    hold(bytes, bytes, "array " + name + " (" + std::to_string(target_tuples) + " tuples)");
+    if (target == Target::point) point_floats += double(components);
     std::vector<float> values(components * target_tuples);
     read_values(in, binary, type, values.size(), values.data());
     if (target == Target::point)
@@ -361,6 +373,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       checked_count(in, n, 3, "POINTS count");
       const std::string type = in.token();
       if (binary) in.skip_line();
+      hold(12.0 * double(n), 0, "POINTS (" + std::to_string(n) + " points)");
       points.resize(3 * n);
       read_values(in, binary, type, 3 * n, points.data());
     } else if (key == "LINES" || key == "VERTICES" || key == "POLYGONS" ||
@@ -368,6 +381,9 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       uint64_t a, b;
       if (!io::parse_uint64(in.token(), a) || !io::parse_uint64(in.token(), b))
         in.fail("bad " + key + " header");
+      // The cell list as read (int64), then split into offsets and connectivity.
+      hold(8.0 * (double(a) + double(b)), 12.0 * double(b),
+           key + " (" + std::to_string(a) + " cells, " + std::to_string(b) + " values)");
       Cells cells = read_cells(in, binary, a, b);
       if (key == "LINES") {
         lines_cells = std::move(cells);
@@ -437,6 +453,10 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
         if (binary) in.skip_line();
         checked_count(in, static_cast<uint64_t>(tuples), static_cast<uint64_t>(components),
                       "array " + name + " tuple count");
+        const double bytes = 4.0 * double(components) * double(tuples);
+        hold(bytes, bytes, "FIELD array " + name + " (" + std::to_string(tuples) + " tuples)");
+        if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
+          point_floats += double(components);
         std::vector<float> values(static_cast<size_t>(components * tuples));
         read_values(in, binary, type, values.size(), values.data());
         if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
@@ -488,6 +508,9 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     lines.positions = std::move(points);
     lines.attributes = std::move(point_attributes);
   } else {
+    // The points and point attributes gathered along the connectivity.
+    hold(4.0 * point_floats * double(conn.size()), 0,
+         "LINES (" + std::to_string(conn.size()) + " point indices, gathered)");
     lines.positions.resize(3 * conn.size());
     for (size_t i = 0; i < conn.size(); ++i)
       for (int k = 0; k < 3; ++k) lines.positions[3 * i + k] = points[3 * conn[i] + k];

@@ -383,6 +383,25 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
                        std::string(name) + " " + std::to_string(count) +
                            " cannot be in a file of " + std::to_string(ctx.file_bytes) + " bytes");
 
+  // What reading it holds (ReadOptions::memory_limit): the mapped file, the XML and its copy in
+  // the parser, the arrays (int64 offsets and connectivity, float points and attributes), and
+  // the line set gathered from them once the connectivity is known.
+  const auto components_of = [](const pugi::xml_node& data) {
+    double sum = 0;
+    for (pugi::xml_node a : data.children("DataArray"))
+      sum += double(std::min<uint64_t>(a.attribute("NumberOfComponents").as_ullong(1), 16));
+    return sum;
+  };
+  const double point_floats = 3 + components_of(piece.child("PointData"));
+  const double held = double(ctx.file_bytes) + 2.0 * double(xml.size()) +
+                      4 * point_floats * double(point_count) + 16 * double(line_count) +
+                      4 * components_of(piece.child("CellData")) *
+                          double(vert_count + line_count + poly_count + strip_count);
+  io::check_read_memory(path, "vtp", held + 8 * double(point_count),
+                        "Piece (" + std::to_string(point_count) + " points, " +
+                            std::to_string(line_count) + " lines)",
+                        options.memory_limit);
+
   LineSet lines;
   const pugi::xml_node points = piece.child("Points").child("DataArray");
   if (!points && point_count > 0) throw InputError(path, "Points", "no DataArray");
@@ -397,6 +416,11 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     if (name == "offsets") offsets = read_array<int64_t>(ctx, a, line_count);
   }
   const uint64_t connectivity_size = offsets.empty() ? 0 : static_cast<uint64_t>(offsets.back());
+  // The connectivity, and the points and attributes gathered along it (unless it walks the
+  // points in order, which leaves them as they are).
+  io::check_read_memory(path, "vtp", held + (8 + 4 * point_floats) * double(connectivity_size),
+                        "Lines (" + std::to_string(connectivity_size) + " point indices)",
+                        options.memory_limit);
   for (pugi::xml_node a : piece.child("Lines").children("DataArray")) {
     if (std::string(a.attribute("Name").as_string()) == "connectivity")
       connectivity = read_array<int64_t>(ctx, a, connectivity_size);

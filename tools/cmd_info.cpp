@@ -7,6 +7,7 @@
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
 #include "lines/line_info.hpp"
@@ -38,6 +39,8 @@ Command add_info(CLI::App& app) {
     {
       TerminalProgress progress("reading");
       read.progress = progress.callback();
+      // A format read whole is held within the default budget (half of physical memory).
+      read.memory_limit = MemoryBudget(default_memory_budget()).available();
       const std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
       metadata = input->header().metadata;
       if (std::optional<LineSet> whole = input->take_whole()) {
