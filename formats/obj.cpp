@@ -152,6 +152,8 @@ void write_obj(const LineSet& lines, const std::string& path, const WriteOptions
     if (text.size() > (1 << 20) - 256) flush();
   }
   for (size_t line = 0; line < lines.line_count(); ++line) {
+    // A line without points has no `l` (it needs a vertex): left out, as lost_in_format says.
+    if (lines.line_size(line) == 0) continue;
     text += "l";
     for (uint64_t i = lines.line_offsets[line]; i < lines.line_offsets[line + 1]; ++i)
       text += " " + std::to_string(i + 1);

@@ -83,6 +83,15 @@ Format resolve_input_format(const std::string& path, const std::optional<Format>
                        ") nor an HDF5 file; name the format with --from");
 }
 
+bool keeps_empty_lines(Format format) {
+  return format != Format::csv && format != Format::obj;
+}
+
+std::string empty_lines_phrase(uint64_t count) {
+  return std::to_string(count) + (count == 1 ? " empty line" : " empty lines") +
+         " (without points)";
+}
+
 std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
                                         const WriteOptions& options) {
   const FormatInfo& info = format_info(format);
@@ -96,6 +105,11 @@ std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
     for (const auto& [key, value] : lines.metadata)
       if (key != "source") keys += (keys.empty() ? "" : ", ") + key;
     if (!keys.empty()) lost.push_back("metadata (" + keys + ")");
+  }
+  if (!keeps_empty_lines(format)) {
+    uint64_t empty = 0;
+    for (size_t l = 0; l < lines.line_count(); ++l) empty += lines.line_size(l) == 0;
+    if (empty > 0) lost.push_back(empty_lines_phrase(empty));
   }
   return lost;
 }

@@ -79,8 +79,14 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options = {}
 // Format name of a source, as read_line_set would choose it ("synth" for synthetic sources).
 std::string source_format_name(const std::string& source, const ReadOptions& options = {});
 
+// Whether the format keeps a line without points: CSV has a row per point, and OBJ's `l` needs
+// a vertex (its writer leaves such lines out).
+bool keeps_empty_lines(Format format);
+// "3 empty lines (without points)": what a format that does not keep them loses.
+std::string empty_lines_phrase(uint64_t count);
 // What writing `lines` as `format` would lose, one phrase each ("line attribute line_length",
-// "metadata (scale, seed)", "attribute names (binlines version 1)"); empty when nothing.
+// "metadata (scale, seed)", "attribute names (binlines version 1)", "2 empty lines (without
+// points)"); empty when nothing.
 std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
                                         const WriteOptions& options = {});
 

@@ -151,6 +151,26 @@ def test_strict_write_refuses_losing_data(tmp_path):
     assert not os.path.exists(tmp_path / "x.csv")
 
 
+@pytest.mark.parametrize("fmt", writable_formats(), ids=lambda f: f["name"])
+def test_empty_lines_are_kept_or_said_lost(tmp_path, fmt):
+    # Three lines, the middle one without points. CSV (a row per point) and OBJ (an `l` needs a
+    # vertex) cannot hold it: they say so and write a file that reads back as the other two.
+    points = np.arange(15, dtype=np.float32).reshape(5, 3)
+    lines = linebake.LineSet(points, np.array([0, 3, 3, 5], dtype=np.uint64))
+    path = str(tmp_path / ("empty" + fmt["extensions"][0]))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        linebake.write(lines, path)
+    lost = [str(w.message) for w in caught if "empty line" in str(w.message)]
+    keeps = fmt["name"] not in ("csv", "obj")
+    assert lost == ([] if keeps else
+                    [f"{path}: {fmt['name']} cannot hold 1 empty line (without points); "
+                     "they are not written"])
+    back = linebake.read(path)
+    np.testing.assert_array_equal(back.points, points)
+    np.testing.assert_array_equal(back.offsets, [0, 3, 3, 5] if keeps else [0, 3, 5])
+
+
 def address(array):
     return array.__array_interface__["data"][0]
 
