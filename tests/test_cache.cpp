@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
@@ -257,6 +258,29 @@ TEST(Cache, LinkNamesRoundTrip) {
     EXPECT_NE(encoded, ".");
     EXPECT_EQ(decode_link_name(encoded), name);
   }
+}
+
+// HDF5 prints its error stacks from each thread unless told not to on that thread: a reader
+// opened on one thread and read on another (a Python thread, TBB's) must leave that one quiet.
+TEST(Cache, AThreadReadingACacheGetsNoHdf5Printing) {
+  TempDir dir;
+  BakeOptions o;
+  write_line_set(curly_lines(10), dir.file("in.binlines"));
+  o.input = dir.file("in.binlines");
+  o.cache = dir.file("in.lbc.h5");
+  o.progress = false;
+  bake(o);
+  const CacheReader cache(o.cache);
+  testing::internal::CaptureStderr();
+  std::thread reader([&] {
+    EXPECT_TRUE(cache.exists("/lines"));
+    // A failing HDF5 call on this thread, after the read: printed unless the read quietened it.
+    const hid_t file = H5Fopen(o.cache.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    EXPECT_LT(H5Dopen2(file, "/no/such/dataset", H5P_DEFAULT), 0);
+    H5Fclose(file);
+  });
+  reader.join();
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
 }
 
 // --- bake ---

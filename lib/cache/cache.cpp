@@ -332,6 +332,7 @@ void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
         s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
         const hsize_t offset[2] = {first_row, 0};
         const std::vector<char>& out = *item.slot;
+        h5::init();  // this stage runs on TBB's threads: HDF5's printing off on each
         if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
           s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() + ")");
         s.writer->add_progress(s.chunk_bytes());
@@ -702,7 +703,10 @@ std::shared_ptr<const void> mapped_view(const std::shared_ptr<const void>& mappi
 
 CacheReader::~CacheReader() = default;
 
+// Every read starts here, stored_bytes or read_direct: a reader opened on one thread may be
+// used on another (Python's), whose HDF5 printing h5::init turns off.
 bool CacheReader::exists(const std::string& object) const {
+  h5::init();
   return h5::path_exists(h5_, object);
 }
 
@@ -730,6 +734,7 @@ std::optional<Provenance> CacheReader::provenance(const std::string& group) cons
 }
 
 uint64_t CacheReader::stored_bytes(const std::string& dataset) const {
+  h5::init();
   Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
   return d.valid() ? H5Dget_storage_size(d) : 0;
 }
@@ -742,6 +747,7 @@ Array<T> CacheReader::read(const std::string& dataset, size_t expected) const {
 
 bool CacheReader::read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
                               const std::string& where) const {
+  h5::init();
   try {
     return read_cache_rows_strict(dataset, type, first, count, out);
   } catch (const Error& e) {
