@@ -84,6 +84,12 @@ check_budget "np 2 within a small budget: the serial bake's voxels, exchanged in
   diff <(hashes big-serial.lbc.h5) <(hashes big-mpi.lbc.h5) &&
   '$bin' report --json big-mpi.lbc.h5 | grep -Eq '\"exchange_waves\": ([2-9]|[1-9][0-9])'"
 
+# A VTP (read whole) past what each rank's budget leaves is refused while it is read, naming it.
+"$bin" convert big.binlines -o big.vtp >/dev/null 2>&1
+check "np 2: a VTP past the budget is refused while it is read (exit 4), no cache" bash -c "
+  mpirun -np 2 '$mpi' bake big.vtp -o vtp-mpi.lbc.h5 --assets tubes --memory-budget 60M > vtp.txt 2>&1
+  [ \$? -eq 4 ] && grep -q 'big.vtp: vtp is read whole: at Piece' vtp.txt && [ ! -e vtp-mpi.lbc.h5 ]"
+
 # More ranks than lines: two lines on three ranks leave one rank with nothing to write.
 printf 'line_id,x,y,z\n0,0,0,0\n0,1,0,0\n0,1,1,0\n1,0,0,1\n1,0,1,1\n1,1,1,2\n' > two.csv
 "$bin" bake two.csv -o two-serial.lbc.h5 >/dev/null 2>&1

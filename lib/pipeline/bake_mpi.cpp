@@ -201,6 +201,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   std::string my_hashes;  // "index hash\n" for the files this rank hashed
   ReadOptions read;
   read.format = options.format;
+  // A file read whole (OBJ, VTK, VTP) is held within this rank's budget while it is read.
+  read.memory_limit = budget_bytes == 0 ? 0 : MemoryBudget(budget_bytes).available();
   LineSet header;
   ranks.agree([&] {
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {

@@ -8,6 +8,7 @@
 #include "cli_contract.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
 #include "lines/derived.hpp"
@@ -135,6 +136,9 @@ std::shared_ptr<PyLineSet> read(const py::object& source_arg,
   cli::check_input_file(source);  // the CLI's "no such file" / "is a directory"
   ReadOptions options;
   if (format) options.format = parse_format(*format);
+  // A format read whole (OBJ, VTK, VTP) is held within the CLI's default budget (half of
+  // physical memory) while it is read: past it, BudgetExceeded rather than the kernel's kill.
+  options.memory_limit = MemoryBudget(default_memory_budget()).available();
   auto result = std::make_shared<PyLineSet>();
   {
     py::gil_scoped_release unlocked;
