@@ -27,6 +27,10 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options);
 void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions& options);
 
 std::unique_ptr<LineReader> open_netcdf(const std::string& path, const ReadOptions& options);
+// What the NetCDF reader touches at open, walked first in an isolated child (core/isolated.hpp,
+// and linebake-probe): the NetCDF library, and HDF5 under NetCDF-4, crash on some malformed
+// files (docs/reliability.md). Throws on a file NetCDF refuses.
+void walk_netcdf_metadata(const std::string& path);
 
 // The plain layout, or the line set of a linebake asset cache (/lines).
 std::unique_ptr<LineReader> open_hdf5(const std::string& path, const ReadOptions& options);

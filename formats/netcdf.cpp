@@ -24,10 +24,6 @@
 
 namespace linebake::formats {
 
-namespace {
-
-// What the reader touches at open, walked first in an isolated child (core/isolated.hpp): the
-// NetCDF library, and HDF5 under NetCDF-4, crash on some malformed files (docs/reliability.md).
 void walk_netcdf_metadata(const std::string& path) {
   int id = -1;
   int status = nc_open(path.c_str(), NC_NOWRITE, &id);
@@ -77,11 +73,13 @@ void walk_netcdf_metadata(const std::string& path) {
   nc_close(id);
 }
 
+namespace {
+
 struct Nc {
   std::string path;
   int id = -1;
   explicit Nc(const std::string& p) : path(p) {
-    check_in_isolation(p, "NetCDF", [&p] { walk_netcdf_metadata(p); });
+    check_in_isolation(p, "NetCDF", [&p] { walk_netcdf_metadata(p); }, {}, {"netcdf", p});
     const int status = nc_open(p.c_str(), NC_NOWRITE, &id);
     if (status != NC_NOERR)
       throw InputError(p, "", std::string("cannot open as NetCDF: ") + nc_strerror(status));

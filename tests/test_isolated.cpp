@@ -104,6 +104,56 @@ TEST(Isolated, ACrashBecomesAnInputErrorNamingTheFile) {
   EXPECT_EQ(contained_crashes(), before + 1);
 }
 
+// linebake-probe replies as a forked child does: the program runner's own outcomes (a reply,
+// a crash, a hang, an exit status) from stand-in programs, then the walks themselves, which
+// must give what the same walk gives in a forked child for sound, damaged and foreign files.
+TEST(Isolated, TheProgramRunsLikeAForkedChild) {
+  IsolationLimits quick;
+  quick.seconds = 2;
+  const IsolatedOutcome reply = run_isolated_program({"/bin/sh", "-c", "printf Rhello"}, quick);
+  EXPECT_EQ(reply.kind, Kind::Finished);
+  EXPECT_EQ(reply.result, "hello");
+  const IsolatedOutcome crash = run_isolated_program({"/bin/sh", "-c", "kill -SEGV $$"}, quick);
+  EXPECT_EQ(crash.kind, Kind::Signal);
+  EXPECT_EQ(crash.signal, SIGSEGV);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(run_isolated_program({"/bin/sleep", "60"}, quick).kind, Kind::TimedOut);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  const IsolatedOutcome status = run_isolated_program({"/bin/sh", "-c", "exit 3"}, quick);
+  EXPECT_EQ(status.kind, Kind::Exited);
+  EXPECT_EQ(status.exit_code, 3);
+  EXPECT_THROW(run_isolated_program({"/no/such/program"}, quick), Error);
+
+  const std::string& program = isolation_program();
+  ASSERT_FALSE(program.empty()) << "linebake-probe is built with the tests";
+  TempDir dir;
+  LineSet lines;
+  for (int i = 0; i < 50; ++i) lines.append_point(float(i), 0, 0);
+  lines.end_line();
+  write_line_set(lines, dir.file("sound.h5"));
+  std::string bytes = read_text(dir.file("sound.h5"));
+  write_text(dir.file("short.h5"), bytes.substr(0, bytes.size() / 2));
+  // Damaged B-trees: a node type that is neither a group's nor a chunk index's.
+  for (size_t at = bytes.find("TREE"); at != std::string::npos; at = bytes.find("TREE", at + 1))
+    bytes[at + 4] = 5;
+  write_text(dir.file("damaged.h5"), bytes);
+  write_text(dir.file("text.h5"), "not HDF5\n");
+  for (const char* name : {"sound.h5", "short.h5", "damaged.h5", "text.h5", "missing.h5"}) {
+    const std::string path = dir.file(name);
+    const IsolatedOutcome forked = run_isolated([&] {
+      h5::walk_metadata(path, {"/"});
+      return std::string("ok");
+    });
+    const IsolatedOutcome spawned = run_isolated_program(
+        {program, std::to_string(IsolationLimits{}.memory_bytes), "hdf5", path, "/"});
+    EXPECT_EQ(spawned.kind, forked.kind) << name;
+    EXPECT_EQ(spawned.result, forked.result) << name;
+    EXPECT_EQ(spawned.signal, forked.signal) << name;
+  }
+  EXPECT_EQ(run_isolated_program({program, "1073741824", "hdf5", dir.file("sound.h5")}).kind,
+            Kind::Finished);
+}
+
 TEST(Isolated, OffRunsNothing) {
   setenv("LINEBAKE_ISOLATION", "off", 1);
   EXPECT_NO_THROW(check_in_isolation("x.h5", "HDF5", [] { std::raise(SIGSEGV); }));

@@ -189,7 +189,10 @@ void probe(const std::string& path, const std::vector<std::string>& objects) {
     // The whole file's walk covers the superblock and the root's attributes.
     if (!key.empty() && objects.empty() && passed.count(with_objects(file, {"/"}))) return;
   }
-  check_in_isolation(path, "HDF5", [&] { walk_metadata(path, objects); });
+  std::vector<std::string> args{"hdf5", path};
+  args.insert(args.end(), objects.begin(), objects.end());
+  check_in_isolation(
+      path, "HDF5", [&] { walk_metadata(path, objects); }, {}, args);
   std::lock_guard<std::mutex> lock(mutex);
   if (!key.empty()) passed.insert(key);
 }

@@ -1,7 +1,9 @@
 #include "core/isolated.hpp"
 
+#include <dlfcn.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <new>
 
 #include "core/error.hpp"
@@ -57,8 +60,29 @@ void write_all(int fd, const char* data, size_t size) {
   }
 }
 
-[[noreturn]] void run_child(int fd, const std::function<std::string()>& work,
-                            [[maybe_unused]] const IsolationLimits& limits) {
+const char* signal_text(int signal) {
+  switch (signal) {
+    case SIGSEGV:
+      return "SIGSEGV";
+    case SIGBUS:
+      return "SIGBUS";
+    case SIGABRT:
+      return "SIGABRT";
+    case SIGFPE:
+      return "SIGFPE";
+    case SIGILL:
+      return "SIGILL";
+    case SIGKILL:
+      return "SIGKILL";
+    default:
+      return nullptr;
+  }
+}
+
+}  // namespace
+
+[[noreturn]] void serve_isolated(int fd, const std::function<std::string()>& work,
+                                 [[maybe_unused]] const IsolationLimits& limits) {
   // A crash must end the child with its signal, not run the parent's handlers (libFuzzer's, the
   // interrupt flag); no core file either.
   for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGALRM, SIGXFSZ, SIGPIPE})
@@ -99,27 +123,6 @@ void write_all(int fd, const char* data, size_t size) {
   _exit(0);
 }
 
-const char* signal_text(int signal) {
-  switch (signal) {
-    case SIGSEGV:
-      return "SIGSEGV";
-    case SIGBUS:
-      return "SIGBUS";
-    case SIGABRT:
-      return "SIGABRT";
-    case SIGFPE:
-      return "SIGFPE";
-    case SIGILL:
-      return "SIGILL";
-    case SIGKILL:
-      return "SIGKILL";
-    default:
-      return nullptr;
-  }
-}
-
-}  // namespace
-
 std::string IsolatedOutcome::describe(const IsolationLimits& limits) const {
   switch (kind) {
     case Kind::Finished:
@@ -141,27 +144,12 @@ std::string IsolatedOutcome::describe(const IsolationLimits& limits) const {
   return "";
 }
 
-IsolatedOutcome run_isolated(const std::function<std::string()>& work,
-                             const IsolationLimits& limits) {
-  const auto start = std::chrono::steady_clock::now();
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0)
-    throw Error(std::string("cannot start an isolated reader: pipe: ") + std::strerror(errno));
-  std::fflush(nullptr);  // nothing buffered may be written twice
-  const pid_t pid = fork();
-  if (pid < 0) {
-    const int error = errno;
-    ::close(fds[0]);
-    ::close(fds[1]);
-    throw Error(std::string("cannot start an isolated reader: fork: ") + std::strerror(error) +
-                " (LINEBAKE_ISOLATION=off reads in-process; docs/reliability.md)");
-  }
-  if (pid == 0) {
-    ::close(fds[0]);
-    run_child(fds[1], work, limits);
-  }
-  ::close(fds[1]);
+namespace {
 
+// Waits for the isolated child `pid` that replies on `fd` (its read end, closed here) and
+// started at `start`, within `limits`; kills it past them or on an interruption.
+IsolatedOutcome wait_for_child(pid_t pid, int fd, std::chrono::steady_clock::time_point start,
+                               const IsolationLimits& limits) {
   IsolatedOutcome outcome;
   std::string received;
   bool timed_out = false, ended = false;
@@ -174,19 +162,19 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
       break;
     }
     if ((interrupted = interrupt_signal()) != 0) break;
-    pollfd p{fds[0], POLLIN, 0};
+    pollfd p{fd, POLLIN, 0};
     const int wait_ms = static_cast<int>(std::min(1000.0, (limits.seconds - elapsed) * 1000) + 1);
     const int ready = poll(&p, 1, wait_ms);
     if (ready < 0 && errno != EINTR) break;
     if (ready <= 0) continue;
     char buffer[4096];
-    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n == 0) ended = true;  // end of file: the child has exited (or closed its end)
     if (n <= 0) break;
     received.append(buffer, static_cast<size_t>(n));
   }
-  ::close(fds[0]);
+  ::close(fd);
   if (!ended) kill(pid, SIGKILL);  // timed out, interrupted, or poll/read failed
   if (!interrupted) interrupted = interrupt_signal();
   int status = 0;
@@ -214,6 +202,100 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
   return outcome;
 }
 
+}  // namespace
+
+IsolatedOutcome run_isolated(const std::function<std::string()>& work,
+                             const IsolationLimits& limits) {
+  const auto start = std::chrono::steady_clock::now();
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    throw Error(std::string("cannot start an isolated reader: pipe: ") + std::strerror(errno));
+  std::fflush(nullptr);  // nothing buffered may be written twice
+  const pid_t pid = fork();
+  if (pid < 0) {
+    const int error = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw Error(std::string("cannot start an isolated reader: fork: ") + std::strerror(error) +
+                " (LINEBAKE_ISOLATION=off reads in-process; docs/reliability.md)");
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    serve_isolated(fds[1], work, limits);
+  }
+  ::close(fds[1]);
+  return wait_for_child(pid, fds[0], start, limits);
+}
+
+IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
+                                     const IsolationLimits& limits) {
+  const auto start = std::chrono::steady_clock::now();
+  int fds[2];
+  if (pipe2(fds, O_CLOEXEC) != 0)
+    throw Error(std::string("cannot start an isolated reader: pipe: ") + std::strerror(errno));
+  // The program's standard output is the pipe's write end (dup2 clears its close-on-exec).
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int error = posix_spawn(&pid, argv.at(0).c_str(), &actions, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  ::close(fds[1]);
+  if (error != 0) {
+    ::close(fds[0]);
+    throw Error("cannot start an isolated reader: " + argv[0] + ": " + std::strerror(error) +
+                " (LINEBAKE_ISOLATION=off reads in-process; docs/reliability.md)");
+  }
+  return wait_for_child(pid, fds[0], start, limits);
+}
+
+namespace {
+
+// Threads of this process (/proc/self/task's entries); 1 without /proc.
+int thread_count() {
+  std::error_code ec;
+  int threads = 0;
+  for (auto it = std::filesystem::directory_iterator("/proc/self/task", ec);
+       !ec && it != std::filesystem::directory_iterator(); it.increment(ec))
+    ++threads;
+  return std::max(threads, 1);
+}
+
+// The directory of the file that holds this code: the executable, or the shared object (the
+// Python module) it was linked into.
+std::filesystem::path code_directory() {
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&thread_count), &info) == 0 || !info.dli_fname) return {};
+  std::error_code ec;
+  const std::filesystem::path file = std::filesystem::canonical(info.dli_fname, ec);
+  return ec ? std::filesystem::path() : file.parent_path();
+}
+
+}  // namespace
+
+const std::string& isolation_program() {
+  static const std::string program = [] {
+    std::vector<std::filesystem::path> places;
+    std::error_code ec;
+    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) places.push_back(self.parent_path());
+    places.push_back(code_directory());
+#ifdef LINEBAKE_PROBE_DIR
+    places.push_back(LINEBAKE_PROBE_DIR);
+#endif
+    for (const std::filesystem::path& dir : places) {
+      if (dir.empty()) continue;
+      const std::filesystem::path candidate = dir / "linebake-probe";
+      if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+    return std::string();
+  }();
+  return program;
+}
+
 namespace {
 std::atomic<uint64_t> contained{0};
 }
@@ -223,14 +305,23 @@ uint64_t contained_crashes() {
 }
 
 void check_in_isolation(const std::string& path, const std::string& library,
-                        const std::function<void()>& walk, const IsolationLimits& limits) {
+                        const std::function<void()>& walk, const IsolationLimits& limits,
+                        const std::vector<std::string>& program_args) {
   if (!isolation_enabled()) return;
-  const IsolatedOutcome outcome = run_isolated(
-      [&walk] {
-        walk();
-        return std::string("ok");
-      },
-      limits);
+  const std::string& program = isolation_program();
+  IsolatedOutcome outcome;
+  if (!program_args.empty() && !program.empty() && thread_count() > 1) {
+    std::vector<std::string> argv{program, std::to_string(limits.memory_bytes)};
+    argv.insert(argv.end(), program_args.begin(), program_args.end());
+    outcome = run_isolated_program(argv, limits);
+  } else {
+    outcome = run_isolated(
+        [&walk] {
+          walk();
+          return std::string("ok");
+        },
+        limits);
+  }
   if (outcome.kind == IsolatedOutcome::Kind::Finished) return;
   if (outcome.kind == IsolatedOutcome::Kind::Failed) throw InputError(path, "", outcome.result);
   ++contained;

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace linebake {
 
@@ -49,12 +50,35 @@ struct IsolatedOutcome {
 IsolatedOutcome run_isolated(const std::function<std::string()>& work,
                              const IsolationLimits& limits = {});
 
+// What a child does (the forked one, and linebake-probe): runs `work` under `limits` with the
+// default handlers of crash signals and no core file, writes its reply to `fd` ('R' and what it
+// returned, 'E' and an exception's message, 'M' for std::bad_alloc) and ends the process.
+[[noreturn]] void serve_isolated(int fd, const std::function<std::string()>& work,
+                                 const IsolationLimits& limits);
+
+// Runs the program `argv` (argv[0] a path), which replies on its standard output as
+// serve_isolated does, under the same limits and waiting as run_isolated.
+IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
+                                     const IsolationLimits& limits = {});
+
+// linebake-probe (tools/linebake_probe.cpp), which runs the metadata walks in a fresh process:
+// beside the executable, beside the shared object this code is in (the Python module), or where
+// the build tree made it; "" when there is none.
+const std::string& isolation_program();
+
 // Runs `walk` (which opens `path` with `library` and touches what linebake will read) isolated, and
 // turns a contained crash into an InputError naming the file: "the HDF5 library died on SIGSEGV
 // (Segmentation fault) while reading its metadata: the file is malformed". A walk that throws
 // becomes an InputError with its message. Does nothing when isolation is off.
+//
+// A process with more than one thread runs the walk in linebake-probe with `program_args` (what
+// follows the program and the memory cap on its command line) where they are given and the
+// program is found: a child forked from it would inherit the locks its other threads held at
+// the fork (HDF5's global lock, while another thread is in HDF5) and stall on them. Otherwise,
+// and in a process of one thread, a forked child runs `walk`.
 void check_in_isolation(const std::string& path, const std::string& library,
-                        const std::function<void()>& walk, const IsolationLimits& limits = {});
+                        const std::function<void()>& walk, const IsolationLimits& limits = {},
+                        const std::vector<std::string>& program_args = {});
 
 // How many crashes check_in_isolation() contained in this process (the fuzz targets report it).
 uint64_t contained_crashes();

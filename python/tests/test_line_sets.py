@@ -109,6 +109,35 @@ def test_threads_making_the_first_arrays_do_not_deadlock():
     assert done.returncode == 0 and done.stdout.strip() == "done", done.stderr
 
 
+def test_threads_reading_hdf5_files_at_once(tmp_path):
+    # Eight threads read HDF5 files at once, each a fresh copy (every read walks its metadata in
+    # an isolated process first). A child forked while another thread was inside HDF5 inherited
+    # its global lock and stalled to its limit: 8 of these 48 reads were called malformed. With
+    # threads, the walk runs in linebake-probe, a fresh process.
+    points = np.arange(300, dtype=np.float32).reshape(100, 3)
+    source = tmp_path / "source.h5"
+    linebake.write(linebake.LineSet(points, np.array([0, 40, 100], dtype=np.uint64)), source)
+    script = (
+        "import shutil, sys, threading, linebake\n"
+        "source, folder = sys.argv[1], sys.argv[2]\n"
+        "errors = []\n"
+        "def work(k):\n"
+        "    for r in range(6):\n"
+        "        copy = f'{folder}/copy_{k}_{r}.h5'\n"
+        "        shutil.copy(source, copy)\n"
+        "        try:\n"
+        "            assert linebake.read(copy).points.shape == (100, 3)\n"
+        "        except Exception as e:\n"
+        "            errors.append(str(e))\n"
+        "threads = [threading.Thread(target=work, args=(k,)) for k in range(8)]\n"
+        "[t.start() for t in threads]; [t.join() for t in threads]\n"
+        "print(len(errors), errors[:2])\n")
+    env = dict(os.environ, LINEBAKE_ISOLATION_SECONDS="5")
+    done = subprocess.run([sys.executable, "-c", script, str(source), str(tmp_path)],
+                          capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 0 and done.stdout.startswith("0 "), done.stdout + done.stderr
+
+
 def test_a_warning_made_an_error_writes_nothing(tmp_path):
     points, offsets, attributes, line_attributes = sample_arrays()
     lines = linebake.LineSet(points, offsets, attributes, line_attributes)

@@ -1,0 +1,47 @@
+// linebake-probe: walks a foreign file's metadata in a fresh process, for a linebake process
+// with threads (core/isolated.hpp, check_in_isolation): a child forked from one inherits the
+// locks its other threads held at the fork (HDF5's global lock, while another thread is in
+// HDF5: Python threads reading files at once) and can stall on them until its time limit.
+//
+//   linebake-probe MEMORY_BYTES hdf5 PATH [OBJECT...]
+//   linebake-probe MEMORY_BYTES netcdf PATH
+//
+// It replies on its standard output as a forked child does (serve_isolated): 'R' when the walk
+// passed, 'E' and the message when it failed, 'M' when it ran out of its MEMORY_BYTES; a crash
+// ends it with its signal. Not meant to be run by hand.
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "core/h5.hpp"
+#include "core/h5_probe.hpp"
+#include "core/isolated.hpp"
+#include "formats/formats.hpp"
+
+int main(int argc, char** argv) {
+  if (argc < 4) {
+    std::fprintf(stderr, "usage: linebake-probe MEMORY_BYTES hdf5|netcdf PATH [OBJECT...]\n");
+    return 2;
+  }
+  linebake::IsolationLimits limits;
+  limits.memory_bytes = std::strtoull(argv[1], nullptr, 10);
+  const std::string library = argv[2], path = argv[3];
+  const std::vector<std::string> objects(argv + 4, argv + argc);
+  if (library != "hdf5" && library != "netcdf") {
+    std::fprintf(stderr, "linebake-probe: unknown library %s\n", library.c_str());
+    return 2;
+  }
+  linebake::h5::init();  // HDF5's own printing off; NetCDF-4 files are HDF5 underneath
+  linebake::serve_isolated(
+      1,
+      [&] {
+        if (library == "hdf5")
+          linebake::h5::walk_metadata(path, objects);
+        else
+          linebake::formats::walk_netcdf_metadata(path);
+        return std::string("ok");
+      },
+      limits);
+}
