@@ -39,6 +39,38 @@ void install_interrupt_handlers() {
   for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &action, nullptr);
 }
 
+namespace {
+
+struct sigaction embedder_sigint {};
+int scope_depth = 0;  // the embedder's thread only
+
+// In a scope: the first SIGINT asks the work to stop; later ones change nothing.
+void on_scoped_signal(int signal) {
+  if (!pending) pending = signal;
+}
+
+}  // namespace
+
+InterruptScope::InterruptScope() : outermost_(scope_depth++ == 0) {
+  if (!outermost_) return;
+  pending = 0;
+  struct sigaction action {};
+  action.sa_handler = on_scoped_signal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, &embedder_sigint);
+}
+
+InterruptScope::~InterruptScope() {
+  --scope_depth;
+  if (!outermost_) return;
+  sigaction(SIGINT, &embedder_sigint, nullptr);
+  pending = 0;
+}
+
+int InterruptScope::signal() const {
+  return pending;
+}
+
 int interrupt_signal() {
   return pending;
 }

@@ -22,6 +22,24 @@ class Interrupted : public Error {
 
 // Installs the handlers (idempotent). Commands that write call it; tests need not.
 void install_interrupt_handlers();
+
+// For a program that embeds linebake and owns SIGINT itself (the Python interpreter): while a
+// scope lives, SIGINT sets the flag the work checks, in place of the program's own handler,
+// which it puts back when it ends, clearing the flag. A second SIGINT here does not end the
+// process (the interpreter lives on); the work stops at its next check. Scopes nest: the
+// outermost installs. Only for the thread the program's signals go to (Python's main thread).
+class InterruptScope {
+ public:
+  InterruptScope();
+  ~InterruptScope();
+  InterruptScope(const InterruptScope&) = delete;
+  InterruptScope& operator=(const InterruptScope&) = delete;
+  // The signal that arrived in the scope (0: none); read before the scope ends.
+  int signal() const;
+
+ private:
+  bool outermost_ = false;
+};
 // The signal that asked to stop, or 0.
 int interrupt_signal();
 // Throws Interrupted when a signal asked to stop.

@@ -245,7 +245,7 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
     // The file the set was read from is its input too: a cache never replaces it.
     if (!set.source.empty() && !synth::is_synth_source(set.source))
       refuse_input_as_output(o.cache, {set.source});
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     temporary.emplace(set, o.cache);
   } else {
     o.input = path_arg(lines_or_path, "bake");  // a str or an os.PathLike
@@ -256,7 +256,7 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   o.inputs = {o.input};
   nlohmann::json result;
   {
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     const BakeResult baked = bake(o);
     result = result_json(baked);
     if (!o.dry_run)
@@ -284,12 +284,12 @@ py::object optional_view(const Array<T>& array, size_t columns) {
 
 PyCache::PyCache(const std::string& path) : path_(path) {
   cli::check_cache_input(path);  // the CLI's messages for a line file, a plain HDF5 file
-  py::gil_scoped_release unlocked;
+  const LongCall call;
   reader_ = std::make_shared<CacheReader>(path);
 }
 
 const TubeMesh& PyCache::tubes() {
-  py::gil_scoped_release unlocked;
+  const LongCall call;
   const std::lock_guard<std::mutex> once(*load_);
   // load_tubes says what is missing, as the CLI does
   if (!tubes_) tubes_ = std::make_shared<TubeMesh>(load_tubes(*reader_));
@@ -297,7 +297,7 @@ const TubeMesh& PyCache::tubes() {
 }
 
 const VoxelGrid& PyCache::voxels() {
-  py::gil_scoped_release unlocked;
+  const LongCall call;
   const std::lock_guard<std::mutex> once(*load_);
   // load_voxels says what is missing, as the CLI does
   if (!voxels_) voxels_ = std::make_shared<VoxelGrid>(load_voxels(*reader_));
@@ -400,7 +400,7 @@ the same memory).)doc")
           [](const PyCache& c) {
             auto set = std::make_shared<PyLineSet>();
             {
-              py::gil_scoped_release unlocked;
+              const LongCall call;
               set->lines = load_lines(c.reader());
             }
             // Read from the cache: writing or baking it over the cache is refused, as for a

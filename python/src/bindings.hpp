@@ -5,13 +5,18 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <cstddef>
+#include <exception>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "core/interrupt.hpp"
 #include "lines/line_set.hpp"
 
 namespace linebake::python {
@@ -25,6 +30,29 @@ struct PyLineSet {
   LineSet lines;
   std::string source;  // the path or synth: source it was read from; "" when made from arrays
   std::string format;  // that source's format name
+};
+
+// A call into the library that may take long: the GIL released and, on the main thread (where
+// Python's signals go), Ctrl-C stopping the work at its next check (Interrupted, raised as
+// KeyboardInterrupt, the temporaries removed) instead of when the call returns. A Ctrl-C that
+// came after the work's last check is handed back to Python as the call returns.
+class LongCall {
+ public:
+  LongCall() {
+    if (syscall(SYS_gettid) == getpid()) interrupts_.emplace();
+    unlocked_.emplace();
+  }
+  ~LongCall() {
+    unlocked_.reset();  // the GIL again, then Python's handler back
+    if (interrupts_ && interrupts_->signal() != 0 && std::uncaught_exceptions() == 0)
+      PyErr_SetInterrupt();
+  }
+  LongCall(const LongCall&) = delete;
+  LongCall& operator=(const LongCall&) = delete;
+
+ private:
+  std::optional<InterruptScope> interrupts_;
+  std::optional<py::gil_scoped_release> unlocked_;
 };
 
 // A str, bytes or os.PathLike (pathlib.Path) argument as a path string, as the stub's StrPath

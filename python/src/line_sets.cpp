@@ -141,7 +141,7 @@ std::shared_ptr<PyLineSet> read(const py::object& source_arg,
   options.memory_limit = MemoryBudget(default_memory_budget()).available();
   auto result = std::make_shared<PyLineSet>();
   {
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     result->lines = read_line_set(source, options);
     result->format = source_format_name(source, options);
   }
@@ -171,7 +171,7 @@ void write(const PyLineSet& set, const py::object& path_object,
     // A warnings filter may turn the warning into an error: then nothing is written.
     if (PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1) != 0) throw py::error_already_set();
   }
-  py::gil_scoped_release unlocked;
+  const LongCall call;
   write_line_set(set.lines, path, options);
 }
 
@@ -196,7 +196,7 @@ py::tuple validated(const PyLineSet& set, const std::string& policy) {
   const std::string source = set.source.empty() ? "<arrays>" : set.source;
   ValidationReport report;
   {
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     report = validate(result->lines, parsed, source);
   }
   return py::make_tuple(result, to_python(validation_json(report)));

@@ -169,7 +169,7 @@ class PyRenderer {
     // The availability check of `linebake techniques`, with the cache's assets.
     if (auto reason = technique_unavailable(*technique_, options_, &cache_->reader()))
       throw Error(technique + ": cannot run here: " + *reason);
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     prepared_ = technique_->prepare(technique_->info, cache_->reader(), cache_->path(), options_);
   }
 
@@ -201,7 +201,7 @@ class PyRenderer {
     }
     TechniqueFrame rendered;
     {
-      py::gil_scoped_release unlocked;
+      const LongCall call;
       const std::lock_guard<std::mutex> one_at_a_time(mutex_);
       rendered = prepared_->render(c, tf, width, height);
     }
@@ -277,7 +277,7 @@ py::dict compare(const py::object& a, const py::object& b, bool srgb_encoded) {
                 std::to_string(second.height) + ": images of one size compare");
   double p = 0, s = 0;
   {
-    py::gil_scoped_release unlocked;
+    const LongCall call;
     p = psnr(first, second);
     s = ssim(first, second);
   }

@@ -1,6 +1,9 @@
 """bake() and open_cache() against the CLI's `report --json` of the same cache, and the cached
 arrays against figures computed here from the line set."""
 
+import os
+import subprocess
+import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -165,3 +168,29 @@ def test_open_cache_errors_are_the_clis(tmp_path):
     with pytest.raises(linebake.InputError) as caught:
         linebake.open_cache(missing)
     assert str(caught.value) == cli_error("report", missing)
+
+
+def test_ctrl_c_stops_a_bake_at_its_next_check(tmp_path):
+    # SIGINT a second into a bake of several seconds, in the main thread of a fresh interpreter:
+    # the bake stops at its next check and raises KeyboardInterrupt, leaving nothing (it used to
+    # finish first, the cache written, and Python raised as the call returned); Python's own
+    # handler is back afterwards.
+    script = (
+        "import linebake, os, signal, sys, threading, time\n"
+        "start = time.time()\n"
+        "threading.Timer(1.0, lambda: os.kill(os.getpid(), signal.SIGINT)).start()\n"
+        "try:\n"
+        "    linebake.bake('synth:convection?scale=1', sys.argv[1], assets=['tubes', 'voxels'])\n"
+        "    print('finished')\n"
+        "except KeyboardInterrupt as e:\n"
+        "    print('interrupted', round(time.time() - start), e)\n"
+        "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    done = subprocess.run([sys.executable, "-c", script, str(out / "x.lbc.h5")],
+                          capture_output=True, text=True, timeout=300, env=os.environ)
+    lines = done.stdout.split("\n")
+    assert lines[0].startswith("interrupted ") and "SIGINT" in lines[0], done.stdout + done.stderr
+    assert int(lines[0].split()[1]) <= 3, lines[0]
+    assert lines[1] == "True", done.stdout
+    assert list(out.iterdir()) == []
