@@ -1,8 +1,10 @@
 // The isolated runner (core/isolated.hpp) and the HDF5 metadata walk (core/h5_probe.hpp): what a
 // crash, a hang, an allocation past the cap and a clean result in the child give the parent.
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <hdf5.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <csignal>
@@ -15,6 +17,7 @@
 #include "core/error.hpp"
 #include "core/h5.hpp"
 #include "core/h5_probe.hpp"
+#include "core/interrupt.hpp"
 #include "core/isolated.hpp"
 #include "formats/registry.hpp"
 #include "lines/line_set.hpp"
@@ -110,19 +113,53 @@ TEST(Isolated, ACrashBecomesAnInputErrorNamingTheFile) {
 TEST(Isolated, TheProgramRunsLikeAForkedChild) {
   IsolationLimits quick;
   quick.seconds = 2;
-  const IsolatedOutcome reply = run_isolated_program({"/bin/sh", "-c", "printf Rhello"}, quick);
+  // Stand-ins for the program: sh with the handshake as $0, replying on descriptor 3.
+  const auto sh = [](const std::string& script) {
+    return std::vector<std::string>{"/bin/sh", "-c", script, kIsolatedHandshake};
+  };
+  const IsolatedOutcome reply = run_isolated_program(sh("printf '%sRhello' \"$0\" >&3"), quick);
   EXPECT_EQ(reply.kind, Kind::Finished);
   EXPECT_EQ(reply.result, "hello");
-  const IsolatedOutcome crash = run_isolated_program({"/bin/sh", "-c", "kill -SEGV $$"}, quick);
+  const IsolatedOutcome crash =
+      run_isolated_program(sh("printf '%s' \"$0\" >&3; kill -SEGV $$"), quick);
   EXPECT_EQ(crash.kind, Kind::Signal);
   EXPECT_EQ(crash.signal, SIGSEGV);
   const auto start = std::chrono::steady_clock::now();
-  EXPECT_EQ(run_isolated_program({"/bin/sleep", "60"}, quick).kind, Kind::TimedOut);
+  EXPECT_EQ(run_isolated_program(sh("printf '%s' \"$0\" >&3; sleep 60"), quick).kind,
+            Kind::TimedOut);
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
-  const IsolatedOutcome status = run_isolated_program({"/bin/sh", "-c", "exit 3"}, quick);
+  const IsolatedOutcome status = run_isolated_program(sh("printf '%s' \"$0\" >&3; exit 3"), quick);
   EXPECT_EQ(status.kind, Kind::Exited);
   EXPECT_EQ(status.exit_code, 3);
+  // Ctrl-C reaches the program blocked: it walks on, and this process decides.
+  const IsolatedOutcome blocked =
+      run_isolated_program(sh("kill -INT $$; printf '%sRstill here' \"$0\" >&3"), quick);
+  EXPECT_EQ(blocked.result, "still here");
+  // A child that died of SIGINT anyway was stopped by the user, not by the file.
+  EXPECT_THROW(run_isolated_program({"/usr/bin/python3", "-c",
+                                     "import os, signal, sys\n"
+                                     "signal.pthread_sigmask(signal.SIG_UNBLOCK, [signal.SIGINT])\n"
+                                     "signal.signal(signal.SIGINT, signal.SIG_DFL)\n"
+                                     "os.write(3, sys.argv[1].encode())\n"
+                                     "os.kill(os.getpid(), signal.SIGINT)\n",
+                                     kIsolatedHandshake},
+                                    quick),
+               Interrupted);
+  // What does not say it is linebake-probe of this version walked nothing: an Error, no verdict
+  // on the file (a loader's exit 127, another version's reply).
+  for (const std::string& script : {std::string("exit 127"), std::string("printf Rok >&3"),
+                                    std::string("printf 'linebake-probe 0.0.0\\nRok' >&3")})
+    EXPECT_THROW(run_isolated_program(sh(script), quick), Error) << script;
   EXPECT_THROW(run_isolated_program({"/no/such/program"}, quick), Error);
+  // It gets no descriptor of this process but its reply's: an open file here is not open there.
+  const int null = ::open("/dev/null", O_RDONLY);
+  const int mine = fcntl(null, F_DUPFD, 50);  // without close-on-exec
+  ::close(null);
+  ASSERT_GE(mine, 50);
+  const IsolatedOutcome fds = run_isolated_program(
+      sh("printf '%sR' \"$0\" >&3; ls /proc/self/fd | tr '\\n' ' ' >&3"), quick);
+  ::close(mine);
+  EXPECT_EQ(fds.result.find(" " + std::to_string(mine) + " "), std::string::npos) << fds.result;
 
   const std::string& program = isolation_program();
   ASSERT_FALSE(program.empty()) << "linebake-probe is built with the tests";
@@ -152,6 +189,30 @@ TEST(Isolated, TheProgramRunsLikeAForkedChild) {
   }
   EXPECT_EQ(run_isolated_program({program, "1073741824", "hdf5", dir.file("sound.h5")}).kind,
             Kind::Finished);
+}
+
+// The child's end is seen when it exits, even where another process holds the reply's write
+// end open (forked by another thread of the parent, or, here, by the child itself): end of file
+// never comes, and the wait used to run to the time limit.
+TEST(Isolated, AChildsEndIsSeenWhileAnotherProcessHoldsItsPipe) {
+  IsolationLimits limits;
+  limits.seconds = 20;
+  const auto start = std::chrono::steady_clock::now();
+  const IsolatedOutcome o = run_isolated(
+      [] {
+        const pid_t holder = fork();  // keeps the pipe's write end open after the child exits
+        if (holder == 0) {
+          sleep(60);
+          _exit(0);
+        }
+        return std::to_string(holder);
+      },
+      limits);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(o.kind, Kind::Finished);
+  kill(pid_t(std::stoi(o.result)), SIGKILL);
+  EXPECT_LT(seconds, 5.0);
 }
 
 TEST(Isolated, OffRunsNothing) {

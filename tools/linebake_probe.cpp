@@ -6,10 +6,15 @@
 //   linebake-probe MEMORY_BYTES hdf5 PATH [OBJECT...]
 //   linebake-probe MEMORY_BYTES netcdf PATH
 //
-// It replies on its standard output as a forked child does (serve_isolated): 'R' when the walk
-// passed, 'E' and the message when it failed, 'M' when it ran out of its MEMORY_BYTES; a crash
-// ends it with its signal. Not meant to be run by hand.
+// It writes kIsolatedHandshake on descriptor 3 and then replies there as a forked child does
+// (serve_isolated): 'R' when the walk passed, 'E' and the message when it failed, 'M' when it ran
+// out of its MEMORY_BYTES; a crash ends it with its signal. It dies with the thread that started
+// it. Not meant to be run by hand.
 
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -21,6 +26,7 @@
 #include "formats/formats.hpp"
 
 int main(int argc, char** argv) {
+  prctl(PR_SET_PDEATHSIG, SIGKILL);  // a parent killed outright takes its walk along
   if (argc < 4) {
     std::fprintf(stderr, "usage: linebake-probe MEMORY_BYTES hdf5|netcdf PATH [OBJECT...]\n");
     return 2;
@@ -34,8 +40,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   linebake::h5::init();  // HDF5's own printing off; NetCDF-4 files are HDF5 underneath
+  // Said once the arguments are understood: what fails before this is no verdict on the file.
+  const int reply = linebake::kIsolatedReplyFd;
+  const std::string& hello = linebake::kIsolatedHandshake;
+  if (::write(reply, hello.data(), hello.size()) != static_cast<ssize_t>(hello.size()))
+    return 2;  // started by hand, without the descriptor
   linebake::serve_isolated(
-      1,
+      reply,
       [&] {
         if (library == "hdf5")
           linebake::h5::walk_metadata(path, objects);

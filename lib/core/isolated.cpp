@@ -146,55 +146,92 @@ std::string IsolatedOutcome::describe(const IsolationLimits& limits) const {
 
 namespace {
 
-// Waits for the isolated child `pid` that replies on `fd` (its read end, closed here) and
-// started at `start`, within `limits`; kills it past them or on an interruption.
-IsolatedOutcome wait_for_child(pid_t pid, int fd, std::chrono::steady_clock::time_point start,
-                               const IsolationLimits& limits) {
-  IsolatedOutcome outcome;
+// What an isolated child left: its reply, how it ended.
+struct ChildEnd {
   std::string received;
+  int status = 0;
   bool timed_out = false, ended = false;
-  int interrupted = 0;
+  int interrupted = 0;  // the signal that asked this process to stop, or 0
+};
+
+// Waits for the isolated child `pid` that replies on `fd` (its read end, closed here) and
+// started at `start`, within `limits`; kills it past them or on an interruption. The child's end
+// is seen by its reply's end of file or, every 100 ms, by waitpid: a process forked elsewhere in
+// this one (another thread's) may hold the pipe's write end open, and no end of file comes.
+ChildEnd wait_for_child(pid_t pid, int fd, std::chrono::steady_clock::time_point start,
+                        const IsolationLimits& limits) {
+  ChildEnd end;
+  bool reaped = false;
+  const auto drain = [&] {  // what the child wrote before it ended
+    char buffer[4096];
+    for (pollfd p{fd, POLLIN, 0}; poll(&p, 1, 0) > 0;) {
+      const ssize_t n = ::read(fd, buffer, sizeof buffer);
+      if (n <= 0) break;
+      end.received.append(buffer, static_cast<size_t>(n));
+    }
+  };
   for (;;) {
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (elapsed >= limits.seconds) {
-      timed_out = true;
+      end.timed_out = true;
       break;
     }
-    if ((interrupted = interrupt_signal()) != 0) break;
+    if ((end.interrupted = interrupt_signal()) != 0) break;
     pollfd p{fd, POLLIN, 0};
-    const int wait_ms = static_cast<int>(std::min(1000.0, (limits.seconds - elapsed) * 1000) + 1);
+    const int wait_ms = static_cast<int>(std::min(100.0, (limits.seconds - elapsed) * 1000) + 1);
     const int ready = poll(&p, 1, wait_ms);
     if (ready < 0 && errno != EINTR) break;
-    if (ready <= 0) continue;
-    char buffer[4096];
-    const ssize_t n = ::read(fd, buffer, sizeof buffer);
-    if (n < 0 && errno == EINTR) continue;
-    if (n == 0) ended = true;  // end of file: the child has exited (or closed its end)
-    if (n <= 0) break;
-    received.append(buffer, static_cast<size_t>(n));
+    if (ready > 0) {
+      char buffer[4096];
+      const ssize_t n = ::read(fd, buffer, sizeof buffer);
+      if (n < 0 && errno == EINTR) continue;
+      if (n > 0) {
+        end.received.append(buffer, static_cast<size_t>(n));
+        continue;
+      }
+      end.ended = n == 0;  // end of file: the child has exited (or closed its end)
+      break;
+    }
+    const pid_t r = waitpid(pid, &end.status, WNOHANG);
+    if (r == pid) {
+      reaped = end.ended = true;
+      drain();
+      break;
+    }
   }
   ::close(fd);
-  if (!ended) kill(pid, SIGKILL);  // timed out, interrupted, or poll/read failed
-  if (!interrupted) interrupted = interrupt_signal();
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
+  if (!end.ended) kill(pid, SIGKILL);  // timed out, interrupted, or poll/read failed
+  if (!end.interrupted) end.interrupted = interrupt_signal();
+  if (!reaped)
+    while (waitpid(pid, &end.status, 0) < 0 && errno == EINTR) {
+    }
+  return end;
+}
+
+// The outcome of a child that ended as `end` says.
+IsolatedOutcome outcome_of(const ChildEnd& end, std::chrono::steady_clock::time_point start) {
+  IsolatedOutcome outcome;
   outcome.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (interrupted) throw Interrupted(interrupted, "while a reader ran isolated");
-  if (timed_out || !ended) {
+  if (end.interrupted) throw Interrupted(end.interrupted, "while a reader ran isolated");
+  if (end.timed_out || !end.ended) {
     outcome.kind = IsolatedOutcome::Kind::TimedOut;
-  } else if (WIFSIGNALED(status)) {
+  } else if (WIFSIGNALED(end.status)) {
+    const int signal = WTERMSIG(end.status);
+    // The user's Ctrl-C (or a job's end) reached the child before it could ignore it: not the
+    // file's doing.
+    if (signal == SIGINT || signal == SIGTERM || signal == SIGHUP)
+      throw Interrupted(signal, "while a reader ran isolated");
     outcome.kind = IsolatedOutcome::Kind::Signal;
-    outcome.signal = WTERMSIG(status);
-  } else if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    outcome.signal = signal;
+  } else if (WIFEXITED(end.status) && WEXITSTATUS(end.status) != 0) {
     outcome.kind = IsolatedOutcome::Kind::Exited;
-    outcome.exit_code = WEXITSTATUS(status);
-  } else if (received.empty()) {
+    outcome.exit_code = WEXITSTATUS(end.status);
+  } else if (end.received.empty()) {
     outcome.kind = IsolatedOutcome::Kind::Exited;  // exited 0 without a result: never ours
   } else {
-    const char tag = received[0];
-    outcome.result = received.substr(1);
+    const char tag = end.received[0];
+    outcome.result = end.received.substr(1);
     outcome.kind = tag == 'R'   ? IsolatedOutcome::Kind::Finished
                    : tag == 'M' ? IsolatedOutcome::Kind::OutOfMemory
                                 : IsolatedOutcome::Kind::Failed;
@@ -224,7 +261,7 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
     serve_isolated(fds[1], work, limits);
   }
   ::close(fds[1]);
-  return wait_for_child(pid, fds[0], start, limits);
+  return outcome_of(wait_for_child(pid, fds[0], start, limits), start);
 }
 
 IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
@@ -233,23 +270,68 @@ IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0)
     throw Error(std::string("cannot start an isolated reader: pipe: ") + std::strerror(errno));
-  // The program's standard output is the pipe's write end (dup2 clears its close-on-exec).
+  // The program replies on its descriptor 3 (its standard output may be a library's to print
+  // on: /dev/null); it gets no other descriptor of this process. The write end goes to 3 from a
+  // descriptor above it, as a dup2 onto itself would keep its close-on-exec.
+  const int reply = fcntl(fds[1], F_DUPFD_CLOEXEC, 10);
+  ::close(fds[1]);
+  if (reply < 0) {
+    ::close(fds[0]);
+    throw Error(std::string("cannot start an isolated reader: fcntl: ") + std::strerror(errno));
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, fds[1], STDOUT_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, reply, kIsolatedReplyFd);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 34))
+  posix_spawn_file_actions_addclosefrom_np(&actions, kIsolatedReplyFd + 1);
+#endif
+  // Ctrl-C, SIGTERM and SIGHUP reach the whole process group; the program starts with them
+  // blocked (it ignores them once it runs: this process decides and kills it), and with the
+  // crash signals and SIGPIPE at their defaults whatever this process does with them.
+  posix_spawnattr_t attributes;
+  posix_spawnattr_init(&attributes);
+  sigset_t blocked, defaults;
+  sigemptyset(&blocked);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&blocked, s);
+  sigemptyset(&defaults);
+  for (int s : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGPIPE, SIGXFSZ})
+    sigaddset(&defaults, s);
+  posix_spawnattr_setsigmask(&attributes, &blocked);
+  posix_spawnattr_setsigdefault(&attributes, &defaults);
+  posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;
-  const int error = posix_spawn(&pid, argv.at(0).c_str(), &actions, nullptr, args.data(), environ);
+  const int error =
+      posix_spawn(&pid, argv.at(0).c_str(), &actions, &attributes, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  ::close(fds[1]);
+  posix_spawnattr_destroy(&attributes);
+  ::close(reply);
   if (error != 0) {
     ::close(fds[0]);
     throw Error("cannot start an isolated reader: " + argv[0] + ": " + std::strerror(error) +
                 " (LINEBAKE_ISOLATION=off reads in-process; docs/reliability.md)");
   }
-  return wait_for_child(pid, fds[0], start, limits);
+  ChildEnd end = wait_for_child(pid, fds[0], start, limits);
+  // A program that never said it was linebake-probe of this version (a loader that could not
+  // find its libraries, another version's) did not walk anything: that is no verdict on the
+  // file, and said as what it is.
+  if (!end.interrupted && !end.timed_out && end.received.rfind(kIsolatedHandshake, 0) != 0) {
+    IsolatedOutcome failed = outcome_of(end, start);
+    const std::string said = end.received.substr(0, end.received.find('\n'));
+    throw Error("cannot run " + argv[0] + ": it " +
+                (failed.kind == IsolatedOutcome::Kind::Finished ||
+                         failed.kind == IsolatedOutcome::Kind::Failed
+                     ? "replied '" + said.substr(0, 80) + "'"
+                     : failed.describe(limits)) +
+                ", not as " + kIsolatedHandshake.substr(0, kIsolatedHandshake.size() - 1) +
+                " (reinstall linebake, or LINEBAKE_ISOLATION=off reads in-process)");
+  }
+  if (end.received.rfind(kIsolatedHandshake, 0) == 0)
+    end.received.erase(0, kIsolatedHandshake.size());
+  return outcome_of(end, start);
 }
 
 namespace {
@@ -278,11 +360,11 @@ std::filesystem::path code_directory() {
 
 const std::string& isolation_program() {
   static const std::string program = [] {
-    std::vector<std::filesystem::path> places;
+    // Beside this code first: the Python module's directory before python3's.
+    std::vector<std::filesystem::path> places{code_directory()};
     std::error_code ec;
     const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
     if (!ec) places.push_back(self.parent_path());
-    places.push_back(code_directory());
 #ifdef LINEBAKE_PROBE_DIR
     places.push_back(LINEBAKE_PROBE_DIR);
 #endif

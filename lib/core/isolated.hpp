@@ -56,8 +56,14 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
 [[noreturn]] void serve_isolated(int fd, const std::function<std::string()>& work,
                                  const IsolationLimits& limits);
 
-// Runs the program `argv` (argv[0] a path), which replies on its standard output as
-// serve_isolated does, under the same limits and waiting as run_isolated.
+// What linebake-probe writes first on kIsolatedReplyFd, before it replies as serve_isolated does.
+inline const std::string kIsolatedHandshake = "linebake-probe " LINEBAKE_VERSION "\n";
+constexpr int kIsolatedReplyFd = 3;
+
+// Runs the program `argv` (argv[0] a path), which writes kIsolatedHandshake and then replies as
+// serve_isolated does on its descriptor kIsolatedReplyFd, under the same limits and waiting as
+// run_isolated. Throws Error when the program does not say it is linebake-probe of this version
+// (it could not start, or is another version's): no verdict on the file.
 IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
                                      const IsolationLimits& limits = {});
 
