@@ -1,5 +1,6 @@
 #include "core/interrupt.hpp"
 
+#include <atomic>
 #include <csignal>
 #include <cstring>
 
@@ -42,41 +43,58 @@ void install_interrupt_handlers() {
 namespace {
 
 struct sigaction embedder_sigint {};
-int scope_depth = 0;  // the embedder's thread only
+int scope_depth = 0;  // the embedder's signal thread only
+volatile std::sig_atomic_t scoped_pending = 0;
+std::atomic<int> embedded_calls{0};
 
 // In a scope: the first SIGINT asks the work to stop; later ones change nothing.
 void on_scoped_signal(int signal) {
-  if (!pending) pending = signal;
+  if (!scoped_pending) scoped_pending = signal;
 }
 
 }  // namespace
 
+EmbeddedCall::EmbeddedCall() {
+  ++embedded_calls;
+}
+
+EmbeddedCall::~EmbeddedCall() {
+  --embedded_calls;
+}
+
 InterruptScope::InterruptScope() : outermost_(scope_depth++ == 0) {
   if (!outermost_) return;
-  pending = 0;
+  scoped_pending = 0;
   struct sigaction action {};
   action.sa_handler = on_scoped_signal;
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, &embedder_sigint);
 }
 
-InterruptScope::~InterruptScope() {
+int InterruptScope::finish() {
+  if (finished_) return 0;
+  finished_ = true;
   --scope_depth;
-  if (!outermost_) return;
-  sigaction(SIGINT, &embedder_sigint, nullptr);
-  pending = 0;
+  if (!outermost_) return 0;
+  sigaction(SIGINT, &embedder_sigint, nullptr);  // first: a later SIGINT is the program's
+  const int signal = scoped_pending;
+  scoped_pending = 0;
+  return signal;
 }
 
-int InterruptScope::signal() const {
-  return pending;
+InterruptScope::~InterruptScope() {
+  finish();
 }
 
 int interrupt_signal() {
-  return pending;
+  if (pending) return pending;
+  // A scope's SIGINT is for its call: only when no other call could see it.
+  if (scoped_pending && embedded_calls.load() <= 1) return scoped_pending;
+  return 0;
 }
 
 void throw_if_interrupted() {
-  if (pending) throw Interrupted(pending);
+  if (const int signal = interrupt_signal()) throw Interrupted(signal);
 }
 
 }  // namespace linebake

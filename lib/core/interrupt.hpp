@@ -23,22 +23,34 @@ class Interrupted : public Error {
 // Installs the handlers (idempotent). Commands that write call it; tests need not.
 void install_interrupt_handlers();
 
-// For a program that embeds linebake and owns SIGINT itself (the Python interpreter): while a
-// scope lives, SIGINT sets the flag the work checks, in place of the program's own handler,
-// which it puts back when it ends, clearing the flag. A second SIGINT here does not end the
-// process (the interpreter lives on); the work stops at its next check. Scopes nest: the
-// outermost installs. Only for the thread the program's signals go to (Python's main thread).
+// For a program that embeds linebake and calls it from several threads (the Python module):
+// one call into the library in flight, on any thread, for as long as it lives.
+class EmbeddedCall {
+ public:
+  EmbeddedCall();
+  ~EmbeddedCall();
+  EmbeddedCall(const EmbeddedCall&) = delete;
+  EmbeddedCall& operator=(const EmbeddedCall&) = delete;
+};
+
+// For such a program that owns SIGINT itself (the Python interpreter), around a call made on
+// the thread its signals go to: while the scope lives, SIGINT sets a flag the work checks, in
+// place of the program's handler, which finish() puts back. The flag stops the work only while
+// its call is the only EmbeddedCall in flight (another thread's call would see it too); else
+// finish() hands it back for the program to deliver. A second SIGINT does not end the process.
+// Scopes nest: the outermost installs.
 class InterruptScope {
  public:
   InterruptScope();
   ~InterruptScope();
   InterruptScope(const InterruptScope&) = delete;
   InterruptScope& operator=(const InterruptScope&) = delete;
-  // The signal that arrived in the scope (0: none); read before the scope ends.
-  int signal() const;
+  // Puts the program's handler back first, then returns the signal that came in the scope (0:
+  // none) and clears it. Idempotent; the destructor calls it.
+  int finish();
 
  private:
-  bool outermost_ = false;
+  bool outermost_ = false, finished_ = false;
 };
 // The signal that asked to stop, or 0.
 int interrupt_signal();

@@ -8,6 +8,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstddef>
 #include <exception>
 #include <memory>
@@ -33,28 +34,36 @@ struct PyLineSet {
 };
 
 // A call into the library that may take long: the GIL released and, on the main thread (where
-// Python's signals go), Ctrl-C stopping the work at its next check (Interrupted, raised as
-// KeyboardInterrupt, the temporaries removed) instead of when the call returns. A Ctrl-C that
-// came after the work's last check is handed back to Python as the call returns.
+// Python's signals go) while Python's own SIGINT handler is in place, Ctrl-C stopping the work
+// at its next check (Interrupted, raised as KeyboardInterrupt, the temporaries removed) instead
+// of when the call returns, if no other thread's call is in flight (it would see it too). A
+// Ctrl-C the work did not act on is handed back to Python as the call returns. A handler of the
+// user's, or SIGINT ignored, is left as it is.
 class LongCall {
  public:
   LongCall() {
-    if (syscall(SYS_gettid) == getpid()) interrupts_.emplace();
+    if (syscall(SYS_gettid) == getpid() && python_handles_sigint()) interrupts_.emplace();
     unlocked_.emplace();
   }
   ~LongCall() {
-    unlocked_.reset();  // the GIL again, then Python's handler back
-    if (interrupts_ && interrupts_->signal() != 0 && std::uncaught_exceptions() == 0)
-      PyErr_SetInterrupt();
+    unlocked_.reset();                                           // the GIL again
+    const int signal = interrupts_ ? interrupts_->finish() : 0;  // Python's handler back first
+    if (signal != 0 && std::uncaught_exceptions() == 0) PyErr_SetInterrupt();
   }
   LongCall(const LongCall&) = delete;
   LongCall& operator=(const LongCall&) = delete;
 
  private:
+  // Whether SIGINT is Python's default handling (KeyboardInterrupt), with the GIL.
+  static bool python_handles_sigint() {
+    const py::module_ signal = py::module_::import("signal");
+    return signal.attr("getsignal")(int(SIGINT)).is(signal.attr("default_int_handler"));
+  }
+
+  EmbeddedCall call_;
   std::optional<InterruptScope> interrupts_;
   std::optional<py::gil_scoped_release> unlocked_;
 };
-
 // A str, bytes or os.PathLike (pathlib.Path) argument as a path string, as the stub's StrPath
 // says (a TypeError naming `what` otherwise).
 inline std::string path_arg(const py::handle& value, const char* what) {
