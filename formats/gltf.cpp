@@ -25,6 +25,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/progress.hpp"
 #include "core/spill_file.hpp"
 
@@ -36,8 +37,8 @@ constexpr int kElementArrayBuffer = 34963;
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
 constexpr uint64_t kGlbLimit = 0xFFFFFFFFull;
 
-// Where the binary buffer's bytes go: nowhere while the file is laid out (the first of the two
-// passes, write_gltf), to the file in the second.
+// Where the binary buffer's bytes go: to a hash while the file is laid out (the first of the two
+// passes, write_gltf), to the file and a hash in the second.
 using ByteSink = std::function<void(const void* data, size_t bytes)>;
 
 // Lays out the single binary buffer and the views/accessors that point into it, handing each
@@ -572,26 +573,33 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
   const auto chunk_done = [&] { progress.update(++chunks_done, 2 * chunks); };
   DracoChunks draco;
   if (options.draco && tubes) draco.spill = std::make_unique<SpillFile>(path, "draco");
+  // Each pass hashes the buffer's bytes: the second must write what the first laid out (the
+  // accessors' bounds come from the first), or the data changed in between.
+  Hasher laid_out, wrote;
   Pass layout;
   try {
-    layout = run_pass(tubes, lines, options, glb, &draco, nullptr, chunk_done);
+    layout = run_pass(
+        tubes, lines, options, glb, &draco,
+        [&](const void* data, size_t bytes) { laid_out.update(data, bytes); }, chunk_done);
   } catch (const Error& e) {
     // What the export itself cannot do (the GLB limit, lines glTF cannot hold, Draco) is about
     // the output; an input's or the budget's error stays what it is.
     if (typeid(e) != typeid(Error)) throw;
     throw OutputError(path, e.what());
   }
-  // The second pass writes the buffer's bytes; its layout must be the first's.
   const auto write_buffer = [&](std::ostream& out) {
     const Pass written = run_pass(
         tubes, lines, options, glb, &draco,
-        [&](const void* data, size_t bytes) { out.write(static_cast<const char*>(data), bytes); },
+        [&](const void* data, size_t bytes) {
+          out.write(static_cast<const char*>(data), std::streamsize(bytes));
+          wrote.update(data, bytes);
+        },
         chunk_done);
-    if (written.buffer_bytes != layout.buffer_bytes ||
-        written.model.bufferViews.size() != layout.model.bufferViews.size())
-      throw OutputError(path, "the data changed between the export's two passes (" +
-                                  std::to_string(layout.buffer_bytes) + " then " +
-                                  std::to_string(written.buffer_bytes) + " buffer bytes)");
+    if (written.buffer_bytes != layout.buffer_bytes || wrote.hex() != laid_out.hex())
+      throw Error(path + ": the data changed between the export's two passes (" +
+                  std::to_string(layout.buffer_bytes) + " then " +
+                  std::to_string(written.buffer_bytes) +
+                  " buffer bytes): was the cache rewritten meanwhile? Nothing was written");
     return bool(out);
   };
   if (!glb) {

@@ -306,11 +306,11 @@ void Writer::close() {
 }
 
 void check_read_memory(const std::string& path, const char* format, double bytes,
-                       const std::string& place, uint64_t limit) {
-  if (limit == 0 || bytes <= double(limit)) return;
+                       const std::string& place, std::optional<uint64_t> limit) {
+  if (!limit || bytes <= double(*limit)) return;
   throw BudgetExceeded(path + ": " + format + " is read whole: at " + place + " it holds about " +
                        (bytes < 1e19 ? format_bytes(uint64_t(bytes)) : std::string("16 EiB")) +
-                       ", more than the " + format_bytes(limit) +
+                       ", more than the " + format_bytes(*limit) +
                        " the memory budget leaves for reading it; raise --memory-budget "
                        "(.binlines and .h5 inputs are read piece by piece)");
 }

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -211,10 +212,11 @@ class Writer {
 };
 
 // What a reader of a format read whole will hold at `place` (its arrays and the line set
-// gathered from them), checked against ReadOptions::memory_limit (0: none) before it allocates:
+// gathered from them), checked against ReadOptions::memory_limit (none: no limit) before it
+// allocates:
 // past it, BudgetExceeded naming the file, the place and the figures. In double: the counts come
 // from the file, and their products must not wrap.
 void check_read_memory(const std::string& path, const char* format, double bytes,
-                       const std::string& place, uint64_t limit);
+                       const std::string& place, std::optional<uint64_t> limit);
 
 }  // namespace linebake::io

@@ -3,6 +3,7 @@
 // attributes (spaces in names as %20). Faces, normals, groups and materials are ignored.
 
 #include <algorithm>
+#include <cctype>
 #include <numeric>
 
 #include "formats/formats.hpp"
@@ -23,20 +24,29 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   // lines: the arrays (resident as far as they are filled), the largest of them once more while
   // they grow (a vector copies itself as it grows), and the line set to be gathered along the
   // indices so far.
-  const auto check_memory = [&](bool growing) {
+  const auto check_memory = [&](bool growing, double line_bytes = 0) {
     const double attribute_floats = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
     const double arrays[] = {4.0 * double(positions.size()), 4.0 * double(vt.size()),
                              8.0 * double(indices.size()), 8.0 * double(offsets.size())};
     double held = 0, largest = 0;
     for (const double bytes : arrays) held += bytes, largest = std::max(largest, bytes);
-    io::check_read_memory(
-        path, "obj",
-        held + (growing ? largest : 0) + (12 + 4 * attribute_floats) * double(indices.size()),
-        at_line(in.line_number()), options.memory_limit);
+    io::check_read_memory(path, "obj",
+                          held + (growing ? largest : 0) + line_bytes +
+                              (12 + 4 * attribute_floats) * double(indices.size()),
+                          at_line(in.line_number()), options.memory_limit);
   };
   std::string_view line;
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);
+    // A long line (an `l` of millions of indices) before it is split: the line, a token per
+    // value (counted) and what each index will add.
+    if (line.size() > 65536) {
+      double values = 0;
+      for (size_t i = 0; i < line.size(); ++i)
+        values += !std::isspace(static_cast<unsigned char>(line[i])) &&
+                  (i == 0 || std::isspace(static_cast<unsigned char>(line[i - 1])));
+      check_memory(true, double(line.size()) + values * (16 + 8 + 12 + 4 * double(names.size())));
+    }
     line = io::trim(line);
     if (line.empty() || line[0] == '#') continue;
     const auto tokens = io::split_whitespace(line);

@@ -40,11 +40,11 @@ struct ReadOptions {
   std::optional<Format> format;  // overrides the extension
   ProgressFn progress;
   // Bytes a format read whole (OBJ, VTK, VTP) may hold while it is read, its arrays and the
-  // line set gathered from them together; 0: no limit. Each reader checks what it will hold
-  // before it allocates (from the counts a VTK or VTP header declares; an OBJ's as they grow)
-  // and throws BudgetExceeded naming the file past it, so a large file is refused, not the
-  // process killed.
-  uint64_t memory_limit = 0;
+  // line set gathered from them together; none: no limit (0: nothing, a budget used up). Each
+  // reader checks what it will hold before it allocates (from the counts a VTK or VTP header
+  // declares; an OBJ's as they grow) and throws BudgetExceeded naming the file past it, so a large
+  // file is refused, not the process killed.
+  std::optional<uint64_t> memory_limit;
 };
 
 struct WriteOptions {

@@ -381,7 +381,10 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       uint64_t a, b;
       if (!io::parse_uint64(in.token(), a) || !io::parse_uint64(in.token(), b))
         in.fail("bad " + key + " header");
-      // The cell list as read (int64), then split into offsets and connectivity.
+      // The cell list as read (int64), then split into offsets and connectivity; counts the
+      // file cannot hold are its own fault first.
+      checked_count(in, a, 1, "cell count");
+      checked_count(in, b, 1, "cell list size");
       hold(8.0 * (double(a) + double(b)), 12.0 * double(b),
            key + " (" + std::to_string(a) + " cells, " + std::to_string(b) + " values)");
       Cells cells = read_cells(in, binary, a, b);

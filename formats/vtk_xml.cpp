@@ -330,6 +330,11 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   // The appended section is raw bytes, not XML: parse the part before it, closed by hand.
   std::string xml;
   const size_t appended_tag = content.find("<AppendedData");
+  // The XML (all of the file but appended data) is held twice while it is parsed: mapped, and
+  // copied here, parsed in place (the parser keeps no copy of its own), with its nodes.
+  const size_t xml_bytes = std::min(appended_tag, content.size());
+  io::check_read_memory(path, "vtp", 2.25 * double(xml_bytes),
+                        "its XML (" + std::to_string(xml_bytes) + " bytes)", options.memory_limit);
   if (appended_tag != std::string_view::npos) {
     const size_t close = content.find('>', appended_tag);
     const size_t underscore = close == std::string_view::npos ? close : content.find('_', close);
@@ -344,7 +349,7 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     xml.assign(content);
   }
   pugi::xml_document doc;
-  const pugi::xml_parse_result parsed = doc.load_buffer(xml.data(), xml.size());
+  const pugi::xml_parse_result parsed = doc.load_buffer_inplace(xml.data(), xml.size());
   if (!parsed)
     throw InputError(path, at_byte(static_cast<uint64_t>(parsed.offset)),
                      std::string("XML error: ") + parsed.description());
@@ -392,12 +397,29 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       sum += double(std::min<uint64_t>(a.attribute("NumberOfComponents").as_ullong(1), 16));
     return sum;
   };
+  // While an array is read it holds, besides its values, a token per value (16 bytes) when it
+  // is ASCII, else its decoded bytes.
+  const auto reading = [](const pugi::xml_node& array, double values) {
+    const std::optional<io::Scalar> type = xml_type(array.attribute("type").as_string());
+    const bool ascii = std::string(array.attribute("format").as_string("ascii")) == "ascii";
+    return values * (ascii ? 16.0 : double(type ? io::scalar_size(*type) : 8));
+  };
+  double largest_read = 0;
+  for (pugi::xml_node a : piece.child("Points").children("DataArray"))
+    largest_read = std::max(largest_read, reading(a, 3.0 * double(point_count)));
+  for (pugi::xml_node a : piece.child("PointData").children("DataArray"))
+    largest_read = std::max(
+        largest_read,
+        reading(a, double(point_count) * double(std::min<uint64_t>(
+                                             a.attribute("NumberOfComponents").as_ullong(1), 16))));
+  for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
+    largest_read = std::max(largest_read, reading(a, double(line_count)));
   const double point_floats = 3 + components_of(piece.child("PointData"));
-  const double held = double(ctx.file_bytes) + 2.0 * double(xml.size()) +
+  const double held = double(ctx.file_bytes) + 1.25 * double(xml.size()) +
                       4 * point_floats * double(point_count) + 16 * double(line_count) +
                       4 * components_of(piece.child("CellData")) *
                           double(vert_count + line_count + poly_count + strip_count);
-  io::check_read_memory(path, "vtp", held + 8 * double(point_count),
+  io::check_read_memory(path, "vtp", held + 8 * double(point_count) + largest_read,
                         "Piece (" + std::to_string(point_count) + " points, " +
                             std::to_string(line_count) + " lines)",
                         options.memory_limit);
@@ -415,12 +437,23 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     const std::string name = a.attribute("Name").as_string();
     if (name == "offsets") offsets = read_array<int64_t>(ctx, a, line_count);
   }
+  // The last offset is the connectivity's length: one the file cannot hold is the file's fault.
+  if (!offsets.empty() &&
+      (offsets.back() < 0 || uint64_t(offsets.back()) / kMaxDeflateRatio > ctx.file_bytes))
+    throw InputError(path, "Lines",
+                     "the last offset " + std::to_string(offsets.back()) +
+                         " cannot be a connectivity's length in a file of " +
+                         std::to_string(ctx.file_bytes) + " bytes");
   const uint64_t connectivity_size = offsets.empty() ? 0 : static_cast<uint64_t>(offsets.back());
-  // The connectivity, and the points and attributes gathered along it (unless it walks the
-  // points in order, which leaves them as they are).
-  io::check_read_memory(path, "vtp", held + (8 + 4 * point_floats) * double(connectivity_size),
-                        "Lines (" + std::to_string(connectivity_size) + " point indices)",
-                        options.memory_limit);
+  // The connectivity as it is read, and the points and attributes gathered along it (unless it
+  // walks the points in order, which leaves them as they are).
+  double connectivity_read = 0;
+  for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
+    if (std::string(a.attribute("Name").as_string()) == "connectivity")
+      connectivity_read = reading(a, double(connectivity_size));
+  io::check_read_memory(
+      path, "vtp", held + (8 + 4 * point_floats) * double(connectivity_size) + connectivity_read,
+      "Lines (" + std::to_string(connectivity_size) + " point indices)", options.memory_limit);
   for (pugi::xml_node a : piece.child("Lines").children("DataArray")) {
     if (std::string(a.attribute("Name").as_string()) == "connectivity")
       connectivity = read_array<int64_t>(ctx, a, connectivity_size);

@@ -47,6 +47,14 @@ for place in "obj:at line " "vtk:at POINTS (500153 points)" "vtp:at Piece (50015
   ext=${place%%:*}
   check "convert from $ext past a 24M budget is refused while reading (exit 4, '${place#*:}'), nothing written" bash -c "'$bin' convert '$tmp/c2.$ext' -o '$tmp/rb-$ext.binlines' --memory-budget 24M 2> '$tmp/rb.err'; [ \$? -eq 4 ] && grep -qF '$tmp/c2.$ext: $ext is read whole: ${place#*:}' '$tmp/rb.err' && [ ! -e '$tmp/rb-$ext.binlines' ]"
 done
+check "a budget used up before reading still bounds the reader (refused at POINTS, exit 4)" bash -c "'$bin' convert '$tmp/c2.vtk' -o '$tmp/rb8.binlines' --memory-budget 8M 2> '$tmp/rb.err'; [ \$? -eq 4 ] && grep -q 'vtk is read whole: at POINTS' '$tmp/rb.err' && [ ! -e '$tmp/rb8.binlines' ]"
+check "an ASCII VTP is checked before its XML is copied (exit 4)" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/ascii.vtp' --vtp-encoding ascii 2>/dev/null && '$bin' convert '$tmp/ascii.vtp' -o '$tmp/rba.binlines' --memory-budget 24M 2> '$tmp/rb.err'; [ \$? -eq 4 ] && grep -q 'vtp is read whole: at its XML' '$tmp/rb.err'"
+check "an OBJ line of a million indices is checked before it is split (exit 4)" bash -c "python3 -c \"print('v 0 0 0'); print('v 1 1 1'); print('l ' + '1 2 ' * 500000)\" > '$tmp/long.obj' && '$bin' convert '$tmp/long.obj' -o '$tmp/rbl.binlines' --memory-budget 24M 2> '$tmp/rb.err'; [ \$? -eq 4 ] && grep -q 'obj is read whole: at line 3 ' '$tmp/rb.err'"
+# Counts a file cannot hold are the file's error (exit 2), whatever the budget.
+printf '# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\nLINES 1000000000000 3000000000000\n' > "$tmp/huge_cells.vtk"
+check "VTK cell counts past the file are exit 2, not a budget refusal" bash -c "'$bin' convert '$tmp/huge_cells.vtk' -o '$tmp/hc.binlines' 2> '$tmp/rb.err'; [ \$? -eq 2 ] && grep -q 'cannot be in the' '$tmp/rb.err'"
+printf '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian"><PolyData><Piece NumberOfPoints="2" NumberOfLines="1"><Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">0 0 0 1 1 1</DataArray></Points><Lines><DataArray type="Int64" Name="connectivity" format="ascii">0 1</DataArray><DataArray type="Int64" Name="offsets" format="ascii">-1</DataArray></Lines></Piece></PolyData></VTKFile>\n' > "$tmp/negative.vtp"
+check "a VTP whose last offset is negative is exit 2, not a budget refusal" bash -c "'$bin' convert '$tmp/negative.vtp' -o '$tmp/neg.binlines' 2> '$tmp/rb.err'; [ \$? -eq 2 ] && grep -q 'the last offset -1 cannot be' '$tmp/rb.err'"
 # info reads a streamable file a batch at a time and a VTP whole: the same statistics and
 # validation (an independent path: compute_stats over the whole set).
 info_body() { "$bin" info "$1" --json | python3 -c "import json, sys; d = json.load(sys.stdin); [d.pop(k) for k in ('source', 'format', 'metadata')]; print(json.dumps(d, sort_keys=True))"; }

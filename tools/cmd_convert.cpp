@@ -157,7 +157,7 @@ Command add_convert(CLI::App& app) {
     // before anything is written.
     const WholeOutput whole_output(args->memory_budget, *write.format);
     const std::string advice = "convert to .binlines (written as it is read)";
-    read.memory_limit = budget.unlimited() ? 0 : budget.available();
+    if (!budget.unlimited()) read.memory_limit = budget.available();
     std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
     ValidationReport report;
     std::optional<LineSet> whole;

@@ -600,7 +600,7 @@ BakeResult bake(const BakeOptions& options_in) {
       ReadOptions read;
       read.format = options.format;
       if (options.progress) read.progress = progress.callback();
-      read.memory_limit = budget.unlimited() ? 0 : budget.available();
+      if (!budget.unlimited()) read.memory_limit = budget.available();
       input = open_line_reader(inputs, read);
       ValidationReport total;
       std::optional<LineSet> whole;

@@ -202,7 +202,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   ReadOptions read;
   read.format = options.format;
   // A file read whole (OBJ, VTK, VTP) is held within this rank's budget while it is read.
-  read.memory_limit = budget_bytes == 0 ? 0 : MemoryBudget(budget_bytes).available();
+  if (budget_bytes != 0) read.memory_limit = MemoryBudget(budget_bytes).available();
   LineSet header;
   ranks.agree([&] {
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
