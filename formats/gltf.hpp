@@ -56,7 +56,9 @@ struct TubeChunks {
 // view's offset and every accessor's bounds, and Draco's compressed sizes), the second writes
 // the binary buffer a view at a time behind it. So memory holds the JSON, the lines and one tube
 // chunk with its glTF arrays (with Draco, its encoder), never the whole buffer; the price is that
-// each chunk is read, converted and, with Draco, encoded twice.
+// each chunk is read and converted twice (Draco encodes once, into a spill file beside the
+// output). Both passes hash the buffer: a chunk that changed in between (a cache rewritten
+// meanwhile) is an Error, and nothing is written.
 void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet* lines,
                 const GltfOptions& options = {});
 // The same for a mesh in memory.
