@@ -4,9 +4,11 @@
 // reported through `longest` and the host re-runs the resolve with room for them.
 //
 // Fragments of equal depth (coincident tubes: repeated lines are common in real data) are
-// ordered by their colour's bits. A list holds its fragments in the order they arrived, which a
-// GPU does not fix from run to run; without the tie-break, equal depths blended in that order and
-// the same input could give different images.
+// ordered by a key of their colour. A list holds its fragments in the order they arrived, which
+// a GPU does not fix from run to run; without the tie-break, equal depths blended in that order
+// and the same input could give different images. The key is read once per fragment, as the
+// list is copied: read in the comparisons, lavapipe (which runs both sides of every branch) made
+// the resolve 2.6 times slower on the aneurysm.
 #include "frame.glsl"
 #include "ll_nodes.glsl"
 
@@ -19,32 +21,38 @@ layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
 layout(set = 0, binding = 5, std430) buffer Stats { uint longest; uint depth_complexity[]; };
 
-float depth_of[kMaxFragments];
+// Per fragment its sort key, (depth's bits, colour key): depths are at least 0, whose bits order
+// as the floats do. One array of both: on lavapipe each access of a private array by a varying
+// index is a gather, and comparisons read both.
+uvec2 order_of[kMaxFragments];
 uint node_of[kMaxFragments];
 
-// Whether node a's colour orders before node b's (their words compared in turn): any fixed total
-// order of the colours does, since fragments equal in depth and colour blend alike in any order.
-bool colour_before(uint a, uint b) {
-  for (uint k = 0u; k < (wide_nodes() ? 4u : 1u); ++k) {
-    const uint x = node_load(a, k), y = node_load(b, k);
-    if (x != y) return x < y;
+// The tie-break key of a node's colour: the 12-byte node's packed colour itself (a total order of
+// its colours), or a mix of the 24-byte node's four words (equal keys for different colours at
+// equal depth, which would blend in arrival order, are a 2^-32 chance).
+uint colour_key(uint node) {
+  if (!wide_nodes()) return node_load(node, 0u);
+  uint h = 0x811C9DC5u;
+  for (uint k = 0u; k < 4u; ++k) {
+    h = (h ^ node_load(node, k)) * 0x01000193u;
+    h ^= h >> 15;
   }
-  return false;
+  return h;
 }
 
-// Whether fragment (d, n) blends before fragment (other_d, other_n).
-bool before(float d, uint n, float other_d, uint other_n) {
-  return d < other_d || (d == other_d && colour_before(n, other_n));
+// Whether the fragment of sort key a blends before that of b.
+bool before(uvec2 a, uvec2 b) {
+  return a.x < b.x || (a.x == b.x && a.y < b.y);
 }
 
 bool entry_before(uint i, uint j) {
-  return before(depth_of[i], node_of[i], depth_of[j], node_of[j]);
+  return before(order_of[i], order_of[j]);
 }
 
 void swap_entries(uint i, uint j) {
-  const float d = depth_of[i];
-  depth_of[i] = depth_of[j];
-  depth_of[j] = d;
+  const uvec2 o = order_of[i];
+  order_of[i] = order_of[j];
+  order_of[j] = o;
   const uint n = node_of[i];
   node_of[i] = node_of[j];
   node_of[j] = n;
@@ -52,15 +60,15 @@ void swap_entries(uint i, uint j) {
 
 void insertion_sort(uint count, uint gap) {
   for (uint i = gap; i < count; ++i) {
-    const float d = depth_of[i];
+    const uvec2 o = order_of[i];
     const uint n = node_of[i];
     uint j = i;
-    while (j >= gap && before(d, n, depth_of[j - gap], node_of[j - gap])) {
-      depth_of[j] = depth_of[j - gap];
+    while (j >= gap && before(o, order_of[j - gap])) {
+      order_of[j] = order_of[j - gap];
       node_of[j] = node_of[j - gap];
       j -= gap;
     }
-    depth_of[j] = d;
+    order_of[j] = o;
     node_of[j] = n;
   }
 }
@@ -68,15 +76,15 @@ void insertion_sort(uint count, uint gap) {
 // Insertion sort of [lo, hi).
 void insertion_sort_range(uint lo, uint hi) {
   for (uint i = lo + 1u; i < hi; ++i) {
-    const float d = depth_of[i];
+    const uvec2 o = order_of[i];
     const uint n = node_of[i];
     uint j = i;
-    while (j > lo && before(d, n, depth_of[j - 1u], node_of[j - 1u])) {
-      depth_of[j] = depth_of[j - 1u];
+    while (j > lo && before(o, order_of[j - 1u])) {
+      order_of[j] = order_of[j - 1u];
       node_of[j] = node_of[j - 1u];
       --j;
     }
-    depth_of[j] = d;
+    order_of[j] = o;
     node_of[j] = n;
   }
 }
@@ -100,12 +108,11 @@ void quick_hybrid_sort(uint count) {
     if (entry_before(mid, lo)) swap_entries(mid, lo);
     if (entry_before(hi - 1u, lo)) swap_entries(hi - 1u, lo);
     if (entry_before(hi - 1u, mid)) swap_entries(hi - 1u, mid);
-    const float pivot = depth_of[mid];
-    const uint pivot_node = node_of[mid];
+    const uvec2 pivot = order_of[mid];
     uint i = lo, j = hi - 1u;
     for (;;) {  // Hoare partition: [lo, j] <= pivot <= [j + 1, hi)
-      while (before(depth_of[i], node_of[i], pivot, pivot_node)) ++i;
-      while (before(pivot, pivot_node, depth_of[j], node_of[j])) --j;
+      while (before(order_of[i], pivot)) ++i;
+      while (before(pivot, order_of[j])) --j;
       if (i >= j) break;
       swap_entries(i, j);
       ++i;
@@ -153,7 +160,7 @@ void main() {
   uint count = 0u, total = 0u;
   for (uint n = heads[pixel]; n != 0xFFFFFFFFu; n = node_next(n)) {
     if (count < kMaxFragments) {
-      depth_of[count] = node_depth(n);
+      order_of[count] = uvec2(floatBitsToUint(node_depth(n)), colour_key(n));
       node_of[count] = n;
       ++count;
     }
