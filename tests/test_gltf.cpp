@@ -84,12 +84,17 @@ LineSet spiral_lines(int count) {
   return lines;
 }
 
+// The tubes of `lines` in chunks of at most 40 kB: several chunks, several primitives.
+TubeMesh chunked_tubes(const LineSet& lines) {
+  TubeOptions o;
+  o.max_chunk_bytes = 40000;
+  return build_tubes(lines, o);
+}
+
 TEST(Gltf, PlainExportHoldsTheMeshExactly) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(40);
-  TubeOptions o;
-  o.max_chunk_bytes = 40000;  // several chunks -> several primitives
-  const TubeMesh mesh = build_tubes(lines, o);
+  const TubeMesh mesh = chunked_tubes(lines);
   ASSERT_GT(mesh.chunks.size(), 2u);
   GltfOptions raw;
   raw.axes = GltfAxes::Raw;
@@ -204,9 +209,7 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
 TEST(Gltf, DefaultAxesColoursAndIndexedLines) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(12);
-  TubeOptions o;
-  o.max_chunk_bytes = 40000;
-  const TubeMesh mesh = build_tubes(lines, o);
+  const TubeMesh mesh = chunked_tubes(lines);
   GltfOptions g;
   for (int i = 0; i < 256; ++i) g.colour_map.push_back({uint8_t(i), uint8_t(255 - i), 7});
   write_gltf(dir.file("d.gltf"), &mesh, &lines, g);
@@ -284,9 +287,7 @@ TEST(Gltf, DefaultAxesColoursAndIndexedLines) {
 TEST(Gltf, ChunksAreReadOneAtATimeInTwoPasses) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(40);
-  TubeOptions o;
-  o.max_chunk_bytes = 40000;
-  const TubeMesh mesh = build_tubes(lines, o);
+  const TubeMesh mesh = chunked_tubes(lines);
   ASSERT_GT(mesh.chunks.size(), 2u);
   TubeMesh description = mesh;
   for (TubeChunk& chunk : description.chunks) {

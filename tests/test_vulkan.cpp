@@ -40,6 +40,16 @@ LineSet wavy_lines(bool interleaved = false) {
   return lines;
 }
 
+// Tubes of 8 sides and an absolute radius, coloured by the attribute "value".
+TubeMesh value_tubes(const LineSet& lines, float radius) {
+  TubeOptions t;
+  t.sides = 8;
+  t.radius = radius;
+  t.radius_absolute = true;
+  t.attribute = "value";
+  return build_tubes(lines, t);
+}
+
 struct Scene {
   TubeMesh mesh;
   Camera camera;
@@ -48,12 +58,7 @@ struct Scene {
 
 Scene make_scene(int size, bool interleaved = false) {
   Scene s;
-  TubeOptions t;
-  t.sides = 8;
-  t.radius = 0.06f;
-  t.radius_absolute = true;
-  t.attribute = "value";
-  s.mesh = build_tubes(wavy_lines(interleaved), t);
+  s.mesh = value_tubes(wavy_lines(interleaved), 0.06f);
   s.camera =
       frame_bounds(compute_bounds(s.mesh), 1.0, 8, 12);  // nearly along the stack: deep lists
   s.trace.width = s.trace.height = size;
@@ -139,13 +144,8 @@ TEST(Vulkan, EverySortOrdersLongLists) {
     lines.end_line();
   }
   lines.attributes.push_back(a);
-  TubeOptions t;
-  t.sides = 8;
-  t.radius = 0.3f;
-  t.radius_absolute = true;
-  t.attribute = "value";
   Scene s;
-  s.mesh = build_tubes(lines, t);
+  s.mesh = value_tubes(lines, 0.3f);
   s.camera.target = {0, 0, 1};
   s.camera.eye = {0, 0, -5};  // looking down the stack
   s.camera.near = 0.1, s.camera.far = 100;
@@ -184,13 +184,8 @@ TEST(Vulkan, CoincidentTubesBlendAlikeInAnyDrawOrder) {
       lines.end_line();
     }
     lines.attributes.push_back(a);
-    TubeOptions t;
-    t.sides = 8;
-    t.radius = 0.08f;
-    t.radius_absolute = true;
-    t.attribute = "value";
     Scene s;
-    s.mesh = build_tubes(lines, t);
+    s.mesh = value_tubes(lines, 0.08f);
     s.camera = frame_bounds(compute_bounds(s.mesh), 1.0, 30, 20);
     return s;
   };
