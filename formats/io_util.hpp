@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -47,11 +48,17 @@ class TextReader {
   uint64_t offset() const { return consumed_; }  // bytes before the next unread line
   const std::string& path() const { return file_.path(); }
   [[noreturn]] void fail(const std::string& message) const;
+  // Called with the bytes the buffer will hold while it grows, before it grows to take a line
+  // longer than it (a reader's memory check, which may throw).
+  void before_growing(std::function<void(uint64_t bytes)> check) {
+    before_growing_ = std::move(check);
+  }
 
  private:
   bool refill();
   File file_;
   ProgressFn progress_;
+  std::function<void(uint64_t)> before_growing_;
   std::vector<char> buffer_;
   size_t begin_ = 0, end_ = 0;
   bool eof_ = false;

@@ -35,6 +35,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
                               (12 + 4 * attribute_floats) * double(indices.size()),
                           at_line(in.line_number()), options.memory_limit);
   };
+  in.before_growing([&](uint64_t bytes) { check_memory(true, double(bytes)); });
   std::string_view line;
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);
@@ -45,7 +46,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
       for (size_t i = 0; i < line.size(); ++i)
         values += !std::isspace(static_cast<unsigned char>(line[i])) &&
                   (i == 0 || std::isspace(static_cast<unsigned char>(line[i - 1])));
-      check_memory(true, double(line.size()) + values * (16 + 8 + 12 + 4 * double(names.size())));
+      const double attributes = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
+      check_memory(true, double(line.size()) + values * (16 + 8 + 12 + 4 * attributes));
     }
     line = io::trim(line);
     if (line.empty() || line[0] == '#') continue;

@@ -225,6 +225,25 @@ std::optional<io::Scalar> xml_type(const std::string& type) {
   return std::nullopt;
 }
 
+// The most values a DataArray can hold in this file: an ASCII value takes at least two
+// characters, a binary one its size over deflate's best ratio.
+uint64_t most_values(const Context& ctx, const pugi::xml_node& node) {
+  const std::optional<io::Scalar> type = xml_type(node.attribute("type").as_string());
+  const uint64_t size = type ? io::scalar_size(*type) : 1;
+  return std::string(node.attribute("format").as_string("ascii")) == "ascii"
+             ? ctx.file_bytes / 2 + 1
+             : ctx.file_bytes * kMaxDeflateRatio / size + 1;
+}
+
+// A count from the file's attributes, checked against the file before anything is allocated for
+// it: past what the file can hold, the file's error.
+void check_value_count(const Context& ctx, const pugi::xml_node& node, uint64_t count) {
+  if (count > most_values(ctx, node))
+    ctx.fail("DataArray '" + std::string(node.attribute("Name").as_string()) + "'",
+             std::to_string(count) + " values cannot be in a file of " +
+                 std::to_string(ctx.file_bytes) + " bytes");
+}
+
 // Reads a DataArray into `count` values of Out, checking its size.
 template <typename Out>
 std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size_t count) {
@@ -235,13 +254,7 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
   if (!type) ctx.fail(where, "unsupported type '" + type_name + "'");
   const size_t size = io::scalar_size(*type);
   const std::string format = node.attribute("format").as_string("ascii");
-  // A count from the file's attributes is checked against the file before it is allocated: an
-  // ASCII value takes at least two characters, a binary one its size over deflate's best ratio.
-  const uint64_t most =
-      format == "ascii" ? ctx.file_bytes / 2 + 1 : ctx.file_bytes * kMaxDeflateRatio / size + 1;
-  if (count > most)
-    ctx.fail(where, std::to_string(count) + " values cannot be in a file of " +
-                        std::to_string(ctx.file_bytes) + " bytes");
+  check_value_count(ctx, node, count);
   std::vector<Out> out(count);
   if (format == "ascii") {
     const auto tokens = io::split_whitespace(node.child_value());
@@ -331,10 +344,14 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   std::string xml;
   const size_t appended_tag = content.find("<AppendedData");
   // The XML (all of the file but appended data) is held twice while it is parsed: mapped, and
-  // copied here, parsed in place (the parser keeps no copy of its own), with its nodes.
+  // copied here, parsed in place (the parser keeps no copy of its own), with its nodes (about
+  // 64 bytes an element, 40 an attribute, counted by their '<' and '=').
   const size_t xml_bytes = std::min(appended_tag, content.size());
-  io::check_read_memory(path, "vtp", 2.25 * double(xml_bytes),
-                        "its XML (" + std::to_string(xml_bytes) + " bytes)", options.memory_limit);
+  double markup = 0;
+  for (const char c : content.substr(0, xml_bytes)) markup += c == '<' ? 64 : c == '=' ? 40 : 0;
+  const double xml_held = 2.0 * double(xml_bytes) + markup;
+  io::check_read_memory(path, "vtp", xml_held, "its XML (" + std::to_string(xml_bytes) + " bytes)",
+                        options.memory_limit);
   if (appended_tag != std::string_view::npos) {
     const size_t close = content.find('>', appended_tag);
     const size_t underscore = close == std::string_view::npos ? close : content.find('_', close);
@@ -398,27 +415,36 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     return sum;
   };
   // While an array is read it holds, besides its values, a token per value (16 bytes) when it
-  // is ASCII, else its decoded bytes.
-  const auto reading = [](const pugi::xml_node& array, double values) {
-    const std::optional<io::Scalar> type = xml_type(array.attribute("type").as_string());
-    const bool ascii = std::string(array.attribute("format").as_string("ascii")) == "ascii";
-    return values * (ascii ? 16.0 : double(type ? io::scalar_size(*type) : 8));
-  };
+  // is ASCII, else its decoded bytes. Each array's count is checked against the file first.
+  const uint64_t cells = vert_count + line_count + poly_count + strip_count;
   double largest_read = 0;
-  for (pugi::xml_node a : piece.child("Points").children("DataArray"))
-    largest_read = std::max(largest_read, reading(a, 3.0 * double(point_count)));
-  for (pugi::xml_node a : piece.child("PointData").children("DataArray"))
-    largest_read = std::max(
-        largest_read,
-        reading(a, double(point_count) * double(std::min<uint64_t>(
-                                             a.attribute("NumberOfComponents").as_ullong(1), 16))));
+  const auto reading = [&](const pugi::xml_node& data, uint64_t tuples, bool times_components) {
+    for (pugi::xml_node a : data.children("DataArray")) {
+      const uint64_t components =
+          times_components ? std::min<uint64_t>(a.attribute("NumberOfComponents").as_ullong(1), 16)
+                           : 1;
+      const uint64_t values = tuples * components;  // bounded above: no wrap
+      check_value_count(ctx, a, values);
+      const std::optional<io::Scalar> type = xml_type(a.attribute("type").as_string());
+      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
+      largest_read =
+          std::max(largest_read,
+                   double(values) * (ascii ? 16.0 : double(type ? io::scalar_size(*type) : 8)));
+    }
+  };
+  reading(piece.child("Points"), 3 * point_count, false);
+  reading(piece.child("PointData"), point_count, true);
+  reading(piece.child("CellData"), cells, true);
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
-    largest_read = std::max(largest_read, reading(a, double(line_count)));
+    if (std::string(a.attribute("Name").as_string()) == "offsets") {
+      check_value_count(ctx, a, line_count);
+      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
+      largest_read = std::max(largest_read, double(line_count) * (ascii ? 16.0 : 8.0));
+    }
   const double point_floats = 3 + components_of(piece.child("PointData"));
-  const double held = double(ctx.file_bytes) + 1.25 * double(xml.size()) +
+  const double held = double(ctx.file_bytes) + xml_held - double(xml_bytes) +
                       4 * point_floats * double(point_count) + 16 * double(line_count) +
-                      4 * components_of(piece.child("CellData")) *
-                          double(vert_count + line_count + poly_count + strip_count);
+                      4 * components_of(piece.child("CellData")) * double(cells);
   io::check_read_memory(path, "vtp", held + 8 * double(point_count) + largest_read,
                         "Piece (" + std::to_string(point_count) + " points, " +
                             std::to_string(line_count) + " lines)",
@@ -437,20 +463,21 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     const std::string name = a.attribute("Name").as_string();
     if (name == "offsets") offsets = read_array<int64_t>(ctx, a, line_count);
   }
-  // The last offset is the connectivity's length: one the file cannot hold is the file's fault.
-  if (!offsets.empty() &&
-      (offsets.back() < 0 || uint64_t(offsets.back()) / kMaxDeflateRatio > ctx.file_bytes))
+  // The last offset is the connectivity's length: one its array cannot hold in this file is the
+  // file's fault.
+  if (!offsets.empty() && offsets.back() < 0)
     throw InputError(path, "Lines",
-                     "the last offset " + std::to_string(offsets.back()) +
-                         " cannot be a connectivity's length in a file of " +
-                         std::to_string(ctx.file_bytes) + " bytes");
+                     "the last offset " + std::to_string(offsets.back()) + " is negative");
   const uint64_t connectivity_size = offsets.empty() ? 0 : static_cast<uint64_t>(offsets.back());
   // The connectivity as it is read, and the points and attributes gathered along it (unless it
   // walks the points in order, which leaves them as they are).
   double connectivity_read = 0;
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
-    if (std::string(a.attribute("Name").as_string()) == "connectivity")
-      connectivity_read = reading(a, double(connectivity_size));
+    if (std::string(a.attribute("Name").as_string()) == "connectivity") {
+      check_value_count(ctx, a, connectivity_size);
+      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
+      connectivity_read = double(connectivity_size) * (ascii ? 16.0 : 8.0);
+    }
   io::check_read_memory(
       path, "vtp", held + (8 + 4 * point_floats) * double(connectivity_size) + connectivity_read,
       "Lines (" + std::to_string(connectivity_size) + " point indices)", options.memory_limit);
@@ -473,7 +500,6 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
 
   std::vector<Attribute> point_attributes;
   read_attributes(ctx, piece.child("PointData"), point_count, 0, point_count, point_attributes);
-  const uint64_t cells = vert_count + line_count + poly_count + strip_count;
   read_attributes(ctx, piece.child("CellData"), cells, vert_count, line_count,
                   lines.line_attributes);
 

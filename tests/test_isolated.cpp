@@ -162,6 +162,7 @@ TEST(Isolated, TheProgramRunsLikeAForkedChild) {
   EXPECT_EQ(fds.result.find(" " + std::to_string(mine) + " "), std::string::npos) << fds.result;
 
   const std::string& program = isolation_program();
+  const std::string parent = std::to_string(getpid());
   ASSERT_FALSE(program.empty()) << "linebake-probe is built with the tests";
   TempDir dir;
   LineSet lines;
@@ -181,14 +182,21 @@ TEST(Isolated, TheProgramRunsLikeAForkedChild) {
       h5::walk_metadata(path, {"/"});
       return std::string("ok");
     });
-    const IsolatedOutcome spawned = run_isolated_program(
-        {program, std::to_string(IsolationLimits{}.memory_bytes), "hdf5", path, "/"});
+    const IsolatedOutcome spawned =
+        run_isolated_program({program, std::to_string(IsolationLimits{}.memory_bytes), "120",
+                              parent, "hdf5", path, "/"});
     EXPECT_EQ(spawned.kind, forked.kind) << name;
     EXPECT_EQ(spawned.result, forked.result) << name;
     EXPECT_EQ(spawned.signal, forked.signal) << name;
   }
-  EXPECT_EQ(run_isolated_program({program, "1073741824", "hdf5", dir.file("sound.h5")}).kind,
-            Kind::Finished);
+  EXPECT_EQ(
+      run_isolated_program({program, "1073741824", "120", parent, "hdf5", dir.file("sound.h5")})
+          .kind,
+      Kind::Finished);
+  // A program started for a parent that is not this process's (gone, its pid reused) stops.
+  EXPECT_THROW(
+      run_isolated_program({program, "1073741824", "120", "1", "hdf5", dir.file("sound.h5")}),
+      Error);
 }
 
 // The child's end is seen when it exits, even where another process holds the reply's write

@@ -3,13 +3,14 @@
 // locks its other threads held at the fork (HDF5's global lock, while another thread is in
 // HDF5: Python threads reading files at once) and can stall on them until its time limit.
 //
-//   linebake-probe MEMORY_BYTES hdf5 PATH [OBJECT...]
-//   linebake-probe MEMORY_BYTES netcdf PATH
+//   linebake-probe MEMORY_BYTES SECONDS PARENT_PID hdf5 PATH [OBJECT...]
+//   linebake-probe MEMORY_BYTES SECONDS PARENT_PID netcdf PATH
 //
 // It writes kIsolatedHandshake on descriptor 3 and then replies there as a forked child does
 // (serve_isolated): 'R' when the walk passed, 'E' and the message when it failed, 'M' when it ran
 // out of its MEMORY_BYTES; a crash ends it with its signal. It dies with the thread that started
-// it. Not meant to be run by hand.
+// it (or at once, if that was gone before it could ask), and a second after its SECONDS in any
+// case. Not meant to be run by hand.
 
 #include <sys/prctl.h>
 #include <unistd.h>
@@ -27,14 +28,19 @@
 
 int main(int argc, char** argv) {
   prctl(PR_SET_PDEATHSIG, SIGKILL);  // a parent killed outright takes its walk along
-  if (argc < 4) {
-    std::fprintf(stderr, "usage: linebake-probe MEMORY_BYTES hdf5|netcdf PATH [OBJECT...]\n");
+  if (argc < 6) {
+    std::fprintf(stderr,
+                 "usage: linebake-probe MEMORY_BYTES SECONDS PARENT_PID hdf5|netcdf PATH "
+                 "[OBJECT...]\n");
     return 2;
   }
+  if (getppid() != static_cast<pid_t>(std::strtol(argv[3], nullptr, 10)))
+    return 2;  // the parent went before the request above was made
+  alarm(static_cast<unsigned>(std::strtod(argv[2], nullptr)) + 1u);
   linebake::IsolationLimits limits;
   limits.memory_bytes = std::strtoull(argv[1], nullptr, 10);
-  const std::string library = argv[2], path = argv[3];
-  const std::vector<std::string> objects(argv + 4, argv + argc);
+  const std::string library = argv[4], path = argv[5];
+  const std::vector<std::string> objects(argv + 6, argv + argc);
   if (library != "hdf5" && library != "netcdf") {
     std::fprintf(stderr, "linebake-probe: unknown library %s\n", library.c_str());
     return 2;

@@ -360,14 +360,15 @@ std::filesystem::path code_directory() {
 
 const std::string& isolation_program() {
   static const std::string program = [] {
-    // Beside this code first: the Python module's directory before python3's.
+    // Beside this code first, then where the build made it, then beside the executable: the
+    // Python module's own before one beside python3.
     std::vector<std::filesystem::path> places{code_directory()};
-    std::error_code ec;
-    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-    if (!ec) places.push_back(self.parent_path());
 #ifdef LINEBAKE_PROBE_DIR
     places.push_back(LINEBAKE_PROBE_DIR);
 #endif
+    std::error_code ec;
+    const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+    if (!ec) places.push_back(self.parent_path());
     for (const std::filesystem::path& dir : places) {
       if (dir.empty()) continue;
       const std::filesystem::path candidate = dir / "linebake-probe";
@@ -393,7 +394,8 @@ void check_in_isolation(const std::string& path, const std::string& library,
   const std::string& program = isolation_program();
   IsolatedOutcome outcome;
   if (!program_args.empty() && !program.empty() && thread_count() > 1) {
-    std::vector<std::string> argv{program, std::to_string(limits.memory_bytes)};
+    std::vector<std::string> argv{program, std::to_string(limits.memory_bytes),
+                                  std::to_string(limits.seconds), std::to_string(getpid())};
     argv.insert(argv.end(), program_args.begin(), program_args.end());
     outcome = run_isolated_program(argv, limits);
   } else {

@@ -68,8 +68,8 @@ IsolatedOutcome run_isolated_program(const std::vector<std::string>& argv,
                                      const IsolationLimits& limits = {});
 
 // linebake-probe (tools/linebake_probe.cpp), which runs the metadata walks in a fresh process:
-// beside the executable, beside the shared object this code is in (the Python module), or where
-// the build tree made it; "" when there is none.
+// beside the file this code is in (the executable, or the Python module), else where the build
+// tree made it, else beside the executable; "" when there is none.
 const std::string& isolation_program();
 
 // Runs `walk` (which opens `path` with `library` and touches what linebake will read) isolated, and

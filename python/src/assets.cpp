@@ -283,8 +283,8 @@ py::object optional_view(const Array<T>& array, size_t columns) {
 }  // namespace
 
 PyCache::PyCache(const std::string& path) : path_(path) {
+  const LongCall call;           // the check walks the file's metadata: a call, without the GIL
   cli::check_cache_input(path);  // the CLI's messages for a line file, a plain HDF5 file
-  const LongCall call;
   reader_ = std::make_shared<CacheReader>(path);
 }
 

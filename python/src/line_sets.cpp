@@ -14,6 +14,7 @@
 #include "lines/derived.hpp"
 #include "lines/line_info.hpp"
 #include "lines/validate.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::python {
 
@@ -131,14 +132,16 @@ py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle se
 }
 
 std::shared_ptr<PyLineSet> read(const py::object& source_arg,
-                                const std::optional<std::string>& format) {
+                                const std::optional<std::string>& format,
+                                const std::optional<std::string>& memory_budget) {
   const std::string source = path_arg(source_arg, "read");
   cli::check_input_file(source);  // the CLI's "no such file" / "is a directory"
   ReadOptions options;
   if (format) options.format = parse_format(*format);
-  // A format read whole (OBJ, VTK, VTP) is held within the CLI's default budget (half of
-  // physical memory) while it is read: past it, BudgetExceeded rather than the kernel's kill.
-  options.memory_limit = MemoryBudget(default_memory_budget()).available();
+  // A format read whole (OBJ, VTK, VTP) is held within the budget (by default the CLI's, half
+  // of physical memory) while it is read: past it, BudgetExceeded rather than the kernel's kill.
+  const MemoryBudget budget(cli::memory_budget_bytes(memory_budget.value_or("")));
+  if (!budget.unlimited()) options.memory_limit = budget.available();
   auto result = std::make_shared<PyLineSet>();
   {
     const LongCall call;
@@ -314,10 +317,13 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
           py::arg("other"), "Exact equality of every array and name (metadata excluded).")
       .def("__repr__", &repr);
 
-  module.def("read", &read, py::arg("source"), py::arg("format") = py::none(),
+  module.def("read", &read, py::arg("source"), py::arg("format") = py::none(), py::kw_only(),
+             py::arg("memory_budget") = py::none(),
              R"doc(Reads a line set: a file of any readable format (by extension unless
 `format` names it) or a synthetic source "synth:<name>?scale=..&seed=..". Raises
-linebake.InputError naming the file and place on bad input. Releases the GIL.)doc");
+linebake.InputError naming the file and place on bad input. OBJ, VTK and VTP files are read
+whole within `memory_budget` ("8G", "unlimited"; default half of physical memory): past it,
+linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
   module.def("write", &write, py::arg("lines"), py::arg("path"), py::arg("format") = py::none(),
              py::kw_only(), py::arg("ascii") = false, py::arg("binlines_version") = 2,
              py::arg("vtp_encoding") = "appended", py::arg("vtp_compress") = true,

@@ -200,30 +200,42 @@ def test_ctrl_c_leaves_other_threads_and_the_users_handler_alone(tmp_path):
     # A worker thread's bake and the main thread's at once: SIGINT stops neither (the worker's
     # call would see it too), and Python raises KeyboardInterrupt in the main thread once its
     # call returns. With SIGINT ignored, or a handler of the user's, a bake runs to its end and
-    # the handler is Python's business.
+    # the handler is Python's business. Each case says whether the signal came while its bake
+    # ran (else the case proves nothing, and the test fails).
     script = (
         "import linebake, os, signal, sys, threading, time\n"
         "out = sys.argv[1]\n"
-        "def bake(name, scale=0.3):\n"
-        "    linebake.bake(f'synth:convection?scale={scale}', f'{out}/{name}.lbc.h5',\n"
-        "                  assets=['tubes', 'voxels'])\n"
-        "def poke(): os.kill(os.getpid(), signal.SIGINT)\n"
-        "worker = threading.Thread(target=bake, args=('worker', 1.5))  # outlasts the main's\n"
-        "worker.start(); time.sleep(0.2); threading.Timer(0.4, poke).start()\n"
+        "poked = []\n"
+        "def poke(): poked.append(time.monotonic()); os.kill(os.getpid(), signal.SIGINT)\n"
+        "def bake(name, scale=0.6, poke_after=None):\n"
+        "    if poke_after is not None: threading.Timer(poke_after, poke).start()\n"
+        "    start = time.monotonic()\n"
+        "    try:\n"
+        "        linebake.bake(f'synth:convection?scale={scale}', f'{out}/{name}.lbc.h5',\n"
+        "                      assets=['tubes', 'voxels'])\n"
+        "    finally:\n"
+        "        end = time.monotonic()\n"
+        "        if poke_after is not None:\n"
+        "            time.sleep(0.3)\n"
+        "            print(name, 'poked during the call:', start < poked[-1] < end)\n"
+        "worker = threading.Thread(target=bake, args=('worker', 2.0))  # outlasts the main's\n"
+        "worker.start(); time.sleep(0.2)\n"
         "try:\n"
-        "    bake('main'); print('main finished')\n"
+        "    bake('main', poke_after=0.2); print('main finished')\n"
         "except KeyboardInterrupt:\n"
         "    print('main raised after its call')\n"
         "worker.join()\n"
-        "signal.signal(signal.SIGINT, signal.SIG_IGN); threading.Timer(0.4, poke).start()\n"
-        "bake('ignored'); print('ignored finished')\n"
+        "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+        "bake('ignored', poke_after=0.2); print('ignored finished')\n"
         "seen = []\n"
-        "signal.signal(signal.SIGINT, lambda *a: seen.append(1)); threading.Timer(0.4, poke).start()\n"
-        "bake('handled'); time.sleep(0.1); print('handled finished', seen)\n"
+        "signal.signal(signal.SIGINT, lambda *a: seen.append(1))\n"
+        "bake('handled', poke_after=0.2); time.sleep(0.1); print('handled finished', seen)\n"
         "print(sorted(os.listdir(out)))\n")
     done = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True,
                           text=True, timeout=300, env=os.environ)
-    assert done.stdout.split("\n")[:4] == [
-        "main raised after its call", "ignored finished", "handled finished [1]",
+    assert done.stdout.split("\n")[:7] == [
+        "main poked during the call: True", "main raised after its call",
+        "ignored poked during the call: True", "ignored finished",
+        "handled poked during the call: True", "handled finished [1]",
         "['handled.lbc.h5', 'ignored.lbc.h5', 'main.lbc.h5', 'worker.lbc.h5']"], \
         done.stdout + done.stderr

@@ -343,3 +343,17 @@ def test_cf_contiguous_ragged_written_by_netcdf4(tmp_path):
     np.testing.assert_array_equal(lines.offsets, [0, 5, 10, 13])
     expected = np.stack([lon[valid], lat[valid], alt[valid]], axis=1).astype(np.float32)
     np.testing.assert_array_equal(lines.points, expected)
+
+
+def test_read_holds_a_whole_format_within_memory_budget(tmp_path):
+    # A VTK is read whole: past memory_budget, BudgetExceeded names the file and where it was
+    # refused, before the points are allocated; unlimited reads it.
+    points = np.arange(3 * 200000, dtype=np.float32).reshape(-1, 3)
+    path = tmp_path / "big.vtk"
+    linebake.write(linebake.LineSet(points, np.array([0, 200000], dtype=np.uint64)), path)
+    with pytest.raises(linebake.BudgetExceeded, match=r"big.vtk: vtk is read whole: at POINTS"):
+        linebake.read(path, memory_budget="1M")
+    assert linebake.read(path, memory_budget="unlimited").points.shape == (200000, 3)
+    with pytest.raises(linebake.Error):
+        linebake.read(path, memory_budget="lots")
+
