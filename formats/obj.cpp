@@ -24,7 +24,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   // lines: the arrays (resident as far as they are filled), the largest of them once more while
   // they grow (a vector copies itself as it grows), and the line set to be gathered along the
   // indices so far.
-  const auto check_memory = [&](bool growing, double line_bytes = 0) {
+  // `line`: the line it is at (0: the last one read).
+  const auto check_memory = [&](bool growing, double line_bytes = 0, uint64_t line = 0) {
     const double attribute_floats = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
     const double arrays[] = {4.0 * double(positions.size()), 4.0 * double(vt.size()),
                              8.0 * double(indices.size()), 8.0 * double(offsets.size())};
@@ -33,9 +34,11 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
     io::check_read_memory(path, "obj",
                           held + (growing ? largest : 0) + line_bytes +
                               (12 + 4 * attribute_floats) * double(indices.size()),
-                          at_line(in.line_number()), options.memory_limit);
+                          at_line(line ? line : in.line_number()), options.memory_limit);
   };
-  in.before_growing([&](uint64_t bytes) { check_memory(true, double(bytes)); });
+  // The buffer grows while the next line is read.
+  in.before_growing(
+      [&](uint64_t bytes) { check_memory(true, double(bytes), in.line_number() + 1); });
   std::string_view line;
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);

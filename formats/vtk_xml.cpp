@@ -472,12 +472,16 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   // The connectivity as it is read, and the points and attributes gathered along it (unless it
   // walks the points in order, which leaves them as they are).
   double connectivity_read = 0;
+  bool has_connectivity = false;
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
     if (std::string(a.attribute("Name").as_string()) == "connectivity") {
+      has_connectivity = true;
       check_value_count(ctx, a, connectivity_size);
       const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
       connectivity_read = double(connectivity_size) * (ascii ? 16.0 : 8.0);
     }
+  if (connectivity_size > 0 && !has_connectivity)
+    throw InputError(path, "Lines", "missing connectivity array");
   io::check_read_memory(
       path, "vtp", held + (8 + 4 * point_floats) * double(connectivity_size) + connectivity_read,
       "Lines (" + std::to_string(connectivity_size) + " point indices)", options.memory_limit);

@@ -21,8 +21,8 @@ layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
 layout(set = 0, binding = 5, std430) buffer Stats { uint longest; uint depth_complexity[]; };
 
-// Per fragment its sort key, (depth's ordered bits, colour key). One array of both: on lavapipe each access of a private array by a varying
-// index is a gather, and comparisons read both.
+// Per fragment its sort key, (depth's ordered bits, colour key). One array of both: on lavapipe
+// each access of a private array by a varying index is a gather, and comparisons read both.
 uvec2 order_of[kMaxFragments];
 uint node_of[kMaxFragments];
 

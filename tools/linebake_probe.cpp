@@ -15,6 +15,7 @@
 #include <sys/prctl.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -36,7 +37,7 @@ int main(int argc, char** argv) {
   }
   if (getppid() != static_cast<pid_t>(std::strtol(argv[3], nullptr, 10)))
     return 2;  // the parent went before the request above was made
-  alarm(static_cast<unsigned>(std::strtod(argv[2], nullptr)) + 1u);
+  alarm(static_cast<unsigned>(std::ceil(std::strtod(argv[2], nullptr))) + 1u);
   linebake::IsolationLimits limits;
   limits.memory_bytes = std::strtoull(argv[1], nullptr, 10);
   const std::string library = argv[4], path = argv[5];

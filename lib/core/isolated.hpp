@@ -57,7 +57,8 @@ IsolatedOutcome run_isolated(const std::function<std::string()>& work,
                                  const IsolationLimits& limits);
 
 // What linebake-probe writes first on kIsolatedReplyFd, before it replies as serve_isolated does.
-inline const std::string kIsolatedHandshake = "linebake-probe " LINEBAKE_VERSION "\n";
+// The protocol's number changes with its arguments, so a stale build's program says so.
+inline const std::string kIsolatedHandshake = "linebake-probe " LINEBAKE_VERSION " protocol 2\n";
 constexpr int kIsolatedReplyFd = 3;
 
 // Runs the program `argv` (argv[0] a path), which writes kIsolatedHandshake and then replies as
