@@ -147,15 +147,19 @@ bool is_space(char c) {
 }
 }  // namespace
 
+size_t count_tokens(std::string_view line) {
+  size_t count = 0;
+  for (size_t i = 0; i < line.size(); ++i)
+    count += !is_space(line[i]) && (i == 0 || is_space(line[i - 1]));
+  return count;
+}
+
 std::vector<std::string_view> split_whitespace(std::string_view line) {
   // Counted first: a vector grown by doubling holds up to three times its tokens while it grows
   // (a million-value line of an OBJ or an ASCII VTP array), which the readers' memory checks
   // count once.
-  size_t count = 0;
-  for (size_t i = 0; i < line.size(); ++i)
-    count += !is_space(line[i]) && (i == 0 || is_space(line[i - 1]));
   std::vector<std::string_view> tokens;
-  tokens.reserve(count);
+  tokens.reserve(count_tokens(line));
   size_t i = 0;
   while (i < line.size()) {
     while (i < line.size() && is_space(line[i])) ++i;

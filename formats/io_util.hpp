@@ -166,6 +166,8 @@ template <typename Out>
 
 // Whitespace tokenizer over one line.
 std::vector<std::string_view> split_whitespace(std::string_view line);
+// How many tokens split_whitespace would make of `line`.
+size_t count_tokens(std::string_view line);
 std::string_view trim(std::string_view s);
 
 // Parse helpers: throw nothing; return false on failure (the caller names the place).

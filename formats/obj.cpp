@@ -3,7 +3,6 @@
 // attributes (spaces in names as %20). Faces, normals, groups and materials are ignored.
 
 #include <algorithm>
-#include <cctype>
 #include <numeric>
 
 #include "formats/formats.hpp"
@@ -45,10 +44,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
     // A long line (an `l` of millions of indices) before it is split: the line, a token per
     // value (counted) and what each index will add.
     if (line.size() > 65536) {
-      double values = 0;
-      for (size_t i = 0; i < line.size(); ++i)
-        values += !std::isspace(static_cast<unsigned char>(line[i])) &&
-                  (i == 0 || std::isspace(static_cast<unsigned char>(line[i - 1])));
+      const double values = double(io::count_tokens(line));
       const double attributes = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
       check_memory(true, double(line.size()) + values * (16 + 8 + 12 + 4 * attributes));
     }

@@ -244,6 +244,15 @@ void check_value_count(const Context& ctx, const pugi::xml_node& node, uint64_t 
                  std::to_string(ctx.file_bytes) + " bytes");
 }
 
+// What reading `values` of a DataArray holds besides them, its count checked first: a token per
+// value (16 bytes) when it is ASCII, else its decoded bytes.
+double bytes_reading(const Context& ctx, const pugi::xml_node& node, uint64_t values) {
+  check_value_count(ctx, node, values);
+  const std::optional<io::Scalar> type = xml_type(node.attribute("type").as_string());
+  const bool ascii = std::string(node.attribute("format").as_string("ascii")) == "ascii";
+  return double(values) * (ascii ? 16.0 : double(type ? io::scalar_size(*type) : 8));
+}
+
 // Reads a DataArray into `count` values of Out, checking its size.
 template <typename Out>
 std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size_t count) {
@@ -414,8 +423,8 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       sum += double(std::min<uint64_t>(a.attribute("NumberOfComponents").as_ullong(1), 16));
     return sum;
   };
-  // While an array is read it holds, besides its values, a token per value (16 bytes) when it
-  // is ASCII, else its decoded bytes. Each array's count is checked against the file first.
+  // While an array is read it holds more than its values (bytes_reading), its count checked
+  // against the file first.
   const uint64_t cells = vert_count + line_count + poly_count + strip_count;
   double largest_read = 0;
   const auto reading = [&](const pugi::xml_node& data, uint64_t tuples, bool times_components) {
@@ -423,24 +432,16 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       const uint64_t components =
           times_components ? std::min<uint64_t>(a.attribute("NumberOfComponents").as_ullong(1), 16)
                            : 1;
-      const uint64_t values = tuples * components;  // bounded above: no wrap
-      check_value_count(ctx, a, values);
-      const std::optional<io::Scalar> type = xml_type(a.attribute("type").as_string());
-      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
-      largest_read =
-          std::max(largest_read,
-                   double(values) * (ascii ? 16.0 : double(type ? io::scalar_size(*type) : 8)));
+      // tuples is bounded by the file's size, components by 16: no wrap
+      largest_read = std::max(largest_read, bytes_reading(ctx, a, tuples * components));
     }
   };
   reading(piece.child("Points"), 3 * point_count, false);
   reading(piece.child("PointData"), point_count, true);
   reading(piece.child("CellData"), cells, true);
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
-    if (std::string(a.attribute("Name").as_string()) == "offsets") {
-      check_value_count(ctx, a, line_count);
-      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
-      largest_read = std::max(largest_read, double(line_count) * (ascii ? 16.0 : 8.0));
-    }
+    if (std::string(a.attribute("Name").as_string()) == "offsets")
+      largest_read = std::max(largest_read, bytes_reading(ctx, a, line_count));
   const double point_floats = 3 + components_of(piece.child("PointData"));
   const double held = double(ctx.file_bytes) + xml_held - double(xml_bytes) +
                       4 * point_floats * double(point_count) + 16 * double(line_count) +
@@ -476,9 +477,7 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
     if (std::string(a.attribute("Name").as_string()) == "connectivity") {
       has_connectivity = true;
-      check_value_count(ctx, a, connectivity_size);
-      const bool ascii = std::string(a.attribute("format").as_string("ascii")) == "ascii";
-      connectivity_read = double(connectivity_size) * (ascii ? 16.0 : 8.0);
+      connectivity_read = bytes_reading(ctx, a, connectivity_size);
     }
   if (connectivity_size > 0 && !has_connectivity)
     throw InputError(path, "Lines", "missing connectivity array");
