@@ -211,6 +211,33 @@ check "render capsules, stepping and packets" bash -c "'$bin' render '$tmp/t.lbc
 check "stepping with packets is an error" exit_code 4 "$bin" render "$tmp/t.lbc.h5" --hits stepping --packets --size 32x24 -o "$tmp/x.png"
 check "render uses the cached Embree buffers" bash -c "'$bin' render '$tmp/t.lbc.h5' --size 32x24 -o '$tmp/cb.png' --stats '$tmp/cb.json' && grep -q '\"bvh_from_cached_buffers\": true' '$tmp/cb.json'"
 check "bench embree" bash -c "'$bin' bench embree --input '$tmp/c.binlines' --repeat 1 --json | grep -q '\"ratio_best\"'"
+# The in-memory bench steps within --memory-budget: figures the same as unlimited, the peak
+# within the budget, and what does not fit refused with the figures (exit 4).
+check_budget "bench voxels under 64M: its records spilled, the same figures as unlimited and as bake's grid, the peak within it" /usr/bin/python3 -c "
+import json, subprocess
+run = lambda budget: json.loads(subprocess.run(['$bin', 'bench', 'voxels', '$tmp/c.binlines', '--grid', '640', '--repeat', '1', '--json', '--memory-budget', budget], check=True, capture_output=True, text=True, cwd='$tmp').stdout)
+small, whole = run('64M'), run('unlimited')
+keys = ['chords', 'representation_bytes', 'bytes_with_density', 'max_error_voxels', 'mean_error_voxels', 'resolution']
+assert [small[k] for k in keys] == [whole[k] for k in keys], (small, whole)
+# the grid bake builds, as stored: the same chords and arrays
+subprocess.run(['$bin', 'bake', '$tmp/c.binlines', '-o', '$tmp/bv.lbc.h5', '--assets', 'voxels', '--grid', '640'], check=True, capture_output=True)
+import h5py
+with h5py.File('$tmp/bv.lbc.h5', 'r') as f:
+    v = f['assets/voxels']
+    size = lambda name: v[name].size * v[name].dtype.itemsize
+    stored = (v['chords'].shape[0], size('offsets') + size('chords'), size('offsets') + size('chords') + size('line_counts') + sum(size(n) for n in v if n.startswith('density_')))
+assert (whole['chords'], whole['representation_bytes'], whole['bytes_with_density']) == stored, (whole, stored)
+assert small['spilled_bytes'] > 0 and whole['spilled_bytes'] == 0, (small, whole)
+assert small['memory_budget_bytes'] == 64 << 20 and 0 < small['peak_rss_bytes'] <= 64 << 20, small
+import os; assert not [f for f in os.listdir('$tmp') if 'bench-voxels' in f]"
+check_budget "bench voxels: a grid whose chord counts pass the budget is refused (exit 4)" bash -c "'$bin' bench voxels '$tmp/c.binlines' --grid 768 --repeat 1 --memory-budget 60M 2> '$tmp/bvb.err'; [ \$? -eq 4 ] && grep -q \"bench voxels: the voxel grid's chord counts and density mip levels (28311552 voxels): about 44.43 MiB in memory, more than the memory budget of 60.00 MiB leaves\" '$tmp/bvb.err'"
+check "bench voxels: lines past the budget are refused while read (exit 4)" bash -c "'$bin' bench voxels '$tmp/c.binlines' --repeat 1 --memory-budget 40M 2> '$tmp/bvr.err'; [ \$? -eq 4 ] && grep -q \"bench voxels: $tmp/c.binlines read whole, its first .* points and their arrays' growth: about .* more than the memory budget of 40.00 MiB leaves\" '$tmp/bvr.err'"
+check_budget "bench tubes: a mesh past the budget is refused before it is built (exit 4)" bash -c "'$bin' bench tubes '$tmp/c.binlines' --repeat 1 --memory-budget 100M 2> '$tmp/btb.err'; [ \$? -eq 4 ] && grep -q 'bench tubes: the tube mesh of 495000 segments with 3 sides: about 71.23 MiB in memory, more than the memory budget of 100.00 MiB leaves' '$tmp/btb.err'"
+check_budget "bench tubes within 130M: the peak within it, memcpy's buffers from what is left" python3 -c "
+import json, subprocess
+j = json.loads(subprocess.run(['$bin', 'bench', 'tubes', '$tmp/c.binlines', '--repeat', '1', '--json', '--memory-budget', '130M'], check=True, capture_output=True, text=True).stdout)
+assert 0 < j['peak_rss_bytes'] <= 130 << 20 and j['memcpy_buffer_bytes'] < 130 << 20 and j['bytes_written'] > 0, j"
+check_budget "bench embree: a BVH past the budget is refused (exit 4)" bash -c "'$bin' bench embree '$tmp/c.binlines' --repeat 1 --memory-budget 70M 2> '$tmp/beb.err'; [ \$? -eq 4 ] && grep -q \"Embree's BVH over 495000 segments needs more than the .* the memory budget leaves for the scene\" '$tmp/beb.err'"
 # Vulkan on lavapipe (VK_ICD_FILENAMES from CTest), validation layer on
 check "render ll (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --technique ll --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/ll.png" --stats "$tmp/ll.json" --depth-complexity "$tmp/lldc.png"
 check "ll stats name the device and passes" bash -c "grep -q '\"gather\"' '$tmp/ll.json' && grep -q '\"device\"' '$tmp/ll.json'"

@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include "bench_isolation.hpp"
 #include "bench_render.hpp"
 #include "bench_shaders.hpp"
+#include "cache/line_store.hpp"
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/array.hpp"
@@ -31,9 +33,12 @@
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "formats/registry.hpp"
+#include "lines/line_reader.hpp"
 #include "pipeline/bake.hpp"
+#include "synth/synth.hpp"
 #include "tubes/tube_builder.hpp"
 #include "voxels/voxelizer.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 namespace {
@@ -68,29 +73,118 @@ struct BenchArgs {
   bool keep = false;
 };
 
-LineSet load(const BenchArgs& args) {
+// The build steps' memory budget (--memory-budget: half of physical memory by default; 0:
+// unlimited), with what the process holds when it starts counted as used.
+MemoryBudget step_budget(const BenchArgs& args) {
+  return MemoryBudget(memory_budget_bytes(args.memory_budget));
+}
+
+[[noreturn]] void refuse(const std::string& step, const std::string& what, uint64_t bytes,
+                         const MemoryBudget& budget) {
+  throw BudgetExceeded("bench " + step + ": " + what + ": about " + format_bytes(bytes) +
+                       " in memory, more than the memory budget of " +
+                       format_bytes(budget.total()) + " leaves (" +
+                       format_bytes(budget.available()) + "); raise --memory-budget");
+}
+
+// The whole line set, as the builders take it, within the budget: a format read whole checks
+// its own arrays (ReadOptions::memory_limit); the others are gathered a batch at a time, and a
+// batch is refused where the lines with it, and their vectors' growth (up to three times them,
+// the old and the doubled arrays side by side), would not fit.
+LineSet load(const std::string& step, const BenchArgs& args, const MemoryBudget& budget) {
   TerminalProgress progress("loading " + args.input);
   ReadOptions read;
   read.progress = progress.callback();
-  return read_line_set(args.input, read);
+  if (budget.unlimited()) return read_line_set(args.input, read);
+  read.memory_limit = budget.available();
+  const std::unique_ptr<LineReader> reader = open_line_reader(args.input, read);
+  if (std::optional<LineSet> whole = reader->take_whole()) return std::move(*whole);
+  LineSet lines = header_of(reader->header());
+  LineSet batch;
+  while (reader->next(batch, uint64_t{1} << 22)) {
+    throw_if_interrupted();
+    const uint64_t held = line_set_bytes(lines) + line_set_bytes(batch);
+    if (3 * held > budget.available())
+      refuse(step,
+             args.input + " read whole, its first " +
+                 std::to_string(lines.point_count() + batch.point_count()) +
+                 " points and their arrays' growth",
+             3 * held, budget);
+    append_lines(lines, batch);
+  }
+  if (!synth::is_synth_source(args.input)) lines.metadata.emplace("source", args.input);
+  return lines;
 }
 
-// The voxel grid build: every run, best and median, chords/s, the representation's memory.
+// Keeps a streamed voxel build's figures, not its arrays: what the grid would hold.
+class VoxelFigures : public VoxelSink {
+ public:
+  VoxelGrid grid;  // placement and statistics, no arrays
+  uint64_t chords = 0, coarse_density_bytes = 0;
+  void begin(const VoxelGrid& g, uint64_t chord_count) override {
+    grid = g;
+    chords = chord_count;
+  }
+  void voxels(uint64_t, uint64_t, const uint32_t*, const uint8_t*, const float*, const uint32_t*,
+              uint64_t) override {}
+  void end(const VoxelGrid& g, uint32_t, std::vector<Array<float>> coarse) override {
+    grid = g;
+    for (const Array<float>& level : coarse) coarse_density_bytes += level.bytes();
+  }
+  // VoxelGrid::representation_bytes() and bytes() of the grid built whole.
+  uint64_t representation_bytes() const { return (grid.voxel_count() + 1) * 4 + chords * 8; }
+  uint64_t bytes() const {
+    return representation_bytes() + grid.voxel_count() * (1 + 4) + coarse_density_bytes;
+  }
+};
+
+// The voxel grid build as bake runs it: the chord records held within what the budget leaves
+// (spilled to an unlinked file in the working directory past it), the grid streamed out voxel
+// range by voxel range and not kept. Every run, best and median, chords/s, the representation's
+// memory.
 void bench_voxels(const BenchArgs& args) {
-  const LineSet lines = load(args);
+  MemoryBudget budget = step_budget(args);
+  const LineSet lines = load("voxels", args, budget);
+  budget = step_budget(args);  // the lines counted as held
   VoxelOptions options;
   parse_grid(args.grid, options);
   options.quantization = args.quantization;
+  const LineSetStats stats = compute_stats(lines);
+  VoxelMemory memory;
+  uint64_t batch_points = lines.point_count();
+  if (!budget.unlimited()) {
+    const VoxelStreamBuilder placement(lines, stats, options);
+    if (placement.fixed_bytes() >= budget.available())
+      refuse("voxels",
+             "the voxel grid's chord counts and density mip levels (" +
+                 std::to_string(placement.description().voxel_count()) + " voxels)",
+             placement.fixed_bytes(), budget);
+    budget.reserve(placement.fixed_bytes(), "the voxel grid's chord counts");
+    // The lines go through the walk in batches, as bake's: a batch's records are made before
+    // they can spill (bake's share of the budget for one).
+    const uint64_t per_point = cost_per_point(BakeOptions{}, lines, false, true, false);
+    batch_points =
+        std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
+    budget.reserve(batch_points * per_point,
+                   "one batch of " + std::to_string(batch_points) + " points");
+    memory = voxel_memory_within(budget.available());
+    memory.spill_near = "bench-voxels";
+    memory.resident_limit = budget.total() - batch_points * per_point;
+  }
   std::vector<double> times;
-  VoxelGrid grid;
-  uint64_t peak = 0;
+  VoxelFigures grid;
+  uint64_t peak = 0, spilled = 0;
   for (int r = 0; r < args.repeat; ++r) {
-    grid = VoxelGrid();
+    grid = VoxelFigures();
     StepMeter meter;
-    grid = voxelize(lines, options);
+    VoxelStreamBuilder builder(lines, stats, options, memory);
+    const std::unique_ptr<MemoryLineReader> reader = MemoryLineReader::view(lines);
+    for (LineSet batch; reader->next(batch, batch_points);) builder.add(batch);
+    builder.finish(grid);
     const StepFigures f = meter.stop();
     times.push_back(f.wall_s);
     peak = std::max(peak, f.peak_rss);
+    spilled = builder.spilled_bytes();
   }
   std::sort(times.begin(), times.end());
   const double best = times.front(), median = times[times.size() / 2];
@@ -100,43 +194,67 @@ void bench_voxels(const BenchArgs& args) {
                               {"input", args.input},
                               {"threads", threads},
                               {"segments", lines.segment_count()},
-                              {"resolution", grid.resolution},
-                              {"quantization", grid.quantization},
-                              {"chords", grid.chord_count()},
+                              {"resolution", grid.grid.resolution},
+                              {"quantization", grid.grid.quantization},
+                              {"chords", grid.chords},
                               {"runs_s", times},
                               {"best_s", best},
                               {"median_s", median},
                               {"segments_per_s", double(lines.segment_count()) / best},
                               {"representation_bytes", grid.representation_bytes()},
                               {"bytes_with_density", grid.bytes()},
-                              {"max_error_voxels", grid.max_error},
-                              {"mean_error_voxels", grid.mean_error},
+                              {"max_error_voxels", grid.grid.max_error},
+                              {"mean_error_voxels", grid.grid.mean_error},
+                              {"spilled_bytes", spilled},
+                              {"memory_budget_bytes", budget.total()},
                               {"peak_rss_bytes", peak}};
   if (args.json) {
     std::cout << out.dump(2) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "voxels: " << args.input << ", "
-            << lines.segment_count() << " segments, grid " << grid.resolution[0] << "x"
-            << grid.resolution[1] << "x" << grid.resolution[2] << " Q" << grid.quantization << ", "
-            << threads << " threads\n  runs (s):        ";
+            << lines.segment_count() << " segments, grid " << grid.grid.resolution[0] << "x"
+            << grid.grid.resolution[1] << "x" << grid.grid.resolution[2] << " Q"
+            << grid.grid.quantization << ", " << threads << " threads\n  runs (s):        ";
   for (double t : times) std::cout << t << " ";
   std::cout << "\n  best:            " << best << " s, median " << median << " s\n"
-            << "  chords:          " << grid.chord_count() << "\n"
+            << "  chords:          " << grid.chords << "\n"
             << "  representation:  " << std::setprecision(1)
             << double(grid.representation_bytes()) / (1 << 20) << " MiB (offsets + chords), "
             << double(grid.bytes()) / (1 << 20) << " MiB with density mips and line counts\n"
-            << "  error (voxels):  max " << std::setprecision(4) << grid.max_error << ", mean "
-            << grid.mean_error << "\n"
-            << "  peak RSS:        " << std::setprecision(2) << double(peak) / (1 << 30)
-            << " GiB\n";
+            << "  error (voxels):  max " << std::setprecision(4) << grid.grid.max_error << ", mean "
+            << grid.grid.mean_error << "\n"
+            << "  peak RSS:        " << format_bytes(peak) << " (budget "
+            << (budget.unlimited() ? "unlimited" : format_bytes(budget.total())) << "; records "
+            << format_bytes(spilled) << " spilled)\n";
 }
 
 // The baseline: a fresh device and scene over the already prepared buffers, shared with Embree
 // as they are; only rtcCommitScene is timed.
+// Embree's allocations against a limit (0: none), as EmbreeScene's memory monitor holds them.
+struct BareMonitor {
+  int64_t limit = 0;
+  std::atomic<int64_t> held{0};
+  std::atomic<bool> refused{false};
+  static bool monitor(void* user, ssize_t bytes, bool post) {
+    auto* m = static_cast<BareMonitor*>(user);
+    if (post) return true;
+    const int64_t now = m->held.fetch_add(bytes) + bytes;
+    if (bytes > 0 && m->limit > 0 && now > m->limit) {
+      m->held.fetch_sub(bytes);
+      m->refused = true;
+      return false;
+    }
+    return true;
+  }
+};
+
 double bare_commit_seconds(const std::vector<PreparedCurves>& parts, EmbreeGeometry geometry,
-                           BuildQuality quality) {
+                           BuildQuality quality, uint64_t max_bvh_bytes) {
   RTCDevice device = rtcNewDevice(nullptr);
+  BareMonitor monitor;
+  monitor.limit = int64_t(std::min<uint64_t>(max_bvh_bytes, INT64_MAX));
+  rtcSetDeviceMemoryMonitorFunction(device, &BareMonitor::monitor, &monitor);
   RTCScene scene = rtcNewScene(device);
   rtcSetSceneBuildQuality(scene, quality == BuildQuality::Low    ? RTC_BUILD_QUALITY_LOW
                                  : quality == BuildQuality::High ? RTC_BUILD_QUALITY_HIGH
@@ -171,15 +289,24 @@ double bare_commit_seconds(const std::vector<PreparedCurves>& parts, EmbreeGeome
   const bool failed = rtcGetDeviceError(device) != RTC_ERROR_NONE;
   rtcReleaseScene(scene);
   rtcReleaseDevice(device);
+  if (failed && monitor.refused)
+    throw BudgetExceeded("bench: Embree's bare build needs more than the " +
+                         format_bytes(max_bvh_bytes) +
+                         " the memory budget leaves for its BVH; raise --memory-budget");
   if (failed) throw Error("Embree: the bare build failed");
   return seconds;
 }
 
 // linebake's Embree build (buffer preparation + commit) against a bare rtcCommitScene on the
 // same buffers, runs interleaved; the target is a ratio of best times of at most 1.2.
+// Within the budget: linebake's scene through EmbreeOptions::max_memory_bytes (its buffers and
+// BVH), the bare build's BVH through the same memory monitor, with the buffers it shares held.
 void bench_embree(const BenchArgs& args) {
-  const LineSet lines = load(args);
+  MemoryBudget budget = step_budget(args);
+  const LineSet lines = load("embree", args, budget);
+  budget = step_budget(args);  // the lines counted as held
   EmbreeOptions options;
+  if (!budget.unlimited()) options.max_memory_bytes = std::max<uint64_t>(budget.available(), 1);
   options.geometry = parse_embree_geometry(args.geometry);
   if (options.geometry == EmbreeGeometry::Triangles)
     throw Error("bench embree: curves only (linear, bezier, capsules)");
@@ -201,7 +328,14 @@ void bench_embree(const BenchArgs& args) {
       commit.push_back(stats.commit_s);
       buffers = scene.prepared_curves();
     }
-    bare.push_back(bare_commit_seconds(buffers, options.geometry, options.quality));
+    uint64_t buffer_bytes = 0;
+    for (const PreparedCurves& p : buffers)
+      buffer_bytes += p.vertices.bytes() + p.indices.bytes() + p.flags.bytes();
+    const uint64_t bvh_limit =
+        budget.unlimited()
+            ? 0
+            : (budget.available() > buffer_bytes ? budget.available() - buffer_bytes : 1);
+    bare.push_back(bare_commit_seconds(buffers, options.geometry, options.quality, bvh_limit));
   }
   const auto best = [](std::vector<double> v) { return *std::min_element(v.begin(), v.end()); };
   const double ratio = best(ours) / best(bare);
@@ -221,7 +355,8 @@ void bench_embree(const BenchArgs& args) {
                               {"target_ratio", 1.2},
                               {"buffer_bytes", stats.buffer_bytes},
                               {"bvh_bytes", stats.bvh_bytes},
-                              {"bvh_peak_bytes", stats.bvh_peak_bytes}};
+                              {"bvh_peak_bytes", stats.bvh_peak_bytes},
+                              {"memory_budget_bytes", budget.total()}};
   if (args.json) {
     std::cout << out.dump(2) << "\n";
     return;
@@ -242,11 +377,26 @@ void bench_embree(const BenchArgs& args) {
             << double(stats.bvh_peak_bytes) / (1 << 20) << " MiB)\n";
 }
 
+// The tube mesh built whole, as often as --repeat says, refused before the first build where
+// it would not fit the budget (its planned size and the plan's 8 bytes a line); then memcpy's
+// bandwidth over buffers of up to 1 GiB each that fit what the budget leaves.
 void bench_tubes(const BenchArgs& args) {
-  const LineSet lines = load(args);
+  MemoryBudget budget = step_budget(args);
+  const LineSet lines = load("tubes", args, budget);
+  budget = step_budget(args);  // the lines counted as held
   TubeOptions options;
   options.sides = args.sides;
-  const double bandwidth = memcpy_bandwidth(5);
+  if (!budget.unlimited()) {
+    TubeStreamBuilder plan(lines, compute_stats(lines), options);
+    plan.plan(lines);
+    plan.finish_plan();
+    const uint64_t mesh = plan.output_bytes(0, lines.line_count()) + 8 * lines.line_count();
+    if (mesh > budget.available())
+      refuse("tubes",
+             "the tube mesh of " + std::to_string(lines.segment_count()) + " segments with " +
+                 std::to_string(args.sides) + " sides",
+             mesh, budget);
+  }
   std::vector<double> times;
   uint64_t bytes = 0, triangles = 0;
   uint64_t peak = 0;
@@ -259,6 +409,12 @@ void bench_tubes(const BenchArgs& args) {
     triangles = mesh.triangle_count();
     peak = std::max(peak, f.peak_rss);
   }
+  // Two buffers of a third of what the budget leaves each, the mesh let go.
+  const uint64_t copy_bytes =
+      budget.unlimited()
+          ? uint64_t{1} << 30
+          : std::clamp<uint64_t>(budget.available() / 3, uint64_t{1} << 20, uint64_t{1} << 30);
+  const double bandwidth = memcpy_bandwidth(5, size_t(copy_bytes));
   std::sort(times.begin(), times.end());
   const double best = times.front(), median = times[times.size() / 2];
   const double written = double(bytes) / best;
@@ -279,6 +435,8 @@ void bench_tubes(const BenchArgs& args) {
                         {"written_GBps", written / 1e9},
                         {"memcpy_GBps", bandwidth / 1e9},
                         {"fraction_of_memcpy", written / bandwidth},
+                        {"memcpy_buffer_bytes", copy_bytes},
+                        {"memory_budget_bytes", budget.total()},
                         {"peak_rss_bytes", peak}};
   if (args.json) {
     std::cout << out.dump(2) << "\n";
@@ -296,8 +454,8 @@ void bench_tubes(const BenchArgs& args) {
             << "  memcpy:          " << bandwidth / 1e9 << " GB/s (same run, " << threads
             << " threads)\n"
             << "  of memcpy:       " << std::setprecision(0) << 100 * written / bandwidth << " %\n"
-            << "  peak RSS:        " << std::setprecision(2) << double(peak) / (1 << 30)
-            << " GiB\n";
+            << "  peak RSS:        " << format_bytes(peak) << " (budget "
+            << (budget.unlimited() ? "unlimited" : format_bytes(budget.total())) << ")\n";
 }
 
 // A whole bake, as `linebake bake` runs it (forced, so every step builds), per stage: wall and
@@ -419,22 +577,35 @@ Command add_bench(CLI::App& app) {
     sub->add_flag("--json", args->json, "Print the figures as JSON");
     return sub;
   };
+  // The in-memory builds (tubes, voxels, embree) are held to a budget as every command is.
+  const auto within_budget = [&](CLI::App* sub, const char* what) {
+    sub->add_option("--memory-budget", args->memory_budget,
+                    std::string("Resident memory at most, e.g. 2G; unlimited (default: half of "
+                                "physical memory): ") +
+                        what)
+        ->check(byte_size());
+  };
   auto* tubes = step("tubes", "Tube build speed against memcpy bandwidth of the same run",
                      "prints every run, the best and the median");
   tubes->add_option("--tube-sides", args->sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(CLI::Range(3, 32));
+  within_budget(tubes, "the lines read and the mesh built whole, refused past it");
   auto* voxels = step("voxels", "Voxel grid build: time, chords, memory, quantisation error",
                       "prints every run, the best and the median");
   voxels->add_option("--grid", args->grid, "auto (default, bake's rule), N or NxNxN")
       ->check(grid_check());
   voxels->add_option("--quantization", args->quantization, "16 | 32 (default) | 64")
       ->check(CLI::IsMember({16, 32, 64}));
+  within_budget(voxels,
+                "the lines read whole, the chord records spilled past it (a temporary file in the "
+                "working directory), as bake builds them");
   auto* embree = step("embree", "linebake's Embree build against a bare rtcCommitScene",
                       "prints the best of each and their ratio");
   embree->add_option("--embree-geometry", args->geometry, "linear (default) | bezier | capsules")
       ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
   embree->add_option("--embree-quality", args->quality, "low | medium (default) | high")
       ->check(CLI::IsMember({"low", "medium", "high"}));
+  within_budget(embree, "the lines read whole, both scenes' buffers and BVH, refused past it");
   auto* bake = step("bake", "A whole bake, per stage: wall and CPU time, peak RSS, spill, writes",
                     "prints the run of median wall time in detail");
   bake->add_option("--assets", args->assets, "Assets to build (default tubes, as bake)")

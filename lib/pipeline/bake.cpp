@@ -846,11 +846,9 @@ BakeResult bake(const BakeOptions& options_in) {
     plan.voxel_records = UINT64_MAX;
     plan.voxel_merge = uint64_t{1} << 30;
   } else {
-    // The merge needs little beyond what the records already hold (256 MiB covers any range);
-    // the rest goes to keeping records in memory instead of spilling them.
-    const uint64_t left = budget.available();
-    plan.voxel_merge = std::min<uint64_t>(left / 4, uint64_t{256} << 20);
-    plan.voxel_records = left - plan.voxel_merge - left / 20;
+    const VoxelMemory shares = voxel_memory_within(budget.available());
+    plan.voxel_merge = shares.merge_bytes;
+    plan.voxel_records = shares.records_bytes;
   }
 
   if (voxel_placement) {

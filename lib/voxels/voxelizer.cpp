@@ -1032,6 +1032,13 @@ void parse_grid(const std::string& text, VoxelOptions& options) {
   }
 }
 
+VoxelMemory voxel_memory_within(uint64_t available) {
+  VoxelMemory memory;
+  memory.merge_bytes = std::min<uint64_t>(available / 4, uint64_t{256} << 20);
+  memory.records_bytes = available - memory.merge_bytes - available / 20;
+  return memory;
+}
+
 VoxelGrid voxelize(const LineSet& lines, const VoxelOptions& options, const ProgressFn& progress) {
   VoxelStreamBuilder builder(lines, compute_stats(lines), options);
   builder.add(lines);

@@ -71,6 +71,10 @@ struct VoxelMemory {
   // side, the allocator's slack). Where the records go does not change the grid.
   uint64_t resident_limit = 0;
 };
+// The shares a streamed build takes of `available` bytes (bake's): one voxel range's merge, a
+// quarter and 256 MiB at most (little beyond what the records hold already), and the records
+// kept in memory, the rest less 5 % of slack. No spill location, no resident limit.
+VoxelMemory voxel_memory_within(uint64_t available);
 
 // A chord on its way to its voxel: what walking a line makes, and what the ranks of a
 // distributed build send each other. 16 bytes: the line id is not kept; bit 31 of word1 (free in
