@@ -26,23 +26,23 @@
 
 namespace linebake {
 
-// What write_vdb hands to OpenVDB: the active voxels (those any line passes through) and one
-// value array per grid over them (NaN: inactive in that grid).
-struct VdbGrids {
-  struct Grid {
-    std::string name, description;
-    bool fog_volume = false;
-    std::vector<float> values;
-  };
-  double voxel_size = 1;
-  std::array<double, 3> first_centre{};  // world position of index (0, 0, 0)
-  std::vector<std::array<int32_t, 3>> active;
-  std::vector<Grid> grids;
-  float density_scale = 1;  // chord length (voxel units) that maps to density 1
+// What write_vdb reads at a time: the offsets of a block of `voxels`, then runs of its voxels
+// whose `chords` fit (at least one voxel). bytes() bounds what their arrays take.
+struct VdbPieces {
+  uint64_t voxels = uint64_t{1} << 18, chords = uint64_t{1} << 20;
+  uint64_t bytes() const { return voxels * (4 + 1 + 4 + 12 + 4 * 4) + chords * 8; }
 };
-VdbGrids vdb_grids(const VoxelGrid& grid);
 
-// Throws OutputError when the file cannot be written or the OpenVDB module cannot be loaded.
+// Memory write_vdb takes for a grid (its description's resolution, attribute and occupied
+// voxels), at most: OpenVDB's trees, which it needs whole to write the file, the chord lengths
+// kept for the density scale, and the pieces.
+uint64_t vdb_build_bytes(const VoxelGrid& description);
+
+// Writes the grid read a piece at a time (a cache's, voxel_store.hpp: never whole in memory).
+// Throws OutputError when the file cannot be written or the OpenVDB module cannot be loaded,
+// InputError (from the pieces) where the grid's arrays are not sound; nothing is left then.
+void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes = {});
+// The same for a grid in memory.
 void write_vdb(const std::string& path, const VoxelGrid& grid);
 
 }  // namespace linebake

@@ -7,39 +7,20 @@
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <ostream>
 #include <streambuf>
+#include <vector>
 
 namespace {
 
-openvdb::GridPtrVec make_grids(const LinebakeVdbFile& f) {
-  const double h = f.voxel_size;
-  auto transform = openvdb::math::Transform::createLinearTransform(h);
-  transform->postTranslate(openvdb::Vec3d(f.first_centre[0], f.first_centre[1], f.first_centre[2]));
-  openvdb::GridPtrVec grids;
-  for (uint32_t g = 0; g < f.grid_count; ++g) {
-    const LinebakeVdbGrid& spec = f.grids[g];
-    auto grid = openvdb::FloatGrid::create(0.0f);
-    grid->setName(spec.name);
-    grid->setGridClass(spec.fog_volume ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_UNKNOWN);
-    grid->insertMeta("description", openvdb::StringMetadata(spec.description));
-    grid->setTransform(transform);
-    auto values = grid->getAccessor();
-    for (uint64_t i = 0; i < f.active_count; ++i)
-      if (!std::isnan(spec.values[i]))
-        values.setValue(openvdb::Coord(f.ijk[3 * i], f.ijk[3 * i + 1], f.ijk[3 * i + 2]),
-                        spec.values[i]);
-    grids.push_back(grid);
-  }
-  return grids;
-}
-
-openvdb::MetaMap make_meta(const LinebakeVdbFile& f) {
+openvdb::MetaMap make_meta(const LinebakeVdbMeta* entries, uint32_t count) {
   openvdb::MetaMap meta;
-  for (uint32_t m = 0; m < f.meta_count; ++m) {
-    const LinebakeVdbMeta& e = f.meta[m];
+  for (uint32_t m = 0; m < count; ++m) {
+    const LinebakeVdbMeta& e = entries[m];
     if (e.string_value)
       meta.insertMeta(e.key, openvdb::StringMetadata(e.string_value));
     else if (e.integer)
@@ -72,20 +53,11 @@ uint64_t serialised_bytes(const openvdb::GridPtrVec& grids, const openvdb::MetaM
   return counter.bytes;
 }
 
-}  // namespace
-
-extern "C" __attribute__((visibility("default"))) int linebake_vdb_write_v1(
-    const char* path, const LinebakeVdbFile* file, uint64_t* expected_bytes, char* error,
-    size_t error_size) {
+// Runs `body`, turning an exception into 1 and a message.
+template <class Body>
+int guarded(char* error, size_t error_size, Body&& body) {
   try {
-    openvdb::initialize();
-    const openvdb::GridPtrVec grids = make_grids(*file);
-    const openvdb::MetaMap meta = make_meta(*file);
-    openvdb::io::File out(path);
-    out.setCompression(kCompression);
-    out.write(grids, meta);
-    out.close();
-    *expected_bytes = serialised_bytes(grids, meta);
+    body();
     return 0;
   } catch (const std::exception& e) {
     std::snprintf(error, error_size, "OpenVDB: %s", e.what());
@@ -93,4 +65,81 @@ extern "C" __attribute__((visibility("default"))) int linebake_vdb_write_v1(
     std::snprintf(error, error_size, "OpenVDB: unknown exception");
   }
   return 1;
+}
+
+}  // namespace
+
+struct LinebakeVdbBuild {
+  std::vector<openvdb::FloatGrid::Ptr> grids;
+  std::vector<openvdb::FloatGrid::Accessor> accessors;
+};
+
+namespace {
+
+int begin(double voxel_size, const double first_centre[3], const LinebakeVdbGrid* specs,
+          uint32_t grid_count, LinebakeVdbBuild** build, char* error, size_t error_size) {
+  *build = nullptr;
+  return guarded(error, error_size, [&] {
+    openvdb::initialize();
+    auto transform = openvdb::math::Transform::createLinearTransform(voxel_size);
+    transform->postTranslate(openvdb::Vec3d(first_centre[0], first_centre[1], first_centre[2]));
+    auto made = std::make_unique<LinebakeVdbBuild>();
+    for (uint32_t g = 0; g < grid_count; ++g) {
+      const LinebakeVdbGrid& spec = specs[g];
+      auto grid = openvdb::FloatGrid::create(0.0f);
+      grid->setName(spec.name);
+      grid->setGridClass(spec.fog_volume ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_UNKNOWN);
+      grid->insertMeta("description", openvdb::StringMetadata(spec.description));
+      grid->setTransform(transform);
+      made->grids.push_back(grid);
+      made->accessors.push_back(grid->getAccessor());
+    }
+    *build = made.release();
+  });
+}
+
+int add(LinebakeVdbBuild* build, uint64_t count, const int32_t* ijk, const float* const* values,
+        char* error, size_t error_size) {
+  return guarded(error, error_size, [&] {
+    for (size_t g = 0; g < build->grids.size(); ++g) {
+      auto& accessor = build->accessors[g];
+      for (uint64_t i = 0; i < count; ++i)
+        if (!std::isnan(values[g][i]))
+          accessor.setValue(openvdb::Coord(ijk[3 * i], ijk[3 * i + 1], ijk[3 * i + 2]),
+                            values[g][i]);
+    }
+  });
+}
+
+int rescale(LinebakeVdbBuild* build, uint32_t grid, float scale, char* error, size_t error_size) {
+  return guarded(error, error_size, [&] {
+    for (auto value = build->grids.at(grid)->beginValueOn(); value; ++value)
+      value.setValue(std::min(1.0f, *value / scale));
+  });
+}
+
+int write(LinebakeVdbBuild* build, const char* path, const LinebakeVdbMeta* entries,
+          uint32_t meta_count, uint64_t* expected_bytes, char* error, size_t error_size) {
+  return guarded(error, error_size, [&] {
+    const openvdb::GridPtrVec grids(build->grids.begin(), build->grids.end());
+    const openvdb::MetaMap meta = make_meta(entries, meta_count);
+    openvdb::io::File out(path);
+    out.setCompression(kCompression);
+    out.write(grids, meta);
+    out.close();
+    *expected_bytes = serialised_bytes(grids, meta);
+  });
+}
+
+void end(LinebakeVdbBuild* build) {
+  delete build;
+}
+
+constexpr LinebakeVdbModule kModule{&begin, &add, &rescale, &write, &end};
+
+}  // namespace
+
+extern "C" __attribute__((visibility("default"))) const LinebakeVdbModule*
+linebake_vdb_module_v2() {
+  return &kModule;
 }

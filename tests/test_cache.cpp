@@ -157,37 +157,6 @@ TEST_P(CacheRoundTrip, BitExact) {
 INSTANTIATE_TEST_SUITE_P(Compressions, CacheRoundTrip,
                          ::testing::Values("none", "deflate", "lz4", "blosc-zstd"));
 
-// File offset of a dataset's first stored byte (its first chunk where chunked).
-uint64_t data_offset(const std::string& path, const std::string& dataset) {
-  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
-  haddr_t offset = H5Dget_offset(d);
-  if (offset == HADDR_UNDEF) {
-    hsize_t coords[2];
-    unsigned mask;
-    hsize_t size = 0;
-    const hid_t space = H5Dget_space(d);
-    H5Dget_chunk_info(d, space, 0, coords, &mask, &offset, &size);
-    H5Sclose(space);
-    offset += size / 2;  // inside the compressed bytes
-  } else {
-    offset += 100;
-  }
-  H5Dclose(d);
-  H5Fclose(f);
-  return offset;
-}
-
-void flip_byte(const std::string& path, uint64_t offset) {
-  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(std::streamoff(offset));
-  char c = 0;
-  f.read(&c, 1);
-  c = static_cast<char>(c ^ 0x5A);
-  f.seekp(std::streamoff(offset));
-  f.write(&c, 1);
-}
-
 void expect_input_error(const std::function<void()>& f, const std::string& part1,
                         const std::string& part2) {
   try {
@@ -208,7 +177,7 @@ TEST_P(CacheCorruption, FlippedByteIsDetectedAndNamed) {
   const std::string path = dir.file("c.lbc.h5");
   write_cache(path, lines, mesh, parse_compression(GetParam()));
   const std::string dataset = "/assets/tubes/chunk_000000/positions";
-  flip_byte(path, data_offset(path, dataset));
+  test::flip_byte(path, test::data_offset(path, dataset));
   const CacheReader cache(path);
   EXPECT_NO_THROW(load_lines(cache));  // other datasets are fine
   expect_input_error([&] { load_tubes(cache); }, path, "dataset " + dataset);

@@ -2,6 +2,7 @@
 // Helpers shared by the tests: temporary directories and a line set with awkward values.
 
 #include <gtest/gtest.h>
+#include <hdf5.h>
 
 #include <algorithm>
 #include <bit>
@@ -113,6 +114,37 @@ inline LineSet awkward_lines(bool with_line_attributes) {
   lines.attributes = {a, b};
   if (with_line_attributes) lines.line_attributes = {{"line_id", {10.0f, 11.5f, 1.0f / 9.0f}}};
   return lines;
+}
+
+// File offset of a dataset's first stored byte (its first chunk where chunked).
+inline uint64_t data_offset(const std::string& path, const std::string& dataset) {
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
+  haddr_t offset = H5Dget_offset(d);
+  if (offset == HADDR_UNDEF) {
+    hsize_t coords[2];
+    unsigned mask;
+    hsize_t size = 0;
+    const hid_t space = H5Dget_space(d);
+    H5Dget_chunk_info(d, space, 0, coords, &mask, &offset, &size);
+    H5Sclose(space);
+    offset += size / 2;  // inside the compressed bytes
+  } else {
+    offset += 100;
+  }
+  H5Dclose(d);
+  H5Fclose(f);
+  return offset;
+}
+
+inline void flip_byte(const std::string& path, uint64_t offset) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(std::streamoff(offset));
+  char c = 0;
+  f.read(&c, 1);
+  c = static_cast<char>(c ^ 0x5A);
+  f.seekp(std::streamoff(offset));
+  f.write(&c, 1);
 }
 
 }  // namespace linebake::test

@@ -6,6 +6,10 @@
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -74,8 +78,10 @@ struct BenchArgs {
 };
 
 // The build steps' memory budget (--memory-budget: half of physical memory by default; 0:
-// unlimited), with what the process holds when it starts counted as used.
+// unlimited, as for convert and export), with what the process holds now counted as used (its
+// free heap given back first: what a step before let go would count otherwise).
 MemoryBudget step_budget(const BenchArgs& args) {
+  trimmed_rss_bytes();
   return MemoryBudget(memory_budget_bytes(args.memory_budget));
 }
 
@@ -88,9 +94,10 @@ MemoryBudget step_budget(const BenchArgs& args) {
 }
 
 // The whole line set, as the builders take it, within the budget: a format read whole checks
-// its own arrays (ReadOptions::memory_limit); the others are gathered a batch at a time, and a
-// batch is refused where the lines with it, and their vectors' growth (up to three times them,
-// the old and the doubled arrays side by side), would not fit.
+// its own arrays (ReadOptions::memory_limit); the others are gathered in batches sized to the
+// budget, and a batch is refused where the lines with it, and their vectors' growth (up to
+// three times them, the old and the doubled arrays side by side), would not fit. (A reader
+// reads a line longer than a batch whole before it can be checked.)
 LineSet load(const std::string& step, const BenchArgs& args, const MemoryBudget& budget) {
   TerminalProgress progress("loading " + args.input);
   ReadOptions read;
@@ -100,10 +107,17 @@ LineSet load(const std::string& step, const BenchArgs& args, const MemoryBudget&
   const std::unique_ptr<LineReader> reader = open_line_reader(args.input, read);
   if (std::optional<LineSet> whole = reader->take_whole()) return std::move(*whole);
   LineSet lines = header_of(reader->header());
+  // A point's bytes at most: its position and attributes, and its line's offset and attributes
+  // (a line has a point at least).
+  const uint64_t point_bytes =
+      12 + 4 * lines.attributes.size() + 8 + 4 * lines.line_attributes.size();
+  const uint64_t max_points =
+      std::clamp<uint64_t>(budget.available() / 4 / point_bytes, 1, uint64_t{1} << 22);
   LineSet batch;
-  while (reader->next(batch, uint64_t{1} << 22)) {
+  uint64_t held = 0;
+  while (reader->next(batch, max_points)) {
     throw_if_interrupted();
-    const uint64_t held = line_set_bytes(lines) + line_set_bytes(batch);
+    held += line_set_bytes(batch);
     if (3 * held > budget.available())
       refuse(step,
              args.input + " read whole, its first " +
@@ -167,8 +181,13 @@ void bench_voxels(const BenchArgs& args) {
         std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
     budget.reserve(batch_points * per_point,
                    "one batch of " + std::to_string(batch_points) + " points");
+    // Each batch's run of records keeps an index of a word per unit of voxels.
+    const uint64_t runs = (lines.point_count() + batch_points - 1) / batch_points;
+    budget.reserve(runs * placement.unit_records().size() * 4,
+                   "the indexes of " + std::to_string(runs) + " runs of voxel records");
     memory = voxel_memory_within(budget.available());
-    memory.spill_near = "bench-voxels";
+    // Beside the working directory's absolute path, so that an error names it.
+    memory.spill_near = (std::filesystem::current_path() / "bench-voxels").string();
     memory.resident_limit = budget.total() - batch_points * per_point;
   }
   std::vector<double> times;
@@ -178,8 +197,12 @@ void bench_voxels(const BenchArgs& args) {
     grid = VoxelFigures();
     StepMeter meter;
     VoxelStreamBuilder builder(lines, stats, options, memory);
-    const std::unique_ptr<MemoryLineReader> reader = MemoryLineReader::view(lines);
-    for (LineSet batch; reader->next(batch, batch_points);) builder.add(batch);
+    if (batch_points >= lines.point_count()) {
+      builder.add(lines);  // one batch: the lines as they are, not a copy
+    } else {
+      const std::unique_ptr<MemoryLineReader> reader = MemoryLineReader::view(lines);
+      for (LineSet batch; reader->next(batch, batch_points);) builder.add(batch);
+    }
     builder.finish(grid);
     const StepFigures f = meter.stop();
     times.push_back(f.wall_s);
@@ -236,15 +259,16 @@ struct BareMonitor {
   int64_t limit = 0;
   std::atomic<int64_t> held{0};
   std::atomic<bool> refused{false};
+  // Embree asks before it allocates (post: false) and tells after it frees (negative bytes);
+  // an allocation it reports after the fact (post) is counted even where refused.
   static bool monitor(void* user, ssize_t bytes, bool post) {
     auto* m = static_cast<BareMonitor*>(user);
-    if (post) return true;
-    const int64_t now = m->held.fetch_add(bytes) + bytes;
-    if (bytes > 0 && m->limit > 0 && now > m->limit) {
-      m->held.fetch_sub(bytes);
+    if (bytes > 0 && m->limit > 0 && (m->refused || m->held.load() + bytes > m->limit)) {
       m->refused = true;
+      if (post) m->held += bytes;
       return false;
     }
+    m->held += bytes;
     return true;
   }
 };
@@ -302,11 +326,15 @@ double bare_commit_seconds(const std::vector<PreparedCurves>& parts, EmbreeGeome
 // Within the budget: linebake's scene through EmbreeOptions::max_memory_bytes (its buffers and
 // BVH), the bare build's BVH through the same memory monitor, with the buffers it shares held.
 void bench_embree(const BenchArgs& args) {
-  MemoryBudget budget = step_budget(args);
+  // What a round's builds free goes back to the system before the next: glibc's threshold for
+  // mapping large blocks would otherwise rise with Embree's frees and keep them in the heap
+  // (three rounds of capsules under 112M peaked at 122 to 126 MiB). Both builds alike.
+#ifdef __GLIBC__
+  mallopt(M_MMAP_THRESHOLD, 128 << 10);
+#endif
+  const MemoryBudget budget = step_budget(args);
   const LineSet lines = load("embree", args, budget);
-  budget = step_budget(args);  // the lines counted as held
   EmbreeOptions options;
-  if (!budget.unlimited()) options.max_memory_bytes = std::max<uint64_t>(budget.available(), 1);
   options.geometry = parse_embree_geometry(args.geometry);
   if (options.geometry == EmbreeGeometry::Triangles)
     throw Error("bench embree: curves only (linear, bezier, capsules)");
@@ -317,8 +345,17 @@ void bench_embree(const BenchArgs& args) {
   const std::string attribute = lines.attributes.empty() ? "" : lines.attributes[0].name;
   std::vector<double> ours, prepare, commit, bare;
   BvhStats stats;
+  // Each build gets what the budget leaves then (the lines, and for the bare build the buffers
+  // it shares, counted as held), less a twentieth for what Embree's monitor does not see: the
+  // builds ran 2 to 3 % past the budget before their refusals without it (bezier under 130M,
+  // capsules under 100M).
+  const auto left = [&] {
+    const uint64_t available = step_budget(args).available();
+    return std::max<uint64_t>(available - available / 20, 1);
+  };
   for (int r = 0; r < args.repeat; ++r) {
     std::vector<PreparedCurves> buffers;
+    if (!budget.unlimited()) options.max_memory_bytes = left();
     {
       const auto start = std::chrono::steady_clock::now();
       const EmbreeScene scene = EmbreeScene::from_lines(lines, radius, attribute, options);
@@ -328,14 +365,8 @@ void bench_embree(const BenchArgs& args) {
       commit.push_back(stats.commit_s);
       buffers = scene.prepared_curves();
     }
-    uint64_t buffer_bytes = 0;
-    for (const PreparedCurves& p : buffers)
-      buffer_bytes += p.vertices.bytes() + p.indices.bytes() + p.flags.bytes();
-    const uint64_t bvh_limit =
-        budget.unlimited()
-            ? 0
-            : (budget.available() > buffer_bytes ? budget.available() - buffer_bytes : 1);
-    bare.push_back(bare_commit_seconds(buffers, options.geometry, options.quality, bvh_limit));
+    bare.push_back(bare_commit_seconds(buffers, options.geometry, options.quality,
+                                       budget.unlimited() ? 0 : left()));
   }
   const auto best = [](std::vector<double> v) { return *std::min_element(v.begin(), v.end()); };
   const double ratio = best(ours) / best(bare);
@@ -389,8 +420,12 @@ void bench_tubes(const BenchArgs& args) {
   if (!budget.unlimited()) {
     TubeStreamBuilder plan(lines, compute_stats(lines), options);
     plan.plan(lines);
-    plan.finish_plan();
-    const uint64_t mesh = plan.output_bytes(0, lines.line_count()) + 8 * lines.line_count();
+    // The mesh's arrays, each rounded up to the 2 MiB pages large arrays take (core/array.hpp),
+    // the plan's 8 bytes a line, and a twentieth more (what the build holds besides).
+    const uint64_t arrays = 4 * plan.finish_plan().size();
+    const uint64_t planned = plan.output_bytes(0, lines.line_count());
+    const uint64_t mesh =
+        planned + planned / 20 + arrays * (uint64_t{2} << 20) + 8 * lines.line_count();
     if (mesh > budget.available())
       refuse("tubes",
              "the tube mesh of " + std::to_string(lines.segment_count()) + " segments with " +

@@ -42,7 +42,8 @@ namespace {
 // anything is read. The glTF is written a tube chunk at a time (formats/gltf.hpp): it holds the
 // largest chunk and its glTF arrays, about 2.2 times the chunk's bytes (13.6 with Draco's
 // encoder), and the lines whole, about 3.5 times their bytes, with --line-strips 7 KiB more a
-// line for its primitive; a VDB is built whole, 6.8 times the grid's bytes. (Measured on
+// line for its primitive; a VDB's OpenVDB trees whole (formats/vdb.hpp, vdb_build_bytes), the
+// grid read a piece at a time. (Measured on
 // convection at scale 0.2 on the development VM: a 285 MiB mesh in one chunk and in nine of
 // 32 MiB, its 31 MiB of lines in 20,608 lines, a 14 MiB grid. The factors below add a margin.)
 template <class Args>
@@ -55,7 +56,7 @@ void check_export_memory(const Args& args, const CacheReader& cache) {
     return provenance ? provenance->memory_bytes : 0;
   };
   // The VDB is written and let go before the glTF is built: the larger of the two counts.
-  const uint64_t vdb = args.vdb.empty() ? 0 : uint64_t(7.0 * double(bytes_of("/assets/voxels")));
+  const uint64_t vdb = args.vdb.empty() ? 0 : vdb_build_bytes(load_voxel_description(cache));
   uint64_t gltf = 0;
   if (!args.glb.empty() && !args.no_tubes) {
     const TubeMesh description = load_tube_description(cache);
@@ -173,7 +174,7 @@ Command add_export(CLI::App& app) {
     }
     const CacheReader cache(args->cache);
     check_export_memory(*args, cache);
-    if (!args->vdb.empty()) write_vdb(args->vdb, load_voxels(cache));
+    if (!args->vdb.empty()) write_vdb(args->vdb, *voxel_pieces(cache));
     if (args->glb.empty()) return;
     // The tube mesh a chunk at a time (formats/gltf.hpp reads each twice).
     TubeChunks tubes;

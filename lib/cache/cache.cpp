@@ -816,6 +816,64 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
   return out;
 }
 
+struct CacheReader::RowsCheck::State {
+  std::string path, where, stored;
+  uint64_t row_bytes = 0, rows = 0, next = 0;
+  std::unique_ptr<BlockHasher> blocks;  // kHashAttribute
+  std::unique_ptr<Hasher> flat;         // kFlatHashAttribute
+};
+
+CacheReader::RowsCheck::RowsCheck() = default;
+CacheReader::RowsCheck::RowsCheck(RowsCheck&&) noexcept = default;
+CacheReader::RowsCheck::~RowsCheck() = default;
+
+void CacheReader::RowsCheck::add(uint64_t first, uint64_t rows, const void* data) {
+  State* s = state_.get();
+  if (!s || first + rows <= s->next) return;
+  if (first > s->next)
+    throw Error("internal error: rows " + std::to_string(s->next) + ".." + std::to_string(first) +
+                " of " + s->where + " skipped before they were checked");
+  const auto* bytes = static_cast<const unsigned char*>(data) + (s->next - first) * s->row_bytes;
+  const uint64_t count = (first + rows - s->next) * s->row_bytes;
+  if (s->blocks) s->blocks->update(bytes, count);
+  if (s->flat) s->flat->update(bytes, count);
+  s->next = first + rows;
+}
+
+void CacheReader::RowsCheck::finish() const {
+  const State* s = state_.get();
+  if (!s) return;
+  if (s->next != s->rows)
+    throw Error("internal error: " + std::to_string(s->next) + " of the " +
+                std::to_string(s->rows) + " rows of " + s->where + " checked");
+  const std::string computed = s->blocks ? s->blocks->hex() : s->flat->hex();
+  if (computed != s->stored)
+    throw InputError(s->path, s->where, "checksum mismatch: the data is corrupt");
+}
+
+CacheReader::RowsCheck CacheReader::rows_check(const std::string& dataset) const {
+  RowsCheck check;
+  if (!verify_) return check;
+  const std::string where = "dataset " + dataset;
+  if (!exists(dataset)) throw InputError(path_, where, "missing");
+  Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!d.valid()) throw InputError(path_, where, "cannot open: " + h5::last_error());
+  auto s = std::make_unique<RowsCheck::State>();
+  s->path = path_, s->where = where;
+  const std::vector<hsize_t> dims = h5::shape_of(d);
+  Handle stored_type(H5Dget_type(d), H5Tclose);
+  s->rows = dims.empty() ? 1 : dims[0];
+  s->row_bytes = H5Tget_size(stored_type) * (dims.size() == 2 ? dims[1] : 1);
+  if (h5::read_string_attribute(d, kHashAttribute, s->stored))
+    s->blocks = std::make_unique<BlockHasher>();
+  else if (h5::read_string_attribute(d, kFlatHashAttribute, s->stored))
+    s->flat = std::make_unique<Hasher>();
+  else
+    throw InputError(path_, where, "no stored hash to verify against");
+  check.state_ = std::move(s);
+  return check;
+}
+
 std::vector<uint64_t> CacheReader::shape(const std::string& dataset) const {
   if (!exists(dataset)) throw InputError(path_, "dataset " + dataset, "missing");
   Handle d(H5Dopen2(h5_, dataset.c_str(), H5P_DEFAULT), H5Dclose);

@@ -222,6 +222,24 @@ class CacheReader {
   // needs every row (a caller that reads them all in order can hash them itself).
   template <class T>
   void read_rows(const std::string& dataset, uint64_t first, uint64_t count, T* out) const;
+  // Checks a dataset read in pieces (read_rows) against its stored hash: add() each piece's
+  // rows in order from row 0 (rows given before are skipped, so pieces may overlap), then
+  // finish(), which throws InputError naming the dataset unless every row came and their bytes
+  // hash to what was stored. Checks nothing where the reader does not verify.
+  class RowsCheck {
+   public:
+    RowsCheck(RowsCheck&&) noexcept;
+    ~RowsCheck();
+    void add(uint64_t first, uint64_t rows, const void* data);
+    void finish() const;
+
+   private:
+    friend class CacheReader;
+    RowsCheck();
+    struct State;
+    std::unique_ptr<State> state_;
+  };
+  RowsCheck rows_check(const std::string& dataset) const;
   // Shape of a dataset (rows, and columns for 2-D ones); InputError when missing.
   std::vector<uint64_t> shape(const std::string& dataset) const;
   // Elements stored in the dataset (rows x columns).

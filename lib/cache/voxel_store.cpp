@@ -1,5 +1,7 @@
 #include "cache/voxel_store.hpp"
 
+#include <algorithm>
+#include <memory>
 #include <optional>
 
 #include "core/error.hpp"
@@ -122,7 +124,8 @@ uint64_t VoxelStoreSink::memory_with_density() const {
   return state_->memory_with_density;
 }
 
-VoxelGrid load_voxels(const CacheReader& cache) {
+// The grid's description (no arrays) and its density level count.
+static VoxelGrid load_description(const CacheReader& cache, size_t& levels) {
   const std::string where = std::string("group ") + kVoxelsGroup;
   const auto text = cache.attribute(kVoxelsGroup, "grid");
   if (!text)
@@ -130,7 +133,6 @@ VoxelGrid load_voxels(const CacheReader& cache) {
                      "missing: no voxel grid in this cache; add it with: linebake bake " +
                          cache.path() + " --assets voxels");
   VoxelGrid g;
-  size_t levels = 0;
   try {
     const auto j = nlohmann::json::parse(*text);
     g.resolution = j.at("resolution");
@@ -152,6 +154,17 @@ VoxelGrid load_voxels(const CacheReader& cache) {
   }
   if (g.quantization != 16 && g.quantization != 32 && g.quantization != 64)
     throw InputError(cache.path(), where, "quantization must be 16, 32 or 64");
+  return g;
+}
+
+VoxelGrid load_voxel_description(const CacheReader& cache) {
+  size_t levels = 0;
+  return load_description(cache, levels);
+}
+
+VoxelGrid load_voxels(const CacheReader& cache) {
+  size_t levels = 0;
+  VoxelGrid g = load_description(cache, levels);
   const uint64_t voxels = g.voxel_count();
   const std::string base = kVoxelsGroup;
   g.offsets = cache.read<uint32_t>(base + "/offsets", voxels + 1);
@@ -169,6 +182,90 @@ VoxelGrid load_voxels(const CacheReader& cache) {
     g.density.push_back(cache.read<float>(density_name(level), uint64_t(r[0]) * r[1] * r[2]));
   }
   return g;
+}
+
+namespace {
+
+// The cache's voxel arrays read a piece at a time (read_rows), each checked against its stored
+// hash once read whole, and the offsets as load_voxels checks them.
+class CachePieces : public VoxelPieces {
+ public:
+  explicit CachePieces(const CacheReader& cache)
+      : cache_(cache),
+        grid_(load_voxel_description(cache)),
+        offsets_(cache.rows_check(name("offsets"))),
+        line_counts_(cache.rows_check(name("line_counts"))),
+        density_(cache.rows_check(density_name(0))),
+        chords_(cache.rows_check(name("chords"))) {
+    const uint64_t voxels = grid_.voxel_count();
+    const auto expect = [&](const std::string& dataset, uint64_t rows, uint64_t columns) {
+      const std::vector<uint64_t> shape = cache.shape(dataset);
+      const uint64_t got = shape.empty() ? 1 : shape[0];
+      if (got != rows || (shape.size() == 2 ? shape[1] : 1) != columns)
+        throw InputError(cache.path(), "dataset " + dataset,
+                         std::to_string(got) + " rows, expected " + std::to_string(rows));
+    };
+    expect(name("offsets"), voxels + 1, 1);
+    expect(name("line_counts"), voxels, 1);
+    expect(density_name(0), voxels, 1);
+    const std::vector<uint64_t> chords = cache.shape(name("chords"));
+    if (chords.size() != 2 || chords[1] != 2)
+      throw InputError(cache.path(), "dataset " + name("chords"), "not 2 words per chord");
+    chord_rows_ = chords[0];
+  }
+  const VoxelGrid& description() const override { return grid_; }
+  void offsets(uint64_t first, uint64_t count, uint32_t* out) override {
+    cache_.read_rows(name("offsets"), first, count, out);
+    offsets_.add(first, count, out);
+    const std::string where = "dataset " + name("offsets");
+    // Each offset once, in order: pieces read again (a range's closing offset) are skipped.
+    for (uint64_t v = std::max(first, checked_); v < first + count; ++v) {
+      if (v > checked_) throw Error("internal error: voxel offsets skipped at " + where);
+      const uint32_t offset = out[v - first];
+      if (v == 0 && offset != 0) throw InputError(cache_.path(), where, "does not start at 0");
+      if (v > 0 && offset < last_)
+        throw InputError(cache_.path(), where, "decreasing at voxel " + std::to_string(v - 1));
+      if (offset > chord_rows_)
+        throw InputError(cache_.path(), where,
+                         "does not match the " + std::to_string(chord_rows_) +
+                             " chords (past them at voxel " + std::to_string(v) + ")");
+      checked_ = v + 1, last_ = offset;
+    }
+  }
+  void line_counts(uint64_t first, uint64_t count, uint8_t* out) override {
+    cache_.read_rows(name("line_counts"), first, count, out);
+    line_counts_.add(first, count, out);
+  }
+  void density(uint64_t first, uint64_t count, float* out) override {
+    cache_.read_rows(density_name(0), first, count, out);
+    density_.add(first, count, out);
+  }
+  void chords(uint64_t first, uint64_t count, uint32_t* out) override {
+    cache_.read_rows(name("chords"), first, count, out);
+    chords_.add(first, count, out);
+  }
+  void finish() override {
+    if (checked_ != grid_.voxel_count() + 1 || last_ != chord_rows_)
+      throw InputError(cache_.path(), "dataset " + name("offsets"),
+                       "does not match the " + std::to_string(chord_rows_) + " chords");
+    for (const CacheReader::RowsCheck* check : {&offsets_, &line_counts_, &density_, &chords_})
+      check->finish();
+  }
+
+ private:
+  static std::string name(const char* array) { return std::string(kVoxelsGroup) + "/" + array; }
+  const CacheReader& cache_;
+  VoxelGrid grid_;
+  CacheReader::RowsCheck offsets_, line_counts_, density_, chords_;
+  uint64_t chord_rows_ = 0;
+  uint64_t checked_ = 0;  // offsets checked: [0, checked_)
+  uint32_t last_ = 0;     // the last of them
+};
+
+}  // namespace
+
+std::unique_ptr<VoxelPieces> voxel_pieces(const CacheReader& cache) {
+  return std::make_unique<CachePieces>(cache);
 }
 
 }  // namespace linebake

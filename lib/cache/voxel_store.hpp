@@ -15,6 +15,12 @@ constexpr const char* kVoxelsGroup = "/assets/voxels";
 // representation VRC renders from: offsets + chords).
 void store_voxels(CacheWriter& cache, const VoxelGrid& grid, Provenance provenance);
 VoxelGrid load_voxels(const CacheReader& cache);
+// The grid's description alone (placement, attribute, statistics; no arrays).
+VoxelGrid load_voxel_description(const CacheReader& cache);
+// The grid's arrays a piece at a time (VoxelPieces), each checked against its stored hash once
+// read whole (finish()), the offsets as load_voxels checks them: for a reader that need not hold
+// the grid whole (write_vdb).
+std::unique_ptr<VoxelPieces> voxel_pieces(const CacheReader& cache);
 
 // This rank's part of a grid merged by several ranks into one parallel cache (linebake-mpi):
 // voxels from `first_voxel` and chords from `first_chord` on, in rank order.

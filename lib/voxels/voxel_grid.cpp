@@ -44,4 +44,17 @@ uint64_t VoxelGrid::bytes() const {
   return n;
 }
 
+void GridPieces::offsets(uint64_t first, uint64_t count, uint32_t* out) {
+  std::copy_n(grid_.offsets.data() + first, count, out);
+}
+void GridPieces::line_counts(uint64_t first, uint64_t count, uint8_t* out) {
+  std::copy_n(grid_.line_counts.data() + first, count, out);
+}
+void GridPieces::density(uint64_t first, uint64_t count, float* out) {
+  std::copy_n(grid_.density.at(0).data() + first, count, out);
+}
+void GridPieces::chords(uint64_t first, uint64_t count, uint32_t* out) {
+  std::copy_n(grid_.chords.data() + 2 * first, 2 * count, out);
+}
+
 }  // namespace linebake

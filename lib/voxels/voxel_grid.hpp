@@ -130,4 +130,36 @@ struct VoxelGrid {
   uint64_t bytes() const;
 };
 
+// A grid's arrays read a piece at a time, each from its start on: what a consumer that need not
+// hold the whole grid reads (write_vdb), from a grid in memory or from a cache (voxel_store.hpp).
+class VoxelPieces {
+ public:
+  virtual ~VoxelPieces() = default;
+  // The grid without its arrays: placement, attribute, statistics.
+  virtual const VoxelGrid& description() const = 0;
+  // offsets[first, first + count) (up to voxel count + 1), line_counts and density level 0
+  // [first, first + count), chords [first, first + count) (two words each).
+  virtual void offsets(uint64_t first, uint64_t count, uint32_t* out) = 0;
+  virtual void line_counts(uint64_t first, uint64_t count, uint8_t* out) = 0;
+  virtual void density(uint64_t first, uint64_t count, float* out) = 0;
+  virtual void chords(uint64_t first, uint64_t count, uint32_t* out) = 0;
+  // After the last piece of every array: throws where what was read is not sound (a cache's
+  // hashes; offsets that do not end at the chord count).
+  virtual void finish() {}
+};
+
+// The pieces of a grid in memory.
+class GridPieces : public VoxelPieces {
+ public:
+  explicit GridPieces(const VoxelGrid& grid) : grid_(grid) {}
+  const VoxelGrid& description() const override { return grid_; }
+  void offsets(uint64_t first, uint64_t count, uint32_t* out) override;
+  void line_counts(uint64_t first, uint64_t count, uint8_t* out) override;
+  void density(uint64_t first, uint64_t count, float* out) override;
+  void chords(uint64_t first, uint64_t count, uint32_t* out) override;
+
+ private:
+  const VoxelGrid& grid_;
+};
+
 }  // namespace linebake
