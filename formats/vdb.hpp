@@ -33,6 +33,10 @@ struct VdbPieces {
   uint64_t bytes() const { return voxels * (4 + 1 + 4 + 12 + 4 * 4) + chords * 8; }
 };
 
+// Loads the OpenVDB module and OpenVDB's registries (write_vdb would), so that a caller can
+// measure its memory with them before it checks vdb_build_bytes against a budget. OutputError
+// naming `output` where the module cannot be loaded.
+void load_vdb(const std::string& output);
 // Memory write_vdb takes for a grid (its description's resolution, attribute and occupied
 // voxels), at most: OpenVDB's trees, which it needs whole to write the file, the chord lengths
 // kept for the density scale, and the pieces.

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <new>
 #include <ostream>
 #include <streambuf>
 #include <vector>
@@ -59,6 +60,9 @@ int guarded(char* error, size_t error_size, Body&& body) {
   try {
     body();
     return 0;
+  } catch (const std::bad_alloc& e) {
+    std::snprintf(error, error_size, "OpenVDB: out of memory (%s)", e.what());
+    return 2;
   } catch (const std::exception& e) {
     std::snprintf(error, error_size, "OpenVDB: %s", e.what());
   } catch (...) {
@@ -75,6 +79,10 @@ struct LinebakeVdbBuild {
 };
 
 namespace {
+
+int initialize(char* error, size_t error_size) {
+  return guarded(error, error_size, [] { openvdb::initialize(); });
+}
 
 int begin(double voxel_size, const double first_centre[3], const LinebakeVdbGrid* specs,
           uint32_t grid_count, LinebakeVdbBuild** build, char* error, size_t error_size) {
@@ -135,7 +143,7 @@ void end(LinebakeVdbBuild* build) {
   delete build;
 }
 
-constexpr LinebakeVdbModule kModule{&begin, &add, &rescale, &write, &end};
+constexpr LinebakeVdbModule kModule{&initialize, &begin, &add, &rescale, &write, &end};
 
 }  // namespace
 

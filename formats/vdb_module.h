@@ -30,9 +30,12 @@ typedef struct {
 
 /* The grids of a file, built a piece at a time (so that the caller need not hold the values of
  * every voxel at once), then written. Index (i, j, k) maps to world (first_centre + voxel_size
- * (i, j, k)). Each function returns 0, or 1 with a message in `error`; no exception crosses. */
+ * (i, j, k)). Each function returns 0, or 1 with a message in `error` (2 where memory ran out);
+ * no exception crosses. */
 typedef struct LinebakeVdbBuild LinebakeVdbBuild;
 typedef struct {
+  /* OpenVDB's registries (begin does it too): to be done before the caller measures its memory. */
+  int (*initialize)(char* error, size_t error_size);
   /* The empty grids; *build is NULL on failure. */
   int (*begin)(double voxel_size, const double first_centre[3], const LinebakeVdbGrid* grids,
                uint32_t grid_count, LinebakeVdbBuild** build, char* error, size_t error_size);

@@ -195,6 +195,45 @@ TEST(VoxelStore, VdbOfADamagedCacheIsRefusedAndWritesNothing) {
   }
 }
 
+// A grid without an attribute has no attribute grids, and its density level 0 is not read:
+// still the in-memory grid's bytes.
+TEST(VoxelStore, VdbFromCachePiecesWithoutAnAttribute) {
+  test::TempDir dir;
+  VoxelOptions o;
+  o.grid = 40;
+  o.attribute = "none";
+  const VoxelGrid g = voxelize(wavy_lines(), o);
+  ASSERT_TRUE(g.attribute.empty());
+  write_vdb(dir.file("memory.vdb"), g);
+  const CacheReader cache(store(dir, g, "lz4"));
+  write_vdb(dir.file("pieces.vdb"), *voxel_pieces(cache), VdbPieces{1000, 50});
+  EXPECT_EQ(file_bytes(dir.file("pieces.vdb")), file_bytes(dir.file("memory.vdb")));
+}
+
+// The export sizes its memory by the description's count of voxels holding lines: a cache whose
+// line counts hold more (or fewer) is refused, naming the group, with nothing written.
+TEST(VoxelStore, VdbOfACacheWhoseDescriptionMiscountsItsVoxelsIsRefused) {
+  VoxelOptions o;
+  o.grid = 40;
+  VoxelGrid g = voxelize(wavy_lines(), o);
+  for (const uint64_t occupied : {uint64_t{5}, g.voxels_occupied + 1}) {
+    test::TempDir dir;
+    VoxelGrid told = g;
+    told.voxels_occupied = occupied;
+    const CacheReader cache(store(dir, told, "none"));
+    try {
+      write_vdb(dir.file("out.vdb"), *voxel_pieces(cache));
+      ADD_FAILURE() << occupied << ": no error";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("group /assets/voxels: its description says " +
+                                           std::to_string(occupied) + " voxels hold lines"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_EQ(dir.entries().size(), 1u);
+  }
+}
+
 // What export checks against --memory-budget: OpenVDB's trees at most, counted by leaves.
 TEST(VoxelStore, VdbBuildBytesCountLeavesAtMostOnePerActiveVoxel) {
   VoxelGrid g;

@@ -181,13 +181,16 @@ void bench_voxels(const BenchArgs& args) {
         std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
     budget.reserve(batch_points * per_point,
                    "one batch of " + std::to_string(batch_points) + " points");
-    // Each batch's run of records keeps an index of a word per unit of voxels.
-    const uint64_t runs = (lines.point_count() + batch_points - 1) / batch_points;
-    budget.reserve(runs * placement.unit_records().size() * 4,
-                   "the indexes of " + std::to_string(runs) + " runs of voxel records");
+    // Each batch's run of records keeps an index of a word per unit of voxels and one; batches
+    // end at lines, so there may be up to about twice as many as the points make.
+    const uint64_t runs = 2 * ((lines.point_count() + batch_points - 1) / batch_points) + 1;
+    budget.reserve(runs * (placement.unit_records().size() + 1) * 4,
+                   "the indexes of up to " + std::to_string(runs) + " runs of voxel records");
     memory = voxel_memory_within(budget.available());
-    // Beside the working directory's absolute path, so that an error names it.
-    memory.spill_near = (std::filesystem::current_path() / "bench-voxels").string();
+    // Beside the working directory's absolute path where it has one, so that an error names it.
+    std::error_code ec;
+    const std::filesystem::path here = std::filesystem::current_path(ec);
+    memory.spill_near = ec ? "bench-voxels" : (here / "bench-voxels").string();
     memory.resident_limit = budget.total() - batch_points * per_point;
   }
   std::vector<double> times;

@@ -49,6 +49,7 @@ namespace {
 template <class Args>
 void check_export_memory(const Args& args, const CacheReader& cache) {
   if (args.memory_budget == "unlimited") return;
+  if (!args.vdb.empty()) load_vdb(args.vdb);  // OpenVDB's own memory counted as held
   trimmed_rss_bytes();
   const MemoryBudget budget(memory_budget_bytes(args.memory_budget));
   const auto bytes_of = [&](const std::string& group) -> uint64_t {

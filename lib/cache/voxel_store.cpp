@@ -187,7 +187,9 @@ VoxelGrid load_voxels(const CacheReader& cache) {
 namespace {
 
 // The cache's voxel arrays read a piece at a time (read_rows), each checked against its stored
-// hash once read whole, and the offsets as load_voxels checks them.
+// hash once read whole (density level 0 where it was read), the offsets as load_voxels checks
+// them, and the voxels holding lines against the description's count, which a reader may have
+// sized its memory by (vdb_build_bytes).
 class CachePieces : public VoxelPieces {
  public:
   explicit CachePieces(const CacheReader& cache)
@@ -201,9 +203,9 @@ class CachePieces : public VoxelPieces {
     const auto expect = [&](const std::string& dataset, uint64_t rows, uint64_t columns) {
       const std::vector<uint64_t> shape = cache.shape(dataset);
       const uint64_t got = shape.empty() ? 1 : shape[0];
-      if (got != rows || (shape.size() == 2 ? shape[1] : 1) != columns)
+      if (got != rows || shape.size() > 2 || (shape.size() == 2 ? shape[1] : 1) != columns)
         throw InputError(cache.path(), "dataset " + dataset,
-                         std::to_string(got) + " rows, expected " + std::to_string(rows));
+                         "shape " + shape_text(shape) + ", expected " + std::to_string(rows));
     };
     expect(name("offsets"), voxels + 1, 1);
     expect(name("line_counts"), voxels, 1);
@@ -235,10 +237,16 @@ class CachePieces : public VoxelPieces {
   void line_counts(uint64_t first, uint64_t count, uint8_t* out) override {
     cache_.read_rows(name("line_counts"), first, count, out);
     line_counts_.add(first, count, out);
+    for (uint64_t v = std::max(first, counted_); v < first + count; ++v) {
+      occupied_ += out[v - first] > 0;
+      if (occupied_ > grid_.voxels_occupied) throw occupied_mismatch("more");
+    }
+    counted_ = std::max(counted_, first + count);
   }
   void density(uint64_t first, uint64_t count, float* out) override {
     cache_.read_rows(density_name(0), first, count, out);
     density_.add(first, count, out);
+    density_read_ = true;
   }
   void chords(uint64_t first, uint64_t count, uint32_t* out) override {
     cache_.read_rows(name("chords"), first, count, out);
@@ -248,18 +256,32 @@ class CachePieces : public VoxelPieces {
     if (checked_ != grid_.voxel_count() + 1 || last_ != chord_rows_)
       throw InputError(cache_.path(), "dataset " + name("offsets"),
                        "does not match the " + std::to_string(chord_rows_) + " chords");
-    for (const CacheReader::RowsCheck* check : {&offsets_, &line_counts_, &density_, &chords_})
+    for (const CacheReader::RowsCheck* check : {&offsets_, &line_counts_, &chords_})
       check->finish();
+    if (density_read_) density_.finish();
+    if (occupied_ != grid_.voxels_occupied) throw occupied_mismatch("fewer");
   }
 
  private:
   static std::string name(const char* array) { return std::string(kVoxelsGroup) + "/" + array; }
+  static std::string shape_text(const std::vector<uint64_t>& shape) {
+    std::string text;
+    for (uint64_t n : shape) text += (text.empty() ? "" : " x ") + std::to_string(n);
+    return text.empty() ? "scalar" : text;
+  }
+  InputError occupied_mismatch(const char* than) const {
+    return InputError(cache_.path(), std::string("group ") + kVoxelsGroup,
+                      "its description says " + std::to_string(grid_.voxels_occupied) +
+                          " voxels hold lines; dataset " + name("line_counts") + " has " + than);
+  }
   const CacheReader& cache_;
   VoxelGrid grid_;
   CacheReader::RowsCheck offsets_, line_counts_, density_, chords_;
   uint64_t chord_rows_ = 0;
-  uint64_t checked_ = 0;  // offsets checked: [0, checked_)
-  uint32_t last_ = 0;     // the last of them
+  uint64_t checked_ = 0;                 // offsets checked: [0, checked_)
+  uint32_t last_ = 0;                    // the last of them
+  uint64_t counted_ = 0, occupied_ = 0;  // line counts seen, and those above 0
+  bool density_read_ = false;
 };
 
 }  // namespace
