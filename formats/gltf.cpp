@@ -28,6 +28,7 @@
 #include "core/hash.hpp"
 #include "core/progress.hpp"
 #include "core/spill_file.hpp"
+#include "tubes/mesh_pieces.hpp"
 
 namespace linebake {
 namespace {
@@ -127,13 +128,17 @@ std::vector<float> in_axes(const float* xyz, uint64_t count, GltfAxes axes) {
   return out;
 }
 
-// Float normals of a chunk whatever its encoding (glTF NORMAL is FLOAT VEC3).
-std::vector<float> float_normals(const TubeChunk& chunk) {
-  if (!chunk.normals.empty()) return {chunk.normals.begin(), chunk.normals.end()};
-  std::vector<float> out(3 * chunk.vertex_count());
-  for (uint64_t v = 0; v < chunk.vertex_count(); ++v) {
-    const auto n = decode_octahedral(chunk.normals_oct[2 * v], chunk.normals_oct[2 * v + 1]);
-    std::copy(n.begin(), n.end(), out.begin() + 3 * v);
+// Float normals of `count` vertices of a chunk from `first`, whatever its encoding (glTF NORMAL
+// is FLOAT VEC3).
+std::vector<float> float_normals(const TubeChunk& chunk, uint64_t first, uint64_t count) {
+  if (!chunk.normals.empty())
+    return {chunk.normals.begin() + ptrdiff_t(3 * first),
+            chunk.normals.begin() + ptrdiff_t(3 * (first + count))};
+  std::vector<float> out(3 * count);
+  for (uint64_t v = 0; v < count; ++v) {
+    const auto n = decode_octahedral(chunk.normals_oct[2 * (first + v)],
+                                     chunk.normals_oct[2 * (first + v) + 1]);
+    std::copy(n.begin(), n.end(), out.begin() + ptrdiff_t(3 * v));
   }
   return out;
 }
@@ -213,11 +218,22 @@ struct DracoChunk {
   int position = -1, normal = -1, attribute = -1, texcoord = -1, colour = -1;
 };
 
-DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& positions,
-                        const std::vector<float>& normals, const AttributeArrays* attribute,
-                        const GltfOptions& options) {
+// One piece of a chunk (MeshPiece), in the output's axes: its vertices' arrays and its
+// triangles' indices, rebased to its first vertex.
+struct DracoInput {
+  const std::vector<float>& positions;
+  const std::vector<float>& normals;
+  const uint16_t* attribute = nullptr;      // unorm16 a vertex; null without attribute
+  const AttributeArrays* mapped = nullptr;  // with an attribute
+  const std::vector<uint32_t>& indices;
+};
+
+DracoChunk encode_draco(const DracoInput& piece, const GltfOptions& options) {
   draco::Mesh mesh;
-  const uint64_t v = chunk.vertex_count();
+  const uint64_t v = piece.positions.size() / 3;
+  const std::vector<float>& positions = piece.positions;
+  const std::vector<float>& normals = piece.normals;
+  const AttributeArrays* attribute = piece.attribute ? piece.mapped : nullptr;
   mesh.set_num_points(uint32_t(v));
   DracoChunk out;
   out.position = add_draco_attribute(mesh, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32,
@@ -226,18 +242,19 @@ DracoChunk encode_draco(const TubeChunk& chunk, const std::vector<float>& positi
                                    false, normals.data(), v);
   if (attribute) {
     out.attribute = add_draco_attribute(mesh, draco::GeometryAttribute::GENERIC, 1,
-                                        draco::DT_UINT16, true, chunk.attribute.data(), v);
+                                        draco::DT_UINT16, true, piece.attribute, v);
     out.texcoord = add_draco_attribute(mesh, draco::GeometryAttribute::TEX_COORD, 2,
                                        draco::DT_UINT16, true, attribute->texcoords.data(), v);
     if (!attribute->colours.empty())
       out.colour = add_draco_attribute(mesh, draco::GeometryAttribute::COLOR, 4, draco::DT_UINT8,
                                        true, attribute->colours.data(), v);
   }
-  mesh.SetNumFaces(chunk.triangle_count());
-  for (uint64_t t = 0; t < chunk.triangle_count(); ++t)
-    mesh.SetFace(draco::FaceIndex(uint32_t(t)), {draco::PointIndex(chunk.indices[3 * t]),
-                                                 draco::PointIndex(chunk.indices[3 * t + 1]),
-                                                 draco::PointIndex(chunk.indices[3 * t + 2])});
+  const uint64_t triangles = piece.indices.size() / 3;
+  mesh.SetNumFaces(triangles);
+  for (uint64_t t = 0; t < triangles; ++t)
+    mesh.SetFace(draco::FaceIndex(uint32_t(t)), {draco::PointIndex(piece.indices[3 * t]),
+                                                 draco::PointIndex(piece.indices[3 * t + 1]),
+                                                 draco::PointIndex(piece.indices[3 * t + 2])});
   draco::Encoder encoder;
   encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.draco_position_bits);
   encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.draco_normal_bits);
@@ -299,11 +316,14 @@ struct DracoChunks {
     std::vector<double> min, max;
   };
   std::unique_ptr<SpillFile> spill;
-  std::vector<std::optional<Entry>> entries;  // per chunk; none for an empty chunk
+  std::vector<std::vector<Entry>> entries;  // per chunk, a piece each (MeshPiece)
 };
 
-// The tube mesh's primitives. With Draco, the first pass (`draco->entries` empty) encodes each
-// chunk and keeps it; the second writes what was kept, reading no chunk. `chunk_done` after each.
+// The tube mesh's primitives, one a chunk; with Draco one a piece of a chunk of at most
+// options.draco_piece_vertices vertices (cut between lines: tubes/mesh_pieces.hpp), so that
+// Draco's encoder holds a piece, not the chunk. With Draco, the first pass (`draco->entries`
+// empty) encodes each piece and keeps it; the second writes what was kept, reading no chunk.
+// `chunk_done` after each chunk.
 void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& chunks,
                const GltfOptions& options, DracoChunks* draco,
                const std::function<void()>& chunk_done) {
@@ -317,55 +337,77 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
     primitive.mode = TINYGLTF_MODE_TRIANGLES;
     primitive.material = 0;
     if (encoded) {
-      if (!draco->entries[c]) continue;
-      const DracoChunks::Entry& e = *draco->entries[c];
-      DracoChunk d = e.chunk;
-      d.bytes.resize(e.bytes);
-      draco->spill->read(e.offset, d.bytes.data(), e.bytes);
-      add_draco_primitive(builder, primitive, d, e.min, e.max);
-      mesh.primitives.push_back(std::move(primitive));
+      for (const DracoChunks::Entry& e : draco->entries[c]) {
+        DracoChunk d = e.chunk;
+        d.bytes.resize(e.bytes);
+        draco->spill->read(e.offset, d.bytes.data(), e.bytes);
+        tinygltf::Primitive piece = primitive;
+        add_draco_primitive(builder, piece, d, e.min, e.max);
+        mesh.primitives.push_back(std::move(piece));
+      }
       continue;
     }
     const TubeChunk chunk = chunks.chunk(c);
     if (options.draco) draco->entries.emplace_back();
     if (chunk.vertex_count() == 0) continue;
     const uint64_t v = chunk.vertex_count();
+    if (options.draco) {
+      for (const MeshPiece& p :
+           independent_pieces({chunk.indices.data(), chunk.indices.size()}, v,
+                              std::max<uint64_t>(options.draco_piece_vertices, 1))) {
+        const uint64_t n = p.vertices;
+        if (options.draco_max_piece_vertices > 0 && n > options.draco_max_piece_vertices)
+          throw BudgetExceeded("Draco: tube chunk " + std::to_string(c) + " has a piece of " +
+                               std::to_string(n) + " vertices that cannot be cut (one line), " +
+                               "more than the " + std::to_string(options.draco_max_piece_vertices) +
+                               " the memory budget leaves room to encode; raise --memory-budget");
+        const std::vector<float> positions =
+            in_axes(chunk.positions.data() + 3 * p.first_vertex, n, options.axes);
+        const std::vector<float> raw_normals = float_normals(chunk, p.first_vertex, n);
+        const std::vector<float> normals = in_axes(raw_normals.data(), n, options.axes);
+        const uint16_t* unorm = has_attribute ? chunk.attribute.data() + p.first_vertex : nullptr;
+        const AttributeArrays attribute =
+            has_attribute ? attribute_arrays(unorm, n, tubes.attribute_range, options)
+                          : AttributeArrays{};
+        std::vector<uint32_t> indices(chunk.indices.data() + 3 * p.first_triangle,
+                                      chunk.indices.data() + 3 * (p.first_triangle + p.triangles));
+        for (uint32_t& i : indices) i -= uint32_t(p.first_vertex);
+        DracoChunk d = encode_draco({positions, normals, unorm, &attribute, indices}, options);
+        DracoChunks::Entry& e = draco->entries.back().emplace_back();
+        bounds_of(positions.data(), n, e.min, e.max);
+        tinygltf::Primitive piece = primitive;
+        add_draco_primitive(builder, piece, d, e.min, e.max);
+        mesh.primitives.push_back(std::move(piece));
+        e.bytes = d.bytes.size();
+        e.offset = draco->spill->append(d.bytes.data(), d.bytes.size());
+        d.bytes = {};
+        e.chunk = std::move(d);
+      }
+      continue;
+    }
     const std::vector<float> positions = in_axes(chunk.positions.data(), v, options.axes);
-    const std::vector<float> raw_normals = float_normals(chunk);
+    const std::vector<float> raw_normals = float_normals(chunk, 0, v);
     const std::vector<float> normals = in_axes(raw_normals.data(), v, options.axes);
     std::vector<double> min, max;
     bounds_of(positions.data(), v, min, max);
     const AttributeArrays attribute =
         has_attribute ? attribute_arrays(chunk.attribute.data(), v, tubes.attribute_range, options)
                       : AttributeArrays{};
-    if (options.draco) {
-      DracoChunk d =
-          encode_draco(chunk, positions, normals, has_attribute ? &attribute : nullptr, options);
-      add_draco_primitive(builder, primitive, d, min, max);
-      DracoChunks::Entry& e = draco->entries.back().emplace();
-      e.bytes = d.bytes.size();
-      e.offset = draco->spill->append(d.bytes.data(), d.bytes.size());
-      d.bytes = {};
-      e.chunk = std::move(d);
-      e.min = std::move(min);
-      e.max = std::move(max);
-    } else {
-      primitive.attributes["POSITION"] = builder.add_accessor(
-          builder.add_view(positions.data(), positions.size() * sizeof(float), kArrayBuffer), 0,
-          TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v, false, min, max);
-      primitive.attributes["NORMAL"] = builder.add_accessor(
-          builder.add_view(normals.data(), normals.size() * sizeof(float), kArrayBuffer), 0,
-          TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
-      if (has_attribute) {
-        primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-            builder.add_view(attribute.padded.data(), attribute.padded.size() * 2, kArrayBuffer, 4),
-            0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
-        add_mapped_attributes(builder, primitive, attribute, v);
-      }
-      primitive.indices = builder.add_accessor(
-          builder.add_view(chunk.indices.data(), chunk.indices.bytes(), kElementArrayBuffer), 0,
-          TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, chunk.indices.size());
+    primitive.attributes["POSITION"] = builder.add_accessor(
+        builder.add_view(positions.data(), positions.size() * sizeof(float), kArrayBuffer), 0,
+        TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v, false, min, max);
+    primitive.attributes["NORMAL"] = builder.add_accessor(
+        builder.add_view(normals.data(), normals.size() * sizeof(float), kArrayBuffer), 0,
+        TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
+    if (has_attribute) {
+      primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
+          builder.add_view(attribute.padded.data(), attribute.padded.size() * 2, kArrayBuffer, 4),
+          0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
+      add_mapped_attributes(builder, primitive, attribute, v);
     }
+    primitive.indices = builder.add_accessor(
+        builder.add_view(chunk.indices.data(), chunk.indices.bytes(), kElementArrayBuffer), 0,
+        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, chunk.indices.size());
     mesh.primitives.push_back(std::move(primitive));
   }
   // What a renderer needs to map _ATTRIBUTE back to data values.

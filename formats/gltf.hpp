@@ -32,6 +32,13 @@ struct GltfOptions {
   int draco_position_bits = 14;  // quantisation of positions (Draco's default is 11)
   int draco_normal_bits = 10;
   int draco_speed = 5;  // 0 (best compression) .. 10 (fastest)
+  // Vertices of a tube chunk Draco encodes at most at a time, each piece its own primitive, cut
+  // between lines (a line with more is one piece): Draco's encoder holds about 14 times the
+  // mesh it is given.
+  uint64_t draco_piece_vertices = uint64_t{1} << 19;
+  // A piece with more vertices than this (a line longer than draco_piece_vertices) is refused
+  // before it is encoded, BudgetExceeded, nothing written; 0: any (what a memory budget allows).
+  uint64_t draco_max_piece_vertices = 0;
   GltfAxes axes = GltfAxes::ZUp;
   // COLOR_0: 256 linear RGB colours, entry i for the attribute at i / 255 of colour_range (data
   // units; {0, 0}: the attribute's own range), clamped; empty: no COLOR_0.

@@ -138,6 +138,21 @@ check "report names h5dump-readable layout" bash -c "h5dump -H '$tmp/c.lbc.h5' |
 check "export glb" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/c.glb" --lines
 check "export draco" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/cd.glb" --draco --draco-bits 12
 check "draco is smaller" bash -c "[ \$(stat -c %s '$tmp/cd.glb') -lt \$(stat -c %s '$tmp/c.glb') ]"
+check "--draco-piece-vertices is read only with --draco (usage error)" exit_code 1 "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/np.glb" --draco-piece-vertices 1000
+check "export draco in pieces of 20,000 vertices: more primitives than chunks, a smaller peak than one piece" /usr/bin/python3 -c "
+import json, struct, subprocess, resource
+def run(out, *extra):
+    subprocess.run(['$bin', 'export', '$tmp/c.lbc.h5', '--glb', out, '--draco', '--memory-budget', 'unlimited', *extra], check=True, capture_output=True)
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+def primitives(path):
+    data = open(path, 'rb').read()
+    n = struct.unpack_from('<I', data, 12)[0]
+    return len(json.loads(data[20:20 + n])['meshes'][0]['primitives'])
+# the children's peak so far: the pieces' run first, so a larger one after is the whole chunk's
+pieces = run('$tmp/dp.glb', '--draco-piece-vertices', '20000')
+whole = run('$tmp/d1.glb', '--draco-piece-vertices', '4294967296')
+assert primitives('$tmp/dp.glb') > primitives('$tmp/d1.glb'), (primitives('$tmp/dp.glb'), primitives('$tmp/d1.glb'))
+assert pieces < whole, (pieces, whole)"
 check "bake of a bad input exits 2" exit_code 2 "$bin" bake "$tmp/bad.obj" -o "$tmp/bad.lbc.h5" --on-invalid reject
 check "no cache after bad input" test ! -e "$tmp/bad.lbc.h5"
 head -c 3000 "$tmp/c.lbc.h5" > "$tmp/trunc.lbc.h5"

@@ -203,6 +203,93 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
   }
 }
 
+// Draco in pieces of at most N vertices, cut between lines: every piece decodes, together they
+// hold every triangle and the same surface; with pieces of one vertex, one piece a line.
+TEST(Gltf, DracoPiecesHoldTheMeshBetweenThem) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(30);
+  TubeOptions o;
+  o.sides = 6;
+  o.caps = true;
+  o.max_chunk_bytes = 60000;
+  const TubeMesh mesh = build_tubes(lines, o);
+  uint64_t triangles = 0, line_count = 0;
+  double area = 0;
+  for (const TubeChunk& chunk : mesh.chunks) {
+    triangles += chunk.triangle_count();
+    line_count += chunk.line_count;
+    area += surface_area(chunk.positions.data(), chunk.indices.data(), chunk.triangle_count());
+  }
+  for (const uint64_t piece : {uint64_t{1} << 19, uint64_t{300}, uint64_t{1}}) {
+    GltfOptions g;
+    g.draco = true;
+    g.draco_piece_vertices = piece;
+    write_gltf(dir.file("p.glb"), &mesh, nullptr, g);
+    const Glb glb = read_glb(dir.file("p.glb"));
+    const json& prims = glb.doc["meshes"][0]["primitives"];
+    uint64_t faces = 0, most = 0;
+    double decoded_area = 0;
+    for (const json& prim : prims) {
+      const json& ext = prim["extensions"]["KHR_draco_mesh_compression"];
+      const json& view = glb.doc["bufferViews"][ext["bufferView"].get<int>()];
+      draco::DecoderBuffer buffer;
+      buffer.Init(reinterpret_cast<const char*>(glb.bin.data()) + view.value("byteOffset", 0),
+                  view["byteLength"].get<size_t>());
+      draco::Decoder decoder;
+      auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+      ASSERT_TRUE(decoded.ok());
+      const draco::Mesh& d = *decoded.value();
+      const draco::PointAttribute* pa =
+          d.GetAttributeByUniqueId(ext["attributes"]["POSITION"].get<uint32_t>());
+      ASSERT_NE(pa, nullptr);
+      std::vector<float> pos(3 * d.num_points());
+      for (uint32_t v = 0; v < d.num_points(); ++v)
+        pa->GetMappedValue(draco::PointIndex(v), &pos[3 * v]);
+      std::vector<uint32_t> idx;
+      for (uint32_t f = 0; f < d.num_faces(); ++f)
+        for (int k = 0; k < 3; ++k) idx.push_back(d.face(draco::FaceIndex(f))[k].value());
+      faces += d.num_faces();
+      most = std::max<uint64_t>(most, d.num_points());
+      decoded_area += surface_area(pos.data(), idx.data(), d.num_faces());
+      // The accessor's bounds hold the piece (glTF's min and max, in the output's axes).
+      const json& position = glb.doc["accessors"][prim["attributes"]["POSITION"].get<int>()];
+      for (uint32_t v = 0; v < d.num_points(); ++v)
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_GE(pos[3 * v + k], position["min"][k].get<double>() - 1e-3);
+          EXPECT_LE(pos[3 * v + k], position["max"][k].get<double>() + 1e-3);
+        }
+    }
+    EXPECT_EQ(faces, triangles) << piece;
+    EXPECT_NEAR(decoded_area, area, 1e-3 * area) << piece;
+    if (piece == uint64_t{1} << 19) {
+      EXPECT_EQ(prims.size(), mesh.chunks.size());
+    }
+    if (piece == 300) {
+      EXPECT_GT(prims.size(), mesh.chunks.size());
+      EXPECT_LT(prims.size(), line_count);
+    }
+    if (piece == 1) {
+      EXPECT_EQ(prims.size(), line_count);
+    }
+  }
+}
+
+// A piece that cannot be cut (a line longer than the piece) past the limit a budget sets is
+// refused before it is encoded, and nothing is written.
+TEST(Gltf, DracoPieceThatCannotBeCutPastItsLimitIsRefused) {
+  test::TempDir dir;
+  const TubeMesh mesh = build_tubes(spiral_lines(3), {});
+  GltfOptions g;
+  g.draco = true;
+  g.draco_piece_vertices = 1;
+  g.draco_max_piece_vertices = 10;  // every line has more
+  EXPECT_THROW(write_gltf(dir.file("p.glb"), &mesh, nullptr, g), BudgetExceeded);
+  EXPECT_TRUE(dir.entries().empty());
+  g.draco_max_piece_vertices = 0;
+  write_gltf(dir.file("p.glb"), &mesh, nullptr, g);
+  EXPECT_EQ(dir.entries().size(), 1u);
+}
+
 // The default output: glTF's +y is the data's +z, COLOR_0 from the colour map, TEXCOORD_0 the
 // normalised attribute, the lines one indexed LINES primitive. Written as .gltf + .bin, which
 // must hold the same bytes a .glb holds.

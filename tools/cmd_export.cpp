@@ -40,14 +40,14 @@ namespace {
 
 // What each export holds at its peak, checked against what --memory-budget leaves before
 // anything is read. The glTF is written a tube chunk at a time (formats/gltf.hpp): it holds the
-// largest chunk and its glTF arrays, about 2.2 times the chunk's bytes (13.6 with Draco's
-// encoder), and the lines whole, about 3.5 times their bytes, with --line-strips 7 KiB more a
-// line for its primitive; a VDB's OpenVDB trees whole (formats/vdb.hpp, vdb_build_bytes), the
-// grid read a piece at a time. (Measured on
-// convection at scale 0.2 on the development VM: a 285 MiB mesh in one chunk and in nine of
-// 32 MiB, its 31 MiB of lines in 20,608 lines, a 14 MiB grid. The factors below add a margin.)
+// largest chunk and its glTF arrays, about 2.2 times the chunk's bytes (with Draco, the chunk
+// and a piece at a time, below), and the lines whole, about 3.5 times their bytes, with
+// --line-strips 7 KiB more a line for its primitive; a VDB's OpenVDB trees whole (formats/vdb.hpp,
+// vdb_build_bytes), the grid read a piece at a time. (Measured on convection at scale 0.2 on the
+// development VM: a 285 MiB mesh in one chunk and in nine of 32 MiB, its 31 MiB of lines in 20,608
+// lines, a 14 MiB grid. The factors below add a margin.)
 template <class Args>
-void check_export_memory(const Args& args, const CacheReader& cache) {
+void check_export_memory(Args& args, const CacheReader& cache) {
   if (args.memory_budget == "unlimited") return;
   if (!args.vdb.empty()) load_vdb(args.vdb);  // OpenVDB's own memory counted as held
   trimmed_rss_bytes();
@@ -61,10 +61,34 @@ void check_export_memory(const Args& args, const CacheReader& cache) {
   uint64_t gltf = 0;
   if (!args.glb.empty() && !args.no_tubes) {
     const TubeMesh description = load_tube_description(cache);
-    uint64_t largest = 0;
-    for (size_t c = 0; c < description.chunks.size(); ++c)
-      largest = std::max(largest, tube_chunk_bytes(cache, description, c));
-    gltf += uint64_t((args.gltf.draco ? 14.0 : 2.5) * double(largest));
+    // Plain: a chunk and its glTF arrays. Draco: a chunk, and a piece of it at a time with its
+    // arrays and Draco's encoder (tubes/mesh_pieces.hpp), about 16.5 times the piece, and 32 MiB
+    // (the pieces' primitives and the spill's buffers: convection at scale 0.2 in one chunk of
+    // 285 MiB peaked 13.5 times its pieces of 524,288 vertices past the chunk, 19 times those of
+    // 131,072).
+    constexpr double kPlain = 2.5, kDracoPiece = 16.5;
+    constexpr uint64_t kDracoFixed = uint64_t{32} << 20;
+    uint64_t largest = 0, most = 0;  // a chunk's bytes; with Draco, its and its piece's
+    double per_vertex = 0;           // the bytes of a vertex of a chunk, its triangles' share too
+    for (size_t c = 0; c < description.chunks.size(); ++c) {
+      const uint64_t bytes = tube_chunk_bytes(cache, description, c);
+      largest = std::max(largest, bytes);
+      const TubeCounts counts = tube_chunk_counts(cache, c);
+      if (counts.vertices == 0) continue;
+      const double vertex = double(bytes) / double(counts.vertices);
+      per_vertex = std::max(per_vertex, vertex);
+      const double piece =
+          vertex * double(std::min(counts.vertices, args.gltf.draco_piece_vertices));
+      most = std::max(most, bytes + uint64_t(kDracoPiece * piece) + kDracoFixed);
+    }
+    gltf += args.gltf.draco ? most : uint64_t(kPlain * double(largest));
+    // A piece that cannot be cut (one long line) may be larger: it is refused past what the
+    // budget leaves with the largest chunk held.
+    if (args.gltf.draco && per_vertex > 0 && budget.available() > largest + kDracoFixed)
+      args.gltf.draco_max_piece_vertices =
+          std::max<uint64_t>(args.gltf.draco_piece_vertices,
+                             uint64_t(double(budget.available() - largest - kDracoFixed) /
+                                      (kDracoPiece * per_vertex)));
   }
   if (!args.glb.empty() && args.lines) {
     gltf += uint64_t(4.0 * double(bytes_of("/lines")));
@@ -113,6 +137,10 @@ Command add_export(CLI::App& app) {
   sub->add_option("--draco-normal-bits", args->gltf.draco_normal_bits,
                   "Normal quantisation bits (default 10)")
       ->check(CLI::Range(1, 30));
+  sub->add_option("--draco-piece-vertices", args->gltf.draco_piece_vertices,
+                  "Vertices of a tube chunk Draco encodes at a time, each piece a primitive, cut "
+                  "between lines (default 524288): Draco holds about 14 times a piece")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 32));
   sub->add_option("--draco-speed", args->gltf.draco_speed,
                   "0 (smallest) .. 10 (fastest), default 5")
       ->check(CLI::Range(0, 10));
@@ -149,8 +177,8 @@ Command add_export(CLI::App& app) {
     if (!args->glb.empty() && std::filesystem::path(args->glb).extension() != ".glb" &&
         std::filesystem::path(args->glb).extension() != ".gltf")
       throw OutputError(args->glb, "a glTF output ends in .glb or .gltf");
-    refuse_unless(sub, {"draco-bits", "draco-normal-bits", "draco-speed"}, args->gltf.draco,
-                  "with --draco");
+    refuse_unless(sub, {"draco-bits", "draco-normal-bits", "draco-speed", "draco-piece-vertices"},
+                  args->gltf.draco, "with --draco");
     refuse_unless(sub, {"draco", "lines", "no-tubes", "axes", "colors"}, !args->glb.empty(),
                   "with a glTF output (-o OUT.glb)");
     refuse_unless(sub, {"line-strips"}, args->lines, "with --lines");

@@ -305,17 +305,22 @@ TubeCounts load_tube_counts(const CacheReader& cache) {
   return counts;
 }
 
-uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description, size_t index) {
+TubeCounts tube_chunk_counts(const CacheReader& cache, size_t index) {
   const std::string g = chunk_group(index);
   const std::vector<uint64_t> positions = cache.shape(g + "/positions"),
                               indices = cache.shape(g + "/indices");
   if (positions.empty() || indices.empty())
     throw InputError(cache.path(), "group " + g, "positions or indices without a shape");
+  return {positions[0], indices[0]};
+}
+
+uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description, size_t index) {
+  const TubeCounts counts = tube_chunk_counts(cache, index);
   const uint64_t per_vertex =
       3 * sizeof(float) +
       (description.normals == NormalEncoding::Float32 ? 3 * sizeof(float) : 2 * sizeof(int16_t)) +
       (description.attribute.empty() ? 0 : sizeof(uint16_t));
-  return positions[0] * per_vertex + indices[0] * 3 * sizeof(uint32_t);
+  return counts.vertices * per_vertex + counts.triangles * 3 * sizeof(uint32_t);
 }
 
 Bounds load_tube_bounds(const CacheReader& cache, uint64_t rows_per_read) {

@@ -52,6 +52,8 @@ TubeChunk load_tube_chunk(const CacheReader& cache, const TubeMesh& description,
 // What load_tube_chunk holds for chunk `index`, from its datasets' shapes (reading none), so
 // that a consumer can check it against a memory budget first.
 uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description, size_t index);
+// Chunk `index`'s vertices and triangles, from its datasets' shapes.
+TubeCounts tube_chunk_counts(const CacheReader& cache, size_t index);
 // compute_bounds of the mesh, reading its positions `rows_per_read` vertices (12 MiB by
 // default) at a time.
 Bounds load_tube_bounds(const CacheReader& cache, uint64_t rows_per_read = uint64_t{1} << 20);
