@@ -14,7 +14,9 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
+#include "core/progress.hpp"
 #include "formats/vdb_module.h"
 
 namespace linebake {
@@ -193,7 +195,10 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
   std::vector<int32_t> ijk;
   std::vector<std::vector<float>> values(specs.size());
   const uint64_t block_size = std::max<uint64_t>(sizes.voxels, 1);
+  TerminalProgress progress("export " + std::filesystem::path(path).filename().string());
   for (uint64_t block = 0; block < voxels; block += block_size) {
+    throw_if_interrupted();
+    progress.update(block, voxels);
     const uint64_t block_voxels = std::min(block_size, voxels - block);
     offsets.resize(block_voxels + 1);
     pieces.offsets(block, block_voxels + 1, offsets.data());
@@ -244,6 +249,7 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
       start = end;
     }
   }
+  progress.finish();
   pieces.finish();
   const float density_scale = percentile_99(std::move(lengths));
   build.check(module.rescale(build.build_, 0, density_scale, build.error_, sizeof build.error_));
