@@ -121,15 +121,18 @@ void refuse_clashing_outputs(const std::vector<std::string>& outputs,
 
 void check_output_location(const std::string& path) {
   if (path.empty()) return;
-  output_target(path);  // a device, FIFO or socket is refused before any work
-  const std::filesystem::path p(path);
+  // A device, FIFO or socket is refused before any work; a symbolic link is checked where it
+  // leads, which is where the file is written (output_target).
+  const std::string target = output_target(path);
+  const std::string via = target == path ? "" : " (where the link leads: " + target + ")";
+  const std::filesystem::path p(target);
   const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
   std::error_code ec;
-  if (std::filesystem::is_directory(p, ec)) throw OutputError(path, "is a directory");
+  if (std::filesystem::is_directory(p, ec)) throw OutputError(path, "is a directory" + via);
   if (!std::filesystem::is_directory(dir, ec))
-    throw OutputError(path, "the directory " + dir + " does not exist");
+    throw OutputError(path, "the directory " + dir + " does not exist" + via);
   if (::access(dir.c_str(), W_OK) != 0)
-    throw OutputError(path, "the directory " + dir + " is not writable");
+    throw OutputError(path, "the directory " + dir + " is not writable" + via);
   // A name past the file system's limit is refused here, with the others, before any work
   // (std::filesystem would throw its own error on it later; the pipeline fuzzer's finding).
   const long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
@@ -140,7 +143,12 @@ void check_output_location(const std::string& path) {
 }
 
 uint64_t free_bytes_for(const std::string& path) {
-  const std::filesystem::path p(path);
+  std::string target = path;  // where a symbolic link leads: the file system written to
+  try {
+    target = output_target(path);
+  } catch (const Error&) {
+  }
+  const std::filesystem::path p(target);
   const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
   struct statvfs fs {};
   if (::statvfs(dir.c_str(), &fs) != 0) return UINT64_MAX;  // unknown: do not refuse
