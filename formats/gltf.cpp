@@ -37,6 +37,8 @@ constexpr int kArrayBuffer = 34962;
 constexpr int kElementArrayBuffer = 34963;
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
 constexpr uint64_t kGlbLimit = 0xFFFFFFFFull;
+// Vertices of a tube chunk converted to glTF's arrays at a time (add_tubes).
+constexpr uint64_t kViewPiece = uint64_t{1} << 18;
 
 // Where the binary buffer's bytes go: to a hash while the file is laid out (the first of the two
 // passes, write_gltf), to the file and a hash in the second.
@@ -53,13 +55,27 @@ class ModelBuilder {
 
   // Appends bytes (4-byte aligned) as a new buffer view; returns its index.
   int add_view(const void* data, size_t bytes, int target, size_t stride = 0) {
+    return add_view(
+        bytes, [&](const ByteSink& sink) { sink(data, bytes); }, target, stride);
+  }
+  // The same for a view of `bytes` bytes that `write` hands to the sink it is given, in pieces
+  // (so that they need not all be in memory at once), exactly that many.
+  int add_view(uint64_t bytes, const std::function<void(const ByteSink&)>& write, int target,
+               size_t stride = 0) {
     const uint64_t offset = aligned(size_);
     if (glb_ && offset + bytes > kGlbLimit)
       throw Error("the export exceeds GLB's 4 GiB limit (write .gltf, whose .bin has none)");
     if (sink_) {
       static constexpr char kZeros[4] = {};
       sink_(kZeros, size_t(offset - size_));
-      sink_(data, bytes);
+      uint64_t given = 0;
+      write([&](const void* data, size_t n) {
+        given += n;
+        sink_(data, n);
+      });
+      if (given != bytes)
+        throw Error("internal error: a glTF view of " + std::to_string(bytes) + " bytes got " +
+                    std::to_string(given));
     }
     size_ = offset + bytes;
     tinygltf::BufferView view;
@@ -358,8 +374,10 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
         const uint64_t n = p.vertices;
         if (options.draco_max_piece_vertices > 0 && n > options.draco_max_piece_vertices)
           throw BudgetExceeded("Draco: tube chunk " + std::to_string(c) + " has a piece of " +
-                               std::to_string(n) + " vertices that cannot be cut (one line), " +
-                               "more than the " + std::to_string(options.draco_max_piece_vertices) +
+                               std::to_string(n) +
+                               " vertices without a cut in it (its triangles share vertices "
+                               "throughout, as a line's tube does), more than the " +
+                               std::to_string(options.draco_max_piece_vertices) +
                                " the memory budget leaves room to encode; raise --memory-budget");
         const std::vector<float> positions =
             in_axes(chunk.positions.data() + 3 * p.first_vertex, n, options.axes);
@@ -385,25 +403,61 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
       }
       continue;
     }
-    const std::vector<float> positions = in_axes(chunk.positions.data(), v, options.axes);
-    const std::vector<float> raw_normals = float_normals(chunk, 0, v);
-    const std::vector<float> normals = in_axes(raw_normals.data(), v, options.axes);
-    std::vector<double> min, max;
-    bounds_of(positions.data(), v, min, max);
-    const AttributeArrays attribute =
-        has_attribute ? attribute_arrays(chunk.attribute.data(), v, tubes.attribute_range, options)
-                      : AttributeArrays{};
-    primitive.attributes["POSITION"] = builder.add_accessor(
-        builder.add_view(positions.data(), positions.size() * sizeof(float), kArrayBuffer), 0,
-        TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v, false, min, max);
-    primitive.attributes["NORMAL"] = builder.add_accessor(
-        builder.add_view(normals.data(), normals.size() * sizeof(float), kArrayBuffer), 0,
-        TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
+    // The chunk's arrays in the output's form a piece of kViewPiece vertices at a time, straight
+    // to the sink: what the chunk holds, not again that much in glTF arrays.
+    const auto in_pieces = [&](const auto& each) {
+      for (uint64_t first = 0; first < v; first += kViewPiece)
+        each(first, std::min(kViewPiece, v - first));
+    };
+    const auto positions = [&](uint64_t first, uint64_t n) {
+      return in_axes(chunk.positions.data() + 3 * first, n, options.axes);
+    };
+    std::vector<double> min(3, std::numeric_limits<double>::max()), max(3, -min[0]);
+    in_pieces([&](uint64_t first, uint64_t n) {
+      std::vector<double> lo, hi;
+      bounds_of(positions(first, n).data(), n, lo, hi);
+      for (int k = 0; k < 3; ++k)
+        min[k] = std::min(min[k], lo[k]), max[k] = std::max(max[k], hi[k]);
+    });
+    const auto floats = [&](const auto& make) {
+      return [&, make](const ByteSink& sink) {
+        in_pieces([&](uint64_t first, uint64_t n) {
+          const std::vector<float> piece = make(first, n);
+          sink(piece.data(), piece.size() * sizeof(float));
+        });
+      };
+    };
+    primitive.attributes["POSITION"] =
+        builder.add_accessor(builder.add_view(12 * v, floats(positions), kArrayBuffer), 0,
+                             TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v, false, min, max);
+    const auto normals = [&](uint64_t first, uint64_t n) {
+      const std::vector<float> raw = float_normals(chunk, first, n);
+      return in_axes(raw.data(), n, options.axes);
+    };
+    primitive.attributes["NORMAL"] =
+        builder.add_accessor(builder.add_view(12 * v, floats(normals), kArrayBuffer), 0,
+                             TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
     if (has_attribute) {
+      // One of the attribute's arrays (AttributeArrays) a piece at a time.
+      const auto mapped = [&](auto member, size_t element) {
+        return [&, member, element](const ByteSink& sink) {
+          in_pieces([&](uint64_t first, uint64_t n) {
+            const AttributeArrays a =
+                attribute_arrays(chunk.attribute.data() + first, n, tubes.attribute_range, options);
+            sink((a.*member).data(), (a.*member).size() * element);
+          });
+        };
+      };
       primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-          builder.add_view(attribute.padded.data(), attribute.padded.size() * 2, kArrayBuffer, 4),
-          0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
-      add_mapped_attributes(builder, primitive, attribute, v);
+          builder.add_view(4 * v, mapped(&AttributeArrays::padded, 2), kArrayBuffer, 4), 0,
+          TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
+      primitive.attributes["TEXCOORD_0"] = builder.add_accessor(
+          builder.add_view(4 * v, mapped(&AttributeArrays::texcoords, 2), kArrayBuffer), 0,
+          TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC2, v, true);
+      if (options.colour_map.size() == 256)
+        primitive.attributes["COLOR_0"] = builder.add_accessor(
+            builder.add_view(4 * v, mapped(&AttributeArrays::colours, 1), kArrayBuffer), 0,
+            TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, v, true);
     }
     primitive.indices = builder.add_accessor(
         builder.add_view(chunk.indices.data(), chunk.indices.bytes(), kElementArrayBuffer), 0,
@@ -623,6 +677,8 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
     layout = run_pass(
         tubes, lines, options, glb, &draco,
         [&](const void* data, size_t bytes) { laid_out.update(data, bytes); }, chunk_done);
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded(path + ": " + e.what());
   } catch (const Error& e) {
     // What the export itself cannot do (the GLB limit, lines glTF cannot hold, Draco) is about
     // the output; an input's or the budget's error stays what it is.

@@ -111,8 +111,8 @@ cp "$tmp/c.binlines" "$tmp/victim.binlines"
 refused_keeps "bench bake with -o naming its input is refused, the input kept" "$tmp/victim.binlines" \
   "$bin" bench bake "$tmp/victim.binlines" -o "$tmp/victim.binlines"
 # The tube mesh (one chunk of 71.19 MiB: 1,500,459 vertices of 26 bytes, 2,970,000 triangles of
-# 12) needs 2.5 times its chunk: 177.98 MiB.
-check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 150M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 177.98 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
+# 12) needs 1.1 times its chunk and 24 MiB: 102.31 MiB.
+check "export: a glTF built past the budget is refused before reading (exit 4), nothing written" bash -c "'$bin' export '$tmp/c.lbc.h5' -o '$tmp/eb.glb' --memory-budget 100M 2> '$tmp/eb.err'; [ \$? -eq 4 ] && grep -q \"building the tube mesh's glTF takes about 102.31 MiB\" '$tmp/eb.err' && [ ! -e '$tmp/eb.glb' ]"
 check "export: a mesh in 8 MB chunks is written a chunk at a time within 60M, the same bytes as unlimited, Draco's spill gone" bash -c "
   bin='$(realpath "$bin")' && mkdir -p '$tmp/ec' && cd '$tmp/ec' && \"\$bin\" bake ../c.binlines -o ec.lbc.h5 --assets tubes --chunk-bytes 8000000 2>/dev/null &&
   \"\$bin\" export ec.lbc.h5 -o a.glb --memory-budget 60M 2>/dev/null && \"\$bin\" export ec.lbc.h5 -o b.glb --memory-budget unlimited 2>/dev/null && cmp a.glb b.glb &&
@@ -139,6 +139,18 @@ check "report names h5dump-readable layout" bash -c "h5dump -H '$tmp/c.lbc.h5' |
 check "export glb" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/c.glb" --lines
 check "export draco" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/cd.glb" --draco --draco-bits 12
 check "draco is smaller" bash -c "[ \$(stat -c %s '$tmp/cd.glb') -lt \$(stat -c %s '$tmp/c.glb') ]"
+check_budget "export --draco in pieces of one vertex (one a line) under a budget just above its estimate: the peak within it" /usr/bin/python3 -c "
+import re, subprocess, resource
+run = lambda budget: subprocess.run(['$bin', 'export', '$tmp/c.lbc.h5', '--glb', '$tmp/p1.glb', '--draco', '--draco-piece-vertices', '1', '--memory-budget', budget], capture_output=True, text=True)
+refused = run('30M')
+assert refused.returncode == 4, refused.stderr
+m = re.search(r'takes about ([0-9.]+) MiB .* leaves \\(([0-9.]+) MiB\\)', refused.stderr)
+estimate, held = float(m.group(1)), 30 - float(m.group(2))
+budget = int(estimate + held) + 2
+done = run(f'{budget}M')
+assert done.returncode == 0, done.stderr
+peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+assert peak <= budget, (peak, budget)"
 check "--draco-piece-vertices is read only with --draco (usage error)" exit_code 1 "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/np.glb" --draco-piece-vertices 1000
 check "export draco in pieces of 20,000 vertices: more primitives than chunks, a smaller peak than one piece" /usr/bin/python3 -c "
 import json, struct, subprocess, resource

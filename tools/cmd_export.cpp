@@ -40,8 +40,8 @@ namespace {
 
 // What each export holds at its peak, checked against what --memory-budget leaves before
 // anything is read. The glTF is written a tube chunk at a time (formats/gltf.hpp): it holds the
-// largest chunk and its glTF arrays, about 2.2 times the chunk's bytes (with Draco, the chunk
-// and a piece at a time, below), and the lines whole, about 3.5 times their bytes, with
+// largest chunk and its glTF arrays a piece at a time (with Draco, a piece of the chunk at a
+// time, below), and the lines whole, about 3.5 times their bytes, with
 // --line-strips 7 KiB more a line for its primitive; a VDB's OpenVDB trees whole (formats/vdb.hpp,
 // vdb_build_bytes), the grid read a piece at a time. (Measured on convection at scale 0.2 on the
 // development VM: a 285 MiB mesh in one chunk and in nine of 32 MiB, its 31 MiB of lines in 20,608
@@ -58,17 +58,32 @@ void check_export_memory(Args& args, const CacheReader& cache) {
   };
   // The VDB is written and let go before the glTF is built: the larger of the two counts.
   const uint64_t vdb = args.vdb.empty() ? 0 : vdb_build_bytes(load_voxel_description(cache));
-  uint64_t gltf = 0;
+  // The lines whole (about 4 times their bytes, and 8 KiB a line's primitive with --line-strips),
+  // held while the tubes are written.
+  uint64_t lines = 0;
+  if (!args.glb.empty() && args.lines) {
+    lines = uint64_t(4.0 * double(bytes_of("/lines")));
+    if (args.gltf.line_strips && cache.exists("/lines/line_offsets"))
+      lines += 8192 * cache.shape("/lines/line_offsets").at(0);
+  }
+  uint64_t gltf = lines;
   if (!args.glb.empty() && !args.no_tubes) {
     const TubeMesh description = load_tube_description(cache);
-    // Plain: a chunk and its glTF arrays. Draco: a chunk, and a piece of it at a time with its
-    // arrays and Draco's encoder (tubes/mesh_pieces.hpp), about 16.5 times the piece, and 32 MiB
-    // (the pieces' primitives and the spill's buffers: convection at scale 0.2 in one chunk of
-    // 285 MiB peaked 13.5 times its pieces of 524,288 vertices past the chunk, 19 times those of
-    // 131,072).
-    constexpr double kPlain = 2.5, kDracoPiece = 16.5;
-    constexpr uint64_t kDracoFixed = uint64_t{32} << 20;
+    // Plain: a chunk and its glTF arrays a piece at a time, a tenth and 24 MiB more (convection
+    // at scale 0.05 in chunks of 8 MB and at scale 0.2 in chunks of 32 MiB and in one of 285
+    // MiB: peaks 30, 50 and 294 MiB past what the process held).
+    // Draco: a chunk, and a piece of it at a time with its arrays and Draco's encoder
+    // (tubes/mesh_pieces.hpp), about 16.5 times the piece, and 32 MiB (the spill's buffers:
+    // convection at scale 0.2 in one chunk of 285 MiB peaked 13.5 times its pieces of 524,288
+    // vertices past the chunk, 19 times those of 131,072); and every piece's primitive, which
+    // the export keeps to the end, 24 KiB each (in pieces of one vertex, one a line, clouds at
+    // scale 0.03 peaked 39 % past a budget that left out this term).
+    constexpr double kPlain = 1.1, kDracoPiece = 16.5;
+    constexpr uint64_t kPlainFixed = uint64_t{24} << 20, kDracoFixed = uint64_t{32} << 20,
+                       kPrimitive = uint64_t{24} << 10;
+    const uint64_t pv = args.gltf.draco_piece_vertices;
     uint64_t largest = 0, most = 0;  // a chunk's bytes; with Draco, its and its piece's
+    uint64_t pieces = 0;             // with Draco, at most (pieces either side of a cut pass pv)
     double per_vertex = 0;           // the bytes of a vertex of a chunk, its triangles' share too
     for (size_t c = 0; c < description.chunks.size(); ++c) {
       const uint64_t bytes = tube_chunk_bytes(cache, description, c);
@@ -77,23 +92,19 @@ void check_export_memory(Args& args, const CacheReader& cache) {
       if (counts.vertices == 0) continue;
       const double vertex = double(bytes) / double(counts.vertices);
       per_vertex = std::max(per_vertex, vertex);
-      const double piece =
-          vertex * double(std::min(counts.vertices, args.gltf.draco_piece_vertices));
-      most = std::max(most, bytes + uint64_t(kDracoPiece * piece) + kDracoFixed);
+      most = std::max(
+          most, bytes + uint64_t(kDracoPiece * vertex * double(std::min(counts.vertices, pv))));
+      pieces += std::min<uint64_t>(description.chunks[c].line_count,
+                                   2 * ((counts.vertices + pv - 1) / pv) + 1);
     }
-    gltf += args.gltf.draco ? most : uint64_t(kPlain * double(largest));
-    // A piece that cannot be cut (one long line) may be larger: it is refused past what the
-    // budget leaves with the largest chunk held.
-    if (args.gltf.draco && per_vertex > 0 && budget.available() > largest + kDracoFixed)
-      args.gltf.draco_max_piece_vertices =
-          std::max<uint64_t>(args.gltf.draco_piece_vertices,
-                             uint64_t(double(budget.available() - largest - kDracoFixed) /
-                                      (kDracoPiece * per_vertex)));
-  }
-  if (!args.glb.empty() && args.lines) {
-    gltf += uint64_t(4.0 * double(bytes_of("/lines")));
-    if (args.gltf.line_strips && cache.exists("/lines/line_offsets"))
-      gltf += 8192 * cache.shape("/lines/line_offsets").at(0);
+    const uint64_t draco_fixed = kDracoFixed + kPrimitive * pieces;
+    gltf += args.gltf.draco ? most + draco_fixed : uint64_t(kPlain * double(largest)) + kPlainFixed;
+    // A piece that cannot be cut (a line longer than a piece) may be larger: it is refused past
+    // what the budget leaves with the largest chunk, the primitives and the lines held.
+    const uint64_t held = largest + draco_fixed + lines;
+    if (args.gltf.draco && per_vertex > 0 && budget.available() > held)
+      args.gltf.draco_max_piece_vertices = std::max<uint64_t>(
+          pv, uint64_t(double(budget.available() - held) / (kDracoPiece * per_vertex)));
   }
   const uint64_t needed = std::max(vdb, gltf);
   const std::string what = vdb > gltf      ? "the voxel grid's VDB"

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <string>
+
+#include "core/error.hpp"
 
 namespace linebake {
 
@@ -28,6 +31,9 @@ std::vector<MeshPiece> independent_pieces(std::span<const uint32_t> indices, uin
     if (least(t) >= end) cuts.push_back({t, end});
     end = std::max(end, uint64_t(most(t)) + 1);
   }
+  if (end > vertex_count)
+    throw Error("independent_pieces: a triangle uses vertex " + std::to_string(end - 1) + " of " +
+                std::to_string(vertex_count));
   uint64_t below = UINT64_MAX;  // the least vertex of the triangles from t on
   size_t kept = cuts.size();
   std::vector<bool> sound(cuts.size());

@@ -16,7 +16,8 @@ struct MeshPiece {
 
 // Pieces of triangles [0, indices.size() / 3) and vertices [0, vertex_count), in order, covering
 // both: each as many vertices as fit `max_vertices`, or more where no cut comes sooner (a cut
-// falls only where no later triangle uses a vertex below it). None without triangles.
+// falls only where no later triangle uses a vertex below it). None without triangles. Error
+// where a triangle uses a vertex past vertex_count.
 std::vector<MeshPiece> independent_pieces(std::span<const uint32_t> indices, uint64_t vertex_count,
                                           uint64_t max_vertices);
 
