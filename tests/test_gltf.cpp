@@ -155,14 +155,47 @@ double surface_area(const float* p, const uint32_t* idx, size_t triangles) {
   return area;
 }
 
-TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
-  test::TempDir dir;
-  const LineSet lines = spiral_lines(30);
+// A Draco primitive decoded with libdraco: its points' positions, its faces' indices, and the
+// mesh (for its other attributes).
+struct DecodedPrimitive {
+  std::unique_ptr<draco::Mesh> mesh;
+  std::vector<float> positions;
+  std::vector<uint32_t> indices;
+};
+DecodedPrimitive decode_primitive(const Glb& glb, const json& primitive) {
+  const json& ext = primitive["extensions"]["KHR_draco_mesh_compression"];
+  const json& view = glb.doc["bufferViews"][ext["bufferView"].get<int>()];
+  draco::DecoderBuffer buffer;
+  buffer.Init(reinterpret_cast<const char*>(glb.bin.data()) + view.value("byteOffset", 0),
+              view["byteLength"].get<size_t>());
+  draco::Decoder decoder;
+  auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+  if (!decoded.ok()) throw Error("Draco: " + decoded.status().error_msg_string());
+  DecodedPrimitive out{std::move(decoded).value(), {}, {}};
+  const draco::Mesh& d = *out.mesh;
+  const draco::PointAttribute* pa =
+      d.GetAttributeByUniqueId(ext["attributes"]["POSITION"].get<uint32_t>());
+  if (!pa) throw Error("Draco: no POSITION");
+  out.positions.resize(3 * d.num_points());
+  for (uint32_t v = 0; v < d.num_points(); ++v)
+    pa->GetMappedValue(draco::PointIndex(v), &out.positions[3 * v]);
+  for (uint32_t f = 0; f < d.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) out.indices.push_back(d.face(draco::FaceIndex(f))[k].value());
+  return out;
+}
+
+// The tubes the Draco tests export: 6 sides with caps, in chunks of at most 60 kB.
+TubeMesh capped_tubes() {
   TubeOptions o;
   o.sides = 6;
   o.caps = true;
   o.max_chunk_bytes = 60000;
-  const TubeMesh mesh = build_tubes(lines, o);
+  return build_tubes(spiral_lines(30), o);
+}
+
+TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
+  test::TempDir dir;
+  const TubeMesh mesh = capped_tubes();
   GltfOptions g;
   g.draco = true;
   write_gltf(dir.file("d.glb"), &mesh, nullptr, g);
@@ -173,29 +206,16 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
   for (size_t c = 0; c < mesh.chunks.size(); ++c) {
     const TubeChunk& chunk = mesh.chunks[c];
     const json& ext = prims[c]["extensions"]["KHR_draco_mesh_compression"];
-    const json& view = glb.doc["bufferViews"][ext["bufferView"].get<int>()];
-    draco::DecoderBuffer buffer;
-    buffer.Init(reinterpret_cast<const char*>(glb.bin.data()) + view.value("byteOffset", 0),
-                view["byteLength"].get<size_t>());
-    draco::Decoder decoder;
-    auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
-    ASSERT_TRUE(decoded.ok());
-    const draco::Mesh& d = *decoded.value();
+    const DecodedPrimitive decoded = decode_primitive(glb, prims[c]);
+    const draco::Mesh& d = *decoded.mesh;
     EXPECT_EQ(d.num_faces(), chunk.triangle_count());
     EXPECT_EQ(glb.doc["accessors"][prims[c]["indices"].get<int>()]["count"].get<size_t>(),
               3 * d.num_faces());
     EXPECT_EQ(glb.doc["accessors"][prims[c]["attributes"]["POSITION"].get<int>()]["count"],
               d.num_points());
     // Same surface (order-free comparison), within 14-bit position quantisation.
-    const draco::PointAttribute* pa =
-        d.GetAttributeByUniqueId(ext["attributes"]["POSITION"].get<uint32_t>());
-    ASSERT_NE(pa, nullptr);
-    std::vector<float> pos(3 * d.num_points());
-    for (uint32_t v = 0; v < d.num_points(); ++v)
-      pa->GetMappedValue(draco::PointIndex(v), &pos[3 * v]);
-    std::vector<uint32_t> idx;
-    for (uint32_t f = 0; f < d.num_faces(); ++f)
-      for (int k = 0; k < 3; ++k) idx.push_back(d.face(draco::FaceIndex(f))[k].value());
+    const std::vector<float>& pos = decoded.positions;
+    const std::vector<uint32_t>& idx = decoded.indices;
     const double expected =
         surface_area(chunk.positions.data(), chunk.indices.data(), chunk.triangle_count());
     EXPECT_NEAR(surface_area(pos.data(), idx.data(), d.num_faces()), expected, 1e-3 * expected);
@@ -242,12 +262,7 @@ TEST(Gltf, PlainExportOfAChunkLargerThanItsPiecesIsExact) {
 // hold every triangle and the same surface; with pieces of one vertex, one piece a line.
 TEST(Gltf, DracoPiecesHoldTheMeshBetweenThem) {
   test::TempDir dir;
-  const LineSet lines = spiral_lines(30);
-  TubeOptions o;
-  o.sides = 6;
-  o.caps = true;
-  o.max_chunk_bytes = 60000;
-  const TubeMesh mesh = build_tubes(lines, o);
+  const TubeMesh mesh = capped_tubes();
   uint64_t triangles = 0, line_count = 0;
   double area = 0;
   for (const TubeChunk& chunk : mesh.chunks) {
@@ -265,24 +280,10 @@ TEST(Gltf, DracoPiecesHoldTheMeshBetweenThem) {
     uint64_t faces = 0, most = 0;
     double decoded_area = 0;
     for (const json& prim : prims) {
-      const json& ext = prim["extensions"]["KHR_draco_mesh_compression"];
-      const json& view = glb.doc["bufferViews"][ext["bufferView"].get<int>()];
-      draco::DecoderBuffer buffer;
-      buffer.Init(reinterpret_cast<const char*>(glb.bin.data()) + view.value("byteOffset", 0),
-                  view["byteLength"].get<size_t>());
-      draco::Decoder decoder;
-      auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
-      ASSERT_TRUE(decoded.ok());
-      const draco::Mesh& d = *decoded.value();
-      const draco::PointAttribute* pa =
-          d.GetAttributeByUniqueId(ext["attributes"]["POSITION"].get<uint32_t>());
-      ASSERT_NE(pa, nullptr);
-      std::vector<float> pos(3 * d.num_points());
-      for (uint32_t v = 0; v < d.num_points(); ++v)
-        pa->GetMappedValue(draco::PointIndex(v), &pos[3 * v]);
-      std::vector<uint32_t> idx;
-      for (uint32_t f = 0; f < d.num_faces(); ++f)
-        for (int k = 0; k < 3; ++k) idx.push_back(d.face(draco::FaceIndex(f))[k].value());
+      const DecodedPrimitive decoded = decode_primitive(glb, prim);
+      const draco::Mesh& d = *decoded.mesh;
+      const std::vector<float>& pos = decoded.positions;
+      const std::vector<uint32_t>& idx = decoded.indices;
       faces += d.num_faces();
       most = std::max<uint64_t>(most, d.num_points());
       decoded_area += surface_area(pos.data(), idx.data(), d.num_faces());
