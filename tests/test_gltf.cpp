@@ -91,6 +91,17 @@ TubeMesh chunked_tubes(const LineSet& lines) {
   return build_tubes(lines, o);
 }
 
+// A plain primitive's POSITION, NORMAL and _ATTRIBUTE hold the chunk's arrays to the byte (raw
+// axes).
+void expect_chunk_arrays(const Glb& glb, const json& p, const TubeChunk& chunk) {
+  const auto pos = accessor_values<float>(glb, p["attributes"]["POSITION"], 3);
+  EXPECT_EQ(std::memcmp(pos.data(), chunk.positions.data(), chunk.positions.bytes()), 0);
+  const auto nrm = accessor_values<float>(glb, p["attributes"]["NORMAL"], 3);
+  EXPECT_EQ(std::memcmp(nrm.data(), chunk.normals.data(), chunk.normals.bytes()), 0);
+  const auto attr = accessor_values<uint16_t>(glb, p["attributes"]["_ATTRIBUTE"], 1);
+  EXPECT_EQ(std::memcmp(attr.data(), chunk.attribute.data(), chunk.attribute.bytes()), 0);
+}
+
 TEST(Gltf, PlainExportHoldsTheMeshExactly) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(40);
@@ -111,12 +122,7 @@ TEST(Gltf, PlainExportHoldsTheMeshExactly) {
     const json& p = tubes["primitives"][c];
     const TubeChunk& chunk = mesh.chunks[c];
     EXPECT_EQ(p["mode"], 4);
-    const auto pos = accessor_values<float>(glb, p["attributes"]["POSITION"], 3);
-    EXPECT_EQ(std::memcmp(pos.data(), chunk.positions.data(), chunk.positions.bytes()), 0);
-    const auto nrm = accessor_values<float>(glb, p["attributes"]["NORMAL"], 3);
-    EXPECT_EQ(std::memcmp(nrm.data(), chunk.normals.data(), chunk.normals.bytes()), 0);
-    const auto attr = accessor_values<uint16_t>(glb, p["attributes"]["_ATTRIBUTE"], 1);
-    EXPECT_EQ(std::memcmp(attr.data(), chunk.attribute.data(), chunk.attribute.bytes()), 0);
+    expect_chunk_arrays(glb, p, chunk);
     EXPECT_TRUE(glb.doc["accessors"][p["attributes"]["_ATTRIBUTE"].get<int>()]["normalized"]);
     const auto idx = accessor_values<uint32_t>(glb, p["indices"], 1);
     EXPECT_EQ(std::memcmp(idx.data(), chunk.indices.data(), chunk.indices.bytes()), 0);
@@ -237,12 +243,7 @@ TEST(Gltf, PlainExportOfAChunkLargerThanItsPiecesIsExact) {
   write_gltf(dir.file("t.glb"), &mesh, nullptr, raw);
   const Glb glb = read_glb(dir.file("t.glb"));
   const json& p = glb.doc["meshes"][0]["primitives"][0];
-  const auto pos = accessor_values<float>(glb, p["attributes"]["POSITION"], 3);
-  EXPECT_EQ(std::memcmp(pos.data(), chunk.positions.data(), chunk.positions.bytes()), 0);
-  const auto nrm = accessor_values<float>(glb, p["attributes"]["NORMAL"], 3);
-  EXPECT_EQ(std::memcmp(nrm.data(), chunk.normals.data(), chunk.normals.bytes()), 0);
-  const auto attr = accessor_values<uint16_t>(glb, p["attributes"]["_ATTRIBUTE"], 1);
-  EXPECT_EQ(std::memcmp(attr.data(), chunk.attribute.data(), chunk.attribute.bytes()), 0);
+  expect_chunk_arrays(glb, p, chunk);
   const auto tex = accessor_values<uint16_t>(glb, p["attributes"]["TEXCOORD_0"], 2);
   for (uint64_t v = 0; v < chunk.vertex_count(); v += 9973) {
     EXPECT_EQ(tex[2 * v], chunk.attribute[v]);
