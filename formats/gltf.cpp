@@ -678,10 +678,10 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
         tubes, lines, options, glb, &draco,
         [&](const void* data, size_t bytes) { laid_out.update(data, bytes); }, chunk_done);
   } catch (const BudgetExceeded& e) {
-    throw BudgetExceeded(path + ": " + e.what());
+    throw BudgetExceeded(path + ": " + e.what());  // a Draco piece past its limit: still exit 4
   } catch (const Error& e) {
     // What the export itself cannot do (the GLB limit, lines glTF cannot hold, Draco) is about
-    // the output; an input's or the budget's error stays what it is.
+    // the output; an input's error stays what it is.
     if (typeid(e) != typeid(Error)) throw;
     throw OutputError(path, e.what());
   }

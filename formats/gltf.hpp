@@ -49,7 +49,8 @@ struct GltfOptions {
 
 // The tube mesh a chunk at a time (cache/tube_store.hpp's load_tube_description and
 // load_tube_chunk): `description` has every chunk's place (its arrays may be empty) and
-// `chunk(i)` gives chunk i whole. The export holds one chunk and its glTF arrays at a time.
+// `chunk(i)` gives chunk i whole. The export holds one chunk at a time, and its glTF arrays a
+// piece at a time (with Draco, a piece of it and Draco's encoder).
 struct TubeChunks {
   TubeMesh description;
   std::function<TubeChunk(size_t index)> chunk;
@@ -62,7 +63,8 @@ struct TubeChunks {
 // Written in two passes over the data: the first lays the file out (the JSON, with every
 // view's offset and every accessor's bounds, and Draco's compressed sizes), the second writes
 // the binary buffer a view at a time behind it. So memory holds the JSON, the lines and one tube
-// chunk with its glTF arrays (with Draco, its encoder), never the whole buffer; the price is that
+// chunk with a piece of its glTF arrays (with Draco, a piece of the chunk and its encoder),
+// never the whole buffer; the price is that
 // each chunk is read and converted twice (Draco encodes once, into a spill file beside the
 // output). Both passes hash the buffer: a chunk that changed in between (a cache rewritten
 // meanwhile) is an Error, and nothing is written.

@@ -253,6 +253,7 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
   pieces.finish();
   const float density_scale = percentile_99(std::move(lengths));
   build.check(module.rescale(build.build_, 0, density_scale, build.error_, sizeof build.error_));
+  throw_if_interrupted();
 
   const std::string creator = "linebake " LINEBAKE_VERSION;
   const std::vector<LinebakeVdbMeta> meta{
@@ -274,6 +275,7 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
                                 format_bytes(free_bytes_for(path)) + " free there) (" +
                                 out.temp_path() + ")");
   stamp_content_uuid(out.temp_path(), path);
+  throw_if_interrupted();  // OpenVDB's write is not ours to stop: nothing renamed after a Ctrl-C
   out.commit();
 }
 

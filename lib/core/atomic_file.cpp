@@ -193,6 +193,9 @@ std::string output_target(const std::string& path) {
     // Not lexically normalised: a ".." after a linked directory is the kernel's to resolve.
     target = (to.is_absolute() ? to : link.parent_path() / to).string();
   }
+  // Still a link after 40 (the kernel's limit): a loop, which renaming over it would replace.
+  if (std::filesystem::is_symlink(target, ec))
+    throw OutputError(path, "is a loop of symbolic links (or a chain of more than 40)");
   const auto status = std::filesystem::status(target, ec);
   if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
     throw OutputError(path, std::filesystem::is_directory(status)
