@@ -177,31 +177,39 @@ struct AttributeArrays {
   std::vector<uint16_t> texcoords;  // TEXCOORD_0: value, 0.5
   std::vector<uint8_t> colours;     // COLOR_0: linear RGB from the colour map, A = 255
 };
-// `unorm` spans `range` (data units).
+// Each of them from the attribute as unorm16 (`unorm` spans `range`, data units).
+std::vector<uint16_t> padded_attribute(const uint16_t* unorm, uint64_t count) {
+  std::vector<uint16_t> out(2 * count, 0);
+  for (uint64_t i = 0; i < count; ++i) out[2 * i] = unorm[i];
+  return out;
+}
+std::vector<uint16_t> attribute_texcoords(const uint16_t* unorm, uint64_t count) {
+  std::vector<uint16_t> out(2 * count);
+  for (uint64_t i = 0; i < count; ++i) out[2 * i] = unorm[i], out[2 * i + 1] = 32768;
+  return out;
+}
+// Empty without a colour map of 256 entries.
+std::vector<uint8_t> attribute_colours(const uint16_t* unorm, uint64_t count,
+                                       std::array<float, 2> range, const GltfOptions& options) {
+  if (options.colour_map.size() != 256) return {};
+  const bool own = !(options.colour_range[1] > options.colour_range[0]);
+  const double lo = range[0], span = double(range[1]) - range[0];
+  const double c0 = own ? lo : options.colour_range[0];
+  const double c_span = own ? span : double(options.colour_range[1]) - c0;
+  std::vector<uint8_t> out(4 * count);
+  for (uint64_t i = 0; i < count; ++i) {
+    const double value = lo + span * (unorm[i] / 65535.0);
+    const double t = c_span > 0 ? std::clamp((value - c0) / c_span, 0.0, 1.0) : 0.5;
+    const auto& c = options.colour_map[size_t(std::lround(t * 255.0))];
+    std::copy(c.begin(), c.end(), out.begin() + ptrdiff_t(4 * i));
+    out[4 * i + 3] = 255;
+  }
+  return out;
+}
 AttributeArrays attribute_arrays(const uint16_t* unorm, uint64_t count, std::array<float, 2> range,
                                  const GltfOptions& options) {
-  AttributeArrays a;
-  a.padded.assign(2 * count, 0);
-  a.texcoords.resize(2 * count);
-  for (uint64_t i = 0; i < count; ++i) {
-    a.padded[2 * i] = a.texcoords[2 * i] = unorm[i];
-    a.texcoords[2 * i + 1] = 32768;
-  }
-  if (options.colour_map.size() == 256) {
-    const bool own = !(options.colour_range[1] > options.colour_range[0]);
-    const double lo = range[0], span = double(range[1]) - range[0];
-    const double c0 = own ? lo : options.colour_range[0];
-    const double c_span = own ? span : double(options.colour_range[1]) - c0;
-    a.colours.resize(4 * count);
-    for (uint64_t i = 0; i < count; ++i) {
-      const double value = lo + span * (unorm[i] / 65535.0);
-      const double t = c_span > 0 ? std::clamp((value - c0) / c_span, 0.0, 1.0) : 0.5;
-      const auto& c = options.colour_map[size_t(std::lround(t * 255.0))];
-      std::copy(c.begin(), c.end(), a.colours.begin() + 4 * i);
-      a.colours[4 * i + 3] = 255;
-    }
-  }
-  return a;
+  return {padded_attribute(unorm, count), attribute_texcoords(unorm, count),
+          attribute_colours(unorm, count, range, options)};
 }
 
 // TEXCOORD_0 and COLOR_0 accessors over plain arrays (the tubes' _ATTRIBUTE is added apart).
@@ -412,13 +420,13 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
     const auto positions = [&](uint64_t first, uint64_t n) {
       return in_axes(chunk.positions.data() + 3 * first, n, options.axes);
     };
-    std::vector<double> min(3, std::numeric_limits<double>::max()), max(3, -min[0]);
-    in_pieces([&](uint64_t first, uint64_t n) {
-      std::vector<double> lo, hi;
-      bounds_of(positions(first, n).data(), n, lo, hi);
-      for (int k = 0; k < 3; ++k)
-        min[k] = std::min(min[k], lo[k]), max[k] = std::max(max[k], hi[k]);
-    });
+    std::vector<double> min, max;
+    bounds_of(chunk.positions.data(), v, min, max);
+    if (options.axes == GltfAxes::ZUp) {  // (x, y, z) written as (x, z, -y): in_axes
+      const double y_min = min[1], y_max = max[1];
+      min[1] = min[2], max[1] = max[2];
+      min[2] = -y_max, max[2] = -y_min;
+    }
     const auto floats = [&](const auto& make) {
       return [&, make](const ByteSink& sink) {
         in_pieces([&](uint64_t first, uint64_t n) {
@@ -438,25 +446,27 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
         builder.add_accessor(builder.add_view(12 * v, floats(normals), kArrayBuffer), 0,
                              TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, v);
     if (has_attribute) {
-      // One of the attribute's arrays (AttributeArrays) a piece at a time.
-      const auto mapped = [&](auto member, size_t element) {
-        return [&, member, element](const ByteSink& sink) {
+      // One of the attribute's arrays a piece at a time, `make(unorm, count)` making it.
+      const auto mapped = [&](const auto& make) {
+        return [&, make](const ByteSink& sink) {
           in_pieces([&](uint64_t first, uint64_t n) {
-            const AttributeArrays a =
-                attribute_arrays(chunk.attribute.data() + first, n, tubes.attribute_range, options);
-            sink((a.*member).data(), (a.*member).size() * element);
+            const auto piece = make(chunk.attribute.data() + first, n);
+            sink(piece.data(), piece.size() * sizeof(piece[0]));
           });
         };
       };
       primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-          builder.add_view(4 * v, mapped(&AttributeArrays::padded, 2), kArrayBuffer, 4), 0,
+          builder.add_view(4 * v, mapped(padded_attribute), kArrayBuffer, 4), 0,
           TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, v, true);
       primitive.attributes["TEXCOORD_0"] = builder.add_accessor(
-          builder.add_view(4 * v, mapped(&AttributeArrays::texcoords, 2), kArrayBuffer), 0,
+          builder.add_view(4 * v, mapped(attribute_texcoords), kArrayBuffer), 0,
           TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC2, v, true);
+      const auto colours = [&](const uint16_t* unorm, uint64_t n) {
+        return attribute_colours(unorm, n, tubes.attribute_range, options);
+      };
       if (options.colour_map.size() == 256)
         primitive.attributes["COLOR_0"] = builder.add_accessor(
-            builder.add_view(4 * v, mapped(&AttributeArrays::colours, 1), kArrayBuffer), 0,
+            builder.add_view(4 * v, mapped(colours), kArrayBuffer), 0,
             TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, v, true);
     }
     primitive.indices = builder.add_accessor(
