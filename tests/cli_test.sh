@@ -33,6 +33,9 @@ check "info of a synth source" bash -c "'$bin' info 'synth:aneurysm?scale=0.002&
 check "convert to .h5 twice, a second apart: the same bytes" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/t1.h5' 2>/dev/null && sleep 1.1 && '$bin' convert '$tmp/c.binlines' -o '$tmp/t2.h5' 2>/dev/null && cmp '$tmp/t1.h5' '$tmp/t2.h5'"
 # convert streams into .binlines in bounded memory; a format written whole (or read whole) is held
 # within --memory-budget, refused with the figures before anything is written.
+for cmd in "convert '$tmp/c.binlines' -o '$tmp/z.binlines'" "bake '$tmp/c.binlines' -o '$tmp/z.lbc.h5'" "bench voxels '$tmp/c.binlines'" "synth convection --scale 0.01 -o '$tmp/z.vtp'"; do
+  check "--memory-budget 0 is a usage error (exit 1): ${cmd%% *}" bash -c "'$bin' $cmd --memory-budget 0 2> '$tmp/z.err'; [ \$? -eq 1 ] && grep -q 'a memory budget of 0 bytes leaves no room for any work' '$tmp/z.err' && [ ! -e '$tmp/z.binlines' ] && [ ! -e '$tmp/z.lbc.h5' ] && [ ! -e '$tmp/z.vtp' ]"
+done
 check "convert to .binlines under a 40M budget streams: the same bytes" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/stream.binlines' --memory-budget 40M 2>/dev/null && cmp '$tmp/c.binlines' '$tmp/stream.binlines'"
 check "convert to .vtp past a 40M budget is refused (exit 4), nothing written" bash -c "'$bin' convert '$tmp/c.binlines' -o '$tmp/big.vtp' --memory-budget 40M 2> '$tmp/big.err'; [ \$? -eq 4 ] && grep -q 'vtp is written whole: the first .* points take .* with writing them, more than the memory budget of 40.00 MiB leaves' '$tmp/big.err' && [ ! -e '$tmp/big.vtp' ]"
 # every writable format and back gives the same bytes

@@ -77,6 +77,20 @@ CLI::Validator byte_size() {
       "SIZE");
 }
 
+CLI::Validator memory_budget_size() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text == "unlimited") return {};
+        try {
+          if (parse_size(text) == 0) return kZeroBudget;
+        } catch (const std::exception& e) {
+          return e.what();
+        }
+        return {};
+      },
+      "SIZE");
+}
+
 CLI::Validator grid_check() {
   return CLI::Validator(
       [](std::string& text) {

@@ -111,7 +111,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
                   "unlimited (default: half of physical memory)")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   sub->add_flag("--force", o.force,
                 "Rebuild every step even if the cache is up to date; replace an output file "
                 "that is not a linebake cache");

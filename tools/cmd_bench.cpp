@@ -621,7 +621,7 @@ Command add_bench(CLI::App& app) {
                     std::string("Resident memory at most, e.g. 2G; unlimited (default: half of "
                                 "physical memory): ") +
                         what)
-        ->check(byte_size());
+        ->check(memory_budget_size());
   };
   auto* tubes = step("tubes", "Tube build speed against memcpy bandwidth of the same run",
                      "prints every run, the best and the median");
@@ -651,7 +651,7 @@ Command add_bench(CLI::App& app) {
   bake->add_option("--memory-budget", args->memory_budget,
                    "Resident memory the bake may use, e.g. 2G; unlimited (default: half of "
                    "physical memory)")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   bake->add_option("--compression", args->compression,
                    "none | deflate | lz4 (default) | blosc-zstd")
       ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
@@ -697,7 +697,7 @@ Command add_bench(CLI::App& app) {
                    "As render's, for every technique and the reference: refuse a frame past it; "
                    "embree's and reference's BVH within what it leaves (default: half of "
                    "physical memory); unlimited")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   rendering->add_flag("--early-termination", render->early_termination,
                       "Stop compositing at opacity 0.99, as render (never the reference)");
   rendering->add_flag("--every-hit", render->every_hit,

@@ -91,7 +91,7 @@ Command add_convert(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory at most, e.g. 8G (default: half of physical memory); "
                   "unlimited")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   sub->add_flag("--strict", args->strict,
                 "Fail (exit 4) instead of warning when the output format cannot hold something "
                 "of the input (line attributes, metadata, attribute names)");

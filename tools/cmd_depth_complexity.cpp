@@ -81,7 +81,7 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this (default: half of physical "
                   "memory)")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   sub->add_option("--device", args->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");
   sub->add_flag("--json", args->json, "Print the statistics as JSON on stdout");

@@ -166,7 +166,7 @@ Command add_export(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory at most, e.g. 8G (default: half of physical memory); "
                   "unlimited")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   sub->add_option("--colors", args->colors,
                   "COLOR_0 from a transfer function's colours: a preset (opaque, semi, "
                   "transparent), FILE.json, or none (default semi)");

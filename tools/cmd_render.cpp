@@ -241,7 +241,7 @@ Command add_render(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: half of "
                   "physical memory)")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   const auto body = [args, sub] {
     // An option the technique does not read is a mistake, not a no-op.
     check_technique_options(find_technique(args->technique).info, given_options(sub));

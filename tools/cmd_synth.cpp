@@ -40,7 +40,7 @@ Command add_synth(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory at most, e.g. 8G (default: half of physical memory); "
                   "unlimited")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   return [args] {
     args->params.adaptive = args->adaptive;
     const auto start = std::chrono::steady_clock::now();

@@ -504,7 +504,7 @@ Command add_view(CLI::App& app) {
   sub->add_option("--memory-budget", options->memory_budget,
                   "As render's, for every technique: a frame past it is not drawn and the status "
                   "line says why (default: half of physical memory); unlimited")
-      ->check(byte_size());
+      ->check(memory_budget_size());
   sub->add_option("--script", options->script,
                   "Commands to run, one per frame (docs/viewer.md); the session ends after the "
                   "last");

@@ -7,7 +7,10 @@ namespace linebake::cli {
 
 uint64_t memory_budget_bytes(const std::string& option) {
   if (option == "unlimited") return 0;
-  return option.empty() ? default_memory_budget() : parse_size(option);
+  if (option.empty()) return default_memory_budget();
+  const uint64_t bytes = parse_size(option);
+  if (bytes == 0) throw UsageError(kZeroBudget);
+  return bytes;
 }
 
 // Measured on convection at scale 0.2 (2 million segments) on the development VM: vtp's

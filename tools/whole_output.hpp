@@ -12,7 +12,7 @@
 namespace linebake::cli {
 
 // The process's budget from a --memory-budget option: "" is half of physical memory, "unlimited"
-// none (a MemoryBudget of 0).
+// none (a MemoryBudget of 0); a size of 0 is a UsageError (no room for any work).
 uint64_t memory_budget_bytes(const std::string& option);
 
 class WholeOutput {

@@ -18,6 +18,11 @@ uint64_t physical_memory_bytes();
 // The default budget: half of physical memory.
 uint64_t default_memory_budget();
 
+// What a budget of 0 bytes is told (a usage error wherever a budget is given: `unlimited` is the
+// word for none).
+inline constexpr const char* kZeroBudget =
+    "a memory budget of 0 bytes leaves no room for any work: give a size, or unlimited for none";
+
 class MemoryBudget {
  public:
   // `total`: the process's whole budget; 0 means unlimited. What the process already holds when

@@ -128,6 +128,8 @@ uint64_t estimate_frame_bytes(const Technique& technique, const TechniqueOptions
 void set_memory_budget(TechniqueOptions& options, const std::string& budget) {
   options.memory_unlimited = budget == "unlimited";
   options.memory_budget = budget.empty() || options.memory_unlimited ? 0 : parse_size(budget);
+  if (!budget.empty() && !options.memory_unlimited && options.memory_budget == 0)
+    throw UsageError(kZeroBudget);
 }
 
 TechniqueFrame technique_frame(Image image, std::vector<uint32_t> depth_complexity, double seconds,

@@ -110,14 +110,19 @@ std::optional<T> keyword(const py::kwargs& options, const char* name) {
   }
 }
 
-// 2G, 512M, unlimited, or a number of bytes.
+// 2G, 512M, unlimited, or a number of bytes; 0 (no room for any work) is a UsageError, as on the
+// command line.
 uint64_t memory_budget_from(const py::object& value) {
+  uint64_t bytes = 0;
   if (py::isinstance<py::str>(value)) {
     const std::string text = value.cast<std::string>();
     if (text == "unlimited") return BakeOptions::kUnlimited;
-    return std::max<uint64_t>(parse_size(text), 1);
+    bytes = parse_size(text);
+  } else {
+    bytes = value.cast<uint64_t>();
   }
-  return std::max<uint64_t>(value.cast<uint64_t>(), 1);
+  if (bytes == 0) throw UsageError(std::string("memory_budget: ") + kZeroBudget);
+  return bytes;
 }
 
 BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& assets,

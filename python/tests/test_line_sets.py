@@ -357,3 +357,17 @@ def test_read_holds_a_whole_format_within_memory_budget(tmp_path):
     with pytest.raises(linebake.Error):
         linebake.read(path, memory_budget="lots")
 
+
+@pytest.mark.parametrize("budget", ["0", "0K", 0])
+def test_a_memory_budget_of_zero_is_a_usage_error(tmp_path, budget):
+    # 0 bytes leaves no room for any work ("unlimited" is the word for no budget), as on the
+    # command line: read, bake and render alike.
+    points = np.arange(3 * 10, dtype=np.float32).reshape(-1, 3)
+    path = tmp_path / "small.binlines"
+    linebake.write(linebake.LineSet(points, np.array([0, 10], dtype=np.uint64)), path)
+    with pytest.raises(linebake.UsageError, match="0 bytes leaves no room for any work"):
+        linebake.read(path, memory_budget=str(budget))
+    with pytest.raises(linebake.UsageError, match="0 bytes leaves no room for any work"):
+        linebake.bake(path, tmp_path / "small.lbc.h5", memory_budget=budget)
+    assert not (tmp_path / "small.lbc.h5").exists()
+
