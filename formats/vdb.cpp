@@ -113,24 +113,24 @@ void stamp_content_uuid(const std::string& file, const std::string& output) {
 }
 
 // The module's grids being built, let go however the export ends.
-class VdbBuild {
- public:
-  VdbBuild(const LinebakeVdbModule& module, const std::string& output) : m_(module), out_(output) {}
+struct VdbBuild {
+  const LinebakeVdbModule& module;
+  std::string output;
+  LinebakeVdbBuild* grids = nullptr;
+  char error[1024] = "";
+
+  VdbBuild(const LinebakeVdbModule& m, const std::string& path) : module(m), output(path) {}
   ~VdbBuild() {
-    if (build_) m_.end(build_);
+    if (grids) module.end(grids);
   }
   VdbBuild(const VdbBuild&) = delete;
   VdbBuild& operator=(const VdbBuild&) = delete;
   // Throws OutputError with the module's message where a call failed (BudgetExceeded where
   // memory ran out).
   void check(int failed) const {
-    if (failed == 2) throw BudgetExceeded(out_ + ": " + error_);
-    if (failed) throw OutputError(out_, error_);
+    if (failed == 2) throw BudgetExceeded(output + ": " + error);
+    if (failed) throw OutputError(output, error);
   }
-  const LinebakeVdbModule& m_;
-  std::string out_;
-  LinebakeVdbBuild* build_ = nullptr;
-  mutable char error_[1024] = "";
 };
 
 }  // namespace
@@ -180,8 +180,8 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
   const double first_centre[3] = {double(g.origin[0]) + 0.5 * h, double(g.origin[1]) + 0.5 * h,
                                   double(g.origin[2]) + 0.5 * h};
   VdbBuild build(module, path);
-  build.check(module.begin(h, first_centre, specs.data(), uint32_t(specs.size()), &build.build_,
-                           build.error_, sizeof build.error_));
+  build.check(module.begin(h, first_centre, specs.data(), uint32_t(specs.size()), &build.grids,
+                           build.error, sizeof build.error));
 
   // The voxels a block at a time (its offsets read once), each block in runs whose chords fit
   // sizes.chords; the active voxels of a run go to the module.
@@ -244,15 +244,15 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
       }
       std::vector<const float*> columns;
       for (const auto& v : values) columns.push_back(v.data());
-      build.check(module.add(build.build_, ijk.size() / 3, ijk.data(), columns.data(), build.error_,
-                             sizeof build.error_));
+      build.check(module.add(build.grids, ijk.size() / 3, ijk.data(), columns.data(), build.error,
+                             sizeof build.error));
       start = end;
     }
   }
   progress.finish();
   pieces.finish();
   const float density_scale = percentile_99(std::move(lengths));
-  build.check(module.rescale(build.build_, 0, density_scale, build.error_, sizeof build.error_));
+  build.check(module.rescale(build.grids, 0, density_scale, build.error, sizeof build.error));
   throw_if_interrupted();
 
   const std::string creator = "linebake " LINEBAKE_VERSION;
@@ -264,9 +264,9 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
       {"linebake_axes", "data: x, y, z as stored", 0, 0}};
   AtomicFile out(path);
   uint64_t expected = 0;
-  if (module.write(build.build_, out.temp_path().c_str(), meta.data(), uint32_t(meta.size()),
-                   &expected, build.error_, sizeof build.error_) != 0)
-    throw OutputError(path, std::string(build.error_) + " (" + out.temp_path() + ")");
+  if (module.write(build.grids, out.temp_path().c_str(), meta.data(), uint32_t(meta.size()),
+                   &expected, build.error, sizeof build.error) != 0)
+    throw OutputError(path, std::string(build.error) + " (" + out.temp_path() + ")");
   std::error_code ec;
   const uint64_t written = std::filesystem::file_size(out.temp_path(), ec);
   if (ec || written != expected)
