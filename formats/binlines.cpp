@@ -16,7 +16,7 @@ namespace {
 class BinlinesReader : public LineReader {
  public:
   BinlinesReader(const std::string& path, const ReadOptions& options)
-      : in_(path, options.progress) {
+      : in_(path, options.progress), memory_limit_(options.memory_limit) {
     if (in_.size() == 0) in_.fail("empty file");
     const auto version = in_.read_value<uint32_t>("version");
     if (version != 1 && version != 2)
@@ -68,6 +68,11 @@ class BinlinesReader : public LineReader {
         in_.seek(at);  // this line starts the next batch
         break;
       }
+      const uint64_t points = batch.point_count() + n;
+      io::check_batch_memory(
+          in_.path(), lines_read_, points,
+          double(points) * double(12 + 4 * attributes) + 8.0 * double(batch.line_count() + 2),
+          "byte offset " + std::to_string(at), memory_limit_);
       const size_t first = batch.positions.size();
       batch.positions.resize(first + 3 * static_cast<size_t>(n));
       in_.read(batch.positions.data() + first, 12ull * n, "positions");
@@ -93,6 +98,7 @@ class BinlinesReader : public LineReader {
 
  private:
   io::BinaryReader in_;
+  std::optional<uint64_t> memory_limit_;
   uint32_t line_count_ = 0;
 };
 

@@ -64,7 +64,8 @@ class IdSet {
 
 class CsvReader : public LineReader {
  public:
-  CsvReader(const std::string& path, const ReadOptions& options) : in_(path, options.progress) {
+  CsvReader(const std::string& path, const ReadOptions& options)
+      : in_(path, options.progress), memory_limit_(options.memory_limit) {
     std::string_view row;
     if (!in_.next(row)) throw InputError(path, at_line(1), "empty file (expected a header)");
     const auto header = split_commas(row);
@@ -117,6 +118,15 @@ class CsvReader : public LineReader {
         if (!io::parse_float(fields[k], v)) in_.fail("bad value '" + std::string(fields[k]) + "'");
         open_.attributes[k - 4].values.push_back(v);
       }
+      // A line's length is known only at its last row: what it holds is checked as it grows
+      // (its arrays and the batch's copy, both growing by doubling).
+      if (open_.positions.size() / 3 % kCheckPoints == 0) {
+        const uint64_t open_points = open_.positions.size() / 3;
+        const uint64_t points = batch.point_count() + open_points;
+        io::check_batch_memory(in_.path(), lines_read_ + batch.line_count(), points,
+                               2.0 * double(open_points + points) * double(12 + 4 * (columns_ - 4)),
+                               "text line " + std::to_string(in_.line_number()), memory_limit_);
+      }
     }
     lines_read_ += batch.line_count();
     return batch.line_count() > 0;
@@ -130,7 +140,9 @@ class CsvReader : public LineReader {
     copy_lines(header_, 0, 0, open_);
   }
 
+  static constexpr uint64_t kCheckPoints = 65536;  // the open line's memory checked so often
   io::TextReader in_;
+  std::optional<uint64_t> memory_limit_;
   size_t columns_ = 0;
   IdSet finished_;
   std::optional<int64_t> open_id_;  // id of the line being read

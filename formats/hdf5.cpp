@@ -19,6 +19,7 @@
 #include "core/h5_probe.hpp"
 #include "core/hash.hpp"
 #include "formats/formats.hpp"
+#include "formats/io_util.hpp"
 
 namespace linebake::formats {
 
@@ -60,7 +61,7 @@ namespace {
 class Hdf5Reader : public LineReader {
  public:
   Hdf5Reader(const std::string& path, const ReadOptions& options)
-      : path_(path), progress_(options.progress) {
+      : path_(path), progress_(options.progress), memory_limit_(options.memory_limit) {
     h5::init();
     if (H5Fis_hdf5(path.c_str()) <= 0)
       throw InputError(path, "", "not an HDF5 file (or unreadable)");
@@ -125,6 +126,12 @@ class Hdf5Reader : public LineReader {
                  1;
     end = std::max<size_t>(end, first + 1);
     const uint64_t p1 = offsets_[end];
+    io::check_batch_memory(
+        path_, first, p1 - p0,
+        double(p1 - p0) * double(12 + 4 * attributes_.size()) +
+            double(end - first + 1) * double(8 + 4 * line_attributes_.size()),
+        "dataset " + prefix_ + "/points, rows " + std::to_string(p0) + ".." + std::to_string(p1),
+        memory_limit_);
     batch.positions.resize(3 * (p1 - p0));
     read(points_, p0, p1 - p0, batch.positions.data());
     batch.line_offsets.resize(end - first + 1);
@@ -286,6 +293,7 @@ class Hdf5Reader : public LineReader {
 
   std::string path_;
   ProgressFn progress_;
+  std::optional<uint64_t> memory_limit_;
   Handle file_;
   std::string prefix_;
   std::vector<uint64_t> offsets_;

@@ -21,6 +21,7 @@
 #include "core/error.hpp"
 #include "core/isolated.hpp"
 #include "formats/formats.hpp"
+#include "formats/io_util.hpp"
 
 namespace linebake::formats {
 
@@ -182,7 +183,7 @@ bool invalid(double value, const std::optional<double>& fill) {
 class NetcdfReader : public LineReader {
  public:
   NetcdfReader(const std::string& path, const ReadOptions& options)
-      : nc_(path), progress_(options.progress) {
+      : nc_(path), progress_(options.progress), memory_limit_(options.memory_limit) {
     vars_ = variables(nc_);
     const bool cf = lower(text_attribute(nc_, NC_GLOBAL, "featureType")) == "trajectory";
 
@@ -278,6 +279,15 @@ class NetcdfReader : public LineReader {
         if (batch.line_count() > 0) break;
         end = file_line_ + 1;  // a line larger than max_points comes alone
       }
+      // The rows read in double beside the batch's arrays, which grow by doubling.
+      const uint64_t rows =
+          counts_ ? offsets_[end] - offsets_[file_line_] : uint64_t(end - file_line_) * row_points_;
+      const uint64_t points = batch.point_count() + rows;
+      io::check_batch_memory(nc_.path, lines_read_ + batch.line_count(), points,
+                             8.0 * double(rows) * double(3 + attribute_vars_.size()) +
+                                 2.0 * double(points) * double(12 + 4 * attribute_vars_.size()),
+                             "trajectory " + std::to_string(file_line_) + " of the file",
+                             memory_limit_);
       read_lines(file_line_, end, batch);
       file_line_ = end;
     }
@@ -341,6 +351,7 @@ class NetcdfReader : public LineReader {
 
   Nc nc_;
   ProgressFn progress_;
+  std::optional<uint64_t> memory_limit_;
   std::vector<Variable> vars_;
   const Variable* counts_ = nullptr;  // the ragged count variable, if any
   const Variable* axes_[3] = {nullptr, nullptr, nullptr};

@@ -10,6 +10,8 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
+#include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "formats/formats.hpp"
 #include "synth/synth.hpp"
@@ -284,9 +286,48 @@ std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sou
   return std::make_unique<MultiFileReader>(sources, options);
 }
 
+namespace {
+
+// The bytes of a batch's arrays.
+uint64_t held_bytes(const LineSet& batch) {
+  uint64_t values = batch.positions.size();
+  for (const Attribute& a : batch.attributes) values += a.values.size();
+  for (const Attribute& a : batch.line_attributes) values += a.values.size();
+  return 4 * values + 8 * batch.line_offsets.size();
+}
+
+// read_all within `limit` bytes (read_line_set).
+LineSet read_all_within(LineReader& reader, uint64_t limit, const std::string& source) {
+  if (std::optional<LineSet> whole = reader.take_whole()) return std::move(*whole);
+  LineSet lines = header_of(reader.header());
+  // A point's bytes at most: its position and attributes, and its line's offset and attributes
+  // (a line has a point at least).
+  const uint64_t point_bytes =
+      12 + 4 * lines.attributes.size() + 8 + 4 * lines.line_attributes.size();
+  const uint64_t max_points = std::clamp<uint64_t>(limit / 4 / point_bytes, 1, uint64_t{1} << 22);
+  LineSet batch;
+  uint64_t held = 0;
+  while (reader.next(batch, max_points)) {
+    throw_if_interrupted();
+    held += held_bytes(batch);
+    if (3 * held > limit)
+      throw BudgetExceeded(source + ": read whole, its first " +
+                           std::to_string(lines.point_count() + batch.point_count()) +
+                           " points and their arrays' growth take about " + format_bytes(3 * held) +
+                           " in memory, more than the " + format_bytes(limit) +
+                           " the memory budget leaves for reading; raise the budget "
+                           "(--memory-budget; memory_budget= in Python)");
+    append_lines(lines, batch);
+  }
+  return lines;
+}
+
+}  // namespace
+
 LineSet read_line_set(const std::string& source, const ReadOptions& options) {
   const std::unique_ptr<LineReader> reader = open_line_reader(source, options);
-  LineSet lines = read_all(*reader);
+  LineSet lines = options.memory_limit ? read_all_within(*reader, *options.memory_limit, source)
+                                       : read_all(*reader);
   if (synth::is_synth_source(source)) return lines;
   // A file with no lines is a valid, empty line set (a filter that kept nothing writes one);
   // what needs lines (bake) says so.

@@ -43,7 +43,10 @@ struct ReadOptions {
   // line set gathered from them together; none: no limit (0: nothing, a budget used up). Each
   // reader checks what it will hold before it allocates (from the counts a VTK or VTP header
   // declares; an OBJ's as they grow) and throws BudgetExceeded naming the file past it, so a large
-  // file is refused, not the process killed.
+  // file is refused, not the process killed. The formats that stream hold one batch at a time,
+  // and check it the same way: a batch holds at most the points its caller asks for unless one
+  // line alone has more, and such a line is refused at its place (its byte offset, text line or
+  // dataset rows) before it is read (LineReader::next).
   std::optional<uint64_t> memory_limit;
 };
 
@@ -74,7 +77,10 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options = {});
 // The whole line set. Throws InputError (with file and place) on malformed input, Error on
-// unsupported requests.
+// unsupported requests. With ReadOptions::memory_limit, a format that streams is gathered in
+// batches sized to it, and BudgetExceeded names the source where the lines gathered, with their
+// arrays' growth (up to three times them: the old and the doubled arrays side by side), would
+// pass it.
 LineSet read_line_set(const std::string& source, const ReadOptions& options = {});
 // Format name of a source, as read_line_set would choose it ("synth" for synthetic sources).
 std::string source_format_name(const std::string& source, const ReadOptions& options = {});

@@ -16,7 +16,8 @@ namespace {
 
 class TckReader : public LineReader {
  public:
-  TckReader(const std::string& path, const ReadOptions& options) : in_(path, options.progress) {
+  TckReader(const std::string& path, const ReadOptions& options)
+      : in_(path, options.progress), memory_limit_(options.memory_limit) {
     std::string datatype;
     uint64_t data_offset = 0;
     {
@@ -98,13 +99,25 @@ class TckReader : public LineReader {
       }
       open_.insert(open_.end(), {static_cast<float>(xyz[0]), static_cast<float>(xyz[1]),
                                  static_cast<float>(xyz[2])});
+      // A streamline's length is known only at its NaN: what it holds is checked as it grows
+      // (its buffer and the batch's copy, both growing by doubling).
+      const uint64_t open_points = open_.size() / 3;
+      if (open_points % kCheckPoints == 0) {
+        const uint64_t points = batch.point_count() + open_points;
+        io::check_batch_memory(
+            in_.path(), lines_read_ + batch.line_count(), points,
+            24.0 * double(open_points + points),
+            "its point at byte offset " + std::to_string(in_.offset() - 3 * size_), memory_limit_);
+      }
     }
     lines_read_ += batch.line_count();
     return batch.line_count() > 0;
   }
 
  private:
+  static constexpr uint64_t kCheckPoints = 65536;  // the open streamline's memory checked so often
   io::BinaryReader in_;
+  std::optional<uint64_t> memory_limit_;
   int64_t declared_count_ = -1;
   size_t size_ = 0;
   bool swap_ = false;

@@ -19,7 +19,8 @@ std::string field_name(const char* raw, size_t size) {
 
 class TrkReader : public LineReader {
  public:
-  TrkReader(const std::string& path, const ReadOptions& options) : in_(path, options.progress) {
+  TrkReader(const std::string& path, const ReadOptions& options)
+      : in_(path, options.progress), memory_limit_(options.memory_limit) {
     std::array<char, 1000> h{};
     in_.read(h.data(), h.size(), "the 1000-byte header");
     if (std::memcmp(h.data(), "TRACK", 5) != 0)
@@ -99,6 +100,12 @@ class TrkReader : public LineReader {
         full = true;
         break;
       }
+      // The streamline's record buffer beside the batch's arrays, which grow by doubling.
+      const uint64_t points = batch.point_count() + static_cast<uint64_t>(m);
+      io::check_batch_memory(
+          in_.path(), lines_read_, points,
+          double(m) * double(stride) * 4.0 + 2.0 * double(points) * double(12 + 4 * n_scalars_),
+          "byte offset " + std::to_string(at), memory_limit_);
       record_.resize(static_cast<size_t>(m) * stride);
       in_.read(record_.data(), record_.size() * 4, "streamline points");
       if (swap_) io::byteswap_array(record_.data(), record_.size(), 4);
@@ -124,6 +131,7 @@ class TrkReader : public LineReader {
 
  private:
   io::BinaryReader in_;
+  std::optional<uint64_t> memory_limit_;
   bool swap_ = false;
   int n_scalars_ = 0, n_properties_ = 0;
   int32_t n_count_ = 0;

@@ -146,6 +146,25 @@ TEST(BakeStream, ABudgetTooSmallForOneLineFailsNamingTheLineAndLeavesNothing) {
     EXPECT_NE(message.find("memory budget"), std::string::npos) << message;
   }
   EXPECT_EQ(dir.entries(), std::vector<std::string>{"long.binlines"});
+  // A line larger than what the budget leaves for reading (18 MB against about 9 MiB): the
+  // reader refuses it at its place (after the header's 12 bytes and the short line's 244)
+  // before reading it.
+  for (int i = 400000; i < 1500000; ++i)
+    lines.append_point(float(i % 1000), float(i / 1000), float(i % 7));
+  lines.line_offsets.back() = lines.point_count();
+  write_line_set(lines, input);
+  o = streamed_options(input, dir.file("long.lbc.h5"), working_budget(36 << 20));
+  try {
+    bake(o);
+    FAIL() << "baked";
+  } catch (const BudgetExceeded& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("long.binlines: line 1 (byte offset 256), which is read whole, makes a "
+                           "batch of 1500000 points, about 17.17 MiB"),
+              std::string::npos)
+        << message;
+  }
+  EXPECT_EQ(dir.entries(), std::vector<std::string>{"long.binlines"});
 }
 
 TEST(BakeStream, SpillFilesAreRemovedAfterAFailure) {

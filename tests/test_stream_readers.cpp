@@ -529,6 +529,57 @@ TEST(StreamReaderContent, TckTrkCsvNetcdfValues) {
   EXPECT_FALSE(reader->next(batch, 3));
 }
 
+// A line larger than a batch comes alone, whole: a streaming reader checks what it will hold
+// against ReadOptions::memory_limit before reading it (the growing .tck and .csv lines every
+// 65,536 points), so an input whose single line does not fit is refused at that line, naming it,
+// not read into memory. Lines of 3, 100,000 and 2 points (1.2 MB of positions in the long one)
+// under a limit of 1 MB: the first batch reads, the second is refused; under 64 MB, every point.
+TEST(StreamReaderContent, ALineLargerThanTheMemoryLimitIsRefusedBeforeItIsRead) {
+  TempDir dir;
+  const std::vector<size_t> sizes = {3, 100000, 2};
+  const std::vector<Polyline> lines = polylines(sizes);
+  LineSet set;
+  for (const Polyline& line : lines) {
+    for (const Point& p : line) set.append_point(float(p[0]), float(p[1]), float(p[2]));
+    set.end_line();
+  }
+  write_line_set(set, dir.file("a.binlines"));
+  write_line_set(set, dir.file("a.h5"));
+  write_bytes(dir.file("a.tck"), tck_bytes(lines, {}));
+  write_bytes(dir.file("a.trk"), trk_bytes(lines, {}));
+  std::string text = "line_id,x,y,z\n";
+  for (size_t l = 0; l < lines.size(); ++l)
+    for (const Point& p : lines[l])
+      text += std::to_string(l) + "," + std::to_string(p[0]) + ",0,1\n";
+  write_text(dir.file("a.csv"), text);
+  std::vector<double> x;
+  for (const Polyline& line : lines)
+    for (const Point& p : line) x.push_back(p[0]);
+  write_ragged(dir.file("a.nc"), {3, 100000, 2}, x, true);
+  for (const char* name : {"a.binlines", "a.h5", "a.tck", "a.trk", "a.csv", "a.nc"}) {
+    SCOPED_TRACE(name);
+    ReadOptions read;
+    read.memory_limit = 1000000;
+    auto reader = open_line_reader(dir.file(name), read);
+    LineSet batch;
+    ASSERT_TRUE(reader->next(batch, 16));
+    EXPECT_EQ(batch.line_offsets, (std::vector<uint64_t>{0, 3}));
+    try {
+      reader->next(batch, 16);
+      ADD_FAILURE() << "the 100,000-point line was read under a limit of 1 MB";
+    } catch (const BudgetExceeded& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find(dir.file(name) + ": line 1 ("), std::string::npos) << message;
+      EXPECT_NE(message.find("976.56 KiB"), std::string::npos) << message;
+    }
+    read.memory_limit = uint64_t{64} << 20;
+    reader = open_line_reader(dir.file(name), read);
+    uint64_t points = 0;
+    while (reader->next(batch, 16)) points += batch.point_count();
+    EXPECT_EQ(points, 100005u);
+  }
+}
+
 // A file with a header and no lines (nibabel writes such .tck and .trk files): no batch, and
 // read_line_set's empty line set.
 TEST(StreamReaderContent, NoLines) {

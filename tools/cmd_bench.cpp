@@ -93,41 +93,20 @@ MemoryBudget step_budget(const BenchArgs& args) {
                        format_bytes(budget.available()) + "); raise --memory-budget");
 }
 
-// The whole line set, as the builders take it, within the budget: a format read whole checks
-// its own arrays (ReadOptions::memory_limit); the others are gathered in batches sized to the
-// budget, and a batch is refused where the lines with it, and their vectors' growth (up to
-// three times them, the old and the doubled arrays side by side), would not fit. (A reader
-// reads a line longer than a batch whole before it can be checked.)
+// The whole line set, as the builders take it, within the budget (read_line_set with
+// ReadOptions::memory_limit: a format read whole checks its own arrays; the others are gathered
+// in batches, refused where the lines and their arrays' growth would not fit, or at a line that
+// alone would not).
 LineSet load(const std::string& step, const BenchArgs& args, const MemoryBudget& budget) {
   TerminalProgress progress("loading " + args.input);
   ReadOptions read;
   read.progress = progress.callback();
-  if (budget.unlimited()) return read_line_set(args.input, read);
-  read.memory_limit = budget.available();
-  const std::unique_ptr<LineReader> reader = open_line_reader(args.input, read);
-  if (std::optional<LineSet> whole = reader->take_whole()) return std::move(*whole);
-  LineSet lines = header_of(reader->header());
-  // A point's bytes at most: its position and attributes, and its line's offset and attributes
-  // (a line has a point at least).
-  const uint64_t point_bytes =
-      12 + 4 * lines.attributes.size() + 8 + 4 * lines.line_attributes.size();
-  const uint64_t max_points =
-      std::clamp<uint64_t>(budget.available() / 4 / point_bytes, 1, uint64_t{1} << 22);
-  LineSet batch;
-  uint64_t held = 0;
-  while (reader->next(batch, max_points)) {
-    throw_if_interrupted();
-    held += line_set_bytes(batch);
-    if (3 * held > budget.available())
-      refuse(step,
-             args.input + " read whole, its first " +
-                 std::to_string(lines.point_count() + batch.point_count()) +
-                 " points and their arrays' growth",
-             3 * held, budget);
-    append_lines(lines, batch);
+  if (!budget.unlimited()) read.memory_limit = budget.available();
+  try {
+    return read_line_set(args.input, read);
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded("bench " + step + ": " + e.what());
   }
-  if (!synth::is_synth_source(args.input)) lines.metadata.emplace("source", args.input);
-  return lines;
 }
 
 // Keeps a streamed voxel build's figures, not its arrays: what the grid would hold.

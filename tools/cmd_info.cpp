@@ -39,7 +39,8 @@ Command add_info(CLI::App& app) {
     {
       TerminalProgress progress("reading");
       read.progress = progress.callback();
-      // A format read whole is held within the default budget (half of physical memory).
+      // A format read whole, or a line larger than a batch, is held within the default budget
+      // (half of physical memory).
       read.memory_limit = MemoryBudget(default_memory_budget()).available();
       const std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
       metadata = input->header().metadata;

@@ -21,7 +21,8 @@ class LineReader {
   const LineSet& header() const { return header_; }
   // Fills `batch` with the next whole lines: together at most `max_points` points, unless the
   // next line alone has more (it then comes alone). False, with `batch` empty, at the end.
-  // Throws InputError naming the file and the place on malformed input.
+  // Throws InputError naming the file and the place on malformed input, and BudgetExceeded
+  // where a batch would hold more than ReadOptions::memory_limit (a line alone larger than it).
   virtual bool next(LineSet& batch, uint64_t max_points) = 0;
   // True when lines come from the input piece by piece; false when the format had to be read
   // whole first (lines that jump around a shared point array: OBJ, VTK, VTP).
