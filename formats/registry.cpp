@@ -1,9 +1,11 @@
 #include "formats/registry.hpp"
 
 #include <glob.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cctype>
+#include <map>
 #include <new>
 #include <set>
 
@@ -202,6 +204,15 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
   std::sort(paths.begin(), paths.end());
   for (size_t i = 1; i < paths.size(); ++i)
     if (paths[i] == paths[i - 1]) throw InputError(paths[i], "", "named twice among the inputs");
+  // The same file under two spellings (a/b and ./a/b, a link): by its device and inode.
+  std::map<std::pair<dev_t, ino_t>, const std::string*> files;
+  for (const std::string& p : paths) {
+    struct stat st {};
+    if (synth::is_synth_source(p) || ::stat(p.c_str(), &st) != 0) continue;  // checked on open
+    const auto [first, fresh] = files.emplace(std::pair(st.st_dev, st.st_ino), &p);
+    if (!fresh)
+      throw InputError(p, "", "named twice among the inputs (also as " + *first->second + ")");
+  }
   if (paths.size() > 1)
     for (const std::string& p : paths)
       if (synth::is_synth_source(p))

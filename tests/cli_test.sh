@@ -480,6 +480,7 @@ assert j['segments'] == 495000 and j['memory_budget_bytes'] == 128 << 20, j
 assert [s['stage'] for s in j['stages']][:3] == ['read', 'lines', 'build'], j['stages']
 assert 0 < j['peak_rss_bytes'] <= 128 << 20 and j['bytes_written'] > 0 and j['memcpy_GBps'] > 0, j
 import os; assert not os.path.exists('$tmp/bench.lbc.h5')"
+check "bench bake without -o: <input name>.bench.lbc.h5 in the working directory, kept with --keep" bash -c "mkdir -p '$tmp/bbd' && cd '$tmp/bbd' && '$bin' bench bake '$tmp/c.binlines' --repeat 1 --keep --json > /dev/null && [ \"\$(ls)\" = c.bench.lbc.h5 ]"
 check "Ctrl-C during a bake: exit 130, no cache, no spill or temporary file" bash -c "
 '$bin' synth clouds --scale 0.1 -o '$tmp/k.binlines' 2> /dev/null
 '$bin' bake '$tmp/k.binlines' -o '$tmp/k.lbc.h5' --assets tubes,voxels --grid 128 --memory-budget $(incidental_budget 128M) 2> '$tmp/int.err' > /dev/null & pid=\$!

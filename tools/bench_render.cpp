@@ -18,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/measure.hpp"
+#include "core/nearest.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render/image.hpp"
@@ -316,7 +317,13 @@ void bench_render(const BenchRenderArgs& args) {
       names.push_back(name);
       if (name == "vrc") names.push_back("vrc-gpu");
     }
-  for (const std::string& name : names) find_technique(technique_of(name));  // fail first
+  // Fail first, as a bad command line (exit 1), with the nearest known name.
+  std::vector<std::string> known = technique_names();
+  for (const BenchVariant& v : kBenchVariants) known.push_back(v.name);
+  for (const std::string& name : names)
+    if (std::find(known.begin(), known.end(), name) == known.end())
+      throw UsageError("--techniques: unknown technique '" + name + "' (" + name_list(known) + ")" +
+                       did_you_mean(name, known));
   for (const std::string& path : args.caches)
     if (!std::filesystem::is_regular_file(path)) throw InputError(path, "", "no such cache file");
   std::vector<TransferFunction> tfs;

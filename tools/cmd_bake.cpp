@@ -44,7 +44,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   "Cache file (default: <input name>.lbc.h5; required with several inputs)");
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
-      ->check(CLI::IsMember({"reject", "repair"}));
+      ->check(one_of({"reject", "repair"}));
   sub->add_option("--assets", o.assets,
                   "Assets to build: tubes, voxels, embree, rtx (default: tubes)")
       ->delimiter(',')
@@ -60,7 +60,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   "Per-point radius: radius * value / max(value) of this vertex attribute");
   sub->add_flag("--caps", o.tubes.caps, "Close the tube ends");
   sub->add_option("--normals", args->normals, "float32 (default) | oct16")
-      ->check(CLI::IsMember({"float32", "oct16"}));
+      ->check(one_of({"float32", "oct16"}));
   sub->add_option("--attribute", o.tubes.attribute,
                   "Attribute stored per vertex (default: the first vertex attribute; none)");
   sub->add_option("--attribute-range", args->attribute_range,
@@ -84,9 +84,9 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   "none)");
   sub->add_option("--embree-geometry", args->embree_geometry,
                   "Embree: linear (default, round linear curves) | bezier (Catmull-Rom)")
-      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
+      ->check(one_of({"linear", "bezier", "capsules"}));
   sub->add_option("--embree-quality", args->embree_quality, "Embree: low | medium (default) | high")
-      ->check(CLI::IsMember({"low", "medium", "high"}));
+      ->check(one_of({"low", "medium", "high"}));
   sub->add_flag("--embree-compact", o.embree.compact, "Embree: RTC_SCENE_FLAG_COMPACT");
   sub->add_flag("--embree-robust", o.embree.robust, "Embree: RTC_SCENE_FLAG_ROBUST");
   sub->add_option("--embree-max-primitives", o.embree.max_primitives_per_scene,
@@ -95,7 +95,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::Range(uint64_t{1}, uint64_t{0xFFFFFFFF}));
   sub->add_option("--rtx-geometry", o.rtx.geometry,
                   "rtx: BLAS over the tube mesh's triangles (default) or capsule AABBs")
-      ->check(CLI::IsMember({"triangles", "capsules"}));
+      ->check(one_of({"triangles", "capsules"}));
   sub->add_flag(
       "--rtx-no-compaction", [&o](int64_t) { o.rtx.compaction = false; },
       "rtx: keep the BLAS as built (default: compacted)");
@@ -104,7 +104,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
   sub->add_flag("--validation", o.rtx.validation,
                 "rtx: Khronos validation layer on; validation errors fail the bake");
   sub->add_option("--compression", args->compression, "none | deflate | lz4 (default) | blosc-zstd")
-      ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
+      ->check(one_of({"none", "deflate", "lz4", "blosc-zstd"}));
   sub->add_option("--compression-level", o.compression_level,
                   "Codec level: deflate 1-9 (default 4), blosc-zstd 1-9 (default 5)")
       ->check(CLI::Range(1, 9));

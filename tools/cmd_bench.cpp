@@ -490,10 +490,12 @@ void bench_bake(const BenchArgs& args) {
     options.memory_budget = BakeOptions::kUnlimited;
   else if (!args.memory_budget.empty())
     options.memory_budget = std::max<uint64_t>(linebake::parse_size(args.memory_budget), 1);
-  options.cache =
-      args.output.empty()
-          ? std::filesystem::path(default_cache_path(args.input)).stem().string() + ".bench.lbc.h5"
-          : args.output;
+  // <input name>.bench.lbc.h5: bake's default name with .bench before its .lbc.h5.
+  const std::string bake_name = default_cache_path(args.input);
+  options.cache = args.output.empty()
+                      ? bake_name.substr(0, bake_name.size() - std::string(".lbc.h5").size()) +
+                            ".bench.lbc.h5"
+                      : args.output;
   // Each run starts from no cache, so the output is removed first: never the input.
   refuse_input_as_output(options.cache, {args.input});
   std::vector<BakeResult> runs;
@@ -619,9 +621,9 @@ Command add_bench(CLI::App& app) {
   auto* embree = step("embree", "linebake's Embree build against a bare rtcCommitScene",
                       "prints the best of each and their ratio");
   embree->add_option("--embree-geometry", args->geometry, "linear (default) | bezier | capsules")
-      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
+      ->check(one_of({"linear", "bezier", "capsules"}));
   embree->add_option("--embree-quality", args->quality, "low | medium (default) | high")
-      ->check(CLI::IsMember({"low", "medium", "high"}));
+      ->check(one_of({"low", "medium", "high"}));
   within_budget(embree, "the lines read whole, both scenes' buffers and BVH, refused past it");
   auto* bake = step("bake", "A whole bake, per stage: wall and CPU time, peak RSS, spill, writes",
                     "prints the run of median wall time in detail");
@@ -633,7 +635,7 @@ Command add_bench(CLI::App& app) {
       ->check(memory_budget_size());
   bake->add_option("--compression", args->compression,
                    "none | deflate | lz4 (default) | blosc-zstd")
-      ->check(CLI::IsMember({"none", "deflate", "lz4", "blosc-zstd"}));
+      ->check(one_of({"none", "deflate", "lz4", "blosc-zstd"}));
   bake->add_option("-o,--output", args->output,
                    "The cache to write (default <input name>.bench.lbc.h5, removed after)");
   bake->add_flag("--keep", args->keep, "Keep the cache");

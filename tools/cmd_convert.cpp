@@ -73,7 +73,7 @@ Command add_convert(CLI::App& app) {
   sub->add_option("--to", args->to, "Output format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid,
                   "reject: fail on invalid data; repair: drop/split and report (default)")
-      ->check(CLI::IsMember({"reject", "repair"}));
+      ->check(one_of({"reject", "repair"}));
   sub->add_option("--derive", args->derive,
                   "Add derived attributes: segment_length, arc_length, curvature, "
                   "index_along_line, line_length (one of the input's own names is replaced)")
@@ -86,7 +86,7 @@ Command add_convert(CLI::App& app) {
       ->check(CLI::Range(1, 2));
   sub->add_option("--vtp-encoding", args->vtp_encoding,
                   "vtp: appended | appended-base64 | base64 | ascii")
-      ->check(CLI::IsMember({"appended", "appended-base64", "base64", "ascii"}));
+      ->check(one_of({"appended", "appended-base64", "base64", "ascii"}));
   sub->add_flag("--no-compress", args->no_compress, "vtp: no zlib compression");
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory at most, e.g. 8G (default: half of physical memory); "

@@ -64,7 +64,7 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--stats", args->stats, "Statistics as JSON (per frame)");
   sub->add_option("--on", args->on,
                   "gpu: count with one Vulkan draw (default) | cpu: the exact reference tracer")
-      ->check(CLI::IsMember({"gpu", "cpu"}));
+      ->check(one_of({"gpu", "cpu"}));
   sub->add_option(
       "--tf", args->tf,
       "Transfer function (recorded; every front fragment counts, whatever its opacity)");
@@ -74,7 +74,7 @@ Command add_depth_complexity(CLI::App& app) {
   auto* frame = sub->add_option("--frame", args->frame, "Frame, 0 .. frame count - 1 (default 0)")
                     ->check(CLI::Range(0, 99999));
   auto* frames = sub->add_option("--frames", args->frames, "all: every frame (outputs get _NNN)")
-                     ->check(CLI::IsMember({"all"}));
+                     ->check(one_of({"all"}));
   frame->excludes(frames);
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
       ->check(image_size_check());

@@ -162,7 +162,7 @@ Command add_export(CLI::App& app) {
   sub->add_option("--axes", args->axes,
                   "glTF axes: z-up (the data's +z becomes glTF's +y, as importers expect; "
                   "default) or raw (coordinates as stored)")
-      ->check(CLI::IsMember({"z-up", "raw"}));
+      ->check(one_of({"z-up", "raw"}));
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory at most, e.g. 8G (default: half of physical memory); "
                   "unlimited")

@@ -28,7 +28,7 @@ Command add_synth(CLI::App& app) {
   auto args = std::make_shared<Args>();
   sub->add_option("name", args->params.name, "Data set")
       ->required()
-      ->check(CLI::IsMember({"aneurysm", "convection", "turbulence", "clouds"}));
+      ->check(one_of({"aneurysm", "convection", "turbulence", "clouds"}));
   sub->add_option("-o,--output", args->output, "Output file (any writable format)")->required();
   sub->add_option("--scale", args->params.scale,
                   "Fraction of the paper's size (default 1.0; up to 100, generated and written "

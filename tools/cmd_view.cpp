@@ -491,7 +491,7 @@ Command add_view(CLI::App& app) {
                   "elsewhere the status line says why not); vrc-gpu is vrc --on gpu");
   auto on = std::make_shared<std::string>();
   sub->add_option("--on", *on, "vrc: cpu (default) | gpu (Vulkan compute), as for render")
-      ->check(CLI::IsMember({"cpu", "gpu"}));
+      ->check(one_of({"cpu", "gpu"}));
   sub->add_option("--tf", options->tf, "First transfer function (default semi); F cycles presets");
   sub->add_option("--size", *size_text, "Window size WxH (default 1280x720)");
   sub->add_option("--flight", options->flight,

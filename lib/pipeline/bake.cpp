@@ -494,7 +494,7 @@ BakeResult bake(const BakeOptions& options_in) {
     if (options.input.empty())
       options.input = inputs.front() + " and " + std::to_string(inputs.size() - 1) + " more";
     if (options.cache.empty())
-      throw Error("several inputs make one line set: name its cache with -o");
+      throw UsageError("several inputs make one line set: name its cache with -o");
   }
   BakeResult result;
   // A cache is a line source too: baking it without -o (or into itself) adds assets to it.

@@ -163,7 +163,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   BakeResult result;
   result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
                                        : options.cache;
-  if (result.cache.empty()) throw Error("several inputs make one line set: name its cache with -o");
+  if (result.cache.empty())
+    throw UsageError("several inputs make one line set: name its cache with -o");
   // The default: half of the node's memory, shared by the ranks on this node.
   int ranks_on_node = 1;
   {

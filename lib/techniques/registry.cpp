@@ -158,7 +158,8 @@ std::vector<std::string> technique_names() {
 const Technique& find_technique(const std::string& name) {
   for (const Technique& t : techniques())
     if (t.info.name == name) return t;
-  throw Error("unknown technique '" + name + "' (" + name_list(technique_names()) + ")");
+  throw UsageError("unknown technique '" + name + "' (" + name_list(technique_names()) + ")" +
+                   did_you_mean(name, technique_names()));
 }
 
 std::optional<std::string> technique_unavailable(const Technique& technique,
