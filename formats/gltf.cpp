@@ -26,6 +26,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 #include "core/progress.hpp"
 #include "core/spill_file.hpp"
 #include "tubes/mesh_pieces.hpp"
@@ -379,6 +380,7 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
       for (const MeshPiece& p :
            independent_pieces({chunk.indices.data(), chunk.indices.size()}, v,
                               std::max<uint64_t>(options.draco_piece_vertices, 1))) {
+        throw_if_interrupted();  // a piece's encoding takes seconds: Ctrl-C between pieces
         const uint64_t n = p.vertices;
         if (options.draco_max_piece_vertices > 0 && n > options.draco_max_piece_vertices)
           throw BudgetExceeded("Draco: tube chunk " + std::to_string(c) + " has a piece of " +
@@ -414,8 +416,10 @@ void add_tubes(tinygltf::Model& model, ModelBuilder& builder, const TubeChunks& 
     // The chunk's arrays in the output's form a piece of kViewPiece vertices at a time, straight
     // to the sink: what the chunk holds, not again that much in glTF arrays.
     const auto in_pieces = [&](const auto& each) {
-      for (uint64_t first = 0; first < v; first += kViewPiece)
+      for (uint64_t first = 0; first < v; first += kViewPiece) {
+        throw_if_interrupted();
         each(first, std::min(kViewPiece, v - first));
+      }
     };
     const auto positions = [&](uint64_t first, uint64_t n) {
       return in_axes(chunk.positions.data() + 3 * first, n, options.axes);
@@ -676,7 +680,10 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
   const size_t chunks = tubes ? tubes->description.chunks.size() : 0;
   TerminalProgress progress("export " + std::filesystem::path(path).filename().string());
   size_t chunks_done = 0;
-  const auto chunk_done = [&] { progress.update(++chunks_done, 2 * chunks); };
+  const auto chunk_done = [&] {
+    throw_if_interrupted();  // Ctrl-C between chunks: nothing is written (cmd_export's group)
+    progress.update(++chunks_done, 2 * chunks);
+  };
   DracoChunks draco;
   if (options.draco && tubes) draco.spill = std::make_unique<SpillFile>(path, "draco");
   // Each pass hashes the buffer's bytes: the second must write what the first laid out (the

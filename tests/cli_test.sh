@@ -487,6 +487,10 @@ check "Ctrl-C during a bake: exit 130, no cache, no spill or temporary file" bas
 for i in \$(seq 200); do ls '$tmp' | grep -q 'k.lbc.h5.*tmp-' && break; sleep 0.02; done
 sleep 0.3; kill -INT \$pid; wait \$pid; rc=\$?
 [ \$rc -eq 130 ] && grep -q 'interrupted by SIGINT' '$tmp/int.err' && [ ! -e '$tmp/k.lbc.h5' ] && ! ls '$tmp' | grep -q tmp-"
+check "Ctrl-C during a Draco export (about 4.7 s on the development VM): exit 130, no output, no temporary file" bash -c "
+'$bin' export '$tmp/c.lbc.h5' -o '$tmp/kx.glb' --draco --draco-speed 0 2> '$tmp/xint.err' > /dev/null & pid=\$!
+sleep 0.7; kill -INT \$pid; wait \$pid; rc=\$?
+[ \$rc -eq 130 ] && grep -q 'interrupted by SIGINT' '$tmp/xint.err' && [ ! -e '$tmp/kx.glb' ] && ! ls '$tmp' | grep -q tmp-"
 
 # One contract (docs/cli.md): catalogues, help, in-place bakes, what is dropped, what stays on a terminal
 check "techniques --json lists every technique render accepts" python3 -c "

@@ -605,6 +605,24 @@ TEST(Camera, KeyframesInterpolateAndBadFilesNameThePlace) {
     EXPECT_EQ(e.where(), "keyframe 1");
     EXPECT_NE(std::string(e.what()).find("up lies along the view direction"), std::string::npos);
   }
+  // Two good keyframes whose interpolated middle frame looks straight down along its up (eye
+  // (0, 0, 3) over the target, up (0, 0, 1)): refused, naming that frame, not rendered (Embree
+  // aborted on its NaN rays).
+  const std::string opposite = dir.file("opposite.json");
+  std::ofstream(opposite) << R"({"keyframes": [
+      {"eye": [3, 3, 3], "target": [0, 0, 0], "up": [0, 0, 1]},
+      {"eye": [-3, -3, 3], "target": [0, 0, 0], "up": [0, 0, 1]}]})";
+  o.keyframes_file = opposite;
+  o.frames = 3;
+  try {
+    make_flight(b, 1.0, o);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "frame 1 (between keyframes 0 and 1)");
+    EXPECT_NE(std::string(e.what()).find("up lies along the view direction"), std::string::npos);
+  }
+  o.frames = 2;  // the keyframes alone are good cameras
+  EXPECT_EQ(make_flight(b, 1.0, o).size(), 2u);
 }
 
 // Each thing that makes a camera unusable, by hand, and a good one.
@@ -616,10 +634,13 @@ TEST(Camera, ProblemsAreNamed) {
   EXPECT_EQ(camera_problem(on), "the eye is on the target");
   Camera nan = c;
   nan.eye.x = std::nan("");
-  EXPECT_EQ(camera_problem(nan), "eye, target and up must be finite numbers (below 1e150)");
+  EXPECT_EQ(camera_problem(nan), "eye, target and up must be finite numbers (below 1e18)");
   Camera huge = c;
-  huge.eye.z = 1e300;
+  huge.eye.z = 2e18;  // past Embree's ray origins
   EXPECT_EQ(camera_problem(huge), camera_problem(nan));
+  Camera far = c;
+  far.eye.z = 9e17;
+  EXPECT_EQ(camera_problem(far), "");
   Camera flat = c;
   flat.up = {0, 0, -3};  // along eye - target
   EXPECT_EQ(camera_problem(flat), "up lies along the view direction");

@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "formats/gltf.hpp"
@@ -235,6 +236,9 @@ Command add_export(CLI::App& app) {
     const auto start = std::chrono::steady_clock::now();
     OutputGroup outputs;
     body();
+    // A Ctrl-C that came while a library wrote (Draco's encoder, OpenVDB's writer, the last
+    // piece) stops here, before anything is renamed into place.
+    throw_if_interrupted();
     outputs.commit();
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -12,11 +12,13 @@
 namespace linebake {
 
 std::string camera_problem(const Camera& c) {
+  // Embree refuses rays whose origin lies past about 1.8e18 (its ray.valid(), an assertion), and
+  // the GPU techniques compute in float32: positions past 1e18 are no camera of ours.
   const auto usable = [](const glm::dvec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && glm::length(v) < 1e150;
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z) && glm::length(v) < 1e18;
   };
   if (!usable(c.eye) || !usable(c.target) || !usable(c.up))
-    return "eye, target and up must be finite numbers (below 1e150)";
+    return "eye, target and up must be finite numbers (below 1e18)";
   const glm::dvec3 view = c.target - c.eye;
   if (!(glm::length(view) > 0)) return "the eye is on the target";
   if (!(glm::length(c.up) > 0)) return "up has zero length";
@@ -191,6 +193,13 @@ std::vector<Camera> make_flight(const Bounds& bounds, double aspect, const Fligh
       c.fov_y_degrees =
           keys[k].fov_y_degrees + t * (keys[k1].fov_y_degrees - keys[k].fov_y_degrees);
       fit_clip_planes(c, s);
+      // Good keyframes can make a bad camera between them (an up that turns along the view, an
+      // eye that passes through the target): refused, naming the frame and its keyframes.
+      if (const std::string problem = camera_problem(c); !problem.empty())
+        throw InputError(o.keyframes_file,
+                         "frame " + std::to_string(i) + " (between keyframes " + std::to_string(k) +
+                             " and " + std::to_string(k1) + ")",
+                         problem);
       cameras.push_back(c);
     }
     return cameras;
@@ -205,6 +214,9 @@ std::vector<Camera> make_flight(const Bounds& bounds, double aspect, const Fligh
       }
     cameras.push_back(frame_bounds(bounds, aspect, 360.0 * s, o.elevation_degrees,
                                    1.0 - 0.65 * zoom, o.fov_y_degrees));
+    if (const std::string problem = camera_problem(cameras.back()); !problem.empty())
+      throw Error("flight " + std::string(to_string(o.kind)) + ", frame " + std::to_string(i) +
+                  ": the data's bounds make no camera: " + problem);
   }
   return cameras;
 }
