@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -162,8 +163,18 @@ uint64_t vdb_build_bytes(const VoxelGrid& g) {
 }
 
 void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes) {
-  const LinebakeVdbModule& module = load_vdb_module(path);
   const VoxelGrid& g = pieces.description();
+  // OpenVDB's linear transforms refuse a scale whose determinant is below 3e-15 (ScaleMap, in
+  // openvdb/math/Maps.h), so voxels smaller than about 1.45e-5 units cannot be written.
+  if (!(g.voxel_size * g.voxel_size * g.voxel_size >= 3e-15)) {
+    char size[32];
+    std::snprintf(size, sizeof size, "%.3g", g.voxel_size);
+    throw OutputError(path, std::string("OpenVDB cannot hold voxels of ") + size +
+                                " units: its transforms need voxels of about 1.45e-5 or more "
+                                "(a scale whose cube is 3e-15); bake the voxels on a coarser "
+                                "--grid, or the lines in smaller units (e.g. mm, not m)");
+  }
+  const LinebakeVdbModule& module = load_vdb_module(path);
   const bool has_attribute = !g.attribute.empty();
   const std::string attribute_density =
       "polyline length in the voxel (voxel units) x mean " + g.attribute + " normalised to [0, 1]";

@@ -69,6 +69,42 @@ TEST(VoxelStore, CacheRoundTripIsBitExact) {
   }
 }
 
+// OpenVDB's transforms cannot hold voxels smaller than about 1.45e-5 units: such a grid is
+// refused naming its voxel size, before anything is written; voxels of 2e-5 are written.
+TEST(VoxelStore, VoxelsTooSmallForOpenVdbAreRefusedNamingTheirSize) {
+  test::TempDir dir;
+  for (const auto& [span, refused] : {std::pair(1e-5, true), std::pair(2e-5, false)}) {
+    SCOPED_TRACE(span);
+    LineSet lines = wavy_lines();
+    float lo = lines.positions[0], hi = lo;
+    for (float p : lines.positions) lo = std::min(lo, p), hi = std::max(hi, p);
+    // Scaled so that the largest extent, 32 voxels, spans 32 x `span`.
+    for (float& p : lines.positions) p = float(double(p) * 32 * span / double(hi - lo));
+    VoxelOptions o;
+    o.grid = 32;
+    const VoxelGrid g = voxelize(lines, o);
+    const std::string path = dir.file("small.vdb");
+    if (!refused) {
+      EXPECT_LT(std::abs(g.voxel_size / span - 1), 0.2) << g.voxel_size;
+      write_vdb(path, g);
+      EXPECT_TRUE(std::filesystem::exists(path));
+      continue;
+    }
+    try {
+      write_vdb(path, g);
+      ADD_FAILURE() << "written";
+    } catch (const OutputError& e) {
+      char size[32];
+      std::snprintf(size, sizeof size, "%.3g", g.voxel_size);  // about 8.9e-6: the grid's margin
+      EXPECT_NE(std::string(e.what()).find(std::string("OpenVDB cannot hold voxels of ") + size +
+                                           " units"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(path));
+  }
+}
+
 // The VDB read back with OpenVDB itself: every grid a FloatGrid (what pyopenvdb and Blender
 // read), the same active voxels, values against the grid they came from.
 TEST(VoxelStore, VdbRoundTrip) {

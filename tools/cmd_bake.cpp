@@ -2,6 +2,8 @@
 // linebake report <cache>...: the paper's Table 1 for the cached data.
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <iostream>
 
 #include "cache/cache.hpp"
@@ -167,9 +169,19 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     parse_grid(args->grid, options.voxels);
     options.embree.geometry = parse_embree_geometry(args->embree_geometry);
     options.embree.quality = parse_build_quality(args->embree_quality);
-    if (args->attribute_range.size() == 2)
-      options.tubes.attribute_range =
-          std::array<float, 2>{args->attribute_range[0], args->attribute_range[1]};
+    if (args->attribute_range.size() == 2) {
+      // NaN or an empty range would quantise every vertex to one value (or store a range no
+      // reader can parse): refused as Python's attribute_range is.
+      const float lo = args->attribute_range[0], hi = args->attribute_range[1];
+      if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi)) {
+        char given[96];
+        std::snprintf(given, sizeof given, "%g,%g", double(lo), double(hi));
+        throw UsageError(std::string("--attribute-range: expected two finite numbers LO,HI with "
+                                     "LO < HI, got ") +
+                         given);
+      }
+      options.tubes.attribute_range = std::array<float, 2>{lo, hi};
+    }
     if (args->memory_budget == "unlimited")
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())

@@ -141,7 +141,8 @@ Command add_export(CLI::App& app) {
                   "glTF 2.0 output, the tube mesh (and lines): .glb, or .gltf with a .bin beside "
                   "it (no 4 GiB limit)");
   sub->add_option("--vdb", args->vdb,
-                  "OpenVDB output: density, line_count, attribute_max from the voxel grid");
+                  "OpenVDB output: density, attribute_density, line_count, attribute_chord_max "
+                  "from the voxel grid");
   sub->add_flag("--draco", args->gltf.draco, "Compress the tube mesh (KHR_draco_mesh_compression)");
   sub->add_option("--draco-bits", args->gltf.draco_position_bits,
                   "Position quantisation bits (default 14)")
