@@ -86,7 +86,7 @@ Command add_synth(CLI::App& app) {
         std::to_string(segments) + " segments");
     say_wrote(args->output, seconds);
     if (!lost.empty())
-      say(args->output + ": not kept by this format: " + lost + " (.h5, .vtk and .vtp keep it)");
+      warn(args->output + ": not kept by this format: " + lost + " (.h5, .vtk and .vtp keep it)");
   };
 }
 

@@ -487,7 +487,7 @@ Command add_view(CLI::App& app) {
   sub->add_option("cache", options->cache, "Asset cache (.lbc.h5)")->required();
   sub->add_option("--technique", options->technique,
                   "First technique (default ll); T cycles: reference embree opaque dp ll mlab "
-                  "mlabdb mboit wboit vrc vrc-gpu rtx (rtx where the device ray traces; "
+                  "mlabdb mboit wboit vrc vrc-gpu rtx tiles (rtx where the device ray traces; "
                   "elsewhere the status line says why not); vrc-gpu is vrc --on gpu");
   auto on = std::make_shared<std::string>();
   sub->add_option("--on", *on, "vrc: cpu (default) | gpu (Vulkan compute), as for render")

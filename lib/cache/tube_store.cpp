@@ -215,7 +215,10 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
 TubeMesh load_tube_description(const CacheReader& cache) {
   const std::string where = std::string("group ") + kTubesGroup;
   const auto text = cache.attribute(kTubesGroup, "mesh");
-  if (!text) throw InputError(cache.path(), where, "no tube mesh in this cache (run bake)");
+  if (!text)
+    throw InputError(cache.path(), where,
+                     "missing: no tube mesh in this cache; add it with: linebake bake " +
+                         cache.path() + " --assets tubes");
   TubeMesh mesh;
   size_t chunks = 0;
   try {

@@ -1031,11 +1031,19 @@ BakeResult bake(const BakeOptions& options_in) {
     writer.commit();
   }
   result.written = true;
-  // Read back what was stored, so the report shows the stored figures (disk bytes).
-  CacheReader stored(result.cache, false);
-  if (auto p = stored.provenance("/lines")) lines_step.provenance = *p;
-  for (BakeStep& s : asset_steps)
-    if (auto p = stored.provenance("/assets/" + s.step)) s.provenance = *p;
+  // Read back what was stored, so the report shows the stored figures (disk bytes). Opening the
+  // cache runs its probe in a child process, which a signal can cut short: the cache is whole by
+  // then, and the message says so.
+  try {
+    CacheReader stored(result.cache, false);
+    if (auto p = stored.provenance("/lines")) lines_step.provenance = *p;
+    for (BakeStep& s : asset_steps)
+      if (auto p = stored.provenance("/assets/" + s.step)) s.provenance = *p;
+  } catch (const Interrupted& e) {
+    throw Interrupted(e.signal(), "after " + result.cache +
+                                      " was written whole (reading its figures back for the "
+                                      "report was cut short)");
+  }
   result.steps.push_back(std::move(lines_step));
   for (BakeStep& s : asset_steps) result.steps.push_back(std::move(s));
   for (const BakeStage& stage : result.stages)
