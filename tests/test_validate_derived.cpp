@@ -5,6 +5,7 @@
 
 #include "core/error.hpp"
 #include "lines/derived.hpp"
+#include "lines/line_reader.hpp"
 #include "lines/validate.hpp"
 
 using namespace linebake;
@@ -55,6 +56,34 @@ TEST(Validate, RejectThrowsWithSourceName) {
     EXPECT_NE(std::string(e.what()).find("input.obj"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("1 invalid points"), std::string::npos);
   }
+}
+
+// The first problem is placed by line and point, counted from the batch's place in the set.
+TEST(Validate, TheFirstProblemIsPlaced) {
+  EXPECT_EQ(inspect(messy()).first_problem,
+            "line 0, point 2 (from 0): (nan, 0, 0), a NaN/Inf coordinate or one past 1e10");
+  LineSet l = messy();
+  try {
+    validate(l, InvalidPolicy::reject, "input.csv (lines 70..73)", 70);
+    FAIL() << "expected an error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("; the first: line 70, point 2 (from 0): (nan, 0, 0)"),
+              std::string::npos)
+        << e.what();
+  }
+  // Without the NaN line: the repeated point of line 1, then the single point of line 2.
+  LineSet rest;
+  copy_lines(messy(), 1, 4, rest);
+  EXPECT_EQ(inspect(rest, 5).first_problem,
+            "line 5, point 1 (from 0): (0, 1, 0), the same as the point before");
+  LineSet single;
+  copy_lines(messy(), 2, 3, single);
+  EXPECT_EQ(inspect(single).first_problem, "line 0: fewer than 2 distinct points");
+  // Reports of batches keep the earliest batch's first problem.
+  ValidationReport total = inspect(single, 9);
+  total.add(inspect(messy(), 20));
+  EXPECT_EQ(total.first_problem, "line 9: fewer than 2 distinct points");
+  EXPECT_EQ(inspect(LineSet()).first_problem, "");
 }
 
 TEST(Validate, RepairSplitsDropsAndKeepsAttributesAligned) {

@@ -195,7 +195,7 @@ Command add_convert(CLI::App& app) {
       if (!whole) {
         const std::string where = args->input + " (lines " + std::to_string(line_base) + ".." +
                                   std::to_string(line_base + batch.line_count() - 1) + ")";
-        report.add(validate(batch, policy, where));
+        report.add(validate(batch, policy, where, line_base));
       }
       line_base += batch.line_count();
       points += batch.point_count();

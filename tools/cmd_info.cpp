@@ -51,10 +51,12 @@ Command add_info(CLI::App& app) {
       } else {
         LineStatsBuilder builder(input->header());
         LineSet batch;
+        uint64_t line_base = 0;
         while (input->next(batch, uint64_t{1} << 20)) {
           throw_if_interrupted();
           builder.add(batch);
-          v.add(inspect(batch));
+          v.add(inspect(batch, line_base));
+          line_base += batch.line_count();
         }
         s = builder.stats();
       }
@@ -84,7 +86,9 @@ Command add_info(CLI::App& app) {
                   r.nonfinite ? (" " + std::to_string(r.nonfinite) + " non-finite").c_str() : "");
     for (const auto& [name, r] : s.line_attribute_ranges)
       std::printf("line attr.  %s [%g, %g]\n", name.c_str(), r.min, r.max);
-    std::printf("validation  %s\n", v.summary().c_str());
+    std::printf(
+        "validation  %s%s\n", v.summary().c_str(),
+        v.clean() || v.first_problem.empty() ? "" : ("; the first: " + v.first_problem).c_str());
   };
 }
 

@@ -1,6 +1,7 @@
 #include "lines/validate.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.hpp"
 
@@ -33,11 +34,26 @@ struct RepairPlan {
   std::vector<uint64_t> source_line;  // original line of each new line
 };
 
+std::string coordinates(const float* p) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%g, %g, %g)", double(p[0]), double(p[1]), double(p[2]));
+  return text;
+}
+
 // Walks every line once; fills the report's counts, and the plan when one is given.
-void walk(const LineSet& lines, ValidationReport& report, RepairPlan* plan) {
+void walk(const LineSet& lines, ValidationReport& report, RepairPlan* plan, uint64_t line_base) {
   std::vector<uint64_t> piece;
+  // The first problem's place, in the words of the set's lines and their points.
+  const auto first = [&](size_t line, const std::string& what) {
+    if (report.first_problem.empty())
+      report.first_problem = "line " + std::to_string(line_base + line) + what;
+  };
+  const auto point_of = [&](size_t line, uint64_t i) {
+    return ", point " + std::to_string(i - lines.line_offsets[line]) + " (from 0)";
+  };
   for (size_t line = 0; line < lines.line_count(); ++line) {
     uint64_t pieces_kept = 0;
+    bool broken = false;  // an invalid point split this line
     auto close_piece = [&] {
       if (piece.size() >= 2) {
         ++pieces_kept;
@@ -49,13 +65,17 @@ void walk(const LineSet& lines, ValidationReport& report, RepairPlan* plan) {
       } else {
         ++report.short_lines;
         report.points_dropped += piece.size();
+        first(line, broken ? ": a piece of " + std::to_string(piece.size()) +
+                                 " point(s) between invalid points"
+                           : ": fewer than 2 distinct points");
       }
       piece.clear();
     };
-    bool broken = false;  // an invalid point split this line
     for (uint64_t i = lines.line_offsets[line]; i < lines.line_offsets[line + 1]; ++i) {
       const float* p = &lines.positions[3 * i];
       if (!valid_point(p)) {
+        first(line, point_of(line, i) + ": " + coordinates(p) +
+                        ", a NaN/Inf coordinate or one past 1e10");
         ++report.invalid_points;
         ++report.points_dropped;
         if (!piece.empty()) close_piece();
@@ -63,6 +83,7 @@ void walk(const LineSet& lines, ValidationReport& report, RepairPlan* plan) {
         continue;
       }
       if (!piece.empty() && same_point(&lines.positions[3 * piece.back()], p)) {
+        first(line, point_of(line, i) + ": " + coordinates(p) + ", the same as the point before");
         ++report.repeated_points;
         ++report.points_dropped;
         continue;
@@ -103,6 +124,7 @@ void ValidationReport::add(const ValidationReport& r) {
   repeated_points += r.repeated_points;
   short_lines += r.short_lines;
   nonfinite_attribute_values += r.nonfinite_attribute_values;
+  if (first_problem.empty()) first_problem = r.first_problem;
   lines_split += r.lines_split;
   lines_dropped += r.lines_dropped;
   points_dropped += r.points_dropped;
@@ -145,22 +167,26 @@ std::string ValidationReport::summary() const {
   return s.empty() ? "no problems" : s;
 }
 
-ValidationReport inspect(const LineSet& lines) {
+ValidationReport inspect(const LineSet& lines, uint64_t line_base) {
   ValidationReport report;
   if (!offsets_consistent(lines)) {
     report.bad_offsets = 1;
     return report;
   }
   check_attribute_lengths(lines, report);
-  walk(lines, report, nullptr);
+  walk(lines, report, nullptr, line_base);
   return report;
 }
 
-ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::string& source) {
-  ValidationReport report = inspect(lines);
+ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::string& source,
+                          uint64_t line_base) {
+  ValidationReport report = inspect(lines, line_base);
   if (report.clean()) return report;
   if (policy == InvalidPolicy::reject || report.bad_offsets)
-    throw InputError(source, "", "invalid line set: " + report.summary());
+    throw InputError(
+        source, "",
+        "invalid line set: " + report.summary() +
+            (report.first_problem.empty() ? "" : "; the first: " + report.first_problem));
 
   // Attributes whose length does not match cannot be mapped to points: drop them.
   auto drop_mismatched = [&](std::vector<Attribute>& list, size_t expected) {
@@ -175,7 +201,7 @@ ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::strin
 
   ValidationReport counts;  // the walk over the data after attribute repair
   RepairPlan plan;
-  walk(lines, counts, &plan);
+  walk(lines, counts, &plan, line_base);
   report.points_dropped = counts.points_dropped;
   report.lines_split = counts.lines_split;
   report.lines_dropped = counts.lines_dropped;

@@ -25,6 +25,9 @@ struct ValidationReport {
   uint64_t bad_offsets = 0;      // offsets not starting at 0, decreasing, or past the end
   std::vector<std::string> attribute_length_mismatches;  // names; vertex and line attributes
   uint64_t nonfinite_attribute_values = 0;  // reported only: a transfer function may map them
+  // Where the first invalid point, repeated point or short line is ("line 7, point 2 (of 0..):
+  // ..."), lines counted from the `line_base` given; "" when there is none.
+  std::string first_problem;
 
   // What repair changed.
   uint64_t lines_split = 0;
@@ -40,12 +43,14 @@ struct ValidationReport {
   std::string summary() const;  // one line, counts of every non-zero category
 };
 
-// Counts problems, changes nothing.
-ValidationReport inspect(const LineSet& lines);
+// Counts problems, changes nothing. `line_base`: the number of the set's first line in messages
+// (a batch's place in the whole line set).
+ValidationReport inspect(const LineSet& lines, uint64_t line_base = 0);
 
-// Applies the policy. reject: throws Error(source + summary) unless clean. repair: fixes `lines`
-// in place and returns what was done.
-ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::string& source);
+// Applies the policy. reject: throws InputError(source, the summary and the first problem's
+// place) unless clean. repair: fixes `lines` in place and returns what was done.
+ValidationReport validate(LineSet& lines, InvalidPolicy policy, const std::string& source,
+                          uint64_t line_base = 0);
 
 InvalidPolicy parse_invalid_policy(const std::string& name);
 

@@ -633,7 +633,7 @@ BakeResult bake(const BakeOptions& options_in) {
         if (!whole) {
           const std::string where = options.input + " (lines " + std::to_string(line_base) + ".." +
                                     std::to_string(line_base + batch.line_count() - 1) + ")";
-          total.add(validate(batch, options.on_invalid, where));
+          total.add(validate(batch, options.on_invalid, where, line_base));
         }
         line_base += batch.line_count();
         for (size_t l = 0; l < batch.line_count(); ++l)

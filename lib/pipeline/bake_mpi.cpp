@@ -69,19 +69,22 @@ class RangeReader {
       if (keep_first >= keep_end) continue;
       batch = header_of(read);
       copy_lines(read, size_t(keep_first - first), size_t(keep_end - first), batch);
+      first_line_ = keep_first;
       where = files_[r.file] + " (lines " + std::to_string(keep_first) + ".." +
               std::to_string(keep_end - 1) + ")";
       return true;
     }
     return false;
   }
+  // The batch's first line, counted in its file.
+  uint64_t first_line() const { return first_line_; }
 
  private:
   const std::vector<std::string>& files_;
   std::vector<FileRange> ranges_;
   ReadOptions read_;
   size_t range_ = 0;
-  uint64_t line_ = 0;
+  uint64_t line_ = 0, first_line_ = 0;
   std::unique_ptr<LineReader> reader_;
 };
 
@@ -262,7 +265,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     while (reader.next(batch, batch_points, where)) {
       throw_if_interrupted();
       lines_done += batch.line_count();
-      total.add(validate(batch, options.on_invalid, where));
+      total.add(validate(batch, options.on_invalid, where, reader.first_line()));
       local_stats.add(batch);
       spool->append(batch);
       if (show) progress.update(lines_done * uint64_t(ranks.size), lines_total);
