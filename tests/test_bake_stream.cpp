@@ -167,6 +167,36 @@ TEST(BakeStream, ABudgetTooSmallForOneLineFailsNamingTheLineAndLeavesNothing) {
   EXPECT_EQ(dir.entries(), std::vector<std::string>{"long.binlines"});
 }
 
+// Lines a trillionth of a unit across are refused for tubes and Embree (float32 geometry: their
+// squared distances underflow), naming the input, before anything is written; voxels alone
+// bake. Lines of one repeated point have no extent at all.
+TEST(BakeStream, LinesTooSmallForFloatGeometryAreRefusedNamingTheInput) {
+  TempDir dir;
+  for (const double scale : {1e-30, 1e-14}) {
+    LineSet lines;
+    for (int i = 0; i < 3; ++i) lines.append_point(float(i * scale), float(i * scale), 0);
+    lines.end_line();
+    const std::string input = dir.file("tiny.binlines");
+    write_line_set(lines, input);
+    BakeOptions o = streamed_options(input, dir.file("tiny.lbc.h5"), BakeOptions::kUnlimited);
+    o.assets = {"tubes", "voxels"};
+    try {
+      bake(o);
+      FAIL() << "baked";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), input);
+      EXPECT_NE(std::string(e.what()).find(scale == 1e-30 ? "the lines span 2.83e-30 units"
+                                                          : "the lines span 2.83e-14 units"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir.file("tiny.lbc.h5")));
+    o.assets = {"voxels"};
+    EXPECT_TRUE(bake(o).written);
+    std::filesystem::remove(dir.file("tiny.lbc.h5"));
+  }
+}
+
 TEST(BakeStream, SpillFilesAreRemovedAfterAFailure) {
   TempDir dir;
   const std::string input = dir.file("c.binlines");

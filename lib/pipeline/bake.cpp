@@ -6,6 +6,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 
@@ -665,6 +666,28 @@ BakeResult bake(const BakeOptions& options_in) {
     stats = line_stats_from_json(old_lines->stats, result.cache);
     lines_hash = old_lines->stats.value("content_hash", "");
     plan_batches(header);
+  }
+  // Tubes and Embree's curves are float32 geometry: their frames, normals and distance tests
+  // square the distances between points, which underflow for data a trillionth of a unit across
+  // (a span of 1e-30 made "no line has two distinct points"). Refused here, naming the input.
+  const bool float_geometry = contains(options.assets, "tubes") ||
+                              contains(options.assets, "embree") || contains(options.assets, "rtx");
+  // In double: the float diagonal of such data is 0 (its square underflows too).
+  const std::array<float, 3>&lo = stats.bounds.min, &hi = stats.bounds.max;
+  const double span = std::hypot(double(hi[0]) - double(lo[0]), double(hi[1]) - double(lo[1]),
+                                 double(hi[2]) - double(lo[2]));
+  if (float_geometry && span == 0)
+    throw InputError(options.input, "",
+                     "every point of the lines is the same: no extent to build tubes or Embree's "
+                     "curves over");
+  if (float_geometry && !(span >= double(kMinGeometrySpan))) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", span);
+    throw InputError(options.input, "",
+                     std::string("the lines span ") + text +
+                         " units (their bounding box's diagonal): too small for the float32 "
+                         "geometry of tubes and Embree's curves, which needs 1e-12 or more; "
+                         "scale the lines to smaller units first (voxels alone can be baked)");
   }
   // What the bake will write, against the room on the cache's file system: refused here, before
   // any of it, unless the user says otherwise.

@@ -20,6 +20,10 @@
 
 namespace linebake {
 
+// The smallest span (bounding-box diagonal) of lines that tubes and Embree's curves are built
+// over: below it, squared distances between their points underflow float32.
+inline constexpr float kMinGeometrySpan = 1e-12f;
+
 // Assets bake knows how to build, in build order.
 const std::vector<std::string>& bakeable_assets();
 
