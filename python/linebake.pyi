@@ -9,7 +9,11 @@ import numpy.typing as npt
 __version__: str
 
 Json = Any  # dicts, lists, str, int, float, bool and None, as `--json` gives them
-StrPath = Union[str, PathLike[str]]
+# A path as os.fsencode takes it: a str (surrogate escapes for bytes that are not UTF-8), bytes,
+# or an os.PathLike of either. A NUL in it is a ValueError.
+StrPath = Union[str, bytes, PathLike[str], PathLike[bytes]]
+# A memory budget: "8G", "unlimited", or a number of bytes (not a bool).
+MemoryBudget = Union[int, str]
 
 class Error(RuntimeError):
     """Any failure linebake reports, with the CLI's message (FILE: PLACE: message)."""
@@ -18,13 +22,13 @@ class UsageError(Error):
     """Options that contradict each other or that nothing reads."""
 
 class InputError(Error):
-    """Bad or unreadable input."""
-    file: str
-    where: str
+    """Bad or unreadable input; .file and .where name the place (None when made in Python)."""
+    file: Optional[str]
+    where: Optional[str]
 
 class OutputError(Error):
-    """An output that could not be written."""
-    file: str
+    """An output that could not be written; .file names it (None when made in Python)."""
+    file: Optional[str]
 
 class BudgetExceeded(Error):
     """Work that does not fit the memory budget, refused before it starts."""
@@ -64,7 +68,7 @@ class LineSet:
     def same_data(self, other: "LineSet") -> bool: ...
 
 def read(
-    source: StrPath, format: Optional[str] = None, *, memory_budget: Optional[str] = None
+    source: StrPath, format: Optional[str] = None, *, memory_budget: Optional[MemoryBudget] = None
 ) -> LineSet: ...
 def write(
     lines: LineSet,
@@ -109,7 +113,7 @@ def bake(
     attribute: str = ...,
     attribute_range: Tuple[float, float] = ...,
     chunk_bytes: int = ...,
-    grid: Union[int, str] = ...,
+    grid: Union[int, str] = ...,  # "auto", N or "NxNxN"
     quantization: int = ...,
     max_chords: int = ...,
     voxel_attribute: str = ...,
@@ -124,7 +128,7 @@ def bake(
     validation: bool = ...,
     compression: str = ...,
     compression_level: int = ...,
-    memory_budget: Union[int, str] = ...,
+    memory_budget: MemoryBudget = ...,
     force: bool = ...,
     no_space_check: bool = ...,
     dry_run: bool = ...,
@@ -139,18 +143,18 @@ class Renderer:
         technique: str = "embree",
         size: Union[Tuple[int, int], str] = (1280, 720),
         *,
-        memory_budget: Optional[str] = None,
+        memory_budget: Optional[MemoryBudget] = None,
         **options: Any,
     ) -> None: ...
     def render(
         self,
-        tf: str = "semi",
+        tf: StrPath = "semi",
         camera: Optional[Mapping[str, Any]] = None,
         frame: int = 0,
         frame_count: int = 64,
-        flight: str = "orbit-zoom",
+        flight: StrPath = "orbit-zoom",
         size: Optional[Union[Tuple[int, int], str]] = None,
-        memory_budget: Optional[str] = None,
+        memory_budget: Optional[MemoryBudget] = None,
     ) -> Tuple[Image, dict[str, Json]]: ...
     @property
     def bounds(self) -> dict[str, list[float]]: ...
@@ -163,19 +167,19 @@ def render(
     cache: Union[Cache, StrPath],
     *,
     technique: str = "embree",
-    tf: str = "semi",
+    tf: StrPath = "semi",
     size: Union[Tuple[int, int], str] = (1280, 720),
     frame: int = 0,
     frame_count: int = 64,
-    flight: str = "orbit-zoom",
+    flight: StrPath = "orbit-zoom",
     camera: Optional[Mapping[str, Any]] = None,
-    memory_budget: Optional[str] = None,
+    memory_budget: Optional[MemoryBudget] = None,
     **options: Any,
 ) -> Tuple[Image, dict[str, Json]]: ...
 def compare(
     image: Union[npt.ArrayLike, StrPath],
     reference: Union[npt.ArrayLike, StrPath],
     *,
-    srgb_encoded: bool = False,
+    srgb_encoded: Optional[bool] = None,  # None: float arrays linear, uint8/uint16 sRGB-encoded
 ) -> dict[str, Json]: ...
 def techniques(device: str = "") -> list[dict[str, Json]]: ...

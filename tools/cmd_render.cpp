@@ -16,6 +16,7 @@
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
+#include "render_option_ranges.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -121,9 +122,9 @@ Command add_render(CLI::App& app) {
                   "(Vulkan ray tracing; needs a device with VK_KHR_ray_tracing_pipeline) | tiles "
                   "(exact, Vulkan compute only: capsules binned into tiles and sorted); default "
                   "embree")
-      ->check(one_of(technique_names()));
+      ->check(render_option_check("--technique"));
   sub->add_option("--on", args->on, "vrc: cpu (TBB, default) | gpu (Vulkan compute)")
-      ->check(CLI::IsMember({"cpu", "gpu"}));
+      ->check(render_option_check("--on"));
   auto* no_early = sub->add_flag("--no-early-termination", args->no_early_termination,
                                  "Composite every hit (the default, except for vrc, which stops "
                                  "at opacity 0.99 as the paper's VRC)");
@@ -132,61 +133,62 @@ Command add_render(CLI::App& app) {
   sub->add_option("--rtx-geometry", args->rt_geometry,
                   "rtx: triangles (the tube mesh, default) | capsules (AABBs with an analytic "
                   "intersection shader); default: what the cached BLAS were built over")
-      ->check(CLI::IsMember({"triangles", "capsules"}));
+      ->check(render_option_check("--rtx-geometry"));
   sub->add_option("--tiles-geometry", args->tiles_geometry,
                   "tiles: capsules (the lines with the tubes' radius, default) | triangles (the "
                   "cached tube mesh, as reference and the raster techniques)")
-      ->check(one_of({"capsules", "triangles"}));
+      ->check(render_option_check("--tiles-geometry"));
   sub->add_option("--tiles-sort", args->tiles_sort,
                   "tiles: the key sort's path: auto (subgroups where the device has them, "
                   "except lavapipe; default) | subgroups | shared (shared memory only); the same "
                   "order either way")
-      ->check(one_of({"auto", "subgroups", "shared"}));
+      ->check(render_option_check("--tiles-sort"));
   sub->add_option("--tiles-strips", args->tiles_strips,
                   "tiles: the tiles composited by four workgroups of 64, a strip of 16x4 pixels "
                   "each, instead of one of 256: none (default) | crowded (the crowded tiles and "
                   "the walks over fewer than 512 tiles) | all; the same image either way")
-      ->check(one_of({"none", "crowded", "all"}));
+      ->check(render_option_check("--tiles-strips"));
   sub->add_flag("--rebuild", args->rebuild,
                 "rtx: build the BLAS even if the cache holds serialised ones for this device");
   sub->add_flag("--rtx-no-compaction", args->no_compaction, "rtx: do not compact rebuilt BLAS");
   sub->add_option("--max-iterations", args->max_iterations,
                   "rtx: traces per pixel at most (default 1024); pixels that run out are counted")
-      ->check(CLI::Range(1, 1 << 20));
+      ->check(render_option_check("--max-iterations"));
   sub->add_option("--sort", args->sort,
                   "ll: per-pixel sort insertion | shell | heap (default) | quick-hybrid")
-      ->check(CLI::IsMember({"insertion", "shell", "heap", "quick-hybrid"}));
+      ->check(render_option_check("--sort"));
   sub->add_option("--node-bytes", args->node_bytes,
                   "ll: 24 (float colour, default) or 12 (RGBA8 colour, as LineVis) bytes per node")
-      ->check(CLI::IsMember({24, 12}));
+      ->check(render_option_check("--node-bytes"));
   sub->add_option("--capacity", args->capacity,
-                  "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)");
+                  "ll: fragment nodes to start with (default 20 x pixels; grows on overflow)")
+      ->check(render_option_check("--capacity"));
   sub->add_option("--max-layers", args->max_layers, "dp: peel at most this many layers (2000)")
-      ->check(CLI::Range(1, 100000));
+      ->check(render_option_check("--max-layers"));
   sub->add_option("--layers", args->layers,
                   "mlab: nodes per pixel (default 8); mlabdb: 1 front + k-1 back (default 4)")
-      ->check(CLI::Range(1, 64));
+      ->check(render_option_check("--layers"));
   sub->add_option("--tau-alpha", args->tau_alpha,
                   "mlabdb: opacity above which the back bucket starts (0.2)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(render_option_check("--tau-alpha"));
   sub->add_option("--tau-opaque", args->tau_opaque,
                   "mlabdb: opacity from which fragments hide what is behind (0.98)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(render_option_check("--tau-opaque"));
   sub->add_option("--beta", args->beta, "mboit: overestimation (0.1; MBOIT's authors: 0.25)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(render_option_check("--beta"));
   sub->add_option("--moments", args->moments,
                   "mboit: real moments beyond b0, 4 (default), 6 or 8 (trigonometric: 2, 3, 4 "
                   "complex moments)")
-      ->check(CLI::IsMember({4, 6, 8}));
+      ->check(render_option_check("--moments"));
   sub->add_option("--moment-basis", args->moment_basis, "mboit: power (default) | trigonometric")
-      ->check(CLI::IsMember({"power", "trigonometric"}));
+      ->check(render_option_check("--moment-basis"));
   sub->add_option("--moment-bias", args->moment_bias,
                   "mboit: moment bias (default by basis and count for float32, e.g. 5e-7 for "
                   "4 power moments)")
-      ->check(CLI::Range(0.0, 0.5));
+      ->check(render_option_check("--moment-bias"));
   sub->add_option("--wboit-weight", args->wboit_weight,
                   "wboit: 0 (the public code's, default) or McGuire & Bavoil's equation 7, 8, 9")
-      ->check(CLI::IsMember({0, 7, 8, 9}));
+      ->check(render_option_check("--wboit-weight"));
   sub->add_flag("--no-interlock", args->no_interlock,
                 "mlab, mlabdb: use the per-pixel spin lock even where interlock exists");
   sub->add_option("--device", args->device,
@@ -195,10 +197,10 @@ Command add_render(CLI::App& app) {
                 "Vulkan: enable the Khronos validation layer; validation errors fail the run");
   sub->add_option("--embree-geometry", args->geometry,
                   "embree: linear (default) | bezier curves | capsules (user geometry)")
-      ->check(CLI::IsMember({"linear", "bezier", "capsules"}));
+      ->check(render_option_check("--embree-geometry"));
   sub->add_option("--embree-quality", args->quality,
                   "embree, reference: Embree build quality: low | medium (default) | high")
-      ->check(CLI::IsMember({"low", "medium", "high"}));
+      ->check(render_option_check("--embree-quality"));
   sub->add_option("--tf", args->tf,
                   "Transfer function: opaque | semi (default) | transparent | FILE.json");
   sub->add_option("--attribute", args->attribute,
@@ -207,22 +209,23 @@ Command add_render(CLI::App& app) {
   sub->add_option("--radius", args->radius,
                   "embree, rtx, tiles, vrc: curve and capsule radius in world units (default: the "
                   "cached tubes', else 0.001 x diagonal; vrc: half a voxel)")
-      ->check(positive());
+      ->check(render_option_check("--radius"));
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
-      ->check(CLI::Range(1, 100000));
+      ->check(render_option_check("--frame-count"));
   auto* frame =
       sub->add_option("--frame", args->frame, "Frame to render, 0 .. frame count - 1 (default 0)")
-          ->check(CLI::Range(0, 99999));
+          ->check(render_option_check("--frame"));
   auto* frames =
       sub->add_option("--frames", args->frames, "all: render every frame (outputs get _NNN)")
-          ->check(CLI::IsMember({"all"}));
+          ->check(render_option_check("--frames"));
   frame->excludes(frames);
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
-      ->check(image_size_check());
+      ->check(render_option_check("--size"));
   sub->add_option("-o,--output", args->output, "Image: .png (sRGB) or .pfm (linear float)")
       ->required();
-  sub->add_option("--png-bits", args->png_bits, "8 (default) or 16")->check(CLI::IsMember({8, 16}));
+  sub->add_option("--png-bits", args->png_bits, "8 (default) or 16")
+      ->check(render_option_check("--png-bits"));
   sub->add_option("--stats", args->stats, "Frame statistics as JSON");
   sub->add_option("--depth-complexity", args->depth_image,
                   "16-bit grey PNG of front hits per pixel");
@@ -231,7 +234,7 @@ Command add_render(CLI::App& app) {
          "embree, reference, rtx: how hits are found: filter (every hit, collected by a filter or "
          "any-hit shader; default) | stepping (closest-hit queries from just past the "
          "last hit)")
-      ->check(CLI::IsMember({"filter", "stepping"}));
+      ->check(render_option_check("--hits"));
   sub->add_flag("--packets", args->packets,
                 "Trace 4x2 ray packets (rtcIntersect8) instead of single rays (filter hits)");
   sub->add_flag("--early-termination", args->early,
@@ -241,7 +244,7 @@ Command add_render(CLI::App& app) {
   sub->add_option("--memory-budget", args->memory_budget,
                   "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: half of "
                   "physical memory)")
-      ->check(memory_budget_size());
+      ->check(render_option_check("--memory-budget"));
   const auto body = [args, sub] {
     // An option the technique does not read is a mistake, not a no-op.
     check_technique_options(find_technique(args->technique).info, given_options(sub));

@@ -621,8 +621,9 @@ BakeResult bake(const BakeOptions& options_in) {
       }
       header = header_of(input->header());
       check_attribute_options(options, header);
-      if (!synth::is_synth_source(options.input) && !keep_identity)
-        header.metadata.emplace("source", options.input);
+      const std::string recorded = options.source_name.value_or(options.input);
+      if (!synth::is_synth_source(options.input) && !keep_identity && !recorded.empty())
+        header.metadata.emplace("source", recorded);
       const uint64_t per_point = plan_batches(header);
       LineStatsBuilder builder(header);
       LineContentHash hash(header);
@@ -828,7 +829,9 @@ BakeResult bake(const BakeOptions& options_in) {
       if (keep_identity) {
         p.parameters = old_lines->parameters;
       } else {
-        p.parameters = {{"source", options.input}, {"format", format}, {"on_invalid", policy}};
+        p.parameters = {{"source", options.source_name.value_or(options.input)},
+                        {"format", format},
+                        {"on_invalid", policy}};
         if (inputs.size() > 1) p.parameters["files"] = inputs;
       }
       p.stats = to_json(stats);

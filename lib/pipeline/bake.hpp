@@ -48,6 +48,10 @@ nlohmann::json embree_stats(const EmbreeOptions& embree, const StoredCurves& cur
 
 struct BakeOptions {
   std::string input;  // file or synth: source
+  // What the cache records as the lines' source (their "source" metadata and the /lines step's
+  // parameter): by default `input`; "" records none. For an input that is a stand-in (Python's
+  // temporary file for a LineSet's arrays).
+  std::optional<std::string> source_name;
   // Several files as one line set, in this order (expand_inputs sorts them); `input` is then
   // only how messages name them. Empty: `input` alone.
   std::vector<std::string> inputs;

@@ -7,8 +7,12 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <type_traits>
+#include <typeinfo>
 
 #include "bindings.hpp"
 #include "cache/line_store.hpp"
@@ -17,6 +21,7 @@
 #include "cli_contract.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
@@ -92,37 +97,40 @@ void refuse_unused(const py::kwargs& given, const std::vector<std::string>& asse
                 "with compression='deflate' or 'blosc-zstd' (lz4 and none have no levels)");
 }
 
-template <class T>
-std::optional<T> keyword(const py::kwargs& options, const char* name) {
-  if (!options.contains(name)) return std::nullopt;
-  try {
-    return options[name].cast<T>();
-  } catch (const py::cast_error&) {
-    // pybind11's own message names neither the keyword nor what it wanted.
-    const char* wanted = std::is_same_v<T, bool>                   ? "True or False"
-                         : std::is_same_v<T, std::string>          ? "a str"
-                         : std::is_floating_point_v<T>             ? "a number"
-                         : std::is_same_v<T, std::array<float, 2>> ? "two numbers (lo, hi)"
-                         : std::is_unsigned_v<T> ? "a non-negative integer in range"
-                                                 : "an integer in range";
-    throw py::type_error(std::string("bake: ") + name + ": expected " + wanted + ", got " +
-                         std::string(py::repr(options[name])));
-  }
-}
-
 // 2G, 512M, unlimited, or a number of bytes; 0 (no room for any work) is a UsageError, as on the
 // command line.
-uint64_t memory_budget_from(const py::object& value) {
-  uint64_t bytes = 0;
-  if (py::isinstance<py::str>(value)) {
-    const std::string text = value.cast<std::string>();
-    if (text == "unlimited") return BakeOptions::kUnlimited;
-    bytes = parse_size(text);
-  } else {
-    bytes = value.cast<uint64_t>();
-  }
+uint64_t memory_budget_from(const py::handle& value) {
+  const std::string text = budget_arg(value, "bake: memory_budget");
+  if (text == "unlimited") return BakeOptions::kUnlimited;
+  const uint64_t bytes = PyUnicode_Check(value.ptr()) ? parse_size(text) : std::stoull(text);
   if (bytes == 0) throw UsageError(std::string("memory_budget: ") + kZeroBudget);
   return bytes;
+}
+
+// The voxel grid: "auto", N or "NxNxN" (parse_grid's rule, as --grid), an int N.
+void grid_from(const py::handle& value, VoxelOptions& voxels) {
+  if (!PyUnicode_Check(value.ptr()) && !is_integer(value))
+    wrong_kind(value, "bake: grid", "'auto', an integer N or a str 'NxNxN'");
+  const std::string text =
+      is_integer(value) ? std::string(py::str(value)) : text_arg(value, "bake: grid");
+  as_usage_error([&] { parse_grid(text, voxels); });
+}
+
+// Two numbers (lo, hi).
+std::array<float, 2> range_from(const py::handle& value, const std::string& what) {
+  const char* wanted = "two numbers (lo, hi)";
+  if (!PySequence_Check(value.ptr()) || PyUnicode_Check(value.ptr()) ||
+      PyBytes_Check(value.ptr()) || PySequence_Size(value.ptr()) != 2) {
+    PyErr_Clear();
+    wrong_kind(value, what, wanted);
+  }
+  const py::sequence pair = py::reinterpret_borrow<py::sequence>(value);
+  std::array<float, 2> range{};
+  for (size_t i = 0; i < 2; ++i) {
+    if (!is_number(pair[i])) wrong_kind(value, what, wanted);
+    range[i] = typed_arg<float>(pair[i], what);
+  }
+  return range;
 }
 
 BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& assets,
@@ -135,46 +143,50 @@ BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& a
     if (std::find(known.begin(), known.end(), asset) == known.end())
       throw UsageError("assets: unknown asset '" + asset +
                        "' (bake builds: tubes, voxels, embree, rtx)");
-  const std::string compression = keyword<std::string>(kw, "compression").value_or("lz4");
+  const std::string compression = keyword<std::string>("bake", kw, "compression").value_or("lz4");
   refuse_unused(kw, assets, compression);
-  if (auto v = keyword<std::string>(kw, "format")) o.format = parse_format(*v);
-  o.on_invalid = parse_invalid_policy(keyword<std::string>(kw, "on_invalid").value_or("repair"));
-  o.compression = parse_compression(compression);
-  if (auto v = keyword<int>(kw, "compression_level")) o.compression_level = *v;
-  if (auto v = keyword<int>(kw, "tube_sides")) o.tubes.sides = *v;
-  if (auto v = keyword<float>(kw, "radius")) o.tubes.radius = *v;
-  if (auto v = keyword<bool>(kw, "radius_absolute")) o.tubes.radius_absolute = *v;
-  if (auto v = keyword<std::string>(kw, "radius_attribute")) o.tubes.radius_attribute = *v;
-  if (auto v = keyword<bool>(kw, "caps")) o.tubes.caps = *v;
-  o.tubes.normals = parse_normal_encoding(keyword<std::string>(kw, "normals").value_or("float32"));
-  if (auto v = keyword<std::string>(kw, "attribute")) o.tubes.attribute = *v;
-  if (auto v = keyword<std::array<float, 2>>(kw, "attribute_range")) {
-    if (!(std::isfinite((*v)[0]) && std::isfinite((*v)[1]) && (*v)[0] < (*v)[1]))
+  if (auto v = keyword<std::string>("bake", kw, "format")) o.format = parse_format(*v);
+  // A name none of the known: UsageError, as the CLI's checks of these options say.
+  const auto parsed = [&](const char* name, const char* fallback, auto parse) {
+    const std::string value = keyword<std::string>("bake", kw, name).value_or(fallback);
+    return as_usage_error([&] { return parse(value); });
+  };
+  o.on_invalid = parsed("on_invalid", "repair", parse_invalid_policy);
+  o.compression = as_usage_error([&] { return parse_compression(compression); });
+  if (auto v = keyword<int>("bake", kw, "compression_level")) o.compression_level = *v;
+  if (auto v = keyword<int>("bake", kw, "tube_sides")) o.tubes.sides = *v;
+  if (auto v = keyword<float>("bake", kw, "radius")) o.tubes.radius = *v;
+  if (auto v = keyword<bool>("bake", kw, "radius_absolute")) o.tubes.radius_absolute = *v;
+  if (auto v = keyword<std::string>("bake", kw, "radius_attribute")) o.tubes.radius_attribute = *v;
+  if (auto v = keyword<bool>("bake", kw, "caps")) o.tubes.caps = *v;
+  o.tubes.normals = parsed("normals", "float32", parse_normal_encoding);
+  if (auto v = keyword<std::string>("bake", kw, "attribute")) o.tubes.attribute = *v;
+  if (kw.contains("attribute_range")) {
+    const std::array<float, 2> v = range_from(kw["attribute_range"], "bake: attribute_range");
+    if (!(std::isfinite(v[0]) && std::isfinite(v[1]) && v[0] < v[1]))
       throw py::value_error("bake: attribute_range: expected two finite numbers lo < hi, got (" +
-                            std::to_string((*v)[0]) + ", " + std::to_string((*v)[1]) + ")");
-    o.tubes.attribute_range = *v;
+                            std::to_string(v[0]) + ", " + std::to_string(v[1]) + ")");
+    o.tubes.attribute_range = v;
   }
-  if (auto v = keyword<uint64_t>(kw, "chunk_bytes")) o.tubes.max_chunk_bytes = *v;
-  if (kw.contains("grid")) parse_grid(py::str(kw["grid"]), o.voxels);
-  if (auto v = keyword<uint32_t>(kw, "quantization")) o.voxels.quantization = *v;
-  if (auto v = keyword<uint32_t>(kw, "max_chords")) o.voxels.max_chords_per_voxel = *v;
-  if (auto v = keyword<std::string>(kw, "voxel_attribute")) o.voxels.attribute = *v;
-  o.embree.geometry =
-      parse_embree_geometry(keyword<std::string>(kw, "embree_geometry").value_or("linear"));
-  o.embree.quality =
-      parse_build_quality(keyword<std::string>(kw, "embree_quality").value_or("medium"));
-  if (auto v = keyword<bool>(kw, "embree_compact")) o.embree.compact = *v;
-  if (auto v = keyword<bool>(kw, "embree_robust")) o.embree.robust = *v;
-  if (auto v = keyword<uint64_t>(kw, "embree_max_primitives"))
+  if (auto v = keyword<uint64_t>("bake", kw, "chunk_bytes")) o.tubes.max_chunk_bytes = *v;
+  if (kw.contains("grid")) grid_from(kw["grid"], o.voxels);
+  if (auto v = keyword<uint32_t>("bake", kw, "quantization")) o.voxels.quantization = *v;
+  if (auto v = keyword<uint32_t>("bake", kw, "max_chords")) o.voxels.max_chords_per_voxel = *v;
+  if (auto v = keyword<std::string>("bake", kw, "voxel_attribute")) o.voxels.attribute = *v;
+  o.embree.geometry = parsed("embree_geometry", "linear", parse_embree_geometry);
+  o.embree.quality = parsed("embree_quality", "medium", parse_build_quality);
+  if (auto v = keyword<bool>("bake", kw, "embree_compact")) o.embree.compact = *v;
+  if (auto v = keyword<bool>("bake", kw, "embree_robust")) o.embree.robust = *v;
+  if (auto v = keyword<uint64_t>("bake", kw, "embree_max_primitives"))
     o.embree.max_primitives_per_scene = *v;
-  if (auto v = keyword<std::string>(kw, "rtx_geometry")) o.rtx.geometry = *v;
-  if (auto v = keyword<bool>(kw, "rtx_no_compaction")) o.rtx.compaction = !*v;
-  if (auto v = keyword<std::string>(kw, "device")) o.rtx.device = *v;
-  if (auto v = keyword<bool>(kw, "validation")) o.rtx.validation = *v;
+  if (auto v = keyword<std::string>("bake", kw, "rtx_geometry")) o.rtx.geometry = *v;
+  if (auto v = keyword<bool>("bake", kw, "rtx_no_compaction")) o.rtx.compaction = !*v;
+  if (auto v = keyword<std::string>("bake", kw, "device")) o.rtx.device = *v;
+  if (auto v = keyword<bool>("bake", kw, "validation")) o.rtx.validation = *v;
   if (kw.contains("memory_budget")) o.memory_budget = memory_budget_from(kw["memory_budget"]);
-  if (auto v = keyword<bool>(kw, "force")) o.force = *v;
-  if (auto v = keyword<bool>(kw, "no_space_check")) o.space_check = !*v;
-  if (auto v = keyword<bool>(kw, "dry_run")) o.dry_run = *v;
+  if (auto v = keyword<bool>("bake", kw, "force")) o.force = *v;
+  if (auto v = keyword<bool>("bake", kw, "no_space_check")) o.space_check = !*v;
+  if (auto v = keyword<bool>("bake", kw, "dry_run")) o.dry_run = *v;
   o.progress = progress;
   return o;
 }
@@ -210,30 +222,119 @@ nlohmann::json result_json(const BakeResult& r) {
   return j;
 }
 
-// A line set given as arrays is baked from a temporary HDF5 line file beside the cache (the
-// format that keeps line attributes and metadata): bake reads its input in batches from a file,
-// and its /lines provenance is that file's content hash. Removed when the bake ends.
+// `text` with every `from` replaced by `to`.
+std::string renamed(std::string text, const std::string& from, const std::string& to) {
+  if (from.empty()) return text;
+  for (size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+    text.replace(at, from.size(), to);
+  return text;
+}
+
+// f(), its errors naming `set` ("<arrays>", or the file the set was read from) where the bake's
+// messages name its temporary input `temporary`, and the cache where one names it as an output
+// (it could not be written): the user never named that file.
+template <class F>
+auto naming_the_set(const std::string& temporary, const std::string& set, const std::string& cache,
+                    F f) -> decltype(f()) {
+  const auto name = [&](const std::string& text) { return renamed(text, temporary, set); };
+  try {
+    return f();
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const InputError& e) {
+    const size_t prefix = e.file().size() + (e.where().empty() ? 0 : e.where().size() + 2) + 2;
+    const std::string what = e.what();
+    throw InputError(name(e.file()), name(e.where()),
+                     name(what.substr(std::min(prefix, what.size()))));
+  } catch (const OutputError& e) {
+    throw OutputError(renamed(e.file(), temporary, cache), renamed(e.detail(), temporary, cache));
+  } catch (const UsageError& e) {
+    throw UsageError(name(e.what()));
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded(name(e.what()));
+  } catch (const Error& e) {
+    if (typeid(e) != typeid(Error)) throw;
+    throw Error(name(e.what()));
+  }
+}
+
+// A line set given as arrays is baked from a temporary HDF5 line file (the format that keeps line
+// attributes and metadata): bake reads its input in batches from a file, and its /lines
+// provenance is that file's content hash. Beside the cache (its provenance names it), or for a
+// dry run, which reads it and writes nothing, in the system's temporary directory. Named as
+// temporary_name names a temporary (host, process, a counter): each call its own file, so threads
+// baking into one cache path at once each bake their own lines, and a file a crashed process left
+// is removed by the next bake of that cache (remove_stale_temporaries). Removed when the bake
+// ends.
 class TemporaryInput {
  public:
-  TemporaryInput(const PyLineSet& set, const std::string& cache) {
-    const std::filesystem::path dir = std::filesystem::absolute(cache).parent_path();
-    path_ = (dir / (std::filesystem::path(cache).filename().string() + ".input-" +
-                    std::to_string(::getpid()) + ".h5"))
-                .string();
+  // `name`: how messages name the set.
+  TemporaryInput(const PyLineSet& set, const std::string& name, const std::string& cache,
+                 bool dry_run) {
+    namespace fs = std::filesystem;
+    const fs::path dir =
+        dry_run ? fs::temp_directory_path() : fs::absolute(fs::path(cache)).parent_path();
+    path_ = temporary_name((dir / fs::path(cache).filename()).string() + ".input") + ".h5";
     WriteOptions options;
     options.format = Format::hdf5;
-    write_line_set(set.lines, path_, options);
+    try {
+      naming_the_set(path_, name, cache, [&] { write_line_set(set.lines, path_, options); });
+    } catch (...) {
+      remove();
+      throw;
+    }
   }
-  ~TemporaryInput() {
-    std::error_code ignored;
-    std::filesystem::remove(path_, ignored);
-  }
+  ~TemporaryInput() { remove(); }
   TemporaryInput(const TemporaryInput&) = delete;
   TemporaryInput& operator=(const TemporaryInput&) = delete;
   const std::string& path() const { return path_; }
 
  private:
+  void remove() const {
+    std::error_code ignored;
+    std::filesystem::remove(path_, ignored);
+  }
   std::string path_;
+};
+
+// Bakes into one cache path, one at a time in this process: bake() reads the figures it returns
+// back from the cache at that path once it has renamed it there, and so does the report, so a
+// bake of another thread renaming its cache there in between had this call describe that one.
+// Taken without the GIL.
+class CachePathLock {
+ public:
+  explicit CachePathLock(const std::string& cache) {
+    std::error_code ignored;
+    key_ = std::filesystem::weakly_canonical(std::filesystem::absolute(cache), ignored).string();
+    {
+      const std::lock_guard<std::mutex> table(table_mutex());
+      std::shared_ptr<std::mutex>& entry = locks()[key_];
+      if (!entry) entry = std::make_shared<std::mutex>();
+      held_ = entry;
+    }
+    held_->lock();
+  }
+  ~CachePathLock() {
+    held_->unlock();
+    const std::lock_guard<std::mutex> table(table_mutex());
+    held_.reset();
+    const auto entry = locks().find(key_);
+    if (entry != locks().end() && entry->second.use_count() == 1) locks().erase(entry);
+  }
+  CachePathLock(const CachePathLock&) = delete;
+  CachePathLock& operator=(const CachePathLock&) = delete;
+
+ private:
+  static std::mutex& table_mutex() {
+    static std::mutex mutex;
+    return mutex;
+  }
+  static std::map<std::string, std::shared_ptr<std::mutex>>& locks() {
+    static std::map<std::string, std::shared_ptr<std::mutex>> table;
+    return table;
+  }
+  std::string key_;
+  std::shared_ptr<std::mutex> held_;
 };
 
 py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
@@ -242,30 +343,45 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   BakeOptions o = bake_options(options, assets, progress);
   o.cache = cache.is_none() ? "" : path_arg(cache, "bake: cache");
   std::optional<TemporaryInput> temporary;
+  std::string set_name;  // how messages name a LineSet's lines
   if (py::isinstance<PyLineSet>(lines_or_path)) {
     if (o.cache.empty()) throw UsageError("bake: a LineSet needs a cache path");
     if (o.format) throw UsageError("format: read only when baking a file");
+    // Before the temporary input: a directory that does not exist is the cache's.
     if (!o.dry_run) check_output_location(o.cache);
     const PyLineSet& set = lines_or_path.cast<const PyLineSet&>();
+    set_name = set.source.empty() ? "<arrays>" : set.source;
     // The file the set was read from is its input too: a cache never replaces it.
     if (!set.source.empty() && !synth::is_synth_source(set.source))
       refuse_input_as_output(o.cache, {set.source});
     const LongCall call;
-    temporary.emplace(set, o.cache);
+    temporary.emplace(set, set_name, o.cache, o.dry_run);
   } else {
-    o.input = path_arg(lines_or_path, "bake");  // a str or an os.PathLike
+    o.input = path_arg(lines_or_path, "bake");  // a str, bytes or os.PathLike
     cli::check_input_file(o.input);
     if (!o.dry_run) check_output_location(o.cache);
   }
-  if (temporary) o.input = temporary->path();
+  if (temporary) {
+    o.input = temporary->path();
+    // The cache records the file the set was read from, or no source for arrays; never the
+    // temporary file.
+    o.source_name = lines_or_path.cast<const PyLineSet&>().source;
+  }
   o.inputs = {o.input};
   nlohmann::json result;
   {
     const LongCall call;
-    const BakeResult baked = bake(o);
-    result = result_json(baked);
-    if (!o.dry_run)
-      result["report"] = report_json({summarize_cache(CacheReader(baked.cache, false))})[0];
+    const std::string input = temporary ? temporary->path() : "";
+    naming_the_set(input, set_name, o.cache, [&] {
+      // bake's default cache path, as it makes it, for a file baked without one.
+      const CachePathLock one_at_a_time(o.cache.empty() ? default_cache_path(o.input) : o.cache);
+      const BakeResult baked = bake(o);
+      result = result_json(baked);
+      for (nlohmann::json& note : result["notes"])
+        note = renamed(note.get<std::string>(), input, set_name);
+      if (!o.dry_run)
+        result["report"] = report_json({summarize_cache(CacheReader(baked.cache, false))})[0];
+    });
   }
   return to_python(result);
 }
@@ -389,7 +505,9 @@ An asset cache (.lbc.h5) opened for reading: linebake.open_cache(path).
 Arrays are read-only NumPy views of the cache's memory: of the mapped file where a dataset is
 stored uncompressed, else of the decompressed copy, which the Cache keeps (a second call returns
 the same memory).)doc")
-      .def_property_readonly("path", &PyCache::path)
+      .def_property_readonly(
+          "path", [](const PyCache& c) { return fs_str(c.path()); },
+          "The cache's path (as os.fsdecode gives it).")
       .def_property_readonly(
           "assets", [](const PyCache& c) { return c.reader().assets(); },
           "Assets stored under /assets: tubes, voxels, embree, rtx.")
@@ -426,7 +544,7 @@ the same memory).)doc")
            "uint8, density: list of (z, y, x) float32 levels.")
       .def("__repr__", [](const PyCache& c) {
         const std::string assets = name_list(c.reader().assets());
-        return "<linebake.Cache " + c.path() + (assets.empty() ? "" : ": " + assets) + ">";
+        return fs_str("<linebake.Cache " + c.path() + (assets.empty() ? "" : ": " + assets) + ">");
       });
 
   module.def(
@@ -439,13 +557,15 @@ the same memory).)doc")
              py::arg("assets") = std::vector<std::string>{"tubes"}, py::kw_only(),
              py::arg("progress") = false, R"doc(
 Builds assets into an asset cache, as `linebake bake`: lines_or_path is a LineSet, a file or a
-synth: source; cache defaults to <input name>.lbc.h5 (required for a LineSet); assets from
-tubes, voxels, embree, rtx. The CLI's options are keyword arguments with '_' for '-' (format for
---from): tube_sides, radius, radius_absolute, radius_attribute, caps, normals, attribute,
-attribute_range, chunk_bytes, grid, quantization, max_chords, voxel_attribute, embree_geometry,
-embree_quality, embree_compact, embree_robust, embree_max_primitives, rtx_geometry,
-rtx_no_compaction, device, validation, compression, compression_level, memory_budget ('2G',
-'unlimited' or bytes), force, no_space_check, dry_run, on_invalid. An option no step reads is
+synth: source; cache defaults to <input name>.lbc.h5 (required for a LineSet, baked from a
+temporary file of its own, which messages do not name: they name "<arrays>" or the file the set
+was read from); assets from tubes, voxels, embree, rtx. The CLI's options are keyword
+arguments with '_' for '-' (format for --from): tube_sides, radius, radius_absolute,
+radius_attribute, caps, normals, attribute, attribute_range, chunk_bytes, grid ('auto', N or
+'NxNxN'), quantization, max_chords, voxel_attribute, embree_geometry, embree_quality,
+embree_compact, embree_robust, embree_max_primitives, rtx_geometry, rtx_no_compaction, device, validation, compression, compression_level, memory_budget ('2G',
+'unlimited' or bytes as an int), force, no_space_check, dry_run, on_invalid. A value of the wrong
+kind is a TypeError naming the keyword; an unknown name, or an option no step reads, is
 linebake.UsageError. Returns the build result with its stages and the cache's report (the
 entry of `linebake report --json`). Releases the GIL; no progress bar unless progress=True.)doc");
 }

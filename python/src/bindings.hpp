@@ -8,6 +8,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <csignal>
 #include <cstddef>
 #include <exception>
@@ -15,8 +16,11 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <type_traits>
+#include <typeinfo>
 #include <vector>
 
+#include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "lines/line_set.hpp"
 
@@ -64,16 +68,89 @@ class LongCall {
   std::optional<InterruptScope> interrupts_;
   std::optional<py::gil_scoped_release> unlocked_;
 };
-// A str, bytes or os.PathLike (pathlib.Path) argument as a path string, as the stub's StrPath
-// says (a TypeError naming `what` otherwise).
-inline std::string path_arg(const py::handle& value, const char* what) {
-  try {
-    const py::object path = py::module_::import("os").attr("fspath")(value);
-    return path.cast<std::string>();  // str, or bytes as they are
-  } catch (const py::error_already_set&) {
-    throw py::type_error(std::string(what) + ": expected a str or os.PathLike, got " +
-                         std::string(py::repr(value)));
+// Text of the library's (a message, a path) as Python's str, decoded as os.fsdecode decodes: UTF-8,
+// and a byte that is not as the surrogate escape that stands for it, so a path that is not UTF-8
+// reads back as the str os.listdir gives for it (os.fsencode gives its bytes back).
+py::str fs_str(const std::string& text);
+
+// repr(value) as UTF-8 (what a repr cannot encode as a backslash escape), for messages.
+std::string repr_of(const py::handle& value);
+
+// TypeError "`what`: expected `wanted`, got repr(value)".
+[[noreturn]] void wrong_kind(const py::handle& value, const std::string& what, const char* wanted);
+
+// A str, bytes or os.PathLike (pathlib.Path) argument as a path's bytes, as os.fsencode gives
+// them (a str's surrogate escapes as the bytes they stand for), as the stub's StrPath says: a
+// TypeError naming `what` for anything else, a ValueError for a NUL byte in it (the file system
+// would end the name there) or a str os.fsencode cannot encode.
+std::string path_arg(const py::handle& value, const std::string& what);
+
+// Python's kinds, strictly: a bool (or numpy.bool_) is no number, a float no integer.
+bool is_bool(const py::handle& value);
+bool is_integer(const py::handle& value);  // int or NumPy integer, not bool
+bool is_number(const py::handle& value);   // int, float or NumPy number, not bool
+
+// A str as UTF-8 text; a TypeError naming `what` for anything else (bytes included) or for a str
+// UTF-8 cannot encode (a lone surrogate).
+std::string text_arg(const py::handle& value, const std::string& what);
+
+// A memory budget as the CLI's --memory-budget text: a str ("8G", "unlimited") as it is, an int
+// (not bool) a number of bytes; a TypeError naming `what` for anything else.
+std::string budget_arg(const py::handle& value, const std::string& what);
+
+template <class T>
+constexpr const char* wanted_kind() {
+  if constexpr (std::is_same_v<T, bool>)
+    return "True or False";
+  else if constexpr (std::is_same_v<T, std::string>)
+    return "a str";
+  else if constexpr (std::is_floating_point_v<T>)
+    return "a number";
+  else if constexpr (std::is_unsigned_v<T>)
+    return "a non-negative integer in range";
+  else
+    return "an integer in range";
+}
+
+// `value` as T, of T's kind only (is_bool, is_integer, is_number, text_arg): a TypeError naming
+// `what` and the kind otherwise, or when the value does not fit T.
+template <class T>
+T typed_arg(const py::handle& value, const std::string& what) {
+  if constexpr (std::is_same_v<T, std::string>) {
+    return text_arg(value, what);
+  } else if constexpr (std::is_same_v<T, bool>) {
+    py::detail::make_caster<bool> caster;
+    if (!caster.load(value, false)) wrong_kind(value, what, wanted_kind<T>());
+    return py::detail::cast_op<bool>(caster);
+  } else if constexpr (std::is_integral_v<T>) {
+    if (!is_integer(value)) wrong_kind(value, what, wanted_kind<T>());
+    // As a Python int: pybind11's unsigned casters take no NumPy integer.
+    const auto index = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
+    py::detail::make_caster<T> caster;
+    if (!index || !caster.load(index, false)) {
+      PyErr_Clear();
+      wrong_kind(value, what, wanted_kind<T>());
+    }
+    return py::detail::cast_op<T>(caster);
+  } else {
+    static_assert(std::is_floating_point_v<T>);
+    if (!is_number(value)) wrong_kind(value, what, wanted_kind<T>());
+    const double number = PyFloat_AsDouble(value.ptr());
+    if (number == -1 && PyErr_Occurred()) {
+      PyErr_Clear();
+      wrong_kind(value, what, wanted_kind<T>());
+    }
+    if (std::isfinite(number) && !std::isfinite(T(number)))
+      wrong_kind(value, what, "a number in range");
+    return T(number);
   }
+}
+
+// Keyword argument `name` of `function`'s **options as T (typed_arg), if given.
+template <class T>
+std::optional<T> keyword(const std::string& function, const py::kwargs& options, const char* name) {
+  if (!options.contains(name)) return std::nullopt;
+  return typed_arg<T>(options[name], function + ": " + name);
 }
 
 // Any mapping (a dict, types.MappingProxyType, ...) or iterable of pairs as a dict, as the stub's
@@ -83,8 +160,7 @@ inline py::dict mapping_arg(const py::handle& value, const char* what) {
   try {
     return py::dict(py::reinterpret_borrow<py::object>(value));
   } catch (const py::error_already_set&) {
-    throw py::type_error(std::string(what) + ": expected a mapping, got " +
-                         std::string(py::repr(value)));
+    throw py::type_error(std::string(what) + ": expected a mapping, got " + repr_of(value));
   }
 }
 
@@ -100,10 +176,23 @@ template <class T>
 py::array view(const T* data, size_t rows, const std::vector<size_t>& shape_tail, py::handle base) {
   std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(rows)};
   for (size_t n : shape_tail) shape.push_back(static_cast<py::ssize_t>(n));
-  if (!data) return py::array(py::dtype::of<T>(), shape);  // empty: nothing to view
-  py::array array(py::dtype::of<T>(), shape, {}, data, base);
+  // Empty: nothing to view, but read-only as every view is.
+  py::array array = data ? py::array(py::dtype::of<T>(), shape, {}, data, base)
+                         : py::array(py::dtype::of<T>(), shape);
   array.attr("setflags")(py::arg("write") = false);
   return array;
+}
+
+// f(), with a plain Error (parse_invalid_policy's, parse_compression's: a value none of the
+// names) raised as UsageError, as every bad value given is.
+template <class F>
+auto as_usage_error(F f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const Error& e) {
+    if (typeid(e) != typeid(Error)) throw;
+    throw UsageError(e.what());
+  }
 }
 
 // The Python name of a keyword argument as the CLI spells its option: "tube_sides" ->

@@ -12,12 +12,17 @@ namespace linebake::python {
 
 namespace {
 
-// Raises `type(message)` with extra attributes (file, where) set on the instance.
+// Raises `type(message)` with extra attributes (file, where) set on the instance; the message and
+// the attributes decoded as os.fsdecode decodes (a path that is not UTF-8 among them).
 void raise_with(py::handle type, const std::string& message,
                 const std::vector<std::pair<const char*, std::string>>& fields) {
-  py::object instance = type(message);
-  for (const auto& [name, value] : fields) instance.attr(name) = value;
+  py::object instance = type(fs_str(message));
+  for (const auto& [name, value] : fields) instance.attr(name) = fs_str(value);
   PyErr_SetObject(type.ptr(), instance.ptr());
+}
+
+void raise(py::handle type, const std::string& message) {
+  PyErr_SetObject(type.ptr(), fs_str(message).ptr());
 }
 
 }  // namespace
@@ -47,6 +52,10 @@ void bind_errors(py::module_& module) {
   input.attr("__doc__") = "Bad or unreadable input; .file and .where name the place.";
   output.attr("__doc__") = "An output that could not be written; .file names it.";
   budget.attr("__doc__") = "Work that does not fit the memory budget, refused before it starts.";
+  // What an instance made in Python (InputError("x")) has: linebake's own set them.
+  input.attr("file") = py::none();
+  input.attr("where") = py::none();
+  output.attr("file") = py::none();
   // Most derived first: a translator sees the C++ exception once.
   py::register_exception_translator([](std::exception_ptr thrown) {
     try {
@@ -58,11 +67,11 @@ void bind_errors(py::module_& module) {
     } catch (const OutputError& e) {
       raise_with(output, e.what(), {{"file", e.file()}});
     } catch (const UsageError& e) {
-      PyErr_SetString(usage.ptr(), e.what());
+      raise(usage, e.what());
     } catch (const BudgetExceeded& e) {
-      PyErr_SetString(budget.ptr(), e.what());
+      raise(budget, e.what());
     } catch (const Error& e) {
-      PyErr_SetString(error.ptr(), e.what());
+      raise(error, e.what());
     }
   });
 }

@@ -59,7 +59,7 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
   if (mapping.is_none()) return attributes;
   for (const auto& [key, value] : mapping_arg(mapping, what)) {
     Attribute attribute;
-    attribute.name = py::str(key);
+    attribute.name = text_arg(key, std::string(what) + " name");
     const FloatArray values = FloatArray::ensure(value);
     if (!values || values.ndim() != 1 || size_t(values.size()) != count)
       throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +
@@ -76,8 +76,7 @@ py::array array_like(const py::object& value, const char* what) {
   py::array array = py::array::ensure(value);
   if (!array) {
     PyErr_Clear();
-    throw py::type_error(std::string(what) + ": expected an array-like, got " +
-                         std::string(py::repr(value)));
+    throw py::type_error(std::string(what) + ": expected an array-like, got " + repr_of(value));
   }
   return array;
 }
@@ -95,10 +94,18 @@ std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
   lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
   if (!metadata.is_none())
     for (const auto& [key, value] : mapping_arg(metadata, "metadata")) {
+      const std::string pair = repr_of(key) + ": " + repr_of(value);
       if (!py::isinstance<py::str>(key) || !py::isinstance<py::str>(value))
-        throw py::type_error("metadata: keys and values are str, got " +
-                             std::string(py::repr(key)) + ": " + std::string(py::repr(value)));
-      lines.metadata[key.cast<std::string>()] = value.cast<std::string>();
+        throw py::type_error("metadata: keys and values are str, got " + pair);
+      // Written to files as UTF-8 text: a lone surrogate (os.fsdecode's escape of a byte) is
+      // none.
+      try {
+        lines.metadata[text_arg(key, "metadata")] = text_arg(value, "metadata");
+      } catch (const py::type_error&) {
+        throw py::type_error(
+            "metadata: keys and values are str that UTF-8 can encode (no lone surrogates), got " +
+            pair);
+      }
     }
   return result;
 }
@@ -127,20 +134,23 @@ nlohmann::json validation_json(const ValidationReport& v) {
 py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle self) {
   py::dict views;
   for (const Attribute& a : attributes)
-    views[py::str(a.name)] = view(a.values.data(), a.values.size(), {}, self);
+    views[fs_str(a.name)] = view(a.values.data(), a.values.size(), {}, self);
   return views;
 }
 
 std::shared_ptr<PyLineSet> read(const py::object& source_arg,
                                 const std::optional<std::string>& format,
-                                const std::optional<std::string>& memory_budget) {
+                                const py::object& memory_budget) {
   const std::string source = path_arg(source_arg, "read");
+  // "8G", "unlimited" or bytes, as bake takes it; None: the CLI's default.
+  const std::string budget_text =
+      memory_budget.is_none() ? "" : budget_arg(memory_budget, "read: memory_budget");
   cli::check_input_file(source);  // the CLI's "no such file" / "is a directory"
   ReadOptions options;
   if (format) options.format = parse_format(*format);
   // A format read whole (OBJ, VTK, VTP) is held within the budget (by default the CLI's, half
   // of physical memory) while it is read: past it, BudgetExceeded rather than the kernel's kill.
-  const MemoryBudget budget(cli::memory_budget_bytes(memory_budget.value_or("")));
+  const MemoryBudget budget(cli::memory_budget_bytes(budget_text));
   if (!budget.unlimited()) options.memory_limit = budget.available();
   auto result = std::make_shared<PyLineSet>();
   {
@@ -171,8 +181,9 @@ void write(const PyLineSet& set, const py::object& path_object,
     const std::string message = path + ": " + format_info(*options.format).name + " cannot hold " +
                                 name_list(lost) + "; they are not written";
     if (strict) throw Error(message + " (strict)");
-    // A warnings filter may turn the warning into an error: then nothing is written.
-    if (PyErr_WarnEx(PyExc_UserWarning, message.c_str(), 1) != 0) throw py::error_already_set();
+    // A warnings filter may turn the warning into an error: then nothing is written. The path
+    // as os.fsdecode gives it (PyErr_WarnEx would take only UTF-8).
+    py::module_::import("warnings").attr("warn")(fs_str(message), py::handle(PyExc_UserWarning), 1);
   }
   const LongCall call;
   write_line_set(set.lines, path, options);
@@ -195,7 +206,7 @@ std::shared_ptr<PyLineSet> with_derived(const PyLineSet& set,
 
 py::tuple validated(const PyLineSet& set, const std::string& policy) {
   auto result = std::make_shared<PyLineSet>(set);
-  const InvalidPolicy parsed = parse_invalid_policy(policy);
+  const InvalidPolicy parsed = as_usage_error([&] { return parse_invalid_policy(policy); });
   const std::string source = set.source.empty() ? "<arrays>" : set.source;
   ValidationReport report;
   {
@@ -220,14 +231,14 @@ py::list format_list() {
   return formats;
 }
 
-std::string repr(const PyLineSet& set) {
+py::str repr(const PyLineSet& set) {
   std::string names;
   for (const auto* list : {&set.lines.attributes, &set.lines.line_attributes})
     for (const Attribute& a : *list) names += (names.empty() ? "" : ", ") + a.name;
-  return "<linebake.LineSet " + std::to_string(set.lines.line_count()) + " lines, " +
-         std::to_string(set.lines.point_count()) + " points" +
-         (names.empty() ? "" : ", attributes " + names) +
-         (set.source.empty() ? "" : ", from " + set.source) + ">";
+  return fs_str("<linebake.LineSet " + std::to_string(set.lines.line_count()) + " lines, " +
+                std::to_string(set.lines.point_count()) + " points" +
+                (names.empty() ? "" : ", attributes " + names) +
+                (set.source.empty() ? "" : ", from " + set.source) + ">");
 }
 
 }  // namespace
@@ -273,12 +284,17 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
           },
           "{name: (lines,) float32 view}: one value per line.")
       .def_property_readonly(
-          "metadata", [](const PyLineSet& s) { return s.lines.metadata; },
+          "metadata",
+          [](const PyLineSet& s) {
+            py::dict d;  // read from a file: not UTF-8 there reads as os.fsdecode gives it
+            for (const auto& [key, value] : s.lines.metadata) d[fs_str(key)] = fs_str(value);
+            return d;
+          },
           "{str: str}: provenance, units, source notes (a copy).")
       .def_property_readonly(
           "source",
           [](const PyLineSet& s) {
-            return s.source.empty() ? py::object(py::none()) : py::str(s.source);
+            return s.source.empty() ? py::object(py::none()) : py::object(fs_str(s.source));
           },
           "The file or synth: source it was read from; None when made from arrays.")
       .def_property_readonly("point_count",
@@ -322,8 +338,8 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
              R"doc(Reads a line set: a file of any readable format (by extension unless
 `format` names it) or a synthetic source "synth:<name>?scale=..&seed=..". Raises
 linebake.InputError naming the file and place on bad input. OBJ, VTK and VTP files are read
-whole within `memory_budget` ("8G", "unlimited"; default half of physical memory): past it,
-linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
+whole within `memory_budget` ("8G", "unlimited" or bytes as an int; default half of physical
+memory): past it, linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
   module.def("write", &write, py::arg("lines"), py::arg("path"), py::arg("format") = py::none(),
              py::kw_only(), py::arg("ascii") = false, py::arg("binlines_version") = 2,
              py::arg("vtp_encoding") = "appended", py::arg("vtp_compress") = true,

@@ -6,6 +6,79 @@
 
 namespace linebake::python {
 
+py::str fs_str(const std::string& text) {
+  PyObject* decoded = PyUnicode_DecodeFSDefaultAndSize(text.data(), py::ssize_t(text.size()));
+  if (!decoded) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(decoded);
+}
+
+std::string repr_of(const py::handle& value) {
+  const py::str repr = py::repr(value);
+  PyObject* bytes = PyUnicode_AsEncodedString(repr.ptr(), "utf-8", "backslashreplace");
+  if (!bytes) throw py::error_already_set();
+  return py::reinterpret_steal<py::bytes>(bytes);
+}
+
+void wrong_kind(const py::handle& value, const std::string& what, const char* wanted) {
+  throw py::type_error(what + ": expected " + wanted + ", got " + repr_of(value));
+}
+
+std::string path_arg(const py::handle& value, const std::string& what) {
+  py::object encoded;
+  try {
+    encoded = py::module_::import("os").attr("fsencode")(value);
+  } catch (py::error_already_set& e) {
+    if (e.matches(PyExc_TypeError)) wrong_kind(value, what, "a str, bytes or os.PathLike");
+    if (e.matches(PyExc_UnicodeError))  // a lone surrogate no byte stands for
+      throw py::value_error(what + ": " + std::string(py::str(e.value())));
+    throw;
+  }
+  std::string path = encoded.cast<std::string>();
+  // As open() and os.stat() refuse it: the C library would end the name at the NUL.
+  if (path.find('\0') != std::string::npos)
+    throw py::value_error(what + ": embedded null byte in " + repr_of(value));
+  return path;
+}
+
+bool is_bool(const py::handle& value) {
+  if (PyBool_Check(value.ptr())) return true;
+  const std::string type = Py_TYPE(value.ptr())->tp_name;
+  return type == "numpy.bool_" || type == "numpy.bool";
+}
+
+bool is_integer(const py::handle& value) {
+  return !is_bool(value) && (PyLong_Check(value.ptr()) || PyIndex_Check(value.ptr()));
+}
+
+bool is_number(const py::handle& value) {
+  if (is_bool(value)) return false;
+  if (PyLong_Check(value.ptr()) || PyFloat_Check(value.ptr()) || PyIndex_Check(value.ptr()))
+    return true;
+  return py::isinstance(value, py::module_::import("numpy").attr("floating"));
+}
+
+std::string text_arg(const py::handle& value, const std::string& what) {
+  if (!PyUnicode_Check(value.ptr())) wrong_kind(value, what, "a str");
+  py::ssize_t size = 0;
+  const char* data = PyUnicode_AsUTF8AndSize(value.ptr(), &size);
+  if (!data) {
+    PyErr_Clear();
+    wrong_kind(value, what, "a str that UTF-8 can encode (no lone surrogates)");
+  }
+  return std::string(data, size_t(size));
+}
+
+std::string budget_arg(const py::handle& value, const std::string& what) {
+  const char* wanted = "a size str ('2G', 'unlimited') or a number of bytes (an int >= 0)";
+  if (PyUnicode_Check(value.ptr())) return text_arg(value, what);
+  if (!is_integer(value)) wrong_kind(value, what, wanted);
+  try {
+    return std::to_string(typed_arg<uint64_t>(value, what));
+  } catch (const py::type_error&) {
+    wrong_kind(value, what, wanted);
+  }
+}
+
 py::object to_python(const nlohmann::json& value) {
   using Type = nlohmann::json::value_t;
   switch (value.type()) {
@@ -17,8 +90,8 @@ py::object to_python(const nlohmann::json& value) {
       return py::int_(value.get<uint64_t>());
     case Type::number_float:
       return py::float_(value.get<double>());
-    case Type::string:
-      return py::str(value.get_ref<const std::string&>());
+    case Type::string:  // paths among them: as os.fsdecode gives them
+      return fs_str(value.get_ref<const std::string&>());
     case Type::array: {
       py::list list;
       for (const nlohmann::json& element : value) list.append(to_python(element));
@@ -26,7 +99,7 @@ py::object to_python(const nlohmann::json& value) {
     }
     case Type::object: {
       py::dict dict;
-      for (const auto& [key, element] : value.items()) dict[py::str(key)] = to_python(element);
+      for (const auto& [key, element] : value.items()) dict[fs_str(key)] = to_python(element);
       return dict;
     }
     default:  // null, binary, discarded

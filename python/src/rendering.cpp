@@ -1,16 +1,20 @@
 // linebake.render() and linebake.Renderer: frames of any technique this machine can run, as
 // (h, w, 4) float32 arrays with the CLI's --stats fields; linebake.compare(): PSNR and SSIM.
 
+#include <algorithm>
 #include <mutex>
 #include <optional>
+#include <type_traits>
 
 #include "assets.hpp"
 #include "bindings.hpp"
 #include "cli_contract.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
+#include "core/nearest.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
+#include "render_option_ranges.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::python {
@@ -53,83 +57,152 @@ const std::vector<std::string> kRenderKeywords = {"memory_budget",
                                                   "packets",
                                                   "early_termination"};
 
+// A render option's value: of T's kind (typed_arg: a TypeError naming `function` and the keyword
+// otherwise), then, as its text on the command line, through the CLI's check of the option
+// (tools/render_option_ranges.hpp): a UsageError with the CLI's message where it refuses it.
 template <class T>
-void set_from(const py::kwargs& kw, const char* name, T& target) {
-  if (kw.contains(name)) target = kw[name].cast<T>();
+T checked(const std::string& function, const char* keyword, const py::handle& value) {
+  const std::string what = function + ": " + keyword;
+  std::string text;
+  if constexpr (std::is_same_v<T, std::string>) {
+    text = text_arg(value, what);
+  } else if constexpr (std::is_same_v<T, bool>) {
+    return typed_arg<bool>(value, what);  // a flag: no value to check
+  } else {
+    if (!(std::is_integral_v<T> ? is_integer(value) : is_number(value)))
+      wrong_kind(value, what, wanted_kind<T>());
+    // As it would be written: an integer's digits, a float's shortest repr ("2.0", "nan").
+    text =
+        is_integer(value)
+            ? std::string(py::str(py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()))))
+            : std::string(py::repr(py::float_(py::reinterpret_borrow<py::object>(value))));
+  }
+  if (const std::string problem = cli::render_option_problem("--" + option_name(keyword), text);
+      !problem.empty())
+    throw UsageError(problem);
+  return typed_arg<T>(value, what);
 }
 
-TechniqueOptions technique_options(const py::kwargs& kw, int width, int height) {
+template <class T>
+void set_from(const std::string& function, const py::kwargs& kw, const char* name, T& target) {
+  if (kw.contains(name)) target = checked<T>(function, name, kw[name]);
+}
+
+// A memory budget ("40G", "unlimited", or bytes) as --memory-budget's text, checked as the CLI
+// checks it; "" for None (half of physical memory).
+std::string budget_from(const std::string& function, const py::handle& value) {
+  if (value.is_none()) return "";
+  const std::string text = budget_arg(value, function + ": memory_budget");
+  if (const std::string problem = cli::render_option_problem("--memory-budget", text);
+      !problem.empty())
+    throw UsageError(problem);
+  return text;
+}
+
+TechniqueOptions technique_options(const std::string& function, const py::kwargs& kw, int width,
+                                   int height) {
   TechniqueOptions o;
   o.width = width, o.height = height;
-  set_from(kw, "early_termination", o.early_termination);
-  set_from(kw, "device", o.device);
-  set_from(kw, "validation", o.validation);
-  set_from(kw, "hits", o.hits);
-  set_from(kw, "embree_geometry", o.geometry);
-  set_from(kw, "embree_quality", o.quality);
-  set_from(kw, "packets", o.packets);
-  set_from(kw, "radius", o.radius);
-  set_from(kw, "attribute", o.attribute);
-  set_from(kw, "sort", o.sort);
-  set_from(kw, "capacity", o.capacity);
-  set_from(kw, "node_bytes", o.node_bytes);
-  set_from(kw, "max_layers", o.max_layers);
-  set_from(kw, "layers", o.layers);
-  set_from(kw, "wboit_weight", o.wboit_weight);
-  set_from(kw, "moments", o.moments);
-  set_from(kw, "tau_alpha", o.tau_alpha);
-  set_from(kw, "tau_opaque", o.tau_opaque);
-  set_from(kw, "beta", o.beta);
-  set_from(kw, "moment_bias", o.moment_bias);
-  set_from(kw, "moment_basis", o.moment_basis);
-  set_from(kw, "on", o.on);
-  set_from(kw, "rtx_geometry", o.rt_geometry);
-  set_from(kw, "tiles_geometry", o.tiles_geometry);
-  set_from(kw, "tiles_sort", o.tiles_sort);
-  set_from(kw, "tiles_strips", o.tiles_strips);
-  set_from(kw, "rebuild", o.rebuild);
-  set_from(kw, "max_iterations", o.max_iterations);
+  set_from(function, kw, "early_termination", o.early_termination);
+  set_from(function, kw, "device", o.device);
+  set_from(function, kw, "validation", o.validation);
+  set_from(function, kw, "hits", o.hits);
+  set_from(function, kw, "embree_geometry", o.geometry);
+  set_from(function, kw, "embree_quality", o.quality);
+  set_from(function, kw, "packets", o.packets);
+  set_from(function, kw, "radius", o.radius);
+  set_from(function, kw, "attribute", o.attribute);
+  set_from(function, kw, "sort", o.sort);
+  set_from(function, kw, "capacity", o.capacity);
+  set_from(function, kw, "node_bytes", o.node_bytes);
+  set_from(function, kw, "max_layers", o.max_layers);
+  set_from(function, kw, "layers", o.layers);
+  set_from(function, kw, "wboit_weight", o.wboit_weight);
+  set_from(function, kw, "moments", o.moments);
+  set_from(function, kw, "tau_alpha", o.tau_alpha);
+  set_from(function, kw, "tau_opaque", o.tau_opaque);
+  set_from(function, kw, "beta", o.beta);
+  set_from(function, kw, "moment_bias", o.moment_bias);
+  set_from(function, kw, "moment_basis", o.moment_basis);
+  set_from(function, kw, "on", o.on);
+  set_from(function, kw, "rtx_geometry", o.rt_geometry);
+  set_from(function, kw, "tiles_geometry", o.tiles_geometry);
+  set_from(function, kw, "tiles_sort", o.tiles_sort);
+  set_from(function, kw, "tiles_strips", o.tiles_strips);
+  set_from(function, kw, "rebuild", o.rebuild);
+  set_from(function, kw, "max_iterations", o.max_iterations);
   // The CLI's negative flags.
-  if (kw.contains("no_interlock")) o.interlock = !kw["no_interlock"].cast<bool>();
-  if (kw.contains("no_early_termination"))
-    o.vrc_early_termination = !kw["no_early_termination"].cast<bool>();
-  if (kw.contains("no_skip")) o.skip_empty_space = !kw["no_skip"].cast<bool>();
-  if (kw.contains("rtx_no_compaction")) o.compaction = !kw["rtx_no_compaction"].cast<bool>();
+  const auto negated = [&](const char* name, bool& target) {
+    if (kw.contains(name)) target = !checked<bool>(function, name, kw[name]);
+  };
+  negated("no_interlock", o.interlock);
+  negated("no_early_termination", o.vrc_early_termination);
+  negated("no_skip", o.skip_empty_space);
+  negated("rtx_no_compaction", o.compaction);
   // What the scene may take (embree, reference: the BVH) and tiles' bands: '40G', 'unlimited'.
-  if (kw.contains("memory_budget") && !kw["memory_budget"].is_none())
-    set_memory_budget(o, kw["memory_budget"].cast<std::string>());
+  if (kw.contains("memory_budget"))
+    set_memory_budget(o, budget_from(function, kw["memory_budget"]));
   return o;
 }
 
-std::array<int, 2> size_from(const py::object& size) {
-  if (py::isinstance<py::str>(size)) return cli::parse_size(size.cast<std::string>());
-  const auto [w, h] = size.cast<std::pair<int, int>>();
-  // The CLI's rule and message for --size.
-  return cli::parse_size(std::to_string(w) + "x" + std::to_string(h));
+// (w, h) integers or "WxH", by the CLI's rule and message for --size.
+std::array<int, 2> size_from(const std::string& function, const py::handle& size) {
+  const std::string what = function + ": size";
+  const char* wanted = "(width, height) integers or a str 'WxH'";
+  std::string text;
+  if (PyUnicode_Check(size.ptr())) {
+    text = text_arg(size, what);
+  } else {
+    if (!PySequence_Check(size.ptr()) || PyBytes_Check(size.ptr()) ||
+        PySequence_Size(size.ptr()) != 2) {
+      PyErr_Clear();
+      wrong_kind(size, what, wanted);
+    }
+    const auto pair = py::reinterpret_borrow<py::sequence>(size);
+    for (size_t i = 0; i < 2; ++i) {
+      if (!is_integer(pair[i])) wrong_kind(size, what, wanted);
+      text += (i ? "x" : "") + std::string(py::str(py::reinterpret_steal<py::object>(
+                                   PyNumber_Index(py::object(pair[i]).ptr()))));
+    }
+  }
+  if (const std::string problem = cli::render_option_problem("--size", text); !problem.empty())
+    throw UsageError(problem);
+  return cli::parse_size(text);
+}
+
+// Three numbers.
+glm::dvec3 xyz_from(const py::handle& value, const std::string& what) {
+  const char* wanted = "three numbers";
+  if (!PySequence_Check(value.ptr()) || PyUnicode_Check(value.ptr()) ||
+      PyBytes_Check(value.ptr()) || PySequence_Size(value.ptr()) != 3) {
+    PyErr_Clear();
+    wrong_kind(value, what, wanted);
+  }
+  const auto xyz = py::reinterpret_borrow<py::sequence>(value);
+  std::array<double, 3> v{};
+  for (size_t i = 0; i < 3; ++i) {
+    if (!is_number(xyz[i])) wrong_kind(value, what, wanted);
+    v[i] = typed_arg<double>(xyz[i], what);
+  }
+  return {v[0], v[1], v[2]};
 }
 
 Camera camera_from(const py::dict& d) {
-  Camera c;
-  const auto vec = [&](const char* key) {
-    try {
-      const auto xyz = d[key].cast<std::array<double, 3>>();
-      return glm::dvec3(xyz[0], xyz[1], xyz[2]);
-    } catch (const py::cast_error&) {
-      throw py::type_error(std::string("camera: ") + key + ": expected three numbers, got " +
-                           std::string(py::repr(d[key])));
-    }
-  };
+  const std::vector<std::string> known = {"eye", "target", "up", "fov"};
+  for (const auto& [key, value] : d) {
+    if (!PyUnicode_Check(key.ptr())) wrong_kind(key, "camera: a key", "a str");
+    const std::string name = text_arg(key, "camera: a key");
+    if (std::find(known.begin(), known.end(), name) == known.end())
+      throw py::value_error("camera: unknown key " + repr_of(key) + " (" + name_list(known) + ")" +
+                            did_you_mean(name, known));
+  }
   if (!d.contains("eye") || !d.contains("target"))
     throw py::value_error("camera: needs 'eye' and 'target' (and optionally 'up', 'fov')");
-  c.eye = vec("eye");
-  c.target = vec("target");
-  if (d.contains("up")) c.up = vec("up");
-  if (d.contains("fov")) {
-    if (!py::isinstance<py::float_>(d["fov"]) && !py::isinstance<py::int_>(d["fov"]))
-      throw py::type_error("camera: fov: expected a number, got " +
-                           std::string(py::repr(d["fov"])));
-    c.fov_y_degrees = d["fov"].cast<double>();
-  }
+  Camera c;
+  c.eye = xyz_from(d["eye"], "camera: eye");
+  c.target = xyz_from(d["target"], "camera: target");
+  if (d.contains("up")) c.up = xyz_from(d["up"], "camera: up");
+  if (d.contains("fov")) c.fov_y_degrees = typed_arg<double>(d["fov"], "camera: fov");
   if (const std::string problem = camera_problem(c); !problem.empty())
     throw py::value_error("camera: " + problem);
   return c;
@@ -154,39 +227,50 @@ py::array rgba_of(const Image& image) {
 // BVH, the Vulkan buffers).
 class PyRenderer {
  public:
-  PyRenderer(const py::object& cache, const std::string& technique, const py::object& size,
-             const py::kwargs& options)
-      : name_(technique) {
-    check_keywords("Renderer", options, kRenderKeywords);
-    technique_ = &find_technique(technique);
+  // `function` names the call in messages: "Renderer", "render".
+  PyRenderer(const std::string& function, const py::object& cache, const py::handle& technique,
+             const py::handle& size, const py::kwargs& options) {
+    // As the CLI checks its command line: the names, each value, then what the technique reads.
+    check_keywords(function.c_str(), options, kRenderKeywords);
+    name_ = checked<std::string>(function, "technique", technique);
+    technique_ = &find_technique(name_);
+    const auto [width, height] = size_from(function, size);
+    options_ = technique_options(function, options, width, height);
+    if (options.contains("memory_budget"))
+      memory_budget_ = budget_from(function, options["memory_budget"]);
     check_technique_options(technique_->info, option_names(options));
-    cache_ = py::isinstance<PyCache>(cache) ? cache.cast<std::shared_ptr<PyCache>>()
-                                            : std::make_shared<PyCache>(py::str(cache));
-    const auto [width, height] = size_from(size);
-    options_ = technique_options(options, width, height);
-    if (options.contains("memory_budget") && !options["memory_budget"].is_none())
-      memory_budget_ = options["memory_budget"].cast<std::string>();
+    cache_ = py::isinstance<PyCache>(cache)
+                 ? cache.cast<std::shared_ptr<PyCache>>()
+                 : std::make_shared<PyCache>(path_arg(cache, function + ": cache"));
     // The availability check of `linebake techniques`, with the cache's assets.
     if (auto reason = technique_unavailable(*technique_, options_, &cache_->reader()))
-      throw Error(technique + ": cannot run here: " + *reason);
+      throw Error(name_ + ": cannot run here: " + *reason);
     const LongCall call;
     prepared_ = technique_->prepare(technique_->info, cache_->reader(), cache_->path(), options_);
   }
 
-  py::tuple render(const std::string& tf_name, const py::object& camera, int frame, int frame_count,
-                   const std::string& flight, const py::object& size,
-                   const std::optional<std::string>& memory_budget) {
+  // `function` names the call in messages: "Renderer.render", "render".
+  py::tuple render(const std::string& function, const py::handle& tf_arg, const py::object& camera,
+                   const py::handle& frame_arg, const py::handle& frame_count_arg,
+                   const py::handle& flight_arg, const py::handle& size,
+                   const py::handle& memory_budget) {
     const auto [width, height] =
-        size.is_none() ? std::array{options_.width, options_.height} : size_from(size);
-    if (frame < 0 || frame >= frame_count)
+        size.is_none() ? std::array{options_.width, options_.height} : size_from(function, size);
+    const int frame_count = checked<int>(function, "frame_count", frame_count_arg);
+    const int frame = checked<int>(function, "frame", frame_arg);
+    // A name (semi, orbit-zoom) or a JSON file.
+    const std::string tf_name = path_arg(tf_arg, function + ": tf");
+    const std::string flight = path_arg(flight_arg, function + ": flight");
+    if (frame >= frame_count)
       throw UsageError("frame " + std::to_string(frame) + ": the flight has " +
                        std::to_string(frame_count) + " frames, 0 to " +
                        std::to_string(frame_count - 1) + " (frame_count)");
     TechniqueOptions sized = options_;
     sized.width = width, sized.height = height;
-    cli::check_frame_memory(name_, std::to_string(width) + "x" + std::to_string(height),
-                            estimate_frame_bytes(*technique_, sized),
-                            memory_budget.value_or(memory_budget_));
+    cli::check_frame_memory(
+        name_, std::to_string(width) + "x" + std::to_string(height),
+        estimate_frame_bytes(*technique_, sized),
+        memory_budget.is_none() ? memory_budget_ : budget_from(function, memory_budget));
     const TransferFunction tf = resolve_transfer_function(tf_name);
     Camera c;
     std::string flight_kind = "camera";
@@ -242,28 +326,59 @@ class PyRenderer {
   std::mutex mutex_;
 };
 
-// An (h, w, 3 or 4) array (alpha dropped) or an image file, as the metrics read it.
-Image image_from(const py::object& source, bool srgb_encoded) {
-  if (py::isinstance<py::str>(source) || py::hasattr(source, "__fspath__")) {
-    const std::string path = py::str(source);
+// An (h, w, 3 or 4) array (alpha dropped) or an image file (str, bytes, os.PathLike), as the
+// metrics read it. Float arrays are values as they are; uint8 and uint16 arrays are scaled by
+// 1/255 and 1/65535 as read_png reads a PNG of that depth, and like it taken as display
+// (sRGB-encoded) values unless `srgb_encoded` says otherwise. A file says itself what its values
+// are (.png encoded, .pfm linear).
+Image image_from(const py::object& source, const std::optional<bool>& srgb_encoded,
+                 const char* which) {
+  const std::string what = std::string("compare: ") + which;
+  if (PyUnicode_Check(source.ptr()) || PyBytes_Check(source.ptr()) ||
+      py::hasattr(source, "__fspath__")) {
+    const std::string path = path_arg(source, what);
     cli::check_input_file(path);
     return read_image(path);
   }
-  const auto array = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(source);
-  if (!array || array.ndim() != 3 || (array.shape(2) != 3 && array.shape(2) != 4))
+  const py::array given = py::array::ensure(source);
+  if (!given) {
+    PyErr_Clear();
+    wrong_kind(source, what, "an (h, w, 3|4) array or a path (str, bytes, os.PathLike)");
+  }
+  const char kind = given.dtype().kind();
+  const size_t bytes = size_t(given.dtype().itemsize());
+  const double scale = kind == 'u' && bytes == 1 ? 255.0 : kind == 'u' && bytes == 2 ? 65535.0 : 0;
+  if (kind != 'f' && scale == 0)
+    throw py::type_error(what + ": expected float, uint8 or uint16 values, got " +
+                         std::string(py::str(given.dtype())));
+  if (given.ndim() != 3 || (given.shape(2) != 3 && given.shape(2) != 4))
     throw py::value_error("compare: expected an (h, w, 3) or (h, w, 4) image or a file name");
-  Image image(int(array.shape(1)), int(array.shape(0)), 3);
-  image.srgb_encoded = srgb_encoded;
-  const size_t stride = size_t(array.shape(2));
-  const float* in = array.data();
-  for (size_t i = 0; i < size_t(image.width) * size_t(image.height); ++i)
+  Image image(int(given.shape(1)), int(given.shape(0)), 3);
+  image.srgb_encoded = srgb_encoded.value_or(scale != 0);
+  const size_t stride = size_t(given.shape(2));
+  const size_t pixels = size_t(image.width) * size_t(image.height);
+  if (scale != 0) {
+    // uint8 widened to uint16 exactly; each value as read_png computes it.
+    using Words = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>;
+    const Words words = Words::ensure(given);
+    const uint16_t* in = words.data();
+    for (size_t i = 0; i < pixels; ++i)
+      for (size_t c = 0; c < 3; ++c) image.pixels[3 * i + c] = float(in[stride * i + c] / scale);
+    return image;
+  }
+  using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+  const Floats floats = Floats::ensure(given);
+  const float* in = floats.data();
+  for (size_t i = 0; i < pixels; ++i)
     for (size_t c = 0; c < 3; ++c) image.pixels[3 * i + c] = in[stride * i + c];
   return image;
 }
 
-py::dict compare(const py::object& a, const py::object& b, bool srgb_encoded) {
+py::dict compare(const py::object& a, const py::object& b,
+                 const std::optional<bool>& srgb_encoded) {
   // Checked as given: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
-  const Image raw_first = image_from(a, srgb_encoded), raw_second = image_from(b, srgb_encoded);
+  const Image raw_first = image_from(a, srgb_encoded, "image"),
+              raw_second = image_from(b, srgb_encoded, "reference");
   for (const auto& [image, which] :
        {std::pair(&raw_first, "image"), std::pair(&raw_second, "reference")})
     if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
@@ -317,17 +432,29 @@ A technique prepared over a cache, for rendering several frames:
 Renderer(cache, technique="embree", size=(1280, 720), **options). cache: a Cache or a path.
 options: the technique's options of `linebake render`, '_' for '-' (layers, moments,
 moment_basis, sort, on, device, embree_geometry, ...); one the technique does not read is
-linebake.UsageError, a technique this machine cannot run linebake.Error with the reason.
-memory_budget ('40G', 'unlimited'; default half of physical memory): embree's and reference's
-BVH is built within what it leaves, or refused with linebake.BudgetExceeded; render() checks
-its frames against it unless given another.)doc")
-      .def(py::init<const py::object&, const std::string&, const py::object&, const py::kwargs&>(),
+linebake.UsageError, a technique this machine cannot run linebake.Error with the reason; values
+are checked as `linebake render` checks them (linebake.UsageError with the CLI's message).
+memory_budget ('40G', 'unlimited' or bytes as an int; default half of physical memory):
+embree's and reference's BVH is built within what it leaves, or refused with
+linebake.BudgetExceeded; render() checks its frames against it unless given another.)doc")
+      .def(py::init([](const py::object& cache, const py::object& technique, const py::object& size,
+                       const py::kwargs& options) {
+             return std::make_shared<PyRenderer>("Renderer", cache, technique, size, options);
+           }),
            py::arg("cache"), py::arg("technique") = "embree",
            py::arg("size") = py::make_tuple(1280, 720))
-      .def("render", &PyRenderer::render, py::arg("tf") = "semi", py::arg("camera") = py::none(),
-           py::arg("frame") = 0, py::arg("frame_count") = 64, py::arg("flight") = "orbit-zoom",
-           py::arg("size") = py::none(), py::arg("memory_budget") = py::none(),
-           R"doc(One frame: (image, stats). image: (h, w, 4) float32, linear RGB over the
+      .def(
+          "render",
+          [](PyRenderer& self, const py::object& tf, const py::object& camera,
+             const py::object& frame, const py::object& frame_count, const py::object& flight,
+             const py::object& size, const py::object& memory_budget) {
+            return self.render("Renderer.render", tf, camera, frame, frame_count, flight, size,
+                               memory_budget);
+          },
+          py::arg("tf") = "semi", py::arg("camera") = py::none(), py::arg("frame") = 0,
+          py::arg("frame_count") = 64, py::arg("flight") = "orbit-zoom",
+          py::arg("size") = py::none(), py::arg("memory_budget") = py::none(),
+          R"doc(One frame: (image, stats). image: (h, w, 4) float32, linear RGB over the
 background, alpha 1. camera: {'eye': xyz, 'target': xyz, 'up': xyz, 'fov': degrees}, else frame
 `frame` of the flight (orbit-zoom, orbit or a keyframes file) of frame_count frames, as the CLI.
 stats: the fields of `linebake render --stats`. Releases the GIL.)doc")
@@ -337,15 +464,16 @@ stats: the fields of `linebake render --stats`. Releases the GIL.)doc")
 
   module.def(
       "render",
-      [](const py::object& cache, const std::string& technique, const std::string& tf,
-         const py::object& size, int frame, int frame_count, const std::string& flight,
-         const py::object& camera, const std::optional<std::string>& memory_budget,
+      [](const py::object& cache, const py::object& technique, const py::object& tf,
+         const py::object& size, const py::object& frame, const py::object& frame_count,
+         const py::object& flight, const py::object& camera, const py::object& memory_budget,
          const py::kwargs& options) {
         // The budget bounds the scene (the Renderer's option) and checks the frame.
         auto all = py::reinterpret_steal<py::kwargs>(PyDict_Copy(options.ptr()));
-        if (memory_budget) all["memory_budget"] = *memory_budget;
-        PyRenderer renderer(cache, technique, size, all);
-        return renderer.render(tf, camera, frame, frame_count, flight, py::none(), memory_budget);
+        if (!memory_budget.is_none()) all["memory_budget"] = memory_budget;
+        PyRenderer renderer("render", cache, technique, size, all);
+        return renderer.render("render", tf, camera, frame, frame_count, flight, py::none(),
+                               memory_budget);
       },
       py::arg("cache"), py::kw_only(), py::arg("technique") = "embree", py::arg("tf") = "semi",
       py::arg("size") = py::make_tuple(1280, 720), py::arg("frame") = 0,
@@ -356,12 +484,16 @@ Renders one frame of a cache as `linebake render` does: returns (image, stats), 
 reference, opaque, dp, ll, mlab, mlabdb, mboit, wboit, vrc, rtx, tiles (linebake.techniques()
 says which run here); tf: opaque, semi, transparent or a JSON file; size: (w, h); frame of the
 flight, or camera={'eye', 'target', 'up', 'fov'}. Technique options are keyword arguments, as
-for Renderer. Releases the GIL.)doc");
+for Renderer, checked against the CLI's ranges (linebake.UsageError with the CLI's message).
+memory_budget: '40G', 'unlimited' or bytes (an int); None: half of physical memory. Releases
+the GIL.)doc");
   module.def("compare", &compare, py::arg("image"), py::arg("reference"), py::kw_only(),
-             py::arg("srgb_encoded") = false, R"doc(
+             py::arg("srgb_encoded").noconvert() = py::none(), R"doc(
 PSNR (dB, capped at 60) and SSIM of an image against a reference, as `linebake compare`: both
-display-encoded first. Each is an (h, w, 3|4) array (alpha ignored; linear values unless
-srgb_encoded=True) or a .png/.pfm file. Returns {'psnr_db', 'ssim', 'ssim_mode'}.)doc");
+display-encoded first. Each is an (h, w, 3|4) array (alpha ignored) or a .png/.pfm file (str,
+bytes or os.PathLike). Float arrays are linear values, uint8 and uint16 arrays the values of a
+PNG of that depth (scaled by 1/255, 1/65535; sRGB-encoded), unless srgb_encoded (True or False)
+says what they are; other dtypes are a TypeError. Returns {'psnr_db', 'ssim', 'ssim_mode'}.)doc");
   module.def("techniques", &technique_list, py::arg("device") = "",
              "Every technique: what it reads and needs, and whether it runs here (as `linebake "
              "techniques --json`).");

@@ -118,8 +118,19 @@ def test_bake_a_line_set_from_arrays(tmp_path):
     tubes = opened.tubes()
     assert tubes["sides"] == 4 and tubes["attribute"] == "t"
     assert sum(c["positions"].shape[0] for c in tubes["chunks"]) == 4 * 40
-    # The temporary input file is gone.
+    # The temporary input file is gone, and the cache does not name it: arrays have no source;
+    # a set read from a file records that file.
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arrays.lbc.h5"]
+    assert "source" not in opened.lines().metadata
+    assert opened.provenance("lines")["parameters"]["source"] == ""
+    named = str(tmp_path / "named.binlines")
+    linebake.write(lines, named)
+    linebake.bake(linebake.read(named), str(tmp_path / "named.lbc.h5"))
+    from_file = linebake.open_cache(str(tmp_path / "named.lbc.h5"))
+    assert from_file.lines().metadata["source"] == named
+    assert from_file.provenance("lines")["parameters"]["source"] == named
+    (tmp_path / "named.lbc.h5").unlink()
+    (tmp_path / "named.binlines").unlink()
     # A set read from a file never replaces it: not baked over it, not written over the cache
     # it came from.
     before = (tmp_path / "arrays.lbc.h5").read_bytes()

@@ -87,9 +87,9 @@ def test_paths_may_be_pathlib_paths(tmp_path):
     cache = tmp_path / "lines.lbc.h5"
     linebake.bake(path, cache, tube_sides=4)
     assert linebake.open_cache(cache).lines().same_data(lines)
-    with pytest.raises(TypeError, match="read: expected a str or os.PathLike"):
+    with pytest.raises(TypeError, match="read: expected a str, bytes or os.PathLike, got 42"):
         linebake.read(42)
-    with pytest.raises(TypeError, match="bake: expected a str or os.PathLike, got None"):
+    with pytest.raises(TypeError, match="bake: expected a str, bytes or os.PathLike, got None"):
         linebake.bake(None, str(cache))
 
 

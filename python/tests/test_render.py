@@ -121,7 +121,9 @@ def test_tiles_strips_change_no_pixel(baked):
     np.testing.assert_array_equal(strips, whole)
     workgroups = stats["frames"][0]["composite_workgroups"]
     assert workgroups >= 24 and strip_stats["frames"][0]["composite_workgroups"] == 4 * workgroups
-    with pytest.raises(linebake.UsageError, match="none, crowded or all"):
+    # The CLI's check and message (test_arguments.py compares it with the CLI's).
+    with pytest.raises(linebake.UsageError, match=r"^--tiles-strips: unknown 'some' \(none, "
+                                                  r"crowded, all\)"):
         linebake.render(cache, technique="tiles", size=SIZE, tiles_strips="some")
 
 
