@@ -447,13 +447,20 @@ typo() {  # typo NAME SED-EXPRESSION EXPECTED-TEXT
   check "pipeline typo $1: --dry-run fails with its JSON path" bash -c "'$bin' run '$tmp/typo-$1.json' -o '$tmp/typo-$1' --dry-run > /dev/null 2> '$tmp/typo-$1.err'; [ \$? -eq 2 ] && grep -qF -- \"$3\" '$tmp/typo-$1.err' && [ ! -e '$tmp/typo-$1' ]"
 }
 typo technique 's/"embree",/"embre",/' 'techniques[1]: unknown technique'
-typo sort-value 's/"sort": "heap"/"sort": "hep"/' 'techniques[2].options: --sort: hep not in'
+typo sort-value 's/"sort": "heap"/"sort": "hep"/' "techniques[2].options: --sort: unknown 'hep' (insertion, shell, heap, quick-hybrid); did you mean 'heap'?"
 typo sort-name 's/"sort": "heap"/"sortt": "heap"/' "techniques[2].options: unknown option 'sortt'; did you mean 'sort'?"
 typo option-of-another 's/"sort": "heap"/"moments": 6/' 'techniques[2].options: --moments: not read by ll'
 typo tf 's/"semi"\]/"semmi"]/' "transfer_functions[0]: semmi: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?"
 typo size 's/"64x48"/"64x-36"/' 'size:'
 typo flight 's/"orbit-zoom"/"orbit-zom"/' "flight: 'orbit-zom' is neither orbit-zoom, orbit nor a keyframe file"
 typo grid 's/"grid": 32/"grid": "3x"/' 'assets: --grid'
+typo size-of-a-technique 's/"sort": "heap"/"size": "32x24"/' 'techniques[2].options.size: set by the pipeline for every render'
+typo cache-output 's/"grid": 32/"output": "x.lbc.h5"/' 'assets.output: set by the pipeline for every bake'
+typo size-below-ssim 's/"64x48"/"8x8"/' "size: '8x8': the report compares frames by SSIM, which needs at least 11x11 pixels"
+typo synth-name 's/synth:aneurysm/synth:aneurysn/' "datasets[0].source: synth:aneurysn?scale=0.01: unknown synthetic data set 'aneurysn' (aneurysm, convection, turbulence, clouds); did you mean 'aneurysm'?"
+typo synth-scale 's/scale=0.01/scale=1e9/' "'1e9' is not a number from 1e-06 to 100"
+typo tf-twice 's/"semi"\]/"semi", "semi"]/' "transfer_functions: 'semi' appears twice"
+check "run into a directory another run holds: exit 3, nothing recorded; into a file: exit 3" bash -c "mkdir -p '$tmp/held' && { flock '$tmp/held/.linebake-run.lock' sleep 3 & } && sleep 0.5; '$bin' run '$pipes/ci.json' -o '$tmp/held' > /dev/null 2> '$tmp/held.err'; rc=\$?; wait; [ \$rc -eq 3 ] && grep -q 'another linebake run is writing into this directory' '$tmp/held.err' && [ ! -e '$tmp/held/.linebake-run.json' ] && touch '$tmp/afile' && { '$bin' run '$pipes/ci.json' -o '$tmp/afile' 2> /dev/null; [ \$? -eq 3 ]; }"
 check "a bad pipeline names the file and the entry" bash -c "echo '{\"datasets\": [], \"techniques\": [\"reference\"]}' > '$tmp/bad.json'; '$bin' run '$tmp/bad.json' 2> '$tmp/bad.err'; [ \$? -eq 2 ] && grep -q 'bad.json: datasets' '$tmp/bad.err'"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 

@@ -221,6 +221,47 @@ TEST(Pipeline, YamlErrorsNameLineAndColumnOrTheEntry) {
   }
 }
 
+// What readers would take silently or expand without bound: a key given twice (JSON and YAML),
+// a second YAML document, aliases nested into billions of nodes (which took 24 GiB before the
+// kernel killed the process).
+TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
+  const auto error_of = [](const std::string& path) -> std::pair<std::string, std::string> {
+    try {
+      load_pipeline(path);
+    } catch (const InputError& e) {
+      return {e.where(), e.what()};
+    }
+    return {"", "no error"};
+  };
+  const std::string good = R"("datasets": [{"name": "a", "source": "s.binlines"}],
+                              "techniques": ["ll"])";
+  auto [where, what] =
+      error_of(write_temp("twice.json", "{\"frames\": 2, " + good + ", \"frames\": 3}"));
+  EXPECT_EQ(where, "key 'frames'") << what;
+  std::tie(where, what) =
+      error_of(write_temp("nested.json", R"({"datasets": [{"name": "a", "name": "b",
+                                              "source": "s.binlines"}], "techniques": ["ll"]})"));
+  EXPECT_EQ(where, "key 'name'") << what;
+  std::tie(where, what) = error_of(write_temp(
+      "twice.yaml", "frames: 2\ndatasets: [{name: a, source: s.binlines}]\nframes: 3\n"));
+  EXPECT_EQ(where, "line 3, key 'frames'") << what;
+  std::tie(where, what) = error_of(write_temp("two.yaml",
+                                              "datasets: [{name: a, source: s.binlines}]\n"
+                                              "techniques: [ll]\n---\nframes: 3\n"));
+  EXPECT_EQ(where, "line 4") << what;
+  EXPECT_NE(what.find("a second YAML document"), std::string::npos) << what;
+  // Nine levels of nine aliases: 9^9 scalars; refused past 100,000 nodes, at once.
+  std::string bomb = "a: &a [x, x, x, x, x, x, x, x, x]\n";
+  for (char level = 'b'; level <= 'i'; ++level) {
+    const std::string previous = "*" + std::string(1, char(level - 1));
+    bomb += std::string(1, level) + ": &" + std::string(1, level) + " [";
+    for (int k = 0; k < 9; ++k) bomb += (k ? ", " : "") + previous;
+    bomb += "]\n";
+  }
+  std::tie(where, what) = error_of(write_temp("bomb.yaml", bomb));
+  EXPECT_NE(what.find("expands to more than 100000 YAML nodes"), std::string::npos) << what;
+}
+
 TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {
   auto j = small();
   j["techniques"][1]["datasets"] = {"b"};

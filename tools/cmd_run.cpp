@@ -5,14 +5,18 @@
 
 #include <fcntl.h>
 #include <spawn.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <set>
 #include <thread>
 
 #include "cli_contract.hpp"
@@ -29,6 +33,7 @@
 #include "render/camera.hpp"
 #include "render/transfer_function.hpp"
 #include "render/vulkan/context.hpp"
+#include "synth/synth.hpp"
 #include "techniques/technique.hpp"
 
 extern char** environ;
@@ -133,10 +138,25 @@ void validate_pipeline(const Pipeline& p) {
       throw InputError(p.file, where, e.what());
     }
   };
+  // What the pipeline sets on every step's command line itself: given again as an option, the
+  // step's command would get it twice.
+  const auto refuse_controlled = [&](const std::vector<std::string>& options,
+                                     const std::set<std::string>& controlled,
+                                     const std::string& where, const std::string& why) {
+    for (const std::string& a : options)
+      if (a.rfind("--", 0) == 0 && controlled.count(a.substr(2)))
+        throw InputError(p.file, where + "." + a.substr(2), why);
+  };
   // The pipeline file stands in for the cache, which the bake has not made yet.
   for (size_t i = 0; i < p.techniques.size(); ++i) {
     const PipelineTechnique& t = p.techniques[i];
     const std::string where = "techniques[" + std::to_string(i) + "].options";
+    refuse_controlled(t.options,
+                      {"output", "technique", "tf", "flight", "frame-count", "frame", "frames",
+                       "size", "stats", "json", "depth-complexity", "help"},
+                      where,
+                      "set by the pipeline for every render (its technique, transfer functions, "
+                      "flight, frames, size and outputs), not a technique's option");
     std::vector<std::string> options = t.options;
     apply_deprecated_aliases("render", options);
     std::vector<std::string> args = {"render", p.file, "-o", "x.png", "--technique", t.technique};
@@ -151,6 +171,8 @@ void validate_pipeline(const Pipeline& p) {
       throw InputError(p.file, where, e.what());
     }
   }
+  refuse_controlled(p.bake_options, {"output", "help", "dry-run"}, "assets",
+                    "set by the pipeline for every bake (the cache is <output>/<data set>.lbc.h5)");
   std::vector<std::string> bake = {"bake", p.file};
   bake.insert(bake.end(), p.bake_options.begin(), p.bake_options.end());
   parse(add_bake, bake, "assets");
@@ -163,11 +185,51 @@ void validate_pipeline(const Pipeline& p) {
     throw InputError(p.file, "flight",
                      "'" + p.flight + "' is neither orbit-zoom, orbit nor a keyframe file");
   try {
-    parse_size(p.size);
+    const auto [width, height] = parse_size(p.size);
+    if (width < 11 || height < 11)
+      throw Error("'" + p.size +
+                  "': the report compares frames by SSIM, which needs at least 11x11 pixels");
   } catch (const Error& e) {
     throw InputError(p.file, "size", e.what());
   }
+  // Synthetic sources as the bake will parse them.
+  for (size_t i = 0; i < p.datasets.size(); ++i)
+    if (synth::is_synth_source(p.datasets[i].source)) try {
+        synth::parse_synth_source(p.datasets[i].source);
+      } catch (const Error& e) {
+        throw InputError(p.file, "datasets[" + std::to_string(i) + "].source", e.what());
+      }
 }
+
+// The run's output directory, made where missing and held for the run: two runs into one
+// directory at once would each record their steps over the other's (a later run then reused
+// files the other made). An exclusive flock on <output>/.linebake-run.lock, released when the
+// process ends however it ends; the steps' processes do not inherit it.
+class OutputDirectoryLock {
+ public:
+  explicit OutputDirectoryLock(const std::string& output) {
+    std::error_code ec;
+    std::filesystem::create_directories(output, ec);
+    if (ec || !std::filesystem::is_directory(output))
+      throw OutputError(output, "cannot be the run's output directory" +
+                                    (ec ? ": " + ec.message() : std::string(": not a directory")));
+    const std::string path = output + "/.linebake-run.lock";
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw OutputError(path, std::string("cannot open: ") + std::strerror(errno));
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      ::close(fd_);
+      throw OutputError(output,
+                        "another linebake run is writing into this directory; wait for it to "
+                        "end or give another -o");
+    }
+  }
+  ~OutputDirectoryLock() { ::close(fd_); }
+  OutputDirectoryLock(const OutputDirectoryLock&) = delete;
+  OutputDirectoryLock& operator=(const OutputDirectoryLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
 
 }  // namespace
 
@@ -199,6 +261,13 @@ Command add_run(CLI::App& app) {
     }
     context.file_hash = [](const std::string& file) { return hash_file(file); };
     const std::vector<PipelineStep> steps = plan_pipeline(p, context);
+    std::optional<OutputDirectoryLock> lock;
+    if (!args->dry_run) {
+      lock.emplace(p.output);
+    } else if (std::error_code ec; std::filesystem::exists(p.output, ec) &&
+                                   !std::filesystem::is_directory(p.output, ec)) {
+      throw OutputError(p.output, "cannot be the run's output directory: not a directory");
+    }
     const std::string state_path = p.output + "/.linebake-run.json";
     nlohmann::json state = nlohmann::json::object();
     if (std::ifstream in(state_path); in) {

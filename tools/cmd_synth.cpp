@@ -33,7 +33,7 @@ Command add_synth(CLI::App& app) {
   sub->add_option("--scale", args->params.scale,
                   "Fraction of the paper's size (default 1.0; up to 100, generated and written "
                   "batch by batch to .binlines)")
-      ->check(within(1e-6, synth::kMaxScale));
+      ->check(within(synth::kMinScale, synth::kMaxScale));
   sub->add_option("--seed", args->params.seed, "Random seed (default 1)");
   sub->add_flag("--adaptive", args->adaptive, "Adaptive RK4 step (default: fixed step)");
   sub->add_option("--to", args->to, "Output format, overriding the extension");

@@ -14,6 +14,7 @@
 #include "core/hash.hpp"
 #include "core/json_file.hpp"
 #include "core/nearest.hpp"
+#include "render/camera.hpp"
 #include "render/transfer_function.hpp"
 #include "techniques/technique.hpp"
 
@@ -142,6 +143,11 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
     p.transfer_functions.clear();
     for (const auto& tf : tfs) {
       if (!tf.is_string()) throw InputError(file, "transfer_functions", "names must be strings");
+      if (std::find(p.transfer_functions.begin(), p.transfer_functions.end(),
+                    tf.get<std::string>()) != p.transfer_functions.end())
+        throw InputError(
+            file, "transfer_functions",
+            "'" + tf.get<std::string>() + "' appears twice (every step would run twice)");
       p.transfer_functions.push_back(tf.get<std::string>());
       const std::string& name = p.transfer_functions.back();
       if (!safe_name(name))
@@ -196,6 +202,12 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
     p.techniques.push_back(pt);
   }
   p.flight = string_at(j, "flight", p.flight, file, "");
+  // A keyframe file beside the pipeline file, as data sets and transfer functions are found.
+  std::error_code not_a_file;
+  if (parse_flight_kind(p.flight) == FlightKind::Keyframes &&
+      std::filesystem::path(p.flight).is_relative() &&
+      std::filesystem::is_regular_file(base / p.flight, not_a_file))
+    p.flight = (base / p.flight).lexically_normal().string();
   if (j.contains("frames")) {
     if (!j["frames"].is_number_integer() || j["frames"].get<int64_t>() < 1 ||
         j["frames"].get<int64_t>() > 100000)
@@ -213,22 +225,38 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
 
 namespace {
 
+// The most nodes a YAML pipeline may expand to: aliases repeat a node wherever they stand, so a
+// dozen lines of nested aliases expand to billions (a pipeline of 100 data sets and techniques
+// has a few thousand).
+constexpr uint64_t kMaxYamlNodes = 100000;
+
 // YAML pipelines are read into the same JSON tree. Plain scalars get YAML 1.2 core types
-// (true/false, integers, floats, null); quoted scalars stay strings.
-nlohmann::json yaml_to_json(const YAML::Node& node) {
+// (true/false, integers, floats, null); quoted scalars stay strings. Refuses more than
+// kMaxYamlNodes nodes (`nodes` counts them) and a key given twice in one mapping.
+nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uint64_t& nodes) {
+  if (++nodes > kMaxYamlNodes)
+    throw InputError(file, "",
+                     "expands to more than " + std::to_string(kMaxYamlNodes) +
+                         " YAML nodes (aliases repeat what they name): not a pipeline");
   switch (node.Type()) {
     case YAML::NodeType::Null:
     case YAML::NodeType::Undefined:
       return nullptr;
     case YAML::NodeType::Sequence: {
       nlohmann::json array = nlohmann::json::array();
-      for (const YAML::Node& item : node) array.push_back(yaml_to_json(item));
+      for (const YAML::Node& item : node) array.push_back(yaml_to_json(item, file, nodes));
       return array;
     }
     case YAML::NodeType::Map: {
       nlohmann::json object = nlohmann::json::object();
-      for (const auto& entry : node)
-        object[entry.first.as<std::string>()] = yaml_to_json(entry.second);
+      for (const auto& entry : node) {
+        const std::string key = entry.first.as<std::string>();
+        if (object.contains(key))
+          throw InputError(
+              file, "line " + std::to_string(entry.first.Mark().line + 1) + ", key '" + key + "'",
+              "given twice in one mapping (YAML readers keep either); give it once");
+        object[key] = yaml_to_json(entry.second, file, nodes);
+      }
       return object;
     }
     case YAML::NodeType::Scalar:
@@ -287,7 +315,13 @@ Pipeline load_pipeline(const std::string& given) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path, "", "cannot open the pipeline file");
     try {
-      j = yaml_to_json(YAML::Load(in));
+      // One document: a second (after ---) would be ignored, however malformed.
+      const std::vector<YAML::Node> documents = YAML::LoadAll(in);
+      if (documents.size() > 1)
+        throw InputError(path, "line " + std::to_string(documents[1].Mark().line + 1),
+                         "a second YAML document (after ---): a pipeline file holds one");
+      uint64_t nodes = 0;
+      j = documents.empty() ? nlohmann::json() : yaml_to_json(documents[0], path, nodes);
     } catch (const YAML::Exception& e) {
       throw InputError(path,
                        "line " + std::to_string(e.mark.line + 1) + ", column " +

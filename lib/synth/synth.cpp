@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.hpp"
+#include "core/nearest.hpp"
 #include "lines/derived.hpp"
 #include "synth/streamlines.hpp"
 
@@ -44,7 +45,13 @@ SynthParams parse_synth_source(const std::string& source) {
   const size_t q = rest.find('?');
   SynthParams params;
   params.name = rest.substr(0, q);
-  find_data_set(params.name);
+  // A mistyped source is a bad input (exit 2), named with the nearest of what there is.
+  std::vector<std::string> names;
+  for (const DataSetSpec& s : data_sets()) names.push_back(s.name);
+  if (std::find(names.begin(), names.end(), params.name) == names.end())
+    throw InputError(source, "",
+                     "unknown synthetic data set '" + params.name + "' (" + name_list(names) + ")" +
+                         did_you_mean(params.name, names));
   if (q == std::string::npos) return params;
   std::string query = rest.substr(q + 1);
   size_t start = 0;
@@ -59,16 +66,23 @@ SynthParams parse_synth_source(const std::string& source) {
     const char* end = value.data() + value.size();
     if (key == "scale") {
       auto r = std::from_chars(value.data(), end, params.scale);
-      if (r.ec != std::errc() || r.ptr != end) throw Error(source + ": bad scale '" + value + "'");
+      if (r.ec != std::errc() || r.ptr != end || !(params.scale >= kMinScale) ||
+          !(params.scale <= kMaxScale))
+        throw InputError(source, "scale",
+                         "'" + value + "' is not a number from 1e-06 to " +
+                             std::to_string(int(kMaxScale)) + " (as synth --scale)");
     } else if (key == "seed") {
       auto r = std::from_chars(value.data(), end, params.seed);
-      if (r.ec != std::errc() || r.ptr != end) throw Error(source + ": bad seed '" + value + "'");
+      if (r.ec != std::errc() || r.ptr != end)
+        throw InputError(source, "seed", "'" + value + "' is not an unsigned integer");
     } else if (key == "step") {
       if (value != "fixed" && value != "adaptive")
-        throw Error(source + ": step must be fixed or adaptive");
+        throw InputError(source, "step", "'" + value + "': fixed or adaptive");
       params.adaptive = value == "adaptive";
     } else {
-      throw Error(source + ": unknown parameter '" + key + "' (expected scale, seed, step)");
+      throw InputError(source, "",
+                       "unknown parameter '" + key + "' (scale, seed, step)" +
+                           did_you_mean(key, {"scale", "seed", "step"}));
     }
   }
   return params;

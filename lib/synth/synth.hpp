@@ -24,6 +24,7 @@ const DataSetSpec& find_data_set(const std::string& name);  // throws Error when
 
 // The largest scale: 100 x clouds is 3.96e9 segments, generated and baked batch by batch.
 constexpr double kMaxScale = 100;
+constexpr double kMinScale = 1e-6;
 
 struct SynthParams {
   std::string name;
