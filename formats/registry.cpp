@@ -228,6 +228,28 @@ std::string attribute_list(const std::vector<Attribute>& attributes) {
   return s + "]";
 }
 
+}  // namespace
+
+void check_same_attributes(const LineSet& first, const std::string& first_path,
+                           const LineSet& header, const std::string& path) {
+  const auto names = [](const std::vector<Attribute>& list) {
+    std::vector<std::string> n;
+    for (const Attribute& a : list) n.push_back(a.name);
+    return n;
+  };
+  if (names(header.attributes) != names(first.attributes) ||
+      names(header.line_attributes) != names(first.line_attributes))
+    throw InputError(path, "",
+                     "its attributes " + attribute_list(header.attributes) + ", line attributes " +
+                         attribute_list(header.line_attributes) +
+                         " differ from the first input's (" + first_path + ": " +
+                         attribute_list(first.attributes) + ", " +
+                         attribute_list(first.line_attributes) +
+                         "); every file of one line set needs the same attributes");
+}
+
+namespace {
+
 // Files one after the other; each opened when the one before it is done.
 class MultiFileReader final : public LineReader {
  public:
@@ -266,21 +288,7 @@ class MultiFileReader final : public LineReader {
         }
       current_ = std::make_unique<MemoryLineReader>(std::move(whole), true);
     }
-    if (file == 0) return;
-    const LineSet& h = current_->header();
-    const auto names = [](const std::vector<Attribute>& list) {
-      std::vector<std::string> n;
-      for (const Attribute& a : list) n.push_back(a.name);
-      return n;
-    };
-    if (names(h.attributes) != names(header_.attributes) ||
-        names(h.line_attributes) != names(header_.line_attributes))
-      throw InputError(sources_[file], "",
-                       "its attributes " + attribute_list(h.attributes) + ", line attributes " +
-                           attribute_list(h.line_attributes) + " differ from the first input's (" +
-                           sources_[0] + ": " + attribute_list(header_.attributes) + ", " +
-                           attribute_list(header_.line_attributes) +
-                           "); every file of one line set needs the same attributes");
+    if (file > 0) check_same_attributes(header_, sources_[0], current_->header(), sources_[file]);
   }
   std::vector<std::string> sources_;
   ReadOptions options_;

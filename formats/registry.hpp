@@ -76,6 +76,10 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
 // otherwise. Files that cannot stream (OBJ, VTK, VTP) are read whole when their turn comes.
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options = {});
+// Throws InputError naming `path` when `header`'s attribute names (vertex and line, in order)
+// differ from `first`'s, the header of the first file of one line set (at `first_path`).
+void check_same_attributes(const LineSet& first, const std::string& first_path,
+                           const LineSet& header, const std::string& path);
 // The whole line set. Throws InputError (with file and place) on malformed input, Error on
 // unsupported requests. With ReadOptions::memory_limit, a format that streams is gathered in
 // batches sized to it, and BudgetExceeded names the source where the lines gathered, with their

@@ -103,6 +103,21 @@ check "one file: the serial bake finds the MPI cache up to date (same identity)"
   mpirun -np 2 '$mpi' bake run/part_0.binlines -o one.lbc.h5 > /dev/null &&
   '$bin' bake run/part_0.binlines -o one.lbc.h5 2>&1 | grep -q 'is up to date'"
 
+# Files whose attributes differ (convection's curvature, the aneurysm's vorticity) make no one
+# line set: refused as the serial bake refuses them, at any rank count (they baked, the
+# vorticity column holding curvature values).
+mkdir mixed
+cp run/part_0.binlines mixed/a.binlines
+"$bin" synth aneurysm --scale 0.01 -o mixed/b.binlines >/dev/null 2>&1
+for n in 1 2; do
+  mpirun -np "$n" "$mpi" bake 'mixed/*.binlines' -o mixed.lbc.h5 >mixed/out$n.txt 2>&1
+  code=$?
+  check "np $n: files with other attributes exit 2" test "$code" -eq 2
+  check "np $n: the error names the file and both attribute lists" \
+    grep -q "mixed/b.binlines: its attributes \[vorticity\], line attributes \[\] differ from the first input's (mixed/a.binlines: \[curvature\], \[\])" mixed/out$n.txt
+done
+check "no mixed cache is left" bash -c "! ls -a | grep -E '^mixed\.lbc\.h5'"
+
 # Rank 1 of 2 reads the end of the input: part_3 is cut short there.
 mkdir bad
 cp run/* bad/

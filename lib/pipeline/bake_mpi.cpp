@@ -209,11 +209,14 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   if (budget_bytes != 0) read.memory_limit = MemoryBudget(budget_bytes).available();
   LineSet header;
   ranks.agree([&] {
+    header = header_of(open_line_reader(inputs[0], read)->header());
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
       // The input's identity is its files' bytes: each file hashed by one rank.
       if (!synth::is_synth_source(inputs[f]))
         my_hashes += std::to_string(f) + " " + hash_file(inputs[f]) + "\n";
       auto reader = open_line_reader(inputs[f], read);
+      // Every file of one line set carries the first's attributes, as the serial bake checks.
+      if (f > 0) check_same_attributes(header, inputs[0], reader->header(), inputs[f]);
       if (const auto n = reader->line_count_hint()) {
         lines_per_file[f] = *n;
         continue;
@@ -221,7 +224,6 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       LineSet batch;
       while (reader->next(batch, uint64_t{1} << 20)) lines_per_file[f] += batch.line_count();
     }
-    header = header_of(open_line_reader(inputs[0], read)->header());
   });
   lines_per_file = ranks.sum(lines_per_file);
   std::vector<std::string> file_hashes;
