@@ -1,6 +1,7 @@
 // linebake compare <image> <reference>: PSNR and SSIM as the paper reports them.
 
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -23,8 +24,9 @@ Command add_compare(CLI::App& app) {
   auto args = std::make_shared<Args>();
   sub->add_option("image", args->image, "Image (.png or .pfm)")->required();
   sub->add_option("reference", args->reference, "Reference image (.png or .pfm)")->required();
-  sub->add_option("--error-image", args->error_image,
-                  "Per-pixel absolute error, inverted grey (white = equal)");
+  sub->add_option(
+      "--error-image", args->error_image,
+      "Per-pixel absolute error, inverted grey (white = equal): .png (8-bit) or .pfm (float)");
   sub->add_option("--error-scale", args->error_scale, "Error image gain (default 1)")
       ->check(positive());
   sub->add_flag("--json", args->json, "Print JSON");
@@ -34,6 +36,10 @@ Command add_compare(CLI::App& app) {
     check_input_file(args->reference);
     check_output_location(args->error_image);
     refuse_input_as_output(args->error_image, {args->image, args->reference});
+    const std::string error_format = std::filesystem::path(args->error_image).extension().string();
+    if (!args->error_image.empty() && error_format != ".png" && error_format != ".pfm")
+      throw OutputError(args->error_image,
+                        "an error image is .png (8-bit grey) or .pfm (float grey)");
     // Checked as read: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
     const Image raw_a = read_image(args->image), raw_b = read_image(args->reference);
     for (const auto& [image, path] :
@@ -48,8 +54,21 @@ Command add_compare(CLI::App& app) {
                            ", but the reference " + args->reference + " is " +
                            std::to_string(b.width) + "x" + std::to_string(b.height) +
                            ": images of one size compare");
+    const auto kind = [](const Image& i) {
+      return std::to_string(i.channels) + (i.channels == 1 ? " channel (grey)" : " channels");
+    };
+    if (a.channels != b.channels)
+      throw InputError(args->image, "",
+                       kind(a) + ", but the reference " + args->reference + " has " + kind(b) +
+                           ": images of one kind compare (convert the grey one to RGB first)");
+    if (a.width < 11 || a.height < 11)
+      throw InputError(args->image, "",
+                       std::to_string(a.width) + "x" + std::to_string(a.height) +
+                           ": SSIM needs images of at least 11x11 pixels");
     const double p = psnr(a, b), s = ssim(a, b);
-    if (!args->error_image.empty())
+    if (error_format == ".pfm")
+      write_pfm(error_image(a, b, args->error_scale), args->error_image);
+    else if (!args->error_image.empty())
       write_png(error_image(a, b, args->error_scale), args->error_image, 8);
     if (args->json) {
       std::cout << nlohmann::json{{"image", args->image},

@@ -72,7 +72,8 @@ double psnr(const Image& a, const Image& b) {
     sum += d * d;
   }
   const double mse = a.pixels.empty() ? 0.0 : sum / double(a.pixels.size());
-  return mse > 0 ? std::min(kPsnrCap, -10.0 * std::log10(mse)) : kPsnrCap;
+  // + 0.0: an error of 1 everywhere gives -0.0, which JSON would print as such.
+  return mse > 0 ? std::min(kPsnrCap, -10.0 * std::log10(mse)) + 0.0 : kPsnrCap;
 }
 
 double ssim(const Image& a, const Image& b) {
