@@ -480,6 +480,8 @@ for codec in lz4 deflate blosc-zstd; do
   check "h5dump reads a $codec chunk as written (HDF5's own filters)" bash -c "h5dump -d /assets/tubes/chunk_000000/positions -s 1000,0 -c 4,3 '$tmp/$codec.lbc.h5' | grep -A3 'DATA {' | diff - '$tmp/none.dump' && h5dump -p -d /lines/points '$tmp/$codec.lbc.h5' | grep -q FLETCHER32"
 done
 unset HDF5_PLUGIN_PATH
+check "under ulimit -v the default budget is half of the address-space limit (4,000,000 KiB: 1.91 GiB)" bash -c "ulimit -v 4000000; '$bin' bake '$tmp/c.binlines' -o '$tmp/ulimit.lbc.h5' 2>&1 | grep -q 'budget 1.91 GiB' && rm '$tmp/ulimit.lbc.h5'"
+check "an allocation past ulimit -v under an unlimited budget: exit 4, said as out of memory" bash -c "ulimit -v 200000; '$bin' bench tubes '$tmp/c.binlines' --memory-budget unlimited --repeat 1 > /dev/null 2> '$tmp/oom.err'; [ \$? -eq 4 ] && grep -q '^linebake: error: out of memory: an allocation failed' '$tmp/oom.err'"
 check "a budget below what the process holds: exit 4, nothing left" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/tiny.lbc.h5' --memory-budget 20M 2> '$tmp/tiny.err'; [ \$? -eq 4 ] && grep -q 'memory budget of 20.00 MiB' '$tmp/tiny.err' && [ ! -e '$tmp/tiny.lbc.h5' ] && ! ls '$tmp' | grep -q tmp-"
 check_budget "bench bake --json" python3 -c "
 import json, subprocess

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <new>
 
 #include "cli_contract.hpp"
 #include "commands.hpp"
@@ -112,6 +113,13 @@ int main(int argc, char** argv) {
     return fail("error: ", e, kInput);
   } catch (const linebake::OutputError& e) {
     return fail("error: ", e, kOutput);
+  } catch (const std::bad_alloc&) {
+    // An allocation the budget's estimates did not foresee, past what the kernel gives (an
+    // address-space limit, overcommit off): said as such, not as "std::bad_alloc".
+    std::cerr << "linebake: error: out of memory: an allocation failed past what this process "
+                 "may have (ulimit -v, the cgroup's limit, or the machine's memory); give a "
+                 "smaller --memory-budget, or ask for less\n";
+    return kFailure;
   } catch (const std::exception& e) {
     return fail("error: ", e, kFailure);
   }

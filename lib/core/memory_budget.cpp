@@ -1,11 +1,15 @@
 #include "core/memory_budget.hpp"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sstream>
 
 #include "core/error.hpp"
 #include "core/measure.hpp"
@@ -46,19 +50,78 @@ std::string format_bytes(uint64_t bytes) {
   return text;
 }
 
+namespace {
+
+// A limit file's value: bytes, or 0 for none ("max" in v2; v1 writes "no limit" as about 2^63).
+uint64_t limit_in(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::string text;
+  if (!(in >> text) || text == "max") return 0;
+  try {
+    const uint64_t bytes = std::stoull(text);
+    return bytes >= (uint64_t{1} << 62) ? 0 : bytes;
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
+// The smallest limit in `file_name` of `path`'s directory under `mount` and of each directory
+// above it, up to the mount (a parent's limit binds its children; inside a container the mount
+// is the container's own cgroup, and `path` may not exist under it).
+uint64_t smallest_limit(const std::filesystem::path& mount, const std::string& path,
+                        const char* file_name) {
+  uint64_t smallest = 0;
+  std::filesystem::path relative = std::filesystem::path(path).relative_path();
+  while (true) {
+    const uint64_t bytes = limit_in(mount / relative / file_name);
+    if (bytes > 0 && (smallest == 0 || bytes < smallest)) smallest = bytes;
+    if (relative.empty()) break;
+    relative = relative.parent_path();
+  }
+  return smallest;
+}
+
+}  // namespace
+
+uint64_t cgroup_memory_limit(const std::string& proc_self_cgroup, const std::string& root) {
+  uint64_t smallest = 0;
+  const auto take = [&](uint64_t bytes) {
+    if (bytes > 0 && (smallest == 0 || bytes < smallest)) smallest = bytes;
+  };
+  std::istringstream lines(proc_self_cgroup);
+  std::string line;
+  while (std::getline(lines, line)) {
+    // "hierarchy-ID:controller-list:cgroup-path" (cgroups(7)); v2's line is "0::path".
+    const size_t first = line.find(':'), second = line.find(':', first + 1);
+    if (first == std::string::npos || second == std::string::npos) continue;
+    const std::string controllers = line.substr(first + 1, second - first - 1);
+    const std::string path = line.substr(second + 1);
+    if (line.compare(0, first, "0") == 0 && controllers.empty()) {
+      // v2, mounted at the root, or at unified/ beside v1's hierarchies (hybrid).
+      take(smallest_limit(root, path, "memory.max"));
+      take(smallest_limit(std::filesystem::path(root) / "unified", path, "memory.max"));
+    } else if (("," + controllers + ",").find(",memory,") != std::string::npos) {
+      take(smallest_limit(std::filesystem::path(root) / "memory", path, "memory.limit_in_bytes"));
+    }
+  }
+  return smallest;
+}
+
 uint64_t physical_memory_bytes() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
   uint64_t bytes = pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
-  // A cgroup v2 limit (containers, batch schedulers) is what the kernel enforces.
-  std::ifstream limit("/sys/fs/cgroup/memory.max");
-  std::string text;
-  if (limit >> text && text != "max") {
-    try {
-      const uint64_t cgroup = std::stoull(text);
-      if (cgroup > 0 && (bytes == 0 || cgroup < bytes)) bytes = cgroup;
-    } catch (const std::exception&) {
-    }
-  }
+  const auto take = [&](uint64_t limit) {
+    if (limit > 0 && (bytes == 0 || limit < bytes)) bytes = limit;
+  };
+  // What the kernel enforces on this process: its cgroups' memory limits (containers, batch
+  // schedulers: Slurm's --mem), v1 or v2, and its address-space limit (ulimit -v).
+  std::ifstream self("/proc/self/cgroup");
+  const std::string cgroups((std::istreambuf_iterator<char>(self)),
+                            std::istreambuf_iterator<char>());
+  take(cgroup_memory_limit(cgroups, "/sys/fs/cgroup"));
+  rlimit address_space{};
+  if (::getrlimit(RLIMIT_AS, &address_space) == 0 && address_space.rlim_cur != RLIM_INFINITY)
+    take(uint64_t(address_space.rlim_cur));
   return bytes;
 }
 

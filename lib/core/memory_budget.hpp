@@ -13,9 +13,14 @@ namespace linebake {
 uint64_t parse_size(const std::string& text);
 // "1.50 GiB", "512.00 MiB", "17 B": binary units, two decimals.
 std::string format_bytes(uint64_t bytes);
-// Physical memory of the machine (or of the cgroup, when that is smaller).
+// Physical memory of the machine, or what the kernel lets this process have when that is smaller:
+// its cgroups' memory limits (cgroup_memory_limit) and its address-space limit (ulimit -v).
 uint64_t physical_memory_bytes();
-// The default budget: half of physical memory.
+// The smallest memory limit of the cgroups listed in `proc_self_cgroup` (the text of
+// /proc/self/cgroup), v2 (memory.max) and v1 (memory.limit_in_bytes), each cgroup's and every
+// one's above it, under `root` (/sys/fs/cgroup); 0 when there is none.
+uint64_t cgroup_memory_limit(const std::string& proc_self_cgroup, const std::string& root);
+// The default budget: half of physical_memory_bytes().
 uint64_t default_memory_budget();
 
 // What a budget of 0 bytes is told (a usage error wherever a budget is given: `unlimited` is the
