@@ -192,13 +192,21 @@ void validate_pipeline(const Pipeline& p) {
   } catch (const Error& e) {
     throw InputError(p.file, "size", e.what());
   }
-  // Synthetic sources as the bake will parse them.
-  for (size_t i = 0; i < p.datasets.size(); ++i)
-    if (synth::is_synth_source(p.datasets[i].source)) try {
-        synth::parse_synth_source(p.datasets[i].source);
+  // Sources as the bake will read them: synthetic ones parsed, files there.
+  for (size_t i = 0; i < p.datasets.size(); ++i) {
+    const std::string& source = p.datasets[i].source;
+    const std::string where = "datasets[" + std::to_string(i) + "].source";
+    if (synth::is_synth_source(source)) try {
+        synth::parse_synth_source(source);
       } catch (const Error& e) {
-        throw InputError(p.file, "datasets[" + std::to_string(i) + "].source", e.what());
+        throw InputError(p.file, where, e.what());
       }
+    else if (std::error_code ec; !std::filesystem::exists(source, ec))
+      throw InputError(p.file, where,
+                       "'" + source +
+                           "': no such file (a source is found relative to the "
+                           "pipeline file)");
+  }
 }
 
 // The run's output directory, made where missing and held for the run: two runs into one
@@ -238,19 +246,25 @@ Command add_run(CLI::App& app) {
       "run", "Run a pipeline: bake, render and compare every step, then write the report");
   struct Args {
     std::string pipeline, output;
-    bool dry_run = false, force = false;
+    bool dry_run = false, force = false, given_output = false;
   };
   auto args = std::make_shared<Args>();
   sub->add_option("pipeline", args->pipeline,
                   "Pipeline file (.json, .yaml; the extension may be left out), or the name of "
                   "a pipeline shipped with linebake: quickstart, ci, paper-small, paper")
       ->required();
-  sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)");
+  sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)")
+      ->each([args](const std::string&) { args->given_output = true; });
   sub->add_flag("--dry-run", args->dry_run,
                 "List the steps and whether each would run or be reused");
   sub->add_flag("--force", args->force, "Run every step, even unchanged ones");
   return [args] {
     Pipeline p = load_pipeline(find_pipeline(args->pipeline, LINEBAKE_PIPELINES_DIR));
+    if (args->given_output && args->output.empty())
+      throw UsageError(
+          "-o: an empty output directory; give a directory, or leave -o out for "
+          "the pipeline's own (" +
+          p.output + ")");
     if (!args->output.empty()) p.output = args->output;
     validate_pipeline(p);
     PlanContext context;

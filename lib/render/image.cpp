@@ -213,7 +213,9 @@ Image read_pfm(const std::string& path) {
   if (std::fscanf(f.get(), "%2s %d %d %lf", kind, &width, &height, &scale) != 4 ||
       (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0))
     throw InputError(path, "byte offset 0", "not a PFM file (expected PF or Pf header)");
-  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide || scale == 0)
+  // The scale's sign is the byte order and its size a unit: NaN, infinity and 0 are neither.
+  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide || scale == 0 ||
+      !std::isfinite(scale))
     throw InputError(path, "header", "implausible size or scale");
   if (scale > 0) throw InputError(path, "header", "big-endian PFM is not supported");
   std::fgetc(f.get());  // the single whitespace after the scale
