@@ -725,12 +725,15 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
     const nlohmann::json doc =
         model_json(layout.model, layout.buffer_bytes, uri_of(bin.filename().string()));
     write_output(bin.string(), write_buffer);
-    write_output(path, [&](std::ostream& out) { return bool(out << doc.dump(2) << '\n'); });
+    write_output(path, [&](std::ostream& out) {
+      return bool(out << doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n');
+    });
     return;
   }
   // GLB (glTF 2.0, section 4.4): a 12-byte header, the JSON chunk padded with spaces, the BIN
   // chunk padded with zeros (the buffer is padded already).
-  std::string json = model_json(layout.model, layout.buffer_bytes, "").dump();
+  std::string json = model_json(layout.model, layout.buffer_bytes, "")
+                         .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   json.resize(ModelBuilder::aligned(json.size()), ' ');
   const uint64_t length =
       12 + 8 + json.size() + (layout.buffer_bytes ? 8 + layout.buffer_bytes : 0);

@@ -464,6 +464,14 @@ typo tf-twice 's/"semi"\]/"semi", "semi"]/' "transfer_functions: 'semi' appears 
 check "run into a directory another run holds: exit 3, nothing recorded; into a file: exit 3" bash -c "mkdir -p '$tmp/held' && { flock '$tmp/held/.linebake-run.lock' sleep 3 & } && sleep 0.5; '$bin' run '$pipes/ci.json' -o '$tmp/held' > /dev/null 2> '$tmp/held.err'; rc=\$?; wait; [ \$rc -eq 3 ] && grep -q 'another linebake run is writing into this directory' '$tmp/held.err' && [ ! -e '$tmp/held/.linebake-run.json' ] && touch '$tmp/afile' && { '$bin' run '$pipes/ci.json' -o '$tmp/afile' 2> /dev/null; [ \$? -eq 3 ]; }"
 check "compare: grey against colour and images under 11x11 are exit 2 naming the image; an error image as PFM" bash -c "cd '$tmp' && '$bin' compare '$tmp/dep.png' '$tmp/dep.png' --error-image grey.png > /dev/null && { '$bin' compare grey.png '$tmp/dep.png' 2> grey.err; [ \$? -eq 2 ]; } && grep -q 'grey.png: 1 channel (grey), but the reference .*dep.png has 3 channels' grey.err && printf 'PF\n5 5\n-1\n' > tiny.pfm && head -c 300 /dev/zero >> tiny.pfm && { '$bin' compare tiny.pfm tiny.pfm 2> tiny.err; [ \$? -eq 2 ]; } && grep -q 'tiny.pfm: 5x5: SSIM needs images of at least 11x11 pixels' tiny.err && '$bin' compare '$tmp/dep.png' '$tmp/dep.png' --error-image e.pfm > /dev/null && head -c 3 e.pfm | grep -q '^Pf'"
 check "run -o '' is a usage error (it was ignored); a PFM whose scale is NaN is not an image" bash -c "'$bin' run '$pipes/ci.json' -o '' --dry-run 2> '$tmp/emptyo.err'; [ \$? -eq 1 ] && grep -q -- '-o: an empty output directory' '$tmp/emptyo.err' && printf 'Pf\n2 2\nnan\n' > '$tmp/nan.pfm' && head -c 16 /dev/zero >> '$tmp/nan.pfm' && { '$bin' compare '$tmp/nan.pfm' '$tmp/nan.pfm' 2> '$tmp/nanpfm.err'; [ \$? -eq 2 ]; } && grep -q 'nan.pfm: header: implausible size or scale' '$tmp/nanpfm.err'"
+check "a file name that is not UTF-8 bakes; JSON records it with U+FFFD" /usr/bin/python3 -c "
+import json, os, shutil, subprocess
+name = os.path.join(b'$tmp', b'n\\xff.binlines')
+shutil.copy('$tmp/c.binlines', name)
+subprocess.run([b'$bin', b'bake', name, b'-o', b'$tmp/nonutf8.lbc.h5'], check=True, capture_output=True)
+info = json.loads(subprocess.run(['$bin', 'info', '$tmp/nonutf8.lbc.h5', '--json'], check=True, capture_output=True).stdout)
+assert info['metadata']['source'].endswith('n\\ufffd.binlines'), info['metadata']
+os.remove(name); os.remove('$tmp/nonutf8.lbc.h5')"
 check "a bad pipeline names the file and the entry" bash -c "echo '{\"datasets\": [], \"techniques\": [\"reference\"]}' > '$tmp/bad.json'; '$bin' run '$tmp/bad.json' 2> '$tmp/bad.err'; [ \$? -eq 2 ] && grep -q 'bad.json: datasets' '$tmp/bad.err'"
 check "no temporary files left after bake/export" bash -c "! ls '$tmp' | grep -q tmp-"
 

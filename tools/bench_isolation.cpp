@@ -175,7 +175,8 @@ void bench_isolation(const BenchIsolationArgs& args) {
               << "  data read in the child, memfd:    " << f.read_in_child << " s ("
               << std::setprecision(2) << f.read_in_child / f.read << "x)\n";
   }
-  if (args.json) std::cout << out.dump(2) << "\n";
+  if (args.json)
+    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
 }
 
 }  // namespace linebake::cli

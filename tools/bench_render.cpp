@@ -418,7 +418,7 @@ void bench_render(const BenchRenderArgs& args) {
     result["runs"].push_back(std::move(run));
   }
   if (args.json)
-    std::cout << result.dump(2) << "\n";
+    std::cout << result.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   else
     print_markdown(result);
 }

@@ -103,7 +103,8 @@ void bench_shaders(const BenchShadersArgs& args) {
       if (!row.empty()) std::cout << " " << row << "\n";
     }
   }
-  if (args.json) std::cout << json.dump(2) << "\n";
+  if (args.json)
+    std::cout << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   // A --statistics part that names none of the driver's statistics (each driver has its own).
   for (const std::string& part : args.statistics)
     if (std::none_of(reported.begin(), reported.end(),

@@ -211,7 +211,9 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     const CacheReader cache(result.cache, false);
     const std::vector<CacheSummary> summary{summarize_cache(cache)};
     if (args->json)
-      std::cout << report_json(summary).dump(2) << "\n";
+      std::cout << report_json(summary).dump(2, ' ', false,
+                                             nlohmann::json::error_handler_t::replace)
+                << "\n";
     else
       std::cout << report_text(summary);
   };
@@ -233,7 +235,9 @@ Command add_report(CLI::App& app) {
     for (const std::string& path : args->caches)
       summaries.push_back(summarize_cache(CacheReader(path, false)));
     if (args->json)
-      std::cout << report_json(summaries).dump(2) << "\n";
+      std::cout << report_json(summaries).dump(2, ' ', false,
+                                               nlohmann::json::error_handler_t::replace)
+                << "\n";
     else if (args->markdown)
       std::cout << report_markdown(summaries);
     else

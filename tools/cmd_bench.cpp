@@ -214,7 +214,7 @@ void bench_voxels(const BenchArgs& args) {
                               {"memory_budget_bytes", budget.total()},
                               {"peak_rss_bytes", peak}};
   if (args.json) {
-    std::cout << out.dump(2) << "\n";
+    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "voxels: " << args.input << ", "
@@ -371,7 +371,7 @@ void bench_embree(const BenchArgs& args) {
                               {"bvh_peak_bytes", stats.bvh_peak_bytes},
                               {"memory_budget_bytes", budget.total()}};
   if (args.json) {
-    std::cout << out.dump(2) << "\n";
+    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "embree: " << args.input << ", "
@@ -456,7 +456,7 @@ void bench_tubes(const BenchArgs& args) {
                         {"memory_budget_bytes", budget.total()},
                         {"peak_rss_bytes", peak}};
   if (args.json) {
-    std::cout << out.dump(2) << "\n";
+    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "tubes: " << args.input << ", " << segments
@@ -492,10 +492,10 @@ void bench_bake(const BenchArgs& args) {
     options.memory_budget = std::max<uint64_t>(linebake::parse_size(args.memory_budget), 1);
   // <input name>.bench.lbc.h5: bake's default name with .bench before its .lbc.h5.
   const std::string bake_name = default_cache_path(args.input);
-  options.cache = args.output.empty()
-                      ? bake_name.substr(0, bake_name.size() - std::string(".lbc.h5").size()) +
-                            ".bench.lbc.h5"
-                      : args.output;
+  options.cache =
+      args.output.empty()
+          ? bake_name.substr(0, bake_name.size() - std::string(".lbc.h5").size()) + ".bench.lbc.h5"
+          : args.output;
   // Each run starts from no cache, so the output is removed first: never the input.
   refuse_input_as_output(options.cache, {args.input});
   std::vector<BakeResult> runs;
@@ -549,7 +549,7 @@ void bench_bake(const BenchArgs& args) {
                               {"written_MBps", written / 1e6},
                               {"memcpy_GBps", bandwidth / 1e9}};
   if (args.json) {
-    std::cout << out.dump(2) << "\n";
+    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(2) << "bake: " << args.input << ", " << segments

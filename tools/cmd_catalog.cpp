@@ -60,7 +60,7 @@ Command add_techniques(CLI::App& app) {
                       {"unavailable_reason", why ? *why : ""}});
     }
     if (*json) {
-      std::cout << rows.dump(2) << "\n";
+      std::cout << rows.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       return;
     }
     std::cout << std::left << std::setw(10) << "technique" << std::setw(8) << "reads"
@@ -106,7 +106,7 @@ Command add_formats(CLI::App& app) {
                     {"line_attributes", false},
                     {"metadata", true}});
     if (*json) {
-      std::cout << rows.dump(2) << "\n";
+      std::cout << rows.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       return;
     }
     const auto yes = [](const nlohmann::json& v) { return v.get<bool>() ? "yes" : "no"; };
@@ -138,7 +138,7 @@ Command add_version(CLI::App& app) {
                                            std::to_string(release)},
                               {"embree", RTC_VERSION_STRING}};
     if (*json) {
-      std::cout << v.dump(2) << "\n";
+      std::cout << v.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       return;
     }
     std::cout << "linebake " << LINEBAKE_VERSION << " (HDF5 " << v["hdf5"].get<std::string>()

@@ -76,7 +76,7 @@ Command add_compare(CLI::App& app) {
                                   {"psnr_db", p},
                                   {"ssim", s},
                                   {"ssim_mode", "per-channel mean"}}
-                       .dump(2)
+                       .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
                 << "\n";
     } else {
       std::printf("PSNR  %.4f dB%s\nSSIM  %.6f (per-channel mean)\n", p,

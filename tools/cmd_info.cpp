@@ -65,7 +65,7 @@ Command add_info(CLI::App& app) {
     if (args->json) {
       const nlohmann::json j =
           line_set_info(s, v, metadata, args->input, source_format_name(args->input, read));
-      std::cout << j.dump(2) << "\n";
+      std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       return;
     }
     std::printf("source      %s (%s)\n", args->input.c_str(),

@@ -72,8 +72,11 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
                 << (frame.note.empty() ? "" : ", " + frame.note) << "\n";
   }
   progress.finish();
-  if (!args.stats.empty()) write_file_atomically(args.stats, stats.dump(2) + "\n");
-  if (args.json) std::cout << stats.dump(2) << "\n";
+  if (!args.stats.empty())
+    write_file_atomically(
+        args.stats, stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  if (args.json)
+    std::cout << stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   // What stays on the terminal after the bar.
   std::vector<double> sorted = seconds;
   std::sort(sorted.begin(), sorted.end());

@@ -331,7 +331,8 @@ Command add_run(CLI::App& app) {
         throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
                     "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);
       state[s.id] = s.key;
-      write_file_atomically(state_path, state.dump(1) + "\n");
+      write_file_atomically(
+          state_path, state.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
       ++ran;
     }
     if (args->dry_run) return;
@@ -340,7 +341,9 @@ Command add_run(CLI::App& app) {
     // The reports and their plots are renamed into place together, or none is: never a new
     // report.json beside an old report.html.
     OutputGroup reports;
-    write_file_atomically(p.output + "/report.json", evaluation.dump(2) + "\n");
+    write_file_atomically(
+        p.output + "/report.json",
+        evaluation.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
     const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
     std::filesystem::create_directories(p.output + "/plots");
     for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);

@@ -246,7 +246,9 @@ void CacheWriter::write_attribute(const std::string& object, const std::string& 
 }
 
 void CacheWriter::write_provenance(const std::string& group, const Provenance& provenance) {
-  write_attribute(group, "provenance", to_json(provenance).dump());
+  write_attribute(
+      group, "provenance",
+      to_json(provenance).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
 }
 
 // ---- streamed datasets ----

@@ -28,7 +28,8 @@ void store_embree(CacheWriter& cache, const StoredCurves& curves, Provenance pro
                                       {"radius", curves.radius},
                                       {"attribute", curves.attribute},
                                       {"parts", curves.parts.size()}};
-  cache.write_attribute(kEmbreeGroup, "curves", description.dump());
+  cache.write_attribute(kEmbreeGroup, "curves",
+                        description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk;
   cache.write_provenance(kEmbreeGroup, provenance);
 }
@@ -134,7 +135,9 @@ void EmbreeStoreWriter::close(Provenance provenance) {
                                       {"radius", radius_},
                                       {"attribute", attribute_},
                                       {"parts", parts_.size()}};
-  cache_.write_attribute(kEmbreeGroup, "curves", description.dump());
+  cache_.write_attribute(
+      kEmbreeGroup, "curves",
+      description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk_;
   cache_.write_provenance(kEmbreeGroup, provenance);
 }

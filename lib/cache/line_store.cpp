@@ -259,7 +259,9 @@ void LineStoreWriter::close(const std::map<std::string, std::string>& metadata,
   uint64_t disk = points_.close() + offsets_.close();
   for (DatasetStream& s : attributes_) disk += s.close();
   for (DatasetStream& s : line_attributes_) disk += s.close();
-  cache_.write_attribute("/lines", "metadata", nlohmann::json(metadata).dump());
+  cache_.write_attribute(
+      "/lines", "metadata",
+      nlohmann::json(metadata).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = stats_.total_bytes();
   cache_.write_provenance("/lines", provenance);

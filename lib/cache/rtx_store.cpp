@@ -23,7 +23,8 @@ void store_rtx(CacheWriter& cache, const StoredRtx& rtx, Provenance provenance) 
                                       {"source", rtx.source},     {"device", rtx.device},
                                       {"driver", rtx.driver},     {"driver_uuid", rtx.driver_uuid},
                                       {"blas", rtx.blobs.size()}};
-  cache.write_attribute(kRtxGroup, "acceleration_structures", description.dump());
+  cache.write_attribute(kRtxGroup, "acceleration_structures",
+                        description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk;
   cache.write_provenance(kRtxGroup, provenance);
 }

@@ -165,7 +165,9 @@ void TubeStoreSink::State::close_chunk(size_t c) {
   s.normals.reset();
   s.attribute_values.reset();
   s.indices.reset();
-  s.cache->write_attribute(g, "lines", nlohmann::json{s.plan.first_line, s.plan.line_count}.dump());
+  s.cache->write_attribute(g, "lines",
+                           nlohmann::json{s.plan.first_line, s.plan.line_count}.dump(
+                               -1, ' ', false, nlohmann::json::error_handler_t::replace));
 }
 
 void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
@@ -179,7 +181,9 @@ void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
     s.close_chunk(c);
   }
   s.all.clear();
-  s.cache->write_attribute(kTubesGroup, "mesh", describe(mesh, s.chunks).dump());
+  s.cache->write_attribute(
+      kTubesGroup, "mesh",
+      describe(mesh, s.chunks).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = s.disk;
   provenance.memory_bytes = s.memory;
   s.cache->write_provenance(kTubesGroup, provenance);
@@ -204,9 +208,13 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
       disk += cache.write(g + "/normals_oct", chunk.normals_oct.data(), v, 2);
     if (!mesh.attribute.empty()) disk += cache.write(g + "/attribute", chunk.attribute.data(), v);
     disk += cache.write(g + "/indices", chunk.indices.data(), chunk.triangle_count(), 3);
-    cache.write_attribute(g, "lines", nlohmann::json{chunk.first_line, chunk.line_count}.dump());
+    cache.write_attribute(g, "lines",
+                          nlohmann::json{chunk.first_line, chunk.line_count}.dump(
+                              -1, ' ', false, nlohmann::json::error_handler_t::replace));
   }
-  cache.write_attribute(kTubesGroup, "mesh", describe(mesh, mesh.chunks.size()).dump());
+  cache.write_attribute(kTubesGroup, "mesh",
+                        describe(mesh, mesh.chunks.size())
+                            .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = mesh.bytes();
   cache.write_provenance(kTubesGroup, provenance);

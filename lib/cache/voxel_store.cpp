@@ -37,7 +37,9 @@ void store_voxels(CacheWriter& cache, const VoxelGrid& g, Provenance provenance)
   disk += cache.write(base + "/line_counts", g.line_counts.data(), g.line_counts.size());
   for (size_t level = 0; level < g.density.size(); ++level)
     disk += cache.write(density_name(level), g.density[level].data(), g.density[level].size());
-  cache.write_attribute(kVoxelsGroup, "grid", describe(g, g.density.size()).dump());
+  cache.write_attribute(
+      kVoxelsGroup, "grid",
+      describe(g, g.density.size()).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = g.representation_bytes();
   cache.write_provenance(kVoxelsGroup, provenance);
@@ -107,7 +109,9 @@ void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
     s.disk += stream.close();
     s.memory_with_density += count * sizeof(float);
   }
-  s.cache->write_attribute(kVoxelsGroup, "grid", describe(g, levels).dump());
+  s.cache->write_attribute(
+      kVoxelsGroup, "grid",
+      describe(g, levels).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
 }
 
 void VoxelStoreSink::close(Provenance provenance) {

@@ -171,7 +171,7 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
         out << "    spilled       " << format_bytes(p.spill_bytes) << " to a temporary file\n";
       for (const auto& [key, value] : p.stats.items())
         out << "    " << key << std::string(key.size() < 14 ? 14 - key.size() : 1, ' ')
-            << value.dump() << "\n";
+            << value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
       out << "    built         " << p.created << " by linebake " << p.linebake_version << "\n";
     }
   }
