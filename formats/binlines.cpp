@@ -68,11 +68,12 @@ class BinlinesReader : public LineReader {
         in_.seek(at);  // this line starts the next batch
         break;
       }
-      const uint64_t points = batch.point_count() + n;
-      io::check_batch_memory(
-          in_.path(), lines_read_, points,
-          double(points) * double(12 + 4 * attributes) + 8.0 * double(batch.line_count() + 2),
-          "byte offset " + std::to_string(at), memory_limit_);
+      // A line that comes alone (larger than the batch its caller sized) is checked before it
+      // is read.
+      if (batch.line_count() == 0)
+        io::check_line_memory(in_.path(), lines_read_, n,
+                              double(n) * double(12 + 4 * attributes) + 16.0,
+                              "byte offset " + std::to_string(at), memory_limit_);
       const size_t first = batch.positions.size();
       batch.positions.resize(first + 3 * static_cast<size_t>(n));
       in_.read(batch.positions.data() + first, 12ull * n, "positions");

@@ -120,13 +120,11 @@ class CsvReader : public LineReader {
       }
       // A line's length is known only at its last row: what it holds is checked as it grows
       // (its arrays and the batch's copy, both growing by doubling).
-      if (open_.positions.size() / 3 % kCheckPoints == 0) {
-        const uint64_t open_points = open_.positions.size() / 3;
-        const uint64_t points = batch.point_count() + open_points;
-        io::check_batch_memory(in_.path(), lines_read_ + batch.line_count(), points,
-                               2.0 * double(open_points + points) * double(12 + 4 * (columns_ - 4)),
-                               "text line " + std::to_string(in_.line_number()), memory_limit_);
-      }
+      const uint64_t open_points = open_.positions.size() / 3;
+      if (batch.line_count() == 0 && open_points % kCheckPoints == 0)
+        io::check_line_memory(in_.path(), lines_read_, open_points,
+                              3.0 * double(open_points) * double(12 + 4 * (columns_ - 4)),
+                              "text line " + std::to_string(in_.line_number()), memory_limit_);
     }
     lines_read_ += batch.line_count();
     return batch.line_count() > 0;

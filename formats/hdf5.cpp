@@ -126,12 +126,11 @@ class Hdf5Reader : public LineReader {
                  1;
     end = std::max<size_t>(end, first + 1);
     const uint64_t p1 = offsets_[end];
-    io::check_batch_memory(
-        path_, first, p1 - p0,
-        double(p1 - p0) * double(12 + 4 * attributes_.size()) +
-            double(end - first + 1) * double(8 + 4 * line_attributes_.size()),
-        "dataset " + prefix_ + "/points, rows " + std::to_string(p0) + ".." + std::to_string(p1),
-        memory_limit_);
+    if (end == first + 1)  // a line that comes alone
+      io::check_line_memory(
+          path_, first, p1 - p0, double(p1 - p0) * double(12 + 4 * attributes_.size()) + 16.0,
+          "dataset " + prefix_ + "/points, rows " + std::to_string(p0) + ".." + std::to_string(p1),
+          memory_limit_);
     batch.positions.resize(3 * (p1 - p0));
     read(points_, p0, p1 - p0, batch.positions.data());
     batch.line_offsets.resize(end - first + 1);

@@ -331,12 +331,11 @@ void check_read_memory(const std::string& path, const char* format, double bytes
       "memory_budget= in Python; .binlines and .h5 inputs are read piece by piece)");
 }
 
-void check_batch_memory(const std::string& path, uint64_t line, uint64_t points, double bytes,
-                        const std::string& place, std::optional<uint64_t> limit) {
+void check_line_memory(const std::string& path, uint64_t line, uint64_t points, double bytes,
+                       const std::string& place, std::optional<uint64_t> limit) {
   if (!limit || bytes <= double(*limit)) return;
-  throw BudgetExceeded(path + ": line " + std::to_string(line) + " (" + place +
-                       "), which is read whole, makes a batch of " + std::to_string(points) +
-                       " points, about " +
+  throw BudgetExceeded(path + ": line " + std::to_string(line) + " (" + place + ") has " +
+                       std::to_string(points) + " points, read whole: about " +
                        (bytes < 1e19 ? format_bytes(uint64_t(bytes)) : std::string("16 EiB")) +
                        " in memory, more than the " + format_bytes(*limit) +
                        " the memory budget leaves for reading; raise the budget "

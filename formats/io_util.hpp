@@ -228,13 +228,12 @@ class Writer {
 void check_read_memory(const std::string& path, const char* format, double bytes,
                        const std::string& place, std::optional<uint64_t> limit);
 
-// What a streaming reader's batch will hold with line `line` in it, checked against
-// ReadOptions::memory_limit before the reader allocates for the line. A batch holds at most the
-// points its caller asked for, unless one line alone has more: that line is what this catches,
-// refused at its place (BudgetExceeded naming the file, the line, `place` and the figures)
-// instead of read into memory whole. `points`: the batch's with the line; `bytes`: what holding
-// them takes, the reader's buffers and the arrays' growth included.
-void check_batch_memory(const std::string& path, uint64_t line, uint64_t points, double bytes,
-                        const std::string& place, std::optional<uint64_t> limit);
+// A line that comes alone in a streaming reader's batch (LineReader::next: one larger than the
+// batch its caller asked for), checked against ReadOptions::memory_limit before the reader
+// allocates for it: refused at its place (BudgetExceeded naming the file, the line, `place` and
+// the figures) instead of read into memory whole. `points`: the line's; `bytes`: what holding it
+// takes, the reader's buffers and the arrays' growth included.
+void check_line_memory(const std::string& path, uint64_t line, uint64_t points, double bytes,
+                       const std::string& place, std::optional<uint64_t> limit);
 
 }  // namespace linebake::io

@@ -280,14 +280,16 @@ class NetcdfReader : public LineReader {
         end = file_line_ + 1;  // a line larger than max_points comes alone
       }
       // The rows read in double beside the batch's arrays, which grow by doubling.
-      const uint64_t rows =
-          counts_ ? offsets_[end] - offsets_[file_line_] : uint64_t(end - file_line_) * row_points_;
-      const uint64_t points = batch.point_count() + rows;
-      io::check_batch_memory(nc_.path, lines_read_ + batch.line_count(), points,
-                             8.0 * double(rows) * double(3 + attribute_vars_.size()) +
-                                 2.0 * double(points) * double(12 + 4 * attribute_vars_.size()),
-                             "trajectory " + std::to_string(file_line_) + " of the file",
-                             memory_limit_);
+      // A trajectory that comes alone: the rows read in double beside the batch's arrays, which
+      // grow by doubling.
+      if (batch.line_count() == 0 && end == file_line_ + 1) {
+        const uint64_t rows = counts_ ? offsets_[end] - offsets_[file_line_] : row_points_;
+        io::check_line_memory(nc_.path, lines_read_, rows,
+                              8.0 * double(rows) * double(3 + attribute_vars_.size()) +
+                                  2.0 * double(rows) * double(12 + 4 * attribute_vars_.size()),
+                              "trajectory " + std::to_string(file_line_) + " of the file",
+                              memory_limit_);
+      }
       read_lines(file_line_, end, batch);
       file_line_ = end;
     }

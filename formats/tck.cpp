@@ -102,13 +102,10 @@ class TckReader : public LineReader {
       // A streamline's length is known only at its NaN: what it holds is checked as it grows
       // (its buffer and the batch's copy, both growing by doubling).
       const uint64_t open_points = open_.size() / 3;
-      if (open_points % kCheckPoints == 0) {
-        const uint64_t points = batch.point_count() + open_points;
-        io::check_batch_memory(
-            in_.path(), lines_read_ + batch.line_count(), points,
-            24.0 * double(open_points + points),
+      if (batch.line_count() == 0 && open_points % kCheckPoints == 0)
+        io::check_line_memory(
+            in_.path(), lines_read_, open_points, 36.0 * double(open_points),
             "its point at byte offset " + std::to_string(in_.offset() - 3 * size_), memory_limit_);
-      }
     }
     lines_read_ += batch.line_count();
     return batch.line_count() > 0;

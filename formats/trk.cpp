@@ -100,12 +100,13 @@ class TrkReader : public LineReader {
         full = true;
         break;
       }
-      // The streamline's record buffer beside the batch's arrays, which grow by doubling.
-      const uint64_t points = batch.point_count() + static_cast<uint64_t>(m);
-      io::check_batch_memory(
-          in_.path(), lines_read_, points,
-          double(m) * double(stride) * 4.0 + 2.0 * double(points) * double(12 + 4 * n_scalars_),
-          "byte offset " + std::to_string(at), memory_limit_);
+      // A streamline that comes alone: its record buffer beside the batch's arrays, which grow
+      // by doubling.
+      if (batch.line_count() == 0)
+        io::check_line_memory(
+            in_.path(), lines_read_, uint64_t(m),
+            double(m) * double(stride) * 4.0 + 2.0 * double(m) * double(12 + 4 * n_scalars_),
+            "byte offset " + std::to_string(at), memory_limit_);
       record_.resize(static_cast<size_t>(m) * stride);
       in_.read(record_.data(), record_.size() * 4, "streamline points");
       if (swap_) io::byteswap_array(record_.data(), record_.size(), 4);

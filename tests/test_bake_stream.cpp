@@ -159,8 +159,8 @@ TEST(BakeStream, ABudgetTooSmallForOneLineFailsNamingTheLineAndLeavesNothing) {
     FAIL() << "baked";
   } catch (const BudgetExceeded& e) {
     const std::string message = e.what();
-    EXPECT_NE(message.find("long.binlines: line 1 (byte offset 256), which is read whole, makes a "
-                           "batch of 1500000 points, about 17.17 MiB"),
+    EXPECT_NE(message.find("long.binlines: line 1 (byte offset 256) has 1500000 points, read whole: "
+                           "about 17.17 MiB"),
               std::string::npos)
         << message;
   }

@@ -260,6 +260,15 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
   }
   std::tie(where, what) = error_of(write_temp("bomb.yaml", bomb));
   EXPECT_NE(what.find("expands to more than 100000 YAML nodes"), std::string::npos) << what;
+  // An alias inside what it names never ends (a stack overflow before the node count).
+  for (const char* cycle : {"datasets: &a [*a]\ntechniques: [ll]\n", "datasets: &a {x: *a}\n"}) {
+    std::tie(where, what) = error_of(write_temp("cycle.yaml", cycle));
+    EXPECT_NE(what.find("nests deeper than 256 levels"), std::string::npos) << what;
+  }
+  // An empty document after a trailing --- holds nothing: the pipeline reads.
+  EXPECT_NO_THROW(load_pipeline(write_temp(
+      "trailing.yaml",
+      "datasets: [{name: a, source: s.binlines}]\ntechniques: [ll]\nreference: ll\n---\n")));
 }
 
 TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {

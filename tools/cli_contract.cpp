@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <set>
 
 #include "cache/cache.hpp"
@@ -52,6 +53,12 @@ CLI::Validator number_check(const std::string& description, const std::function<
 
 CLI::Validator positive() {
   return number_check("a number > 0", [](double v) { return v > 0; });
+}
+
+CLI::Validator positive_float() {
+  return number_check("a number > 0 that a float holds (up to 3.4e38)", [](double v) {
+    return v > 0 && v <= double(std::numeric_limits<float>::max());
+  });
 }
 
 CLI::Validator non_negative() {

@@ -12,6 +12,7 @@ namespace linebake::cli {
 
 // Finite numbers only (CLI11's own checks take inf and nan, and print DBL_MAX in full).
 CLI::Validator positive();                    // > 0
+CLI::Validator positive_float();              // > 0, at most float's largest
 CLI::Validator non_negative();                // >= 0
 CLI::Validator within(double lo, double hi);  // lo..hi, both included
 CLI::Validator byte_size();                   // 2G, 1.5GiB, 512M, 4096, unlimited

@@ -55,7 +55,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::Range(3, 32));
   sub->add_option("--radius", o.tubes.radius,
                   "Tube radius as a fraction of the bounding-box diagonal (default 0.001)")
-      ->check(positive());
+      ->check(positive_float());
   sub->add_flag("--radius-absolute", o.tubes.radius_absolute,
                 "--radius is in world units, not a fraction of the diagonal");
   sub->add_option("--radius-attribute", o.tubes.radius_attribute,

@@ -1,5 +1,6 @@
 // linebake info <input> [--json]: counts, bounds, attributes, sizes and validation of a line set.
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -50,9 +51,16 @@ Command add_info(CLI::App& app) {
         metadata = whole->metadata;
       } else {
         LineStatsBuilder builder(input->header());
+        // Batches of a million points, fewer where the budget leaves less (a quarter of it: the
+        // reader's buffers, the batch, the statistics' work).
+        const LineSet& h = input->header();
+        const uint64_t point_bytes =
+            12 + 4 * h.attributes.size() + 8 + 4 * h.line_attributes.size();
+        const uint64_t batch_points =
+            std::clamp<uint64_t>(*read.memory_limit / 4 / point_bytes, 1024, uint64_t{1} << 20);
         LineSet batch;
         uint64_t line_base = 0;
-        while (input->next(batch, uint64_t{1} << 20)) {
+        while (input->next(batch, batch_points)) {
           throw_if_interrupted();
           builder.add(batch);
           v.add(inspect(batch, line_base));

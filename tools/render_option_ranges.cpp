@@ -1,6 +1,7 @@
 #include "render_option_ranges.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "cli_contract.hpp"
@@ -58,7 +59,8 @@ const std::vector<RenderOptionCheck>& render_option_checks() {
       {"--wboit-weight", CLI::IsMember({0, 7, 8, 9})},
       {"--embree-geometry", one_of({"linear", "bezier", "capsules"})},
       {"--embree-quality", one_of({"low", "medium", "high"})},
-      {"--radius", positive()},
+      // A float option: a positive double past float's range (1e39) would become infinity.
+      {"--radius", positive_float()},
       {"--frame-count", CLI::Range(1, 100000)},
       {"--frame", CLI::Range(0, 99999)},
       {"--frames", one_of({"all"})},

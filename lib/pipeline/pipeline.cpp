@@ -234,22 +234,31 @@ namespace {
 // dozen lines of nested aliases expand to billions (a pipeline of 100 data sets and techniques
 // has a few thousand).
 constexpr uint64_t kMaxYamlNodes = 100000;
+constexpr int kMaxYamlDepth = 256;
 
 // YAML pipelines are read into the same JSON tree. Plain scalars get YAML 1.2 core types
 // (true/false, integers, floats, null); quoted scalars stay strings. Refuses more than
 // kMaxYamlNodes nodes (`nodes` counts them) and a key given twice in one mapping.
-nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uint64_t& nodes) {
+nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uint64_t& nodes,
+                            int depth = 0) {
   if (++nodes > kMaxYamlNodes)
     throw InputError(file, "",
                      "expands to more than " + std::to_string(kMaxYamlNodes) +
                          " YAML nodes (aliases repeat what they name): not a pipeline");
+  // An alias inside the node it names (`datasets: &a [*a]`) never ends: it would overflow the
+  // stack long before the node count.
+  if (depth > kMaxYamlDepth)
+    throw InputError(file, "",
+                     "nests deeper than " + std::to_string(kMaxYamlDepth) +
+                         " levels (an alias inside what it names?): not a pipeline");
   switch (node.Type()) {
     case YAML::NodeType::Null:
     case YAML::NodeType::Undefined:
       return nullptr;
     case YAML::NodeType::Sequence: {
       nlohmann::json array = nlohmann::json::array();
-      for (const YAML::Node& item : node) array.push_back(yaml_to_json(item, file, nodes));
+      for (const YAML::Node& item : node)
+        array.push_back(yaml_to_json(item, file, nodes, depth + 1));
       return array;
     }
     case YAML::NodeType::Map: {
@@ -260,7 +269,7 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
           throw InputError(
               file, "line " + std::to_string(entry.first.Mark().line + 1) + ", key '" + key + "'",
               "given twice in one mapping (YAML readers keep either); give it once");
-        object[key] = yaml_to_json(entry.second, file, nodes);
+        object[key] = yaml_to_json(entry.second, file, nodes, depth + 1);
       }
       return object;
     }
@@ -322,9 +331,11 @@ Pipeline load_pipeline(const std::string& given) {
     try {
       // One document: a second (after ---) would be ignored, however malformed.
       const std::vector<YAML::Node> documents = YAML::LoadAll(in);
-      if (documents.size() > 1)
-        throw InputError(path, "line " + std::to_string(documents[1].Mark().line + 1),
-                         "a second YAML document (after ---): a pipeline file holds one");
+      // An empty document after a trailing `---` (some emitters write one) holds nothing.
+      for (size_t d = 1; d < documents.size(); ++d)
+        if (!documents[d].IsNull())
+          throw InputError(path, "line " + std::to_string(documents[d].Mark().line + 1),
+                           "a second YAML document (after ---): a pipeline file holds one");
       uint64_t nodes = 0;
       j = documents.empty() ? nlohmann::json() : yaml_to_json(documents[0], path, nodes);
     } catch (const YAML::Exception& e) {

@@ -351,11 +351,15 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
   if (kind != 'f' && scale == 0)
     throw py::type_error(what + ": expected float, uint8 or uint16 values, got " +
                          std::string(py::str(given.dtype())));
-  if (given.ndim() != 3 || (given.shape(2) != 3 && given.shape(2) != 4))
-    throw py::value_error("compare: expected an (h, w, 3) or (h, w, 4) image or a file name");
-  Image image(int(given.shape(1)), int(given.shape(0)), 3);
+  // Colour (h, w, 3|4), or grey as a grey PNG reads: (h, w) or (h, w, 1).
+  const bool grey = given.ndim() == 2 || (given.ndim() == 3 && given.shape(2) == 1);
+  if (!grey && (given.ndim() != 3 || (given.shape(2) != 3 && given.shape(2) != 4)))
+    throw py::value_error(
+        "compare: expected an (h, w, 3), (h, w, 4), (h, w) or (h, w, 1) image or a file name");
+  const size_t channels = grey ? 1 : 3;
+  Image image(int(given.shape(1)), int(given.shape(0)), int(channels));
   image.srgb_encoded = srgb_encoded.value_or(scale != 0);
-  const size_t stride = size_t(given.shape(2));
+  const size_t stride = given.ndim() == 2 ? 1 : size_t(given.shape(2));
   const size_t pixels = size_t(image.width) * size_t(image.height);
   if (scale != 0) {
     // uint8 widened to uint16 exactly; each value as read_png computes it.
@@ -363,14 +367,15 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     const Words words = Words::ensure(given);
     const uint16_t* in = words.data();
     for (size_t i = 0; i < pixels; ++i)
-      for (size_t c = 0; c < 3; ++c) image.pixels[3 * i + c] = float(in[stride * i + c] / scale);
+      for (size_t c = 0; c < channels; ++c)
+        image.pixels[channels * i + c] = float(in[stride * i + c] / scale);
     return image;
   }
   using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
   const Floats floats = Floats::ensure(given);
   const float* in = floats.data();
   for (size_t i = 0; i < pixels; ++i)
-    for (size_t c = 0; c < 3; ++c) image.pixels[3 * i + c] = in[stride * i + c];
+    for (size_t c = 0; c < channels; ++c) image.pixels[channels * i + c] = in[stride * i + c];
   return image;
 }
 
@@ -390,6 +395,16 @@ py::dict compare(const py::object& a, const py::object& b,
     throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
                 ", but the reference is " + std::to_string(second.width) + "x" +
                 std::to_string(second.height) + ": images of one size compare");
+  // As `linebake compare` says it.
+  const auto kind = [](const Image& i) {
+    return std::to_string(i.channels) + (i.channels == 1 ? " channel (grey)" : " channels");
+  };
+  if (first.channels != second.channels)
+    throw Error(kind(first) + ", but the reference has " + kind(second) +
+                ": images of one kind compare (convert the grey one to RGB first)");
+  if (first.width < 11 || first.height < 11)
+    throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
+                ": SSIM needs images of at least 11x11 pixels");
   double p = 0, s = 0;
   {
     const LongCall call;

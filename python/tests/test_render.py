@@ -69,6 +69,22 @@ def test_compare_equals_the_clis(baked, tmp_path):
         linebake.compare(reference, broken)
 
 
+def test_compare_grey_and_small_images_as_the_cli():
+    # Grey arrays ((h, w) or (h, w, 1), as a grey PNG reads) compare with grey; against colour,
+    # or under 11x11, the CLI's messages.
+    rng = np.random.default_rng(5)
+    grey = rng.random((16, 20), dtype=np.float32)
+    other = np.clip(grey + 0.01, 0, 1)
+    assert linebake.compare(grey, grey)["psnr_db"] == 60
+    assert linebake.compare(grey[..., None], other[..., None]) == linebake.compare(grey, other)
+    colour = np.repeat(grey[..., None], 3, axis=2)
+    with pytest.raises(linebake.Error, match=r"^1 channel \(grey\), but the reference has 3 "
+                                             r"channels: images of one kind compare"):
+        linebake.compare(grey, colour)
+    with pytest.raises(linebake.Error, match=r"^5x5: SSIM needs images of at least 11x11"):
+        linebake.compare(grey[:5, :5], grey[:5, :5])
+
+
 def test_renderer_reuses_its_scene(baked):
     cache, _ = baked
     renderer = linebake.Renderer(linebake.open_cache(cache), "reference", size=SIZE)
