@@ -112,7 +112,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(CLI::Range(1, 9));
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
-                  "unlimited (default: half of physical memory)")
+                  "unlimited (default: half of physical memory, or of the cgroup's or ulimit -v's "
+                  "limit when less)")
       ->check(memory_budget_size());
   sub->add_flag("--force", o.force,
                 "Rebuild every step even if the cache is up to date; replace an output file "

@@ -89,7 +89,8 @@ Command add_convert(CLI::App& app) {
       ->check(one_of({"appended", "appended-base64", "base64", "ascii"}));
   sub->add_flag("--no-compress", args->no_compress, "vtp: no zlib compression");
   sub->add_option("--memory-budget", args->memory_budget,
-                  "Resident memory at most, e.g. 8G (default: half of physical memory); "
+                  "Resident memory at most, e.g. 8G (default: half of physical memory, or of the "
+                  "cgroup's or ulimit -v's limit when less); "
                   "unlimited")
       ->check(memory_budget_size());
   sub->add_flag("--strict", args->strict,

@@ -166,7 +166,8 @@ Command add_export(CLI::App& app) {
                   "default) or raw (coordinates as stored)")
       ->check(one_of({"z-up", "raw"}));
   sub->add_option("--memory-budget", args->memory_budget,
-                  "Resident memory at most, e.g. 8G (default: half of physical memory); "
+                  "Resident memory at most, e.g. 8G (default: half of physical memory, or of the "
+                  "cgroup's or ulimit -v's limit when less); "
                   "unlimited")
       ->check(memory_budget_size());
   sub->add_option("--colors", args->colors,

@@ -38,7 +38,8 @@ Command add_synth(CLI::App& app) {
   sub->add_flag("--adaptive", args->adaptive, "Adaptive RK4 step (default: fixed step)");
   sub->add_option("--to", args->to, "Output format, overriding the extension");
   sub->add_option("--memory-budget", args->memory_budget,
-                  "Resident memory at most, e.g. 8G (default: half of physical memory); "
+                  "Resident memory at most, e.g. 8G (default: half of physical memory, or of the "
+                  "cgroup's or ulimit -v's limit when less); "
                   "unlimited")
       ->check(memory_budget_size());
   return [args] {

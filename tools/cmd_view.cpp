@@ -503,7 +503,8 @@ Command add_view(CLI::App& app) {
                 "Vulkan: enable the Khronos validation layer; validation errors end the session");
   sub->add_option("--memory-budget", options->memory_budget,
                   "As render's, for every technique: a frame past it is not drawn and the status "
-                  "line says why (default: half of physical memory); unlimited")
+                  "line says why (default: half of physical memory, or of the cgroup's or ulimit "
+                  "-v's limit when less); unlimited")
       ->check(memory_budget_size());
   sub->add_option("--script", options->script,
                   "Commands to run, one per frame (docs/viewer.md); the session ends after the "

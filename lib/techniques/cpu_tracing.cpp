@@ -46,7 +46,9 @@ SceneBudget scene_budget(const TechniqueInfo& info, const TechniqueOptions& o,
   trimmed_rss_bytes();  // memory freed but still resident in the heap is not held
   const MemoryBudget budget(process_budget(o));
   const std::string figures =
-      format_bytes(budget.total()) + (o.memory_budget > 0 ? "" : ", half of physical memory") +
+      format_bytes(budget.total()) +
+      (o.memory_budget > 0 ? ""
+                           : ", the default: half of physical memory or of the process's limits") +
       "; the process held " + format_bytes(budget.baseline()) + " with the " + data + " loaded";
   const uint64_t frame = frame_output_bytes(o) + cpu_tracing_frame_bytes(info, o);
   if (budget.available() <= frame)
