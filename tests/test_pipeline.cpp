@@ -271,6 +271,32 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
       "datasets: [{name: a, source: s.binlines}]\ntechniques: [ll]\nreference: ll\n---\n")));
 }
 
+// A damaged pipeline (a fuzzer's; tests/fuzz/known/pipeline_yaml/) on which yaml-cpp 0.7's
+// YAML::LoadAll produced documents without end, past 2 GiB: read as one document, refused as
+// not a mapping, at once.
+TEST(Pipeline, ADamagedFileThatLoadAllReadForEverIsRead) {
+  const std::string damaged = write_temp(
+      "damaged.yaml",
+      R"FUZZ(# The paper's evaluurce: "synth:cid's offluu transfer functions as a check of the GPU path.
+  - tjchnique: vrc
+    label: vrcn
+  , aneurysm withexceed lavapipe's 128 MiB storage buffers, so it runs on
+  # aneurysm with two transfer functions as a check of the GPU path.
+  - technique: vrc
+    label: vrc-gpu
+    options: {"on": gpu}
+    datasets: [aneurzsm]
+    transfer_functions: [opaque, NULL]
+  - rtx
+  # The% compute-onlconvection is exact but#  slow oTnh)FUZZ");
+  try {
+    load_pipeline(damaged);
+    FAIL() << "read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("a pipeline is an object"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Pipeline, TechniquesCanBeLimitedToSomeDataSetsAndTransferFunctions) {
   auto j = small();
   j["techniques"][1]["datasets"] = {"b"};

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 
 #include "core/error.hpp"
@@ -294,6 +295,42 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
   return text;
 }
 
+// The line (from 1) where a second YAML document's content starts: content after a `---` line
+// that follows content; 0 for none. Comments, blank lines and directives are not content, so a
+// leading `---` and a trailing one (some emitters write it) start no second document.
+uint64_t second_document_line(const std::string& text) {
+  bool content = false, marker = false;
+  uint64_t number = 0;
+  size_t at = 0;
+  while (at < text.size()) {
+    const size_t end = std::min(text.find('\n', at), text.size());
+    const std::string line = text.substr(at, end - at);
+    at = end + 1;
+    ++number;
+    const size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#' || line[0] == '%') continue;
+    const bool starts_document =
+        line.compare(0, 3, "---") == 0 &&
+        (line.size() == 3 || line[3] == ' ' || line[3] == '\t' || line[3] == '\r');
+    if (starts_document) {
+      const size_t rest = line.find_first_not_of(" \t\r", 3);
+      const bool inline_content = rest != std::string::npos && line[rest] != '#';
+      if (content && inline_content) return number;
+      marker = content;
+      content = content || inline_content;
+      continue;
+    }
+    if (marker) return number;
+    // `...` ends a document: content after it is another one.
+    if (line.compare(0, 3, "...") == 0 && line.find_first_not_of(" \t\r", 3) == std::string::npos) {
+      marker = content;
+      continue;
+    }
+    content = true;
+  }
+  return 0;
+}
+
 bool is_yaml(const std::string& path) {
   const std::string ext = std::filesystem::path(path).extension().string();
   return ext == ".yaml" || ext == ".yml";
@@ -328,16 +365,16 @@ Pipeline load_pipeline(const std::string& given) {
   if (is_yaml(path)) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path, "", "cannot open the pipeline file");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // One document: YAML::Load reads the first and ignores the rest, however malformed.
+    // (YAML::LoadAll is not used: yaml-cpp 0.7's ran out of memory on a fuzzed file, producing
+    // documents without end.)
+    if (const uint64_t line = second_document_line(text))
+      throw InputError(path, "line " + std::to_string(line),
+                       "a second YAML document (after ---): a pipeline file holds one");
     try {
-      // One document: a second (after ---) would be ignored, however malformed.
-      const std::vector<YAML::Node> documents = YAML::LoadAll(in);
-      // An empty document after a trailing `---` (some emitters write one) holds nothing.
-      for (size_t d = 1; d < documents.size(); ++d)
-        if (!documents[d].IsNull())
-          throw InputError(path, "line " + std::to_string(documents[d].Mark().line + 1),
-                           "a second YAML document (after ---): a pipeline file holds one");
       uint64_t nodes = 0;
-      j = documents.empty() ? nlohmann::json() : yaml_to_json(documents[0], path, nodes);
+      j = yaml_to_json(YAML::Load(text), path, nodes);
     } catch (const YAML::Exception& e) {
       throw InputError(path,
                        "line " + std::to_string(e.mark.line + 1) + ", column " +
