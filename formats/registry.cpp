@@ -260,14 +260,18 @@ class MultiFileReader final : public LineReader {
   }
   bool next(LineSet& batch, uint64_t max_points) override {
     while (true) {
+      const uint64_t in_file = current_->lines_read();
       if (current_->next(batch, max_points)) {
         lines_read_ += batch.line_count();
+        batch_file_line_ = in_file;
         return true;
       }
       if (file_ + 1 == sources_.size()) return false;
       open(file_ + 1);
     }
   }
+  std::string batch_file() const override { return sources_[file_]; }
+  uint64_t batch_file_line() const override { return batch_file_line_; }
   uint64_t largest_line_hint() const override { return current_->largest_line_hint(); }
 
  private:
@@ -293,6 +297,7 @@ class MultiFileReader final : public LineReader {
   std::vector<std::string> sources_;
   ReadOptions options_;
   size_t file_ = 0;
+  uint64_t batch_file_line_ = 0;
   std::unique_ptr<LineReader> current_;
 };
 

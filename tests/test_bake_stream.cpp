@@ -159,9 +159,10 @@ TEST(BakeStream, ABudgetTooSmallForOneLineFailsNamingTheLineAndLeavesNothing) {
     FAIL() << "baked";
   } catch (const BudgetExceeded& e) {
     const std::string message = e.what();
-    EXPECT_NE(message.find("long.binlines: line 1 (byte offset 256) has 1500000 points, read whole: "
-                           "about 17.17 MiB"),
-              std::string::npos)
+    EXPECT_NE(
+        message.find("long.binlines: line 1 (byte offset 256) has 1500000 points, read whole: "
+                     "about 17.17 MiB"),
+        std::string::npos)
         << message;
   }
   EXPECT_EQ(dir.entries(), std::vector<std::string>{"long.binlines"});
@@ -194,6 +195,36 @@ TEST(BakeStream, LinesTooSmallForFloatGeometryAreRefusedNamingTheInput) {
     o.assets = {"voxels"};
     EXPECT_TRUE(bake(o).written);
     std::filesystem::remove(dir.file("tiny.lbc.h5"));
+  }
+}
+
+// Several files, one line set: a batch's problems are a message about its file, its lines
+// numbered in that file (as linebake-mpi numbers them).
+TEST(BakeStream, ARejectedBatchOfSeveralFilesNamesItsFileAndItsLine) {
+  TempDir dir;
+  const auto lines_with_nan_at = [](int bad_line) {
+    LineSet lines;
+    for (int l = 0; l < 30; ++l) {
+      for (int i = 0; i < 3; ++i)
+        lines.append_point(float(l), float(i), l == bad_line && i == 1 ? NAN : 0.0f);
+      lines.end_line();
+    }
+    return lines;
+  };
+  write_line_set(lines_with_nan_at(-1), dir.file("m1.binlines"));
+  write_line_set(lines_with_nan_at(7), dir.file("m2.binlines"));
+  BakeOptions o = streamed_options("", dir.file("m.lbc.h5"), BakeOptions::kUnlimited);
+  o.inputs = {dir.file("m1.binlines"), dir.file("m2.binlines")};
+  o.on_invalid = InvalidPolicy::reject;
+  try {
+    bake(o);
+    FAIL() << "baked";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(dir.file("m2.binlines") + " (lines 0..29): invalid line set"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("the first: line 7, point 1 (from 0)"), std::string::npos) << message;
   }
 }
 

@@ -37,6 +37,11 @@ class LineReader {
   virtual std::optional<LineSet> take_whole() { return std::nullopt; }
   // Index of the first line of the next batch.
   uint64_t lines_read() const { return lines_read_; }
+  // Where the last batch came from, for messages about its file: the file when the reader reads
+  // several ("" otherwise: the reader's one source), and the number of the batch's first line in
+  // that file.
+  virtual std::string batch_file() const { return ""; }
+  virtual uint64_t batch_file_line() const { return 0; }
 
  protected:
   LineSet header_;

@@ -636,9 +636,13 @@ BakeResult bake(const BakeOptions& options_in) {
       while (input->next(batch, batch_points)) {
         throw_if_interrupted();
         if (!whole) {
-          const std::string where = options.input + " (lines " + std::to_string(line_base) + ".." +
-                                    std::to_string(line_base + batch.line_count() - 1) + ")";
-          total.add(validate(batch, options.on_invalid, where, line_base));
+          // Numbered in its file where the lines come from several (a message about a file).
+          const std::string file = input->batch_file();
+          const uint64_t first = file.empty() ? line_base : input->batch_file_line();
+          const std::string where = (file.empty() ? options.input : file) + " (lines " +
+                                    std::to_string(first) + ".." +
+                                    std::to_string(first + batch.line_count() - 1) + ")";
+          total.add(validate(batch, options.on_invalid, where, first));
         }
         line_base += batch.line_count();
         for (size_t l = 0; l < batch.line_count(); ++l)
