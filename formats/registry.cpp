@@ -182,7 +182,48 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
                      "opening it needs more memory than this machine can give (is a size in its "
                      "header damaged?)");
   }
+  // Attribute names are looked up by name (options, caches' statistics and keys, which are
+  // JSON): a name that is not UTF-8 could not be stored as itself.
+  const LineSet& header = reader->header();
+  for (const auto* list : {&header.attributes, &header.line_attributes})
+    for (const Attribute& a : *list)
+      if (!valid_utf8(a.name))
+        throw InputError(source, "attribute " + a.name,
+                         "its name is not UTF-8 text; rename it (linebake keeps names in JSON, "
+                         "which holds UTF-8 only)");
   return reader;
+}
+
+bool valid_utf8(std::string_view text) {
+  size_t i = 0;
+  while (i < text.size()) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    // The length a lead byte announces, and the least code point of that length (no overlong
+    // forms), per RFC 3629; surrogates and past U+10FFFF are not UTF-8 either.
+    size_t length = 0;
+    uint32_t code = 0, least = 0;
+    if (byte < 0x80) {
+      ++i;
+      continue;
+    } else if ((byte & 0xE0) == 0xC0) {
+      length = 2, code = byte & 0x1F, least = 0x80;
+    } else if ((byte & 0xF0) == 0xE0) {
+      length = 3, code = byte & 0x0F, least = 0x800;
+    } else if ((byte & 0xF8) == 0xF0) {
+      length = 4, code = byte & 0x07, least = 0x10000;
+    } else {
+      return false;
+    }
+    if (i + length > text.size()) return false;
+    for (size_t k = 1; k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      if ((next & 0xC0) != 0x80) return false;
+      code = (code << 6) | (next & 0x3F);
+    }
+    if (code < least || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) return false;
+    i += length;
+  }
+  return true;
 }
 
 std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns) {

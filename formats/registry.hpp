@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/progress.hpp"
@@ -76,6 +77,9 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
 // otherwise. Files that cannot stream (OBJ, VTK, VTP) are read whole when their turn comes.
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options = {});
+// Whether `text` is well-formed UTF-8 (RFC 3629: no overlong forms, surrogates or code points
+// past U+10FFFF).
+bool valid_utf8(std::string_view text);
 // Throws InputError naming `path` when `header`'s attribute names (vertex and line, in order)
 // differ from `first`'s, the header of the first file of one line set (at `first_path`).
 void check_same_attributes(const LineSet& first, const std::string& first_path,

@@ -265,6 +265,23 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
     std::tie(where, what) = error_of(write_temp("cycle.yaml", cycle));
     EXPECT_NE(what.find("nests deeper than 256 levels"), std::string::npos) << what;
   }
+  // A document ended by `... # a comment` and followed by another: refused too.
+  std::tie(where, what) =
+      error_of(write_temp("ended.yaml",
+                          "datasets: [{name: a, source: s.binlines}]\ntechniques: [ll]\nreference: "
+                          "ll\n... # end\nbogus: [x]\n"));
+  EXPECT_EQ(where, "line 5") << what;
+  // What is no second document: a byte-order mark before a leading ---, a trailing --- with
+  // an empty document ended by `...`.
+  for (const char* ends : {"---\n...\n", "---\n\n...\n"})
+    EXPECT_NO_THROW(load_pipeline(write_temp(
+        "empty-end.yaml", std::string("datasets: [{name: a, source: s.binlines}]\ntechniques: "
+                                      "[ll]\nreference: ll\n") +
+                              ends)));
+  EXPECT_NO_THROW(load_pipeline(
+      write_temp("bom.yaml",
+                 "\xEF\xBB\xBF# comment\n---\ndatasets: [{name: a, source: s.binlines}]\n"
+                 "techniques: [ll]\nreference: ll\n")));
   // An empty document after a trailing --- holds nothing: the pipeline reads.
   EXPECT_NO_THROW(load_pipeline(write_temp(
       "trailing.yaml",

@@ -580,6 +580,49 @@ TEST(StreamReaderContent, ALineLargerThanTheMemoryLimitIsRefusedBeforeItIsRead) 
   }
 }
 
+// An attribute name that is not UTF-8 (a .binlines v2 name in Latin-1) is refused when the file
+// is opened, naming it: caches keep names in JSON, whose replacement character made two such
+// names one and lost their statistics.
+TEST(StreamReaderContent, AnAttributeNameThatIsNotUtf8IsRefused) {
+  TempDir dir;
+  LineSet lines;
+  lines.attributes.push_back(
+      {"sp\xff"
+       "eed",
+       {0, 1}});
+  lines.append_point(0, 0, 0);
+  lines.append_point(1, 0, 0);
+  lines.end_line();
+  write_line_set(lines, dir.file("latin1.binlines"));
+  try {
+    open_line_reader(dir.file("latin1.binlines"));
+    FAIL() << "opened";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(),
+              "attribute sp\xff"
+              "eed");
+    EXPECT_NE(std::string(e.what()).find("its name is not UTF-8 text"), std::string::npos);
+  }
+  lines.attributes[0].name =
+      "sp\xc3\xa9"
+      "ed";  // "spéed" in UTF-8 reads
+  write_line_set(lines, dir.file("utf8.binlines"));
+  EXPECT_EQ(open_line_reader(dir.file("utf8.binlines"))->header().attributes[0].name,
+            lines.attributes[0].name);
+}
+
+TEST(StreamReaderContent, Utf8IsCheckedAsRfc3629Says) {
+  EXPECT_TRUE(valid_utf8(""));
+  EXPECT_TRUE(valid_utf8("ascii"));
+  EXPECT_TRUE(valid_utf8("\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80"));  // é, €, an emoji
+  EXPECT_FALSE(valid_utf8("\xff"));
+  EXPECT_FALSE(valid_utf8("\xc3"));              // cut short
+  EXPECT_FALSE(valid_utf8("\xc0\xaf"));          // an overlong '/'
+  EXPECT_FALSE(valid_utf8("\xed\xa0\x80"));      // a surrogate, U+D800
+  EXPECT_FALSE(valid_utf8("\xf4\x90\x80\x80"));  // past U+10FFFF
+  EXPECT_FALSE(valid_utf8("\xc3\x28"));          // a continuation byte missing
+}
+
 // A file with a header and no lines (nibabel writes such .tck and .trk files): no batch, and
 // read_line_set's empty line set.
 TEST(StreamReaderContent, NoLines) {

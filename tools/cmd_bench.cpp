@@ -600,7 +600,8 @@ Command add_bench(CLI::App& app) {
   const auto within_budget = [&](CLI::App* sub, const char* what) {
     sub->add_option("--memory-budget", args->memory_budget,
                     std::string("Resident memory at most, e.g. 2G; unlimited (default: half of "
-                                "physical memory): ") +
+                                "physical memory, or of the cgroup's or ulimit -v's limit when "
+                                "less): ") +
                         what)
         ->check(memory_budget_size());
   };
@@ -631,7 +632,7 @@ Command add_bench(CLI::App& app) {
       ->delimiter(',');
   bake->add_option("--memory-budget", args->memory_budget,
                    "Resident memory the bake may use, e.g. 2G; unlimited (default: half of "
-                   "physical memory)")
+                   "physical memory, or of the cgroup's or ulimit -v's limit when less)")
       ->check(memory_budget_size());
   bake->add_option("--compression", args->compression,
                    "none | deflate | lz4 (default) | blosc-zstd")
@@ -677,7 +678,7 @@ Command add_bench(CLI::App& app) {
       ->add_option("--memory-budget", render->memory_budget,
                    "As render's, for every technique and the reference: refuse a frame past it; "
                    "embree's and reference's BVH within what it leaves (default: half of "
-                   "physical memory); unlimited")
+                   "physical memory, or of the cgroup's or ulimit -v's limit when less); unlimited")
       ->check(memory_budget_size());
   rendering->add_flag("--early-termination", render->early_termination,
                       "Stop compositing at opacity 0.99, as render (never the reference)");

@@ -79,8 +79,8 @@ Command add_depth_complexity(CLI::App& app) {
   sub->add_option("--size", args->size, "Image size WxH (default 1280x720)")
       ->check(image_size_check());
   sub->add_option("--memory-budget", args->memory_budget,
-                  "Refuse a frame whose estimated memory exceeds this (default: half of physical "
-                  "memory)")
+                  "Refuse a frame whose estimated memory exceeds this (default: half of "
+                  "physical memory, or of the cgroup's or ulimit -v's limit when less)")
       ->check(memory_budget_size());
   sub->add_option("--device", args->device, "Vulkan device: part of its name");
   sub->add_flag("--validation", args->validation, "Vulkan: enable the Khronos validation layer");

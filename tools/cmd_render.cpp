@@ -245,8 +245,8 @@ Command add_render(CLI::App& app) {
       ->excludes(no_early);
   sub->add_flag("--json", args->json, "Print the --stats JSON on stdout");
   sub->add_option("--memory-budget", args->memory_budget,
-                  "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: half of "
-                  "physical memory)")
+                  "Refuse a frame whose estimated memory exceeds this, e.g. 8G (default: "
+                  "half of physical memory, or of the cgroup's or ulimit -v's limit when less)")
       ->check(render_option_check("--memory-budget"));
   const auto body = [args, sub] {
     // An option the technique does not read is a mistake, not a no-op.

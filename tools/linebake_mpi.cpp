@@ -35,6 +35,13 @@ int main(int argc, char** argv) {
   Command run = add_bake_with(
       app, [](const linebake::BakeOptions& o) { return linebake::bake_mpi(o, MPI_COMM_WORLD); },
       rank == 0);
+  // Per rank here: the default is shared by the ranks on a node (bake_mpi).
+  app.get_subcommand("bake")
+      ->get_option("--memory-budget")
+      ->description(
+          "Resident memory each rank may use, e.g. 2G; unlimited (default: half of the node's "
+          "physical memory, or of the cgroup's or ulimit -v's limit when less, shared by the "
+          "ranks on the node)");
   int code = kOk;
   try {
     app.parse(argc, argv);

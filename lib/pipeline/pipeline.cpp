@@ -299,33 +299,39 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
 // that follows content; 0 for none. Comments, blank lines and directives are not content, so a
 // leading `---` and a trailing one (some emitters write it) start no second document.
 uint64_t second_document_line(const std::string& text) {
-  bool content = false, marker = false;
+  // A marker line: `---` or `...` and nothing after it but blanks or a comment. `---` may carry
+  // its document's content on the same line; `...` may not.
+  const auto marker_line = [](const std::string& line, const char* mark, bool& inline_content) {
+    if (line.compare(0, 3, mark) != 0) return false;
+    if (line.size() > 3 && line[3] != ' ' && line[3] != '\t' && line[3] != '\r') return false;
+    const size_t rest = line.find_first_not_of(" \t\r", 3);
+    inline_content = rest != std::string::npos && line[rest] != '#';
+    return true;
+  };
+  bool content = false, ended = false;  // content seen; a marker after it
   uint64_t number = 0;
   size_t at = 0;
   while (at < text.size()) {
     const size_t end = std::min(text.find('\n', at), text.size());
-    const std::string line = text.substr(at, end - at);
+    std::string line = text.substr(at, end - at);
     at = end + 1;
     ++number;
+    if (line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // a byte-order mark
     const size_t first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#' || line[0] == '%') continue;
-    const bool starts_document =
-        line.compare(0, 3, "---") == 0 &&
-        (line.size() == 3 || line[3] == ' ' || line[3] == '\t' || line[3] == '\r');
-    if (starts_document) {
-      const size_t rest = line.find_first_not_of(" \t\r", 3);
-      const bool inline_content = rest != std::string::npos && line[rest] != '#';
+    bool inline_content = false;
+    if (marker_line(line, "---", inline_content)) {
       if (content && inline_content) return number;
-      marker = content;
+      ended = content;
       content = content || inline_content;
       continue;
     }
-    if (marker) return number;
-    // `...` ends a document: content after it is another one.
-    if (line.compare(0, 3, "...") == 0 && line.find_first_not_of(" \t\r", 3) == std::string::npos) {
-      marker = content;
+    if (marker_line(line, "...", inline_content)) {
+      if (inline_content) return number;
+      ended = content;
       continue;
     }
+    if (ended) return number;
     content = true;
   }
   return 0;

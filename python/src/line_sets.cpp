@@ -337,9 +337,10 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
              py::arg("memory_budget") = py::none(),
              R"doc(Reads a line set: a file of any readable format (by extension unless
 `format` names it) or a synthetic source "synth:<name>?scale=..&seed=..". Raises
-linebake.InputError naming the file and place on bad input. OBJ, VTK and VTP files are read
-whole within `memory_budget` ("8G", "unlimited" or bytes as an int; default half of physical
-memory): past it, linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
+linebake.InputError naming the file and place on bad input. Read within `memory_budget` ("8G",
+"unlimited" or bytes as an int; default half of physical memory, or of the cgroup's or ulimit
+-v's limit when less): OBJ, VTK and VTP files whole, the others gathered batch by batch; past
+it, linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
   module.def("write", &write, py::arg("lines"), py::arg("path"), py::arg("format") = py::none(),
              py::kw_only(), py::arg("ascii") = false, py::arg("binlines_version") = 2,
              py::arg("vtp_encoding") = "appended", py::arg("vtp_compress") = true,

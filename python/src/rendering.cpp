@@ -449,7 +449,7 @@ options: the technique's options of `linebake render`, '_' for '-' (layers, mome
 moment_basis, sort, on, device, embree_geometry, ...); one the technique does not read is
 linebake.UsageError, a technique this machine cannot run linebake.Error with the reason; values
 are checked as `linebake render` checks them (linebake.UsageError with the CLI's message).
-memory_budget ('40G', 'unlimited' or bytes as an int; default half of physical memory):
+memory_budget ('40G', 'unlimited' or bytes as an int; default half of physical memory, or of the cgroup's or ulimit -v's limit when less):
 embree's and reference's BVH is built within what it leaves, or refused with
 linebake.BudgetExceeded; render() checks its frames against it unless given another.)doc")
       .def(py::init([](const py::object& cache, const py::object& technique, const py::object& size,
@@ -500,7 +500,7 @@ reference, opaque, dp, ll, mlab, mlabdb, mboit, wboit, vrc, rtx, tiles (linebake
 says which run here); tf: opaque, semi, transparent or a JSON file; size: (w, h); frame of the
 flight, or camera={'eye', 'target', 'up', 'fov'}. Technique options are keyword arguments, as
 for Renderer, checked against the CLI's ranges (linebake.UsageError with the CLI's message).
-memory_budget: '40G', 'unlimited' or bytes (an int); None: half of physical memory. Releases
+memory_budget: '40G', 'unlimited' or bytes (an int); None: half of physical memory, or of the cgroup's or ulimit -v's limit when less. Releases
 the GIL.)doc");
   module.def("compare", &compare, py::arg("image"), py::arg("reference"), py::kw_only(),
              py::arg("srgb_encoded").noconvert() = py::none(), R"doc(
