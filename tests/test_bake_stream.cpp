@@ -211,21 +211,34 @@ TEST(BakeStream, ARejectedBatchOfSeveralFilesNamesItsFileAndItsLine) {
     }
     return lines;
   };
+  // The message of the error the bake of both files under `budget` ends in ("" if none).
+  const auto refusal = [&](uint64_t budget, InvalidPolicy policy) -> std::string {
+    BakeOptions o = streamed_options("", dir.file("m.lbc.h5"), budget);
+    o.inputs = {dir.file("m1.binlines"), dir.file("m2.binlines")};
+    o.on_invalid = policy;
+    try {
+      bake(o);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
   write_line_set(lines_with_nan_at(-1), dir.file("m1.binlines"));
   write_line_set(lines_with_nan_at(7), dir.file("m2.binlines"));
-  BakeOptions o = streamed_options("", dir.file("m.lbc.h5"), BakeOptions::kUnlimited);
-  o.inputs = {dir.file("m1.binlines"), dir.file("m2.binlines")};
-  o.on_invalid = InvalidPolicy::reject;
-  try {
-    bake(o);
-    FAIL() << "baked";
-  } catch (const InputError& e) {
-    const std::string message = e.what();
-    EXPECT_NE(message.find(dir.file("m2.binlines") + " (lines 0..29): invalid line set"),
-              std::string::npos)
-        << message;
-    EXPECT_NE(message.find("the first: line 7, point 1 (from 0)"), std::string::npos) << message;
-  }
+  std::string message = refusal(BakeOptions::kUnlimited, InvalidPolicy::reject);
+  EXPECT_NE(message.find(dir.file("m2.binlines") + " (lines 0..29): invalid line set"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("the first: line 7, point 1 (from 0)"), std::string::npos) << message;
+  // A line past the budget in the second file: named there, numbered there.
+  LineSet lines = lines_with_nan_at(-1);
+  for (int i = 0; i < 400000; ++i) lines.append_point(float(i % 1000), float(i / 1000), 1);
+  lines.end_line();
+  write_line_set(lines, dir.file("m2.binlines"));
+  message = refusal(working_budget(40 << 20), InvalidPolicy::repair);
+  EXPECT_NE(message.find(dir.file("m2.binlines") + ": line 30 has 400000 points"),
+            std::string::npos)
+      << message;
 }
 
 TEST(BakeStream, SpillFilesAreRemovedAfterAFailure) {

@@ -635,12 +635,13 @@ BakeResult bake(const BakeOptions& options_in) {
       uint64_t line_base = 0;
       while (input->next(batch, batch_points)) {
         throw_if_interrupted();
+        // A batch's lines are named in their file where they come from several (as
+        // linebake-mpi names them).
+        const std::string file = input->batch_file();
+        const std::string batch_source = file.empty() ? options.input : file;
+        const uint64_t first = file.empty() ? line_base : input->batch_file_line();
         if (!whole) {
-          // Numbered in its file where the lines come from several (a message about a file).
-          const std::string file = input->batch_file();
-          const uint64_t first = file.empty() ? line_base : input->batch_file_line();
-          const std::string where = (file.empty() ? options.input : file) + " (lines " +
-                                    std::to_string(first) + ".." +
+          const std::string where = batch_source + " (lines " + std::to_string(first) + ".." +
                                     std::to_string(first + batch.line_count() - 1) + ")";
           total.add(validate(batch, options.on_invalid, where, first));
         }
@@ -648,7 +649,7 @@ BakeResult bake(const BakeOptions& options_in) {
         for (size_t l = 0; l < batch.line_count(); ++l)
           if (!budget.unlimited() && batch.line_size(l) * per_point > budget.available() / 2)
             throw BudgetExceeded(
-                options.input + ": line " + std::to_string(builder.stats().lines + l) + " has " +
+                batch_source + ": line " + std::to_string(first + l) + " has " +
                 std::to_string(batch.line_size(l)) + " points; baking it needs about " +
                 format_bytes(batch.line_size(l) * per_point) + ", more than the memory budget of " +
                 format_bytes(budget.total()) + " leaves for one batch (" +
