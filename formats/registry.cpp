@@ -365,11 +365,7 @@ uint64_t held_bytes(const LineSet& batch) {
 LineSet read_all_within(LineReader& reader, uint64_t limit, const std::string& source) {
   if (std::optional<LineSet> whole = reader.take_whole()) return std::move(*whole);
   LineSet lines = header_of(reader.header());
-  // A point's bytes at most: its position and attributes, and its line's offset and attributes
-  // (a line has a point at least).
-  const uint64_t point_bytes =
-      12 + 4 * lines.attributes.size() + 8 + 4 * lines.line_attributes.size();
-  const uint64_t max_points = std::clamp<uint64_t>(limit / 4 / point_bytes, 1, uint64_t{1} << 22);
+  const uint64_t max_points = batch_points_within(lines, limit, uint64_t{1} << 22);
   LineSet batch;
   uint64_t held = 0;
   while (reader.next(batch, max_points)) {

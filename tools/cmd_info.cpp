@@ -51,13 +51,9 @@ Command add_info(CLI::App& app) {
         metadata = whole->metadata;
       } else {
         LineStatsBuilder builder(input->header());
-        // Batches of a million points, fewer where the budget leaves less (a quarter of it: the
-        // reader's buffers, the batch, the statistics' work).
-        const LineSet& h = input->header();
-        const uint64_t point_bytes =
-            12 + 4 * h.attributes.size() + 8 + 4 * h.line_attributes.size();
+        // Batches of a million points, fewer where the budget leaves less.
         const uint64_t batch_points =
-            std::clamp<uint64_t>(*read.memory_limit / 4 / point_bytes, 1024, uint64_t{1} << 20);
+            batch_points_within(input->header(), read.memory_limit, uint64_t{1} << 20);
         LineSet batch;
         uint64_t line_base = 0;
         while (input->next(batch, batch_points)) {

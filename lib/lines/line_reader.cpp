@@ -67,6 +67,13 @@ LineSet read_all(LineReader& reader) {
   return lines;
 }
 
+uint64_t batch_points_within(const LineSet& header, std::optional<uint64_t> limit, uint64_t most) {
+  if (!limit) return most;
+  const uint64_t point_bytes =
+      12 + 4 * header.attributes.size() + 8 + 4 * header.line_attributes.size();
+  return std::clamp<uint64_t>(*limit / 4 / point_bytes, 1024, std::max<uint64_t>(most, 1024));
+}
+
 MemoryLineReader::MemoryLineReader(LineSet lines, bool streams)
     : owned_(std::move(lines)), lines_(&owned_), streams_(streams) {
   header_ = header_of(owned_);

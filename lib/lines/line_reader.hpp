@@ -80,5 +80,10 @@ void copy_lines(const LineSet& lines, size_t first, size_t end, LineSet& batch);
 void append_lines(LineSet& lines, const LineSet& batch);
 // Reads every batch into one line set.
 LineSet read_all(LineReader& reader);
+// The points a batch of `header`'s lines may hold when reading may take `limit` bytes (none: no
+// limit): a quarter of the limit (the reader's buffers, the batch, the work on it) over a point's
+// bytes at most (its position and attributes, and its line's offset and attributes: a line has a
+// point at least), from 1,024 to `most`.
+uint64_t batch_points_within(const LineSet& header, std::optional<uint64_t> limit, uint64_t most);
 
 }  // namespace linebake

@@ -223,12 +223,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         continue;
       }
       // Counted in batches of a million points, fewer where the budget leaves less.
-      const LineSet& h = reader->header();
-      const uint64_t point_bytes = 12 + 4 * h.attributes.size() + 8 + 4 * h.line_attributes.size();
       const uint64_t count_points =
-          read.memory_limit
-              ? std::clamp<uint64_t>(*read.memory_limit / 4 / point_bytes, 1024, uint64_t{1} << 20)
-              : uint64_t{1} << 20;
+          batch_points_within(reader->header(), read.memory_limit, uint64_t{1} << 20);
       LineSet batch;
       while (reader->next(batch, count_points)) lines_per_file[f] += batch.line_count();
     }
