@@ -48,23 +48,8 @@ Command add_compare(CLI::App& app) {
         throw InputError(path, place,
                          "not a finite value (NaN or infinity): PSNR and SSIM need finite values");
     const Image a = display_encoded(raw_a), b = display_encoded(raw_b);
-    if (a.width != b.width || a.height != b.height)
-      throw InputError(args->image, "",
-                       std::to_string(a.width) + "x" + std::to_string(a.height) +
-                           ", but the reference " + args->reference + " is " +
-                           std::to_string(b.width) + "x" + std::to_string(b.height) +
-                           ": images of one size compare");
-    const auto kind = [](const Image& i) {
-      return std::to_string(i.channels) + (i.channels == 1 ? " channel (grey)" : " channels");
-    };
-    if (a.channels != b.channels)
-      throw InputError(args->image, "",
-                       kind(a) + ", but the reference " + args->reference + " has " + kind(b) +
-                           ": images of one kind compare (convert the grey one to RGB first)");
-    if (a.width < 11 || a.height < 11)
-      throw InputError(args->image, "",
-                       std::to_string(a.width) + "x" + std::to_string(a.height) +
-                           ": SSIM needs images of at least 11x11 pixels");
+    if (const std::string problem = comparison_problem(a, b, args->reference); !problem.empty())
+      throw InputError(args->image, "", problem);
     const double p = psnr(a, b), s = ssim(a, b);
     if (error_format == ".pfm")
       write_pfm(error_image(a, b, args->error_scale), args->error_image);

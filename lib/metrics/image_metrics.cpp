@@ -64,6 +64,27 @@ std::string first_nonfinite_pixel(const Image& image) {
   return "";
 }
 
+std::string comparison_problem(const Image& image, const Image& reference,
+                               const std::string& reference_name) {
+  const std::string the_reference =
+      "the reference " + (reference_name.empty() ? "" : reference_name + " ");
+  const auto size = [](const Image& i) {
+    return std::to_string(i.width) + "x" + std::to_string(i.height);
+  };
+  const auto kind = [](const Image& i) {
+    return std::to_string(i.channels) + (i.channels == 1 ? " channel (grey)" : " channels");
+  };
+  if (image.width != reference.width || image.height != reference.height)
+    return size(image) + ", but " + the_reference + "is " + size(reference) +
+           ": images of one size compare";
+  if (image.channels != reference.channels)
+    return kind(image) + ", but " + the_reference + "has " + kind(reference) +
+           ": images of one kind compare (convert the grey one to RGB first)";
+  if (image.width < 2 * kRadius + 1 || image.height < 2 * kRadius + 1)
+    return size(image) + ": SSIM needs images of at least 11x11 pixels";
+  return "";
+}
+
 double psnr(const Image& a, const Image& b) {
   require_same_shape(a, b);
   double sum = 0;

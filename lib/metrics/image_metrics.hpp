@@ -15,6 +15,12 @@ constexpr double kPsnrCap = 60.0;  // dB; the paper's value for identical images
 // 60 dB), so callers refuse such an image naming the place.
 std::string first_nonfinite_pixel(const Image& image);
 
+// Why `image` and `reference` cannot be compared, or "" when they can: another size, another
+// kind (grey against colour), or under SSIM's 11x11 window. `reference_name` (a file; "" for an
+// array) is named in the message, as `linebake compare` and Python's compare() both say it.
+std::string comparison_problem(const Image& image, const Image& reference,
+                               const std::string& reference_name);
+
 // -10 log10(MSE) over all pixels and channels, capped at 60 dB.
 double psnr(const Image& a, const Image& b);
 

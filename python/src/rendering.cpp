@@ -391,20 +391,9 @@ py::dict compare(const py::object& a, const py::object& b,
                             " is not a finite value (NaN or infinity): PSNR and SSIM need "
                             "finite values");
   const Image first = display_encoded(raw_first), second = display_encoded(raw_second);
-  if (first.width != second.width || first.height != second.height)
-    throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
-                ", but the reference is " + std::to_string(second.width) + "x" +
-                std::to_string(second.height) + ": images of one size compare");
   // As `linebake compare` says it.
-  const auto kind = [](const Image& i) {
-    return std::to_string(i.channels) + (i.channels == 1 ? " channel (grey)" : " channels");
-  };
-  if (first.channels != second.channels)
-    throw Error(kind(first) + ", but the reference has " + kind(second) +
-                ": images of one kind compare (convert the grey one to RGB first)");
-  if (first.width < 11 || first.height < 11)
-    throw Error(std::to_string(first.width) + "x" + std::to_string(first.height) +
-                ": SSIM needs images of at least 11x11 pixels");
+  if (const std::string problem = comparison_problem(first, second, ""); !problem.empty())
+    throw Error(problem);
   double p = 0, s = 0;
   {
     const LongCall call;
