@@ -1,5 +1,7 @@
 #include "formats/gltf.hpp"
 
+#include "core/json_file.hpp"
+
 // The one translation unit with tinygltf's implementation (the tests link it from here).
 #define TINYGLTF_IMPLEMENTATION
 #define TINYGLTF_NO_STB_IMAGE
@@ -725,15 +727,12 @@ void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet*
     const nlohmann::json doc =
         model_json(layout.model, layout.buffer_bytes, uri_of(bin.filename().string()));
     write_output(bin.string(), write_buffer);
-    write_output(path, [&](std::ostream& out) {
-      return bool(out << doc.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n');
-    });
+    write_output(path, [&](std::ostream& out) { return bool(out << json_text(doc, 2) << '\n'); });
     return;
   }
   // GLB (glTF 2.0, section 4.4): a 12-byte header, the JSON chunk padded with spaces, the BIN
   // chunk padded with zeros (the buffer is padded already).
-  std::string json = model_json(layout.model, layout.buffer_bytes, "")
-                         .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  std::string json = json_text(model_json(layout.model, layout.buffer_bytes, ""));
   json.resize(ModelBuilder::aligned(json.size()), ' ');
   const uint64_t length =
       12 + 8 + json.size() + (layout.buffer_bytes ? 8 + layout.buffer_bytes : 0);

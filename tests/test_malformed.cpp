@@ -6,6 +6,7 @@
 
 #include "core/base64.hpp"
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "formats/registry.hpp"
 #include "pipeline/pipeline.hpp"
 #include "render/camera.hpp"
@@ -324,6 +325,24 @@ TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
   refused("p.json", [](const std::string& p) { load_pipeline(p); });
   write_text(dir.file("p.yaml"), "name: \"\x95\x95\"\ndata: synth:aneurysm\n");
   refused("p.yaml", [](const std::string& p) { load_pipeline(p); });
+}
+
+// What linebake writes as JSON holds a file name that is not UTF-8 with U+FFFD (EF BF BD) for each
+// bad byte, where nlohmann::json's dump() throws type_error 316; valid text is left as it is.
+TEST(FuzzFindings, JsonTextKeepsNamesThatAreNotUtf8) {
+  const nlohmann::json value = {{"file",
+                                 "a\x95"
+                                 "b.binlines"},
+                                {"lines", 2}};
+  EXPECT_THROW((void)value.dump(), nlohmann::json::type_error);
+  EXPECT_EQ(json_text(value),
+            "{\"file\":\"a\xEF\xBF\xBD"
+            "b.binlines\",\"lines\":2}");
+  EXPECT_EQ(json_text(value, 1),
+            "{\n \"file\": \"a\xEF\xBF\xBD"
+            "b.binlines\",\n \"lines\": 2\n}");
+  EXPECT_EQ(json_text(nlohmann::json{{"name", "\xC3\xA9t\xC3\xA9"}}),
+            "{\"name\":\"\xC3\xA9t\xC3\xA9\"}");
 }
 
 // The campaign's pipeline_yaml finding: a transfer function named by 300 characters, which the

@@ -16,6 +16,7 @@
 #include "core/h5.hpp"
 #include "core/h5_probe.hpp"
 #include "core/isolated.hpp"
+#include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 
 namespace linebake::cli {
@@ -175,8 +176,7 @@ void bench_isolation(const BenchIsolationArgs& args) {
               << "  data read in the child, memfd:    " << f.read_in_child << " s ("
               << std::setprecision(2) << f.read_in_child / f.read << "x)\n";
   }
-  if (args.json)
-    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  if (args.json) std::cout << json_text(out, 2) << "\n";
 }
 
 }  // namespace linebake::cli

@@ -17,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/nearest.hpp"
 #include "flight_plan.hpp"
@@ -418,7 +419,7 @@ void bench_render(const BenchRenderArgs& args) {
     result["runs"].push_back(std::move(run));
   }
   if (args.json)
-    std::cout << result.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << json_text(result, 2) << "\n";
   else
     print_markdown(result);
 }

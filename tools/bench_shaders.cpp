@@ -8,6 +8,7 @@
 
 #include "cli_contract.hpp"
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "core/nearest.hpp"
 #include "render/vulkan/shader_statistics.hpp"
 
@@ -103,8 +104,7 @@ void bench_shaders(const BenchShadersArgs& args) {
       if (!row.empty()) std::cout << " " << row << "\n";
     }
   }
-  if (args.json)
-    std::cout << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  if (args.json) std::cout << json_text(json, 2) << "\n";
   // A --statistics part that names none of the driver's statistics (each driver has its own).
   for (const std::string& part : args.statistics)
     if (std::none_of(reported.begin(), reported.end(),

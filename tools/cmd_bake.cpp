@@ -12,6 +12,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
 #include "pipeline/bake.hpp"
@@ -212,9 +213,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     const CacheReader cache(result.cache, false);
     const std::vector<CacheSummary> summary{summarize_cache(cache)};
     if (args->json)
-      std::cout << report_json(summary).dump(2, ' ', false,
-                                             nlohmann::json::error_handler_t::replace)
-                << "\n";
+      std::cout << json_text(report_json(summary), 2) << "\n";
     else
       std::cout << report_text(summary);
   };
@@ -236,9 +235,7 @@ Command add_report(CLI::App& app) {
     for (const std::string& path : args->caches)
       summaries.push_back(summarize_cache(CacheReader(path, false)));
     if (args->json)
-      std::cout << report_json(summaries).dump(2, ' ', false,
-                                               nlohmann::json::error_handler_t::replace)
-                << "\n";
+      std::cout << json_text(report_json(summaries), 2) << "\n";
     else if (args->markdown)
       std::cout << report_markdown(summaries);
     else

@@ -32,6 +32,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
@@ -214,7 +215,7 @@ void bench_voxels(const BenchArgs& args) {
                               {"memory_budget_bytes", budget.total()},
                               {"peak_rss_bytes", peak}};
   if (args.json) {
-    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "voxels: " << args.input << ", "
@@ -371,7 +372,7 @@ void bench_embree(const BenchArgs& args) {
                               {"bvh_peak_bytes", stats.bvh_peak_bytes},
                               {"memory_budget_bytes", budget.total()}};
   if (args.json) {
-    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "embree: " << args.input << ", "
@@ -456,7 +457,7 @@ void bench_tubes(const BenchArgs& args) {
                         {"memory_budget_bytes", budget.total()},
                         {"peak_rss_bytes", peak}};
   if (args.json) {
-    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(3) << "tubes: " << args.input << ", " << segments
@@ -549,7 +550,7 @@ void bench_bake(const BenchArgs& args) {
                               {"written_MBps", written / 1e6},
                               {"memcpy_GBps", bandwidth / 1e9}};
   if (args.json) {
-    std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    std::cout << json_text(out, 2) << "\n";
     return;
   }
   std::cout << std::fixed << std::setprecision(2) << "bake: " << args.input << ", " << segments

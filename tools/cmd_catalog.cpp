@@ -11,6 +11,7 @@
 
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "core/nearest.hpp"
 #include "formats/registry.hpp"
 #include "source_revision.hpp"
@@ -60,7 +61,7 @@ Command add_techniques(CLI::App& app) {
                       {"unavailable_reason", why ? *why : ""}});
     }
     if (*json) {
-      std::cout << rows.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+      std::cout << json_text(rows, 2) << "\n";
       return;
     }
     std::cout << std::left << std::setw(10) << "technique" << std::setw(8) << "reads"
@@ -106,7 +107,7 @@ Command add_formats(CLI::App& app) {
                     {"line_attributes", false},
                     {"metadata", true}});
     if (*json) {
-      std::cout << rows.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+      std::cout << json_text(rows, 2) << "\n";
       return;
     }
     const auto yes = [](const nlohmann::json& v) { return v.get<bool>() ? "yes" : "no"; };
@@ -138,7 +139,7 @@ Command add_version(CLI::App& app) {
                                            std::to_string(release)},
                               {"embree", RTC_VERSION_STRING}};
     if (*json) {
-      std::cout << v.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+      std::cout << json_text(v, 2) << "\n";
       return;
     }
     std::cout << "linebake " << LINEBAKE_VERSION << " (HDF5 " << v["hdf5"].get<std::string>()

@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "metrics/image_metrics.hpp"
 
 namespace linebake::cli {
@@ -56,12 +57,12 @@ Command add_compare(CLI::App& app) {
     else if (!args->error_image.empty())
       write_png(error_image(a, b, args->error_scale), args->error_image, 8);
     if (args->json) {
-      std::cout << nlohmann::json{{"image", args->image},
-                                  {"reference", args->reference},
-                                  {"psnr_db", p},
-                                  {"ssim", s},
-                                  {"ssim_mode", "per-channel mean"}}
-                       .dump(2, ' ', false, nlohmann::json::error_handler_t::replace)
+      std::cout << json_text(nlohmann::json{{"image", args->image},
+                                            {"reference", args->reference},
+                                            {"psnr_db", p},
+                                            {"ssim", s},
+                                            {"ssim_mode", "per-channel mean"}},
+                             2)
                 << "\n";
     } else {
       std::printf("PSNR  %.4f dB%s\nSSIM  %.6f (per-channel mean)\n", p,

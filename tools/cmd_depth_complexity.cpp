@@ -15,6 +15,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
@@ -197,13 +198,11 @@ Command add_depth_complexity(CLI::App& app) {
       if (!TerminalProgress::enabled() && !to_stdout) std::cerr << line << "\n";
     }
     progress.finish();
-    if (!args->stats.empty())
-      write_file_atomically(
-          args->stats, stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    if (!args->stats.empty()) write_file_atomically(args->stats, json_text(stats, 2) + "\n");
     // The statistics are the command's result: on stdout when no file takes them, and left on
     // the terminal after the bar.
     if (args->json)
-      std::cout << stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+      std::cout << json_text(stats, 2) << "\n";
     else if (args->output.empty() && args->stats.empty())
       for (const std::string& l : lines) std::cout << l << "\n";
     else if (TerminalProgress::enabled())

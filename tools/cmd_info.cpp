@@ -8,6 +8,7 @@
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "formats/registry.hpp"
@@ -69,7 +70,7 @@ Command add_info(CLI::App& app) {
     if (args->json) {
       const nlohmann::json j =
           line_set_info(s, v, metadata, args->input, source_format_name(args->input, read));
-      std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+      std::cout << json_text(j, 2) << "\n";
       return;
     }
     std::printf("source      %s (%s)\n", args->input.c_str(),

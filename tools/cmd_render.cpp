@@ -13,6 +13,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
@@ -72,11 +73,8 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
                 << (frame.note.empty() ? "" : ", " + frame.note) << "\n";
   }
   progress.finish();
-  if (!args.stats.empty())
-    write_file_atomically(
-        args.stats, stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
-  if (args.json)
-    std::cout << stats.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+  if (!args.stats.empty()) write_file_atomically(args.stats, json_text(stats, 2) + "\n");
+  if (args.json) std::cout << json_text(stats, 2) << "\n";
   // What stays on the terminal after the bar.
   std::vector<double> sorted = seconds;
   std::sort(sorted.begin(), sorted.end());

@@ -25,6 +25,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/nearest.hpp"
 #include "flight_plan.hpp"
 #include "pipeline/evaluation_report.hpp"
@@ -331,8 +332,7 @@ Command add_run(CLI::App& app) {
         throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
                     "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);
       state[s.id] = s.key;
-      write_file_atomically(
-          state_path, state.dump(1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+      write_file_atomically(state_path, json_text(state, 1) + "\n");
       ++ran;
     }
     if (args->dry_run) return;
@@ -341,9 +341,7 @@ Command add_run(CLI::App& app) {
     // The reports and their plots are renamed into place together, or none is: never a new
     // report.json beside an old report.html.
     OutputGroup reports;
-    write_file_atomically(
-        p.output + "/report.json",
-        evaluation.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    write_file_atomically(p.output + "/report.json", json_text(evaluation, 2) + "\n");
     const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
     std::filesystem::create_directories(p.output + "/plots");
     for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);

@@ -18,6 +18,7 @@
 #include "core/h5_probe.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 
@@ -246,9 +247,7 @@ void CacheWriter::write_attribute(const std::string& object, const std::string& 
 }
 
 void CacheWriter::write_provenance(const std::string& group, const Provenance& provenance) {
-  write_attribute(
-      group, "provenance",
-      to_json(provenance).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  write_attribute(group, "provenance", json_text(to_json(provenance)));
 }
 
 // ---- streamed datasets ----

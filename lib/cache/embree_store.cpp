@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 
@@ -28,8 +29,7 @@ void store_embree(CacheWriter& cache, const StoredCurves& curves, Provenance pro
                                       {"radius", curves.radius},
                                       {"attribute", curves.attribute},
                                       {"parts", curves.parts.size()}};
-  cache.write_attribute(kEmbreeGroup, "curves",
-                        description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache.write_attribute(kEmbreeGroup, "curves", json_text(description));
   provenance.disk_bytes = disk;
   cache.write_provenance(kEmbreeGroup, provenance);
 }
@@ -135,9 +135,7 @@ void EmbreeStoreWriter::close(Provenance provenance) {
                                       {"radius", radius_},
                                       {"attribute", attribute_},
                                       {"parts", parts_.size()}};
-  cache_.write_attribute(
-      kEmbreeGroup, "curves",
-      description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache_.write_attribute(kEmbreeGroup, "curves", json_text(description));
   provenance.disk_bytes = disk_;
   cache_.write_provenance(kEmbreeGroup, provenance);
 }

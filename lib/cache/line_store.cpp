@@ -4,6 +4,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/json_file.hpp"
 #include "lines/line_reader.hpp"
 
 namespace linebake {
@@ -259,9 +260,7 @@ void LineStoreWriter::close(const std::map<std::string, std::string>& metadata,
   uint64_t disk = points_.close() + offsets_.close();
   for (DatasetStream& s : attributes_) disk += s.close();
   for (DatasetStream& s : line_attributes_) disk += s.close();
-  cache_.write_attribute(
-      "/lines", "metadata",
-      nlohmann::json(metadata).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache_.write_attribute("/lines", "metadata", json_text(nlohmann::json(metadata)));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = stats_.total_bytes();
   cache_.write_provenance("/lines", provenance);

@@ -5,6 +5,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 
@@ -23,8 +24,7 @@ void store_rtx(CacheWriter& cache, const StoredRtx& rtx, Provenance provenance) 
                                       {"source", rtx.source},     {"device", rtx.device},
                                       {"driver", rtx.driver},     {"driver_uuid", rtx.driver_uuid},
                                       {"blas", rtx.blobs.size()}};
-  cache.write_attribute(kRtxGroup, "acceleration_structures",
-                        description.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache.write_attribute(kRtxGroup, "acceleration_structures", json_text(description));
   provenance.disk_bytes = disk;
   cache.write_provenance(kRtxGroup, provenance);
 }

@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 
@@ -166,8 +167,7 @@ void TubeStoreSink::State::close_chunk(size_t c) {
   s.attribute_values.reset();
   s.indices.reset();
   s.cache->write_attribute(g, "lines",
-                           nlohmann::json{s.plan.first_line, s.plan.line_count}.dump(
-                               -1, ' ', false, nlohmann::json::error_handler_t::replace));
+                           json_text(nlohmann::json{s.plan.first_line, s.plan.line_count}));
 }
 
 void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
@@ -181,9 +181,7 @@ void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
     s.close_chunk(c);
   }
   s.all.clear();
-  s.cache->write_attribute(
-      kTubesGroup, "mesh",
-      describe(mesh, s.chunks).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  s.cache->write_attribute(kTubesGroup, "mesh", json_text(describe(mesh, s.chunks)));
   provenance.disk_bytes = s.disk;
   provenance.memory_bytes = s.memory;
   s.cache->write_provenance(kTubesGroup, provenance);
@@ -209,12 +207,9 @@ void store_tubes(CacheWriter& cache, const TubeMesh& mesh, Provenance provenance
     if (!mesh.attribute.empty()) disk += cache.write(g + "/attribute", chunk.attribute.data(), v);
     disk += cache.write(g + "/indices", chunk.indices.data(), chunk.triangle_count(), 3);
     cache.write_attribute(g, "lines",
-                          nlohmann::json{chunk.first_line, chunk.line_count}.dump(
-                              -1, ' ', false, nlohmann::json::error_handler_t::replace));
+                          json_text(nlohmann::json{chunk.first_line, chunk.line_count}));
   }
-  cache.write_attribute(kTubesGroup, "mesh",
-                        describe(mesh, mesh.chunks.size())
-                            .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache.write_attribute(kTubesGroup, "mesh", json_text(describe(mesh, mesh.chunks.size())));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = mesh.bytes();
   cache.write_provenance(kTubesGroup, provenance);

@@ -5,6 +5,7 @@
 #include <optional>
 
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 
 namespace linebake {
 
@@ -37,9 +38,7 @@ void store_voxels(CacheWriter& cache, const VoxelGrid& g, Provenance provenance)
   disk += cache.write(base + "/line_counts", g.line_counts.data(), g.line_counts.size());
   for (size_t level = 0; level < g.density.size(); ++level)
     disk += cache.write(density_name(level), g.density[level].data(), g.density[level].size());
-  cache.write_attribute(
-      kVoxelsGroup, "grid",
-      describe(g, g.density.size()).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  cache.write_attribute(kVoxelsGroup, "grid", json_text(describe(g, g.density.size())));
   provenance.disk_bytes = disk;
   provenance.memory_bytes = g.representation_bytes();
   cache.write_provenance(kVoxelsGroup, provenance);
@@ -109,9 +108,7 @@ void VoxelStoreSink::end(const VoxelGrid& g, uint32_t chord_count,
     s.disk += stream.close();
     s.memory_with_density += count * sizeof(float);
   }
-  s.cache->write_attribute(
-      kVoxelsGroup, "grid",
-      describe(g, levels).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  s.cache->write_attribute(kVoxelsGroup, "grid", json_text(describe(g, levels)));
 }
 
 void VoxelStoreSink::close(Provenance provenance) {

@@ -39,4 +39,8 @@ nlohmann::json read_json_file(const std::string& path, const std::string& what) 
   }
 }
 
+std::string json_text(const nlohmann::json& value, int indent) {
+  return value.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 }  // namespace linebake

@@ -19,6 +19,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "lines/line_spool.hpp"
@@ -142,8 +143,7 @@ nlohmann::json to_json(const TubeOptions& t) {
 
 std::string tubes_key(const std::string& lines_hash, const TubeOptions& tubes,
                       Compression compression, int level) {
-  return key_of({"tubes", std::to_string(kTubesVersion), lines_hash,
-                 to_json(tubes).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+  return key_of({"tubes", std::to_string(kTubesVersion), lines_hash, json_text(to_json(tubes)),
                  to_string(compression), std::to_string(level)});
 }
 
@@ -159,8 +159,7 @@ nlohmann::json to_json(const VoxelOptions& v) {
 
 std::string voxels_key(const std::string& lines_hash, const VoxelOptions& voxels,
                        Compression compression, int level) {
-  return key_of({"voxels", std::to_string(kVoxelsVersion), lines_hash,
-                 to_json(voxels).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+  return key_of({"voxels", std::to_string(kVoxelsVersion), lines_hash, json_text(to_json(voxels)),
                  to_string(compression), std::to_string(level)});
 }
 
@@ -177,8 +176,7 @@ nlohmann::json to_json(const EmbreeOptions& e, const TubeOptions& t) {
 
 std::string embree_key(const std::string& lines_hash, const EmbreeOptions& e, const TubeOptions& t,
                        Compression compression, int level) {
-  return key_of({"embree", std::to_string(kEmbreeVersion), lines_hash,
-                 to_json(e, t).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+  return key_of({"embree", std::to_string(kEmbreeVersion), lines_hash, json_text(to_json(e, t)),
                  to_string(compression), std::to_string(level)});
 }
 
@@ -743,11 +741,9 @@ BakeResult bake(const BakeOptions& options_in) {
                          options.compression_level);
     if (asset == "rtx") {
       const vk::DeviceInfo& device = rt_context->info();
-      key = key_of(
-          {"rtx", std::to_string(kRtxVersion), tubes_step_key,
-           to_json(options.rtx).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
-           device.name, vk::to_hex(device.driver_uuid), to_string(options.compression),
-           std::to_string(options.compression_level)});
+      key = key_of({"rtx", std::to_string(kRtxVersion), tubes_step_key,
+                    json_text(to_json(options.rtx)), device.name, vk::to_hex(device.driver_uuid),
+                    to_string(options.compression), std::to_string(options.compression_level)});
     }
     const auto previous = old_provenance("/assets/" + asset);
     if (!options.force && previous && previous->key == key) {

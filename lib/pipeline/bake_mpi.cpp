@@ -19,6 +19,7 @@
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/interrupt.hpp"
+#include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
@@ -128,8 +129,7 @@ void add_rank_figures(const Ranks& ranks, const nlohmann::json& mine, const char
                       const char* second, nlohmann::json& stats) {
   nlohmann::json list = nlohmann::json::array();
   double max_s = 0, sum_s = 0;
-  for (const std::string& r :
-       ranks.allgather(mine.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace))) {
+  for (const std::string& r : ranks.allgather(json_text(mine))) {
     list.push_back(nlohmann::json::parse(r));
     const double s = list.back()[first].get<double>() + list.back()[second].get<double>();
     max_s = std::max(max_s, s);
@@ -282,11 +282,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   // The whole set's figures, and where this rank's lines and points start in it.
   LineSetStats stats;
   stats = stats_from(ranks.reduce(
-      stats_json(local_stats.stats())
-          .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+      json_text(stats_json(local_stats.stats())),
       [](const std::string& a, const std::string& b) {
-        return stats_json(merge(stats_from(a), stats_from(b)))
-            .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+        return json_text(stats_json(merge(stats_from(a), stats_from(b))));
       },
       [](const std::string& whole) { return whole; }));
   if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
@@ -420,8 +418,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     if (inputs.size() > 1) lines_p.parameters["files"] = inputs;
     lines_p.stats = to_json(stats);
     lines_p.stats["content_hash"] = lines_hash;
-    lines_p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(
-        to_json(lines_p).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace))));
+    lines_p =
+        provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(lines_p)))));
     std::map<std::string, std::string> metadata = header.metadata;
     if (!synth::is_synth_source(inputs[0])) metadata.emplace("source", options.input);
     store.close(metadata, lines_p);
@@ -493,8 +491,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
                         {"build_s", mine.build_s},
                         {"bytes", mine.bytes}},
                        "read_s", "build_s", p.stats);
-      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(
-          to_json(p).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace))));
+      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(p)))));
       sink.close(mesh, p);
       BakeStep step{"tubes", true, p};
       result.steps.push_back(step);
@@ -567,8 +564,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       p.stats["bvh"] =
           "not built under MPI (it needs the whole line set in one process); render builds it";
       p.memory_bytes = embree.buffer_bytes();
-      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(
-          to_json(p).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace))));
+      p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(p)))));
       embree.close(p);
       result.steps.push_back(BakeStep{"embree", true, p});
     }
@@ -589,8 +585,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
             p.stats = voxel_stats(g, chords, bytes_with_density,
                                   ranks.max(voxels->peak_record_bytes()), p.spill_bytes);
             add_rank_figures(ranks, figures, "exchange_s", "merge_s", p.stats);
-            p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(
-                to_json(p).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace))));
+            p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(p)))));
             result.steps.push_back(BakeStep{"voxels", true, p});
             if (g.chords_dropped) result.notes.push_back(dropped_chords_note(g));
             return p;

@@ -47,9 +47,7 @@ std::vector<std::string> options_to_args(const nlohmann::json& options, const st
         if (!v.is_string() && !v.is_number())
           throw InputError(file, where + "." + name, "list items must be strings or numbers");
         joined +=
-            (joined.empty() ? "" : ",") +
-            (v.is_string() ? v.get<std::string>()
-                           : v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+            (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>() : json_text(v));
       }
       args.insert(args.end(), {flag, joined});
     } else {
@@ -83,9 +81,7 @@ std::vector<std::string> names_at(const nlohmann::json& j, const char* key,
   if (!j[key].is_array() || j[key].empty()) throw InputError(file, at, "a non-empty list of names");
   for (const auto& v : j[key]) {
     if (!v.is_string() || !allowed.count(v.get<std::string>()))
-      throw InputError(file, at,
-                       v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) +
-                           " is not one of the pipeline's " + key);
+      throw InputError(file, at, json_text(v) + " is not one of the pipeline's " + key);
     names.push_back(v.get<std::string>());
   }
   return names;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 
 namespace linebake {
@@ -171,7 +172,7 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
         out << "    spilled       " << format_bytes(p.spill_bytes) << " to a temporary file\n";
       for (const auto& [key, value] : p.stats.items())
         out << "    " << key << std::string(key.size() < 14 ? 14 - key.size() : 1, ' ')
-            << value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+            << json_text(value) << "\n";
       out << "    built         " << p.created << " by linebake " << p.linebake_version << "\n";
     }
   }

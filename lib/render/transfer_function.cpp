@@ -121,8 +121,7 @@ void save_transfer_function(const TransferFunction& tf, const std::string& path)
   for (const auto& p : tf.colours) j["colours"].push_back({p.x, p.srgb[0], p.srgb[1], p.srgb[2]});
   j["opacities"] = nlohmann::json::array();
   for (const auto& p : tf.opacities) j["opacities"].push_back({p.x, p.opacity});
-  write_file_atomically(path,
-                        j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  write_file_atomically(path, json_text(j, 2) + "\n");
 }
 
 TransferFunction resolve_transfer_function(const std::string& name_or_path) {
