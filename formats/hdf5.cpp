@@ -215,6 +215,8 @@ class Hdf5Reader : public LineReader {
     if (prefix_.empty()) return count == 0;
     try {
       return read_cache_rows_strict(dataset, type, first, count, out);
+    } catch (const BudgetExceeded& e) {
+      throw BudgetExceeded(path_ + ": dataset " + name + ": " + e.what());
     } catch (const Error& e) {
       throw InputError(path_, "dataset " + name, e.what());
     }
@@ -273,9 +275,10 @@ class Hdf5Reader : public LineReader {
     try {
       values.resize(total);
     } catch (const std::bad_alloc&) {
-      throw InputError(path_, "dataset " + name,
-                       "needs " + std::to_string(total * sizeof(uint64_t)) +
-                           " bytes of memory, more than this machine can give");
+      throw BudgetExceeded(path_ + ": dataset " + name + ": needs " +
+                           std::to_string(total * sizeof(uint64_t)) +
+                           " bytes of memory, more than this process could allocate (ulimit -v, "
+                           "the cgroup's limit, or the machine's memory)");
     }
     if (total > 0 && !read_direct(dataset, H5T_NATIVE_UINT64, 0, total, values.data(), name) &&
         H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)

@@ -501,6 +501,9 @@ fi
 # One CPU: thread stacks and malloc arenas take address space too (a thread that cannot start
 # would fail otherwise).
 check_budget "an allocation past ulimit -v under an unlimited budget: exit 4, said as out of memory" bash -c "ulimit -v 200000; taskset -c 0 '$bin' bench tubes '$tmp/c.binlines' --memory-budget unlimited --repeat 1 > /dev/null 2> '$tmp/oom.err'; [ \$? -eq 4 ] && grep -q '^linebake: error: out of memory: an allocation failed' '$tmp/oom.err'"
+# lavapipe (Mesa 22.3) frees twice when vkCreateDevice runs out of address space, and the
+# process aborts: refused before, with the figures (its 2 worker threads: 192 + 2 x 128 MiB).
+check_budget "lavapipe's device past what ulimit -v leaves: exit 4 before vkCreateDevice, no image" bash -c "ulimit -v 450000; LP_NUM_THREADS=2 '$bin' render '$tmp/c.lbc.h5' --technique ll --size 24x16 -o '$tmp/as.png' 2> '$tmp/as.err'; [ \$? -eq 4 ] && grep -q 'lavapipe.s device needs about 448.00 MiB of address space (2 worker threads' '$tmp/as.err' && [ ! -e '$tmp/as.png' ]"
 check "a budget below what the process holds: exit 4, nothing left" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/tiny.lbc.h5' --memory-budget 20M 2> '$tmp/tiny.err'; [ \$? -eq 4 ] && grep -q 'memory budget of 20.00 MiB' '$tmp/tiny.err' && [ ! -e '$tmp/tiny.lbc.h5' ] && ! ls '$tmp' | grep -q tmp-"
 check_budget "bench bake --json" python3 -c "
 import json, subprocess

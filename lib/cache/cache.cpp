@@ -751,6 +751,8 @@ bool CacheReader::read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_
   h5::init();
   try {
     return read_cache_rows_strict(dataset, type, first, count, out);
+  } catch (const BudgetExceeded& e) {
+    throw BudgetExceeded(path_ + ": " + where + ": " + e.what());
   } catch (const Error& e) {
     throw InputError(path_, where, e.what());
   }
@@ -792,9 +794,10 @@ Array<unsigned char> CacheReader::read_raw(const std::string& dataset, hid_t typ
     try {
       out = Array<unsigned char>(bytes);
     } catch (const std::bad_alloc&) {
-      throw InputError(
-          path_, where,
-          "needs " + std::to_string(bytes) + " bytes of memory, more than this machine can give");
+      // A dataset the cache's own counts vouch for: too big for this process, not bad input.
+      throw BudgetExceeded(path_ + ": " + where + ": needs " + std::to_string(bytes) +
+                           " bytes of memory, more than this process could allocate (ulimit -v, "
+                           "the cgroup's limit, or the machine's memory)");
     }
     const std::vector<hsize_t> dims = h5::shape_of(d);
     if (bytes && !read_direct(d, type, 0, dims.empty() ? 1 : dims[0], out.data(), where) &&

@@ -96,7 +96,9 @@ bool read_cache_rows_strict(hid_t dataset, hid_t memory_type, uint64_t first, ui
   try {
     if (read_cache_rows(dataset, memory_type, first, count, out)) return true;
   } catch (const std::bad_alloc&) {
-    throw Error("a chunk needs more memory than this machine can give");
+    // A chunk's size is checked against its raw size above: this is the process's memory.
+    throw BudgetExceeded("a chunk needs more memory than this process could allocate (ulimit -v, "
+                         "the cgroup's limit, or the machine's memory)");
   } catch (const Error& e) {
     throw Error(std::string(e.what()) + " (the data is corrupt)");
   }

@@ -26,6 +26,9 @@ uint64_t status_field(const char* name) {
 uint64_t current_rss_bytes() {
   return status_field("VmRSS");
 }
+uint64_t address_space_bytes() {
+  return status_field("VmSize");
+}
 uint64_t trimmed_rss_bytes() {
 #ifdef __GLIBC__
   malloc_trim(0);

@@ -125,6 +125,14 @@ uint64_t physical_memory_bytes() {
   return bytes;
 }
 
+uint64_t address_space_left() {
+  rlimit address_space{};
+  if (::getrlimit(RLIMIT_AS, &address_space) != 0 || address_space.rlim_cur == RLIM_INFINITY)
+    return UINT64_MAX;
+  const uint64_t used = address_space_bytes();
+  return used < address_space.rlim_cur ? uint64_t(address_space.rlim_cur) - used : 0;
+}
+
 uint64_t default_memory_budget() {
   return physical_memory_bytes() / 2;
 }

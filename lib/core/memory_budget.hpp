@@ -20,6 +20,10 @@ uint64_t physical_memory_bytes();
 // /proc/self/cgroup), v2 (memory.max) and v1 (memory.limit_in_bytes), each cgroup's and every
 // one's above it, under `root` (/sys/fs/cgroup); 0 when there is none.
 uint64_t cgroup_memory_limit(const std::string& proc_self_cgroup, const std::string& root);
+// What the address-space limit (ulimit -v) leaves this process, UINT64_MAX without one. Drivers
+// reserve address space far beyond what they touch (lavapipe: a malloc arena and a stack for
+// each of its threads), which only this limit, not the memory budget, sees.
+uint64_t address_space_left();
 // The default budget: half of physical_memory_bytes().
 uint64_t default_memory_budget();
 

@@ -1,6 +1,9 @@
 #include "render/vulkan/context.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 
 #include "core/error.hpp"
@@ -84,10 +87,38 @@ VkInstance create_instance(bool validation, const std::vector<std::string>& want
   create.ppEnabledExtensionNames = extensions.data();
   VkInstance instance = VK_NULL_HANDLE;
   const VkResult r = vkCreateInstance(&create, nullptr, &instance);
+  // A driver that cannot be loaded for lack of address space is "no driver" to the loader.
+  const uint64_t left = address_space_left();
+  const std::string limited =
+      left == UINT64_MAX
+          ? std::string()
+          : " (or it could not load: ulimit -v leaves this process " + format_bytes(left) +
+                " of address space, and loading lavapipe takes about 150 MiB)";
   if (r == VK_ERROR_INCOMPATIBLE_DRIVER)
-    throw Error("Vulkan: no Vulkan driver found (install mesa-vulkan-drivers for lavapipe)");
+    throw Error("Vulkan: no Vulkan driver found (install mesa-vulkan-drivers for lavapipe)" +
+                limited);
+  if (r != VK_SUCCESS && !limited.empty()) throw Error("Vulkan: vkCreateInstance failed" + limited);
   check(r, "vkCreateInstance");
   return instance;
+}
+
+// lavapipe (Mesa 22.3) frees memory twice when an allocation fails inside vkCreateDevice, and the
+// process aborts; under ulimit -v that is where it fails, as its device reserves address space
+// for each worker thread (a malloc arena and a stack). Measured on the development VM through
+// /proc/self/status VmSize: 285 MiB with 1 thread, 425 with 2, 1,080 with 8. So refuse first.
+void check_lavapipe_address_space() {
+  const uint64_t left = address_space_left();
+  if (left == UINT64_MAX) return;
+  long threads = ::sysconf(_SC_NPROCESSORS_ONLN);
+  if (const char* lp = std::getenv("LP_NUM_THREADS")) threads = std::strtol(lp, nullptr, 10);
+  threads = std::clamp(threads, 0L, 32L);
+  const uint64_t needed = (192ull + 128ull * uint64_t(threads)) << 20;
+  if (left < needed)
+    throw BudgetExceeded("Vulkan: lavapipe's device needs about " + format_bytes(needed) +
+                         " of address space (" + std::to_string(threads) +
+                         " worker threads; LP_NUM_THREADS sets how many), but ulimit -v leaves "
+                         "this process " +
+                         format_bytes(left) + "; raise ulimit -v or lower LP_NUM_THREADS");
 }
 
 std::vector<VkPhysicalDevice> physical_devices(VkInstance instance) {
@@ -309,6 +340,7 @@ Context::Context(const ContextOptions& options) {
     create.pNext = &features13;
     create.enabledExtensionCount = uint32_t(device_extensions.size());
     create.ppEnabledExtensionNames = device_extensions.data();
+    if (info_.lavapipe) check_lavapipe_address_space();
     check(vkCreateDevice(physical_, &create, nullptr, &device_), "vkCreateDevice");
     compile_only_ = options.compile_only;
     if (compile_only_) return;
