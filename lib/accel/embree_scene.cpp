@@ -46,8 +46,20 @@ struct Part {
   Array<uint32_t> triangle_indices;
 };
 
+// Embree's out of memory where no budget caught it first (the monitor refuses past the budget,
+// and says so): the process's own limits, as for any allocation that fails.
+std::string out_of_memory_cause() {
+  const uint64_t left = address_space_left();
+  return left == UINT64_MAX
+             ? std::string("the machine's memory or the cgroup's limit")
+             : "ulimit -v, which leaves this process " + format_bytes(left) + " of address space";
+}
+
 void throw_on_device_error(RTCDevice device, const char* what) {
   const RTCError e = rtcGetDeviceError(device);
+  if (e == RTC_ERROR_OUT_OF_MEMORY)
+    throw BudgetExceeded(std::string("Embree: ") + what +
+                         " ran out of memory (RTC_ERROR_OUT_OF_MEMORY): " + out_of_memory_cause());
   if (e != RTC_ERROR_NONE)
     throw Error(std::string("Embree: ") + what + " failed (error " + std::to_string(int(e)) + ")");
 }
@@ -129,7 +141,14 @@ struct EmbreeScene::State {
 
   void create_device() {
     device = rtcNewDevice(nullptr);
-    if (!device) throw Error("Embree: cannot create a device");
+    if (!device) {
+      const RTCError e = rtcGetDeviceError(nullptr);
+      if (e == RTC_ERROR_OUT_OF_MEMORY || address_space_left() != UINT64_MAX)
+        throw BudgetExceeded(
+            "Embree: cannot create a device (error " + std::to_string(int(e)) +
+            "; its threads' stacks and allocators take memory): " + out_of_memory_cause());
+      throw Error("Embree: cannot create a device (error " + std::to_string(int(e)) + ")");
+    }
     rtcSetDeviceMemoryMonitorFunction(device, &State::monitor, this);
   }
 
