@@ -12,6 +12,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -20,16 +21,25 @@ namespace linebake::formats {
 
 namespace {
 
+// Keywords and type names in any case, as VTK's own reader takes them (it lowers each first).
+std::string upper(std::string text) {
+  for (char& c : text) c = char(std::toupper(static_cast<unsigned char>(c)));
+  return text;
+}
+
 // Legacy type names; "long" is 8 bytes as written on LP64 systems.
-std::optional<io::Scalar> legacy_type(const std::string& type) {
+std::optional<io::Scalar> legacy_type(const std::string& type_name) {
   using io::Scalar;
+  std::string type = type_name;
+  for (char& c : type) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (type == "vtkidtype") return Scalar::int64;
   if (type == "char") return Scalar::int8;
   if (type == "unsigned_char") return Scalar::uint8;
   if (type == "short") return Scalar::int16;
   if (type == "unsigned_short") return Scalar::uint16;
   if (type == "int") return Scalar::int32;
   if (type == "unsigned_int") return Scalar::uint32;
-  if (type == "long" || type == "vtktypeint64" || type == "vtkIdType") return Scalar::int64;
+  if (type == "long" || type == "vtktypeint64") return Scalar::int64;
   if (type == "unsigned_long" || type == "vtktypeuint64") return Scalar::uint64;
   if (type == "float") return Scalar::float32;
   if (type == "double") return Scalar::float64;
@@ -72,6 +82,7 @@ class LegacyStream {
 
   // Next whitespace-separated token, or empty at end of file.
   std::string token() {
+    if (!unread_.empty()) return std::exchange(unread_, std::string());
     std::string t;
     while (fill()) {
       const char c = buffer_[pos_];
@@ -87,6 +98,9 @@ class LegacyStream {
     }
     return t;
   }
+
+  // The next token() returns `t` again (a look ahead that found no METADATA).
+  void unread(std::string t) { unread_ = std::move(t); }
 
   // Skips the rest of the current line (binary data follows the newline).
   void skip_line() {
@@ -122,7 +136,24 @@ class LegacyStream {
   size_t pos_ = 0, end_ = 0;
   uint64_t base_ = 0;
   uint64_t line_ = 1;
+  std::string unread_;
 };
+
+// VTK 9 writes an array's information keys (a component's range, once asked for, as ParaView
+// always does) after it as a METADATA block, which ends at an empty line: skipped. After a
+// FIELD array the next token is either that or the next array's name.
+void skip_metadata(LegacyStream& in) {
+  in.skip_line();
+  for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {
+  }
+}
+void skip_array_metadata(LegacyStream& in) {
+  std::string next = in.token();
+  if (upper(next) == "METADATA")
+    skip_metadata(in);
+  else
+    in.unread(std::move(next));
+}
 
 template <typename Out>
 void read_values(LegacyStream& in, bool binary, const std::string& type_name, size_t count,
@@ -325,10 +356,10 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
                      "not a VTK legacy file (header '" + header.substr(0, 40) + "')");
   in.line();  // title
   const std::string encoding = io::trim(in.line()).data();
-  const bool binary = encoding.rfind("BINARY", 0) == 0;
-  if (!binary && encoding.rfind("ASCII", 0) != 0)
+  const bool binary = upper(encoding).rfind("BINARY", 0) == 0;
+  if (!binary && upper(encoding).rfind("ASCII", 0) != 0)
     throw InputError(path, at_line(3), "expected ASCII or BINARY, got '" + encoding + "'");
-  if (in.token() != "DATASET" || in.token() != "POLYDATA")
+  if (upper(in.token()) != "DATASET" || upper(in.token()) != "POLYDATA")
     in.fail("expected DATASET POLYDATA (only PolyData holds lines)");
 
   std::vector<float> points;
@@ -349,7 +380,9 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   };
   double point_floats = 3;  // per point: position and point attributes
 
-  auto read_array = [&](const std::string& name, size_t components, const std::string& type) {
+  // `scale`: COLOR_SCALARS in binary files are bytes for 0..1, as floats in ASCII ones.
+  auto read_array = [&](const std::string& name, size_t components, const std::string& type,
+                        float scale = 1) {
     if (target == Target::none) in.fail("attribute data before POINT_DATA or CELL_DATA");
     if (binary) in.skip_line();
     checked_count(in, target_tuples, components,
@@ -359,6 +392,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     if (target == Target::point) point_floats += double(components);
     std::vector<float> values(components * target_tuples);
     read_values(in, binary, type, values.size(), values.data());
+    if (scale != 1)
+      for (float& v : values) v *= scale;
     if (target == Target::point)
       add_components(in, point_attributes, name, values, components, 0, target_tuples);
     else if (have_lines)
@@ -366,7 +401,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
                      lines_cells.count());
   };
 
-  for (std::string key = in.token(); !key.empty(); key = in.token()) {
+  for (std::string key = upper(in.token()); !key.empty(); key = upper(in.token())) {
     if (key == "POINTS") {
       uint64_t n;
       if (!io::parse_uint64(in.token(), n)) in.fail("bad POINTS count");
@@ -411,9 +446,16 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
         components = static_cast<size_t>(parsed);
         t = in.token();
       }
-      if (t != "LOOKUP_TABLE") in.fail("expected LOOKUP_TABLE after SCALARS " + name);
+      if (upper(t) != "LOOKUP_TABLE") in.fail("expected LOOKUP_TABLE after SCALARS " + name);
       in.token();  // table name
       read_array(name, components, type);
+    } else if (key == "COLOR_SCALARS") {
+      const std::string name = io::decode_name(in.token());
+      int64_t components;
+      if (!io::parse_int64(in.token(), components) || components < 1 || components > 4)
+        in.fail("COLOR_SCALARS component count must be 1..4");
+      read_array(name, size_t(components), binary ? "unsigned_char" : "float",
+                 binary ? 1.0f / 255.0f : 1.0f);
     } else if (key == "VECTORS" || key == "NORMALS") {
       const std::string name = io::decode_name(in.token());
       read_array(name, 3, in.token());
@@ -451,6 +493,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
           }
           // Binary strings follow each other; one newline ends the array.
           if (binary) in.skip_line();
+          skip_array_metadata(in);
           continue;
         }
         if (binary) in.skip_line();
@@ -469,6 +512,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
                  have_lines)
           add_components(in, cell_attributes, name, values, static_cast<size_t>(components),
                          vertex_cells, lines_cells.count());
+        skip_array_metadata(in);
       }
     } else if (key == "LOOKUP_TABLE") {
       in.token();
@@ -479,10 +523,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       std::vector<float> table(static_cast<size_t>(4 * size));
       read_values(in, binary, binary ? "unsigned_char" : "float", table.size(), table.data());
     } else if (key == "METADATA") {
-      // VTK 9 writes METADATA blocks that end at an empty line.
-      in.skip_line();
-      for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {
-      }
+      skip_metadata(in);
     } else {
       in.fail("unexpected keyword '" + key + "'");
     }

@@ -413,6 +413,13 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       throw InputError(path, "Piece",
                        std::string(name) + " " + std::to_string(count) +
                            " cannot be in a file of " + std::to_string(ctx.file_bytes) + " bytes");
+  // Surfaces without lines are no line set: said, not read as an empty one (as the legacy
+  // reader's "no LINES").
+  if (line_count == 0 && poly_count + strip_count > 0)
+    throw InputError(path, "Piece",
+                     "no Lines cells, only surfaces (" + std::to_string(poly_count) + " Polys, " +
+                         std::to_string(strip_count) +
+                         " Strips): linebake reads the Lines of a PolyData file");
 
   // What reading it holds (ReadOptions::memory_limit): the mapped file, the XML and its copy in
   // the parser, the arrays (int64 offsets and connectivity, float points and attributes), and

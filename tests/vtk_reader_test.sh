@@ -3,7 +3,9 @@
 # .vtp (vtkXMLPolyDataReader) and the .vtk (vtkPolyDataReader, binary and ASCII): ParaView
 # colour-maps by the active scalars, so without them a file opens in a plain colour (issue 23).
 # The expected names and counts come from `linebake info --json` of the source, not from the
-# writers. Usage: vtk_reader_test.sh LINEBAKE. scripts/setup installs python3-vtk9.
+# writers. And the other way: files VTK's vtkPolyDataWriter writes (METADATA blocks,
+# COLOR_SCALARS, both encodings) and a .vtp of surfaces only, read (or refused) by linebake,
+# against the values written. Usage: vtk_reader_test.sh LINEBAKE. scripts/setup installs python3-vtk9.
 set -euo pipefail
 bin=${1:?usage: vtk_reader_test.sh LINEBAKE}
 python=/usr/bin/python3
@@ -53,4 +55,98 @@ for name, reader_type in readers:
     print(f"{name}: active scalars {point_name!r} ({info['points']} points), "
           f"{line_name!r} ({info['lines']} lines)")
 EOF
+# The other way: files VTK's own vtkPolyDataWriter writes, read by linebake. Arrays whose range
+# was asked for (ParaView always asks) get a METADATA block after them, inside FIELD data too,
+# and unsigned char scalars are COLOR_SCALARS (floats 0..1 in ASCII, bytes in binary). The
+# expected values are the ones written here.
+"$python" - "$tmp" << 'EOF'
+import sys
+import vtk
+
+tmp = sys.argv[1]
+points = vtk.vtkPoints()
+for i in range(7):
+    points.InsertNextPoint(i, i * i, -i)
+cells = vtk.vtkCellArray()
+for first, count in ((0, 4), (4, 3)):
+    cells.InsertNextCell(count)
+    for i in range(first, first + count):
+        cells.InsertCellPoint(i)
+poly = vtk.vtkPolyData()
+poly.SetPoints(points)
+poly.SetLines(cells)
+
+
+def add(data, array, name, values):
+    array.SetName(name)
+    for v in values:
+        array.InsertNextValue(v)
+    data.AddArray(array)
+    array.GetRange(-1)  # what makes the writer add METADATA
+
+
+add(poly.GetPointData(), vtk.vtkFloatArray(), "temp", [1, 2, 3, 4, 5, 6, 7])
+add(poly.GetPointData(), vtk.vtkDoubleArray(), "speed", [10, 20, 30, 40, 50, 60, 70.5])
+colour = vtk.vtkUnsignedCharArray()
+colour.SetName("colour")
+colour.SetNumberOfComponents(3)
+for i in range(7):
+    colour.InsertNextTuple3(255, 51 * (i % 6), 0)
+poly.GetPointData().SetScalars(colour)
+add(poly.GetCellData(), vtk.vtkDoubleArray(), "length", [3.5, 2.25])
+add(poly.GetCellData(), vtk.vtkIntArray(), "id", [7, 9])
+for binary in (False, True):
+    writer = vtk.vtkPolyDataWriter()
+    writer.SetFileName(f"{tmp}/from_vtk_{int(binary)}.vtk")
+    writer.SetInputData(poly)
+    if binary:
+        writer.SetFileTypeToBinary()
+    writer.Write()
+EOF
+for binary in 0 1; do
+  "$bin" info "$tmp/from_vtk_$binary.vtk" --json > "$tmp/from_vtk.json"
+  "$python" - "$tmp/from_vtk.json" "$binary" << 'EOF'
+import json, sys
+
+info = json.load(open(sys.argv[1]))
+label = "vtkPolyDataWriter " + ("binary" if sys.argv[2] == "1" else "ASCII")
+assert (info["lines"], info["points"]) == (2, 7), (label, info["lines"], info["points"])
+ranges = {a["name"]: (a["min"], a["max"]) for a in info["attributes"]}
+expected = {"temp": (1, 7), "speed": (10, 70.5), "colour_x": (1, 1), "colour_y": (0, 1),
+            "colour_z": (0, 0)}
+for name, (low, high) in expected.items():
+    assert name in ranges, (label, name, sorted(ranges))
+    assert abs(ranges[name][0] - low) < 1e-6 and abs(ranges[name][1] - high) < 1e-6, (
+        label, name, ranges[name])
+lines = {a["name"]: (a["min"], a["max"]) for a in info["line_attributes"]}
+assert lines == {"length": (2.25, 3.5), "id": (7, 9)}, (label, lines)
+print(f"{label}: 2 lines, 7 points, {len(ranges)} vertex and {len(lines)} line attributes")
+EOF
+done
+# A surface in a .vtp (vtkXMLPolyDataWriter, Polys only) is no line set: refused, not read as an
+# empty one.
+"$python" -c "
+import vtk
+points = vtk.vtkPoints()
+for i in range(4):
+    points.InsertNextPoint(i, i * i, 0)
+cells = vtk.vtkCellArray()
+cells.InsertNextCell(4)
+for i in range(4):
+    cells.InsertCellPoint(i)
+poly = vtk.vtkPolyData()
+poly.SetPoints(points)
+poly.SetPolys(cells)
+writer = vtk.vtkXMLPolyDataWriter()
+writer.SetFileName('$tmp/surface.vtp')
+writer.SetInputData(poly)
+writer.Write()
+"
+status=0
+"$bin" info "$tmp/surface.vtp" > /dev/null 2> "$tmp/surface.err" || status=$?
+[ "$status" -eq 2 ] && grep -q 'surface.vtp: Piece: no Lines cells, only surfaces (1 Polys, 0 Strips)' "$tmp/surface.err" || {
+  echo "vtk_reader_test: a .vtp of Polys only: exit $status, $(cat "$tmp/surface.err")"
+  exit 1
+}
+echo "vtkXMLPolyDataWriter Polys only: refused (exit 2)"
 echo "vtk_reader_test: passed"
