@@ -10,6 +10,8 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <charconv>
+#include <cstring>
 #include <functional>
 #include <nlohmann/json.hpp>
 
@@ -58,6 +60,44 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
 
 namespace {
 
+// A root attribute of numbers (h5py: f.attrs["dt"] = 0.25), up to 16 of them, as metadata text:
+// "0.25", "1 2 3"; false for anything else (strings are read as strings, larger arrays left).
+bool numeric_attribute_text(hid_t file, const std::string& name, std::string& text) {
+  Handle attribute(H5Aopen(file, name.c_str(), H5P_DEFAULT), H5Aclose);
+  if (!attribute.valid()) return false;
+  Handle type(H5Aget_type(attribute), H5Tclose), space(H5Aget_space(attribute), H5Sclose);
+  const H5T_class_t kind = H5Tget_class(type);
+  const hssize_t count = H5Sget_simple_extent_npoints(space);
+  if ((kind != H5T_INTEGER && kind != H5T_FLOAT) || count < 1 || count > 16) return false;
+  std::vector<char> values(size_t(count) * 8);
+  const bool is_signed = kind == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_2;
+  const hid_t memory = kind == H5T_FLOAT ? H5T_NATIVE_DOUBLE
+                       : is_signed       ? H5T_NATIVE_INT64
+                                         : H5T_NATIVE_UINT64;
+  if (H5Aread(attribute, memory, values.data()) < 0) return false;
+  text.clear();
+  for (hssize_t i = 0; i < count; ++i) {
+    char digits[32];
+    const char* at = values.data() + 8 * i;
+    std::to_chars_result r{};
+    if (kind == H5T_FLOAT) {
+      double v;
+      std::memcpy(&v, at, 8);
+      r = std::to_chars(digits, digits + sizeof digits, v);  // the shortest that reads back
+    } else if (is_signed) {
+      int64_t v;
+      std::memcpy(&v, at, 8);
+      r = std::to_chars(digits, digits + sizeof digits, v);
+    } else {
+      uint64_t v;
+      std::memcpy(&v, at, 8);
+      r = std::to_chars(digits, digits + sizeof digits, v);
+    }
+    text += (i ? " " : "") + std::string(digits, r.ptr);
+  }
+  return true;
+}
+
 class Hdf5Reader : public LineReader {
  public:
   Hdf5Reader(const std::string& path, const ReadOptions& options)
@@ -95,7 +135,8 @@ class Hdf5Reader : public LineReader {
           &names);
       for (const std::string& name : names) {
         std::string value;
-        if (name != "linebake_version" && h5::read_string_attribute(file_, name, value))
+        if (name != "linebake_version" && (h5::read_string_attribute(file_, name, value) ||
+                                           numeric_attribute_text(file_, name, value)))
           header_.metadata[name] = value;
       }
     }
@@ -166,6 +207,7 @@ class Hdf5Reader : public LineReader {
   Data open(const std::string& name, uint64_t expected = UINT64_MAX) const {
     Data d;
     d.name = name;
+    check_dataset(name);
     // A chunk cache large enough that a chunk cut by one batch is still there for the next.
     Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
     H5Pset_chunk_cache(dapl, 521, size_t{16} << 20, 1.0);
@@ -178,8 +220,13 @@ class Hdf5Reader : public LineReader {
       throw InputError(path_, "dataset " + name,
                        std::to_string(total) + " values, expected " + std::to_string(expected));
     Handle type(H5Dget_type(d.dataset), H5Tclose);
+    if (H5Tget_class(type) == H5T_ENUM)
+      throw InputError(path_, "dataset " + name,
+                       "an enumeration (h5py stores bool arrays so), not numbers: store it as "
+                       "integers or floats (numpy: .astype('u1'))");
     if (H5Tget_class(type) != H5T_FLOAT && H5Tget_class(type) != H5T_INTEGER)
       throw InputError(path_, "dataset " + name, "not numeric");
+    check_filters(d.dataset, name);
     // The cache's hash covers the stored float32 bytes, which are what a float32 read returns.
     if (H5Tget_size(type) == 4 && H5Tget_class(type) == H5T_FLOAT) {
       if (h5::read_string_attribute(d.dataset, "xxh3_128_blocks", d.stored_hash))
@@ -240,6 +287,7 @@ class Hdf5Reader : public LineReader {
     const std::string offsets = prefix_ + "/line_offsets", lengths = prefix_ + "/line_lengths";
     if (H5Lexists(file_, offsets.c_str(), H5P_DEFAULT) > 0) {
       offsets_ = read_whole(offsets);
+      if (offsets_.empty() && points == 0) offsets_.assign(1, 0);  // no lines, written as []
       if (offsets_.empty() || offsets_.front() != 0 || offsets_.back() != points)
         throw InputError(path_, "dataset " + offsets,
                          "must start at 0 and end at the point count " + std::to_string(points));
@@ -259,10 +307,60 @@ class Hdf5Reader : public LineReader {
     }
   }
 
+  // A group where a dataset belongs (an attribute's dataset under /attributes, say) is named as
+  // such, not as a missing dataset.
+  void check_dataset(const std::string& name) const {
+    if (H5Lexists(file_, name.c_str(), H5P_DEFAULT) <= 0) return;  // "missing", by the caller
+    Handle object(H5Oopen(file_, name.c_str(), H5P_DEFAULT), H5Oclose);
+    if (object.valid() && H5Iget_type(object) == H5I_GROUP)
+      throw InputError(path_, "group " + name,
+                       "a group where a dataset belongs (attributes are datasets of one value a "
+                       "point or a line, directly under /attributes or /line_attributes)");
+  }
+
+  // A filter this HDF5 cannot decode fails H5Dread with "wrong type or corrupt data": named
+  // before, with the filter.
+  void check_filters(hid_t dataset, const std::string& name) const {
+    Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+    const int filters = H5Pget_nfilters(dcpl);
+    for (int i = 0; i < filters; ++i) {
+      unsigned flags = 0, config = 0;
+      size_t values = 0;
+      char filter_name[64] = {};
+      const H5Z_filter_t id = H5Pget_filter2(dcpl, unsigned(i), &flags, &values, nullptr,
+                                             sizeof filter_name, filter_name, &config);
+      if (id < 0 || H5Zfilter_avail(id) > 0) continue;
+      throw InputError(
+          path_, "dataset " + name,
+          "compressed with HDF5 filter " + std::to_string(id) +
+              (filter_name[0] ? std::string(" (") + filter_name + ")" : std::string()) +
+              ", which this HDF5 cannot decode (no plugin for it on HDF5_PLUGIN_PATH)" +
+              (id == 32000 ? "; LZF is h5py's own filter, known only inside h5py: write the "
+                             "dataset with compression='gzip' instead"
+                           : ""));
+    }
+  }
+
+  // Offsets and lengths are counts: integers (HDF5's conversion to uint64 would take a
+  // fraction's floor, and a negative value as 0, silently). True when they are signed.
+  bool check_counts_type(hid_t dataset, const std::string& name) const {
+    Handle type(H5Dget_type(dataset), H5Tclose);
+    if (H5Tget_class(type) != H5T_INTEGER)
+      throw InputError(path_, "dataset " + name,
+                       std::string("holds ") +
+                           (H5Tget_class(type) == H5T_FLOAT ? "floating-point" : "non-integer") +
+                           " values; offsets and lengths are integers (numpy: .astype('u8'))");
+    return H5Tget_sign(type) == H5T_SGN_2;
+  }
+
   std::vector<uint64_t> read_whole(const std::string& name) const {
+    check_dataset(name);
     Handle dataset(H5Dopen2(file_, name.c_str(), H5P_DEFAULT), H5Dclose);
     if (!dataset.valid()) throw InputError(path_, "dataset " + name, "missing");
     h5::check_claimed_size(path_, dataset, name);
+    check_filters(dataset, name);
+    // A line file's signed counts are read as int64 (the same 8 bytes) and checked for negatives.
+    const bool is_signed = prefix_.empty() && check_counts_type(dataset, name);
     hsize_t total = 1;
     for (hsize_t d : h5::shape_of(dataset)) total *= d;
     // Each value takes at least a bit of the file: a larger count is a corrupt header.
@@ -280,9 +378,15 @@ class Hdf5Reader : public LineReader {
                            " bytes of memory, more than this process could allocate (ulimit -v, "
                            "the cgroup's limit, or the machine's memory)");
     }
-    if (total > 0 && !read_direct(dataset, H5T_NATIVE_UINT64, 0, total, values.data(), name) &&
-        H5Dread(dataset, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+    const hid_t memory_type = is_signed ? H5T_NATIVE_INT64 : H5T_NATIVE_UINT64;
+    if (total > 0 && !read_direct(dataset, memory_type, 0, total, values.data(), name) &&
+        H5Dread(dataset, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
       throw InputError(path_, "dataset " + name, "cannot read (wrong type or corrupt data)");
+    for (size_t i = 0; is_signed && i < values.size(); ++i)
+      if (int64_t(values[i]) < 0)
+        throw InputError(path_, "dataset " + name,
+                         "value " + std::to_string(int64_t(values[i])) + " at index " +
+                             std::to_string(i) + " is negative");
     std::string stored;
     const size_t bytes = values.size() * sizeof(uint64_t);
     if ((h5::read_string_attribute(dataset, "xxh3_128_blocks", stored) &&

@@ -185,12 +185,26 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
   // Attribute names are looked up by name (options, caches' statistics and keys, which are
   // JSON): a name that is not UTF-8 could not be stored as itself.
   const LineSet& header = reader->header();
-  for (const auto* list : {&header.attributes, &header.line_attributes})
-    for (const Attribute& a : *list)
-      if (!valid_utf8(a.name))
-        throw InputError(source, "attribute " + a.name,
+  for (const auto* list : {&header.attributes, &header.line_attributes}) {
+    const std::string kind = list == &header.attributes ? "vertex" : "line";
+    for (size_t i = 0; i < list->size(); ++i) {
+      const std::string& name = (*list)[i].name;
+      if (!valid_utf8(name))
+        throw InputError(source, "attribute " + name,
                          "its name is not UTF-8 text; rename it (linebake keeps names in JSON, "
                          "which holds UTF-8 only)");
+      // Names are how attributes are found (--attribute, HDF5 datasets, JSON): one each.
+      if (name.empty())
+        throw InputError(source, kind + " attribute " + std::to_string(i + 1),
+                         "has an empty name; name it");
+      for (size_t j = 0; j < i; ++j)
+        if ((*list)[j].name == name)
+          throw InputError(source, "attribute " + name,
+                           "two " + kind + " attributes have this name (numbers " +
+                               std::to_string(j + 1) + " and " + std::to_string(i + 1) +
+                               " in the file's order); rename one");
+    }
+  }
   return reader;
 }
 

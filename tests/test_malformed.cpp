@@ -293,6 +293,39 @@ TEST(FuzzFindings, IndicesOutsideTheirIntegerRange) {
   expect_error(dir.file("huge.vtk"), "value 1e300 is outside the array's range");
 }
 
+// Attributes are found by name (--attribute, HDF5 datasets, JSON): two of one name, or one
+// without a name, are refused when the file is opened, whatever the format (a CSV header
+// t,t had been taken and failed only when written to HDF5, exit 3 naming a temporary file).
+TEST(MalformedInput, AttributeNamesAreUniqueAndNotEmpty) {
+  TempDir dir;
+  const std::string head =
+      "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\n"
+      "LINES 1 3\n2 0 1\nPOINT_DATA 2\n";
+  write_text(dir.file("twice.vtk"), head +
+                                        "SCALARS t float\nLOOKUP_TABLE default\n1 2\n"
+                                        "VECTORS u float\n0 0 0 1 1 1\n"
+                                        "SCALARS t float\nLOOKUP_TABLE default\n3 4\n");
+  expect_error(dir.file("twice.vtk"),
+               "attribute t: two vertex attributes have this name (numbers 1 and 5");
+  write_text(dir.file("lines.vtk"), head +
+                                        "CELL_DATA 1\nSCALARS w float\nLOOKUP_TABLE "
+                                        "default\n1\nSCALARS w float\nLOOKUP_TABLE default\n2\n");
+  expect_error(dir.file("lines.vtk"), "attribute w: two line attributes have this name");
+  // The same name for a vertex and a line attribute is two lists, not a clash.
+  write_text(dir.file("both.vtk"), head +
+                                       "SCALARS w float\nLOOKUP_TABLE default\n1 2\n"
+                                       "CELL_DATA 1\nSCALARS w float\nLOOKUP_TABLE default\n3\n");
+  const LineSet both = read_line_set(dir.file("both.vtk"));
+  ASSERT_EQ(both.attributes.size(), 1u);
+  ASSERT_EQ(both.line_attributes.size(), 1u);
+  EXPECT_EQ(both.line_attributes[0].values[0], 3.0f);
+  // binlines v2: version 2, 1 line, 1 attribute named by 0 bytes; the line of 2 points.
+  std::vector<unsigned char> unnamed = {2, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0};
+  unnamed.resize(unnamed.size() + 8 * 4, 0);  // 6 coordinates and 2 values, all 0.0f
+  write_bytes(dir.file("unnamed.binlines"), unnamed);
+  expect_error(dir.file("unnamed.binlines"), "vertex attribute 1: has an empty name");
+}
+
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
 // is not UTF-8 are the file's errors, with its name, not nlohmann::json's exceptions.
 TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
