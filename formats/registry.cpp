@@ -22,15 +22,16 @@ namespace linebake {
 
 const std::vector<FormatInfo>& format_table() {
   static const std::vector<FormatInfo> list{
-      // format, name, extensions, readable, writable, line attributes, metadata
+      // format, name, extensions, readable, writable, line attributes, metadata (held by what
+      // it reads, and by what it writes where it writes)
       {Format::obj, "obj", {".obj"}, true, true, false, false},
       {Format::binlines, "binlines", {".binlines"}, true, true, false, false},
       {Format::vtk, "vtk", {".vtk"}, true, true, true, true},
       {Format::vtp, "vtp", {".vtp"}, true, true, true, true},
-      {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false, false, false},
+      {Format::netcdf, "netcdf", {".nc", ".ncf", ".nc4", ".cdf"}, true, false, false, true},
       {Format::hdf5, "hdf5", {".h5", ".hdf5", ".hdf"}, true, true, true, true},
-      {Format::trk, "trk", {".trk"}, true, false, false, false},
-      {Format::tck, "tck", {".tck"}, true, false, false, false},
+      {Format::trk, "trk", {".trk"}, true, false, true, true},
+      {Format::tck, "tck", {".tck"}, true, false, false, true},
       {Format::csv, "csv", {".csv"}, true, true, false, false},
   };
   return list;

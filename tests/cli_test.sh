@@ -544,6 +544,9 @@ for name in ('obj', 'vtk', 'vtp', 'hdf5', 'csv', 'binlines'):
 for name in ('netcdf', 'trk', 'tck'):
     assert not rows[name]['write'], name
 assert rows['hdf5']['metadata'] and rows['vtk']['line_attributes'] and not rows['csv']['line_attributes']
+# What the read-only formats' readers keep: TrackVis properties as line attributes, header keys
+# of trk, tck and NetCDF as metadata (the table said no for all of them).
+assert rows['trk']['line_attributes'] and all(rows[n]['metadata'] for n in ('trk', 'tck', 'netcdf')), rows
 "
 check "help CMD is CMD --help; version names the version" bash -c "[ \"\$('$bin' help render)\" = \"\$('$bin' render --help)\" ] && [ \"\$('$bin' help bench voxels)\" = \"\$('$bin' bench voxels --help)\" ] && '$bin' version | grep -q '^linebake [0-9]*\.[0-9]*\.[0-9]* (HDF5 '"
 check "bake CACHE adds assets in place, reusing its /lines" bash -c "'$bin' bake '$tmp/c.binlines' -o '$tmp/ip.lbc.h5' >/dev/null 2>&1 && '$bin' bake '$tmp/ip.lbc.h5' --assets tubes,voxels --grid 32 2> '$tmp/ip.err' >/dev/null && grep -q 'lines: up to date, reused' '$tmp/ip.err' && grep -q 'voxels: built' '$tmp/ip.err' && '$bin' report '$tmp/ip.lbc.h5' --json | grep -q '\"quantization\": 32' && ! ls '$tmp' | grep -q 'ip.lbc.lbc'"
