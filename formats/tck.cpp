@@ -19,7 +19,7 @@ class TckReader : public LineReader {
   TckReader(const std::string& path, const ReadOptions& options)
       : in_(path, options.progress), memory_limit_(options.memory_limit) {
     std::string datatype;
-    uint64_t data_offset = 0;
+    uint64_t data_offset = 0, header_end = 0;
     {
       io::TextReader header(path);
       std::string_view line;
@@ -45,10 +45,14 @@ class TckReader : public LineReader {
         } else if (key == "count") {
           if (!io::parse_int64(value, declared_count_)) header.fail("bad count '" + value + "'");
         }
-        header_.metadata["tck." + key] = value;
+        // A key given again (command_history, roi) keeps every value, one a line, as MRtrix's
+        // own header reader does.
+        const auto [kept, fresh] = header_.metadata.try_emplace("tck." + key, value);
+        if (!fresh) kept->second += "\n" + value;
         if (header.offset() > (1u << 20)) header.fail("header longer than 1 MiB without END");
       }
       if (!ended) throw InputError(path, "header", "no END line");
+      header_end = header.offset();
     }
     bool big = false;
     if (datatype == "Float32LE")
@@ -62,6 +66,15 @@ class TckReader : public LineReader {
     else
       throw InputError(path, "header", "unsupported datatype '" + datatype + "'");
     if (data_offset == 0) throw InputError(path, "header", "no 'file: . OFFSET' entry");
+    if (data_offset < header_end)
+      throw InputError(path, "header",
+                       "'file: . " + std::to_string(data_offset) +
+                           "' points inside the header, which ends at byte " +
+                           std::to_string(header_end));
+    if (data_offset > in_.size())
+      throw InputError(path, "header",
+                       "'file: . " + std::to_string(data_offset) + "' points past the end of the " +
+                           std::to_string(in_.size()) + "-byte file (truncated?)");
     in_.seek(data_offset);
     swap_ = big != (std::endian::native == std::endian::big);
   }

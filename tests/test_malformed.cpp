@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <functional>
+#include <limits>
 
 #include "core/base64.hpp"
 #include "core/error.hpp"
@@ -324,6 +326,36 @@ TEST(MalformedInput, AttributeNamesAreUniqueAndNotEmpty) {
   unnamed.resize(unnamed.size() + 8 * 4, 0);  // 6 coordinates and 2 values, all 0.0f
   write_bytes(dir.file("unnamed.binlines"), unnamed);
   expect_error(dir.file("unnamed.binlines"), "vertex attribute 1: has an empty name");
+}
+
+// MRtrix .tck headers: a key given again keeps every value, one a line, as MRtrix's reader does
+// (the last one only had been kept); a data offset inside the header or past the file's end is
+// said as such (the header's text had been read as points, or a seek failed at "byte offset 0").
+TEST(MalformedInput, TckHeaderKeysRepeatedAndDataOffsets) {
+  TempDir dir;
+  const auto tck = [&](const std::string& name, uint64_t data_offset, bool pad) {
+    std::string text =
+        "mrtrix tracks\nroi: a.nii\nroi: b.nii\ndatatype: Float32LE\ncount: 1\nfile: . " +
+        std::to_string(data_offset) + "\nEND\n";
+    if (pad) text.resize(data_offset, '\0');
+    std::vector<unsigned char> bytes(text.begin(), text.end());
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    for (float v : {0.0f, 0.0f, 0.0f, 1.0f, 2.0f, 3.0f, nan, nan, nan, inf, inf, inf}) {
+      unsigned char b[4];
+      std::memcpy(b, &v, 4);
+      bytes.insert(bytes.end(), b, b + 4);
+    }
+    write_bytes(dir.file(name), bytes);
+    return dir.file(name);
+  };
+  const LineSet lines = read_line_set(tck("ok.tck", 128, true));
+  EXPECT_EQ(lines.line_count(), 1u);
+  EXPECT_EQ(lines.positions[5], 3.0f);
+  EXPECT_EQ(lines.metadata.at("tck.roi"), "a.nii\nb.nii");
+  expect_error(tck("inside.tck", 20, false),
+               "'file: . 20' points inside the header, which ends at byte");
+  expect_error(tck("past.tck", 100000, false), "'file: . 100000' points past the end of the");
 }
 
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
