@@ -45,6 +45,15 @@ for n in 1 2 3; do
     done"
   check "np $n: provenance records the ranks" \
     bash -c "'$bin' report --json mpi$n.lbc.h5 | grep -q '\"ranks\": $n'"
+  # The line model's memory is the data's, not one offsets' 0 more a rank; CPU time is counted.
+  check "np $n: the lines' memory figure is the serial bake's, their CPU time recorded" \
+    /usr/bin/python3 -c "
+import h5py, json
+serial, mpi = (json.loads(h5py.File(f, 'r')['/lines'].attrs['provenance'])
+               for f in ('serial.lbc.h5', 'mpi$n.lbc.h5'))
+assert mpi['memory_bytes'] == serial['memory_bytes'], (mpi['memory_bytes'], serial['memory_bytes'])
+assert mpi['build']['cpu_s'] > 0 and mpi['build']['rss_before_bytes'] > 0, mpi['build']
+"
 done
 check "h5py (no MPI) reads every dataset of the 3-rank cache equal to the serial one's" \
   /usr/bin/python3 -c "

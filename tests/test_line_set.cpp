@@ -31,6 +31,32 @@ TEST(LineSet, CountsBoundsAndBytes) {
   EXPECT_EQ(s.attribute_ranges[0].second.nonfinite, 1u);
 }
 
+// linebake-mpi merges each rank's figures: the merged ones are the whole set's, whatever the
+// split (the offsets' leading 0 had been counted once a rank: 8 bytes more a rank).
+TEST(LineSet, MergedStatisticsAreTheWholeSets) {
+  LineSet whole, first, second;
+  for (int l = 0; l < 5; ++l) {
+    LineSet& part = l < 2 ? first : second;
+    for (int p = 0; p <= l; ++p) {
+      whole.append_point(float(l), float(p), 0);
+      part.append_point(float(l), float(p), 0);
+    }
+    whole.end_line();
+    part.end_line();
+  }
+  const LineSetStats expected = compute_stats(whole);
+  const LineSetStats empty = compute_stats(LineSet{});
+  for (const LineSetStats& merged :
+       {merge(compute_stats(first), compute_stats(second)),
+        merge(merge(compute_stats(first), empty), compute_stats(second))}) {
+    EXPECT_EQ(merged.lines, 5u);
+    EXPECT_EQ(merged.points, 15u);
+    EXPECT_EQ(merged.offset_bytes, 6u * 8);
+    EXPECT_EQ(merged.total_bytes(), expected.total_bytes());
+    EXPECT_EQ(merged.bounds.max, expected.bounds.max);
+  }
+}
+
 TEST(LineSet, BoundsSkipNonFinitePoints) {
   LineSet lines;
   lines.append_point(NAN, 100, 100);

@@ -153,7 +153,8 @@ LineSetStats merge(const LineSetStats& a, const LineSetStats& b) {
   s.points += b.points;
   s.segments += b.segments;
   s.position_bytes += b.position_bytes;
-  s.offset_bytes += b.offset_bytes;
+  // Each set's offsets start with a 0 that the merged set holds once.
+  s.offset_bytes += b.offset_bytes - std::min({a.offset_bytes, b.offset_bytes, uint64_t{8}});
   s.attribute_bytes += b.attribute_bytes;
   s.largest_line = std::max(a.largest_line, b.largest_line);
   if (s.bounds.empty) {

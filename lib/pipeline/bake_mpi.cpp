@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -246,6 +247,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
 
   // Read: this rank's share into its spool, validated batch by batch as the serial bake does.
   const auto read_start = std::chrono::steady_clock::now();
+  const double cpu_start = process_cpu_seconds();
+  const uint64_t rss_before = current_rss_bytes();
   MemoryBudget budget(budget_bytes);
   // As the serial bake sizes its batches: a quarter of the budget through the builders.
   const uint64_t per_point =
@@ -399,7 +402,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     const std::string lines_hash = ranks.reduce(
         hash.piece(), LineContentHash::join,
         [&](const std::string& whole) { return LineContentHash::finish(header, whole); });
-    // Provenance: rank 0's figures, the same bytes on every rank (attributes are collective).
+    // Provenance: rank 0's figures, the same bytes on every rank (attributes are collective);
+    // the CPU time is every rank's since the read began (a sum: every rank calls this).
     const auto finish = [&](Provenance& p, const std::string& step) {
       p.step = step;
       p.created = utc_now_iso8601();
@@ -408,6 +412,10 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       p.memory_budget = budget_bytes;
       p.build.wall_s = seconds_since(build_start) + read_s;
       p.build.peak_rss = peak_rss_bytes();
+      p.build.rss_before = rss_before;
+      p.build.cpu_s =
+          double(ranks.sum(uint64_t(std::llround((process_cpu_seconds() - cpu_start) * 1e6)))) /
+          1e6;
     };
     Provenance lines_p;
     finish(lines_p, "lines");
