@@ -2,9 +2,13 @@
 // n_properties float32. Either byte order: hdr_size (= 1000) tells which. Points stay in the
 // file's voxel-mm space; voxel size, dimensions and vox_to_ras go into the metadata. Scalars
 // become vertex attributes, properties line attributes (named from the header, else scalar_k /
-// property_k). Streamlines are read in batches, each one whole.
+// property_k; a name slot written as nibabel does, "name\0N", names N columns). Streamlines are
+// read in batches, each one whole.
 
+#include <algorithm>
 #include <array>
+#include <string>
+#include <vector>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -17,14 +21,48 @@ std::string field_name(const char* raw, size_t size) {
   return s;
 }
 
+// A scalar_name or property_name slot: a name, and how many consecutive columns it covers.
+// nibabel writes a multi-component one as the name, a NUL and the count in ASCII digits
+// (b"colors\x003"); otherwise a slot covers one column, whatever follows its NUL.
+struct NameSlot {
+  std::string name;
+  int columns = 1;
+  bool counted = false;  // the count was written
+};
+
+NameSlot name_slot(const char* raw) {
+  constexpr size_t kSize = 20;
+  NameSlot slot{field_name(raw, kSize)};
+  size_t i = slot.name.size() + 1;
+  if (slot.name.empty() || i >= kSize) return slot;
+  int count = 0;
+  size_t digits = 0;
+  for (; i < kSize && raw[i] >= '0' && raw[i] <= '9'; ++i, ++digits)
+    count = std::min(count * 10 + (raw[i] - '0'), 100000);
+  for (size_t k = i; k < kSize; ++k)
+    if (raw[k] != 0) return slot;  // not a count: left as before
+  if (digits == 0) return slot;
+  slot.columns = count;  // 0 (nibabel skips such a slot)
+  slot.counted = true;
+  return slot;
+}
+
 class TrkReader : public LineReader {
  public:
   TrkReader(const std::string& path, const ReadOptions& options)
       : in_(path, options.progress), memory_limit_(options.memory_limit) {
     std::array<char, 1000> h{};
+    // The magic first: a file of another format shorter than the header (a .tck renamed) is
+    // named as such, not as a truncated header.
+    const size_t head = size_t(std::min<uint64_t>(in_.size(), 5));
+    in_.read(h.data(), head, "the 1000-byte header");
+    if (head > 0 && std::memcmp(h.data(), "TRACK", head) != 0) {
+      const bool tck = head >= 4 && std::memcmp(h.data(), "mrtr", 4) == 0;
+      in_.fail_at(0, std::string("not a TrackVis file (no TRACK magic)") +
+                         (tck ? "; it starts as an MRtrix .tck file does" : ""));
+    }
+    in_.seek(0);
     in_.read(h.data(), h.size(), "the 1000-byte header");
-    if (std::memcmp(h.data(), "TRACK", 5) != 0)
-      in_.fail_at(0, "not a TrackVis file (no TRACK magic)");
     int32_t hdr_size;
     std::memcpy(&hdr_size, h.data() + 996, 4);
     if (hdr_size != 1000) {
@@ -53,22 +91,12 @@ class TrkReader : public LineReader {
     // image_orientation_patient 956, pad1 980, invert/swap 982..987, n_count 988, version 992.
     n_scalars_ = i16(36);
     n_properties_ = i16(238);
-    if (n_scalars_ < 0 || n_scalars_ > 10)
-      in_.fail_at(36, "n_scalars must be 0..10, got " + std::to_string(n_scalars_));
-    if (n_properties_ < 0 || n_properties_ > 10)
-      in_.fail_at(238, "n_properties must be 0..10, got " + std::to_string(n_properties_));
+    header_.attributes =
+        named_columns(h.data(), 38, "scalar_name", n_scalars_, 36, "n_scalars", "scalar_");
+    header_.line_attributes = named_columns(h.data(), 240, "property_name", n_properties_, 238,
+                                            "n_properties", "property_");
     n_count_ = i32(988);
     if (n_count_ < 0) in_.fail_at(988, "negative n_count");
-
-    for (int s = 0; s < n_scalars_; ++s) {
-      std::string name = field_name(h.data() + 38 + 20 * s, 20);
-      header_.attributes.push_back({name.empty() ? "scalar_" + std::to_string(s) : name, {}});
-    }
-    for (int p = 0; p < n_properties_; ++p) {
-      std::string name = field_name(h.data() + 240 + 20 * p, 20);
-      header_.line_attributes.push_back(
-          {name.empty() ? "property_" + std::to_string(p) : name, {}});
-    }
     header_.metadata["trk.space"] = "voxmm";
     header_.metadata["trk.dim"] =
         std::to_string(i16(6)) + " " + std::to_string(i16(8)) + " " + std::to_string(i16(10));
@@ -78,6 +106,50 @@ class TrkReader : public LineReader {
     for (int i = 0; i < 16; ++i) ras += (i ? " " : "") + std::to_string(f32(440 + 4 * i));
     header_.metadata["trk.vox_to_ras"] = ras;
     header_.metadata["trk.voxel_order"] = field_name(h.data() + 948, 4);
+  }
+
+  // The attributes of `count` columns (n_scalars at `count_at`), named by the ten 20-byte slots
+  // at `names_at` in order; a column without a name is <unnamed>k. More than 10 columns only
+  // where the slots' counts name them; counts that name more columns than there are are refused.
+  std::vector<Attribute> named_columns(const char* h, size_t names_at, const char* names_field,
+                                       int count, size_t count_at, const char* count_field,
+                                       const char* unnamed) const {
+    std::vector<NameSlot> slots;
+    int covered = 0;
+    bool counted = false;
+    std::string listed;
+    for (size_t s = 0; s < 10; ++s) {
+      slots.push_back(name_slot(h + names_at + 20 * s));
+      const NameSlot& slot = slots.back();
+      counted = counted || slot.counted;
+      if (slot.name.empty()) continue;
+      covered += slot.columns;
+      listed +=
+          (listed.empty() ? "" : ", ") + ("'" + slot.name + "' " + std::to_string(slot.columns));
+    }
+    if (count < 0 || count > std::max(10, counted ? covered : 0))
+      in_.fail_at(count_at,
+                  std::string(count_field) + " must be 0..10, got " + std::to_string(count) +
+                      (counted ? " (the names count " + std::to_string(covered) + ")" : ""));
+    // Without counts, names past the count are ignored, as they always were.
+    if (counted && covered > count)
+      in_.fail_at(names_at, std::string(names_field) + " names " + std::to_string(covered) +
+                                " columns (" + listed + "), " + count_field + " is " +
+                                std::to_string(count));
+    // A slot with a count covers as many columns (name, name_x/_y/_z for 3, name_0.._k
+    // otherwise, as VTK's multi-component arrays), one without one column (TrackVis). Where
+    // the header has counts, unnamed slots cover none (nibabel).
+    std::vector<Attribute> columns;
+    for (size_t s = 0; s < slots.size() && int(columns.size()) < count; ++s) {
+      const NameSlot& slot = slots[s];
+      if (!slot.name.empty())
+        io::append_components(columns, slot.name, {}, size_t(slot.columns), 0, 0);
+      else if (!counted)
+        columns.push_back({unnamed + std::to_string(columns.size()), {}});
+    }
+    while (int(columns.size()) < count)
+      columns.push_back({unnamed + std::to_string(columns.size()), {}});
+    return columns;
   }
 
   bool next(LineSet& batch, uint64_t max_points) override {

@@ -184,18 +184,29 @@ struct TrkOptions {
   std::vector<std::string> scalars;     // names ("" for an unnamed one)
   std::vector<std::string> properties;  // names ("" for an unnamed one)
   bool write_count = true;              // n_count = the line count, else 0 (read to the end)
+  // n_scalars and n_properties: the columns of each point and line (-1: one a name).
+  int scalar_columns = -1;
+  int property_columns = -1;
 };
+
+// A name slot as nibabel writes a multi-component scalar or property: the name, a NUL, the count.
+std::string counted_name(const std::string& name, int components) {
+  return name + std::string(1, '\0') + std::to_string(components);
+}
 
 // Scalars of point i of line l are l + i / 8 + s, properties l * 10 + p.
 std::vector<unsigned char> trk_bytes(const std::vector<Polyline>& lines, const TrkOptions& o) {
+  const size_t scalars = o.scalar_columns < 0 ? o.scalars.size() : size_t(o.scalar_columns);
+  const size_t properties =
+      o.property_columns < 0 ? o.properties.size() : size_t(o.property_columns);
   Bytes b(o.big);
   b.text("TRACK", 6);
   b.put<int16_t>(10).put<int16_t>(20).put<int16_t>(30);
   b.put<float>(1.5f).put<float>(1.25f).put<float>(2.0f);
   b.put<float>(0).put<float>(0).put<float>(0);
-  b.put<int16_t>(static_cast<int16_t>(o.scalars.size()));
+  b.put<int16_t>(static_cast<int16_t>(scalars));
   for (size_t i = 0; i < 10; ++i) b.text(i < o.scalars.size() ? o.scalars[i] : "", 20);
-  b.put<int16_t>(static_cast<int16_t>(o.properties.size()));
+  b.put<int16_t>(static_cast<int16_t>(properties));
   for (size_t i = 0; i < 10; ++i) b.text(i < o.properties.size() ? o.properties[i] : "", 20);
   for (int i = 0; i < 16; ++i) b.put<float>(i % 5 == 0 ? 2.0f : 0.5f * float(i));
   b.text("", 444).text("RAS", 4).text("", 4);
@@ -208,10 +219,9 @@ std::vector<unsigned char> trk_bytes(const std::vector<Polyline>& lines, const T
     b.put<int32_t>(static_cast<int32_t>(lines[l].size()));
     for (size_t i = 0; i < lines[l].size(); ++i) {
       for (double v : lines[l][i]) b.put<float>(static_cast<float>(v));
-      for (size_t s = 0; s < o.scalars.size(); ++s)
-        b.put<float>(float(l) + float(i) / 8.0f + float(s));
+      for (size_t s = 0; s < scalars; ++s) b.put<float>(float(l) + float(i) / 8.0f + float(s));
     }
-    for (size_t p = 0; p < o.properties.size(); ++p) b.put<float>(float(l) * 10.0f + float(p));
+    for (size_t p = 0; p < properties; ++p) b.put<float>(float(l) * 10.0f + float(p));
   }
   return b.data;
 }
@@ -370,6 +380,16 @@ std::vector<Case> cases() {
                     write_bytes(path, trk_bytes(polylines(trk_sizes), o));
                     return path;
                   }});
+  list.push_back({"trk_nibabel_multi_component_names", [=](const TempDir& dir) {
+                    const std::string path = dir.file("a.trk");
+                    TrkOptions o;
+                    o.scalars = {counted_name("colors", 3), "fa"};
+                    o.scalar_columns = 4;
+                    o.properties = {counted_name("pair", 2), "length"};
+                    o.property_columns = 3;
+                    write_bytes(path, trk_bytes(polylines(trk_sizes), o));
+                    return path;
+                  }});
   list.push_back({"trk_plain_with_empty_streamlines", [](const TempDir& dir) {
                     const std::string path = dir.file("a.trk");
                     write_bytes(path, trk_bytes(polylines({0, 4, 0, 1, 9}), {}));
@@ -417,6 +437,21 @@ std::vector<Case> cases() {
                     std::string text = "line_id,x,y,z,w\n";
                     for (int i = 0; i < 30; ++i)
                       text += "42," + std::to_string(i) + ",1,2," + std::to_string(-i) + "\n";
+                    write_text(path, text);
+                    return path;
+                  }});
+
+  list.push_back({"csv_bom_quotes_float_ids_underflow", [](const TempDir& dir) {
+                    // Excel's byte-order mark, R's quoted names, Python's quoted values, pandas'
+                    // float ids, values below float32's range.
+                    const std::string path = dir.file("a.csv");
+                    std::string text =
+                        "\xEF\xBB\xBF\"line_id\",\"x\",\"y\",\"z\",\"a, \"\"b\"\"\"\n";
+                    const size_t sizes[] = {2, 1, 4, 3};
+                    for (size_t l = 0; l < std::size(sizes); ++l)
+                      for (size_t i = 0; i < sizes[l]; ++i)
+                        text += "\"" + std::to_string(l) + ".0\",\"" + std::to_string(i) +
+                                "\", 1 ,\"-2.5\",\"1e-" + std::to_string(40 + 3 * i) + "\"\n";
                     write_text(path, text);
                     return path;
                   }});
@@ -527,6 +562,83 @@ TEST(StreamReaderContent, TckTrkCsvNetcdfValues) {
   EXPECT_EQ(batch.positions, (std::vector<float>{1, -10, 0, 2, float(-10.0 + 1.0 / 3.0), 1, 3,
                                                  float(-10.0 + 2.0 / 3.0), 2}));
   EXPECT_FALSE(reader->next(batch, 3));
+}
+
+// CSV as other programs write it: Excel's "CSV UTF-8" starts with a byte-order mark; R's
+// write.csv quotes the names, Python's csv.QUOTE_ALL every field (RFC 4180, "" a quote inside);
+// pandas writes the ids of a float column as "3.0"; a value below float32's range reads as the
+// nearest float, as strtof gives it (0 or a denormal).
+TEST(StreamReaderContent, CsvAsSpreadsheetsAndDataFrameLibrariesWriteIt) {
+  TempDir dir;
+  write_text(dir.file("a.csv"),
+             "\xEF\xBB\xBFline_id,x,y,z,t\n0,0,0,0,1e-50\n0,1,1,1,-1e-50\n0,2,2,2,1e-40\n");
+  LineSet lines = read_line_set(dir.file("a.csv"));
+  ASSERT_EQ(lines.attributes.size(), 1u);
+  EXPECT_EQ(lines.attributes[0].name, "t");
+  EXPECT_EQ(lines.attributes[0].values[0], 0.0f);
+  EXPECT_TRUE(std::signbit(lines.attributes[0].values[1]));
+  EXPECT_EQ(lines.attributes[0].values[1], 0.0f);
+  EXPECT_EQ(lines.attributes[0].values[2], std::strtof("1e-40", nullptr));
+  EXPECT_GT(lines.attributes[0].values[2], 0.0f);
+
+  write_text(dir.file("b.csv"),
+             "\"line_id\",\"x\",\"y\",\"z\",\"speed, \"\"m/s\"\"\",\"\"\"\"\n"
+             "\"7\",\"1.5\",\"2\",\"3\",\"4\",\"5\"\n"
+             " \"7\" , 1e-60, 0,0 , \"-6\",inf\n"
+             "8.0,0,0,0,0,0\n8.,1,0,0,0,0\n"
+             "-3.000,0,0,0,0,0\n"
+             "1.2e1,0,0,0,0,0\n12e0,1,0,0,0,0\n1200E-2,2,0,0,0,0\n"
+             "1e+16,0,0,0,0,0\n0.0e5,0,0,0,0,0\n");
+  lines = read_line_set(dir.file("b.csv"));
+  ASSERT_EQ(lines.attributes.size(), 2u);
+  EXPECT_EQ(lines.attributes[0].name, "speed, \"m/s\"");
+  EXPECT_EQ(lines.attributes[1].name, "\"");
+  EXPECT_EQ(lines.line_offsets, (std::vector<uint64_t>{0, 2, 4, 5, 8, 9, 10}));
+  EXPECT_EQ(lines.positions[0], 1.5f);
+  EXPECT_EQ(lines.positions[3], 0.0f);  // 1e-60
+  EXPECT_EQ(lines.attributes[0].values[1], -6.0f);
+  EXPECT_EQ(lines.attributes[1].values[1], std::numeric_limits<float>::infinity());
+}
+
+// nibabel writes a scalar or property of several components in one name slot, as the name, a
+// NUL and the count ("colors\0" "3"), and n_scalars counts every component: such a slot names
+// as many columns (as a multi-component VTK array: _x/_y/_z for 3, _0.._k otherwise), and the
+// next slot names the column after them.
+TEST(StreamReaderContent, TrkNameSlotsCoveringSeveralColumns) {
+  TempDir dir;
+  auto names = [](const std::vector<Attribute>& attributes) {
+    std::vector<std::string> out;
+    for (const Attribute& a : attributes) out.push_back(a.name);
+    return out;
+  };
+  using Names = std::vector<std::string>;
+  TrkOptions o;
+  o.scalars = {counted_name("colors", 3), "fa"};
+  o.scalar_columns = 4;
+  o.properties = {counted_name("pair", 2), counted_name("one", 1), counted_name("six", 6)};
+  o.property_columns = 10;
+  write_bytes(dir.file("a.trk"), trk_bytes(polylines({2, 1}), o));
+  LineSet lines = read_line_set(dir.file("a.trk"));
+  EXPECT_EQ(names(lines.attributes), (Names{"colors_x", "colors_y", "colors_z", "fa"}));
+  EXPECT_EQ(names(lines.line_attributes),
+            (Names{"pair_0", "pair_1", "one", "six_0", "six_1", "six_2", "six_3", "six_4", "six_5",
+                   "property_9"}));
+  // Scalar s of point i of line l is l + i / 8 + s: fa is the fourth column.
+  EXPECT_EQ(lines.attributes[3].values, (std::vector<float>{3.0f, 3.125f, 4.0f}));
+  EXPECT_EQ(lines.attributes[1].values, (std::vector<float>{1.0f, 1.125f, 2.0f}));
+  EXPECT_EQ(lines.line_attributes[2].values, (std::vector<float>{2.0f, 12.0f}));
+
+  // Columns past the counted names are unnamed; more than 10 columns where the counts name them.
+  o.scalars = {counted_name("dir", 3)};
+  o.scalar_columns = 5;
+  o.properties = {counted_name("a", 8), counted_name("b", 4)};
+  o.property_columns = 12;
+  write_bytes(dir.file("b.trk"), trk_bytes(polylines({3}), o));
+  lines = read_line_set(dir.file("b.trk"));
+  EXPECT_EQ(names(lines.attributes), (Names{"dir_x", "dir_y", "dir_z", "scalar_3", "scalar_4"}));
+  ASSERT_EQ(lines.line_attributes.size(), 12u);
+  EXPECT_EQ(lines.line_attributes[11].name, "b_3");
+  EXPECT_EQ(lines.line_attributes[11].values, (std::vector<float>{11.0f}));
 }
 
 // A line larger than a batch comes alone, whole: a streaming reader checks what it will hold
@@ -733,6 +845,39 @@ TEST(StreamReaderMalformed, Trk) {
   bytes[996] = 7;
   write_bytes(dir.file("hdr.trk"), bytes);
   expect_same_failure(dir.file("hdr.trk"), "byte offset 996: hdr_size is");
+
+  // Name slots whose counts (nibabel's "name\0N") name more columns than the header has.
+  o = {};
+  o.scalars = {counted_name("colors", 3), "fa"};
+  o.scalar_columns = 3;
+  write_bytes(dir.file("scalars.trk"), trk_bytes(lines, o));
+  expect_same_failure(dir.file("scalars.trk"),
+                      "byte offset 38: scalar_name names 4 columns ('colors' 3, 'fa' 1), "
+                      "n_scalars is 3");
+  o = {};
+  o.properties = {counted_name("pair", 2)};
+  o.property_columns = 1;
+  write_bytes(dir.file("properties.trk"), trk_bytes(lines, o));
+  expect_same_failure(dir.file("properties.trk"),
+                      "byte offset 240: property_name names 2 columns ('pair' 2), "
+                      "n_properties is 1");
+  o = {};
+  o.scalar_columns = 11;  // more than 10 without names that count them
+  write_bytes(dir.file("eleven.trk"), trk_bytes(lines, o));
+  expect_same_failure(dir.file("eleven.trk"), "byte offset 36: n_scalars must be 0..10, got 11");
+
+  // A file shorter than the header: the magic decides whether it is a TrackVis file cut short.
+  write_bytes(dir.file("tck.trk"), tck_bytes(polylines({2, 3}), {}));
+  expect_same_failure(dir.file("tck.trk"),
+                      "byte offset 0: not a TrackVis file (no TRACK magic); it starts as an "
+                      "MRtrix .tck file does");
+  write_text(dir.file("text.trk"), "hello");
+  expect_same_failure(dir.file("text.trk"), "byte offset 0: not a TrackVis file (no TRACK magic)");
+  bytes = trk_bytes(lines, o);
+  bytes.resize(600);
+  write_bytes(dir.file("short.trk"), bytes);
+  expect_same_failure(dir.file("short.trk"),
+                      "byte offset 0: file truncated while reading the 1000-byte header");
 }
 
 TEST(StreamReaderMalformed, Csv) {
@@ -756,6 +901,48 @@ TEST(StreamReaderMalformed, Csv) {
   expect_same_failure(dir.file("id.csv"), "line 14: bad line_id 'four'", 3);
   write_text(dir.file("header.csv"), "line_id,x,z,y\n0,0,0,0\n");
   expect_same_failure(dir.file("header.csv"), "line 1: header column 3 is 'z', expected 'y'");
+
+  // Past float32's range: refused as such (below it, the nearest float reads).
+  write_text(dir.file("large.csv"), rows + "4,1,1,1,1e40\n");
+  expect_same_failure(dir.file("large.csv"),
+                      "line 14: value '1e40' is outside float32's range (magnitude above "
+                      "3.4028235e38)",
+                      3);
+  write_text(dir.file("large_coordinate.csv"), rows + "4,1,-1e400,1,1\n");
+  expect_same_failure(dir.file("large_coordinate.csv"),
+                      "line 14: coordinate '-1e400' is outside float32's range", 3);
+  write_text(dir.file("shifted.csv"),
+             rows + "4,1,1,1,100000000000000000000000000000000000000000000000000e-5\n");
+  expect_same_failure(dir.file("shifted.csv"), "line 14: value '1000", 3);
+  // A line id that is not an integer.
+  write_text(dir.file("half.csv"), rows + "0.5,1,1,1,1\n");
+  expect_same_failure(dir.file("half.csv"), "line 14: line_id '0.5' is not an integer", 3);
+  write_text(dir.file("small_id.csv"), rows + "25e-1,1,1,1,1\n");
+  expect_same_failure(dir.file("small_id.csv"), "line 14: line_id '25e-1' is not an integer", 3);
+  write_text(dir.file("huge_id.csv"), rows + "1e30,1,1,1,1\n");
+  expect_same_failure(dir.file("huge_id.csv"), "line 14: bad line_id '1e30'", 3);
+  write_text(dir.file("nan_id.csv"), rows + "nan,1,1,1,1\n");
+  expect_same_failure(dir.file("nan_id.csv"), "line 14: bad line_id 'nan'", 3);
+  // Header names: each once, none empty.
+  write_text(dir.file("twice.csv"), "line_id,x,y,z,t,t\n0,1,1,1,1,1\n");
+  expect_same_failure(dir.file("twice.csv"), "line 1: header columns 5 and 6 are both named 't'");
+  write_text(dir.file("twice_x.csv"), "line_id,x,y,z,\"x\"\n0,1,1,1,1\n");
+  expect_same_failure(dir.file("twice_x.csv"), "line 1: header columns 2 and 5 are both named 'x'");
+  write_text(dir.file("unnamed.csv"), "line_id,x,y,z,\n0,1,1,1,\n");
+  expect_same_failure(dir.file("unnamed.csv"),
+                      "line 1: header column 5 has no name (a comma at the end of the header?)");
+  write_text(dir.file("unnamed_quoted.csv"), "line_id,x,y,z,\"\",a\n0,1,1,1,1,1\n");
+  expect_same_failure(dir.file("unnamed_quoted.csv"), "line 1: header column 5 has no name");
+  // Quotes: a field closed on its line, nothing after its closing quote.
+  write_text(dir.file("open.csv"), rows + "4,1,1,1,\"1\n2\"\n");
+  expect_same_failure(dir.file("open.csv"),
+                      "line 14: column 5: the quoted field is not closed on its line (a line "
+                      "break inside quotes is not supported)",
+                      3);
+  write_text(dir.file("after.csv"), rows + "4,\"1\"2,1,1,1\n");
+  expect_same_failure(dir.file("after.csv"), "line 14: column 2: text after the closing quote", 3);
+  write_text(dir.file("quoted_bad.csv"), rows + "4,1,1,1,\"1,5\"\n");
+  expect_same_failure(dir.file("quoted_bad.csv"), "line 14: bad value '1,5'", 3);
 }
 
 TEST(StreamReaderMalformed, Netcdf) {
