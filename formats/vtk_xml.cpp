@@ -312,8 +312,9 @@ void read_attributes(const Context& ctx, const pugi::xml_node& data, size_t tupl
 }  // namespace
 
 // The data set's FieldData string arrays of one value: the line set's metadata, as VTK writes a
-// vtkStringArray (ascii: the bytes as numbers, each string ending in 0; binary: the same bytes
-// base64-encoded behind the size header). Other field arrays are not line-set data.
+// vtkStringArray (ascii: the bytes as numbers, each string ending in 0; binary or appended: the
+// same bytes behind the size header, base64 or raw, compressed or not). Other field arrays are
+// not line-set data.
 std::map<std::string, std::string> read_field_strings(const Context& ctx,
                                                       const pugi::xml_node& field_data) {
   std::map<std::string, std::string> metadata;
@@ -334,8 +335,14 @@ std::map<std::string, std::string> read_field_strings(const Context& ctx,
     } else if (format == "binary") {
       const std::vector<unsigned char> raw = decode_binary(ctx, where, array.child_value(), true);
       bytes.assign(raw.begin(), raw.end());
+    } else if (format == "appended") {  // VTK's writer's default
+      const uint64_t offset = array.attribute("offset").as_ullong(UINT64_MAX);
+      if (offset >= ctx.appended.size()) ctx.fail(where, "appended offset out of range");
+      const std::vector<unsigned char> raw =
+          decode_binary(ctx, where, ctx.appended.substr(offset), ctx.appended_base64);
+      bytes.assign(raw.begin(), raw.end());
     } else {
-      continue;  // appended strings: not written by linebake; skipped
+      ctx.fail(where, "unknown format '" + format + "'");
     }
     metadata[name] = bytes.substr(0, bytes.find('\0'));
   }

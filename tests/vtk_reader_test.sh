@@ -149,4 +149,32 @@ status=0
   exit 1
 }
 echo "vtkXMLPolyDataWriter Polys only: refused (exit 2)"
+# A vtkStringArray in a .vtp's FieldData, in each of the writer's modes (appended, its default,
+# had been skipped): the line set's metadata.
+for mode in Appended Binary Ascii; do
+  "$python" -c "
+import vtk
+points = vtk.vtkPoints()
+for i in range(3):
+    points.InsertNextPoint(i, 0, 0)
+cells = vtk.vtkCellArray()
+cells.InsertNextCell(3)
+for i in range(3):
+    cells.InsertCellPoint(i)
+poly = vtk.vtkPolyData()
+poly.SetPoints(points)
+poly.SetLines(cells)
+author = vtk.vtkStringArray()
+author.SetName('author')
+author.InsertNextValue('Ada Lovelace')
+poly.GetFieldData().AddArray(author)
+writer = vtk.vtkXMLPolyDataWriter()
+writer.SetFileName('$tmp/strings.vtp')
+writer.SetInputData(poly)
+writer.SetDataModeTo$mode()
+writer.Write()
+"
+  "$bin" info "$tmp/strings.vtp" --json | "$python" -c "import json, sys; m = json.load(sys.stdin)['metadata']; assert m.get('author') == 'Ada Lovelace', ('$mode', m)"
+done
+echo "vtkXMLPolyDataWriter FieldData strings (appended, binary, ascii): the metadata"
 echo "vtk_reader_test: passed"
