@@ -9,12 +9,17 @@
 // the same shape becomes a vertex attribute. A fill value (_FillValue or missing_value), NaN/Inf
 // or |value| >= 1e20 in a position ends the line there (incomplete arrays, Lagranto's invalid
 // points).
+// Packed variables (CF 8.1) are unpacked: value * scale_factor + add_offset, in double; the fill
+// value is compared with the packed value. Text attributes may be NC_CHAR or one NC_STRING.
+// A ragged sample dimension may be longer than the counts need (CF 9.3: space reserved for later
+// features, pre-filled with missing values); a position there is an error, not dropped.
 
 #include <netcdf.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <optional>
 #include <stdexcept>
 
@@ -93,12 +98,22 @@ struct Nc {
   }
 };
 
+// A text attribute: NC_CHAR, or a single NC_STRING (h5netcdf, xarray, setncattr_string). "" when
+// absent or of another type.
 std::string text_attribute(const Nc& nc, int var, const char* name) {
   size_t length = 0;
   nc_type type;
-  if (nc_inq_att(nc.id, var, name, &type, &length) != NC_NOERR || type != NC_CHAR) return "";
-  std::string s(length, '\0');
-  nc_get_att_text(nc.id, var, name, s.data());
+  if (nc_inq_att(nc.id, var, name, &type, &length) != NC_NOERR) return "";
+  std::string s;
+  if (type == NC_CHAR) {
+    s.assign(length, '\0');
+    if (length > 0 && nc_get_att_text(nc.id, var, name, s.data()) != NC_NOERR) return "";
+  } else if (type == NC_STRING && length == 1) {
+    char* value = nullptr;
+    if (nc_get_att_string(nc.id, var, name, &value) != NC_NOERR) return "";
+    if (value) s = value;
+    nc_free_string(1, &value);
+  }
   while (!s.empty() && s.back() == '\0') s.pop_back();
   return s;
 }
@@ -111,9 +126,15 @@ std::string lower(std::string s) {
 struct Variable {
   int id;
   std::string name;
+  nc_type type;
   std::vector<int> dims;
   std::vector<size_t> shape;
-  std::optional<double> fill;
+  std::optional<double> fill;  // _FillValue or missing_value, in packed units
+  // CF 8.1 packing: unpacked = packed * scale + offset.
+  bool packed = false;
+  double scale = 1.0;
+  double offset = 0.0;
+  double unpack(double value) const { return packed ? value * scale + offset : value; }
 };
 
 std::vector<Variable> variables(const Nc& nc) {
@@ -128,7 +149,7 @@ std::vector<Variable> variables(const Nc& nc) {
     nc.check(nc_inq_var(nc.id, v, name, &type, &ndims, dims, &natts),
              "variable " + std::to_string(v));
     if (type == NC_CHAR || type == NC_STRING) continue;
-    Variable var{v, name, std::vector<int>(dims, dims + ndims), {}, std::nullopt};
+    Variable var{v, name, type, std::vector<int>(dims, dims + ndims), {}, std::nullopt};
     for (int d : var.dims) {
       size_t length;
       nc.check(nc_inq_dimlen(nc.id, d, &length), "variable " + var.name);
@@ -142,6 +163,72 @@ std::vector<Variable> variables(const Nc& nc) {
     list.push_back(std::move(var));
   }
   return list;
+}
+
+// A packing attribute (scale_factor, add_offset) of `v`: absent, or one finite number.
+std::optional<double> packing_attribute(const Nc& nc, const Variable& v, const char* name) {
+  nc_type type;
+  size_t length = 0;
+  if (nc_inq_att(nc.id, v.id, name, &type, &length) != NC_NOERR) return std::nullopt;
+  const std::string where = "variable " + v.name + ", attribute " + name;
+  if (type == NC_CHAR || type == NC_STRING || type > NC_MAX_ATOMIC_TYPE)
+    throw InputError(nc.path, where, "is not a number (CF packing needs a numeric value)");
+  if (length != 1)
+    throw InputError(nc.path, where, "has " + std::to_string(length) + " values, not one number");
+  double value = 0;
+  nc.check(nc_get_att_double(nc.id, v.id, name, &value), where);
+  if (!std::isfinite(value))
+    throw InputError(nc.path, where, "is not finite (" + std::to_string(value) + ")");
+  return value;
+}
+
+void read_packing(const Nc& nc, Variable& v) {
+  const std::optional<double> scale = packing_attribute(nc, v, "scale_factor");
+  const std::optional<double> offset = packing_attribute(nc, v, "add_offset");
+  v.packed = scale || offset;
+  v.scale = scale.value_or(1.0);
+  v.offset = offset.value_or(0.0);
+}
+
+template <typename T>
+double stored_as(const unsigned char* bytes) {
+  T value;
+  std::memcpy(&value, bytes, sizeof value);
+  return static_cast<double>(value);
+}
+
+// The value the netCDF library gives data never written (_FillValue, else the default fill of
+// the type); none for variables without fill or of types that are not numbers.
+std::optional<double> library_fill(const Nc& nc, const Variable& v) {
+  if (v.type < NC_BYTE || v.type > NC_UINT64 || v.type == NC_CHAR || v.type == NC_STRING)
+    return std::nullopt;
+  alignas(8) unsigned char bytes[8] = {};
+  int no_fill = 0;
+  if (nc_inq_var_fill(nc.id, v.id, &no_fill, bytes) != NC_NOERR || no_fill) return std::nullopt;
+  switch (v.type) {
+    case NC_BYTE:
+      return stored_as<signed char>(bytes);
+    case NC_UBYTE:
+      return stored_as<unsigned char>(bytes);
+    case NC_SHORT:
+      return stored_as<short>(bytes);
+    case NC_USHORT:
+      return stored_as<unsigned short>(bytes);
+    case NC_INT:
+      return stored_as<int>(bytes);
+    case NC_UINT:
+      return stored_as<unsigned int>(bytes);
+    case NC_INT64:
+      return stored_as<long long>(bytes);
+    case NC_UINT64:
+      return stored_as<unsigned long long>(bytes);
+    case NC_FLOAT:
+      return stored_as<float>(bytes);
+    case NC_DOUBLE:
+      return stored_as<double>(bytes);
+    default:
+      return std::nullopt;
+  }
 }
 
 // Which variable is axis 0/1/2 among the candidates.
@@ -174,8 +261,12 @@ std::vector<double> read_all(const Nc& nc, const Variable& v) {
   return values;
 }
 
-bool invalid(double value, const std::optional<double>& fill) {
-  return !std::isfinite(value) || std::fabs(value) >= 1e20 || (fill && value == *fill);
+// Whether the stored (packed) value `raw` of position variable `v` is no position: its fill value
+// (compared packed, CF 8.1), or NaN/Inf or |value| >= 1e20 once unpacked.
+bool invalid(const Variable& v, double raw) {
+  if (v.fill && raw == *v.fill) return true;
+  const double value = v.unpack(raw);
+  return !std::isfinite(value) || std::fabs(value) >= 1e20;
 }
 
 // Lines are read in batches: multidimensional arrays as hyperslabs of whole rows (lines of the
@@ -231,6 +322,11 @@ class NetcdfReader : public LineReader {
     for (const Variable* v : candidates)
       if (v != axes_[0] && v != axes_[1] && v != axes_[2]) attribute_vars_.push_back(v);
     for (const Variable* v : attribute_vars_) header_.attributes.push_back({v->name, {}});
+    // Packing of the variables read (only these: a bad scale_factor elsewhere does not matter).
+    for (Variable& v : vars_)
+      if (&v == axes_[0] || &v == axes_[1] || &v == axes_[2] ||
+          std::find(attribute_vars_.begin(), attribute_vars_.end(), &v) != attribute_vars_.end())
+        read_packing(nc_, v);
 
     if (counts_) {
       // Observation ranges per line: [offsets_[i], offsets_[i + 1]).
@@ -241,13 +337,16 @@ class NetcdfReader : public LineReader {
       offsets_.reserve(n.size() + 1);
       offsets_.push_back(0);
       for (size_t i = 0; i < n.size(); ++i) {
-        if (!(n[i] >= 0) || at + static_cast<size_t>(n[i]) > total)
+        // CF 9.3.3: a feature not written yet has count 0 or a missing value.
+        const double count = counts_->fill && n[i] == *counts_->fill ? 0.0 : n[i];
+        if (!(count >= 0) || count > double(total - at))
           throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
                            "count runs past the " + std::to_string(total) + " observations");
-        at += static_cast<size_t>(n[i]);
+        at += static_cast<size_t>(count);
         offsets_.push_back(at);
       }
       line_count_ = n.size();
+      check_unused_observations(sample_dim);
     }
 
     header_.metadata["netcdf.layout"] = counts_ ? "cf-contiguous-ragged"
@@ -314,20 +413,62 @@ class NetcdfReader : public LineReader {
       for (size_t i = begin; i < stop; ++i) {
         bool bad = false;
         for (int axis = 0; axis < 3; ++axis)
-          if (axes_[axis] && invalid(position_values_[axis][i], axes_[axis]->fill)) bad = true;
+          if (axes_[axis] && invalid(*axes_[axis], position_values_[axis][i])) bad = true;
         if (bad) break;  // an invalid value ends the line
-        batch.append_point(static_cast<float>(position_values_[0][i]),
-                           static_cast<float>(position_values_[1][i]),
-                           axes_[2] ? static_cast<float>(position_values_[2][i]) : 0.0f);
+        batch.append_point(
+            static_cast<float>(axes_[0]->unpack(position_values_[0][i])),
+            static_cast<float>(axes_[1]->unpack(position_values_[1][i])),
+            axes_[2] ? static_cast<float>(axes_[2]->unpack(position_values_[2][i])) : 0.0f);
         for (size_t a = 0; a < attribute_vars_.size(); ++a) {
-          const double v = attribute_values_[a][i];
+          const Variable& var = *attribute_vars_[a];
+          const double v = attribute_values_[a][i];  // packed: the fill is compared as stored
           batch.attributes[a].values.push_back(
-              attribute_vars_[a]->fill && v == *attribute_vars_[a]->fill ? NAN
-                                                                         : static_cast<float>(v));
+              var.fill && v == *var.fill ? NAN : static_cast<float>(var.unpack(v)));
         }
       }
       if (batch.point_count() > start_points) batch.end_line();
     }
+  }
+
+  // Ragged: the observations past the counts (offsets_.back()) are space CF lets a writer reserve
+  // for later features, pre-filled with missing values (CF 9.3). A position there would be data
+  // the counts leave out: an error rather than lines dropped silently. Read in chunks.
+  void check_unused_observations(int sample_dim) {
+    const uint64_t used = offsets_.back();
+    size_t total = 1;
+    for (size_t s : axes_[0]->shape) total *= s;
+    if (used >= total) return;
+    std::optional<double> fills[3];
+    for (int axis = 0; axis < 3; ++axis)
+      if (axes_[axis]) fills[axis] = library_fill(nc_, *axes_[axis]);
+    constexpr size_t chunk = size_t{1} << 16;
+    std::vector<double> values[3];
+    for (size_t at = used; at < total; at += chunk) {
+      size_t start = at, extent = std::min(chunk, total - at);
+      for (int axis = 0; axis < 3; ++axis) {
+        if (!axes_[axis]) continue;
+        values[axis].resize(extent);
+        nc_.check(nc_get_vara_double(nc_.id, axes_[axis]->id, &start, &extent, values[axis].data()),
+                  "variable " + axes_[axis]->name);
+      }
+      for (size_t i = 0; i < extent; ++i) {
+        bool missing = false;
+        for (int axis = 0; axis < 3; ++axis)
+          if (axes_[axis] && (invalid(*axes_[axis], values[axis][i]) ||
+                              (fills[axis] && values[axis][i] == *fills[axis])))
+            missing = true;
+        if (missing) continue;
+        char dim_name[NC_MAX_NAME + 1] = "";
+        nc_inq_dimname(nc_.id, sample_dim, dim_name);
+        throw InputError(nc_.path, "variable " + counts_->name,
+                         "the counts sum to " + std::to_string(used) + " observations but " +
+                             "dimension " + dim_name + " has " + std::to_string(total) +
+                             ", and observation " + std::to_string(at + i) +
+                             " past the counts holds a position (CF allows only missing " +
+                             "values in unused observations)");
+      }
+    }
+    header_.metadata["netcdf.unused_observations"] = std::to_string(total - used);
   }
 
   // Values of `v` for file lines [first, first + count): a range of observations (ragged) or of

@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 #include <netcdf.h>
 
+#include <cmath>
+#include <optional>
+
 #include "core/error.hpp"
 #include "formats/registry.hpp"
 #include "test_util.hpp"
@@ -133,4 +136,237 @@ TEST(NetCdf, RaggedCountsPastTheDataAreAnError) {
   }
   linebake::test::write_text(dir.file("text.nc"), "not netcdf");
   EXPECT_THROW(read_line_set(dir.file("text.nc")), InputError);
+}
+
+namespace {
+// The InputError message of reading `path`, or "" when it reads.
+std::string read_error(const std::string& path) {
+  try {
+    read_line_set(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(NetCdf, PackedVariablesAreUnpacked) {
+  // CF 8.1: unpacked = packed * scale_factor + add_offset; _FillValue is in packed units.
+  TempDir dir;
+  const std::string path = dir.file("packed.nc");
+  int nc, d[2], lon, lat, alt, t, id;
+  ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+  ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc, "trajectory", 2, &d[0]));
+  ok(nc_def_dim(nc, "obs", 3, &d[1]));
+  ok(nc_def_var(nc, "lon", NC_SHORT, 2, d, &lon));
+  ok(nc_def_var(nc, "lat", NC_SHORT, 2, d, &lat));
+  ok(nc_def_var(nc, "alt", NC_SHORT, 2, d, &alt));
+  ok(nc_def_var(nc, "T", NC_SHORT, 2, d, &t));
+  ok(nc_def_var(nc, "id", NC_INT, 2, d, &id));
+  const float lon_scale = 0.5f;
+  const double lat_scale = 0.25, lat_offset = 40, alt_offset = 1000, t_scale = 0.1, t_offset = 273;
+  const short lon_fill = -2, t_fill = -1;
+  ok(nc_put_att_float(nc, lon, "scale_factor", NC_FLOAT, 1, &lon_scale));
+  // -2 is a valid longitude once unpacked (-1): the fill test must compare the packed value.
+  ok(nc_put_att_short(nc, lon, "_FillValue", NC_SHORT, 1, &lon_fill));
+  ok(nc_put_att_double(nc, lat, "scale_factor", NC_DOUBLE, 1, &lat_scale));
+  ok(nc_put_att_double(nc, lat, "add_offset", NC_DOUBLE, 1, &lat_offset));
+  ok(nc_put_att_double(nc, alt, "add_offset", NC_DOUBLE, 1, &alt_offset));  // no scale_factor
+  ok(nc_put_att_double(nc, t, "scale_factor", NC_DOUBLE, 1, &t_scale));
+  ok(nc_put_att_double(nc, t, "add_offset", NC_DOUBLE, 1, &t_offset));
+  ok(nc_put_att_short(nc, t, "missing_value", NC_SHORT, 1, &t_fill));
+  ok(nc_enddef(nc));
+  const short lons[] = {20, 22, 24, 30, -2, 34};
+  const short lats[] = {4, 8, 12, -4, -8, -12};
+  const short alts[] = {0, 10, 20, 30, 40, 50};
+  const short ts[] = {100, -1, 300, 400, 500, 600};
+  const int ids[] = {7, 7, 7, 8, 8, 8};  // not packed: as stored
+  ok(nc_put_var_short(nc, lon, lons));
+  ok(nc_put_var_short(nc, lat, lats));
+  ok(nc_put_var_short(nc, alt, alts));
+  ok(nc_put_var_short(nc, t, ts));
+  ok(nc_put_var_int(nc, id, ids));
+  ok(nc_close(nc));
+
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4}));
+  EXPECT_EQ(l.positions,
+            (std::vector<float>{10, 41, 1000, 11, 42, 1010, 12, 43, 1020, 15, 39, 1030}));
+  ASSERT_EQ(l.attributes.size(), 2u);
+  EXPECT_EQ(l.attributes[0].name, "T");
+  ASSERT_EQ(l.attributes[0].values.size(), 4u);
+  EXPECT_FLOAT_EQ(l.attributes[0].values[0], 283.0f);
+  EXPECT_TRUE(std::isnan(l.attributes[0].values[1]));  // missing_value, compared packed
+  EXPECT_FLOAT_EQ(l.attributes[0].values[2], 303.0f);
+  EXPECT_FLOAT_EQ(l.attributes[0].values[3], 313.0f);
+  EXPECT_EQ(l.attributes[1].name, "id");
+  EXPECT_EQ(l.attributes[1].values, (std::vector<float>{7, 7, 7, 8}));
+}
+
+TEST(NetCdf, BadPackingAttributesAreAnError) {
+  TempDir dir;
+  auto write = [&](const std::string& name, auto&& add_attribute) {
+    const std::string path = dir.file(name);
+    int nc, d[2], lon, lat;
+    ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+    ok(nc_def_dim(nc, "trajectory", 1, &d[0]));
+    ok(nc_def_dim(nc, "time", 2, &d[1]));
+    ok(nc_def_var(nc, "lon", NC_SHORT, 2, d, &lon));
+    ok(nc_def_var(nc, "lat", NC_SHORT, 2, d, &lat));
+    add_attribute(nc, lat);
+    ok(nc_enddef(nc));
+    const short v[] = {1, 2};
+    ok(nc_put_var_short(nc, lon, v));
+    ok(nc_put_var_short(nc, lat, v));
+    ok(nc_close(nc));
+    return path;
+  };
+  const std::string text = write(
+      "text.nc", [](int nc, int var) { ok(nc_put_att_text(nc, var, "scale_factor", 4, "0.01")); });
+  std::string error = read_error(text);
+  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
+  EXPECT_NE(error.find("scale_factor"), std::string::npos) << error;
+  EXPECT_NE(error.find("not a number"), std::string::npos) << error;
+
+  const std::string nan = write("nan.nc", [](int nc, int var) {
+    const double offset = NAN;
+    ok(nc_put_att_double(nc, var, "add_offset", NC_DOUBLE, 1, &offset));
+  });
+  error = read_error(nan);
+  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
+  EXPECT_NE(error.find("add_offset"), std::string::npos) << error;
+  EXPECT_NE(error.find("finite"), std::string::npos) << error;
+
+  const std::string infinite = write("inf.nc", [](int nc, int var) {
+    const float scale = INFINITY;
+    ok(nc_put_att_float(nc, var, "scale_factor", NC_FLOAT, 1, &scale));
+  });
+  error = read_error(infinite);
+  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
+  EXPECT_NE(error.find("scale_factor"), std::string::npos) << error;
+}
+
+TEST(NetCdf, StringTypedAttributesInMultidimensionalFiles) {
+  // h5netcdf/xarray write text attributes as NC_STRING; names that say nothing, so the
+  // standard_name and featureType attributes have to be read.
+  TempDir dir;
+  const std::string path = dir.file("strings.nc");
+  int nc, d[2], a, b, c;
+  ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
+  const char* trajectory = "trajectory";
+  ok(nc_put_att_string(nc, NC_GLOBAL, "featureType", 1, &trajectory));
+  ok(nc_def_dim(nc, "trajectory", 1, &d[0]));
+  ok(nc_def_dim(nc, "obs", 2, &d[1]));
+  ok(nc_def_var(nc, "a", NC_FLOAT, 2, d, &a));
+  ok(nc_def_var(nc, "b", NC_FLOAT, 2, d, &b));
+  ok(nc_def_var(nc, "c", NC_FLOAT, 2, d, &c));
+  const char* latitude = "latitude";
+  const char* longitude = "longitude";
+  const char* height = "height";
+  ok(nc_put_att_string(nc, a, "standard_name", 1, &latitude));
+  ok(nc_put_att_string(nc, b, "standard_name", 1, &height));
+  ok(nc_put_att_string(nc, c, "standard_name", 1, &longitude));
+  ok(nc_enddef(nc));
+  const float as[] = {40, 41}, bs[] = {100, 200}, cs[] = {5, 6};
+  ok(nc_put_var_float(nc, a, as));
+  ok(nc_put_var_float(nc, b, bs));
+  ok(nc_put_var_float(nc, c, cs));
+  ok(nc_close(nc));
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.positions, (std::vector<float>{5, 40, 100, 6, 41, 200}));
+  EXPECT_EQ(l.metadata.at("netcdf.layout"), "cf-multidimensional");
+  EXPECT_EQ(l.metadata.at("netcdf.x"), "c");
+  EXPECT_EQ(l.metadata.at("netcdf.z"), "b");
+}
+
+TEST(NetCdf, StringTypedAttributesInRaggedFiles) {
+  TempDir dir;
+  const std::string path = dir.file("strings.nc");
+  int nc, traj, obs, count, p, q, r;
+  ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
+  const char* trajectory = "trajectory";
+  ok(nc_put_att_string(nc, NC_GLOBAL, "featureType", 1, &trajectory));
+  ok(nc_def_dim(nc, "trajectory", 2, &traj));
+  ok(nc_def_dim(nc, "obs", 3, &obs));
+  ok(nc_def_var(nc, "rowSize", NC_INT, 1, &traj, &count));
+  const char* sample = "obs";
+  ok(nc_put_att_string(nc, count, "sample_dimension", 1, &sample));
+  ok(nc_def_var(nc, "p", NC_DOUBLE, 1, &obs, &p));
+  ok(nc_def_var(nc, "q", NC_DOUBLE, 1, &obs, &q));
+  ok(nc_def_var(nc, "r", NC_DOUBLE, 1, &obs, &r));
+  const char *x = "X", *y = "Y", *z = "Z";
+  ok(nc_put_att_string(nc, p, "axis", 1, &y));
+  ok(nc_put_att_string(nc, q, "axis", 1, &z));
+  ok(nc_put_att_string(nc, r, "axis", 1, &x));
+  ok(nc_enddef(nc));
+  const int counts[] = {1, 2};
+  const double ps[] = {1, 2, 3}, qs[] = {4, 5, 6}, rs[] = {7, 8, 9};
+  ok(nc_put_var_int(nc, count, counts));
+  ok(nc_put_var_double(nc, p, ps));
+  ok(nc_put_var_double(nc, q, qs));
+  ok(nc_put_var_double(nc, r, rs));
+  ok(nc_close(nc));
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 1, 3}));
+  EXPECT_EQ(l.positions, (std::vector<float>{7, 1, 4, 8, 2, 5, 9, 3, 6}));
+  EXPECT_EQ(l.metadata.at("netcdf.layout"), "cf-contiguous-ragged");
+}
+
+namespace {
+// A contiguous ragged file with counts {2, 1} and `observations` observations; those past the
+// counts hold `tail` (lon) and 0 (lat). The count variable gets `count_fill` as _FillValue.
+std::string write_ragged(TempDir& dir, const std::string& name, size_t observations,
+                         std::optional<float> tail, const std::vector<int>& counts = {2, 1},
+                         std::optional<int> count_fill = std::nullopt) {
+  const std::string path = dir.file(name);
+  int nc, traj, obs, count, lon, lat;
+  EXPECT_EQ(nc_create(path.c_str(), NC_CLOBBER, &nc), NC_NOERR);
+  nc_def_dim(nc, "trajectory", counts.size(), &traj);
+  nc_def_dim(nc, "obs", observations, &obs);
+  nc_def_var(nc, "rowSize", NC_INT, 1, &traj, &count);
+  nc_put_att_text(nc, count, "sample_dimension", 3, "obs");
+  if (count_fill) nc_put_att_int(nc, count, "_FillValue", NC_INT, 1, &*count_fill);
+  nc_def_var(nc, "lon", NC_FLOAT, 1, &obs, &lon);
+  nc_def_var(nc, "lat", NC_FLOAT, 1, &obs, &lat);
+  nc_enddef(nc);
+  nc_put_var_int(nc, count, counts.data());
+  std::vector<float> lons = {1, 2, 3}, lats(observations, 0.0f);
+  if (tail) lons.resize(observations, *tail);
+  const size_t start = 0, extent = lons.size();
+  nc_put_vara_float(nc, lon, &start, &extent, lons.data());  // unwritten: the default fill
+  nc_put_var_float(nc, lat, lats.data());
+  EXPECT_EQ(nc_close(nc), NC_NOERR);
+  return path;
+}
+}  // namespace
+
+TEST(NetCdf, RaggedObservationsPastTheCountsMustBeMissing) {
+  // CF 9.3: the sample dimension may be larger than the counts need, the space past them
+  // pre-filled with missing values. Data there is an inconsistency, not to be dropped silently.
+  TempDir dir;
+  const std::string data = write_ragged(dir, "data.nc", 5, 4.0f);
+  const std::string error = read_error(data);
+  EXPECT_NE(error.find("variable rowSize"), std::string::npos) << error;
+  EXPECT_NE(error.find("sum to 3"), std::string::npos) << error;
+  EXPECT_NE(error.find("obs has 5"), std::string::npos) << error;
+
+  for (const std::string& path : {write_ragged(dir, "unwritten.nc", 5, std::nullopt),
+                                  write_ragged(dir, "nan.nc", 5, float(NAN))}) {
+    const LineSet l = read_line_set(path);
+    EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 2, 3})) << path;
+    EXPECT_EQ(l.positions, (std::vector<float>{1, 0, 0, 2, 0, 0, 3, 0, 0})) << path;
+    EXPECT_EQ(l.metadata.at("netcdf.unused_observations"), "2") << path;
+  }
+  const LineSet exact = read_line_set(write_ragged(dir, "exact.nc", 3, std::nullopt));
+  EXPECT_EQ(exact.line_offsets, (std::vector<uint64_t>{0, 2, 3}));
+  EXPECT_EQ(exact.metadata.count("netcdf.unused_observations"), 0u);
+}
+
+TEST(NetCdf, RaggedCountsThatAreMissingAreZero) {
+  // CF 9.3.3: a feature not yet written has count 0 or a missing value.
+  TempDir dir;
+  const LineSet l = read_line_set(write_ragged(dir, "missing.nc", 6, std::nullopt, {2, -1, 1}, -1));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 2, 3}));
+  EXPECT_EQ(l.metadata.at("netcdf.unused_observations"), "3");
 }
