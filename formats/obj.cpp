@@ -1,9 +1,12 @@
 // Wavefront OBJ polylines: v (positions), vt (one per v: the vertex attributes), l (polylines,
 // 1-based or negative relative indices), an optional `a name0 name1 ...` line naming the
-// attributes (spaces in names as %20). Faces, normals, groups and materials are ignored.
+// attributes (spaces in names as %20). Faces, normals, groups and materials are ignored. A
+// vertex colour (`v x y z r g b`, MeshLab's and others' extension) becomes the attributes
+// color_r, color_g and color_b, after the vt ones; a `w` (`v x y z w`) is ignored.
 
 #include <algorithm>
 #include <numeric>
+#include <optional>
 
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
@@ -13,7 +16,9 @@ namespace linebake::formats {
 LineSet read_obj(const std::string& path, const ReadOptions& options) {
   io::TextReader in(path, options.progress);
   std::vector<float> positions;
-  std::vector<float> vt;  // row-major: point x attribute
+  std::vector<float> vt;      // row-major: point x attribute
+  std::vector<float> colors;  // r, g, b of each vertex, when the first vertex has them
+  std::optional<bool> colored;
   size_t vt_rows = 0;
   size_t attribute_count = SIZE_MAX;
   std::vector<std::string> names;
@@ -25,9 +30,11 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   // indices so far.
   // `line`: the line it is at (0: the last one read).
   const auto check_memory = [&](bool growing, double line_bytes = 0, uint64_t line = 0) {
-    const double attribute_floats = attribute_count == SIZE_MAX ? 0 : double(attribute_count);
+    const double attribute_floats =
+        (attribute_count == SIZE_MAX ? 0 : double(attribute_count)) + (colored == true ? 3 : 0);
     const double arrays[] = {4.0 * double(positions.size()), 4.0 * double(vt.size()),
-                             8.0 * double(indices.size()), 8.0 * double(offsets.size())};
+                             4.0 * double(colors.size()), 8.0 * double(indices.size()),
+                             8.0 * double(offsets.size())};
     double held = 0, largest = 0;
     for (const double bytes : arrays) held += bytes, largest = std::max(largest, bytes);
     io::check_read_memory(path, "obj",
@@ -59,6 +66,18 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
         if (!io::parse_float(tokens[k], value))
           in.fail("bad coordinate '" + std::string(tokens[k]) + "'");
         positions.push_back(value);
+      }
+      const bool has_color = tokens.size() == 7;
+      if (!colored) colored = has_color;
+      if (has_color != *colored)
+        in.fail(std::string("vertex ") + (has_color ? "with" : "without") +
+                " a colour (x y z r g b), where the first vertex had " +
+                (has_color ? "none" : "one"));
+      for (size_t k = 4; has_color && k < 7; ++k) {
+        float value;
+        if (!io::parse_float(tokens[k], value))
+          in.fail("bad colour value '" + std::string(tokens[k]) + "'");
+        colors.push_back(value);
       }
     } else if (key == "vt") {
       const size_t n = tokens.size() - 1;
@@ -126,6 +145,12 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
     attribute.values.resize(indices.size());
     for (size_t i = 0; i < indices.size(); ++i)
       attribute.values[i] = vt[indices[i] * attribute_count + a];
+    lines.attributes.push_back(std::move(attribute));
+  }
+  for (int c = 0; c < 3 && !colors.empty(); ++c) {
+    Attribute attribute{std::string("color_") + "rgb" [c], {}};
+    attribute.values.resize(indices.size());
+    for (size_t i = 0; i < indices.size(); ++i) attribute.values[i] = colors[3 * indices[i] + c];
     lines.attributes.push_back(std::move(attribute));
   }
   return lines;

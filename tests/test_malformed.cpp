@@ -358,6 +358,30 @@ TEST(MalformedInput, TckHeaderKeysRepeatedAndDataOffsets) {
   expect_error(tck("past.tck", 100000, false), "'file: . 100000' points past the end of the");
 }
 
+// OBJ vertex colours (`v x y z r g b`) are the attributes color_r/_g/_b after the vt ones,
+// gathered along the `l` indices as vt values are (they had been dropped silently); a file that
+// colours some vertices only is refused at the first that differs.
+TEST(MalformedInput, ObjVertexColoursAreAttributes) {
+  TempDir dir;
+  write_text(dir.file("colour.obj"),
+             "v 0 0 0 1 0 0\nv 1 0 0 0 0.5 0\nv 2 0 0 0 0 0.25\nvt 5\nvt 6\nvt 7\na temp\n"
+             "l 1 2 3\nl 3 1\n");
+  const LineSet lines = read_line_set(dir.file("colour.obj"));
+  ASSERT_EQ(lines.attributes.size(), 4u);
+  EXPECT_EQ(lines.attributes[0].name, "temp");
+  EXPECT_EQ(lines.attributes[1].name, "color_r");
+  EXPECT_EQ(lines.attributes[3].name, "color_b");
+  // The second line walks vertex 3, then 1.
+  EXPECT_EQ(lines.attributes[0].values, (std::vector<float>{5, 6, 7, 7, 5}));
+  EXPECT_EQ(lines.attributes[1].values, (std::vector<float>{1, 0, 0, 0, 1}));
+  EXPECT_EQ(lines.attributes[2].values, (std::vector<float>{0, 0.5f, 0, 0, 0}));
+  EXPECT_EQ(lines.attributes[3].values, (std::vector<float>{0, 0, 0.25f, 0.25f, 0}));
+  write_text(dir.file("some.obj"), "v 0 0 0\nv 1 0 0 1 1 1\nl 1 2\n");
+  expect_error(dir.file("some.obj"), "line 2: vertex with a colour (x y z r g b)");
+  write_text(dir.file("w.obj"), "v 0 0 0 1\nv 1 0 0 1\nl 1 2\n");
+  EXPECT_TRUE(read_line_set(dir.file("w.obj")).attributes.empty());
+}
+
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
 // is not UTF-8 are the file's errors, with its name, not nlohmann::json's exceptions.
 TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
