@@ -241,15 +241,24 @@ std::string decode_name(std::string_view s) {
   return out;
 }
 
+std::string component_name(const std::string& name, size_t c, size_t components,
+                           const std::vector<std::string>& component_names) {
+  const bool named = components > 1 && component_names.size() == components &&
+                     std::none_of(component_names.begin(), component_names.end(),
+                                  [](const std::string& n) { return n.empty(); });
+  return named             ? name + "_" + component_names[c]
+         : components == 1 ? name
+         : components == 3 ? name + "_" + "xyz"[c]
+                           : name + "_" + std::to_string(c);
+}
+
 bool append_components(std::vector<Attribute>& target, const std::string& name,
                        const std::vector<float>& values, size_t components, size_t first,
-                       size_t count) {
+                       size_t count, const std::vector<std::string>& component_names) {
   if (values.size() < (first + count) * components) return false;
   for (size_t c = 0; c < components; ++c) {
     Attribute a;
-    a.name = components == 1   ? name
-             : components == 3 ? name + "_" + "xyz"[c]
-                               : name + "_" + std::to_string(c);
+    a.name = component_name(name, c, components, component_names);
     a.values.resize(count);
     for (size_t i = 0; i < count; ++i) a.values[i] = values[(first + i) * components + c];
     target.push_back(std::move(a));

@@ -182,11 +182,15 @@ std::string encode_name(const std::string& name);
 std::string decode_name(std::string_view encoded);
 
 // Splits an array of `components`-tuples into one attribute per component (name, or name_x/_y/_z
-// for 3 components, name_0.._k otherwise), taking tuples [first, first + count). False when the
+// for 3 components, name_0.._k otherwise, or name_<its name> where the file names every
+// component: VTK's component names), taking tuples [first, first + count). False when the
 // array holds fewer tuples.
 bool append_components(std::vector<Attribute>& target, const std::string& name,
                        const std::vector<float>& values, size_t components, size_t first,
-                       size_t count);
+                       size_t count, const std::vector<std::string>& component_names = {});
+// The name of component `c` of `components` of array `name`, as append_components gives it.
+std::string component_name(const std::string& name, size_t c, size_t components,
+                           const std::vector<std::string>& component_names = {});
 
 // Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
 void append_float(std::string& out, float v);

@@ -139,20 +139,24 @@ class LegacyStream {
   std::string unread_;
 };
 
-// VTK 9 writes an array's information keys (a component's range, once asked for, as ParaView
-// always does) after it as a METADATA block, which ends at an empty line: skipped. After a
-// FIELD array the next token is either that or the next array's name.
-void skip_metadata(LegacyStream& in) {
+// VTK 9 writes an array's component names and information keys (a component's range, once
+// asked for, as ParaView always does) after it as a METADATA block, which ends at an empty line:
+// the component names (COMPONENT_NAMES, then one a line) are returned, the rest skipped.
+std::vector<std::string> read_metadata(LegacyStream& in) {
   in.skip_line();
+  std::vector<std::string> names;
+  bool in_names = false;
   for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {
+    const std::string text(io::trim(l));
+    if (text == "COMPONENT_NAMES") {
+      in_names = true;
+    } else if (text.rfind("INFORMATION", 0) == 0) {
+      in_names = false;
+    } else if (in_names) {
+      names.push_back(io::decode_name(text));
+    }
   }
-}
-void skip_array_metadata(LegacyStream& in) {
-  std::string next = in.token();
-  if (upper(next) == "METADATA")
-    skip_metadata(in);
-  else
-    in.unread(std::move(next));
+  return names;
 }
 
 template <typename Out>
@@ -380,6 +384,32 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   };
   double point_floats = 3;  // per point: position and point attributes
 
+  // The array read last, whose components a METADATA block after it may name.
+  std::vector<Attribute>* last_target = nullptr;
+  size_t last_first = 0, last_components = 0;
+  std::string last_name;
+  const auto added = [&](std::vector<Attribute>& list, size_t before, const std::string& name,
+                         size_t components) {
+    last_target = list.size() > before ? &list : nullptr;
+    last_first = before, last_components = components, last_name = name;
+  };
+  const auto metadata_block = [&] {
+    const std::vector<std::string> names = read_metadata(in);
+    if (last_target && names.size() == last_components)
+      for (size_t c = 0; c < last_components; ++c)
+        (*last_target)[last_first + c].name =
+            io::component_name(last_name, c, last_components, names);
+    last_target = nullptr;
+  };
+  // After a FIELD array the next token is either its METADATA or the next array's name.
+  const auto array_metadata = [&] {
+    std::string next = in.token();
+    if (upper(next) == "METADATA")
+      metadata_block();
+    else
+      in.unread(std::move(next));
+  };
+
   // `scale`: COLOR_SCALARS in binary files are bytes for 0..1, as floats in ASCII ones.
   auto read_array = [&](const std::string& name, size_t components, const std::string& type,
                         float scale = 1) {
@@ -394,11 +424,14 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     read_values(in, binary, type, values.size(), values.data());
     if (scale != 1)
       for (float& v : values) v *= scale;
+    std::vector<Attribute>& list = target == Target::point ? point_attributes : cell_attributes;
+    const size_t before = list.size();
     if (target == Target::point)
       add_components(in, point_attributes, name, values, components, 0, target_tuples);
     else if (have_lines)
       add_components(in, cell_attributes, name, values, components, vertex_cells,
                      lines_cells.count());
+    added(list, before, name, components);
   };
 
   for (std::string key = upper(in.token()); !key.empty(); key = upper(in.token())) {
@@ -493,7 +526,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
           }
           // Binary strings follow each other; one newline ends the array.
           if (binary) in.skip_line();
-          skip_array_metadata(in);
+          last_target = nullptr;
+          array_metadata();
           continue;
         }
         if (binary) in.skip_line();
@@ -505,6 +539,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
           point_floats += double(components);
         std::vector<float> values(static_cast<size_t>(components * tuples));
         read_values(in, binary, type, values.size(), values.data());
+        std::vector<Attribute>& list = target == Target::point ? point_attributes : cell_attributes;
+        const size_t before = list.size();
         if (static_cast<size_t>(tuples) == target_tuples && target == Target::point)
           add_components(in, point_attributes, name, values, static_cast<size_t>(components), 0,
                          target_tuples);
@@ -512,7 +548,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
                  have_lines)
           add_components(in, cell_attributes, name, values, static_cast<size_t>(components),
                          vertex_cells, lines_cells.count());
-        skip_array_metadata(in);
+        added(list, before, name, static_cast<size_t>(components));
+        array_metadata();
       }
     } else if (key == "LOOKUP_TABLE") {
       in.token();
@@ -523,7 +560,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       std::vector<float> table(static_cast<size_t>(4 * size));
       read_values(in, binary, binary ? "unsigned_char" : "float", table.size(), table.data());
     } else if (key == "METADATA") {
-      skip_metadata(in);
+      metadata_block();
     } else {
       in.fail("unexpected keyword '" + key + "'");
     }

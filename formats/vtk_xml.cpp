@@ -304,7 +304,11 @@ void read_attributes(const Context& ctx, const pugi::xml_node& data, size_t tupl
     if (components == 0 || components > 16)
       ctx.fail("DataArray '" + name + "'", "bad NumberOfComponents");
     const std::vector<float> values = read_array<float>(ctx, a, tuples * components);
-    if (!io::append_components(target, name, values, components, first, count))
+    std::vector<std::string> component_names;  // ComponentName0.., as VTK writes them
+    for (size_t c = 0; c < components; ++c)
+      component_names.push_back(
+          a.attribute(("ComponentName" + std::to_string(c)).c_str()).as_string());
+    if (!io::append_components(target, name, values, components, first, count, component_names))
       ctx.fail("DataArray '" + name + "'", "fewer tuples than its points or cells");
   }
 }

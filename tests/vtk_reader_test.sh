@@ -57,8 +57,9 @@ for name, reader_type in readers:
 EOF
 # The other way: files VTK's own vtkPolyDataWriter writes, read by linebake. Arrays whose range
 # was asked for (ParaView always asks) get a METADATA block after them, inside FIELD data too,
-# and unsigned char scalars are COLOR_SCALARS (floats 0..1 in ASCII, bytes in binary). The
-# expected values are the ones written here.
+# as do named components (velocity_vx, not velocity_x), and unsigned char scalars are
+# COLOR_SCALARS (floats 0..1 in ASCII, bytes in binary). The same data as a .vtp names its
+# components too. The expected values are the ones written here.
 "$python" - "$tmp" << 'EOF'
 import sys
 import vtk
@@ -93,6 +94,14 @@ colour.SetNumberOfComponents(3)
 for i in range(7):
     colour.InsertNextTuple3(255, 51 * (i % 6), 0)
 poly.GetPointData().SetScalars(colour)
+velocity = vtk.vtkFloatArray()
+velocity.SetName("velocity")
+velocity.SetNumberOfComponents(3)
+for c, name in enumerate(("vx", "vy", "vz")):
+    velocity.SetComponentName(c, name)
+for i in range(7):
+    velocity.InsertNextTuple3(i, 2 * i, -i)
+poly.GetPointData().AddArray(velocity)
 add(poly.GetCellData(), vtk.vtkDoubleArray(), "length", [3.5, 2.25])
 add(poly.GetCellData(), vtk.vtkIntArray(), "id", [7, 9])
 for binary in (False, True):
@@ -102,18 +111,28 @@ for binary in (False, True):
     if binary:
         writer.SetFileTypeToBinary()
     writer.Write()
+writer = vtk.vtkXMLPolyDataWriter()
+writer.SetFileName(f"{tmp}/from_vtk_2.vtp")
+writer.SetInputData(poly)
+writer.Write()
 EOF
-for binary in 0 1; do
-  "$bin" info "$tmp/from_vtk_$binary.vtk" --json > "$tmp/from_vtk.json"
+for binary in 0 1 2; do
+  file=$tmp/from_vtk_$binary.vtk
+  [ "$binary" = 2 ] && file=$tmp/from_vtk_2.vtp
+  "$bin" info "$file" --json > "$tmp/from_vtk.json"
   "$python" - "$tmp/from_vtk.json" "$binary" << 'EOF'
 import json, sys
 
 info = json.load(open(sys.argv[1]))
-label = "vtkPolyDataWriter " + ("binary" if sys.argv[2] == "1" else "ASCII")
+label = ("vtkPolyDataWriter ASCII", "vtkPolyDataWriter binary", "vtkXMLPolyDataWriter")[int(sys.argv[2])]
 assert (info["lines"], info["points"]) == (2, 7), (label, info["lines"], info["points"])
 ranges = {a["name"]: (a["min"], a["max"]) for a in info["attributes"]}
-expected = {"temp": (1, 7), "speed": (10, 70.5), "colour_x": (1, 1), "colour_y": (0, 1),
-            "colour_z": (0, 0)}
+expected = {"temp": (1, 7), "speed": (10, 70.5), "velocity_vx": (0, 6), "velocity_vy": (0, 12),
+            "velocity_vz": (-6, 0)}
+if "XML" not in label:  # COLOR_SCALARS, 0..1 (the .vtp holds the bytes as they are)
+    expected.update({"colour_x": (1, 1), "colour_y": (0, 1), "colour_z": (0, 0)})
+else:
+    expected.update({"colour_x": (255, 255), "colour_y": (0, 255), "colour_z": (0, 0)})
 for name, (low, high) in expected.items():
     assert name in ranges, (label, name, sorted(ranges))
     assert abs(ranges[name][0] - low) < 1e-6 and abs(ranges[name][1] - high) < 1e-6, (
