@@ -5,6 +5,7 @@
 // the line being read is carried, as far as it was read, into the next batch.
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cstdint>
 #include <iterator>
@@ -344,9 +345,21 @@ void write_csv(const LineSet& lines, const std::string& path, const WriteOptions
   io::Writer out(path);
   std::string text = "line_id,x,y,z";
   for (const Attribute& a : lines.attributes) {
-    if (a.name.find_first_of(",\n\r\"") != std::string::npos)
-      throw Error("CSV: attribute name '" + a.name + "' contains a comma, quote or newline");
-    text += "," + a.name;
+    // A name the reader would split or trim is quoted (RFC 4180, "" for a quote), as it reads
+    // quoted names; a line break inside quotes it does not read, so such a name is refused.
+    if (a.name.find_first_of("\n\r") != std::string::npos)
+      throw OutputError(path, "attribute name '" + a.name +
+                                  "' holds a line break, which a CSV header cannot hold here");
+    const bool blank_end =
+        !a.name.empty() && (std::isspace(static_cast<unsigned char>(a.name.front())) ||
+                            std::isspace(static_cast<unsigned char>(a.name.back())));
+    if (a.name.find_first_of(",\"") == std::string::npos && !blank_end) {
+      text += "," + a.name;
+      continue;
+    }
+    text += ",\"";
+    for (char c : a.name) text += c == '"' ? std::string("\"\"") : std::string(1, c);
+    text += '"';
   }
   text += '\n';
   for (size_t line = 0; line < lines.line_count(); ++line) {

@@ -120,6 +120,30 @@ TEST_P(RoundTrip, KeepsMetadataWhereTheFormatHoldsIt) {
 INSTANTIATE_TEST_SUITE_P(Formats, RoundTrip, ::testing::ValuesIn(cases()),
                          [](const auto& param_info) { return std::string(param_info.param.name); });
 
+// A CSV header holds any name the reader reads back: one with a comma, a quote or blanks at its
+// ends is quoted (RFC 4180), as the reader takes quoted names (the writer had refused them); one
+// with a line break, which a quoted field may not hold there, is refused naming the file.
+TEST(RoundTripCsv, NamesTheHeaderMustQuote) {
+  TempDir dir;
+  LineSet original = awkward_lines(false);
+  ASSERT_GE(original.attributes.size(), 2u);
+  original.attributes[0].name = "speed, \"m/s\"";
+  original.attributes[1].name = " padded ";
+  write_line_set(original, dir.file("quoted.csv"));
+  const LineSet back = read_line_set(dir.file("quoted.csv"));
+  ASSERT_EQ(back.attributes.size(), original.attributes.size());
+  EXPECT_EQ(back.attributes[0].name, "speed, \"m/s\"");
+  EXPECT_EQ(back.attributes[1].name, " padded ");
+  EXPECT_EQ(back.attributes[0].values, original.attributes[0].values);
+  original.attributes[0].name = "two\nlines";
+  try {
+    write_line_set(original, dir.file("broken.csv"));
+    ADD_FAILURE() << "a name with a line break was written";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken.csv"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RoundTripBinlines, Version1DropsNamesOnly) {
   TempDir dir;
   const LineSet original = awkward_lines(false);
