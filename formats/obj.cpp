@@ -2,7 +2,8 @@
 // 1-based or negative relative indices), an optional `a name0 name1 ...` line naming the
 // attributes (spaces in names as %20). Faces, normals, groups and materials are ignored. A
 // vertex colour (`v x y z r g b`, MeshLab's and others' extension) becomes the attributes
-// color_r, color_g and color_b, after the vt ones; a `w` (`v x y z w`) is ignored.
+// color_r, color_g and color_b, after the vt ones; a `w` (`v x y z w`) is ignored. A line ending
+// in a backslash continues on the next.
 
 #include <algorithm>
 #include <numeric>
@@ -46,8 +47,23 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   in.before_growing(
       [&](uint64_t bytes) { check_memory(true, double(bytes), in.line_number() + 1); });
   std::string_view line;
+  // A statement continued over lines ending in a backslash (OBJ's rule; long `l` lines), joined.
+  std::string joined;
+  bool continued = false;
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);
+    if (!continued) joined.clear();
+    if (const std::string_view t = io::trim(line); !t.empty() && t.back() == '\\') {
+      joined.append(t.substr(0, t.size() - 1)).push_back(' ');
+      if (joined.size() > 65536) check_memory(true, 2.0 * double(joined.size()));
+      continued = true;
+      continue;
+    }
+    if (continued) {
+      joined.append(line);
+      line = joined;
+      continued = false;
+    }
     // A long line (an `l` of millions of indices) before it is split: the line, a token per
     // value (counted) and what each index will add.
     if (line.size() > 65536) {
@@ -114,6 +130,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
       for (size_t k = 1; k < tokens.size(); ++k) names.push_back(io::decode_name(tokens[k]));
     }
   }
+  if (continued) in.fail("the file ends in a statement continued with '\\'");
   const size_t point_count = positions.size() / 3;
   // No vertices, no vt lines: the `a` line alone says which attributes an empty set has.
   if (attribute_count == SIZE_MAX) attribute_count = point_count == 0 ? names.size() : 0;

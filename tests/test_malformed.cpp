@@ -382,6 +382,21 @@ TEST(MalformedInput, ObjVertexColoursAreAttributes) {
   EXPECT_TRUE(read_line_set(dir.file("w.obj")).attributes.empty());
 }
 
+// OBJ continues a statement on the next line after a trailing backslash: a long `l` split so
+// is one polyline (it had been refused as a bad vertex index '\\'); a file ending inside one is
+// refused, not read short.
+TEST(MalformedInput, ObjStatementsContinuedOverLines) {
+  TempDir dir;
+  write_text(dir.file("continued.obj"),
+             "v 0 0 0\nv 1 0 0\nv 2 0 0\nl 1 \\\n  2 \\\n 3\n# a comment\nl 3 1\n");
+  const LineSet lines = read_line_set(dir.file("continued.obj"));
+  ASSERT_EQ(lines.line_count(), 2u);
+  EXPECT_EQ(lines.line_size(0), 3u);
+  EXPECT_EQ(lines.positions[6], 2.0f);  // the first line's third point is vertex 3
+  write_text(dir.file("cut.obj"), "v 0 0 0\nv 1 0 0\nl 1 \\\n");
+  expect_error(dir.file("cut.obj"), "line 3: the file ends in a statement continued with");
+}
+
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that
 // is not UTF-8 are the file's errors, with its name, not nlohmann::json's exceptions.
 TEST(FuzzFindings, JsonInputsRefuseWhatNlohmannJsonThrows) {
