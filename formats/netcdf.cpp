@@ -6,9 +6,10 @@
 // Positions come from the variables marked axis X/Y/Z, else standard_name longitude/latitude/
 // (altitude|height|air_pressure|depth), else the names x/lon/longitude, y/lat/latitude,
 // z/p/pressure/alt/altitude/height/level/depth. A missing z is 0. Every other numeric variable of
-// the same shape becomes a vertex attribute. A fill value (_FillValue or missing_value), NaN/Inf
-// or |value| >= 1e20 in a position ends the line there (incomplete arrays, Lagranto's invalid
-// points).
+// the same shape becomes a vertex attribute. A missing value (_FillValue, any missing_value, or
+// outside valid_range / valid_min / valid_max: CF 2.5.1), NaN/Inf or |value| >= 1e20 in a
+// position ends the line there (incomplete arrays, Lagranto's invalid points); in an attribute
+// it is NaN.
 // Packed variables (CF 8.1) are unpacked: value * scale_factor + add_offset, in double; the fill
 // value is compared with the packed value. Text attributes may be NC_CHAR or one NC_STRING.
 // A ragged sample dimension may be longer than the counts need (CF 9.3: space reserved for later
@@ -129,13 +130,32 @@ struct Variable {
   nc_type type;
   std::vector<int> dims;
   std::vector<size_t> shape;
-  std::optional<double> fill;  // _FillValue or missing_value, in packed units
+  // Missing values (CF 2.5.1), as stored (packed units): _FillValue, every missing_value, and
+  // values outside valid_range (or valid_min, valid_max).
+  std::vector<double> missing;
+  double valid_min = -HUGE_VAL, valid_max = HUGE_VAL;
+  bool is_missing(double raw) const {
+    return raw < valid_min || raw > valid_max ||
+           std::find(missing.begin(), missing.end(), raw) != missing.end();
+  }
   // CF 8.1 packing: unpacked = packed * scale + offset.
   bool packed = false;
   double scale = 1.0;
   double offset = 0.0;
   double unpack(double value) const { return packed ? value * scale + offset : value; }
 };
+
+// A numeric attribute's values (up to 16), none when absent or text.
+std::vector<double> numbers_attribute(const Nc& nc, int var, const char* name) {
+  nc_type type;
+  size_t length = 0;
+  if (nc_inq_att(nc.id, var, name, &type, &length) != NC_NOERR || type == NC_CHAR ||
+      type == NC_STRING || type > NC_MAX_ATOMIC_TYPE || length == 0 || length > 16)
+    return {};
+  std::vector<double> values(length);
+  if (nc_get_att_double(nc.id, var, name, values.data()) != NC_NOERR) return {};
+  return values;
+}
 
 std::vector<Variable> variables(const Nc& nc) {
   int count = 0;
@@ -149,17 +169,25 @@ std::vector<Variable> variables(const Nc& nc) {
     nc.check(nc_inq_var(nc.id, v, name, &type, &ndims, dims, &natts),
              "variable " + std::to_string(v));
     if (type == NC_CHAR || type == NC_STRING) continue;
-    Variable var{v, name, type, std::vector<int>(dims, dims + ndims), {}, std::nullopt};
+    Variable var{v, name, type, std::vector<int>(dims, dims + ndims), {}, {}};
     for (int d : var.dims) {
       size_t length;
       nc.check(nc_inq_dimlen(nc.id, d, &length), "variable " + var.name);
       var.shape.push_back(length);
     }
-    double fill;
-    if (nc_get_att_double(nc.id, v, "_FillValue", &fill) == NC_NOERR)
-      var.fill = fill;
-    else if (nc_get_att_double(nc.id, v, "missing_value", &fill) == NC_NOERR)
-      var.fill = fill;
+    const std::vector<double> fill = numbers_attribute(nc, v, "_FillValue");
+    const std::vector<double> missing_value = numbers_attribute(nc, v, "missing_value");
+    var.missing = fill;
+    var.missing.insert(var.missing.end(), missing_value.begin(), missing_value.end());
+    if (const std::vector<double> range = numbers_attribute(nc, v, "valid_range");
+        range.size() == 2) {
+      var.valid_min = range[0], var.valid_max = range[1];
+    } else {
+      if (const std::vector<double> low = numbers_attribute(nc, v, "valid_min"); low.size() == 1)
+        var.valid_min = low[0];
+      if (const std::vector<double> high = numbers_attribute(nc, v, "valid_max"); high.size() == 1)
+        var.valid_max = high[0];
+    }
     list.push_back(std::move(var));
   }
   return list;
@@ -261,10 +289,10 @@ std::vector<double> read_all(const Nc& nc, const Variable& v) {
   return values;
 }
 
-// Whether the stored (packed) value `raw` of position variable `v` is no position: its fill value
-// (compared packed, CF 8.1), or NaN/Inf or |value| >= 1e20 once unpacked.
+// Whether the stored (packed) value `raw` of position variable `v` is no position: a missing
+// value (compared packed, CF 8.1), or NaN/Inf or |value| >= 1e20 once unpacked.
 bool invalid(const Variable& v, double raw) {
-  if (v.fill && raw == *v.fill) return true;
+  if (v.is_missing(raw)) return true;
   const double value = v.unpack(raw);
   return !std::isfinite(value) || std::fabs(value) >= 1e20;
 }
@@ -338,7 +366,7 @@ class NetcdfReader : public LineReader {
       offsets_.push_back(0);
       for (size_t i = 0; i < n.size(); ++i) {
         // CF 9.3.3: a feature not written yet has count 0 or a missing value.
-        const double count = counts_->fill && n[i] == *counts_->fill ? 0.0 : n[i];
+        const double count = counts_->is_missing(n[i]) ? 0.0 : n[i];
         if (!(count >= 0) || count > double(total - at))
           throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
                            "count runs past the " + std::to_string(total) + " observations");
@@ -423,7 +451,7 @@ class NetcdfReader : public LineReader {
           const Variable& var = *attribute_vars_[a];
           const double v = attribute_values_[a][i];  // packed: the fill is compared as stored
           batch.attributes[a].values.push_back(
-              var.fill && v == *var.fill ? NAN : static_cast<float>(var.unpack(v)));
+              var.is_missing(v) ? NAN : static_cast<float>(var.unpack(v)));
         }
       }
       if (batch.point_count() > start_points) batch.end_line();

@@ -204,6 +204,50 @@ TEST(NetCdf, PackedVariablesAreUnpacked) {
   EXPECT_EQ(l.attributes[1].values, (std::vector<float>{7, 7, 7, 8}));
 }
 
+// CF 2.5.1: a value is missing when it is _FillValue, any of missing_value's values, or outside
+// valid_range (or valid_min / valid_max); only the first of _FillValue and missing_value had
+// counted, and the valid range not at all.
+TEST(NetCdf, EveryMissingValueConventionCounts) {
+  TempDir dir;
+  const std::string path = dir.file("missing.nc");
+  int nc, d[2], lon, lat, t, q;
+  ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+  ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc, "trajectory", 1, &d[0]));
+  ok(nc_def_dim(nc, "obs", 8, &d[1]));
+  ok(nc_def_var(nc, "lon", NC_FLOAT, 2, d, &lon));
+  ok(nc_def_var(nc, "lat", NC_FLOAT, 2, d, &lat));
+  ok(nc_def_var(nc, "T", NC_FLOAT, 2, d, &t));
+  ok(nc_def_var(nc, "q", NC_FLOAT, 2, d, &q));  // not "p": a z name
+  const float fill = -999, missing[] = {-888, -777}, range[] = {0, 100}, low = 10;
+  ok(nc_put_att_float(nc, t, "_FillValue", NC_FLOAT, 1, &fill));
+  ok(nc_put_att_float(nc, t, "missing_value", NC_FLOAT, 2, missing));
+  ok(nc_put_att_float(nc, q, "valid_min", NC_FLOAT, 1, &low));
+  ok(nc_put_att_float(nc, lon, "valid_range", NC_FLOAT, 2, range));
+  ok(nc_enddef(nc));
+  // The longitude leaves its valid range at obs 7: the line ends there.
+  const float lons[] = {1, 2, 3, 4, 5, 6, 7, 101};
+  const float lats[] = {0, 0, 0, 0, 0, 0, 0, 0};
+  const float ts[] = {1, -999, -888, -777, 5, 6, 7, 8};
+  const float qs[] = {50, 9, 50, 50, 50, 50, 50, 50};
+  ok(nc_put_var_float(nc, lon, lons));
+  ok(nc_put_var_float(nc, lat, lats));
+  ok(nc_put_var_float(nc, t, ts));
+  ok(nc_put_var_float(nc, q, qs));
+  ok(nc_close(nc));
+
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 7}));
+  ASSERT_EQ(l.attributes.size(), 2u);
+  const std::vector<float>& temperature = l.attributes[0].values;
+  ASSERT_EQ(temperature.size(), 7u);
+  EXPECT_EQ(temperature[0], 1.0f);
+  for (int i = 1; i <= 3; ++i) EXPECT_TRUE(std::isnan(temperature[i])) << i;
+  EXPECT_EQ(temperature[4], 5.0f);
+  EXPECT_TRUE(std::isnan(l.attributes[1].values[1]));  // below valid_min
+  EXPECT_EQ(l.attributes[1].values[2], 50.0f);
+}
+
 TEST(NetCdf, BadPackingAttributesAreAnError) {
   TempDir dir;
   auto write = [&](const std::string& name, auto&& add_attribute) {
