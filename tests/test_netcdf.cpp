@@ -268,27 +268,24 @@ TEST(NetCdf, BadPackingAttributesAreAnError) {
   };
   const std::string text = write(
       "text.nc", [](int nc, int var) { ok(nc_put_att_text(nc, var, "scale_factor", 4, "0.01")); });
-  std::string error = read_error(text);
-  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
-  EXPECT_NE(error.find("scale_factor"), std::string::npos) << error;
-  EXPECT_NE(error.find("not a number"), std::string::npos) << error;
+  // The error names the variable, the attribute and what is wrong with it.
+  const auto expect_error = [](const std::string& path, std::initializer_list<const char*> parts) {
+    const std::string error = read_error(path);
+    for (const char* part : parts) EXPECT_NE(error.find(part), std::string::npos) << error;
+  };
+  expect_error(text, {"variable lat", "scale_factor", "not a number"});
 
   const std::string nan = write("nan.nc", [](int nc, int var) {
     const double offset = NAN;
     ok(nc_put_att_double(nc, var, "add_offset", NC_DOUBLE, 1, &offset));
   });
-  error = read_error(nan);
-  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
-  EXPECT_NE(error.find("add_offset"), std::string::npos) << error;
-  EXPECT_NE(error.find("finite"), std::string::npos) << error;
+  expect_error(nan, {"variable lat", "add_offset", "finite"});
 
   const std::string infinite = write("inf.nc", [](int nc, int var) {
     const float scale = INFINITY;
     ok(nc_put_att_float(nc, var, "scale_factor", NC_FLOAT, 1, &scale));
   });
-  error = read_error(infinite);
-  EXPECT_NE(error.find("variable lat"), std::string::npos) << error;
-  EXPECT_NE(error.find("scale_factor"), std::string::npos) << error;
+  expect_error(infinite, {"variable lat", "scale_factor", "finite"});
 }
 
 TEST(NetCdf, StringTypedAttributesInMultidimensionalFiles) {

@@ -143,24 +143,46 @@ print(f"{label}: 2 lines, 7 points, {len(ranges)} vertex and {len(lines)} line a
 EOF
 done
 # A surface in a .vtp (vtkXMLPolyDataWriter, Polys only) is no line set: refused, not read as an
-# empty one.
-"$python" -c "
+# empty one. A vtkStringArray in a .vtp's FieldData, in each of the writer's modes (appended, its
+# default, had been skipped), is the line set's metadata.
+"$python" - "$tmp" << 'EOF'
+import sys
 import vtk
-points = vtk.vtkPoints()
-for i in range(4):
-    points.InsertNextPoint(i, i * i, 0)
-cells = vtk.vtkCellArray()
-cells.InsertNextCell(4)
-for i in range(4):
-    cells.InsertCellPoint(i)
-poly = vtk.vtkPolyData()
-poly.SetPoints(points)
-poly.SetPolys(cells)
-writer = vtk.vtkXMLPolyDataWriter()
-writer.SetFileName('$tmp/surface.vtp')
-writer.SetInputData(poly)
-writer.Write()
-"
+
+tmp = sys.argv[1]
+
+
+def one_cell(points, surface):
+    coordinates = vtk.vtkPoints()
+    for i in range(points):
+        coordinates.InsertNextPoint(i, i * i, 0)
+    cells = vtk.vtkCellArray()
+    cells.InsertNextCell(points)
+    for i in range(points):
+        cells.InsertCellPoint(i)
+    poly = vtk.vtkPolyData()
+    poly.SetPoints(coordinates)
+    poly.SetPolys(cells) if surface else poly.SetLines(cells)
+    return poly
+
+
+def write(poly, path, mode="Appended"):
+    writer = vtk.vtkXMLPolyDataWriter()
+    writer.SetFileName(path)
+    writer.SetInputData(poly)
+    getattr(writer, "SetDataModeTo" + mode)()
+    writer.Write()
+
+
+write(one_cell(4, True), f"{tmp}/surface.vtp")
+for mode in ("Appended", "Binary", "Ascii"):
+    poly = one_cell(3, False)
+    author = vtk.vtkStringArray()
+    author.SetName("author")
+    author.InsertNextValue("Ada Lovelace")
+    poly.GetFieldData().AddArray(author)
+    write(poly, f"{tmp}/strings_{mode}.vtp", mode)
+EOF
 status=0
 "$bin" info "$tmp/surface.vtp" > /dev/null 2> "$tmp/surface.err" || status=$?
 [ "$status" -eq 2 ] && grep -q 'surface.vtp: Piece: no Lines cells, only surfaces (1 Polys, 0 Strips)' "$tmp/surface.err" || {
@@ -168,32 +190,8 @@ status=0
   exit 1
 }
 echo "vtkXMLPolyDataWriter Polys only: refused (exit 2)"
-# A vtkStringArray in a .vtp's FieldData, in each of the writer's modes (appended, its default,
-# had been skipped): the line set's metadata.
 for mode in Appended Binary Ascii; do
-  "$python" -c "
-import vtk
-points = vtk.vtkPoints()
-for i in range(3):
-    points.InsertNextPoint(i, 0, 0)
-cells = vtk.vtkCellArray()
-cells.InsertNextCell(3)
-for i in range(3):
-    cells.InsertCellPoint(i)
-poly = vtk.vtkPolyData()
-poly.SetPoints(points)
-poly.SetLines(cells)
-author = vtk.vtkStringArray()
-author.SetName('author')
-author.InsertNextValue('Ada Lovelace')
-poly.GetFieldData().AddArray(author)
-writer = vtk.vtkXMLPolyDataWriter()
-writer.SetFileName('$tmp/strings.vtp')
-writer.SetInputData(poly)
-writer.SetDataModeTo$mode()
-writer.Write()
-"
-  "$bin" info "$tmp/strings.vtp" --json | "$python" -c "import json, sys; m = json.load(sys.stdin)['metadata']; assert m.get('author') == 'Ada Lovelace', ('$mode', m)"
+  "$bin" info "$tmp/strings_$mode.vtp" --json | "$python" -c "import json, sys; m = json.load(sys.stdin)['metadata']; assert m.get('author') == 'Ada Lovelace', ('$mode', m)"
 done
 echo "vtkXMLPolyDataWriter FieldData strings (appended, binary, ascii): the metadata"
 echo "vtk_reader_test: passed"
