@@ -136,6 +136,83 @@ std::string source_format_name(const std::string& source, const ReadOptions& opt
   return format_info(resolve_input_format(source, options.format)).name;
 }
 
+namespace {
+
+// Attributes are found by name (--attribute, HDF5 datasets, JSON), so each list's names must be
+// one each and not empty. Files do repeat them (VTK's writer names every unnamed FIELD array
+// "unknown"; a reader's own "unnamed" or "scalar_k" can meet a name in the file): the later ones
+// are renamed name_2, name_3, ... (an empty name "unnamed"), and the renames are kept in the
+// metadata as linebake.renamed_attributes, which `info` shows. A reader of the same file in the
+// same order gives the same names.
+class UniqueNames : public LineReader {
+ public:
+  UniqueNames(std::unique_ptr<LineReader> inner, LineSet header) : inner_(std::move(inner)) {
+    header_ = std::move(header);
+  }
+  bool next(LineSet& batch, uint64_t max_points) override {
+    const bool more = inner_->next(batch, max_points);
+    rename(batch);
+    lines_read_ = inner_->lines_read();
+    return more;
+  }
+  bool streams() const override { return inner_->streams(); }
+  uint64_t largest_line_hint() const override { return inner_->largest_line_hint(); }
+  std::optional<uint64_t> line_count_hint() const override { return inner_->line_count_hint(); }
+  std::optional<LineSet> take_whole() override {
+    std::optional<LineSet> whole = inner_->take_whole();
+    if (whole) {
+      rename(*whole);
+      whole->metadata = header_.metadata;
+    }
+    return whole;
+  }
+  std::string batch_file() const override { return inner_->batch_file(); }
+  uint64_t batch_file_line() const override { return inner_->batch_file_line(); }
+
+ private:
+  void rename(LineSet& lines) const {
+    for (size_t a = 0; a < lines.attributes.size() && a < header_.attributes.size(); ++a)
+      lines.attributes[a].name = header_.attributes[a].name;
+    for (size_t a = 0; a < lines.line_attributes.size() && a < header_.line_attributes.size(); ++a)
+      lines.line_attributes[a].name = header_.line_attributes[a].name;
+  }
+  std::unique_ptr<LineReader> inner_;
+};
+
+// Renames within one list; what was renamed, for the note.
+void make_unique(std::vector<Attribute>& list, const std::string& kind,
+                 std::vector<std::string>& renamed) {
+  std::set<std::string> taken;
+  for (const Attribute& a : list) taken.insert(a.name);
+  std::set<std::string> seen;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string base = list[i].name.empty() ? "unnamed" : list[i].name;
+    if (!list[i].name.empty() && seen.insert(base).second) continue;
+    std::string name = base;
+    for (int k = 2; taken.count(name) || seen.count(name); ++k)
+      name = base + "_" + std::to_string(k);
+    renamed.push_back(kind + " attribute " + std::to_string(i + 1) + " '" + list[i].name +
+                      "' as '" + name + "'");
+    list[i].name = name;
+    taken.insert(name);
+    seen.insert(name);
+  }
+}
+
+std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader) {
+  LineSet header = reader->header();
+  std::vector<std::string> renamed;
+  make_unique(header.attributes, "vertex", renamed);
+  make_unique(header.line_attributes, "line", renamed);
+  if (renamed.empty()) return reader;
+  std::string note;
+  for (const std::string& r : renamed) note += (note.empty() ? "" : "; ") + r;
+  header.metadata["linebake.renamed_attributes"] = note;
+  return std::make_unique<UniqueNames>(std::move(reader), std::move(header));
+}
+
+}  // namespace
+
 std::unique_ptr<LineReader> open_line_reader(const std::string& source,
                                              const ReadOptions& options) {
   if (synth::is_synth_source(source))
@@ -186,27 +263,13 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
   // Attribute names are looked up by name (options, caches' statistics and keys, which are
   // JSON): a name that is not UTF-8 could not be stored as itself.
   const LineSet& header = reader->header();
-  for (const auto* list : {&header.attributes, &header.line_attributes}) {
-    const std::string kind = list == &header.attributes ? "vertex" : "line";
-    for (size_t i = 0; i < list->size(); ++i) {
-      const std::string& name = (*list)[i].name;
-      if (!valid_utf8(name))
-        throw InputError(source, "attribute " + name,
+  for (const auto* list : {&header.attributes, &header.line_attributes})
+    for (const Attribute& a : *list)
+      if (!valid_utf8(a.name))
+        throw InputError(source, "attribute " + a.name,
                          "its name is not UTF-8 text; rename it (linebake keeps names in JSON, "
                          "which holds UTF-8 only)");
-      // Names are how attributes are found (--attribute, HDF5 datasets, JSON): one each.
-      if (name.empty())
-        throw InputError(source, kind + " attribute " + std::to_string(i + 1),
-                         "has an empty name; name it");
-      for (size_t j = 0; j < i; ++j)
-        if ((*list)[j].name == name)
-          throw InputError(source, "attribute " + name,
-                           "two " + kind + " attributes have this name (numbers " +
-                               std::to_string(j + 1) + " and " + std::to_string(i + 1) +
-                               " in the file's order); rename one");
-    }
-  }
-  return reader;
+  return with_unique_names(std::move(reader));
 }
 
 bool valid_utf8(std::string_view text) {

@@ -295,37 +295,73 @@ TEST(FuzzFindings, IndicesOutsideTheirIntegerRange) {
   expect_error(dir.file("huge.vtk"), "value 1e300 is outside the array's range");
 }
 
-// Attributes are found by name (--attribute, HDF5 datasets, JSON): two of one name, or one
-// without a name, are refused when the file is opened, whatever the format (a CSV header
-// t,t had been taken and failed only when written to HDF5, exit 3 naming a temporary file).
-TEST(MalformedInput, AttributeNamesAreUniqueAndNotEmpty) {
+// Attributes are found by name (--attribute, HDF5 datasets, JSON): a name given twice (VTK's
+// writer calls every unnamed FIELD array "unknown"), or none, is renamed when the file is opened,
+// name_2 after name (skipping names the file has), "unnamed" for none, whatever the format, with
+// the renames in the metadata (names given twice had been taken and failed only when written to
+// HDF5, exit 3 naming a temporary file). The values stay with their arrays.
+TEST(MalformedInput, AttributeNamesGivenTwiceOrNotAtAllAreRenamed) {
   TempDir dir;
   const std::string head =
       "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\n"
       "LINES 1 3\n2 0 1\nPOINT_DATA 2\n";
   write_text(dir.file("twice.vtk"), head +
                                         "SCALARS t float\nLOOKUP_TABLE default\n1 2\n"
-                                        "VECTORS u float\n0 0 0 1 1 1\n"
-                                        "SCALARS t float\nLOOKUP_TABLE default\n3 4\n");
-  expect_error(dir.file("twice.vtk"),
-               "attribute t: two vertex attributes have this name (numbers 1 and 5");
-  write_text(dir.file("lines.vtk"), head +
-                                        "CELL_DATA 1\nSCALARS w float\nLOOKUP_TABLE "
-                                        "default\n1\nSCALARS w float\nLOOKUP_TABLE default\n2\n");
-  expect_error(dir.file("lines.vtk"), "attribute w: two line attributes have this name");
-  // The same name for a vertex and a line attribute is two lists, not a clash.
-  write_text(dir.file("both.vtk"), head +
-                                       "SCALARS w float\nLOOKUP_TABLE default\n1 2\n"
-                                       "CELL_DATA 1\nSCALARS w float\nLOOKUP_TABLE default\n3\n");
-  const LineSet both = read_line_set(dir.file("both.vtk"));
-  ASSERT_EQ(both.attributes.size(), 1u);
-  ASSERT_EQ(both.line_attributes.size(), 1u);
-  EXPECT_EQ(both.line_attributes[0].values[0], 3.0f);
+                                        "SCALARS t_2 float\nLOOKUP_TABLE default\n5 6\n"
+                                        "SCALARS t float\nLOOKUP_TABLE default\n3 4\n"
+                                        "CELL_DATA 1\nSCALARS w float\nLOOKUP_TABLE default\n7\n"
+                                        "SCALARS w float\nLOOKUP_TABLE default\n8\n");
+  const LineSet lines = read_line_set(dir.file("twice.vtk"));
+  ASSERT_EQ(lines.attributes.size(), 3u);
+  EXPECT_EQ(lines.attributes[0].name, "t");
+  EXPECT_EQ(lines.attributes[1].name, "t_2");
+  EXPECT_EQ(lines.attributes[2].name, "t_3");  // t_2 is the file's own
+  EXPECT_EQ(lines.attributes[2].values, (std::vector<float>{3, 4}));
+  ASSERT_EQ(lines.line_attributes.size(), 2u);
+  EXPECT_EQ(lines.line_attributes[1].name, "w_2");  // the same name as a vertex one is no clash
+  EXPECT_EQ(lines.line_attributes[1].values, (std::vector<float>{8}));
+  EXPECT_EQ(lines.metadata.at("linebake.renamed_attributes"),
+            "vertex attribute 3 't' as 't_3'; line attribute 2 'w' as 'w_2'");
+  // A streamed format, batch by batch: binlines v2, 2 lines of 2 points, attributes "a" and "a".
+  const auto u32 = [](std::vector<unsigned char>& out, uint32_t v) {
+    for (int b = 0; b < 4; ++b) out.push_back(static_cast<unsigned char>(v >> (8 * b)));
+  };
+  const auto f32 = [&](std::vector<unsigned char>& out, float v) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, 4);
+    u32(out, bits);
+  };
+  std::vector<unsigned char> twice;
+  for (uint32_t v : {2u, 2u, 2u, 1u}) u32(twice, v);
+  twice.push_back('a');
+  u32(twice, 1);
+  twice.push_back('a');
+  for (int line = 0; line < 2; ++line) {
+    u32(twice, 2);
+    for (int k = 0; k < 6; ++k) f32(twice, float(k));
+    for (float v : {1.0f, 2.0f, 10.0f + float(line), 20.0f}) f32(twice, v);  // a's, then a's
+  }
+  write_bytes(dir.file("twice.binlines"), twice);
+  auto reader = open_line_reader(dir.file("twice.binlines"));
+  EXPECT_EQ(reader->header().attributes[1].name, "a_2");
+  LineSet batch;
+  for (int line = 0; line < 2; ++line) {
+    ASSERT_TRUE(reader->next(batch, 1));
+    ASSERT_EQ(batch.attributes.size(), 2u);
+    EXPECT_EQ(batch.attributes[1].name, "a_2");
+    EXPECT_EQ(batch.attributes[1].values, (std::vector<float>{10.0f + float(line), 20}));
+  }
+  EXPECT_EQ(reader->lines_read(), 2u);
   // binlines v2: version 2, 1 line, 1 attribute named by 0 bytes; the line of 2 points.
   std::vector<unsigned char> unnamed = {2, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0};
   unnamed.resize(unnamed.size() + 8 * 4, 0);  // 6 coordinates and 2 values, all 0.0f
   write_bytes(dir.file("unnamed.binlines"), unnamed);
-  expect_error(dir.file("unnamed.binlines"), "vertex attribute 1: has an empty name");
+  const LineSet named = read_line_set(dir.file("unnamed.binlines"));
+  ASSERT_EQ(named.attributes.size(), 1u);
+  EXPECT_EQ(named.attributes[0].name, "unnamed");
+  // Names that were one each: no note.
+  write_text(dir.file("once.vtk"), head + "SCALARS t float\nLOOKUP_TABLE default\n1 2\n");
+  EXPECT_EQ(read_line_set(dir.file("once.vtk")).metadata.count("linebake.renamed_attributes"), 0u);
 }
 
 // MRtrix .tck headers: a key given again keeps every value, one a line, as MRtrix's reader does
