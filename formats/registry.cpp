@@ -142,8 +142,8 @@ namespace {
 // one each and not empty. Files do repeat them (VTK's writer names every unnamed FIELD array
 // "unknown"; a reader's own "unnamed" or "scalar_k" can meet a name in the file): the later ones
 // are renamed name_2, name_3, ... (an empty name "unnamed"), and the renames are kept in the
-// metadata as linebake.renamed_attributes, which `info` shows. A reader of the same file in the
-// same order gives the same names.
+// metadata as linebake.renamed_attributes, which `info --json` shows. A reader of the same file in
+// the same order gives the same names.
 class UniqueNames : public LineReader {
  public:
   UniqueNames(std::unique_ptr<LineReader> inner, LineSet header) : inner_(std::move(inner)) {

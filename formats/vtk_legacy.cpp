@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <optional>
 #include <string>
@@ -101,6 +102,25 @@ class LegacyStream {
 
   // The next token() returns `t` again (a look ahead that found no METADATA).
   void unread(std::string t) { unread_ = std::move(t); }
+
+  // Whether the rest of the current line holds only blanks, looked at without reading it.
+  bool rest_of_line_blank() {
+    for (;;) {
+      for (size_t i = pos_; i < end_; ++i) {
+        if (buffer_[i] == '\n') return true;
+        if (!std::isspace(static_cast<unsigned char>(buffer_[i]))) return false;
+      }
+      // The line goes on past the buffer: keep what is left of it and read more behind it.
+      if (end_ - pos_ == buffer_.size()) return true;  // a buffer of blanks
+      std::memmove(buffer_.data(), buffer_.data() + pos_, end_ - pos_);
+      base_ += pos_;
+      end_ -= pos_;
+      pos_ = 0;
+      const size_t more = std::fread(buffer_.data() + end_, 1, buffer_.size() - end_, file_.get());
+      if (more == 0) return true;  // the file ends on this line
+      end_ += more;
+    }
+  }
 
   // Skips the rest of the current line (binary data follows the newline).
   void skip_line() {
@@ -401,10 +421,11 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
             io::component_name(last_name, c, last_components, names);
     last_target = nullptr;
   };
-  // After a FIELD array the next token is either its METADATA or the next array's name.
+  // After a FIELD array the next token is either its METADATA, alone on its line, or the next
+  // array's name, which may be METADATA too (its counts and type follow on the line).
   const auto array_metadata = [&] {
     std::string next = in.token();
-    if (upper(next) == "METADATA")
+    if (upper(next) == "METADATA" && in.rest_of_line_blank())
       metadata_block();
     else
       in.unread(std::move(next));

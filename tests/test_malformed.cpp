@@ -364,6 +364,23 @@ TEST(MalformedInput, AttributeNamesGivenTwiceOrNotAtAllAreRenamed) {
   EXPECT_EQ(read_line_set(dir.file("once.vtk")).metadata.count("linebake.renamed_attributes"), 0u);
 }
 
+// A METADATA block (VTK 9) is the keyword alone on its line; a FIELD array may be named
+// METADATA too, its counts and type after it on the line: an array, as it was read before the
+// blocks were (review finding: it had been taken for a block).
+TEST(MalformedInput, VtkFieldArrayNamedMetadataIsAnArray) {
+  TempDir dir;
+  write_text(dir.file("named.vtk"),
+             "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1 1\n"
+             "LINES 1 3\n2 0 1\nPOINT_DATA 2\nFIELD FieldData 3\na 1 2 float\n1 2\nMETADATA\n"
+             "INFORMATION 0\n\nmetadata 1 2 float\n3 4\nMETADATA 1 2 float\n5 6\n");
+  const LineSet lines = read_line_set(dir.file("named.vtk"));
+  ASSERT_EQ(lines.attributes.size(), 3u);
+  EXPECT_EQ(lines.attributes[1].name, "metadata");
+  EXPECT_EQ(lines.attributes[1].values, (std::vector<float>{3, 4}));
+  EXPECT_EQ(lines.attributes[2].name, "METADATA");
+  EXPECT_EQ(lines.attributes[2].values, (std::vector<float>{5, 6}));
+}
+
 // MRtrix .tck headers: a key given again keeps every value, one a line, as MRtrix's reader does
 // (the last one only had been kept); a data offset inside the header or past the file's end is
 // said as such (the header's text had been read as points, or a seek failed at "byte offset 0").
