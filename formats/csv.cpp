@@ -212,7 +212,8 @@ class CsvReader : public LineReader {
         in_.fail(std::to_string(fields.size()) + " columns, the header has " +
                  std::to_string(columns_));
       int64_t id;
-      switch (parse_line_id(fields[0], id)) {
+      // A quoted number keeps its blanks as text (RFC 4180); as a number they are no part of it.
+      switch (parse_line_id(io::trim(fields[0]), id)) {
         case Id::ok:
           break;
         case Id::fraction:
@@ -230,11 +231,11 @@ class CsvReader : public LineReader {
         open_id_ = id;
       }
       float xyz[3];
-      for (int k = 0; k < 3; ++k) number(fields[1 + k], "coordinate", xyz[k]);
+      for (int k = 0; k < 3; ++k) number(io::trim(fields[1 + k]), "coordinate", xyz[k]);
       open_.append_point(xyz[0], xyz[1], xyz[2]);
       for (size_t k = 4; k < fields.size(); ++k) {
         float v;
-        number(fields[k], "value", v);
+        number(io::trim(fields[k]), "value", v);
         open_.attributes[k - 4].values.push_back(v);
       }
       // A line's length is known only at its last row: what it holds is checked as it grows

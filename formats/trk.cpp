@@ -127,15 +127,16 @@ class TrkReader : public LineReader {
       listed +=
           (listed.empty() ? "" : ", ") + ("'" + slot.name + "' " + std::to_string(slot.columns));
     }
-    if (count < 0 || count > std::max(10, counted ? covered : 0))
-      in_.fail_at(count_at,
-                  std::string(count_field) + " must be 0..10, got " + std::to_string(count) +
-                      (counted ? " (the names count " + std::to_string(covered) + ")" : ""));
-    // Without counts, names past the count are ignored, as they always were.
-    if (counted && covered > count)
-      in_.fail_at(names_at, std::string(names_field) + " names " + std::to_string(covered) +
-                                " columns (" + listed + "), " + count_field + " is " +
-                                std::to_string(count));
+    // Counts that name more columns than there are are no nibabel counts but bytes left in the
+    // slots (a longer name overwritten by a shorter one): one column a slot, as TrackVis reads
+    // them, where there are at most 10 columns.
+    const bool use_counts = counted && covered <= count;
+    if (count < 0 || count > std::max(10, use_counts ? covered : 0))
+      in_.fail_at(count_at, std::string(count_field) + " must be 0..10, got " +
+                                std::to_string(count) +
+                                (counted ? " (" + std::string(names_field) + " names " +
+                                               std::to_string(covered) + ": " + listed + ")"
+                                         : ""));
     // A slot with a count covers as many columns (name, name_x/_y/_z for 3, name_0.._k
     // otherwise, as VTK's multi-component arrays), one without one column (TrackVis). Where
     // the header has counts, unnamed slots cover none (nibabel).
@@ -143,8 +144,8 @@ class TrkReader : public LineReader {
     for (size_t s = 0; s < slots.size() && int(columns.size()) < count; ++s) {
       const NameSlot& slot = slots[s];
       if (!slot.name.empty())
-        io::append_components(columns, slot.name, {}, size_t(slot.columns), 0, 0);
-      else if (!counted)
+        io::append_components(columns, slot.name, {}, use_counts ? size_t(slot.columns) : 1, 0, 0);
+      else if (!use_counts)
         columns.push_back({unnamed + std::to_string(columns.size()), {}});
     }
     while (int(columns.size()) < count)
