@@ -364,9 +364,12 @@ class NetcdfReader : public LineReader {
       size_t at = 0;
       offsets_.reserve(n.size() + 1);
       offsets_.push_back(0);
+      // CF 9.3.3: a feature not written yet has count 0 or a missing value (the type's default
+      // fill too, where the count variable names none: counts never written).
+      const std::optional<double> unwritten = library_fill(nc_, *counts_);
       for (size_t i = 0; i < n.size(); ++i) {
-        // CF 9.3.3: a feature not written yet has count 0 or a missing value.
-        const double count = counts_->is_missing(n[i]) ? 0.0 : n[i];
+        const double count =
+            counts_->is_missing(n[i]) || (unwritten && n[i] == *unwritten) ? 0.0 : n[i];
         if (!(count >= 0) || count > double(total - at))
           throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
                            "count runs past the " + std::to_string(total) + " observations");

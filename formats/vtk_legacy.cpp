@@ -455,7 +455,8 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     added(list, before, name, components);
   };
 
-  for (std::string key = upper(in.token()); !key.empty(); key = upper(in.token())) {
+  for (std::string word = in.token(); !word.empty(); word = in.token()) {
+    const std::string key = upper(word);
     if (key == "POINTS") {
       uint64_t n;
       if (!io::parse_uint64(in.token(), n)) in.fail("bad POINTS count");
@@ -533,7 +534,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
             components < 1 || tuples < 0)
           in.fail("bad FIELD array header for " + name);
         const std::string type = in.token();
-        if (type == "string" || type == "utf8_string") {
+        if (upper(type) == "STRING" || upper(type) == "UTF8_STRING") {
           // One value before any POINT_DATA/CELL_DATA: the line set's metadata; other string
           // arrays are read past.
           if (components > 64 || tuples > (int64_t{1} << 40))
@@ -583,7 +584,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     } else if (key == "METADATA") {
       metadata_block();
     } else {
-      in.fail("unexpected keyword '" + key + "'");
+      in.fail("unexpected keyword '" + word + "'");
     }
   }
 

@@ -143,11 +143,17 @@ struct EmbreeScene::State {
     device = rtcNewDevice(nullptr);
     if (!device) {
       const RTCError e = rtcGetDeviceError(nullptr);
-      if (e == RTC_ERROR_OUT_OF_MEMORY || address_space_left() != UINT64_MAX)
+      if (e == RTC_ERROR_OUT_OF_MEMORY)
         throw BudgetExceeded(
-            "Embree: cannot create a device (error " + std::to_string(int(e)) +
-            "; its threads' stacks and allocators take memory): " + out_of_memory_cause());
-      throw Error("Embree: cannot create a device (error " + std::to_string(int(e)) + ")");
+            "Embree: cannot create a device: out of memory (RTC_ERROR_OUT_OF_MEMORY; its "
+            "threads' stacks and allocators take memory): " +
+            out_of_memory_cause());
+      // Anything else is Embree's own reason; a limit is named, not blamed.
+      const uint64_t left = address_space_left();
+      throw Error("Embree: cannot create a device (error " + std::to_string(int(e)) + ")" +
+                  (left == UINT64_MAX ? std::string()
+                                      : " (ulimit -v leaves this process " + format_bytes(left) +
+                                            " of address space)"));
     }
     rtcSetDeviceMemoryMonitorFunction(device, &State::monitor, this);
   }

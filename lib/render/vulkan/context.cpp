@@ -1,5 +1,6 @@
 #include "render/vulkan/context.hpp"
 
+#include <sched.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -97,7 +98,9 @@ VkInstance create_instance(bool validation, const std::vector<std::string>& want
   if (r == VK_ERROR_INCOMPATIBLE_DRIVER)
     throw Error("Vulkan: no Vulkan driver found (install mesa-vulkan-drivers for lavapipe)" +
                 limited);
-  if (r != VK_SUCCESS && !limited.empty()) throw Error("Vulkan: vkCreateInstance failed" + limited);
+  if (r != VK_SUCCESS && !limited.empty())
+    throw Error("Vulkan: vkCreateInstance failed (VkResult " + std::to_string(int(r)) + ")" +
+                limited);
   check(r, "vkCreateInstance");
   return instance;
 }
@@ -105,11 +108,17 @@ VkInstance create_instance(bool validation, const std::vector<std::string>& want
 // lavapipe (Mesa 22.3) frees memory twice when an allocation fails inside vkCreateDevice, and the
 // process aborts; under ulimit -v that is where it fails, as its device reserves address space
 // for each worker thread (a malloc arena and a stack). Measured on the development VM through
-// /proc/self/status VmSize: 285 MiB with 1 thread, 425 with 2, 1,080 with 8. So refuse first.
+// /proc/self/status VmSize: 144 MiB without worker threads, 285 with 1, 425 with 2, 1,080 with
+// 8. So refuse first. lavapipe starts a thread for each CPU the process may run on (its
+// affinity: 8 CPUs under `taskset -c 0-7`), none where that is one, or LP_NUM_THREADS.
 void check_lavapipe_address_space() {
   const uint64_t left = address_space_left();
   if (left == UINT64_MAX) return;
-  long threads = ::sysconf(_SC_NPROCESSORS_ONLN);
+  cpu_set_t cpus;
+  CPU_ZERO(&cpus);
+  long threads = ::sched_getaffinity(0, sizeof cpus, &cpus) == 0 ? long(CPU_COUNT(&cpus))
+                                                                 : ::sysconf(_SC_NPROCESSORS_ONLN);
+  if (threads <= 1) threads = 0;
   if (const char* lp = std::getenv("LP_NUM_THREADS")) threads = std::strtol(lp, nullptr, 10);
   threads = std::clamp(threads, 0L, 32L);
   const uint64_t needed = (192ull + 128ull * uint64_t(threads)) << 20;
