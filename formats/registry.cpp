@@ -185,12 +185,15 @@ void make_unique(std::vector<Attribute>& list, const std::string& kind,
   std::set<std::string> taken;
   for (const Attribute& a : list) taken.insert(a.name);
   std::set<std::string> seen;
+  // Per name, the suffix its next search starts at: a name given n times costs n searches, not
+  // n^2 (the fuzzer's OBJ of 20,000 names "x" took 16 s).
+  std::map<std::string, uint64_t> next_suffix;
   for (size_t i = 0; i < list.size(); ++i) {
     const std::string base = list[i].name.empty() ? "unnamed" : list[i].name;
     if (!list[i].name.empty() && seen.insert(base).second) continue;
     std::string name = base;
-    for (int k = 2; taken.count(name) || seen.count(name); ++k)
-      name = base + "_" + std::to_string(k);
+    uint64_t& k = next_suffix.try_emplace(base, 2).first->second;
+    while (taken.count(name) || seen.count(name)) name = base + "_" + std::to_string(k++);
     renamed.push_back(kind + " attribute " + std::to_string(i + 1) + " '" + list[i].name +
                       "' as '" + name + "'");
     list[i].name = name;
@@ -206,7 +209,9 @@ std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader
   make_unique(header.line_attributes, "line", renamed);
   if (renamed.empty()) return reader;
   std::string note;
-  for (const std::string& r : renamed) note += (note.empty() ? "" : "; ") + r;
+  for (size_t r = 0; r < std::min<size_t>(renamed.size(), 16); ++r)
+    note += (note.empty() ? "" : "; ") + renamed[r];
+  if (renamed.size() > 16) note += "; and " + std::to_string(renamed.size() - 16) + " more";
   header.metadata["linebake.renamed_attributes"] = note;
   return std::make_unique<UniqueNames>(std::move(reader), std::move(header));
 }

@@ -359,6 +359,17 @@ TEST(MalformedInput, AttributeNamesGivenTwiceOrNotAtAllAreRenamed) {
   const LineSet named = read_line_set(dir.file("unnamed.binlines"));
   ASSERT_EQ(named.attributes.size(), 1u);
   EXPECT_EQ(named.attributes[0].name, "unnamed");
+  // A name given thousands of times (a fuzzer's OBJ `a` line): each renamed once, the note
+  // naming the first 16.
+  std::string many = "a";
+  for (int i = 0; i < 5000; ++i) many += " x";
+  write_text(dir.file("many.obj"), many + "\n");
+  const LineSet crowded = read_line_set(dir.file("many.obj"));
+  ASSERT_EQ(crowded.attributes.size(), 5000u);
+  EXPECT_EQ(crowded.attributes[4999].name, "x_5000");
+  const std::string& note = crowded.metadata.at("linebake.renamed_attributes");
+  EXPECT_NE(note.find("vertex attribute 17 'x' as 'x_17'; and 4983 more"), std::string::npos)
+      << note.substr(0, 200);
   // Names that were one each: no note.
   write_text(dir.file("once.vtk"), head + "SCALARS t float\nLOOKUP_TABLE default\n1 2\n");
   EXPECT_EQ(read_line_set(dir.file("once.vtk")).metadata.count("linebake.renamed_attributes"), 0u);
