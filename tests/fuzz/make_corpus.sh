@@ -3,7 +3,12 @@
 # every variant the readers take, made by linebake itself from a hand-written CSV line set (three
 # lines, one of a single point), by Python (TrackVis, MRtrix, the JSON and YAML inputs) and by
 # ncgen (NetCDF: Lagranto, CF multidimensional, CF contiguous ragged). The committed corpus is
-# this script's output plus the regression inputs the fuzzers found (named crash-*).
+# this script's output plus the regression inputs the fuzzers found (named crash-*), plus files
+# as other tools write them, made once with those tools (2026-11-29): python3-vtk9's writers
+# (vtk9-*: METADATA blocks, component names, COLOR_SCALARS), nibabel-style TrackVis name slots
+# (nibabel-*), h5py (h5py-*: signed lengths, numeric root attributes, filters), netCDF4-python
+# (packed-*, ragged-reserved: CF packing, NC_STRING attributes, reserved observations), and
+# spreadsheet-style CSV, OBJ vertex colours and MRtrix headers (their own names).
 #   tests/fuzz/make_corpus.sh LINEBAKE        (LINEBAKE: a release build's linebake)
 set -euo pipefail
 bin=$(realpath "$1")
