@@ -91,6 +91,10 @@ Command add_info(CLI::App& app) {
                   r.nonfinite ? (" " + std::to_string(r.nonfinite) + " non-finite").c_str() : "");
     for (const auto& [name, r] : s.line_attribute_ranges)
       std::printf("line attr.  %s [%g, %g]\n", name.c_str(), r.min, r.max);
+    // Names the file gave twice, or not at all, read under new ones (formats/registry.cpp).
+    if (const auto renamed = metadata.find("linebake.renamed_attributes");
+        renamed != metadata.end())
+      std::printf("renamed     %s\n", renamed->second.c_str());
     std::printf(
         "validation  %s%s\n", v.summary().c_str(),
         v.clean() || v.first_problem.empty() ? "" : ("; the first: " + v.first_problem).c_str());
