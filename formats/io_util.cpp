@@ -216,7 +216,8 @@ bool parse_uint64(std::string_view token, uint64_t& out) {
 std::string encode_name(const std::string& name) {
   std::string out;
   for (unsigned char c : name) {
-    if (c <= ' ' || c == '%' || c >= 127) {
+    // '#' too: an OBJ comment starts there, wherever it is on the line.
+    if (c <= ' ' || c == '%' || c == '#' || c >= 127) {
       char hex[4];
       std::snprintf(hex, sizeof(hex), "%%%02X", c);
       out += hex;

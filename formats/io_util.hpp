@@ -177,7 +177,7 @@ bool parse_int64(std::string_view token, int64_t& out);
 bool parse_uint64(std::string_view token, uint64_t& out);
 
 // Attribute names in whitespace-separated formats (VTK legacy, OBJ `a` lines): spaces and
-// other special bytes as %xx, as VTK writes them.
+// other special bytes as %xx, as VTK writes them ('#' too, which starts an OBJ comment).
 std::string encode_name(const std::string& name);
 std::string decode_name(std::string_view encoded);
 

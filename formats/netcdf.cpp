@@ -134,8 +134,12 @@ struct Variable {
   // values outside valid_range (or valid_min, valid_max).
   std::vector<double> missing;
   double valid_min = -HUGE_VAL, valid_max = HUGE_VAL;
+  // Whether the valid range is in unpacked units: given as a type other than the packed data's
+  // (a float range of short data), as netCDF-Java reads it; else packed units (CF 8.1).
+  bool valid_range_unpacked = false;
   bool is_missing(double raw) const {
-    return raw < valid_min || raw > valid_max ||
+    const double v = valid_range_unpacked ? unpack(raw) : raw;
+    return v < valid_min || v > valid_max ||
            std::find(missing.begin(), missing.end(), raw) != missing.end();
   }
   // CF 8.1 packing: unpacked = packed * scale + offset.
@@ -216,6 +220,12 @@ void read_packing(const Nc& nc, Variable& v) {
   v.packed = scale || offset;
   v.scale = scale.value_or(1.0);
   v.offset = offset.value_or(0.0);
+  for (const char* name : {"valid_range", "valid_min", "valid_max"}) {
+    nc_type type;
+    size_t length = 0;
+    if (v.packed && nc_inq_att(nc.id, v.id, name, &type, &length) == NC_NOERR && type != v.type)
+      v.valid_range_unpacked = true;
+  }
 }
 
 template <typename T>
@@ -364,12 +374,11 @@ class NetcdfReader : public LineReader {
       size_t at = 0;
       offsets_.reserve(n.size() + 1);
       offsets_.push_back(0);
-      // CF 9.3.3: a feature not written yet has count 0 or a missing value (the type's default
-      // fill too, where the count variable names none: counts never written).
-      const std::optional<double> unwritten = library_fill(nc_, *counts_);
+      // CF 9.3.3: a feature not written yet has count 0 or a missing value. Only one the count
+      // variable names: a type's default fill is a real count too (255 points in a ubyte count;
+      // the NetCDF user guide gives bytes no default fill, netCDF4-python masks none).
       for (size_t i = 0; i < n.size(); ++i) {
-        const double count =
-            counts_->is_missing(n[i]) || (unwritten && n[i] == *unwritten) ? 0.0 : n[i];
+        const double count = counts_->is_missing(n[i]) ? 0.0 : n[i];
         if (!(count >= 0) || count > double(total - at))
           throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
                            "count runs past the " + std::to_string(total) + " observations");

@@ -6,6 +6,7 @@
 // in a backslash continues on the next.
 
 #include <algorithm>
+#include <limits>
 #include <numeric>
 #include <optional>
 
@@ -17,9 +18,11 @@ namespace linebake::formats {
 LineSet read_obj(const std::string& path, const ReadOptions& options) {
   io::TextReader in(path, options.progress);
   std::vector<float> positions;
-  std::vector<float> vt;      // row-major: point x attribute
-  std::vector<float> colors;  // r, g, b of each vertex, when the first vertex has them
-  std::optional<bool> colored;
+  std::vector<float> vt;  // row-major: point x attribute
+  // r, g, b of each vertex once one has them; NaN for a vertex without (no value, as a NetCDF
+  // fill value reads).
+  std::vector<float> colors;
+  bool colored = false;
   size_t vt_rows = 0;
   size_t attribute_count = SIZE_MAX;
   std::vector<std::string> names;
@@ -32,7 +35,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   // `line`: the line it is at (0: the last one read).
   const auto check_memory = [&](bool growing, double line_bytes = 0, uint64_t line = 0) {
     const double attribute_floats =
-        (attribute_count == SIZE_MAX ? 0 : double(attribute_count)) + (colored == true ? 3 : 0);
+        (attribute_count == SIZE_MAX ? 0 : double(attribute_count)) + (colored ? 3 : 0);
     const double arrays[] = {4.0 * double(positions.size()), 4.0 * double(vt.size()),
                              4.0 * double(colors.size()), 8.0 * double(indices.size()),
                              8.0 * double(offsets.size())};
@@ -53,6 +56,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);
     if (!continued) joined.clear();
+    // A comment runs to the end of its line, whatever it ends in (a path's backslash).
+    line = line.substr(0, line.find('#'));
     if (const std::string_view t = io::trim(line); !t.empty() && t.back() == '\\') {
       joined.append(t.substr(0, t.size() - 1)).push_back(' ');
       if (joined.size() > 65536) check_memory(true, 2.0 * double(joined.size()));
@@ -72,7 +77,7 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
       check_memory(true, double(line.size()) + values * (16 + 8 + 12 + 4 * attributes));
     }
     line = io::trim(line);
-    if (line.empty() || line[0] == '#') continue;
+    if (line.empty()) continue;
     const auto tokens = io::split_whitespace(line);
     const std::string_view key = tokens[0];
     if (key == "v") {
@@ -84,14 +89,13 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
         positions.push_back(value);
       }
       const bool has_color = tokens.size() == 7;
-      if (!colored) colored = has_color;
-      if (has_color != *colored)
-        in.fail(std::string("vertex ") + (has_color ? "with" : "without") +
-                " a colour (x y z r g b), where the first vertex had " +
-                (has_color ? "none" : "one"));
-      for (size_t k = 4; has_color && k < 7; ++k) {
-        float value;
-        if (!io::parse_float(tokens[k], value))
+      if (has_color && !colored) {
+        colored = true;
+        colors.assign(positions.size() - 3, std::numeric_limits<float>::quiet_NaN());
+      }
+      for (size_t k = 4; colored && k < 7; ++k) {
+        float value = std::numeric_limits<float>::quiet_NaN();
+        if (has_color && !io::parse_float(tokens[k], value))
           in.fail("bad colour value '" + std::string(tokens[k]) + "'");
         colors.push_back(value);
       }

@@ -207,7 +207,11 @@ std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader
   std::vector<std::string> renamed;
   make_unique(header.attributes, "vertex", renamed);
   make_unique(header.line_attributes, "line", renamed);
-  if (renamed.empty()) return reader;
+  // A note the file carries (converted from a file whose names were renamed) is that file's,
+  // not this one's: dropped, and this file's own written where it has renames.
+  const bool carried = header.metadata.erase("linebake.renamed_attributes") > 0;
+  if (renamed.empty() && !carried) return reader;
+  if (renamed.empty()) return std::make_unique<UniqueNames>(std::move(reader), std::move(header));
   std::string note;
   for (size_t r = 0; r < std::min<size_t>(renamed.size(), 16); ++r)
     note += (note.empty() ? "" : "; ") + renamed[r];

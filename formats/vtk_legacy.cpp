@@ -3,7 +3,8 @@
 // `OFFSETS type`, `CONNECTIVITY type`). POINT_DATA becomes vertex attributes and the CELL_DATA of
 // the line cells becomes line attributes: SCALARS (any component count), VECTORS, NORMALS,
 // TEXTURE_COORDINATES, TENSORS and FIELD arrays; multi-component arrays are split into
-// name_x/_y/_z (3 components) or name_0.._k.
+// name_x/_y/_z (3 components) or name_0.._k, or name_<component> where a METADATA block's
+// COMPONENT_NAMES names every component.
 
 #include <algorithm>
 #include <cctype>
@@ -162,17 +163,25 @@ class LegacyStream {
 // VTK 9 writes an array's component names and information keys (a component's range, once
 // asked for, as ParaView always does) after it as a METADATA block, which ends at an empty line:
 // the component names (COMPONENT_NAMES, then one a line) are returned, the rest skipped.
-std::vector<std::string> read_metadata(LegacyStream& in) {
+// VTK writes a line for each of the array's `components` after COMPONENT_NAMES, an empty one for a
+// component without a name: that many are names, up to an INFORMATION line (0: the array is not
+// known, names run to INFORMATION or the block's end). Names of fewer or more components than
+// the array has are not used.
+std::vector<std::string> read_metadata(LegacyStream& in, size_t components) {
   in.skip_line();
   std::vector<std::string> names;
-  bool in_names = false;
   for (std::string l = in.line(); !io::trim(l).empty(); l = in.line()) {
-    const std::string text(io::trim(l));
-    if (text == "COMPONENT_NAMES") {
-      in_names = true;
-    } else if (text.rfind("INFORMATION", 0) == 0) {
-      in_names = false;
-    } else if (in_names) {
+    if (std::string(io::trim(l)) != "COMPONENT_NAMES") continue;
+    for (size_t c = 0; components == 0 || c < components; ++c) {
+      if (in.at_end()) in.fail("file ends inside COMPONENT_NAMES");
+      const std::string text(io::trim(in.line()));
+      // Fewer names than components (not as VTK writes them): "INFORMATION <count>" follows.
+      const std::string_view rest =
+          std::string_view(text).substr(std::min<size_t>(text.size(), 12));
+      if (text.rfind("INFORMATION ", 0) == 0 && !rest.empty() &&
+          rest.find_first_not_of("0123456789") == std::string_view::npos)
+        break;
+      if (components == 0 && text.empty()) return names;  // the block's end
       names.push_back(io::decode_name(text));
     }
   }
@@ -414,7 +423,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
     last_first = before, last_components = components, last_name = name;
   };
   const auto metadata_block = [&] {
-    const std::vector<std::string> names = read_metadata(in);
+    const std::vector<std::string> names = read_metadata(in, last_target ? last_components : 0);
     if (last_target && names.size() == last_components)
       for (size_t c = 0; c < last_components; ++c)
         (*last_target)[last_first + c].name =

@@ -248,6 +248,32 @@ TEST(NetCdf, EveryMissingValueConventionCounts) {
   EXPECT_EQ(l.attributes[1].values[2], 50.0f);
 }
 
+// A count variable without a _FillValue has no missing value: a ubyte count of 255 is 255
+// points (review finding: the type's default fill, 255, had been taken for "not written").
+TEST(NetCdf, RaggedCountsOfTheTypesDefaultFillAreCounts) {
+  TempDir dir;
+  const std::string path = dir.file("ubyte.nc");
+  int nc, traj, obs, row, lon, lat;
+  ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
+  ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc, "trajectory", 2, &traj));
+  ok(nc_def_dim(nc, "obs", 258, &obs));
+  ok(nc_def_var(nc, "rowSize", NC_UBYTE, 1, &traj, &row));
+  ok(nc_put_att_text(nc, row, "sample_dimension", 3, "obs"));
+  ok(nc_def_var(nc, "lon", NC_FLOAT, 1, &obs, &lon));
+  ok(nc_def_var(nc, "lat", NC_FLOAT, 1, &obs, &lat));
+  ok(nc_enddef(nc));
+  const unsigned char counts[] = {3, 255};
+  std::vector<float> values(258);
+  for (size_t i = 0; i < values.size(); ++i) values[i] = float(i);
+  ok(nc_put_var_uchar(nc, row, counts));
+  ok(nc_put_var_float(nc, lon, values.data()));
+  ok(nc_put_var_float(nc, lat, values.data()));
+  ok(nc_close(nc));
+  const LineSet l = read_line_set(path);
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 258}));
+}
+
 TEST(NetCdf, BadPackingAttributesAreAnError) {
   TempDir dir;
   auto write = [&](const std::string& name, auto&& add_attribute) {

@@ -39,8 +39,11 @@ namespace {
 
 // Bumped when a step's stored layout changes, so old caches rebuild instead of misreading.
 // Version 2: the content hash is computed per array (batch by batch), and the provenance keeps
-// the line statistics later steps need.
-constexpr uint64_t kLinesVersion = 3;
+// the line statistics later steps need. Version 4 (the key covers the file's bytes, not what the
+// readers make of them): the readers of 2026-11-29 read files differently (VTK component names,
+// OBJ colours, NetCDF packing and missing values, renamed duplicate names), so lines cached from
+// the same file before are read again.
+constexpr uint64_t kLinesVersion = 4;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
 constexpr uint64_t kEmbreeVersion = 1;
