@@ -178,16 +178,13 @@ class CsvReader : public LineReader {
       if (header[k] != required[k])
         in_.fail("header column " + std::to_string(k + 1) + " is '" + std::string(header[k]) +
                  "', expected '" + required[k] + "'");
-    std::map<std::string_view, size_t> seen;  // name -> its column, from 1
-    for (size_t k = 0; k < header.size(); ++k) {
+    // An attribute may be named as a position column (linebake writes one named x so), and
+    // attributes named twice are renamed as in any format (formats/registry.cpp); an empty name
+    // is most often a comma at the end of the header, said as such.
+    for (size_t k = 0; k < header.size(); ++k)
       if (header[k].empty())
         in_.fail("header column " + std::to_string(k + 1) +
                  " has no name (a comma at the end of the header?)");
-      const auto [it, added] = seen.emplace(header[k], k + 1);
-      if (!added)
-        in_.fail("header columns " + std::to_string(it->second) + " and " + std::to_string(k + 1) +
-                 " are both named '" + std::string(header[k]) + "'");
-    }
     columns_ = header.size();
     for (size_t k = 4; k < header.size(); ++k)
       header_.attributes.push_back({std::string(header[k]), {}});
