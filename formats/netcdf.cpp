@@ -374,11 +374,15 @@ class NetcdfReader : public LineReader {
       size_t at = 0;
       offsets_.reserve(n.size() + 1);
       offsets_.push_back(0);
-      // CF 9.3.3: a feature not written yet has count 0 or a missing value. Only one the count
-      // variable names: a type's default fill is a real count too (255 points in a ubyte count;
-      // the NetCDF user guide gives bytes no default fill, netCDF4-python masks none).
+      // CF 9.3.3: a feature not written yet has count 0 or a missing value: one the count
+      // variable names, or the type's default fill where that cannot be a count (the signed
+      // types' are negative: an int count never written); an unsigned type's is a real count
+      // (a ubyte count of 255 points).
+      const std::optional<double> unwritten = library_fill(nc_, *counts_);
       for (size_t i = 0; i < n.size(); ++i) {
-        const double count = counts_->is_missing(n[i]) ? 0.0 : n[i];
+        const double count =
+            counts_->is_missing(n[i]) || (unwritten && *unwritten < 0 && n[i] == *unwritten) ? 0.0
+                                                                                             : n[i];
         if (!(count >= 0) || count > double(total - at))
           throw InputError(path, "variable " + counts_->name + ", index " + std::to_string(i),
                            "count runs past the " + std::to_string(total) + " observations");

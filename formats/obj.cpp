@@ -56,8 +56,9 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
   while (in.next(line)) {
     if (in.line_number() % 65536 == 0) check_memory(true);
     if (!continued) joined.clear();
-    // A comment runs to the end of its line, whatever it ends in (a path's backslash).
-    line = line.substr(0, line.find('#'));
+    // A comment runs to the end of its line, whatever it ends in (a path's backslash); not in
+    // linebake's own `a` lines, whose names older versions wrote with '#' as it was.
+    if (!io::trim(line).starts_with("a ")) line = line.substr(0, line.find('#'));
     if (const std::string_view t = io::trim(line); !t.empty() && t.back() == '\\') {
       joined.append(t.substr(0, t.size() - 1)).push_back(' ');
       if (joined.size() > 65536) check_memory(true, 2.0 * double(joined.size()));

@@ -108,7 +108,9 @@ std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
   if (!info.metadata) {
     std::string keys;
     for (const auto& [key, value] : lines.metadata)
-      if (key != "source") keys += (keys.empty() ? "" : ", ") + key;
+      // The renames note is the read file's (with_unique_names): not the data's to keep.
+      if (key != "source" && key != "linebake.renamed_attributes")
+        keys += (keys.empty() ? "" : ", ") + key;
     if (!keys.empty()) lost.push_back("metadata (" + keys + ")");
   }
   if (!keeps_empty_lines(format)) {

@@ -165,8 +165,8 @@ class LegacyStream {
 // the component names (COMPONENT_NAMES, then one a line) are returned, the rest skipped.
 // VTK writes a line for each of the array's `components` after COMPONENT_NAMES, an empty one for a
 // component without a name: that many are names, up to an INFORMATION line (0: the array is not
-// known, names run to INFORMATION or the block's end). Names of fewer or more components than
-// the array has are not used.
+// known, names run to INFORMATION or the block's end). Names of fewer components than the array
+// has are not used.
 std::vector<std::string> read_metadata(LegacyStream& in, size_t components) {
   in.skip_line();
   std::vector<std::string> names;
@@ -420,15 +420,15 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
   const auto added = [&](std::vector<Attribute>& list, size_t before, const std::string& name,
                          size_t components) {
     last_target = list.size() > before ? &list : nullptr;
-    last_first = before, last_components = components, last_name = name;
+    last_first = before, last_components = components, last_name = name;  // named if kept
   };
   const auto metadata_block = [&] {
-    const std::vector<std::string> names = read_metadata(in, last_target ? last_components : 0);
+    const std::vector<std::string> names = read_metadata(in, last_components);
     if (last_target && names.size() == last_components)
       for (size_t c = 0; c < last_components; ++c)
         (*last_target)[last_first + c].name =
             io::component_name(last_name, c, last_components, names);
-    last_target = nullptr;
+    last_target = nullptr, last_components = 0;
   };
   // After a FIELD array the next token is either its METADATA, alone on its line, or the next
   // array's name, which may be METADATA too (its counts and type follow on the line).
@@ -557,7 +557,7 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
           }
           // Binary strings follow each other; one newline ends the array.
           if (binary) in.skip_line();
-          last_target = nullptr;
+          last_target = nullptr, last_components = size_t(components);
           array_metadata();
           continue;
         }

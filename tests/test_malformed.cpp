@@ -495,6 +495,11 @@ TEST(MalformedInput, ObjStatementsContinuedOverLines) {
   const LineSet commented = read_line_set(dir.file("comments.obj"));
   EXPECT_EQ(commented.line_count(), 2u);
   EXPECT_TRUE(commented.attributes.empty());
+  // But not in linebake's own `a` line, where older versions wrote '#' in a name as it was.
+  write_text(dir.file("names.obj"), "a n#obs speed\nv 0 0 0\nvt 1 2\nv 1 0 0\nvt 3 4\nl 1 2\n");
+  const LineSet named = read_line_set(dir.file("names.obj"));
+  ASSERT_EQ(named.attributes.size(), 2u);
+  EXPECT_EQ(named.attributes[0].name, "n#obs");
 }
 
 // JSON a user writes by hand: a number past double's range, a value of the wrong type, text that

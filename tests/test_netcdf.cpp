@@ -272,6 +272,29 @@ TEST(NetCdf, RaggedCountsOfTheTypesDefaultFillAreCounts) {
   ok(nc_close(nc));
   const LineSet l = read_line_set(path);
   EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 258}));
+
+  // An int count never written holds the int default fill, which cannot be a count: 0, as
+  // netCDF4-python masks it (review finding: the fix above had refused such files).
+  const std::string unwritten = dir.file("unwritten.nc");
+  int nc2, traj2, obs2, row2, lon2, lat2;
+  ok(nc_create(unwritten.c_str(), NC_CLOBBER, &nc2));
+  ok(nc_put_att_text(nc2, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc2, "trajectory", 3, &traj2));
+  ok(nc_def_dim(nc2, "obs", 6, &obs2));
+  ok(nc_def_var(nc2, "rowSize", NC_INT, 1, &traj2, &row2));
+  ok(nc_put_att_text(nc2, row2, "sample_dimension", 3, "obs"));
+  ok(nc_def_var(nc2, "lon", NC_FLOAT, 1, &obs2, &lon2));
+  ok(nc_def_var(nc2, "lat", NC_FLOAT, 1, &obs2, &lat2));
+  ok(nc_enddef(nc2));
+  const size_t first = 0, two = 2, three = 3;
+  const int written[] = {2, 1};
+  ok(nc_put_vara_int(nc2, row2, &first, &two, written));  // the third count never written
+  const float xs[] = {0, 1, 2};
+  ok(nc_put_vara_float(nc2, lon2, &first, &three, xs));
+  ok(nc_put_vara_float(nc2, lat2, &first, &three, xs));
+  ok(nc_close(nc2));
+  const LineSet u = read_line_set(unwritten);
+  EXPECT_EQ(u.line_offsets, (std::vector<uint64_t>{0, 2, 3}));  // the empty feature: no line
 }
 
 TEST(NetCdf, BadPackingAttributesAreAnError) {
