@@ -108,9 +108,10 @@ VkInstance create_instance(bool validation, const std::vector<std::string>& want
 // lavapipe (Mesa 22.3) frees memory twice when an allocation fails inside vkCreateDevice, and the
 // process aborts; under ulimit -v that is where it fails, as its device reserves address space
 // for each worker thread (a malloc arena and a stack). Measured on the development VM through
-// /proc/self/status VmSize: 144 MiB without worker threads, 285 with 1, 425 with 2, 1,080 with
-// 8. So refuse first. lavapipe starts a thread for each CPU the process may run on (its
-// affinity: 8 CPUs under `taskset -c 0-7`), none where that is one, or LP_NUM_THREADS.
+// /proc/self/status VmSize, its growth across vkCreateDevice: 148 MiB without worker threads,
+// 292 with 1, 436 with 2, 1,108 with 8. So refuse first. lavapipe starts a thread for each CPU the
+// process may run on (its affinity: 8 CPUs under `taskset -c 0-7`), none where that is one, or
+// LP_NUM_THREADS.
 void check_lavapipe_address_space() {
   const uint64_t left = address_space_left();
   if (left == UINT64_MAX) return;
