@@ -22,6 +22,7 @@
 #include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
+#include "core/output_lock.hpp"
 #include "lines/line_spool.hpp"
 #include "render/vulkan/rt_scene.hpp"
 #include "synth/synth.hpp"
@@ -527,6 +528,10 @@ BakeResult bake(const BakeOptions& options_in) {
   // under --force; a damaged cache is rebuilt.
   if (!synth::is_synth_source(options.input) && !in_place)
     refuse_input_as_output(result.cache, inputs);
+  // Another bake into this path between reading the old cache and renaming the new one would
+  // have its assets dropped by this one's rename (or drop this one's).
+  std::optional<OutputLock> one_writer;
+  if (!options.dry_run) one_writer.emplace(result.cache);
   std::unique_ptr<CacheReader> old;
   std::error_code absent;
   if (std::filesystem::exists(result.cache, absent)) {

@@ -23,6 +23,7 @@
 #include "core/json_file.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
+#include "core/output_lock.hpp"
 #include "core/progress.hpp"
 #include "lines/line_spool.hpp"
 #include "lines/validate.hpp"
@@ -187,11 +188,15 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const bool show = options.progress && ranks.rank == 0;
 
   // Rank 0 checks the output and names the temporary file every rank writes.
+  // Held by rank 0 until the cache is renamed into place, as the serial bake holds it: a serial
+  // bake adding assets to this path meanwhile would replace this one's cache with the old lines.
+  std::optional<OutputLock> one_writer;
   std::string temp;
   ranks.agree([&] {
     if (ranks.rank != 0) return;
     // Written through a symbolic link, as the serial bake's AtomicFile does; a device refused.
     result.cache = output_target(result.cache);
+    one_writer.emplace(result.cache);
     if (!synth::is_synth_source(inputs[0])) refuse_input_as_output(result.cache, inputs);
     if (std::filesystem::exists(result.cache) && !options.force && !is_linebake_cache(result.cache))
       throw OutputError(result.cache, "exists and is not a linebake cache; --force replaces it");

@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -24,6 +23,7 @@
 #include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
+#include "core/output_lock.hpp"
 #include "formats/registry.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
@@ -297,46 +297,6 @@ class TemporaryInput {
   std::string path_;
 };
 
-// Bakes into one cache path, one at a time in this process: bake() reads the figures it returns
-// back from the cache at that path once it has renamed it there, and so does the report, so a
-// bake of another thread renaming its cache there in between had this call describe that one.
-// Taken without the GIL.
-class CachePathLock {
- public:
-  explicit CachePathLock(const std::string& cache) {
-    std::error_code ignored;
-    key_ = std::filesystem::weakly_canonical(std::filesystem::absolute(cache), ignored).string();
-    {
-      const std::lock_guard<std::mutex> table(table_mutex());
-      std::shared_ptr<std::mutex>& entry = locks()[key_];
-      if (!entry) entry = std::make_shared<std::mutex>();
-      held_ = entry;
-    }
-    held_->lock();
-  }
-  ~CachePathLock() {
-    held_->unlock();
-    const std::lock_guard<std::mutex> table(table_mutex());
-    held_.reset();
-    const auto entry = locks().find(key_);
-    if (entry != locks().end() && entry->second.use_count() == 1) locks().erase(entry);
-  }
-  CachePathLock(const CachePathLock&) = delete;
-  CachePathLock& operator=(const CachePathLock&) = delete;
-
- private:
-  static std::mutex& table_mutex() {
-    static std::mutex mutex;
-    return mutex;
-  }
-  static std::map<std::string, std::shared_ptr<std::mutex>>& locks() {
-    static std::map<std::string, std::shared_ptr<std::mutex>> table;
-    return table;
-  }
-  std::string key_;
-  std::shared_ptr<std::mutex> held_;
-};
-
 py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
                     const std::vector<std::string>& assets, bool progress,
                     const py::kwargs& options) {
@@ -373,8 +333,13 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
     const LongCall call;
     const std::string input = temporary ? temporary->path() : "";
     naming_the_set(input, set_name, o.cache, [&] {
+      // bake() reads the figures it returns back from the cache once it has renamed it there,
+      // and so does the report: held around both, so that another bake (of this process or
+      // another) renaming its cache there in between does not have this call describe that one.
       // bake's default cache path, as it makes it, for a file baked without one.
-      const CachePathLock one_at_a_time(o.cache.empty() ? default_cache_path(o.input) : o.cache);
+      std::optional<OutputLock> one_at_a_time;
+      if (!o.dry_run)
+        one_at_a_time.emplace(o.cache.empty() ? default_cache_path(o.input) : o.cache);
       const BakeResult baked = bake(o);
       result = result_json(baked);
       for (nlohmann::json& note : result["notes"])

@@ -2,7 +2,8 @@
 # Interruption and overwrite tests (issue 27): SIGINT/SIGTERM stop a bake cleanly, a killed bake's
 # temporaries are removed by the next one, an interrupted pipeline continues where it stopped,
 # outputs never replace inputs or foreign files, builds too large for the memory budget are
-# refused at once, and a render keeps reading a cache that a bake replaces under it.
+# refused at once, a render keeps reading a cache that a bake replaces under it, and bakes into
+# one cache take turns.
 set -u
 bin="$1"
 # shellcheck source=tests/check.sh
@@ -91,6 +92,33 @@ check "render finishes on the old cache while bake replaces it" bash -c "
   '$bin' render live.lbc.h5 --technique reference --frames all --frame-count 12 --size 96x64 -o live.png > /dev/null 2> render.err & pid=\$!
   sleep 0.2; '$bin' bake k.binlines -o live.lbc.h5 --tube-sides 4 > /dev/null 2>&1 || exit 1
   wait \$pid && [ \$(ls live_*.png | wc -l) -eq 12 ]"
+
+# Two bakes into one cache: the second waits for the first (an flock on <cache>.lock), then adds
+# its asset to what the first wrote; without the lock the later rename dropped the other's asset.
+check "a bake waits while another process holds the cache's lock, then keeps both assets" bash -c "
+  '$bin' bake a.binlines -o w.lbc.h5 > /dev/null 2>&1 || exit 1
+  flock w.lbc.h5.lock sleep 1.5 & holder=\$!
+  for _ in \$(seq 100); do [ -e w.lbc.h5.lock ] && break; sleep 0.01; done
+  start=\$(date +%s%N)
+  '$bin' bake a.binlines -o w.lbc.h5 --assets tubes,voxels > /dev/null 2> w.err || exit 1
+  ms=\$(( (\$(date +%s%N) - start) / 1000000 )); wait \$holder
+  grep -q 'waiting for another process writing w.lbc.h5 to finish (it holds w.lbc.h5.lock)' w.err &&
+  [ \$ms -ge 1000 ] && [ ! -e w.lbc.h5.lock ] && h5ls w.lbc.h5/assets | grep -q voxels"
+check "two bakes of different assets into one cache at once: both assets kept" bash -c "
+  '$bin' bake a.binlines -o two.lbc.h5 > /dev/null 2>&1 || exit 1
+  '$bin' bake a.binlines -o two.lbc.h5 --assets tubes,voxels > /dev/null 2>&1 & first=\$!
+  '$bin' bake a.binlines -o two.lbc.h5 --assets tubes,embree > /dev/null 2>&1 || exit 1
+  wait \$first || exit 1
+  h5ls two.lbc.h5/assets > assets && grep -q voxels assets && grep -q embree assets &&
+  [ ! -e two.lbc.h5.lock ] && no_temporaries ."
+check "Ctrl-C while waiting for the lock: exit 130, the cache as it was" bash -c "
+  '$bin' bake a.binlines -o i.lbc.h5 > /dev/null 2>&1 || exit 1; before=\$(sum i.lbc.h5)
+  flock i.lbc.h5.lock sleep 5 & holder=\$!
+  for _ in \$(seq 100); do [ -e i.lbc.h5.lock ] && break; sleep 0.01; done
+  '$bin' bake a.binlines -o i.lbc.h5 --assets tubes,voxels > /dev/null 2> i.err & pid=\$!
+  for _ in \$(seq 500); do grep -q waiting i.err 2>/dev/null && break; sleep 0.01; done
+  kill -INT \$pid; wait \$pid; rc=\$?; kill \$holder; wait \$holder
+  [ \$rc -eq 130 ] && [ \"\$(sum i.lbc.h5)\" = \"\$before\" ] && no_temporaries ."
 
 echo "signals: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

@@ -1,0 +1,124 @@
+// OutputLock: one writer at a time for an output path, across threads and processes.
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "core/error.hpp"
+#include "core/output_lock.hpp"
+#include "test_util.hpp"
+
+namespace linebake {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Whether a waiting thread got past the lock within `wait`.
+bool taken_within(std::atomic<bool>& taken, std::chrono::milliseconds wait) {
+  const auto until = std::chrono::steady_clock::now() + wait;
+  while (!taken && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(10ms);
+  return taken;
+}
+
+TEST(OutputLock, AnotherThreadWaitsUntilTheHolderReleases) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  std::atomic<bool> taken{false};
+  std::thread waiter;
+  {
+    const OutputLock held(cache);
+    EXPECT_TRUE(std::filesystem::exists(cache + ".lock"));
+    waiter = std::thread([&] {
+      const OutputLock second(cache);
+      taken = true;
+    });
+    EXPECT_FALSE(taken_within(taken, 300ms));
+  }
+  EXPECT_TRUE(taken_within(taken, 5000ms));
+  waiter.join();
+  EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
+TEST(OutputLock, TheHoldingThreadTakesItAgain) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  {
+    const OutputLock outer(cache);
+    {
+      const OutputLock inner(cache);  // would wait for itself forever if not re-entrant
+    }
+    // Still held by the outer one after the inner one went.
+    EXPECT_TRUE(std::filesystem::exists(cache + ".lock"));
+  }
+  EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
+TEST(OutputLock, TwoSpellingsOfOnePathShareTheLock) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  std::filesystem::create_directories(dir.file("sub"));
+  std::filesystem::create_symlink(cache, dir.file("link.lbc.h5"));
+  EXPECT_EQ(OutputLock::lock_path(dir.file("link.lbc.h5")), cache + ".lock");
+  std::atomic<bool> taken{false};
+  std::thread waiter;
+  {
+    const OutputLock held(cache);
+    waiter = std::thread([&] {
+      const OutputLock second(dir.file("sub/../c.lbc.h5"));
+      taken = true;
+    });
+    EXPECT_FALSE(taken_within(taken, 300ms));
+  }
+  EXPECT_TRUE(taken_within(taken, 5000ms));
+  waiter.join();
+}
+
+// The flock is what another process sees: a child holds the lock until told to let it go.
+TEST(OutputLock, AnotherProcessWaitsUntilTheHolderReleases) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  int held_pipe[2], release_pipe[2];
+  ASSERT_EQ(::pipe(held_pipe), 0);
+  ASSERT_EQ(::pipe(release_pipe), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    int status = 1;
+    {
+      const OutputLock held(cache);
+      char byte = 'h';
+      if (::write(held_pipe[1], &byte, 1) == 1 && ::read(release_pipe[0], &byte, 1) == 1)
+        status = 0;
+    }
+    ::_exit(status);
+  }
+  char byte = 0;
+  ASSERT_EQ(::read(held_pipe[0], &byte, 1), 1);
+  std::atomic<bool> taken{false};
+  std::thread waiter([&] {
+    const OutputLock second(cache);
+    taken = true;
+  });
+  EXPECT_FALSE(taken_within(taken, 400ms));
+  ASSERT_EQ(::write(release_pipe[1], &byte, 1), 1);
+  EXPECT_TRUE(taken_within(taken, 5000ms));
+  waiter.join();
+  int status = -1;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  for (int fd : {held_pipe[0], held_pipe[1], release_pipe[0], release_pipe[1]}) ::close(fd);
+  EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
+TEST(OutputLock, ALockFileThatCannotBeMadeIsAnOutputError) {
+  test::TempDir dir;
+  EXPECT_THROW({ const OutputLock lock(dir.file("missing/c.lbc.h5")); }, OutputError);
+}
+
+}  // namespace
+}  // namespace linebake
