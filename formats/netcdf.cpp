@@ -8,8 +8,10 @@
 // z/p/pressure/alt/altitude/height/level/depth. A missing z is 0. Every other numeric variable of
 // the same shape becomes a vertex attribute. A missing value (_FillValue, any missing_value, or
 // outside valid_range / valid_min / valid_max: CF 2.5.1), NaN/Inf or |value| >= 1e20 in a
-// position ends the line there (incomplete arrays, Lagranto's invalid points); in an attribute
-// it is NaN.
+// position is a gap: the line ends there and the positions after it, if any, make a new line
+// (as --on-invalid repair splits a line at a non-finite point, and plotting tools draw a NaN as a
+// gap); a run of them at the end (incomplete arrays, Lagranto's invalid points) ends it. In an
+// attribute it is NaN.
 // Packed variables (CF 8.1) are unpacked: value * scale_factor + add_offset, in double; the fill
 // value is compared with the packed value. Text attributes may be NC_CHAR or one NC_STRING.
 // A ragged sample dimension may be longer than the counts need (CF 9.3: space reserved for later
@@ -403,6 +405,10 @@ class NetcdfReader : public LineReader {
 
   bool next(LineSet& batch, uint64_t max_points) override {
     copy_lines(header_, 0, 0, batch);
+    if (serve_pending(batch, max_points)) {
+      lines_read_ += batch.line_count();
+      return true;
+    }
     while (file_line_ < line_count_) {
       if (batch.line_count() > 0 && batch.point_count() >= max_points) break;
       const uint64_t room = max_points - batch.point_count();
@@ -422,16 +428,21 @@ class NetcdfReader : public LineReader {
         if (batch.line_count() > 0) break;
         end = file_line_ + 1;  // a line larger than max_points comes alone
       }
-      // The rows read in double beside the batch's arrays, which grow by doubling.
-      // A trajectory that comes alone: the rows read in double beside the batch's arrays, which
-      // grow by doubling.
+      // A trajectory that comes alone: the rows read in double beside its lines' arrays, which
+      // grow by doubling, and their copy into the batch. Its gaps may make it several lines,
+      // which come as batches of their own within max_points.
       if (batch.line_count() == 0 && end == file_line_ + 1) {
         const uint64_t rows = counts_ ? offsets_[end] - offsets_[file_line_] : row_points_;
         io::check_line_memory(nc_.path, lines_read_, rows,
                               8.0 * double(rows) * double(3 + attribute_vars_.size()) +
-                                  2.0 * double(rows) * double(12 + 4 * attribute_vars_.size()),
+                                  3.0 * double(rows) * double(12 + 4 * attribute_vars_.size()),
                               "trajectory " + std::to_string(file_line_) + " of the file",
                               memory_limit_);
+        copy_lines(header_, 0, 0, pending_);
+        read_lines(file_line_, end, pending_);
+        file_line_ = end;
+        if (serve_pending(batch, max_points)) break;
+        continue;
       }
       read_lines(file_line_, end, batch);
       file_line_ = end;
@@ -442,6 +453,23 @@ class NetcdfReader : public LineReader {
   }
 
  private:
+  // Lines of a trajectory read alone that are still to come: into `batch` (empty), as many as
+  // max_points holds (one at least). False when none are left.
+  bool serve_pending(LineSet& batch, uint64_t max_points) {
+    const size_t lines = pending_.line_count();
+    if (pending_line_ >= lines) return false;
+    size_t end = pending_line_ + 1;
+    const uint64_t first = pending_.line_offsets[pending_line_];
+    while (end < lines && pending_.line_offsets[end + 1] - first <= max_points) ++end;
+    copy_lines(pending_, pending_line_, end, batch);
+    pending_line_ = end;
+    if (pending_line_ == lines) {
+      copy_lines(header_, 0, 0, pending_);
+      pending_line_ = 0;
+    }
+    return true;
+  }
+
   // Reads file lines [first, end) of every variable and appends their valid points to `batch`.
   void read_lines(size_t first, size_t end, LineSet& batch) {
     const size_t begin_value = counts_ ? offsets_[first] : 0;  // of the values read
@@ -453,12 +481,16 @@ class NetcdfReader : public LineReader {
     for (size_t line = first; line < end; ++line) {
       const size_t begin = counts_ ? offsets_[line] - begin_value : (line - first) * row_points_;
       const size_t stop = counts_ ? offsets_[line + 1] - begin_value : begin + row_points_;
-      const size_t start_points = batch.point_count();
+      size_t start_points = batch.point_count();
       for (size_t i = begin; i < stop; ++i) {
         bool bad = false;
         for (int axis = 0; axis < 3; ++axis)
           if (axes_[axis] && invalid(*axes_[axis], position_values_[axis][i])) bad = true;
-        if (bad) break;  // an invalid value ends the line
+        if (bad) {  // a gap: the positions after it make the next line
+          if (batch.point_count() > start_points) batch.end_line();
+          start_points = batch.point_count();
+          continue;
+        }
         batch.append_point(
             static_cast<float>(axes_[0]->unpack(position_values_[0][i])),
             static_cast<float>(axes_[1]->unpack(position_values_[1][i])),
@@ -547,6 +579,8 @@ class NetcdfReader : public LineReader {
   size_t row_points_ = 0;          // multidimensional: points per row
   std::vector<uint64_t> offsets_;  // ragged: first observation of each line, and the total
   size_t file_line_ = 0;           // first file line of the next batch
+  LineSet pending_;                // lines of a trajectory read alone, from pending_line_ on
+  size_t pending_line_ = 0;
   std::vector<double> position_values_[3];
   std::vector<std::vector<double>> attribute_values_;
 };

@@ -34,7 +34,7 @@ TEST(NetCdf, LagrantoStyleInvalidValuesEndLines) {
   const float fill = -999.0f;
   ok(nc_put_att_float(nc, lon, "_FillValue", NC_FLOAT, 1, &fill));
   ok(nc_enddef(nc));
-  const float lons[] = {10, 11, 12, 20, -999, 22};  // line 1 ends after its first point
+  const float lons[] = {10, 11, 12, 20, -999, 22};  // a gap: line 1 is two lines of a point
   const float lats[] = {45, 46, 47, 50, 51, 52};
   const float ps[] = {900, 850, 800, 700, 650, 600};
   const float ts[] = {280, 279, 278, 260, 259, 258};
@@ -45,11 +45,12 @@ TEST(NetCdf, LagrantoStyleInvalidValuesEndLines) {
   ok(nc_close(nc));
 
   const LineSet l = read_line_set(path);
-  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4}));
-  EXPECT_EQ(l.positions, (std::vector<float>{10, 45, 900, 11, 46, 850, 12, 47, 800, 20, 50, 700}));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4, 5}));
+  EXPECT_EQ(l.positions,
+            (std::vector<float>{10, 45, 900, 11, 46, 850, 12, 47, 800, 20, 50, 700, 22, 52, 600}));
   ASSERT_EQ(l.attributes.size(), 1u);
   EXPECT_EQ(l.attributes[0].name, "T");
-  EXPECT_EQ(l.attributes[0].values, (std::vector<float>{280, 279, 278, 260}));
+  EXPECT_EQ(l.attributes[0].values, (std::vector<float>{280, 279, 278, 260, 258}));
   EXPECT_EQ(l.metadata.at("netcdf.layout"), "lagranto");
 }
 
@@ -190,18 +191,20 @@ TEST(NetCdf, PackedVariablesAreUnpacked) {
   ok(nc_close(nc));
 
   const LineSet l = read_line_set(path);
-  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4}));
-  EXPECT_EQ(l.positions,
-            (std::vector<float>{10, 41, 1000, 11, 42, 1010, 12, 43, 1020, 15, 39, 1030}));
+  // The packed fill at trajectory 1's second point is a gap: its last point is a line of its own.
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4, 5}));
+  EXPECT_EQ(l.positions, (std::vector<float>{10, 41, 1000, 11, 42, 1010, 12, 43, 1020, 15, 39, 1030,
+                                             17, 37, 1050}));
   ASSERT_EQ(l.attributes.size(), 2u);
   EXPECT_EQ(l.attributes[0].name, "T");
-  ASSERT_EQ(l.attributes[0].values.size(), 4u);
+  ASSERT_EQ(l.attributes[0].values.size(), 5u);
   EXPECT_FLOAT_EQ(l.attributes[0].values[0], 283.0f);
   EXPECT_TRUE(std::isnan(l.attributes[0].values[1]));  // missing_value, compared packed
   EXPECT_FLOAT_EQ(l.attributes[0].values[2], 303.0f);
   EXPECT_FLOAT_EQ(l.attributes[0].values[3], 313.0f);
+  EXPECT_FLOAT_EQ(l.attributes[0].values[4], 333.0f);
   EXPECT_EQ(l.attributes[1].name, "id");
-  EXPECT_EQ(l.attributes[1].values, (std::vector<float>{7, 7, 7, 8}));
+  EXPECT_EQ(l.attributes[1].values, (std::vector<float>{7, 7, 7, 8, 8}));
 }
 
 // CF 2.5.1: a value is missing when it is _FillValue, any of missing_value's values, or outside

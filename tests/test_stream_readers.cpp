@@ -780,7 +780,8 @@ TEST(StreamReaderContent, NoLines) {
   write_text(dir.file("a.csv"), "line_id,x,y,z\n\n");
   write_bytes(dir.file("a.tck"), tck_bytes({}, {}));
   write_bytes(dir.file("a.trk"), trk_bytes({}, {}));
-  write_multidimensional(dir.file("a.nc"), false, 2, 2, grid_x(2, 2, {{0, NAN}, {2, -999.0}}));
+  write_multidimensional(dir.file("a.nc"), false, 2, 2,
+                         grid_x(2, 2, {{0, NAN}, {1, -999.0}, {2, -999.0}, {3, NAN}}));
   for (const char* name : {"a.csv", "a.tck", "a.trk", "a.nc"}) {
     SCOPED_TRACE(name);
     auto reader = open_line_reader(dir.file(name));

@@ -43,8 +43,9 @@ namespace {
 // the line statistics later steps need. Version 4 (the key covers the file's bytes, not what the
 // readers make of them): the readers of 2026-11-29 read files differently (VTK component names,
 // OBJ colours, NetCDF packing and missing values, renamed duplicate names), so lines cached from
-// the same file before are read again.
-constexpr uint64_t kLinesVersion = 4;
+// the same file before are read again. Version 5: a missing NetCDF position is a gap that splits
+// its trajectory (it ended it, dropping the positions after it).
+constexpr uint64_t kLinesVersion = 5;
 constexpr uint64_t kTubesVersion = 1;
 constexpr uint64_t kVoxelsVersion = 1;
 constexpr uint64_t kEmbreeVersion = 1;
