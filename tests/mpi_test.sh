@@ -83,7 +83,10 @@ check "a serial bake with another voxel grid rebuilds the voxels only" bash -c "
   grep -q 'tubes: up to date, reused' r.txt && grep -q 'embree: up to date, reused' r.txt"
 check "asking linebake-mpi for rtx fails, saying how to get it" bash -c "
   mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --assets rtx > v.txt 2>&1
-  [ \$? -ne 0 ] && grep -q 'serial linebake' v.txt && [ ! -e v.lbc.h5 ]"
+  [ \$? -eq 1 ] && grep -q 'serial linebake' v.txt && [ ! -e v.lbc.h5 ]"
+check "linebake-mpi --dry-run is a usage error naming the serial bake" bash -c "
+  mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --dry-run > v.txt 2>&1
+  [ \$? -eq 1 ] && grep -q 'ask the serial linebake bake' v.txt && [ ! -e v.lbc.h5 ]"
 # A budget small enough that the voxel records go to their owners in several waves.
 "$bin" synth convection --scale 0.1 --seed 5 -o big.binlines >/dev/null
 "$bin" bake big.binlines -o big-serial.lbc.h5 --assets voxels --grid 256 >/dev/null 2>&1

@@ -93,16 +93,21 @@ int main(int argc, char** argv) {
     // What a command printed (--json, a report) is one of its outputs: a write that failed
     // there (a full disk behind a redirection) fails the command, so that nothing, `run`
     // included, takes a cut-short output for a whole one.
+    // std::cout, synchronised with stdio, flushes stdout itself: the failing fflush is usually
+    // that one, and the second finds nothing left to write.
     errno = 0;
+    const bool was_good = static_cast<bool>(std::cout);
     std::cout.flush();
+    const int cout_error = was_good && !std::cout ? errno : 0;
+    errno = 0;
     const bool flushed = std::fflush(stdout) == 0;
-    const int error = errno;
+    const int error = !flushed ? errno : cout_error;
     if (!std::cout || !flushed || std::ferror(stdout))
-      // The reason only where this flush failed: an earlier write's errno is gone.
+      // The reason only where these flushes failed: an earlier write's errno is gone.
       throw linebake::OutputError(
           "standard output",
           std::string("a write failed") +
-              (!flushed && error != 0 ? std::string(": ") + std::strerror(error) : std::string()));
+              (error != 0 ? std::string(": ") + std::strerror(error) : std::string()));
     return kOk;
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";

@@ -160,12 +160,13 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   };
   for (const std::string& asset : options.assets)
     if (asset != "tubes" && asset != "voxels" && asset != "embree")
-      throw Error("linebake-mpi builds /lines, tubes, voxels and embree, not " + asset +
-                  "; add it afterwards with the serial linebake bake of the same inputs and -o "
-                  "(it reuses what is up to date)");
+      throw UsageError(
+          "linebake-mpi builds /lines, tubes, voxels and embree, not " + asset +
+          "; add it afterwards with the serial linebake bake of the same inputs and -o "
+          "(it reuses what is up to date)");
   const bool build_tubes = asked("tubes"), build_voxels = asked("voxels"),
              build_embree = asked("embree");
-  if (options.dry_run) throw Error("--dry-run: ask the serial linebake bake for the estimate");
+  if (options.dry_run) throw UsageError("--dry-run: ask the serial linebake bake for the estimate");
   BakeResult result;
   result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
                                        : options.cache;

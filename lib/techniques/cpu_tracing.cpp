@@ -122,7 +122,7 @@ class CpuTracing : public PreparedTechnique {
     trace_.packets = o.packets;
     trace_.every_hit = o.every_hit;
     if (trace_.packets && trace_.collection != HitCollection::Filter)
-      throw Error("--packets: packets collect hits with the filter, not by stepping");
+      throw UsageError("--packets: packets collect hits with the filter, not by stepping");
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,

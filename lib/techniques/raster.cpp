@@ -76,10 +76,10 @@ class Raster : public PreparedTechnique {
         out.stats["layers_capped"] = s.layers_capped;
     }
     if (!s.critical_section.empty()) out.stats["critical_section"] = s.critical_section;
-    if (options_.technique == vk::RasterTechnique::LinkedLists) {
+    if (options_.technique == vk::RasterTechnique::LinkedLists)
       out.stats["node_bytes"] = options_.node_bytes;
-      out.stats["node_buffers"] = s.node_buffers;
-    }
+    // ll's node pool and mlab's/mlabdb's per-pixel nodes are split across storage buffers.
+    if (s.node_buffers > 0) out.stats["node_buffers"] = s.node_buffers;
     if (s.layers_capped)
       out.warnings.push_back("needs " + std::to_string(s.max_depth_complexity) +
                              " layers; dp peeled " + std::to_string(s.layers) + " (--max-layers)");

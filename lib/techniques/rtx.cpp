@@ -110,7 +110,7 @@ class Rtx : public PreparedTechnique {
       out.warnings.push_back(std::to_string(s.truncated_pixels) +
                              " pixels stopped at --max-iterations " +
                              std::to_string(options_.max_iterations));
-    out.note = "GPU " + std::to_string(s.gpu_ms) + " ms";
+    out.note = "GPU " + std::to_string(s.gpu_ms) + " ms on " + context_->info().name;
     return out;
   }
 

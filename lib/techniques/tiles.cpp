@@ -141,7 +141,7 @@ class Tiles : public PreparedTechnique {
         {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
         {"depth_complexity", {{"max", s.max_depth_complexity}}},
         {"frame_bytes", s.frame_bytes}};
-    out.note = std::to_string(s.keys) + " keys";
+    out.note = std::to_string(s.keys) + " keys on " + context_->info().name;
     return out;
   }
 

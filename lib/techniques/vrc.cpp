@@ -80,6 +80,7 @@ class Vrc : public PreparedTechnique {
     if (caster_) {
       out.stats["gpu_ms"] = caster_->last_gpu_ms();
       out.gpu_ms["cast"] = caster_->last_gpu_ms();
+      out.note = "on " + (*context_)->info().name;
     }
     return out;
   }
