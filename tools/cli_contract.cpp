@@ -70,6 +70,16 @@ CLI::Validator within(double lo, double hi) {
                       [lo, hi](double v) { return v >= lo && v <= hi; });
 }
 
+CLI::Validator unsigned_integer() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        return text.find('-') == std::string::npos
+                   ? ""
+                   : "Value " + text + " not in range 0 to 2^64 - 1";
+      },
+      "UINT");
+}
+
 CLI::Validator byte_size() {
   return CLI::Validator(
       [](std::string& text) -> std::string {

@@ -15,6 +15,7 @@ CLI::Validator positive();                    // > 0
 CLI::Validator positive_float();              // > 0, at most float's largest
 CLI::Validator non_negative();                // >= 0
 CLI::Validator within(double lo, double hi);  // lo..hi, both included
+CLI::Validator unsigned_integer();            // no sign: CLI11 takes "-1" as 2^64 - 1
 CLI::Validator byte_size();                   // 2G, 1.5GiB, 512M, 4096, unlimited
 CLI::Validator memory_budget_size();          // byte_size, and not 0 (unlimited is the word)
 // A voxel grid: auto, N or NxNxN (parse_grid's rule).

@@ -34,7 +34,8 @@ Command add_synth(CLI::App& app) {
                   "Fraction of the paper's size (default 1.0; up to 100, generated and written "
                   "batch by batch to .binlines)")
       ->check(within(synth::kMinScale, synth::kMaxScale));
-  sub->add_option("--seed", args->params.seed, "Random seed (default 1)");
+  sub->add_option("--seed", args->params.seed, "Random seed (default 1)")
+      ->check(unsigned_integer());
   sub->add_flag("--adaptive", args->adaptive, "Adaptive RK4 step (default: fixed step)");
   sub->add_option("--to", args->to, "Output format, overriding the extension");
   sub->add_option("--memory-budget", args->memory_budget,

@@ -40,14 +40,7 @@ const std::vector<RenderOptionCheck>& render_option_checks() {
       {"--max-iterations", CLI::Range(1, 1 << 20)},
       {"--sort", one_of({"insertion", "shell", "heap", "quick-hybrid"})},
       {"--node-bytes", CLI::IsMember({24, 12})},
-      // An unsigned option: CLI11 would take "-1" as 2^64 - 1.
-      {"--capacity", CLI::Validator(
-                         [](std::string& text) -> std::string {
-                           return text.find('-') == std::string::npos
-                                      ? ""
-                                      : "Value " + text + " not in range 0 to 2^64 - 1";
-                         },
-                         "UINT")},
+      {"--capacity", unsigned_integer()},
       {"--max-layers", CLI::Range(1, 100000)},
       {"--layers", CLI::Range(1, 64)},
       real_range("--tau-alpha", 0.0, 1.0),
