@@ -25,6 +25,7 @@
 #include "render/image.hpp"
 #include "render/vulkan/context.hpp"
 #include "source_revision.hpp"
+#include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -52,11 +53,11 @@ std::string camera_key(const Camera& c) {
   return text;
 }
 
-// The reference's frame 0 per camera (techniques frame their own bounds: curves and voxels can
-// differ from the tube mesh), rendered when first asked for. Asked for once a cache's techniques
-// have all run and let go of their scenes (FirstFrame): the reference's BVH and a technique's
-// scene are never held at once, and the reference's frames are prepared once per cache (a
-// `reference` row prepares its own scene for its timings).
+// The reference's frame 0 per camera (every technique frames the cache's flight_bounds, so one
+// camera a cache; kept per camera all the same), rendered when first asked for. Asked for once a
+// cache's techniques have all run and let go of their scenes (FirstFrame): the reference's BVH and
+// a technique's scene are never held at once, and the reference's frames are prepared once per
+// cache (a `reference` row prepares its own scene for its timings).
 class ReferenceFrames {
  public:
   ReferenceFrames(const CacheReader& cache, const std::string& name, const TechniqueOptions& o)
@@ -123,7 +124,7 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
     row["device"] = prepared->device().empty() ? "CPU" : prepared->device();
     const nlohmann::json header = prepared->stats();
     if (header.contains("mesh_bytes")) row["mesh_bytes"] = header["mesh_bytes"];
-    const FlightPlan plan = plan_flight("orbit-zoom", args.frames, 0, "all", prepared->bounds(),
+    const FlightPlan plan = plan_flight("orbit-zoom", args.frames, 0, "all", flight_bounds(cache),
                                         options.width, options.height);
     std::vector<double> gpu, wall;
     std::map<std::string, std::vector<double>> passes;

@@ -23,6 +23,7 @@
 #include "render/ray_tracer.hpp"
 #include "render/vulkan/raster_renderer.hpp"
 #include "techniques/families.hpp"
+#include "techniques/framing.hpp"
 
 namespace linebake::cli {
 namespace {
@@ -132,7 +133,7 @@ Command add_depth_complexity(CLI::App& app) {
       left = held.available() - frame_bytes;
     }
     const FlightPlan plan = plan_flight(args->flight, args->frame_count, args->frame, args->frames,
-                                        compute_bounds(tubes), width, height);
+                                        flight_bounds(cache), width, height);
     const bool numbered = plan.frames.size() > 1;
     std::optional<vk::Context> context;
     std::optional<vk::RasterRenderer> renderer;

@@ -18,6 +18,7 @@
 #include "core/progress.hpp"
 #include "flight_plan.hpp"
 #include "render_option_ranges.hpp"
+#include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -33,7 +34,7 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
       technique.prepare(technique.info, cache, args.cache, options);
   for (const std::string& w : prepared->warnings) warn(args.technique + ": " + w);
   const FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
-                                      prepared->bounds(), options.width, options.height);
+                                      flight_bounds(cache), options.width, options.height);
   const bool numbered = plan.frames.size() > 1;
   nlohmann::json stats = prepared->stats();
   stats["technique"] = args.technique;

@@ -2,6 +2,7 @@
 
 #include "core/error.hpp"
 #include "flight_plan.hpp"
+#include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::cli {
@@ -11,17 +12,19 @@ namespace {
 class TechniqueSource : public ViewSource {
  public:
   TechniqueSource(const Technique& technique, const TechniqueOptions& options,
-                  const std::string& memory_budget, std::unique_ptr<PreparedTechnique> prepared)
+                  const std::string& memory_budget, std::unique_ptr<PreparedTechnique> prepared,
+                  const Bounds& bounds)
       : technique_(technique),
         options_(options),
         memory_budget_(memory_budget),
-        prepared_(std::move(prepared)) {}
+        prepared_(std::move(prepared)),
+        bounds_(bounds) {}
   ViewFrame render(const Camera& camera, const TransferFunction& tf, int width,
                    int height) override {
     TechniqueFrame frame = prepared_->render(camera, tf, width, height);
     return {std::move(frame.image), frame.seconds, frame.frame_bytes};
   }
-  Bounds bounds() const override { return prepared_->bounds(); }
+  Bounds bounds() const override { return bounds_; }
   void fit_frame(int width, int height) override {
     TechniqueOptions o = options_;
     o.width = width, o.height = height;
@@ -38,6 +41,7 @@ class TechniqueSource : public ViewSource {
   bool vulkan_ = technique_.info.vulkan || options_.on == "gpu";
   std::string memory_budget_;
   std::unique_ptr<PreparedTechnique> prepared_;
+  Bounds bounds_;  // the cache's flight_bounds, every technique's
 };
 
 }  // namespace
@@ -69,7 +73,8 @@ std::unique_ptr<ViewSource> make_view_source(const std::string& technique, const
   const std::string size = std::to_string(width) + "x" + std::to_string(height);
   check_frame_memory(t.info.name, size, estimate_frame_bytes(t, options), memory_budget);
   return std::make_unique<TechniqueSource>(t, options, memory_budget,
-                                           t.prepare(t.info, cache, cache.path(), options));
+                                           t.prepare(t.info, cache, cache.path(), options),
+                                           flight_bounds(cache));
 }
 
 }  // namespace linebake::cli

@@ -151,8 +151,6 @@ class CpuTracing : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return scene_->bounds(); }
-
   nlohmann::json stats() const override {
     return {{"hit_collection", to_string(trace_.collection)},
             {"packets", trace_.packets},

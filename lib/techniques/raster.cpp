@@ -30,7 +30,6 @@ class Raster : public PreparedTechnique {
         return load_tube_chunk(cache, description, c);
       });
     });
-    bounds_ = renderer_->bounds();
     context_.budget_host_memory(o);  // again, now that the last chunk is let go
     options_.technique = vk::parse_raster_technique(info.name);
     options_.width = o.width, options_.height = o.height;
@@ -87,8 +86,6 @@ class Raster : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return bounds_; }
-
   nlohmann::json stats() const override {
     nlohmann::json j = {{"device", context_->info().name},
                         {"driver", context_->info().driver},
@@ -112,7 +109,6 @@ class Raster : public PreparedTechnique {
  private:
   TechniqueInfo info_;
   ContextHolder context_;
-  Bounds bounds_;
   std::unique_ptr<vk::RasterRenderer> renderer_;
   vk::RasterOptions options_;
 };

@@ -35,7 +35,6 @@ class Rtx : public PreparedTechnique {
                             "rtx traces the tube mesh's triangles (or --rtx-geometry capsules)");
       check_data_fits(info, o, cache, "/assets/tubes", "tube mesh's buffers");
       tubes_ = load_tubes(cache);
-      bounds_ = compute_bounds(tubes_);
       context_.budget_host_memory(o);
       within_budget(info, [&] { scene_.emplace(*context_, tubes_); });
       source = tube_provenance ? tube_provenance->key : "";
@@ -46,8 +45,6 @@ class Rtx : public PreparedTechnique {
           curve_defaults(o.radius, o.attribute, tube_provenance, lines_);
       check_bytes_fit(info, o, capsule_segments_bytes(lines_), "capsule segments");
       capsules_ = build_capsule_segments(lines_, radius, attribute);
-      bounds_ = compute_bounds(lines_);
-      for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
       context_.budget_host_memory(o);
       within_budget(info, [&] { scene_.emplace(*context_, capsules_); });
       const auto lines_provenance = cache.provenance("/lines");
@@ -114,8 +111,6 @@ class Rtx : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return bounds_; }
-
   nlohmann::json stats() const override {
     return {{"device", context_->info().name},
             {"driver", context_->info().driver},
@@ -143,7 +138,6 @@ class Rtx : public PreparedTechnique {
   TubeMesh tubes_;
   LineSet lines_;
   CapsuleSegments capsules_;
-  Bounds bounds_;
   std::optional<vk::RtScene> scene_;
   std::optional<vk::RtRenderer> renderer_;
   vk::RtOptions options_;

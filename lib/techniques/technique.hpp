@@ -118,8 +118,6 @@ class PreparedTechnique {
   // One frame of `width` x `height` (the viewer's window may change it between frames).
   virtual TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                                 int height) = 0;
-  // The box the flight frames (the same for every technique over one cache's tubes).
-  virtual Bounds bounds() const = 0;
   // The technique's own `--stats` header fields (device, BVH or grid figures, options in force).
   virtual nlohmann::json stats() const = 0;
   // The Vulkan device's name, "" on the CPU.

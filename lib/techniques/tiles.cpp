@@ -62,10 +62,7 @@ class Tiles : public PreparedTechnique {
               check_bytes_fit(info, o, tube_chunk_bytes(cache, description, c),
                               "tube mesh's buffers of chunk " + std::to_string(c) +
                                   " (bake --chunk-bytes sets a chunk's size)");
-              TubeChunk chunk = load_tube_chunk(cache, description, c);
-              include_points(
-                  bounds_, std::span<const float>(chunk.positions.data(), chunk.positions.size()));
-              return chunk;
+              return load_tube_chunk(cache, description, c);
             },
             0, 0, sort_subgroups);
       });
@@ -82,8 +79,6 @@ class Tiles : public PreparedTechnique {
               vk::TileRenderer::capsule_upload_bytes(lines.point_count(), lines.segment_count()),
           "capsule segments (with their copy for the upload)");
       const CapsuleSegments capsules = build_capsule_segments(lines, radius, attribute);
-      bounds_ = compute_bounds(lines);
-      for (size_t k = 0; k < 3; ++k) bounds_.min[k] -= radius, bounds_.max[k] += radius;
       context_.budget_host_memory(o);
       within_budget(info, [&] { renderer_.emplace(*context_, capsules, 0, 0, sort_subgroups); });
       radius_ = radius;
@@ -145,7 +140,6 @@ class Tiles : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return bounds_; }
   nlohmann::json stats() const override {
     return {{"device", context_->info().name},
             {"geometry", triangles_ ? "triangles" : "capsules"},
@@ -160,7 +154,6 @@ class Tiles : public PreparedTechnique {
   TechniqueInfo info_;
   ContextHolder context_;
   bool triangles_ = false;
-  Bounds bounds_;
   float radius_ = 0;
   std::optional<vk::TileRenderer> renderer_;
   vk::TileOptions options_;

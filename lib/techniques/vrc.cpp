@@ -1,6 +1,4 @@
 // vrc: voxel ray casting of the cached voxel line grid, on the CPU (TBB) or with Vulkan compute.
-// The flight frames the cached tube mesh's bounds when there is one (so frames compare with the
-// reference's), else the lines' widened by the radius.
 
 #include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
@@ -33,23 +31,6 @@ class Vrc : public PreparedTechnique {
         tube_provenance->stats.contains("radius_world"))
       options_.radius = tube_provenance->stats["radius_world"].get<double>();
     radius_ = vrc_radius(grid_, options_.radius);  // what the casters use
-    // The bounds without the whole mesh or line set in memory: the mesh's positions a chunk at a
-    // time, else the lines' bounds kept in their provenance (older caches: the lines read).
-    const auto lines_provenance = cache.provenance("/lines");
-    if (tube_provenance) {
-      bounds_ = load_tube_bounds(cache);
-    } else {
-      if (lines_provenance && lines_provenance->stats.contains("bounds")) {
-        bounds_ = line_stats_from_json(lines_provenance->stats, cache.path()).bounds;
-      } else {
-        check_data_fits(info, o, cache, "/lines", "lines");
-        bounds_ = compute_bounds(load_lines(cache));
-      }
-      for (size_t k = 0; k < 3; ++k) {
-        bounds_.min[k] -= float(radius_);
-        bounds_.max[k] += float(radius_);
-      }
-    }
     occupancy_ = build_occupancy(grid_);
     if (o.on == "gpu") {
       context_.emplace(o, false);
@@ -85,8 +66,6 @@ class Vrc : public PreparedTechnique {
     return out;
   }
 
-  Bounds bounds() const override { return bounds_; }
-
   nlohmann::json stats() const override {
     nlohmann::json j = {{"on", caster_ ? "gpu" : "cpu"},
                         {"grid",
@@ -113,7 +92,6 @@ class Vrc : public PreparedTechnique {
   OccupancyPyramid occupancy_;
   VrcOptions options_;
   double radius_ = 0;
-  Bounds bounds_;
   std::optional<vk::VoxelCaster> caster_;
 };
 

@@ -15,6 +15,7 @@
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render_option_ranges.hpp"
+#include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
 
 namespace linebake::python {
@@ -247,6 +248,7 @@ class PyRenderer {
       throw Error(name_ + ": cannot run here: " + *reason);
     const LongCall call;
     prepared_ = technique_->prepare(technique_->info, cache_->reader(), cache_->path(), options_);
+    bounds_ = flight_bounds(cache_->reader());
   }
 
   // `function` names the call in messages: "Renderer.render", "render".
@@ -279,7 +281,7 @@ class PyRenderer {
     } else {
       // The CLI's flight: the same cameras for the same bounds, size and frame count.
       const cli::FlightPlan plan =
-          cli::plan_flight(flight, frame_count, frame, "", prepared_->bounds(), width, height);
+          cli::plan_flight(flight, frame_count, frame, "", bounds_, width, height);
       c = plan.cameras[size_t(frame)];
       flight_kind = to_string(plan.kind);
     }
@@ -307,7 +309,7 @@ class PyRenderer {
   }
 
   py::dict bounds() const {
-    const Bounds b = prepared_->bounds();
+    const Bounds& b = bounds_;
     py::dict d;
     d["min"] = b.min;
     d["max"] = b.max;
@@ -322,6 +324,7 @@ class PyRenderer {
   const Technique* technique_ = nullptr;
   std::shared_ptr<PyCache> cache_;
   TechniqueOptions options_;
+  Bounds bounds_;  // the cache's flight_bounds, the same for every technique
   std::unique_ptr<PreparedTechnique> prepared_;
   std::mutex mutex_;
 };
