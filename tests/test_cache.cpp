@@ -461,6 +461,29 @@ TEST(Bake, EmbreeBvhAtBakeStaysWithinTheBudget) {
   EXPECT_TRUE(built);
 }
 
+// The one rule for where a bake writes, which bake() and the callers that lock its output
+// (the CLI's report, Python's) share: Python had locked <stem>.lbc.lbc.h5 for a cache baked in
+// place, in the working directory.
+TEST(Bake, TheOutputPathIsOneRuleForEveryCaller) {
+  TempDir dir;
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.002", "a.lbc.h5");
+  bake(o);
+  BakeOptions in_place;
+  in_place.input = o.cache;
+  EXPECT_EQ(bake_output_path(in_place), o.cache);
+  in_place.cache = dir.file("b.lbc.h5");
+  EXPECT_EQ(bake_output_path(in_place), dir.file("b.lbc.h5"));
+  BakeOptions file;
+  file.input = dir.file("run/traj.binlines");
+  EXPECT_EQ(bake_output_path(file), "traj.lbc.h5");
+  BakeOptions synthetic;
+  synthetic.input = "synth:clouds?scale=0.1";
+  EXPECT_EQ(bake_output_path(synthetic), "clouds.lbc.h5");
+  BakeOptions several;
+  several.inputs = {dir.file("a.binlines"), dir.file("b.binlines")};
+  EXPECT_EQ(bake_output_path(several), "");
+}
+
 TEST(Bake, BadInputLeavesTheOldCacheAlone) {
   TempDir dir;
   BakeOptions o = small_bake(dir);

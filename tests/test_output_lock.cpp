@@ -1,12 +1,14 @@
 // OutputLock: one writer at a time for an output path, across threads and processes.
 
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "core/error.hpp"
@@ -113,6 +115,70 @@ TEST(OutputLock, AnotherProcessWaitsUntilTheHolderReleases) {
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
   for (int fd : {held_pipe[0], held_pipe[1], release_pipe[0], release_pipe[1]}) ::close(fd);
   EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
+// A child forked while a thread of the parent holds the lock (multiprocessing's fork) waits for
+// the parent's flock like any process, and gets it once the parent lets go: it inherited the
+// parent's table, whose holder is a thread it does not have, and had waited for ever on it.
+TEST(OutputLock, AForkedChildWaitsForTheParentsLockNotForItsTable) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  std::atomic<bool> held{false}, release{false};
+  std::thread holder([&] {
+    const OutputLock lock(cache);
+    held = true;
+    while (!release) std::this_thread::sleep_for(10ms);
+  });
+  while (!held) std::this_thread::sleep_for(10ms);
+  int taken_pipe[2];
+  ASSERT_EQ(::pipe(taken_pipe), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::alarm(20);  // a child that waits for ever fails the test rather than hanging it
+    {
+      const OutputLock lock(cache);
+      const char byte = 't';
+      if (::write(taken_pipe[1], &byte, 1) != 1) ::_exit(2);
+    }
+    ::_exit(0);
+  }
+  ::close(taken_pipe[1]);
+  // Not while the parent holds it.
+  pollfd waiting{taken_pipe[0], POLLIN, 0};
+  EXPECT_EQ(::poll(&waiting, 1, 400), 0);
+  release = true;
+  holder.join();
+  char byte = 0;
+  EXPECT_EQ(::read(taken_pipe[0], &byte, 1), 1);
+  int status = -1;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  ::close(taken_pipe[0]);
+  EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
+// Another user's lock file (a shared directory): locked read-only, not refused.
+TEST(OutputLock, ALockFileThatIsNotWritableIsLockedReadOnly) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  { std::ofstream(cache + ".lock").put('x'); }
+  std::filesystem::permissions(cache + ".lock", std::filesystem::perms::owner_read);
+  if (::access((cache + ".lock").c_str(), W_OK) == 0) GTEST_SKIP() << "root writes any file";
+  EXPECT_NO_THROW({ const OutputLock lock(cache); });
+}
+
+TEST(OutputLock, ALockFileThatIsASymbolicLinkIsRefused) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  std::filesystem::create_symlink(dir.file("elsewhere"), cache + ".lock");
+  try {
+    const OutputLock lock(cache);
+    ADD_FAILURE() << "locked through a link";
+  } catch (const OutputError& e) {
+    EXPECT_NE(std::string(e.what()).find("it is a symbolic link"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("elsewhere")));
 }
 
 TEST(OutputLock, ALockFileThatCannotBeMadeIsAnOutputError) {

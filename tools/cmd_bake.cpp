@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #include "cache/cache.hpp"
 #include "cli_contract.hpp"
@@ -15,6 +16,7 @@
 #include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/nearest.hpp"
+#include "core/output_lock.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/report.hpp"
 
@@ -190,6 +192,13 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
     if (!options.dry_run)
       check_output_location(options.cache);  // "" : the default beside the input
+    // Held around the bake (which takes it again) and the report read back after it, so that
+    // another bake's cache renamed there in between is not the one reported. linebake-mpi: on
+    // the rank that prints, rank 0, which holds it in the bake too.
+    std::optional<OutputLock> one_writer;
+    if (print && !options.dry_run)
+      if (const std::string cache = bake_output_path(options); !cache.empty())
+        one_writer.emplace(cache);
     const BakeResult result = run(options);
     if (!print) return;
     if (options.dry_run) {

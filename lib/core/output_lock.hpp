@@ -8,8 +8,12 @@
 // does, and says once that it waits. Threads of one process wait for each other too, and the
 // thread that holds the lock may take it again (the Python module holds it around a bake and
 // the report it reads back). The lock file is removed on release; a process killed while holding
-// it leaves the file, not the lock (the kernel drops a dead process's locks). On a file system
-// without flock the output is written without it, and the process says so once.
+// it leaves the file, not the lock (the kernel drops a dead process's locks). It is made
+// writable as the umask allows (another user's is locked read-only) and never opened through a
+// symbolic link. A process forked while a lock is held or waited for (multiprocessing) starts
+// with none: the parent's lock stays the parent's. On a file system without flock (after a
+// second's tries where the error may pass) the output is written without it, and the process
+// says so once.
 
 #include <memory>
 #include <string>

@@ -131,6 +131,16 @@ std::string default_cache_path(const std::string& input) {
   return std::filesystem::path(input).stem().string() + ".lbc.h5";
 }
 
+std::string bake_output_path(const BakeOptions& options) {
+  if (!options.cache.empty()) return options.cache;
+  const std::vector<std::string> inputs =
+      options.inputs.empty() ? std::vector<std::string>{options.input} : options.inputs;
+  if (inputs.size() != 1) return "";
+  const std::string& input = inputs[0];
+  if (!synth::is_synth_source(input) && is_linebake_cache(input)) return input;
+  return default_cache_path(input);
+}
+
 nlohmann::json to_json(const TubeOptions& t) {
   nlohmann::json j = {{"sides", t.sides},
                       {"radius", t.radius},
@@ -507,8 +517,8 @@ BakeResult bake(const BakeOptions& options_in) {
   // A cache is a line source too: baking it without -o (or into itself) adds assets to it.
   const bool input_is_cache = inputs.size() == 1 && !synth::is_synth_source(options.input) &&
                               is_linebake_cache(options.input);
-  if (input_is_cache && options.cache.empty()) options.cache = options.input;
-  result.cache = options.cache.empty() ? default_cache_path(options.input) : options.cache;
+  result.cache = bake_output_path(options);
+  options.cache = result.cache;
   std::error_code same_error;
   const bool in_place =
       input_is_cache && std::filesystem::equivalent(options.input, result.cache, same_error);

@@ -119,6 +119,10 @@ struct BakeResult {
 };
 
 std::string default_cache_path(const std::string& input);
+// The cache a bake with these options writes: -o; else, for one input that is a linebake cache,
+// that cache (assets are added in place); else default_cache_path of the input. "" for several
+// inputs without -o (which bake refuses).
+std::string bake_output_path(const BakeOptions& options);
 // The /lines step's identity: the inputs' content hash (every file's bytes in order, or a synth
 // source's parameters) and the provenance key made of it, the format and the invalid policy.
 struct LinesIdentity {

@@ -336,10 +336,9 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
       // bake() reads the figures it returns back from the cache once it has renamed it there,
       // and so does the report: held around both, so that another bake (of this process or
       // another) renaming its cache there in between does not have this call describe that one.
-      // bake's default cache path, as it makes it, for a file baked without one.
+      // The path bake writes (the input itself for a cache baked in place).
       std::optional<OutputLock> one_at_a_time;
-      if (!o.dry_run)
-        one_at_a_time.emplace(o.cache.empty() ? default_cache_path(o.input) : o.cache);
+      if (!o.dry_run) one_at_a_time.emplace(bake_output_path(o));
       const BakeResult baked = bake(o);
       result = result_json(baked);
       for (nlohmann::json& note : result["notes"])
