@@ -324,6 +324,7 @@ import json, sys
 cameras = {t: json.load(open(f'{sys.argv[1]}/cam-{t}.json'))['frames'][0]['camera'] for t in ['reference', 'embree', 'll', 'tiles', 'vrc']}
 assert all(c == cameras['reference'] for c in cameras.values()), cameras
 PYEOF"
+check "render --warm-up: the same frames, only the flight's written, the count in --stats" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique ll --frames all --frame-count 3 --size 32x24 -o '$tmp/cold.png' > /dev/null 2>&1 && '$bin' render '$tmp/t.lbc.h5' --technique ll --frames all --frame-count 3 --size 32x24 --warm-up 2 -o '$tmp/warm.png' --stats '$tmp/warm.json' > /dev/null 2>&1 && for f in 000 001 002; do cmp '$tmp/cold_'\$f.png '$tmp/warm_'\$f.png || exit 1; done && [ \$(ls '$tmp' | grep -c '^warm_') -eq 3 ] && grep -q '\"warm_up_frames\": 2' '$tmp/warm.json'"
 check "render vrc on the CPU" "$bin" render "$tmp/t.lbc.h5" --technique vrc --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/vrc.png" --stats "$tmp/vrc.json" --depth-complexity "$tmp/vrcdc.png"
 check "render vrc on the GPU with validation" "$bin" render "$tmp/t.lbc.h5" --technique vrc --on gpu --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/vrcg.png" --stats "$tmp/vrcg.json"
 check "vrc GPU and CPU agree (PSNR >= 45 dB)" bash -c "'$bin' compare '$tmp/vrcg.png' '$tmp/vrc.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
@@ -443,6 +444,7 @@ for t in ('embree', 'll', 'mboit', 'vrc-cpu'): assert r[t]['mean_ssim'] > 0.7 an
 assert r['ll']['mean_psnr_db'] >= 30, r['ll']
 assert j['caches'][0]['name'] == 'aneurysm'"
 check "ci report.md has Table 1 and the quality table" bash -c "grep -q '## Table 1' '$tmp/ci/report.md' && grep -q '| ll |' '$tmp/ci/report.md'"
+check "the ci pipeline's renders warm up a frame first, and the reports say so" bash -c "grep -q 'each technique having rendered 1 untimed warm-up frame first' '$tmp/ci/report.md' && grep -q 'untimed warm-up frame' '$tmp/ci/report.html' && grep -q '\"warm_up_frames\": 1' '$tmp/ci/aneurysm/ll-semi.json'"
 check "ci report.md links the plots, which exist" bash -c "grep -q '](plots/aneurysm-semi-time.svg)' '$tmp/ci/report.md' && for p in time psnr ssim memory; do grep -q '<polyline' '$tmp/ci/plots/aneurysm-semi-'\$p.svg || exit 1; done"
 check "report.html is self-contained: every image a data: URI, no external resources" bash -c "h='$tmp/ci/report.html'; [ \$(grep -o '<img' \"\$h\" | wc -l) -gt 0 ] && ! grep -Eo '(src|href)=\"[^\"]*' \"\$h\" | grep -Ev '^(src=\"data:image/png;base64,|href=\"(#|aneurysm/))' | grep -q ."
 check "report.html loads in headless Chromium without errors and shows every image" bash -c "h='$tmp/ci/report.html'; n=\$(grep -o '<img' \"\$h\" | wc -l); chromium --headless --no-sandbox --disable-gpu --enable-logging=stderr --v=0 --virtual-time-budget=10000 --dump-dom \"file://\$h\" > '$tmp/dom.html' 2> '$tmp/chromium.err'; grep -q \"data-images=\\\"\$n/\$n\\\"\" '$tmp/dom.html' && ! grep -Eq 'Uncaught|CONSOLE.*[Ee]rror' '$tmp/chromium.err'"

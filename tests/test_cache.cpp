@@ -17,6 +17,7 @@
 #include "core/measure.hpp"
 #include "formats/registry.hpp"
 #include "pipeline/bake.hpp"
+#include "pipeline/report.hpp"
 #include "test_util.hpp"
 
 namespace linebake {
@@ -464,6 +465,34 @@ TEST(Bake, EmbreeBvhAtBakeStaysWithinTheBudget) {
 // The one rule for where a bake writes, which bake() and the callers that lock its output
 // (the CLI's report, Python's) share: Python had locked <stem>.lbc.lbc.h5 for a cache baked in
 // place, in the working directory.
+// Steps built in one pass over the data say so: their peak is the pass's, and tubes and voxels,
+// built side by side, overlap in time (the report marks their cells). A step built alone does
+// not (the lines' pass, which plans the tubes, is the lines' own).
+TEST(Bake, StepsBuiltInOnePassSaySo) {
+  TempDir dir;
+  BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.002", "a.lbc.h5");
+  bake(o);
+  {
+    const CacheReader cache(o.cache);
+    EXPECT_TRUE(cache.provenance("/lines")->build.built_with.empty());
+    EXPECT_TRUE(cache.provenance("/assets/tubes")->build.built_with.empty());
+    EXPECT_EQ(report_table_note({summarize_cache(cache)}), "");
+  }
+  o.assets = {"tubes", "voxels"};
+  o.tubes.sides = 4;  // the tubes again, beside the voxels
+  bake(o);
+  const CacheReader cache(o.cache);
+  EXPECT_EQ(cache.provenance("/assets/tubes")->build.built_with,
+            std::vector<std::string>{"voxels"});
+  EXPECT_EQ(cache.provenance("/assets/voxels")->build.built_with,
+            std::vector<std::string>{"tubes"});
+  const std::vector<CacheSummary> summary{summarize_cache(cache)};
+  EXPECT_EQ(report_table_note(summary).rfind("* tubes, voxels: built from the same batches", 0), 0u)
+      << report_table_note(summary);
+  EXPECT_NE(report_markdown(summary).find(" ms * |"), std::string::npos)
+      << report_markdown(summary);
+}
+
 TEST(Bake, TheOutputPathIsOneRuleForEveryCaller) {
   TempDir dir;
   BakeOptions o = quiet_bake(dir, "synth:aneurysm?scale=0.002", "a.lbc.h5");

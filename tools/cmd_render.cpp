@@ -41,6 +41,13 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
   stats["transfer_function"] = tf.name;
   stats["flight"] = to_string(plan.kind);
   stats["frames"] = nlohmann::json::array();
+  // The first frame of a Vulkan technique compiles its pipelines (lavapipe: LLVM), and any
+  // technique's fills the caches: a frame or two first keeps that out of the timed frames.
+  for (int i = 0; i < args.warm_up; ++i) {
+    throw_if_interrupted();
+    prepared->render(plan.cameras[size_t(plan.frames.front())], tf, options.width, options.height);
+  }
+  stats["warm_up_frames"] = args.warm_up;
   TerminalProgress progress("render");
   std::vector<double> seconds;
   std::string last_note;
@@ -86,7 +93,10 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
         (last_note.empty() ? "" : ", " + last_note) + ": " + first);
   else
     say(args.technique + ": " + std::to_string(plan.frames.size()) + " frames, median " +
-        format_seconds(sorted[sorted.size() / 2]) + " per frame: " + first + " .. " + last);
+        format_seconds(sorted.size() % 2
+                           ? sorted[sorted.size() / 2]
+                           : (sorted[sorted.size() / 2 - 1] + sorted[sorted.size() / 2]) / 2) +
+        " per frame: " + first + " .. " + last);
 }
 
 }  // namespace
@@ -110,7 +120,7 @@ Command add_render(CLI::App& app) {
     int max_layers = 2000, layers = 0, wboit_weight = 0, moments = 4;
     double tau_alpha = 0.2, tau_opaque = 0.98, beta = 0.1, moment_bias = -1;
     std::string moment_basis = "power";
-    int frame = 0, frame_count = 64, png_bits = 8;
+    int frame = 0, frame_count = 64, png_bits = 8, warm_up = 0;
     float radius = 0;
     bool early = false, packets = false, json = false;
     std::string memory_budget;
@@ -226,6 +236,11 @@ Command add_render(CLI::App& app) {
       ->check(render_option_check("--size"));
   sub->add_option("-o,--output", args->output, "Image: .png (sRGB) or .pfm (linear float)")
       ->required();
+  sub->add_option("--warm-up", args->warm_up,
+                  "Frames rendered first from the first frame's camera, neither timed nor "
+                  "written: shaders compiled and caches filled before the timed frames "
+                  "(default 0)")
+      ->check(CLI::Range(0, 100));
   sub->add_option("--png-bits", args->png_bits, "8 (default) or 16")
       ->check(render_option_check("--png-bits"));
   sub->add_option("--stats", args->stats, "Frame statistics as JSON");

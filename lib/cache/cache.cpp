@@ -98,26 +98,29 @@ std::string utc_now_iso8601() {
 }
 
 nlohmann::json to_json(const Provenance& p) {
-  return {{"step", p.step},
-          {"key", p.key},
-          {"input_hash", p.input_hash},
-          {"parameters", p.parameters},
-          {"stats", p.stats},
-          {"linebake_version", p.linebake_version},
-          {"created", p.created},
-          {"build",
-           {{"wall_s", p.build.wall_s},
-            {"cpu_s", p.build.cpu_s},
-            {"rss_before_bytes", p.build.rss_before},
-            {"peak_rss_bytes", p.build.peak_rss},
-            {"peak_is_step_local", p.build.peak_is_step_local},
-            {"threads", p.threads},
-            {"memory_budget_bytes", p.memory_budget},
-            {"spill_bytes", p.spill_bytes}}},
-          {"memory_bytes", p.memory_bytes},
-          {"disk_bytes", p.disk_bytes},
-          {"estimated_disk_bytes", p.estimated_disk_bytes},
-          {"compression", p.compression}};
+  nlohmann::json j = {{"step", p.step},
+                      {"key", p.key},
+                      {"input_hash", p.input_hash},
+                      {"parameters", p.parameters},
+                      {"stats", p.stats},
+                      {"linebake_version", p.linebake_version},
+                      {"created", p.created},
+                      {"build",
+                       {{"wall_s", p.build.wall_s},
+                        {"cpu_s", p.build.cpu_s},
+                        {"rss_before_bytes", p.build.rss_before},
+                        {"peak_rss_bytes", p.build.peak_rss},
+                        {"peak_is_step_local", p.build.peak_is_step_local},
+                        {"threads", p.threads},
+                        {"memory_budget_bytes", p.memory_budget},
+                        {"spill_bytes", p.spill_bytes}}},
+                      {"memory_bytes", p.memory_bytes},
+                      {"disk_bytes", p.disk_bytes},
+                      {"estimated_disk_bytes", p.estimated_disk_bytes},
+                      {"compression", p.compression}};
+  // Only where the step shared its passes (caches before 2026-11-29 have no such field).
+  if (!p.build.built_with.empty()) j["build"]["built_with"] = p.build.built_with;
+  return j;
 }
 
 Provenance provenance_from_json(const nlohmann::json& j) {
@@ -135,6 +138,9 @@ Provenance provenance_from_json(const nlohmann::json& j) {
   p.build.rss_before = b.at("rss_before_bytes");
   p.build.peak_rss = b.at("peak_rss_bytes");
   p.build.peak_is_step_local = b.at("peak_is_step_local");
+  if (b.contains("built_with") && b["built_with"].is_array())
+    for (const auto& step : b["built_with"])
+      if (step.is_string()) p.build.built_with.push_back(step.get<std::string>());
   p.threads = b.value("threads", uint64_t{0});
   p.memory_budget = b.value("memory_budget_bytes", uint64_t{0});
   p.spill_bytes = b.value("spill_bytes", uint64_t{0});

@@ -6,6 +6,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace linebake {
 
@@ -15,6 +17,10 @@ struct StepFigures {
   uint64_t rss_before = 0;          // resident bytes when the step started
   uint64_t peak_rss = 0;            // resident high-water mark during the step
   bool peak_is_step_local = false;  // false: the kernel refused the reset, peak is since start
+  // Steps built in the same passes over the data (a bake builds its assets from the same
+  // batches): the peak is those passes', and tubes and voxels, built side by side, overlap in
+  // wall and CPU time. Empty: the step's figures are its own.
+  std::vector<std::string> built_with;
 };
 
 class StepMeter {

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <set>
 
 #include "accel/capsule_segments.hpp"
 #include "cache/embree_store.hpp"
@@ -358,10 +359,15 @@ void check_attribute_options(const BakeOptions& o, const LineSet& header) {
 // memory of the passes it ran in. Steps that run side by side (tubes and voxels in the build
 // pass) each count the process's CPU time while they are in progress, so their figures overlap.
 struct StepClock {
+  explicit StepClock(std::string name) : step(std::move(name)) {}
+  std::string step;
   double wall_s = 0, cpu_s = 0;
   uint64_t peak_rss = 0, rss_before = UINT64_MAX;
+  uint64_t runs = 0;
+  std::set<std::string> built_with;  // the other steps that ran in a pass with this one
   template <class F>
   void run(F&& f) {
+    ++runs;
     const auto start = std::chrono::steady_clock::now();
     const double cpu = process_cpu_seconds();
     rss_before = std::min(rss_before, current_rss_bytes());
@@ -376,6 +382,7 @@ struct StepClock {
     f.rss_before = rss_before == UINT64_MAX ? 0 : rss_before;
     f.peak_rss = peak_rss;
     f.peak_is_step_local = true;
+    f.built_with.assign(built_with.begin(), built_with.end());
     return f;
   }
 };
@@ -386,19 +393,29 @@ class Stage {
   Stage(BakeResult& result, std::string name, std::vector<StepClock*> clocks)
       : result_(result), clocks_(std::move(clocks)) {
     stage_.name = std::move(name);
+    for (const StepClock* c : clocks_) runs_before_.push_back(c->runs);
   }
   ~Stage() {
     const StepFigures f = meter_.stop();
     stage_.wall_s = f.wall_s;
     stage_.cpu_s = f.cpu_s;
     stage_.peak_rss_bytes = f.peak_rss;
-    for (StepClock* c : clocks_) c->peak_rss = std::max(c->peak_rss, f.peak_rss);
+    // The pass's peak is each step's that ran in it, and theirs together.
+    std::vector<StepClock*> ran;
+    for (size_t i = 0; i < clocks_.size(); ++i)
+      if (clocks_[i]->runs > runs_before_[i]) ran.push_back(clocks_[i]);
+    for (StepClock* c : ran) {
+      c->peak_rss = std::max(c->peak_rss, f.peak_rss);
+      for (const StepClock* other : ran)
+        if (other != c) c->built_with.insert(other->step);
+    }
     result_.stages.push_back(stage_);
   }
 
  private:
   BakeResult& result_;
   std::vector<StepClock*> clocks_;
+  std::vector<uint64_t> runs_before_;
   BakeStage stage_;
   StepMeter meter_;
 };
@@ -586,7 +603,7 @@ BakeResult bake(const BakeOptions& options_in) {
   LineSet header;
   LineSetStats stats;
   std::string lines_hash;
-  StepClock lines_clock;
+  StepClock lines_clock{"lines"};
   // HDF5's caches, TBB, the allocator's slack, the datasets' pending chunks.
   if (!budget.unlimited()) {
     if (budget.available() < (uint64_t{32} << 20))
@@ -822,7 +839,7 @@ BakeResult bake(const BakeOptions& options_in) {
   // first pass writes /lines and makes those plans.
   std::optional<TubeStreamBuilder> tubes;
   std::optional<CurvePartPlanner> embree_parts;
-  StepClock tubes_clock, voxels_clock, embree_clock;
+  StepClock tubes_clock{"tubes"}, voxels_clock{"voxels"}, embree_clock{"embree"};
   StoredCurves curves;  // the Embree step's description
   if (building("tubes")) tubes.emplace(header, stats, options.tubes);
   if (building("embree")) {
@@ -830,7 +847,9 @@ BakeResult bake(const BakeOptions& options_in) {
     embree_parts.emplace(curve_part_limit(options.embree));
   }
   if (lines_step.built || tubes || embree_parts) {
-    Stage stage(result, "lines", {&lines_clock, &tubes_clock, &embree_clock});
+    // The plans made here (8 bytes a line) stay through the build pass, whose peak the tubes and
+    // Embree steps get; this pass's is the lines'.
+    Stage stage(result, "lines", {&lines_clock});
     TerminalProgress progress(lines_step.built ? "writing /lines" : "planning");
     std::optional<LineStoreWriter> store;
     if (lines_step.built) store.emplace(writer, header, stats);
@@ -1039,7 +1058,7 @@ BakeResult bake(const BakeOptions& options_in) {
     BakeStep& step = *std::find_if(asset_steps.begin(), asset_steps.end(),
                                    [](const BakeStep& s) { return s.step == "rtx"; });
     Provenance& p = step.provenance;
-    StepClock rtx_clock;
+    StepClock rtx_clock{"rtx"};
     StoredRtx rtx;
     Stage stage(result, "rtx", {&rtx_clock});
     rtx_clock.run([&] {

@@ -13,6 +13,15 @@
 #include "pipeline/report.hpp"
 
 namespace linebake {
+std::string warm_up_note(const Pipeline& p) {
+  return p.warm_up > 0
+             ? "frame times count the flight's frames only, each technique having rendered " +
+                   std::to_string(p.warm_up) + " untimed warm-up frame" +
+                   (p.warm_up > 1 ? "s" : "") + " first (its shaders compiled, its caches filled)"
+             : "frame times count every frame, the first with its shaders' compilation "
+               "(warm_up: 0)";
+}
+
 namespace {
 
 nlohmann::json read_json(const std::string& path) {
@@ -178,8 +187,8 @@ std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummar
         " cores; Vulkan devices: " + e["machine"].value("vulkan", std::string("none")) + ".\n\n";
   md += "## Table 1: data and representations\n\n";
   md += report_markdown(summaries) + "\n";
-  md += "## Frame time and quality\n\nMeans over the flight; PSNR and SSIM against `" +
-        p.reference + "` (" + psnr_cap_note() +
+  md += "## Frame time and quality\n\nMeans over the flight (" + warm_up_note(p) +
+        "); PSNR and SSIM against `" + p.reference + "` (" + psnr_cap_note() +
         "). report.html has the image grids; report.json every frame's numbers.\n";
   for (const auto& group : result_groups(e)) md += markdown_group(group);
   return md;

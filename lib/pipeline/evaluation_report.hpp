@@ -25,6 +25,9 @@ nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<Cache
 double report_psnr(const nlohmann::json& psnr_db);
 // The sentence both reports say it with.
 std::string psnr_cap_note();
+// What the frame times count: "each technique's frames timed after its N untimed warm-up
+// frame(s)" (or that none was rendered first), for both reports.
+std::string warm_up_note(const Pipeline& pipeline);
 
 std::string evaluation_markdown(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
                                 const nlohmann::json& evaluation);

@@ -369,7 +369,7 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
           "</code>: " + std::to_string(p.datasets.size()) + " data set(s), " +
           std::to_string(p.frame_count) + " frame(s) of the <code>" + xml_escape(p.flight) +
           "</code> flight at " + xml_escape(p.size) + ", every technique compared with <code>" +
-          xml_escape(p.reference) + "</code>.</p>\n";
+          xml_escape(p.reference) + "</code>; " + xml_escape(warm_up_note(p)) + ".</p>\n";
   html += "<p>Machine: " + xml_escape(m.value("cpu", std::string("?"))) + ", " +
           std::to_string(m.value("cores", 0)) +
           " cores; Vulkan devices: " + xml_escape(m.value("vulkan", std::string("none"))) +
@@ -380,7 +380,12 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
   html += "</p>\n<h2>Table 1: data and representations</h2>\n";
   std::vector<std::string> header;
   const auto rows = report_table(summaries, header);
-  html += table(header, rows) + paper_comparison(e);
+  html += table(header, rows);
+  if (std::string note = report_table_note(summaries); !note.empty()) {
+    note.erase(std::remove(note.begin(), note.end(), '`'), note.end());
+    html += "<p>" + xml_escape(note) + "</p>\n";
+  }
+  html += paper_comparison(e);
 
   const int frame = grid_frame(p);
   for (const PipelineDataset& d : p.datasets) {

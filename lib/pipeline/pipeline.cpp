@@ -109,8 +109,8 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
   if (!j.is_object())
     throw InputError(file, "", "a pipeline is an object (a JSON object or a YAML mapping)");
   static const std::set<std::string> known{
-      "name",   "output", "datasets", "assets",   "techniques", "transfer_functions",
-      "flight", "frames", "size",     "reference"};
+      "name",   "output", "datasets", "assets", "techniques", "transfer_functions",
+      "flight", "frames", "warm_up",  "size",   "reference"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key)) throw InputError(file, key, "unknown pipeline key");
   Pipeline p;
@@ -215,6 +215,12 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
         j["frames"].get<int64_t>() > 100000)
       throw InputError(file, "frames", "an integer 1..100000");
     p.frame_count = int(j["frames"].get<int64_t>());
+  }
+  if (j.contains("warm_up")) {
+    if (!j["warm_up"].is_number_integer() || j["warm_up"].get<int64_t>() < 0 ||
+        j["warm_up"].get<int64_t>() > 100)
+      throw InputError(file, "warm_up", "an integer 0..100");
+    p.warm_up = int(j["warm_up"].get<int64_t>());
   }
   p.size = string_at(j, "size", p.size, file, "");
   p.reference = string_at(j, "reference", p.reference, file, "");
@@ -473,6 +479,8 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
                        "--depth-complexity",
                        stem + "-dc.png"};
         if (several) render.args.insert(render.args.end(), {"--frames", "all"});
+        if (p.warm_up > 0)
+          render.args.insert(render.args.end(), {"--warm-up", std::to_string(p.warm_up)});
         render.args.insert(render.args.end(), t.options.begin(), t.options.end());
         render.outputs = {stem + ".json"};
         for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));

@@ -40,6 +40,9 @@ struct Pipeline {
   std::map<std::string, std::string> transfer_function_files;
   std::string flight = "orbit-zoom";
   int frame_count = 4;
+  // Frames each render step renders first, untimed (render --warm-up): a Vulkan technique's
+  // first frame compiles its pipelines, which the means would count.
+  int warm_up = 1;
   std::string size = "320x180";
   std::string reference = "reference";  // the technique the others are compared with
 };

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -108,8 +109,10 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
         continue;
       }
       row.push_back(format_bytes(p->memory_bytes));
-      row.push_back(format_duration(p->build.wall_s));
-      row.push_back(format_bytes(p->build.peak_rss));
+      // * : built in a pass shared with other steps (report_table_note).
+      const std::string shared = p->build.built_with.empty() ? "" : " *";
+      row.push_back(format_duration(p->build.wall_s) + shared);
+      row.push_back(format_bytes(p->build.peak_rss) + shared);
       row.push_back(format_bytes(p->disk_bytes) + " (" + p->compression + ")");
       if (a == "voxels") {
         const auto r = p->stats.value("resolution", std::array<uint32_t, 3>{});
@@ -130,6 +133,28 @@ std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummar
   return rows;
 }
 
+namespace {
+template <class Names>
+std::string comma_list(const Names& names) {
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+}  // namespace
+
+std::string report_table_note(const std::vector<CacheSummary>& caches) {
+  std::set<std::string> shared;
+  for (const CacheSummary& c : caches)
+    for (const Provenance& p : c.assets)
+      if (!p.build.built_with.empty()) shared.insert(p.step);
+  if (shared.empty()) return "";
+  return "* " + comma_list(shared) +
+         ": built from the same batches in one pass over the data (a bake reads its input once "
+         "for every asset), so the peak RSS is the pass's, the process included, and tubes and "
+         "voxels, built side by side, overlap in wall and CPU time. `linebake bench tubes`, "
+         "`bench voxels` and `bench embree` measure each alone.";
+}
+
 std::string report_markdown(const std::vector<CacheSummary>& caches) {
   std::vector<std::string> header;
   const auto rows = report_table(caches, header);
@@ -144,6 +169,8 @@ std::string report_markdown(const std::vector<CacheSummary>& caches) {
     for (const auto& cell : row) out << " " << cell << " |";
     out << "\n";
   }
+  if (const std::string note = report_table_note(caches); !note.empty())
+    out << "\n" << note << "\n";
   return out.str();
 }
 
@@ -166,7 +193,11 @@ std::string report_text(const std::vector<CacheSummary>& caches) {
           << format_duration(p.build.cpu_s) << " CPU, " << p.threads << " threads\n"
           << "    peak RSS      " << format_bytes(p.build.peak_rss) << " (process held "
           << format_bytes(p.build.rss_before) << " before"
-          << (p.build.peak_is_step_local ? "" : "; peak since process start") << "; budget "
+          << (p.build.peak_is_step_local ? "" : "; peak since process start")
+          << (p.build.built_with.empty()
+                  ? ""
+                  : "; the peak of a pass shared with " + comma_list(p.build.built_with))
+          << "; budget "
           << (p.memory_budget ? format_bytes(p.memory_budget) : std::string("unlimited")) << ")\n";
       if (p.spill_bytes)
         out << "    spilled       " << format_bytes(p.spill_bytes) << " to a temporary file\n";

@@ -29,6 +29,9 @@ std::string format_duration(double seconds);
 std::vector<std::vector<std::string>> report_table(const std::vector<CacheSummary>& caches,
                                                    std::vector<std::string>& header);
 
+// The footnote to Table 1's cells marked "*" (figures of steps built in one pass), or "".
+std::string report_table_note(const std::vector<CacheSummary>& caches);
+
 nlohmann::json report_json(const std::vector<CacheSummary>& caches);
 std::string report_markdown(const std::vector<CacheSummary>& caches);
 std::string report_text(const std::vector<CacheSummary>& caches);

@@ -32,7 +32,7 @@ double TechniqueFrame::total_gpu_ms() const {
 
 const std::vector<std::string> kCommonRenderOptions = {
     "technique", "tf",    "flight",        "frame-count",      "frame", "frames", "size", "output",
-    "png-bits",  "stats", "memory-budget", "depth-complexity", "json"};
+    "png-bits",  "stats", "memory-budget", "depth-complexity", "json",  "warm-up"};
 
 void check_technique_options(const TechniqueInfo& info, const std::vector<std::string>& given) {
   const auto reads = [&](const std::string& name) {
