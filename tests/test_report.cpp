@@ -88,6 +88,43 @@ TEST(SvgPlot, GapsAtMissingValuesAndLogAxes) {
   EXPECT_NE(svg_line_plot(empty).find("no data"), std::string::npos);
 }
 
+// Eleven techniques in a plot (the quickstart's): the eleventh took the first's colour and, where
+// its line coincided with another's (tiles and embree), could not be told apart.
+TEST(SvgPlot, SeriesPastTheTenthColourAreDashed) {
+  LinePlot plot{"t", "frame", "ms", false, {}};
+  for (size_t i = 0; i < 12; ++i)
+    plot.series.push_back({"s" + std::to_string(i), plot_colour(i), {1, 2}, plot_dash(i)});
+  const std::string svg = svg_line_plot(plot, 520, 300);
+  EXPECT_EQ(plot_colour(10), plot_colour(0));
+  EXPECT_NE(plot_dash(10), plot_dash(0));
+  // Two polylines and two legend lines dashed: series 10 and 11.
+  size_t dashed = 0;
+  for (size_t at = svg.find("stroke-dasharray=\"7,4\""); at != std::string::npos;
+       at = svg.find("stroke-dasharray=\"7,4\"", at + 1))
+    ++dashed;
+  EXPECT_EQ(dashed, 4u);
+  EXPECT_EQ(svg.find("stroke-dasharray=\"\""), std::string::npos);
+}
+
+// The close-up is the window where the images differ most, at any position: differences that
+// fill exactly the 80x45 window at (121, 72) of a 320x180 frame (off the w / 64 grid the search
+// had taken, which found (125, 75)).
+TEST(CloseupWindow, FindsTheWindowWhereTheImagesDifferMostAtAnyPosition) {
+  Image reference(320, 180, 3), image(320, 180, 3);
+  for (int y = 72; y < 72 + 45; ++y)
+    for (int x = 121; x < 121 + 80; ++x)
+      for (int c = 0; c < 3; ++c) image.at(x, y, c) = 1.0f;
+  const ImageWindow w = closeup_window(reference, {image});
+  EXPECT_EQ(w.width, 80);
+  EXPECT_EQ(w.height, 45);
+  EXPECT_EQ(w.x, 121);
+  EXPECT_EQ(w.y, 72);
+  // Nothing differs: the centre.
+  const ImageWindow centre = closeup_window(reference, {reference});
+  EXPECT_EQ(centre.x, 120);
+  EXPECT_EQ(centre.y, 67);  // (180 - 45) / 2, rounded down
+}
+
 TEST(FormatDuration, KeepsTwoOrThreeSignificantDigits) {
   EXPECT_EQ(format_duration(0.0045), "4.5 ms");  // printed "0.00 s" before
   EXPECT_EQ(format_duration(0.00045), "0.45 ms");
@@ -184,10 +221,16 @@ TEST(EvaluationReport, MarkdownStatesThePsnrCapAndKeepsSkipReasonsOutOfTheTable)
   const std::string cap = fixed(psnr(run.frame, run.frame), 0) + " dB";
   EXPECT_NE(md.find("capped at " + cap), std::string::npos) << md;
   EXPECT_EQ(md.find("100 dB"), std::string::npos) << md;
-  EXPECT_NE(md.find("| ll | 4.5 ms | " + fixed(psnr(run.frame, run.frame), 1) + " |"),
+  // The columns and digits the HTML report has (the Markdown had no speed-up or memory).
+  EXPECT_NE(md.find("| ll | 4.5 ms | 2.22x | " + fixed(psnr(run.frame, run.frame), 2) + " |"),
             std::string::npos)
       << md;
-  EXPECT_NE(md.find("| rtx | skipped [1] | | | |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| technique | time / frame | speed-up vs reference | PSNR (dB) | SSIM | min "
+                    "SSIM | peak per-frame memory |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| rtx | skipped [1] | | | | | |"), std::string::npos) << md;
+  EXPECT_NE(md.find("not the scene the technique holds"), std::string::npos) << md;
   EXPECT_NE(md.find("[1] rtx: no Vulkan device with ray tracing"), std::string::npos) << md;
   // An identical image's PSNR, written as null by older runs, counts as what psnr() returns.
   EXPECT_EQ(report_psnr(nlohmann::json()), psnr(run.frame, run.frame));
@@ -207,7 +250,9 @@ TEST(EvaluationReport, HtmlStatesTheGainNotesSkipsAndReportsTheRenderTimeBvh) {
             std::string::npos);
   EXPECT_EQ(count_of(html, "no Vulkan device with ray tracing"), 2u);
   // Speed-ups: the reference's time / the technique's, with the reason they are below 1 here.
-  EXPECT_NE(html.find(">2.22x<"), std::string::npos);    // 10 ms / 4.5 ms
+  EXPECT_NE(html.find(">2.22x<"), std::string::npos);                             // 10 ms / 4.5 ms
+  EXPECT_NE(html.find(">4.5 ms</td><td class=\"n\">2.22x<"), std::string::npos);  // as in the .md
+  EXPECT_NE(html.find("time per frame of <code>reference</code> divided"), std::string::npos);
   EXPECT_NE(html.find(">0.0025x<"), std::string::npos);  // 10 ms / 4 s, not "0.00x"
   EXPECT_NE(html.find("below 1 = slower"), std::string::npos);
   EXPECT_NE(html.find("a software renderer on the same CPU"), std::string::npos);

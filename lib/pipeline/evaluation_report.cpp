@@ -13,15 +13,6 @@
 #include "pipeline/report.hpp"
 
 namespace linebake {
-std::string warm_up_note(const Pipeline& p) {
-  return p.warm_up > 0
-             ? "frame times count the flight's frames only, each technique having rendered " +
-                   std::to_string(p.warm_up) + " untimed warm-up frame" +
-                   (p.warm_up > 1 ? "s" : "") + " first (its shaders compiled, its caches filled)"
-             : "frame times count every frame, the first with its shaders' compilation "
-               "(warm_up: 0)";
-}
-
 namespace {
 
 nlohmann::json read_json(const std::string& path) {
@@ -41,6 +32,67 @@ std::string fixed(double value, int digits) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& summary_columns() {
+  static const std::vector<std::string> columns = {
+      "technique", "time / frame", "speed-up vs reference", "PSNR (dB)",
+      "SSIM",      "min SSIM",     "peak per-frame memory"};
+  return columns;
+}
+
+std::vector<std::string> summary_cells(const nlohmann::json& r, double reference_seconds,
+                                       bool is_reference) {
+  double peak = 0;
+  for (const auto& f : r["frames"])
+    if (f.contains("frame_bytes") && f["frame_bytes"].is_number())
+      peak = std::max(peak, f["frame_bytes"].get<double>());
+  const double seconds = r["mean_seconds"].get<double>();
+  std::string speedup;
+  if (reference_seconds > 0 && seconds > 0) {
+    const double ratio = reference_seconds / seconds;
+    char text[32];
+    std::snprintf(text, sizeof text, ratio < 0.1 ? "%.2gx" : "%.2fx", ratio);
+    speedup = text;
+  }
+  std::vector<std::string> cells = {r["technique"].get<std::string>(), format_duration(seconds),
+                                    speedup};
+  if (r.contains("mean_ssim"))
+    cells.insert(cells.end(),
+                 {fixed(r["mean_psnr_db"].get<double>(), 2), fixed(r["mean_ssim"].get<double>(), 4),
+                  fixed(r["min_ssim"].get<double>(), 4)});
+  else
+    cells.insert(cells.end(), {is_reference ? "reference" : "", "", ""});
+  cells.push_back(format_bytes(uint64_t(peak)));
+  return cells;
+}
+
+std::string summary_note(const nlohmann::json& machine, const std::string& reference,
+                         const std::function<std::string(const std::string&)>& code) {
+  std::string note = "Speed-up = the time per frame of " + code(reference) +
+                     " divided by the technique's; below 1 = slower. The reference ray traces "
+                     "the exact tube mesh with Embree on every CPU core, its BVH built before the "
+                     "first frame and not counted";
+  const std::string vulkan = machine.value("vulkan", std::string("none"));
+  for (const char* software : {"llvmpipe", "lavapipe", "SwiftShader"})
+    if (vulkan.find(software) != std::string::npos) {
+      note += ", while the Vulkan techniques run on " + vulkan +
+              ", a software renderer on the same CPU";
+      break;
+    }
+  return note +
+         ". Per-frame memory is what a frame takes (the image, its outputs and the technique's "
+         "per-pixel storage: --stats' frame_bytes), not the scene the technique holds (its BVH, "
+         "mesh or voxel grid: Table 1, and --stats' mesh_bytes).";
+}
+
+std::string warm_up_note(const Pipeline& p) {
+  return p.warm_up > 0
+             ? "frame times count the flight's frames only, each technique having rendered " +
+                   std::to_string(p.warm_up) + " untimed warm-up frame" +
+                   (p.warm_up > 1 ? "s" : "") + " first, which compiled its shaders and filled its caches"
+             : "frame times count every frame, the first with its shaders' compilation "
+               "(warm_up: 0)";
+}
 
 double report_psnr(const nlohmann::json& psnr_db) {
   // `compare` writes psnr() (lib/metrics), capped at kPsnrCap; a null, what an infinite PSNR of
@@ -144,32 +196,35 @@ std::vector<std::vector<const nlohmann::json*>> result_groups(const nlohmann::js
 
 // One data set and transfer function: the plots, the table, and the reasons for skipped
 // techniques as numbered notes under it (in the table they would stretch its column).
-std::string markdown_group(const std::vector<const nlohmann::json*>& results) {
+std::string markdown_group(const Pipeline& p, const std::vector<const nlohmann::json*>& results) {
   const nlohmann::json& first = *results.front();
   const std::string dataset = first["dataset"], tf = first["transfer_function"];
   const std::string plot = "plots/" + dataset + "-" + tf + "-";
   std::string md = "\n### " + dataset + ", `" + tf + "`\n\n![frame time](" + plot +
                    "time.svg) ![PSNR](" + plot + "psnr.svg) ![SSIM](" + plot +
-                   "ssim.svg) ![per-frame memory](" + plot + "memory.svg)\n" +
-                   "\n\n| technique | time / frame | PSNR (dB) | SSIM | min SSIM |\n"
-                   "|---|---:|---:|---:|---:|\n";
+                   "ssim.svg) ![per-frame memory](" + plot + "memory.svg)\n\n\n|";
+  for (const std::string& column : summary_columns()) md += " " + column + " |";
+  md += "\n|---|";
+  for (size_t i = 1; i < summary_columns().size(); ++i) md += "---:|";
+  md += "\n";
+  double reference_seconds = 0;
+  for (const nlohmann::json* r : results)
+    if ((*r)["technique"] == p.reference && r->contains("mean_seconds"))
+      reference_seconds = (*r)["mean_seconds"].get<double>();
   std::string notes;
   int note = 0;
   for (const nlohmann::json* r : results) {
     const std::string name = (*r)["technique"];
     if (r->contains("skipped")) {
       const std::string mark = "[" + std::to_string(++note) + "]";
-      md += "| " + name + " | skipped " + mark + " | | | |\n";
+      md += "| " + name + " | skipped " + mark + " | | | | | |\n";
       notes += mark + " " + name + ": " + (*r)["skipped"].get<std::string>() + "  \n";
       continue;
     }
-    md += "| " + name + " | " + format_duration((*r)["mean_seconds"].get<double>()) + " | ";
-    if (r->contains("mean_ssim"))
-      md += fixed((*r)["mean_psnr_db"].get<double>(), 1) + " | " +
-            fixed((*r)["mean_ssim"].get<double>(), 4) + " | " +
-            fixed((*r)["min_ssim"].get<double>(), 4) + " |\n";
-    else
-      md += "reference | | |\n";
+    md += "|";
+    for (const std::string& cell : summary_cells(*r, reference_seconds, name == p.reference))
+      md += " " + cell + " |";
+    md += "\n";
   }
   return notes.empty() ? md : md + "\n" + notes;
 }
@@ -190,7 +245,11 @@ std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummar
   md += "## Frame time and quality\n\nMeans over the flight (" + warm_up_note(p) +
         "); PSNR and SSIM against `" + p.reference + "` (" + psnr_cap_note() +
         "). report.html has the image grids; report.json every frame's numbers.\n";
-  for (const auto& group : result_groups(e)) md += markdown_group(group);
+  for (const auto& group : result_groups(e)) md += markdown_group(p, group);
+  md +=
+      "\n" +
+      summary_note(e["machine"], p.reference, [](const std::string& s) { return "`" + s + "`"; }) +
+      "\n";
   return md;
 }
 

@@ -3,6 +3,7 @@
 // data set and transfer function, each technique's frame times and its PSNR / SSIM against the
 // reference along the flight, from the files the run's steps wrote. Markdown and JSON.
 
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -25,6 +26,17 @@ nlohmann::json evaluation_json(const Pipeline& pipeline, const std::vector<Cache
 double report_psnr(const nlohmann::json& psnr_db);
 // The sentence both reports say it with.
 std::string psnr_cap_note();
+// The summary table's columns, and one row's cells for a result that was not skipped (plain
+// text: the HTML report escapes them): mean time per frame, speed-up against the reference
+// (whose mean time is `reference_seconds`; 0: none), mean PSNR, mean and least SSIM, and the
+// largest frame_bytes. Both reports show the same figures to the same digits.
+const std::vector<std::string>& summary_columns();
+std::vector<std::string> summary_cells(const nlohmann::json& result, double reference_seconds,
+                                       bool is_reference);
+// What the speed-up and per-frame memory columns mean, in plain text; `code` wraps a name
+// ("`" for Markdown).
+std::string summary_note(const nlohmann::json& machine, const std::string& reference,
+                         const std::function<std::string(const std::string&)>& code);
 // What the frame times count: "each technique's frames timed after its N untimed warm-up
 // frame(s)" (or that none was rendered first), for both reports.
 std::string warm_up_note(const Pipeline& pipeline);

@@ -47,11 +47,7 @@ Image thumbnail(const Image& image) {
   return out;
 }
 
-struct Window {
-  int x = 0, y = 0, width = 0, height = 0;
-};
-
-Image crop(const Image& image, const Window& w) {
+Image crop(const Image& image, const ImageWindow& w) {
   Image out(w.width, w.height, image.channels);
   out.srgb_encoded = image.srgb_encoded;
   for (int y = 0; y < w.height; ++y)
@@ -63,36 +59,6 @@ Image crop(const Image& image, const Window& w) {
 double luminance(const Image& image, int x, int y) {
   if (image.channels == 1) return image.at(x, y, 0);
   return 0.2126 * image.at(x, y, 0) + 0.7152 * image.at(x, y, 1) + 0.0722 * image.at(x, y, 2);
-}
-
-// The quarter-size window where the techniques differ most from the reference (summed absolute
-// luminance difference), found with a summed-area table; the centre when nothing differs.
-Window closeup_window(const Image& reference, const std::vector<Image>& images) {
-  const int w = reference.width, h = reference.height;
-  Window best{(w - w / 4) / 2, (h - h / 4) / 2, std::max(1, w / 4), std::max(1, h / 4)};
-  std::vector<double> table(size_t(w + 1) * size_t(h + 1), 0.0);
-  const auto at = [&](int x, int y) -> double& { return table[size_t(y) * size_t(w + 1) + x]; };
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      double diff = 0;
-      for (const Image& image : images)
-        if (image.width == w && image.height == h)
-          diff += std::fabs(luminance(image, x, y) - luminance(reference, x, y));
-      at(x + 1, y + 1) = diff + at(x, y + 1) + at(x + 1, y) - at(x, y);
-    }
-  double best_sum = 0;
-  const int stride = std::max(1, w / 64);
-  for (int y = 0; y + best.height <= h; y += stride)
-    for (int x = 0; x + best.width <= w; x += stride) {
-      const double sum = at(x + best.width, y + best.height) - at(x, y + best.height) -
-                         at(x + best.width, y) + at(x, y);
-      if (sum > best_sum * (1 + 1e-12) + 1e-12) {
-        best_sum = sum;
-        best.x = x;
-        best.y = y;
-      }
-    }
-  return best;
 }
 
 // A depth-complexity image (16-bit counts) in a perceptual blue-to-yellow ramp, 0 = black.
@@ -175,9 +141,20 @@ constexpr const char* kBuiltAtRender =
 // built (marked), not "not built".
 std::string paper_comparison(const nlohmann::json& evaluation) {
   std::vector<std::vector<std::string>> rows;
-  const auto gb = [](const nlohmann::json& asset) {
-    return asset.is_object() ? fixed(asset.value("memory_bytes", 0.0) / 1e9, 3) : "-";
+  // Three decimals, as the paper's Table 1 has two; a size too small for them (a small data
+  // set's voxel grid read "0.000") with two significant digits.
+  const auto gb_text = [](double bytes) {
+    const double gb = bytes / 1e9;
+    if (gb == 0 || gb >= 0.0005) return fixed(gb, 3);
+    char text[32];
+    std::snprintf(text, sizeof text, "%.2g", gb);
+    return std::string(text);
   };
+  const auto gb = [&](const nlohmann::json& asset) {
+    return asset.is_object() ? gb_text(asset.value("memory_bytes", 0.0)) : "-";
+  };
+  // The paper's build times as it gives them, to a tenth of a second.
+  const auto paper_s = [](double seconds) { return fixed(seconds, 1) + " s"; };
   const auto secs = [](const nlohmann::json& asset) {
     return asset.is_object() ? format_duration(asset["build"].value("wall_s", 0.0)) : "-";
   };
@@ -193,7 +170,7 @@ std::string paper_comparison(const nlohmann::json& evaluation) {
     std::string embree_gb = gb(asset("embree")), embree_s = secs(asset("embree"));
     const nlohmann::json at_render = render_time_embree_bvh(evaluation, c.value("name", ""));
     if (!a.contains("embree") && at_render.is_object()) {
-      embree_gb = fixed(at_render["memory_bytes"].get<double>() / 1e9, 3) + " *";
+      embree_gb = gb_text(at_render["memory_bytes"].get<double>()) + " *";
       embree_s = format_duration(at_render["seconds"].get<double>()) + " *";
       built_at_render = true;
     }
@@ -204,8 +181,8 @@ std::string paper_comparison(const nlohmann::json& evaluation) {
     rows.push_back({paper->dataset + " (paper)", fixed(paper->segments_millions, 1),
                     fixed(paper->line_model_mb, 0), fixed(paper->raster_gb, 2),
                     fixed(paper->osp_gb, 2), fixed(paper->rtx_gb, 2), fixed(paper->vrc_gb, 2),
-                    format_duration(paper->raster_s), format_duration(paper->osp_s),
-                    format_duration(paper->rtx_s), format_duration(paper->vrc_s)});
+                    paper_s(paper->raster_s), paper_s(paper->osp_s), paper_s(paper->rtx_s),
+                    paper_s(paper->vrc_s)});
   }
   if (rows.empty()) return "";
   return "<p>Beside the paper's Table 1 (its machine, its data at full size; linebake's synthetic "
@@ -238,28 +215,6 @@ window.addEventListener('load', function () {
 )";
 
 // Two decimals, and two significant digits below 0.1, where two decimals would read "0.00x".
-std::string speedup_text(double ratio) {
-  char text[32];
-  std::snprintf(text, sizeof text, ratio < 0.1 ? "%.2gx" : "%.2fx", ratio);
-  return text;
-}
-
-// Why the speed-ups are mostly below 1 where they are: the reference is no slow brute force.
-std::string speedup_note(const nlohmann::json& machine, const std::string& reference) {
-  std::string note = "Speed-up = the time per frame of <code>" + xml_escape(reference) +
-                     "</code> divided by the technique's; below 1 = slower. The reference ray "
-                     "traces the exact tube mesh with Embree on every CPU core, its BVH built "
-                     "before the first frame and not counted";
-  const std::string vulkan = machine.value("vulkan", std::string("none"));
-  for (const char* software : {"llvmpipe", "lavapipe", "SwiftShader"})
-    if (vulkan.find(software) != std::string::npos) {
-      note += ", while the Vulkan techniques run on " + xml_escape(vulkan) +
-              ", a software renderer on the same CPU";
-      break;
-    }
-  return note + ".";
-}
-
 // The summary of one data set and transfer function: a row per technique; a skipped one has a
 // short cell with a numbered note under the table (its reason would stretch the column) and the
 // reason as the cell's tooltip.
@@ -284,28 +239,54 @@ std::string summary_table(const Pipeline& p, const std::vector<const nlohmann::j
       notes += "<li value=\"" + mark + "\">" + name + ": " + reason + "</li>";
       continue;
     }
-    double peak = 0;
-    for (const auto& f : (*r)["frames"]) peak = std::max(peak, number_or(f, "frame_bytes", 0));
-    const double seconds = (*r)["mean_seconds"].get<double>();
-    const std::string speedup =
-        reference_seconds > 0 ? speedup_text(reference_seconds / seconds) : "";
-    if (r->contains("mean_ssim"))
-      rows.push_back({name, fixed(seconds * 1e3, 1), speedup,
-                      fixed((*r)["mean_psnr_db"].get<double>(), 2),
-                      fixed((*r)["mean_ssim"].get<double>(), 4),
-                      fixed((*r)["min_ssim"].get<double>(), 4), format_bytes(uint64_t(peak))});
-    else
-      rows.push_back({name, fixed(seconds * 1e3, 1), speedup, "reference", "", "",
-                      format_bytes(uint64_t(peak))});
+    std::vector<std::string> cells =
+        summary_cells(*r, reference_seconds, (*r)["technique"] == p.reference);
+    for (std::string& cell : cells) cell = xml_escape(cell);
+    rows.push_back(std::move(cells));
   }
-  std::string html = html_table({"technique", "ms / frame", "speed-up vs reference", "PSNR (dB)",
-                                 "SSIM", "min SSIM", "peak per-frame memory"},
-                                rows);
+  std::string html = html_table(summary_columns(), rows);
   if (!notes.empty()) html += "<ol class=\"notes\">" + notes + "</ol>\n";
-  return html + "<p>" + speedup_note(machine, p.reference) + " " + psnr_cap_note() + ".</p>\n";
+  const std::string note_text = summary_note(machine, p.reference, [](const std::string& s) {
+    return "\x01" + s + "\x02";  // marks for <code>, placed after escaping
+  });
+  std::string escaped = xml_escape(note_text);
+  for (size_t at; (at = escaped.find('\x01')) != std::string::npos;)
+    escaped.replace(at, 1, "<code>");
+  for (size_t at; (at = escaped.find('\x02')) != std::string::npos;)
+    escaped.replace(at, 1, "</code>");
+  return html + "<p>" + escaped + " " + psnr_cap_note() + ".</p>\n";
 }
 
 }  // namespace
+
+ImageWindow closeup_window(const Image& reference, const std::vector<Image>& images) {
+  const int w = reference.width, h = reference.height;
+  ImageWindow best{(w - w / 4) / 2, (h - h / 4) / 2, std::max(1, w / 4), std::max(1, h / 4)};
+  std::vector<double> table(size_t(w + 1) * size_t(h + 1), 0.0);
+  const auto at = [&](int x, int y) -> double& { return table[size_t(y) * size_t(w + 1) + x]; };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      double diff = 0;
+      for (const Image& image : images)
+        if (image.width == w && image.height == h)
+          diff += std::fabs(luminance(image, x, y) - luminance(reference, x, y));
+      at(x + 1, y + 1) = diff + at(x, y + 1) + at(x + 1, y) - at(x, y);
+    }
+  // Every position: the table makes each window four lookups (2 million at 1920x1080); a search
+  // on a grid of w / 64 had missed the best window by up to a grid step.
+  double best_sum = 0;
+  for (int y = 0; y + best.height <= h; ++y)
+    for (int x = 0; x + best.width <= w; ++x) {
+      const double sum = at(x + best.width, y + best.height) - at(x, y + best.height) -
+                         at(x + best.width, y) + at(x, y);
+      if (sum > best_sum * (1 + 1e-12) + 1e-12) {
+        best_sum = sum;
+        best.x = x;
+        best.y = y;
+      }
+    }
+  return best;
+}
 
 std::string error_image_caption() {
   return "Error images: the absolute difference from the reference (mean over the colour "
@@ -329,10 +310,11 @@ std::map<std::string, std::string> evaluation_plots(const Pipeline& p, const nlo
       size_t index = 0;
       for (const auto& r : e["results"]) {
         if (r["dataset"] != d.name || r["transfer_function"] != tf) continue;
-        const std::string colour = plot_colour(index++);
+        const std::string colour = plot_colour(index), dash = plot_dash(index);
+        ++index;
         if (r.contains("skipped")) continue;
-        PlotSeries t{r["technique"], colour, {}}, q{t.name, colour, {}}, s{t.name, colour, {}},
-            m{t.name, colour, {}};
+        PlotSeries t{r["technique"], colour, {}, dash}, q{t.name, colour, {}, dash},
+            s{t.name, colour, {}, dash}, m{t.name, colour, {}, dash};
         for (const auto& f : r["frames"]) {
           t.y.push_back(number_or(f, "seconds", NAN) * 1e3);
           m.y.push_back(number_or(f, "frame_bytes", NAN) / 1048576.0);
@@ -420,7 +402,7 @@ std::string evaluation_html(const Pipeline& p, const std::vector<CacheSummary>& 
               p, render_stem(p, d.name, (*r)["technique"].get<std::string>(), tf), frame, ".png")));
           shown.push_back(r);
         }
-      const Window w = closeup_window(reference, images);
+      const ImageWindow w = closeup_window(reference, images);
       html += "<p>Frame " + std::to_string(frame) + ". Close-ups: the " + std::to_string(w.width) +
               "x" + std::to_string(w.height) + " window at (" + std::to_string(w.x) + ", " +
               std::to_string(w.y) + ") where the techniques differ most from the reference, 2x. " +

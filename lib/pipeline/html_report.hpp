@@ -11,6 +11,7 @@
 
 #include "pipeline/pipeline.hpp"
 #include "pipeline/report.hpp"
+#include "render/image.hpp"
 
 namespace linebake {
 
@@ -29,5 +30,13 @@ std::string error_image_caption();
 
 // The frame shown in the image grids: the middle of the flight.
 int grid_frame(const Pipeline& pipeline);
+
+// The close-up of the image grids: the window a quarter of each side where `images` differ most
+// from `reference` (summed absolute luminance difference, over every position through a
+// summed-area table; the first such, row by row); the centre when nothing differs.
+struct ImageWindow {
+  int x = 0, y = 0, width = 0, height = 0;
+};
+ImageWindow closeup_window(const Image& reference, const std::vector<Image>& images);
 
 }  // namespace linebake

@@ -65,6 +65,11 @@ std::string plot_colour(size_t i) {
   return colours[i % 10];
 }
 
+std::string plot_dash(size_t i) {
+  static const char* dashes[] = {"", "7,4", "2,3"};
+  return dashes[(i / 10) % 3];
+}
+
 std::string svg_line_plot(const LinePlot& plot, int width, int height) {
   const double left = 62, right = 150, top = 28, bottom = 42;  // margins; legend on the right
   const double plot_w = width - left - right, plot_h = height - top - bottom;
@@ -143,6 +148,8 @@ std::string svg_line_plot(const LinePlot& plot, int width, int height) {
       const double t = plot.log_y ? std::log10(s.y[x]) : s.y[x];
       runs.back() += number(px(double(x))) + "," + number(py(t)) + " ";
     }
+    const std::string dash =
+        s.dash.empty() ? "" : " stroke-dasharray=\"" + xml_escape(s.dash) + "\"";
     for (const std::string& run : runs) {
       if (run.empty()) continue;
       if (std::count(run.begin(), run.end(), ' ') == 1) {
@@ -151,14 +158,14 @@ std::string svg_line_plot(const LinePlot& plot, int width, int height) {
                run.substr(comma + 1, run.size() - comma - 2) + "\" r=\"2.5\" fill=\"" + s.colour +
                "\"/>\n";
       } else {
-        svg += "<polyline fill=\"none\" stroke-width=\"1.6\" stroke=\"" + s.colour +
-               "\" points=\"" + run + "\"/>\n";
+        svg += "<polyline fill=\"none\" stroke-width=\"1.6\" stroke=\"" + s.colour + "\"" + dash +
+               " points=\"" + run + "\"/>\n";
       }
     }
     const double ly = top + 6 + 16 * double(i);
     svg += "<line x1=\"" + number(left + plot_w + 10) + "\" x2=\"" + number(left + plot_w + 28) +
            "\" y1=\"" + number(ly) + "\" y2=\"" + number(ly) + "\" stroke-width=\"2\" stroke=\"" +
-           s.colour + "\"/>\n";
+           s.colour + "\"" + dash + "/>\n";
     svg += "<text x=\"" + number(left + plot_w + 32) + "\" y=\"" + number(ly + 4) + "\">" +
            xml_escape(s.name) + "</text>\n";
   }

@@ -12,6 +12,7 @@ struct PlotSeries {
   std::string name;
   std::string colour;     // any SVG colour, e.g. "#1f77b4"
   std::vector<double> y;  // y[i] at x = i; NaN or infinity leaves a gap
+  std::string dash = "";  // an SVG stroke-dasharray ("7,4"); "" draws it solid
 };
 
 struct LinePlot {
@@ -24,8 +25,11 @@ struct LinePlot {
 
 std::string svg_line_plot(const LinePlot& plot, int width = 520, int height = 300);
 
-// A distinct colour for the i-th series (Tableau 10, then repeating).
+// A distinct colour for the i-th series (Tableau 10, then repeating) and a dash pattern that
+// tells the repeats apart: solid for the first ten, dashed for the next, dotted after. Two
+// series that coincide (tiles and embree over capsules) then still show both.
 std::string plot_colour(size_t i);
+std::string plot_dash(size_t i);
 
 // Escapes &, <, >, " and ' for XML/HTML text and attributes.
 std::string xml_escape(const std::string& text);
