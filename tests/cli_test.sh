@@ -467,6 +467,7 @@ typo flight 's/"orbit-zoom"/"orbit-zom"/' "flight: 'orbit-zom' is neither orbit-
 typo grid 's/"grid": 32/"grid": "3x"/' 'assets: --grid'
 typo size-of-a-technique 's/"sort": "heap"/"size": "32x24"/' 'techniques[2].options.size: set by the pipeline for every render'
 typo cache-output 's/"grid": 32/"output": "x.lbc.h5"/' 'assets.output: set by the pipeline for every bake'
+typo warm-up-of-a-technique 's/"sort": "heap"/"warm-up": 3/' 'techniques[2].options.warm-up: set by the pipeline for every render (its technique, transfer functions, flight, frames, warm_up'
 typo size-below-ssim 's/"64x48"/"8x8"/' "size: '8x8': the report compares frames by SSIM, which needs at least 11x11 pixels"
 typo synth-name 's/synth:aneurysm/synth:aneurysn/' "datasets[0].source: synth:aneurysn?scale=0.01: unknown synthetic data set 'aneurysn' (aneurysm, convection, turbulence, clouds); did you mean 'aneurysm'?"
 typo synth-scale 's/scale=0.01/scale=1e9/' "'1e9' is not a number from 1e-06 to 100"

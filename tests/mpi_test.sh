@@ -87,6 +87,15 @@ check "asking linebake-mpi for rtx fails, saying how to get it" bash -c "
 check "linebake-mpi --dry-run is a usage error naming the serial bake" bash -c "
   mpirun -np 2 '$mpi' bake 'run/part_*' -o v.lbc.h5 --dry-run > v.txt 2>&1
   [ \$? -eq 1 ] && grep -q 'ask the serial linebake bake' v.txt && [ ! -e v.lbc.h5 ]"
+# A cache as the input without -o is baked in place by the serial bake, which the job does not
+# do: refused before any work (it wrote <stem>.lbc.lbc.h5 and locked the input's path).
+check "linebake-mpi refuses to add assets to a cache in place" bash -c "
+  cp mpi2.lbc.h5 inplace.lbc.h5 && mpirun -np 2 '$mpi' bake inplace.lbc.h5 --assets tubes > ip.txt 2>&1
+  [ \$? -eq 1 ] && grep -q 'linebake-mpi does not add assets to a cache in place' ip.txt &&
+  ! ls | grep -q 'inplace.lbc.lbc.h5'"
+# The job's figures are its own since it began reading, every step's: Table 1 marks them.
+check "linebake-mpi's build figures are marked as shared in Table 1" bash -c "
+  '$bin' report --markdown mpi2.lbc.h5 > t1.md && grep -q ' \*' t1.md && grep -q 'linebake-mpi.s figures are the job.s' t1.md"
 # A budget small enough that the voxel records go to their owners in several waves.
 "$bin" synth convection --scale 0.1 --seed 5 -o big.binlines >/dev/null
 "$bin" bake big.binlines -o big-serial.lbc.h5 --assets voxels --grid 256 >/dev/null 2>&1

@@ -491,6 +491,9 @@ TEST(Bake, StepsBuiltInOnePassSaySo) {
       << report_table_note(summary);
   EXPECT_NE(report_markdown(summary).find(" ms * |"), std::string::npos)
       << report_markdown(summary);
+  // Escaped in Markdown: a line that starts "* " would be a list item, its mark gone.
+  EXPECT_NE(report_markdown(summary).find("\n\\* tubes, voxels: "), std::string::npos)
+      << report_markdown(summary);
 }
 
 TEST(Bake, TheOutputPathIsOneRuleForEveryCaller) {

@@ -202,7 +202,8 @@ struct SmallRun {
          {{{"name", "aneurysm"},
            {"lines", {{"memory_bytes", 1000000}, {"stats", {{"segments", 115000}}}}},
            {"assets",
-            {{"tubes", {{"memory_bytes", 16000000}, {"build", {{"wall_s", 0.0045}}}}}}}}}},
+            {{"tubes", {{"memory_bytes", 16000000}, {"build", {{"wall_s", 0.0045}}}}},
+             {"voxels", {{"memory_bytes", 29148}, {"build", {{"wall_s", 0.002}}}}}}}}}},
         {"results",
          {result("reference", 0.01, false),
           result("ll", 0.0045, true),
@@ -252,6 +253,11 @@ TEST(EvaluationReport, HtmlStatesTheGainNotesSkipsAndReportsTheRenderTimeBvh) {
   // Speed-ups: the reference's time / the technique's, with the reason they are below 1 here.
   EXPECT_NE(html.find(">2.22x<"), std::string::npos);                             // 10 ms / 4.5 ms
   EXPECT_NE(html.find(">4.5 ms</td><td class=\"n\">2.22x<"), std::string::npos);  // as in the .md
+  // Beside the paper, GB to three decimals, and a small voxel grid to two significant digits
+  // without an exponent (it read "0.000", then "2.9e-05").
+  EXPECT_NE(html.find(">0.016<"), std::string::npos);
+  EXPECT_NE(html.find(">0.000029<"), std::string::npos);
+  EXPECT_NE(html.find(">3.6 s<"), std::string::npos);  // the paper's aneurysm VRC build
   EXPECT_NE(html.find("time per frame of <code>reference</code> divided"), std::string::npos);
   EXPECT_NE(html.find(">0.0025x<"), std::string::npos);  // 10 ms / 4 s, not "0.00x"
   EXPECT_NE(html.find("below 1 = slower"), std::string::npos);

@@ -546,6 +546,17 @@ TEST(Techniques, EveryFlightFramesTheLinesGrownByTheTubesRadius) {
       EXPECT_EQ(framed.max[k], lines.max[k] + radius) << k;
     }
   }
+  // Without tubes, Embree's curves' radius (they are built with the tubes' options).
+  o.assets = {"voxels", "embree"};
+  o.tubes.radius = 0.02f;
+  bake(o);
+  {
+    const CacheReader cache(o.cache);
+    const Bounds lines = compute_bounds(load_lines(cache));
+    const float radius = cache.provenance("/assets/embree")->stats["radius_world"].get<float>();
+    EXPECT_NEAR(radius, 0.02 * lines.diagonal(), 1e-6 * lines.diagonal());
+    EXPECT_EQ(flight_bounds(cache).max[0], lines.max[0] + radius);
+  }
   o.assets = {"tubes", "voxels"};
   o.tubes.radius = 0.004f;
   bake(o);

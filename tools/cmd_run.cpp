@@ -154,10 +154,10 @@ void validate_pipeline(const Pipeline& p) {
     const std::string where = "techniques[" + std::to_string(i) + "].options";
     refuse_controlled(t.options,
                       {"output", "technique", "tf", "flight", "frame-count", "frame", "frames",
-                       "size", "stats", "json", "depth-complexity", "help"},
+                       "size", "stats", "json", "depth-complexity", "help", "warm-up"},
                       where,
                       "set by the pipeline for every render (its technique, transfer functions, "
-                      "flight, frames, size and outputs), not a technique's option");
+                      "flight, frames, warm_up, size and outputs), not a technique's option");
     std::vector<std::string> options = t.options;
     apply_deprecated_aliases("render", options);
     std::vector<std::string> args = {"render", p.file, "-o", "x.png", "--technique", t.technique};

@@ -86,7 +86,12 @@ int take_file_lock(const std::string& file, const std::string& display, const st
     // Made writable for the group and others as the umask allows, so that another user who may
     // write the cache may lock it too; one of theirs is locked read-only. Never through a link.
     int fd = ::open(file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0666);
-    if (fd < 0 && errno == EACCES) fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+    bool read_only = false;
+    if (fd < 0 && errno == EACCES) {
+      fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+      if (fd < 0 && errno == ENOENT) errno = EACCES;  // the directory's, not a missing file
+      read_only = fd >= 0;
+    }
     if (fd < 0) {
       const int error = errno;
       throw OutputError(output, "cannot open its lock file " + display + ": " +
@@ -100,7 +105,10 @@ int take_file_lock(const std::string& file, const std::string& display, const st
     }
     const int error = errno;
     ::close(fd);
-    if (error == ENOLCK || error == EOPNOTSUPP || error == ENOSYS || error == EINVAL) {
+    // NFS emulates flock with fcntl locks, and an exclusive one needs a writable descriptor:
+    // another user's lock file there cannot be locked at all (EBADF).
+    if (error == ENOLCK || error == EOPNOTSUPP || error == ENOSYS || error == EINVAL ||
+        (error == EBADF && read_only)) {
       // ENOLCK may pass (an NFS lock manager's table full): a second's tries first.
       if (error == ENOLCK && ++no_locks < 10) {
         std::this_thread::sleep_for(kPoll);
@@ -195,8 +203,11 @@ OutputLock::~OutputLock() {
     const std::lock_guard<std::mutex> lock(e.mutex);
     if (--e.depth == 0) {
       if (e.fd >= 0) {
-        // Removed while held, so that a waiter that opened it sees it gone and opens the next.
+        // Removed while held, so that a waiter that opened it sees it gone and opens the next;
+        // unlocked before it is closed, so that a copy of the descriptor a forked child may
+        // hold (a fork between the lock and this entry's record of it) does not keep it.
         ::unlink(e.file.c_str());
+        ::flock(e.fd, LOCK_UN);
         ::close(e.fd);
         e.fd = -1;
       }

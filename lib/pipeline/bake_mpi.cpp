@@ -168,10 +168,15 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
              build_embree = asked("embree");
   if (options.dry_run) throw UsageError("--dry-run: ask the serial linebake bake for the estimate");
   BakeResult result;
-  result.cache = options.cache.empty() ? (inputs.size() == 1 ? default_cache_path(inputs[0]) : "")
-                                       : options.cache;
+  // The serial bake's rule (the CLI locks that path around the job); a cache as the input without
+  // -o would be baked in place, which the serial bake does and the job does not.
+  result.cache = bake_output_path(options);
   if (result.cache.empty())
     throw UsageError("several inputs make one line set: name its cache with -o");
+  if (options.cache.empty() && result.cache == inputs[0])
+    throw UsageError(inputs[0] +
+                     " is a linebake cache: linebake-mpi does not add assets to a cache in place; "
+                     "give -o, or add them with the serial linebake bake");
   // The default: half of the node's memory, shared by the ranks on this node.
   int ranks_on_node = 1;
   {
@@ -422,6 +427,11 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       p.build.cpu_s =
           double(ranks.sum(uint64_t(std::llround((process_cpu_seconds() - cpu_start) * 1e6)))) /
           1e6;
+      // Every step's figures are the job's since it began reading: shared with the others.
+      p.build.built_with.clear();
+      for (const char* other : {"embree", "lines", "tubes", "voxels"})
+        if (other != step && (std::string(other) == "lines" || asked(other)))
+          p.build.built_with.push_back(other);
     };
     Provenance lines_p;
     finish(lines_p, "lines");

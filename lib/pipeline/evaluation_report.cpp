@@ -89,7 +89,8 @@ std::string warm_up_note(const Pipeline& p) {
   return p.warm_up > 0
              ? "frame times count the flight's frames only, each technique having rendered " +
                    std::to_string(p.warm_up) + " untimed warm-up frame" +
-                   (p.warm_up > 1 ? "s" : "") + " first, which compiled its shaders and filled its caches"
+                   (p.warm_up > 1 ? "s" : "") +
+                   " first, which compiled its shaders and filled its caches"
              : "frame times count every frame, the first with its shaders' compilation "
                "(warm_up: 0)";
 }

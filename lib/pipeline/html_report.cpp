@@ -146,9 +146,8 @@ std::string paper_comparison(const nlohmann::json& evaluation) {
   const auto gb_text = [](double bytes) {
     const double gb = bytes / 1e9;
     if (gb == 0 || gb >= 0.0005) return fixed(gb, 3);
-    char text[32];
-    std::snprintf(text, sizeof text, "%.2g", gb);
-    return std::string(text);
+    // Two significant digits as decimals (0.000029), never an exponent.
+    return fixed(gb, std::min(12, 1 - int(std::floor(std::log10(gb)))));
   };
   const auto gb = [&](const nlohmann::json& asset) {
     return asset.is_object() ? gb_text(asset.value("memory_bytes", 0.0)) : "-";

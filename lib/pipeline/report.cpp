@@ -1,5 +1,6 @@
 #include "pipeline/report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -148,11 +149,20 @@ std::string report_table_note(const std::vector<CacheSummary>& caches) {
     for (const Provenance& p : c.assets)
       if (!p.build.built_with.empty()) shared.insert(p.step);
   if (shared.empty()) return "";
+  bool side_by_side = false;  // tubes and voxels, whose batches run in parallel
+  for (const CacheSummary& c : caches)
+    for (const Provenance& p : c.assets)
+      if (p.step == "tubes" &&
+          std::count(p.build.built_with.begin(), p.build.built_with.end(), std::string("voxels")))
+        side_by_side = true;
   return "* " + comma_list(shared) +
          ": built from the same batches in one pass over the data (a bake reads its input once "
-         "for every asset), so the peak RSS is the pass's, the process included, and tubes and "
-         "voxels, built side by side, overlap in wall and CPU time. `linebake bench tubes`, "
-         "`bench voxels` and `bench embree` measure each alone.";
+         "for every asset; linebake-mpi's figures are the job's), so the peak RSS is the pass's, "
+         "the process included" +
+         (side_by_side ? std::string(", and tubes and voxels, built side by side, overlap in "
+                                     "wall and CPU time")
+                       : std::string()) +
+         ". `linebake bench tubes`, `bench voxels` and `bench embree` measure each alone.";
 }
 
 std::string report_markdown(const std::vector<CacheSummary>& caches) {
@@ -169,8 +179,10 @@ std::string report_markdown(const std::vector<CacheSummary>& caches) {
     for (const auto& cell : row) out << " " << cell << " |";
     out << "\n";
   }
+  // "\*": a line that starts with "* " is a list item in Markdown, and the mark it explains would
+  // go.
   if (const std::string note = report_table_note(caches); !note.empty())
-    out << "\n" << note << "\n";
+    out << "\n\\" << note << "\n";
   return out.str();
 }
 

@@ -37,12 +37,13 @@ Bounds flight_bounds(const CacheReader& cache) {
                       ? line_stats_from_json(lines->stats, cache.path()).bounds
                       : read_line_bounds(cache);
   if (bounds.empty) return bounds;
-  const auto tubes =
-      cache.exists("/assets/tubes") ? cache.provenance("/assets/tubes") : std::nullopt;
-  // In float, as the capsules' radius is (radius_world is a float's value).
-  const float radius = tubes && tubes->stats.contains("radius_world")
-                           ? tubes->stats["radius_world"].get<float>()
-                           : TubeOptions{}.radius * bounds.diagonal();
+  // The tubes' radius, else Embree's curves' (built with the same options), else a bake's
+  // default. In float, as the capsules' radius is (radius_world is a float's value).
+  float radius = TubeOptions{}.radius * bounds.diagonal();
+  for (const char* asset : {"/assets/embree", "/assets/tubes"})
+    if (cache.exists(asset))
+      if (const auto p = cache.provenance(asset); p && p->stats.contains("radius_world"))
+        radius = p->stats["radius_world"].get<float>();
   for (size_t k = 0; k < 3; ++k) bounds.min[k] -= radius, bounds.max[k] += radius;
   return bounds;
 }

@@ -11,9 +11,9 @@
 namespace linebake {
 
 // The lines' bounds (kept in the /lines provenance; read from /lines/points for caches without
-// them) grown by the tubes' radius (their provenance's radius_world; without tubes, the radius a
-// bake would give them: 0.001 x the diagonal). That is the capsules' exact box, and the tube
-// mesh, whose rings lie within the radius, lies inside it.
+// them) grown by the tubes' radius (their provenance's radius_world; without tubes, the Embree
+// curves', else the radius a bake would give them: 0.001 x the diagonal). That is the capsules'
+// exact box, and the tube mesh, whose rings lie within the radius, lies inside it.
 Bounds flight_bounds(const CacheReader& cache);
 
 }  // namespace linebake
