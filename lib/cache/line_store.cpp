@@ -1,6 +1,8 @@
 #include "cache/line_store.hpp"
 
+#include <algorithm>
 #include <cstring>
+#include <span>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
@@ -304,6 +306,21 @@ LineSet load_lines(const CacheReader& cache) {
     }
   }
   return lines;
+}
+
+void include_dataset_points(Bounds& bounds, const CacheReader& cache, const std::string& dataset,
+                            uint64_t rows_per_read) {
+  const std::vector<uint64_t> shape = cache.shape(dataset);
+  if (shape.size() != 2 || shape[1] != 3)
+    throw InputError(cache.path(), "dataset " + dataset, "not 3 floats per point");
+  const uint64_t step = std::max<uint64_t>(rows_per_read, 1);
+  std::vector<float> piece;
+  for (uint64_t first = 0; first < shape[0]; first += step) {
+    const uint64_t rows = std::min(step, shape[0] - first);
+    piece.resize(3 * rows);
+    cache.read_rows(dataset, first, rows, piece.data());
+    include_points(bounds, std::span<const float>(piece.data(), piece.size()));
+  }
 }
 
 }  // namespace linebake

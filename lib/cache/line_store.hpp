@@ -55,6 +55,11 @@ uint64_t line_set_bytes(const LineSet& lines);
 nlohmann::json to_json(const LineSetStats& stats);
 // Throws InputError naming the cache when the JSON lacks a field.
 LineSetStats line_stats_from_json(const nlohmann::json& json, const std::string& cache);
+// Grows `bounds` by the points of `dataset`, N x 3 floats (/lines/points, a tube chunk's
+// positions), read `rows_per_read` rows at a time rather than whole. Throws InputError naming
+// the dataset when it is not N x 3.
+void include_dataset_points(Bounds& bounds, const CacheReader& cache, const std::string& dataset,
+                            uint64_t rows_per_read = uint64_t{1} << 20);
 
 // /lines written batch by batch; the datasets are created with the sizes in `stats`.
 class LineStoreWriter {

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <optional>
 
+#include "cache/line_store.hpp"
 #include "core/error.hpp"
 #include "core/json_file.hpp"
 
@@ -331,21 +332,9 @@ uint64_t tube_chunk_bytes(const CacheReader& cache, const TubeMesh& description,
 
 Bounds load_tube_bounds(const CacheReader& cache, uint64_t rows_per_read) {
   const TubeMesh description = load_tube_description(cache);
-  const uint64_t kRows = std::max<uint64_t>(rows_per_read, 1);
   Bounds bounds;
-  std::vector<float> piece;
-  for (size_t c = 0; c < description.chunks.size(); ++c) {
-    const std::string d = chunk_group(c) + "/positions";
-    const std::vector<uint64_t> shape = cache.shape(d);
-    if (shape.size() != 2 || shape[1] != 3)
-      throw InputError(cache.path(), "dataset " + d, "not 3 floats per vertex");
-    for (uint64_t first = 0; first < shape[0]; first += kRows) {
-      const uint64_t rows = std::min(kRows, shape[0] - first);
-      piece.resize(3 * rows);
-      cache.read_rows(d, first, rows, piece.data());
-      include_points(bounds, std::span<const float>(piece.data(), piece.size()));
-    }
-  }
+  for (size_t c = 0; c < description.chunks.size(); ++c)
+    include_dataset_points(bounds, cache, chunk_group(c) + "/positions", rows_per_read);
   return bounds;
 }
 
