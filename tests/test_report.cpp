@@ -11,6 +11,7 @@
 #include <fstream>
 #include <regex>
 
+#include "cli_contract.hpp"
 #include "core/base64.hpp"
 #include "metrics/image_metrics.hpp"
 #include "pipeline/evaluation_report.hpp"
@@ -123,6 +124,15 @@ TEST(CloseupWindow, FindsTheWindowWhereTheImagesDifferMostAtAnyPosition) {
   const ImageWindow centre = closeup_window(reference, {reference});
   EXPECT_EQ(centre.x, 120);
   EXPECT_EQ(centre.y, 67);  // (180 - 45) / 2, rounded down
+}
+
+// Every command's median: the middle two's mean of an even count (render and bench took the
+// upper one).
+TEST(Median, IsTheMiddleValueOrTheMeanOfTheMiddleTwo) {
+  EXPECT_EQ(cli::median({}), 0.0);
+  EXPECT_EQ(cli::median({3, 1, 2}), 2.0);
+  EXPECT_EQ(cli::median({0.4, 0.1, 0.3, 0.2}), 0.25);
+  EXPECT_EQ(cli::median({5}), 5.0);
 }
 
 TEST(FormatDuration, KeepsTwoOrThreeSignificantDigits) {

@@ -15,6 +15,7 @@
 #include <optional>
 #include <sstream>
 
+#include "cli_contract.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/json_file.hpp"
@@ -30,13 +31,6 @@
 
 namespace linebake::cli {
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 double maximum(const std::vector<double>& v) {
   return v.empty() ? 0 : *std::max_element(v.begin(), v.end());

@@ -278,6 +278,13 @@ void warn(const std::string& message) {
   std::cerr << "linebake: warning: " << message << "\n";
 }
 
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 std::string format_seconds(double seconds) {
   char text[32];
   if (seconds >= 100)

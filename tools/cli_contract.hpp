@@ -61,5 +61,8 @@ void warn(const std::string& message);  // "linebake: warning: MESSAGE"
 void say_wrote(const std::string& path, double seconds);
 // Seconds rounded to what they mean: 3 significant digits ("0.0949 s", "12.3 s", "184 s").
 std::string format_seconds(double seconds);
+// The median: the middle value, or the mean of the middle two of an even count (0 for none).
+// Every command's "median" (render's frames, bench's runs and frames) is this one.
+double median(std::vector<double> values);
 
 }  // namespace linebake::cli

@@ -93,10 +93,7 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
         (last_note.empty() ? "" : ", " + last_note) + ": " + first);
   else
     say(args.technique + ": " + std::to_string(plan.frames.size()) + " frames, median " +
-        format_seconds(sorted.size() % 2
-                           ? sorted[sorted.size() / 2]
-                           : (sorted[sorted.size() / 2 - 1] + sorted[sorted.size() / 2]) / 2) +
-        " per frame: " + first + " .. " + last);
+        format_seconds(median(seconds)) + " per frame: " + first + " .. " + last);
 }
 
 }  // namespace
