@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "metrics/image_metrics.hpp"
 #include "pipeline/report.hpp"
+#include "pipeline/svg_plot.hpp"
 
 namespace linebake {
 namespace {
@@ -66,8 +67,12 @@ std::vector<std::string> summary_cells(const nlohmann::json& r, double reference
   return cells;
 }
 
-std::string summary_note(const nlohmann::json& machine, const std::string& reference,
-                         const std::function<std::string(const std::string&)>& code) {
+std::string summary_note(const nlohmann::json& machine, const std::string& reference, bool html) {
+  // The names are the only parts that need escaping; the rest is plain text either way.
+  const auto name = [html](const std::string& s) { return html ? xml_escape(s) : s; };
+  const auto code = [&](const std::string& s) {
+    return html ? "<code>" + name(s) + "</code>" : "`" + s + "`";
+  };
   std::string note = "Speed-up = the time per frame of " + code(reference) +
                      " divided by the technique's; below 1 = slower. The reference ray traces "
                      "the exact tube mesh with Embree on every CPU core, its BVH built before the "
@@ -75,7 +80,7 @@ std::string summary_note(const nlohmann::json& machine, const std::string& refer
   const std::string vulkan = machine.value("vulkan", std::string("none"));
   for (const char* software : {"llvmpipe", "lavapipe", "SwiftShader"})
     if (vulkan.find(software) != std::string::npos) {
-      note += ", while the Vulkan techniques run on " + vulkan +
+      note += ", while the Vulkan techniques run on " + name(vulkan) +
               ", a software renderer on the same CPU";
       break;
     }
@@ -247,10 +252,7 @@ std::string evaluation_markdown(const Pipeline& p, const std::vector<CacheSummar
         "); PSNR and SSIM against `" + p.reference + "` (" + psnr_cap_note() +
         "). report.html has the image grids; report.json every frame's numbers.\n";
   for (const auto& group : result_groups(e)) md += markdown_group(p, group);
-  md +=
-      "\n" +
-      summary_note(e["machine"], p.reference, [](const std::string& s) { return "`" + s + "`"; }) +
-      "\n";
+  md += "\n" + summary_note(e["machine"], p.reference, false) + "\n";
   return md;
 }
 

@@ -3,7 +3,6 @@
 // data set and transfer function, each technique's frame times and its PSNR / SSIM against the
 // reference along the flight, from the files the run's steps wrote. Markdown and JSON.
 
-#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -33,10 +32,9 @@ std::string psnr_cap_note();
 const std::vector<std::string>& summary_columns();
 std::vector<std::string> summary_cells(const nlohmann::json& result, double reference_seconds,
                                        bool is_reference);
-// What the speed-up and per-frame memory columns mean, in plain text; `code` wraps a name
-// ("`" for Markdown).
-std::string summary_note(const nlohmann::json& machine, const std::string& reference,
-                         const std::function<std::string(const std::string&)>& code);
+// What the speed-up and per-frame memory columns mean: Markdown, or HTML (names escaped and in
+// <code>).
+std::string summary_note(const nlohmann::json& machine, const std::string& reference, bool html);
 // What the frame times count: "each technique's frames timed after its N untimed warm-up
 // frame(s)" (or that none was rendered first), for both reports.
 std::string warm_up_note(const Pipeline& pipeline);

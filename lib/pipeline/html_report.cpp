@@ -245,15 +245,8 @@ std::string summary_table(const Pipeline& p, const std::vector<const nlohmann::j
   }
   std::string html = html_table(summary_columns(), rows);
   if (!notes.empty()) html += "<ol class=\"notes\">" + notes + "</ol>\n";
-  const std::string note_text = summary_note(machine, p.reference, [](const std::string& s) {
-    return "\x01" + s + "\x02";  // marks for <code>, placed after escaping
-  });
-  std::string escaped = xml_escape(note_text);
-  for (size_t at; (at = escaped.find('\x01')) != std::string::npos;)
-    escaped.replace(at, 1, "<code>");
-  for (size_t at; (at = escaped.find('\x02')) != std::string::npos;)
-    escaped.replace(at, 1, "</code>");
-  return html + "<p>" + escaped + " " + psnr_cap_note() + ".</p>\n";
+  return html + "<p>" + summary_note(machine, p.reference, true) + " " + psnr_cap_note() +
+         ".</p>\n";
 }
 
 }  // namespace

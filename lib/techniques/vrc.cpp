@@ -1,7 +1,5 @@
 // vrc: voxel ray casting of the cached voxel line grid, on the CPU (TBB) or with Vulkan compute.
 
-#include "cache/line_store.hpp"
-#include "cache/tube_store.hpp"
 #include "cache/voxel_store.hpp"
 #include "core/error.hpp"
 #include "render/voxel_ray_caster.hpp"
