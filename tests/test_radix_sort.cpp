@@ -61,7 +61,7 @@ TEST(RadixSort, EmptyAndSingle) {
 }
 
 TEST(RadixSort, RandomFullRangeKeys) {
-  // Not a multiple of the block (1024) or the chunk (256): partial blocks and chunks.
+  // Not a multiple of the block (4096) or the chunk (256): partial blocks and chunks.
   expect_sorted_like_std(random_keys(100'003, 0xFFFFFFFFu, 1), 32);
 }
 

@@ -11,7 +11,7 @@ namespace linebake::vk {
 namespace {
 
 // As shaders/radix_sort.glsl.
-constexpr uint32_t kBlockItems = 256 * 4;
+constexpr uint32_t kBlockItems = 256 * 16;
 constexpr uint32_t kRadix = 256;
 constexpr uint32_t kPartition = 1024;
 constexpr uint32_t kBindings = 6;
