@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <optional>
 #include <stdexcept>
@@ -139,9 +140,12 @@ struct Variable {
   // Whether the valid range is in unpacked units: given as a type other than the packed data's
   // (a float range of short data), as netCDF-Java reads it; else packed units (CF 8.1).
   bool valid_range_unpacked = false;
-  bool is_missing(double raw) const {
+  bool outside_valid_range(double raw) const {
     const double v = valid_range_unpacked ? unpack(raw) : raw;
-    return v < valid_min || v > valid_max ||
+    return v < valid_min || v > valid_max;
+  }
+  bool is_missing(double raw) const {
+    return outside_valid_range(raw) ||
            std::find(missing.begin(), missing.end(), raw) != missing.end();
   }
   // CF 8.1 packing: unpacked = packed * scale + offset.
@@ -301,6 +305,13 @@ std::vector<double> read_all(const Nc& nc, const Variable& v) {
   return values;
 }
 
+// A number for messages, as short as it reads exactly enough (9 significant digits).
+std::string number_text(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.9g", value);
+  return text;
+}
+
 // Whether the stored (packed) value `raw` of position variable `v` is no position: a missing
 // value (compared packed, CF 8.1), or NaN/Inf or |value| >= 1e20 once unpacked.
 bool invalid(const Variable& v, double raw) {
@@ -449,10 +460,61 @@ class NetcdfReader : public LineReader {
     }
     if (progress_) progress_(file_line_, line_count_);
     lines_read_ += batch.line_count();
+    if (batch.line_count() == 0) refuse_all_missing();
     return batch.line_count() > 0;
   }
 
  private:
+  // Why positions were missing, by the first axis that ruled each out: a missing value
+  // (_FillValue, missing_value), outside the valid range, or not finite (|value| >= 1e20 too).
+  struct MissingCounts {
+    uint64_t missing_value = 0, outside_range = 0, not_finite = 0;
+    uint64_t total() const { return missing_value + outside_range + not_finite; }
+  };
+
+  void count_missing(int axis, double raw) {
+    const Variable& v = *axes_[axis];
+    MissingCounts& c = missing_[axis];
+    if (v.outside_valid_range(raw))
+      ++c.outside_range;
+    else if (v.is_missing(raw))
+      ++c.missing_value;
+    else
+      ++c.not_finite;
+  }
+
+  // A file with observations none of which is a position reads as no line at all: said as an
+  // error, with each position variable's reasons (counted by the first axis that ruled an
+  // observation out), rather than an empty line set. The usual cause is a valid range
+  // meant in unpacked units but stored in the packed type, which CF 8.1 compares with the packed
+  // values.
+  void refuse_all_missing() const {
+    if (observations_ == 0 || lines_read_ > 0) return;
+    std::string why;
+    for (int axis = 0; axis < 3; ++axis) {
+      const MissingCounts& c = missing_[axis];
+      if (c.total() == 0) continue;
+      const Variable& v = *axes_[axis];
+      std::string reasons;
+      const auto add = [&](uint64_t n, const std::string& what) {
+        if (n > 0) reasons += (reasons.empty() ? "" : ", ") + std::to_string(n) + " " + what;
+      };
+      add(c.missing_value, "equal to its _FillValue or missing_value");
+      std::string range = "[" + number_text(v.valid_min) + ", " + number_text(v.valid_max) + "]";
+      if (v.packed && !v.valid_range_unpacked)
+        range += " of the stored values, [" + number_text(v.unpack(v.valid_min)) + ", " +
+                 number_text(v.unpack(v.valid_max)) +
+                 "] unpacked (CF 8.1 compares a valid range of the packed type with the packed "
+                 "values)";
+      add(c.outside_range, "outside the valid range " + range);
+      add(c.not_finite, "not finite or of magnitude 1e20 or more");
+      why += (why.empty() ? "" : "; ") + ("'" + v.name + "' ") + reasons;
+    }
+    throw InputError(nc_.path, "positions",
+                     "none of the file's " + std::to_string(observations_) +
+                         " observations is a position (CF 2.5.1 missing values): " + why);
+  }
+
   // Lines of a trajectory read alone that are still to come: into `batch` (empty), as many as
   // max_points holds (one at least). False when none are left.
   bool serve_pending(LineSet& batch, uint64_t max_points) {
@@ -485,7 +547,11 @@ class NetcdfReader : public LineReader {
       for (size_t i = begin; i < stop; ++i) {
         bool bad = false;
         for (int axis = 0; axis < 3; ++axis)
-          if (axes_[axis] && invalid(*axes_[axis], position_values_[axis][i])) bad = true;
+          if (axes_[axis] && invalid(*axes_[axis], position_values_[axis][i])) {
+            if (!bad) count_missing(axis, position_values_[axis][i]);
+            bad = true;
+          }
+        ++observations_;
         if (bad) {  // a gap: the positions after it make the next line
           if (batch.point_count() > start_points) batch.end_line();
           start_points = batch.point_count();
@@ -583,6 +649,8 @@ class NetcdfReader : public LineReader {
   size_t pending_line_ = 0;
   std::vector<double> position_values_[3];
   std::vector<std::vector<double>> attribute_values_;
+  uint64_t observations_ = 0;  // read so far, missing positions included
+  MissingCounts missing_[3];   // positions missing, by the first axis that ruled them out
 };
 
 }  // namespace

@@ -463,3 +463,61 @@ TEST(NetCdf, RaggedCountsThatAreMissingAreZero) {
   EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 2, 3}));
   EXPECT_EQ(l.metadata.at("netcdf.unused_observations"), "3");
 }
+
+// A file none of whose observations is a position had read as no line and "no problems". The
+// usual cause: a valid range meant in unpacked units but stored in the packed type, which CF 8.1
+// compares with the packed values. Now it is an error naming the variables, the counts and, for a
+// packed range, what it means unpacked.
+TEST(NetCdf, NoPositionAtAllIsAnErrorThatSaysWhy) {
+  TempDir dir;
+  const auto write = [&](const std::string& name, bool packed_range, short second_lon) {
+    const std::string path = dir.file(name);
+    int nc, d[2], lon, lat;
+    ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+    ok(nc_def_dim(nc, "trajectory", 2, &d[0]));
+    ok(nc_def_dim(nc, "obs", 3, &d[1]));
+    ok(nc_def_var(nc, "lon", NC_SHORT, 2, d, &lon));
+    ok(nc_def_var(nc, "lat", NC_SHORT, 2, d, &lat));
+    const double scale = 0.01;
+    const short range[] = {0, 100}, fill = -1;
+    ok(nc_put_att_double(nc, lon, "scale_factor", NC_DOUBLE, 1, &scale));
+    if (packed_range) ok(nc_put_att_short(nc, lon, "valid_range", NC_SHORT, 2, range));
+    ok(nc_put_att_short(nc, lat, "_FillValue", NC_SHORT, 1, &fill));
+    ok(nc_enddef(nc));
+    // Longitudes 10 to 60 degrees packed by 0.01: past the packed range [0, 100] (the second
+    // trajectory's as `second_lon` says).
+    const short lons[] = {1000, 2000, 3000, second_lon, second_lon, second_lon};
+    const short lats[] = {1, 2, 3, -1, -1, -1};
+    ok(nc_put_var_short(nc, lon, lons));
+    ok(nc_put_var_short(nc, lat, lats));
+    ok(nc_close(nc));
+    return path;
+  };
+  const auto message_of = [](const std::string& path) -> std::string {
+    try {
+      read_line_set(path);
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const std::string range = message_of(write("range.nc", true, 4000));
+  EXPECT_NE(range.find(": positions: "), std::string::npos) << range;
+  EXPECT_NE(range.find("none of the file's 6 observations is a position"), std::string::npos)
+      << range;
+  EXPECT_NE(range.find("'lon' 6 outside the valid range [0, 100] of the stored values"),
+            std::string::npos)
+      << range;
+  EXPECT_NE(range.find("[0, 1] unpacked"), std::string::npos) << range;
+  // The second trajectory's longitudes in range, its latitudes the fill: each variable's count.
+  const std::string both = message_of(write("both.nc", true, 50));
+  EXPECT_NE(both.find("'lon' 3 outside the valid range [0, 100]"), std::string::npos) << both;
+  EXPECT_NE(both.find("; 'lat' 3 equal to its _FillValue or missing_value"), std::string::npos)
+      << both;
+
+  // Without the range the longitudes are positions, and the latitudes' fill makes the second
+  // trajectory a gap: one line, no error.
+  const LineSet l = read_line_set(write("fill.nc", false, 4000));
+  EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3}));
+}
