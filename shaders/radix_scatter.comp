@@ -66,11 +66,11 @@ void main() {
 #else
 // A chunk's thread masks per digit, and per digit where the chunk's first key of it goes (the
 // block's start from the scan, then past each chunk's keys of it). Once every thread has read
-// both, each key's thread clears the one mask word it set and counts itself into `running`: a
-// store and an atomic a key, where clearing and totalling all 256 x 8 words had taken sixteen
-// shared accesses a key (lavapipe makes each lane's shared access on its own). With the blocks'
-// starts read once into `running`, the shared-memory sort of 1.5 million 24-bit keys took 0.75
-// times as long on lavapipe (with the copies to and from the device).
+// both, the first key of each digit in a mask word clears that word and every key counts itself
+// into `running`: at most a store and an atomic a key, where clearing and totalling all 256 x 8
+// words had taken sixteen shared accesses a key (lavapipe makes each lane's shared access on its
+// own). With the blocks' starts read once into `running`, the shared-memory sort of 1.5 million
+// 24-bit keys took 0.75 times as long on lavapipe (with the copies to and from the device).
 const uint kWords = kThreads / 32u;
 shared uint digit_threads[kRadix][kWords];
 shared uint running[kRadix];
@@ -80,6 +80,8 @@ void main() {
   running[t] = counts[t * pass.blocks + block];
   for (uint w = 0u; w < kWords; ++w) digit_threads[t][w] = 0u;
   for (uint chunk = 0u; chunk < kItems; ++chunk) {
+    // The last block's chunks past the keys: none of its threads has work (uniform).
+    if (block * kBlockItems + chunk * kThreads >= pass.count) break;
     barrier();
     const uint at = block * kBlockItems + chunk * kThreads + t;
     const bool valid = at < pass.count;
@@ -87,8 +89,12 @@ void main() {
     const uint digit = digit_of(key);
     if (valid) atomicOr(digit_threads[digit][t / 32u], 1u << (t % 32u));
     barrier();
+    // The key's peers of its digit before it in its mask word; the first of them (none before
+    // it) clears the word, so that one thread writes it.
+    uint below = 0u;
     if (valid) {
-      uint rank = uint(bitCount(digit_threads[digit][t / 32u] & ((1u << (t % 32u)) - 1u)));
+      below = uint(bitCount(digit_threads[digit][t / 32u] & ((1u << (t % 32u)) - 1u)));
+      uint rank = below;
       for (uint w = 0u; w < t / 32u; ++w) rank += uint(bitCount(digit_threads[digit][w]));
       const uint to = running[digit] + rank;
       keys_out[to] = key;
@@ -96,7 +102,7 @@ void main() {
     }
     barrier();
     if (valid) {
-      digit_threads[digit][t / 32u] = 0u;
+      if (below == 0u) digit_threads[digit][t / 32u] = 0u;
       atomicAdd(running[digit], 1u);
     }
   }

@@ -60,6 +60,19 @@ TEST(RadixSort, EmptyAndSingle) {
   expect_sorted_like_std({7}, 32);
 }
 
+TEST(RadixSort, SizesAtTheChunksAndBlocksEdges) {
+  // Chunks of 256 keys, blocks of 4,096: one short of, at and one past each edge, exact
+  // multiples of a block, and a last block of one chunk and a bit.
+  for (const size_t n :
+       {2u, 255u, 256u, 257u, 4095u, 4096u, 4097u, 8192u, 8193u, 3u * 4096u + 256u}) {
+    SCOPED_TRACE(n);
+    expect_sorted_like_std(random_keys(n, 0xFFFFFFFFu, uint32_t(n)), 32);
+  }
+  // Three full blocks of one key, then of the largest digit: stability across blocks.
+  expect_sorted_like_std(std::vector<uint32_t>(3 * 4096, 42u), 32);
+  expect_sorted_like_std(std::vector<uint32_t>(3 * 4096 + 1, 0xFFFFFFFFu), 32);
+}
+
 TEST(RadixSort, RandomFullRangeKeys) {
   // Not a multiple of the block (4096) or the chunk (256): partial blocks and chunks.
   expect_sorted_like_std(random_keys(100'003, 0xFFFFFFFFu, 1), 32);

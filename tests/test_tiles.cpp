@@ -238,7 +238,7 @@ TEST(Tiles, TheSortPathIsTheCallersToChoose) {
   const TransferFunction tf = transfer_function_preset("semi");
   const TechniqueFrame a = shared->render(camera, tf, 160, 120);
   const TechniqueFrame b = subgroups->render(camera, tf, 160, 120);
-  EXPECT_GT(a.stats["keys"].get<uint64_t>(), 4096u);  // several of the sort's blocks of 1,024
+  EXPECT_GT(a.stats["keys"].get<uint64_t>(), 2 * 4096u);  // three of the sort's blocks of 4,096
   EXPECT_EQ(a.stats["keys"], b.stats["keys"]);
   EXPECT_EQ(a.image.pixels, b.image.pixels);
 }

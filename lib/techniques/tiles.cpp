@@ -31,8 +31,8 @@ class Tiles : public PreparedTechnique {
       throw UsageError("tiles: the sort is auto, subgroups or shared, not '" + o.tiles_sort + "'");
     options_.strips = strips_of(o.tiles_strips);
     // auto: the subgroup path where the device has it, except on lavapipe, whose subgroup
-    // operations are emulated across its 8-lane SIMD units: there the shared-memory path sorted
-    // paper-small's keys 20 to 30 % faster (docs/tiles.md, "Per-lane shared loads on lavapipe").
+    // operations are emulated across its 8-lane SIMD units: there the shared-memory path sorts
+    // 1.5 million keys in 122 ms against 198 (docs/tiles.md, "The sort's blocks").
     const bool sort_subgroups =
         o.tiles_sort == "subgroups" || (o.tiles_sort == "auto" && !context_->info().lavapipe);
     if (o.tiles_sort == "subgroups" && !vk::RadixSorter::subgroups_supported(context_->info()))

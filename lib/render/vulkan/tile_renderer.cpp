@@ -48,7 +48,8 @@ constexpr uint64_t kCrowded = 8;
 // Workgroups a tile in strips (kStrips in shaders/tiles_composite.glsl; TileOptions::strips).
 constexpr uint32_t kStrips = 4;
 // Device memory per (tile, segment) key: key and value words with an eighth more room, and the
-// radix sort's scratch (8 bytes a key and its digit counts).
+// radix sort's scratch (8 bytes a key, and its digit counts: a quarter byte a key with blocks of
+// 4,096), rounded up.
 constexpr uint64_t kKeyBytes = 18;
 // The keys and values: the key sort copies its result back into them after an odd number of
 // passes (radix_sort.hpp).
