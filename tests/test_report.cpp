@@ -283,6 +283,22 @@ TEST(EvaluationReport, HtmlStatesTheGainNotesSkipsAndReportsTheRenderTimeBvh) {
   EXPECT_EQ(html.find("100.00 dB"), std::string::npos);
 }
 
+// Beside the paper, the build times of a pass shared with other steps are marked as Table 1
+// marks them (they had no mark there).
+TEST(EvaluationReport, SharedPassBuildTimesAreMarkedBesideThePaper) {
+  SmallRun run;
+  const std::string plain = evaluation_html(run.pipeline, {}, run.evaluation, {});
+  EXPECT_EQ(plain.find("\u2020"), std::string::npos);
+  nlohmann::json& assets = run.evaluation["caches"][0]["assets"];
+  assets["tubes"]["build"]["built_with"] = {"voxels"};
+  assets["voxels"]["build"]["built_with"] = {"tubes"};
+  const std::string html = evaluation_html(run.pipeline, {}, run.evaluation, {});
+  EXPECT_NE(html.find(">4.5 ms \u2020<"), std::string::npos);
+  EXPECT_EQ(count_of(html, " \u2020<"), 2u);  // tubes and voxels, not the paper's row
+  EXPECT_NE(html.find("\u2020 = built in one pass over the data with other assets"),
+            std::string::npos);
+}
+
 TEST(EvaluationReport, NoRenderTimeBvhMarkWithoutAnEmbreeRender) {
   SmallRun run;
   run.evaluation["results"][2].erase("bvh");
