@@ -7,7 +7,8 @@ layout(local_size_x = 256) in;
 shared uint histogram[kRadix];
 
 void main() {
-  const uint t = gl_LocalInvocationID.x, block = gl_WorkGroupID.x;
+  const uint t = gl_LocalInvocationID.x, block = flat_workgroup();
+  if (block >= pass.blocks) return;  // the last row's spare workgroups (dispatch.glsl)
   histogram[t] = 0u;
   barrier();
   for (uint i = 0u; i < kItems; ++i) {

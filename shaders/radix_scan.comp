@@ -51,7 +51,9 @@ uint workgroup_exclusive_scan(uint value, out uint total_out) {
 #endif
 
 void main() {
-  const uint t = thread_index(), p = gl_WorkGroupID.x;
+  const uint t = thread_index(), p = flat_workgroup();
+  // The last row's spare workgroups (dispatch.glsl); step 1 is one workgroup.
+  if (p >= (pass.total + kPartition - 1u) / kPartition) return;
   const uint per_thread = kPartition / kThreads;
   if (kStep == 0u) {
     uint sum = 0u;

@@ -18,7 +18,8 @@ layout(local_size_x = 256) in;
 shared uint subgroup_digits[kMaxSubgroups][kRadix / 2u];
 
 void main() {
-  const uint t = gl_LocalInvocationID.x, block = gl_WorkGroupID.x, s = gl_SubgroupID;
+  const uint t = gl_LocalInvocationID.x, block = flat_workgroup(), s = gl_SubgroupID;
+  if (block >= pass.blocks) return;  // the last row's spare workgroups (dispatch.glsl)
   for (uint i = t; i < kMaxSubgroups * kRadix / 2u; i += kThreads)
     subgroup_digits[i / (kRadix / 2u)][i % (kRadix / 2u)] = 0u;
   barrier();
@@ -76,7 +77,8 @@ shared uint digit_threads[kRadix][kWords];
 shared uint running[kRadix];
 
 void main() {
-  const uint t = gl_LocalInvocationID.x, block = gl_WorkGroupID.x;
+  const uint t = gl_LocalInvocationID.x, block = flat_workgroup();
+  if (block >= pass.blocks) return;  // the last row's spare workgroups (dispatch.glsl)
   running[t] = counts[t * pass.blocks + block];
   for (uint w = 0u; w < kWords; ++w) digit_threads[t][w] = 0u;
   for (uint chunk = 0u; chunk < kItems; ++chunk) {

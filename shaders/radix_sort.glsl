@@ -20,6 +20,8 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #endif
 
+#include "dispatch.glsl"
+
 const uint kThreads = 256;
 // Keys per thread per block: 4096 a block, near Onesweep's 15 x 256. Against 4 a thread, the
 // blocks' digit counts (written, scanned twice and read per key) are a quarter, and on lavapipe

@@ -4,6 +4,8 @@
 // tile blending front to back) with StopThePop's per-pixel sorted window, so the order is exact
 // per pixel even where the depth keys misorder long, overlapping capsules.
 
+#include "dispatch.glsl"
+
 const int kMaxTfPoints = 32;
 const uint kTile = 16;
 

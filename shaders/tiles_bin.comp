@@ -156,7 +156,7 @@ bool bin_test_pixels(uint s, vec2 lo, vec2 hi) {
 
 void main() {
   load_frame_view();
-  const uint s = gl_GlobalInvocationID.x;
+  const uint s = flat_workgroup() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
   vec2 lo = vec2(0.0), hi = vec2(-1.0);
   float z_near = 0.0, z_far = 0.0;
   // Every invocation takes part in emit_keys (it counts per workgroup).

@@ -364,7 +364,7 @@ float t_per_z_of(vec3 direction, float steps) {
 
 void main() {
   load_frame_view();
-  const uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  const uint group = flat_workgroup();
 #ifdef TILES_STRIPS
   const uint entry = group / kStrips, strip = group % kStrips;
   if (entry >= slicing.strip_tiles) return;

@@ -6,7 +6,7 @@ layout(local_size_x = 256) in;
 
 void main() {
   load_frame_view();
-  const uint i = gl_GlobalInvocationID.x;
+  const uint i = flat_workgroup() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
   const uint n = min(counters.key_count, view.tiles.w);
   if (i >= n) return;
   const uint bits = view.tiles.z;

@@ -73,6 +73,29 @@ TEST(RadixSort, SizesAtTheChunksAndBlocksEdges) {
   expect_sorted_like_std(std::vector<uint32_t>(3 * 4096 + 1, 0xFFFFFFFFu), 32);
 }
 
+// Dispatches go in rows of at most 65,535 workgroups (Vulkan's least promise a dimension);
+// rows of 1, 2 and 3 here, with spare workgroups in the last row, sort as one row does.
+TEST(RadixSort, WorkgroupsInRows) {
+  vk::Context ctx;
+  for (const bool subgroups : {false, true}) {
+    vk::RadixSorter sorter(ctx, subgroups);
+    if (subgroups && sorter.subgroup_size() == 0) continue;
+    // 9 blocks of 4,096; 3 scan partitions.
+    const std::vector<uint32_t> keys = random_keys(9 * 4096 - 100, 0xFFFFFFFFu, 11);
+    std::vector<uint32_t> expected_keys = keys, expected_values(keys.size());
+    std::iota(expected_values.begin(), expected_values.end(), 0u);
+    sorter.sort(expected_keys, expected_values, 32);
+    for (const uint32_t row : {1u, 2u, 3u}) {
+      std::vector<uint32_t> k = keys, v(keys.size());
+      std::iota(v.begin(), v.end(), 0u);
+      sorter.sort(k, v, 32, row);
+      EXPECT_EQ(k, expected_keys) << row << (subgroups ? " subgroups" : " shared");
+      EXPECT_EQ(v, expected_values) << row;
+    }
+    EXPECT_TRUE(std::is_sorted(expected_keys.begin(), expected_keys.end()));
+  }
+}
+
 TEST(RadixSort, RandomFullRangeKeys) {
   // Not a multiple of the block (4096) or the chunk (256): partial blocks and chunks.
   expect_sorted_like_std(random_keys(100'003, 0xFFFFFFFFu, 1), 32);

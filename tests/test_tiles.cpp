@@ -431,6 +431,33 @@ TEST(Tiles, KeysOfAnyWidthGiveTheSameBytes) {
                UsageError);
 }
 
+// Vulkan promises 65,535 workgroups a dimension, which binning 10^8 segments exceeds: every pass
+// dispatches rows of at most that many, the last row's spare workgroups idle. Rows of a few
+// workgroups (binning, the sort, the ranges and the composite all take several rows here) give
+// the same image, keys and hits as one row.
+TEST(Tiles, WorkgroupsInRowsGiveTheSameBytes) {
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:convection?scale=0.01"));
+  const Bounds bounds = compute_bounds(lines);
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.002f * bounds.diagonal(), lines.attributes[0].name);
+  ASSERT_GT(capsules.segment_count(), 3u * 256u * 7u);  // binning: rows of 7 of 256 segments
+  const TransferFunction tf = transfer_function_preset("semi");
+  vk::Context ctx;
+  vk::TileRenderer renderer(ctx, capsules);
+  vk::TileOptions o;
+  o.width = 160, o.height = 120;
+  const Camera camera = frame_bounds(bounds, 160.0 / 120.0, 30, 20, 0.6);
+  const vk::TileFrame one_row = renderer.render(camera, tf, o);
+  ASSERT_GT(one_row.stats.keys, 3u * 4096u);  // the sort: rows of 2 of its blocks
+  for (const uint32_t row : {7u, 2u}) {
+    o.dispatch_row = row;
+    const vk::TileFrame rows = renderer.render(camera, tf, o);
+    EXPECT_EQ(rows.stats.keys, one_row.stats.keys) << row;
+    EXPECT_EQ(rows.stats.hits, one_row.stats.hits) << row;
+    EXPECT_EQ(rows.image.pixels, one_row.image.pixels) << row;
+  }
+}
+
 // The eye at the origin looking along +z, 40 degrees high: the hand-built scenes below.
 Camera looking_along_z() {
   Camera camera;

@@ -164,7 +164,7 @@ uint64_t RadixSorter::scratch_bytes(uint64_t count) {
 }
 
 void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& values,
-                         uint32_t count, uint32_t bits) {
+                         uint32_t count, uint32_t bits, uint32_t dispatch_row) {
   State& s = *state_;
   if (uint64_t(count) * 4 > keys.size || uint64_t(count) * 4 > values.size)
     throw Error("radix sort: " + std::to_string(count) + " pairs do not fit the buffers");
@@ -187,19 +187,19 @@ void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& 
                             0, nullptr);
     vkCmdPushConstants(cmd, s.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof c, &c);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.counting);
-    vkCmdDispatch(cmd, blocks, 1, 1);
+    dispatch_workgroups(cmd, blocks, dispatch_row);
     barrier();
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[0]);
-    vkCmdDispatch(cmd, partitions, 1, 1);
+    dispatch_workgroups(cmd, partitions, dispatch_row);
     barrier();
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[1]);
     vkCmdDispatch(cmd, 1, 1, 1);
     barrier();
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scan[2]);
-    vkCmdDispatch(cmd, partitions, 1, 1);
+    dispatch_workgroups(cmd, partitions, dispatch_row);
     barrier();
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.scatter);
-    vkCmdDispatch(cmd, blocks, 1, 1);
+    dispatch_workgroups(cmd, blocks, dispatch_row);
     barrier();
   }
   // An odd number of passes ends in the scratch pair: copied back, a small part of a pass (it
@@ -219,7 +219,8 @@ void RadixSorter::record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& 
   }
 }
 
-void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits) {
+void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits,
+                       uint32_t dispatch_row) {
   if (keys.size() != values.size()) throw Error("radix sort: keys and values differ in length");
   if (keys.size() > UINT32_MAX) throw Error("radix sort: more than 2^32 - 1 pairs");
   Context& ctx = state_->ctx;
@@ -237,7 +238,7 @@ void RadixSorter::sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& value
   std::copy(keys.begin(), keys.end(), static_cast<uint32_t*>(k.mapped));
   std::copy(values.begin(), values.end(), static_cast<uint32_t*>(v.mapped));
   ctx.submit([&](VkCommandBuffer cmd) {
-    record(cmd, k, v, uint32_t(keys.size()), bits);
+    record(cmd, k, v, uint32_t(keys.size()), bits, dispatch_row);
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
     b.dstAccessMask = VK_ACCESS_HOST_READ_BIT;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "render/vulkan/context.hpp"
+#include "render/vulkan/shaders.hpp"
 
 namespace linebake::vk {
 
@@ -35,11 +36,14 @@ class RadixSorter {
   // `bits` bits (8 per pass, rounded up); the result is back in `keys`/`values`. The buffers
   // are storage buffers that may be copied into (TRANSFER_DST: an odd number of passes ends
   // in the scratch, which is copied back); the scratch is made (or grown) here and reused.
+  // Its passes' workgroups go in rows of `dispatch_row` (vk::dispatch_workgroups; tests lower
+  // it).
   void record(VkCommandBuffer cmd, const Buffer& keys, const Buffer& values, uint32_t count,
-              uint32_t bits = 32);
+              uint32_t bits = 32, uint32_t dispatch_row = kDispatchRow);
   // Host arrays through the device (tests and benchmarks): sorts `keys` and permutes `values`
   // alike (equal keys keep their order).
-  void sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits = 32);
+  void sort(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, uint32_t bits = 32,
+            uint32_t dispatch_row = kDispatchRow);
 
  private:
   struct State;

@@ -1,5 +1,8 @@
 #include "render/vulkan/shaders.hpp"
 
+#include <algorithm>
+#include <string>
+
 #include "core/error.hpp"
 #include "render/vulkan/context.hpp"
 
@@ -65,6 +68,16 @@ VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
   vkDestroyShaderModule(device, module, nullptr);
   check(made, ("vkCreateComputePipelines (" + name + ")").c_str());
   return pipeline;
+}
+
+void dispatch_workgroups(VkCommandBuffer cmd, uint64_t groups, uint32_t row) {
+  if (groups == 0) return;
+  row = std::clamp<uint32_t>(row, 1, kDispatchRow);
+  const uint64_t rows = (groups + row - 1) / row;
+  if (rows > kDispatchRow)
+    throw Error("a dispatch of " + std::to_string(groups) + " workgroups takes more than " +
+                std::to_string(kDispatchRow) + " rows of " + std::to_string(row));
+  vkCmdDispatch(cmd, uint32_t(std::min<uint64_t>(groups, row)), uint32_t(rows), 1);
 }
 
 }  // namespace linebake::vk

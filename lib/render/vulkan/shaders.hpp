@@ -30,4 +30,12 @@ VkPipeline create_compute_pipeline(VkDevice device, VkPipelineLayout layout,
                                    VkPipelineShaderStageCreateFlags stage_flags = 0,
                                    VkPipelineCreateFlags pipeline_flags = 0);
 
+// The most workgroups Vulkan promises along one dimension of a dispatch
+// (maxComputeWorkGroupCount's least allowed value: lavapipe's and Intel's).
+constexpr uint32_t kDispatchRow = 65535;
+// Records a dispatch of `groups` workgroups along x, in rows of at most `row` (tests make rows
+// of a few) when there are more; the shader takes its index from flat_workgroup()
+// (shaders/dispatch.glsl) and skips those past `groups` in the last row. Throws past 65,535 rows.
+void dispatch_workgroups(VkCommandBuffer cmd, uint64_t groups, uint32_t row = kDispatchRow);
+
 }  // namespace linebake::vk

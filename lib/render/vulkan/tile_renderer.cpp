@@ -627,7 +627,7 @@ Counters TileRenderer::Frame::bin(uint32_t first, uint32_t last) {
   std::memset(s.rows.mapped, 0, s.rows.size);
   st.bin_ms += pass([&](VkCommandBuffer cmd) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[0]);
-    vkCmdDispatch(cmd, uint32_t((s.primitive_count + 255) / 256), 1, 1);
+    dispatch_workgroups(cmd, (uint64_t(s.primitive_count) + 255) / 256, o.dispatch_row);
   });
   Counters c;
   std::memcpy(&c, s.counters.mapped, sizeof c);
@@ -656,11 +656,11 @@ void TileRenderer::Frame::sort(uint32_t first, uint32_t last, uint64_t keys) {
     s.bind();
   }
   st.sort_ms += pass([&](VkCommandBuffer cmd) {
-    s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), key_bits);
+    s.sorter.record(cmd, s.keys, s.values, uint32_t(keys), key_bits, o.dispatch_row);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.set.layout, 0, 1, &s.set.set, 0,
                             nullptr);
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipelines[1]);
-    vkCmdDispatch(cmd, uint32_t((keys + 255) / 256) + 1, 1, 1);
+    dispatch_workgroups(cmd, (keys + 255) / 256 + 1, o.dispatch_row);
   });
 }
 
@@ -685,11 +685,10 @@ void TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_tiles
   const VkPipeline tiles_whole = s.pipeline(deep ? 3 : 2);
   const VkPipeline tiles_strips = order.strip_tiles > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
   const double ms = pass([&](VkCommandBuffer cmd) {
-    // Workgroup counts per dimension are only sure up to 65535 (Vulkan's minimum).
     const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {
       if (groups == 0) return;
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
-      vkCmdDispatch(cmd, std::min<uint32_t>(groups, 65535), (groups + 65534) / 65535, 1);
+      dispatch_workgroups(cmd, groups, o.dispatch_row);
       st.composite_workgroups += groups;
     };
     for (uint32_t k = 0; k < slices; ++k) {

@@ -17,6 +17,7 @@
 #include "render/ray_tracer.hpp"
 #include "render/transfer_function.hpp"
 #include "render/vulkan/context.hpp"
+#include "render/vulkan/shaders.hpp"
 #include "tubes/tube_mesh.hpp"
 
 namespace linebake::vk {
@@ -65,6 +66,9 @@ struct TileOptions {
   // TileStrips::crowded takes every tile of a walk over fewer tiles than this in strips (tests
   // lower it to 0: then only the crowded).
   uint32_t few_tiles = 512;
+  // The passes' workgroups go in rows of this many (vk::dispatch_workgroups: Vulkan promises
+  // 65,535 a dimension, which binning 10^8 segments exceeds; tests lower it). The same image.
+  uint32_t dispatch_row = vk::kDispatchRow;
   Shading shading;
 };
 
