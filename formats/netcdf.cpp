@@ -483,13 +483,18 @@ class NetcdfReader : public LineReader {
       ++c.not_finite;
   }
 
-  // A file with observations none of which is a position reads as no line at all: said as an
-  // error, with each position variable's reasons (counted by the first axis that ruled an
-  // observation out), rather than an empty line set. The usual cause is a valid range
-  // meant in unpacked units but stored in the packed type, which CF 8.1 compares with the packed
-  // values.
+  // A file with observations none of which is a position, some ruled out by a valid range,
+  // would read as no line at all: said as an error, with each position variable's reasons
+  // (counted by the first axis that ruled an observation out), rather than an empty line set.
+  // The usual cause is a valid range meant in unpacked units but stored in the packed type,
+  // which CF 8.1 compares with the packed values.
   void refuse_all_missing() const {
     if (observations_ == 0 || lines_read_ > 0) return;
+    // Fill values alone are a file not written yet (CF 9.3.3 lets a writer reserve its space):
+    // no line, as a header without lines is.
+    bool range_cut = false;
+    for (const MissingCounts& c : missing_) range_cut = range_cut || c.outside_range > 0;
+    if (!range_cut) return;
     std::string why;
     for (int axis = 0; axis < 3; ++axis) {
       const MissingCounts& c = missing_[axis];

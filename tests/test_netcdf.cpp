@@ -464,10 +464,11 @@ TEST(NetCdf, RaggedCountsThatAreMissingAreZero) {
   EXPECT_EQ(l.metadata.at("netcdf.unused_observations"), "3");
 }
 
-// A file none of whose observations is a position had read as no line and "no problems". The
-// usual cause: a valid range meant in unpacked units but stored in the packed type, which CF 8.1
-// compares with the packed values. Now it is an error naming the variables, the counts and, for a
-// packed range, what it means unpacked.
+// A file none of whose observations is a position, some outside a valid range, had read as no
+// line and "no problems". The usual cause: a valid range meant in unpacked units but stored in
+// the packed type, which CF 8.1 compares with the packed values. Now it is an error naming the
+// variables, the counts and, for a packed range, what it means unpacked. (Fill values alone are
+// a file not written yet: no line, StreamReaderContent.NoLines.)
 TEST(NetCdf, NoPositionAtAllIsAnErrorThatSaysWhy) {
   TempDir dir;
   const auto write = [&](const std::string& name, bool packed_range, short second_lon) {
