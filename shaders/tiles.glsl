@@ -76,6 +76,18 @@ vec3 project(vec3 p) {
   return vec3((x + 1.0) * 0.5 * float(view.size.x), (y + 1.0) * 0.5 * float(view.size.y), z);
 }
 
+// The signed distances of the view-relative point q from the four side planes of the view's
+// pyramid (right, left, up, down; positive outside). Every pixel's ray lies inside all four, so
+// a primitive wholly outside one of them by more than its reach has no hit: that tells the
+// primitives near the plane of the eye, whose projection is unbounded, from those that may
+// cover the screen.
+vec4 pyramid_distances(vec3 q) {
+  const float tx = length(view.right), ty = length(view.up);
+  const float x = dot(q, view.right) / tx, y = dot(q, view.up) / ty, z = dot(q, view.forward);
+  return vec4(x - tx * z, -x - tx * z, y - ty * z, -y - ty * z) /
+         vec4(sqrt(1.0 + tx * tx), sqrt(1.0 + tx * tx), sqrt(1.0 + ty * ty), sqrt(1.0 + ty * ty));
+}
+
 // The pixels whose ray may hit a primitive with screen bounds [lo, hi]: those whose centre
 // (x + 0.5, y + 0.5), through which the ray passes, lies inside them, [p0, p1] (empty where p0 >
 // p1 on an axis), clamped to one pixel outside the image. Binning's tiles and the composite's

@@ -53,6 +53,25 @@ bool screen_bounds(uint s, out vec2 lo, out vec2 hi, out float z_near, out float
     hi = vec2(x.y, y.y) + 0.0625;
     return true;
   }
+  // Near the plane of the eye: first the part of the segment within reach of the view's pyramid
+  // (pyramid_distances). A ray's point within `wide` of the capsule's axis is inside the
+  // pyramid, so the axis point it is near lies within `wide` of it: the rest of the segment has
+  // no hit. Without this, a capsule crossing the eye's plane far off to the side took the bounds
+  // of the whole screen below (a fly-through of clouds at 1920x1080: 65.8 million keys).
+  const float reach = 2.0 * wide;
+  const vec4 da = pyramid_distances(qa), db = pyramid_distances(qb);
+  float t0 = 0.0, t1 = 1.0;
+  for (int k = 0; k < 4; ++k) {
+    if (da[k] > reach && db[k] > reach) return false;
+    const float at = (da[k] - reach) / (da[k] - db[k]);
+    if (da[k] > reach) t0 = max(t0, at);
+    if (db[k] > reach) t1 = min(t1, at);
+  }
+  if (t0 > t1) return false;
+  const vec3 e = b - a;
+  a += t0 * e;
+  b = a + (t1 - t0) * e;
+  za = dot(a - view.eye, f), zb = dot(b - view.eye, f);
   // Behind the eye: culled; crossing the plane just in front of it: clipped there (pushed back
   // by the radius, so the end spheres stay in front too).
   const float near = near_clip();

@@ -499,6 +499,45 @@ TransferFunction red_to_blue(double red_opacity, double blue_opacity) {
 // first) but runs away from the eye, and at the pixel through B it lies behind B. Ambient light
 // only, so each hit's colour is the transfer function's: the pixel must be B over A over the
 // background, composited by hand.
+// A primitive crossing the plane of the eye has an unbounded projection. One far off to the side
+// lies outside the view's pyramid, where no pixel's ray goes: it gets no key, where it had
+// taken every tile (a fly-through of clouds at 1920x1080: 65.8 million keys, 72 s a frame on
+// lavapipe). The image is the same as without it, in both geometries.
+TEST(Tiles, PrimitivesBesideTheEyeOutsideTheViewGetNoKeys) {
+  LineSet seen, beside;
+  for (LineSet* lines : {&seen, &beside}) {
+    lines->append_point(-0.5f, 0, 3), lines->append_point(0.5f, 0.2f, 5), lines->end_line();
+    lines->attributes = {{"v", {0, 1}}};
+  }
+  // Across the eye's plane, 10 to the side and 8 above (the view is 40 degrees high), and a
+  // line of segments behind the eye leading into the view.
+  for (const float side : {-10.0f, 10.0f}) {
+    beside.append_point(side, 0, -1), beside.append_point(side, 0.1f, 1), beside.end_line();
+  }
+  beside.append_point(0, 8, -2), beside.append_point(0.1f, 8, 2), beside.end_line();
+  beside.attributes[0].values.insert(beside.attributes[0].values.end(), {0, 1, 0, 1, 0, 1});
+  const Camera camera = looking_along_z();
+  const TransferFunction tf = red_to_blue(0.6, 0.5);
+  vk::TileOptions o;
+  o.width = 96, o.height = 64;
+  vk::Context ctx;
+  {
+    vk::TileRenderer alone(ctx, build_capsule_segments(seen, 0.1f, "v")),
+        crowded(ctx, build_capsule_segments(beside, 0.1f, "v"));
+    const vk::TileFrame a = alone.render(camera, tf, o), b = crowded.render(camera, tf, o);
+    EXPECT_GT(a.stats.hits, 50u);
+    EXPECT_EQ(b.stats.keys, a.stats.keys);
+    EXPECT_EQ(b.image.pixels, a.image.pixels);
+  }
+  TubeOptions tube;
+  tube.radius = 0.1f, tube.radius_absolute = true, tube.attribute = "v";
+  vk::TileRenderer alone(ctx, build_tubes(seen, tube)), crowded(ctx, build_tubes(beside, tube));
+  const vk::TileFrame a = alone.render(camera, tf, o), b = crowded.render(camera, tf, o);
+  EXPECT_GT(a.stats.hits, 50u);
+  EXPECT_EQ(b.stats.keys, a.stats.keys);
+  EXPECT_EQ(b.image.pixels, a.image.pixels);
+}
+
 TEST(Tiles, CrossingCapsulesCompositeInExactOrder) {
   LineSet lines;
   lines.append_point(-3, 0, 2), lines.append_point(3, 0, 14), lines.end_line();       // A
