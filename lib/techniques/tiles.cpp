@@ -125,6 +125,8 @@ class Tiles : public PreparedTechnique {
         {"walk_ms", s.walk_ms},
         {"walk_tiles", s.walk_tiles},
         {"walk_skipped_keys", s.walk_skipped_keys},
+        {"redone_tiles", s.redone_tiles},
+        {"redone_ms", s.redone_ms},
         {"max_tile_keys", s.max_tile_keys},
         {"crowded_tiles", s.crowded_tiles},
         {"composite_workgroups", s.composite_workgroups},

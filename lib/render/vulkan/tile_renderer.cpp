@@ -8,6 +8,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <numeric>
 #include <span>
 #include <string>
 #include <tuple>
@@ -537,9 +538,10 @@ struct TileRenderer::Frame {
   uint32_t composite_band(uint32_t first, uint32_t last);
   uint32_t composite_group(const std::vector<uint32_t>& group);
   // One walk over `walk_tiles` in `slices` slices of `slice_keys` keys per tile (walk 0: the
-  // band's every tile, starting its pixels).
-  void composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk, uint32_t slice_keys,
-                      uint32_t slices, bool keep_states);
+  // band's every tile, starting its pixels); its GPU milliseconds (composite_group tallies
+  // them).
+  double composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk, uint32_t slice_keys,
+                        uint32_t slices, bool keep_states);
 };
 
 TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFunction& tf_in,
@@ -664,8 +666,8 @@ void TileRenderer::Frame::sort(uint32_t first, uint32_t last, uint64_t keys) {
   });
 }
 
-void TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk,
-                                         uint32_t slice_keys, uint32_t slices, bool keep_states) {
+double TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_tiles, uint32_t walk,
+                                           uint32_t slice_keys, uint32_t slices, bool keep_states) {
   if ((slices > 1 || keep_states) && s.states.size < state_bytes) {
     ctx.destroy(s.states);
     s.states = ctx.create_buffer(state_bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
@@ -707,10 +709,28 @@ void TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_tiles
     }
   });
   st.composite_ms += ms;
-  if (st.walk_ms.size() <= walk) st.walk_ms.resize(walk + 1), st.walk_tiles.resize(walk + 1);
-  st.walk_ms[walk] += ms;
-  st.walk_tiles[walk] += walk_tiles.size();
+  return ms;
 }
+
+namespace {
+
+// Composite GPU ms and tiles walked, per walk.
+struct WalkTally {
+  std::vector<double> ms;
+  std::vector<uint64_t> tiles;
+  void add(uint32_t walk, double walk_ms, uint64_t walk_tiles) {
+    if (ms.size() <= walk) ms.resize(walk + 1), tiles.resize(walk + 1);
+    ms[walk] += walk_ms;
+    tiles[walk] += walk_tiles;
+  }
+  void add(const WalkTally& other) {
+    for (size_t w = 0; w < other.ms.size(); ++w) add(uint32_t(w), other.ms[w], other.tiles[w]);
+  }
+  double total_ms() const { return std::accumulate(ms.begin(), ms.end(), 0.0); }
+  uint64_t total_tiles() const { return std::accumulate(tiles.begin(), tiles.end(), uint64_t{0}); }
+};
+
+}  // namespace
 
 // The composite pass over a group of tiles, in slices of each tile's keys where the device needs
 // them, and walked again where pixels left hits for another walk (a full window): the number of
@@ -722,7 +742,8 @@ uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group
   auto* slots = static_cast<uint32_t*>(s.tile_slots.mapped);
   for (size_t k = 0; k < group.size(); ++k) slots[group[k]] = uint32_t(k);
   const uint32_t group_longest = tile_keys.longest(group, 0);
-  st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, group_longest);
+  for (uint32_t t : group)
+    st.max_tile_keys = std::max<uint64_t>(st.max_tile_keys, tile_keys.walked(t, 0));
   if (o.most_keys_first) {
     const uint64_t crowded = tile_keys.crowded(group, 0);
     for (uint32_t t : group) st.crowded_tiles += tile_keys.walked(t, 0) > crowded;
@@ -734,7 +755,13 @@ uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group
   auto* again = static_cast<uint32_t*>(s.walk_again.mapped);
   auto* walk_first = static_cast<uint32_t*>(s.walk_first.mapped);
   std::vector<uint32_t> first_walk = group;
+  // The walks' figures stand once the group is done: those of attempts a cut-short dispatch
+  // threw away, and the first walks redone for tiles whose states had no room to stay, are
+  // `redone_*`, so that walk_tiles never counts a tile twice.
+  WalkTally kept, redone;
+  bool redoing_first_walk = false;
   for (;;) {
+    WalkTally attempt;
     std::fill_n(again, tiles, kNoWalkAgain);
     // Every chunk unknown until a walk passes it (again after a cut-short dispatch, whose
     // batches may have stopped part way).
@@ -754,7 +781,11 @@ uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group
                     " tiles made no progress");
       const uint32_t slices = (longest + slice_keys - 1) / slice_keys;
       most_slices = std::max(most_slices, slices);
-      composite_walk(walk_tiles, walks, slice_keys, slices, keep_states);
+      const double ms = composite_walk(walk_tiles, walks, slice_keys, slices, keep_states);
+      if (walks == 0 && redoing_first_walk)
+        redone.add(0, ms, walk_tiles.size());
+      else
+        attempt.add(walks, ms, walk_tiles.size());
       const bool had_room = s.states.size >= state_bytes;
       CompositeStats after;
       std::memcpy(&after, s.stats.mapped, sizeof after);
@@ -773,9 +804,28 @@ uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group
       }
     }
     if (!cut_short && !no_room) {
+      kept.add(attempt);
       st.walks = std::max(st.walks, walks);
       st.walk_skipped_keys += skipped;
+      if (st.walk_ms.size() < kept.ms.size())
+        st.walk_ms.resize(kept.ms.size()), st.walk_tiles.resize(kept.ms.size());
+      for (size_t w = 0; w < kept.ms.size(); ++w)
+        st.walk_ms[w] += kept.ms[w], st.walk_tiles[w] += kept.tiles[w];
+      st.redone_ms += redone.total_ms();
+      st.redone_tiles += redone.total_tiles();
       return most_slices;
+    }
+    if (no_room) {
+      // The first walk stands for the tiles done in it; the others walk it again, keeping their
+      // states this time.
+      kept.add(attempt);
+      redoing_first_walk = true;
+    } else {
+      // Cut short: every walk of the group so far is redone in smaller slices.
+      redone.add(kept);
+      redone.add(attempt);
+      kept = {};
+      redoing_first_walk = false;
     }
     if (cut_short) {
       if (slice_keys == 1)

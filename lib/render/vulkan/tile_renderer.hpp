@@ -96,6 +96,11 @@ struct TileStats {
   // Per walk (0: the first), summed over bands and groups: composite GPU ms and tiles walked.
   std::vector<double> walk_ms;
   std::vector<uint64_t> walk_tiles;
+  // Tiles composited again, and their GPU ms (in composite_ms, not walk_ms): first walks redone
+  // where the pixels' states had no room to stay yet (a renderer's first frame that walks
+  // again), and the walks a dispatch cut short threw away (resliced).
+  uint64_t redone_tiles = 0;
+  double redone_ms = 0;
 };
 
 struct TileFrame {
