@@ -569,7 +569,12 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
         " would pass the memory budget of " + format_bytes(host_budget_.total) +
         " (the device's allocations hold " + format_bytes(host_bytes_) + ", the process " +
-        format_bytes(current_rss_bytes()) + " resident)");
+        format_bytes(current_rss_bytes()) + " resident" +
+        (host_budget_.reserved > reserve_credit()
+             ? ", and " + format_bytes(host_budget_.reserved - reserve_credit()) +
+                   " is kept for the frame's outputs"
+             : std::string()) +
+        ")");
   VkDeviceMemory out = VK_NULL_HANDLE;
   const VkResult r = vkAllocateMemory(device_, &info, nullptr, &out);
   if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
