@@ -387,6 +387,7 @@ for r in rows.values():
 assert rows['tiles-triangles']['psnr_db'] >= 50, rows  # the reference's surface
 assert rows['tiles']['psnr_db'] < rows['tiles-triangles']['psnr_db'], rows  # capsules: another"
 check "bench render: a Markdown table, unknown techniques refused before any work" bash -c "'$bin' bench render '$tmp/t.lbc.h5' --techniques wboit --frames 1 --size 32x24 2>/dev/null | grep -q '^| t (495,000) | semi | wboit | llvmpipe' && '$bin' bench render '$tmp/t.lbc.h5' --techniques wbiot 2> '$tmp/bench.err'; [ \$? -ne 0 ] && grep -q \"unknown technique 'wbiot'\" '$tmp/bench.err'"
+check "bench render --size under 11x11 refused before any work (SSIM's window; it had failed after rendering)" bash -c "'$bin' bench render '$tmp/t.lbc.h5' --techniques wboit --frames 1 --size 10x40 > '$tmp/bs.out' 2> '$tmp/bs.err'; [ \$? -eq 1 ] && grep -q 'at least 11x11 pixels' '$tmp/bs.err' && ! grep -q 'bench render: t' '$tmp/bs.err' && [ ! -s '$tmp/bs.out' ]"
 check "bench render --every-hit: embree's interval walk and every hit, the same image" python3 -c "
 import json, subprocess
 def bench(*extra):

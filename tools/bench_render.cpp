@@ -326,6 +326,11 @@ void bench_render(const BenchRenderArgs& args) {
   for (const std::string& name : args.transfer_functions)
     tfs.push_back(resolve_transfer_function(name));
   const auto [width, height] = parse_size(args.size);
+  // Checked before any work: the frames are compared with the reference by SSIM at the end.
+  if (width < 11 || height < 11)
+    throw UsageError("--size '" + args.size +
+                     "': bench render compares frame 0 with the reference by SSIM, which needs at "
+                     "least 11x11 pixels");
   TechniqueOptions options;
   options.width = width, options.height = height;
   options.device = args.device;
