@@ -475,12 +475,16 @@ class NetcdfReader : public LineReader {
   void count_missing(int axis, double raw) {
     const Variable& v = *axes_[axis];
     MissingCounts& c = missing_[axis];
-    if (v.outside_valid_range(raw))
-      ++c.outside_range;
-    else if (v.is_missing(raw))
+    // A fill value lies outside the valid range as CF 2.5.1 recommends, and the library's
+    // default fills are past 1e20: a file not written yet counts as missing values and
+    // non-finite positions, not as a range that cut data out.
+    const double value = v.unpack(raw);
+    if (std::find(v.missing.begin(), v.missing.end(), raw) != v.missing.end())
       ++c.missing_value;
-    else
+    else if (!std::isfinite(value) || std::fabs(value) >= 1e20)
       ++c.not_finite;
+    else
+      ++c.outside_range;
   }
 
   // A file with observations none of which is a position, some ruled out by a valid range,

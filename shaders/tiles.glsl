@@ -67,13 +67,17 @@ float key_depth(uint key) {
   return view.params.z + q / float((1u << bits) - 1u) * (view.params.w - view.params.z);
 }
 
-// Pixel position and view depth of a point (binning).
-vec3 project(vec3 p) {
-  const vec3 q = p - view.eye;
+// Pixel position and view depth of the point at offset q from the eye (binning).
+vec3 project_offset(vec3 q) {
   const float z = dot(q, view.forward);
   const float x = dot(q, view.right) / dot(view.right, view.right) / z;
   const float y = -dot(q, view.up) / dot(view.up, view.up) / z;
   return vec3((x + 1.0) * 0.5 * float(view.size.x), (y + 1.0) * 0.5 * float(view.size.y), z);
+}
+
+// ... and of a point.
+vec3 project(vec3 p) {
+  return project_offset(p - view.eye);
 }
 
 // The signed distances of the view-relative point q from the four side planes of the view's

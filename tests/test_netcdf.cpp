@@ -517,6 +517,26 @@ TEST(NetCdf, NoPositionAtAllIsAnErrorThatSaysWhy) {
   EXPECT_NE(both.find("; 'lat' 3 equal to its _FillValue or missing_value"), std::string::npos)
       << both;
 
+  // A file not written yet: every position the fill, which lies outside the valid range as CF
+  // 2.5.1 recommends, reads as no line (a reviewer found the fill counted as outside the range,
+  // and the file refused).
+  {
+    const std::string path = dir.file("unwritten.nc");
+    int nc, d[2], lon, lat;
+    ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+    ok(nc_def_dim(nc, "trajectory", 2, &d[0]));
+    ok(nc_def_dim(nc, "obs", 3, &d[1]));
+    ok(nc_def_var(nc, "lon", NC_FLOAT, 2, d, &lon));
+    ok(nc_def_var(nc, "lat", NC_FLOAT, 2, d, &lat));
+    const float fill = -999, valid[] = {-90, 90};
+    ok(nc_put_att_float(nc, lon, "_FillValue", NC_FLOAT, 1, &fill));
+    ok(nc_put_att_float(nc, lon, "valid_range", NC_FLOAT, 2, valid));
+    ok(nc_put_att_float(nc, lat, "valid_max", NC_FLOAT, 1, &valid[1]));  // the library's fill
+    ok(nc_enddef(nc));
+    ok(nc_close(nc));
+    EXPECT_EQ(read_line_set(path).line_count(), 0u);
+  }
+
   // Without the range the longitudes are positions, and the latitudes' fill makes the second
   // trajectory a gap: one line, no error.
   const LineSet l = read_line_set(write("fill.nc", false, 4000));
