@@ -714,17 +714,22 @@ double TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_til
 
 namespace {
 
-// Composite GPU ms and tiles walked, per walk.
+// Composite GPU ms and tiles walked, per walk (as TileStats::walk_ms and walk_tiles).
 struct WalkTally {
   std::vector<double> ms;
   std::vector<uint64_t> tiles;
   void add(uint32_t walk, double walk_ms, uint64_t walk_tiles) {
-    if (ms.size() <= walk) ms.resize(walk + 1), tiles.resize(walk + 1);
-    ms[walk] += walk_ms;
-    tiles[walk] += walk_tiles;
+    add_to(ms, tiles, walk, walk_ms, walk_tiles);
   }
-  void add(const WalkTally& other) {
-    for (size_t w = 0; w < other.ms.size(); ++w) add(uint32_t(w), other.ms[w], other.tiles[w]);
+  void add(const WalkTally& other) { other.add_into(ms, tiles); }
+  void add_into(std::vector<double>& ms_out, std::vector<uint64_t>& tiles_out) const {
+    for (size_t w = 0; w < ms.size(); ++w) add_to(ms_out, tiles_out, uint32_t(w), ms[w], tiles[w]);
+  }
+  static void add_to(std::vector<double>& ms_out, std::vector<uint64_t>& tiles_out, uint32_t walk,
+                     double walk_ms, uint64_t walk_tiles) {
+    if (ms_out.size() <= walk) ms_out.resize(walk + 1), tiles_out.resize(walk + 1);
+    ms_out[walk] += walk_ms;
+    tiles_out[walk] += walk_tiles;
   }
   double total_ms() const { return std::accumulate(ms.begin(), ms.end(), 0.0); }
   uint64_t total_tiles() const { return std::accumulate(tiles.begin(), tiles.end(), uint64_t{0}); }
@@ -807,10 +812,7 @@ uint32_t TileRenderer::Frame::composite_group(const std::vector<uint32_t>& group
       kept.add(attempt);
       st.walks = std::max(st.walks, walks);
       st.walk_skipped_keys += skipped;
-      if (st.walk_ms.size() < kept.ms.size())
-        st.walk_ms.resize(kept.ms.size()), st.walk_tiles.resize(kept.ms.size());
-      for (size_t w = 0; w < kept.ms.size(); ++w)
-        st.walk_ms[w] += kept.ms[w], st.walk_tiles[w] += kept.tiles[w];
+      kept.add_into(st.walk_ms, st.walk_tiles);
       st.redone_ms += redone.total_ms();
       st.redone_tiles += redone.total_tiles();
       return most_slices;
