@@ -453,6 +453,35 @@ check "the shipped paper pipelines (YAML) plan, dp left out where the file says"
 check "a second run reuses every step" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' 2>&1 >/dev/null | grep -q ' 0 step(s) run, 14 reused, 3 skipped'"
 check "--dry-run after a change lists what reruns" bash -c "sed 's/\"heap\"/\"shell\"/' '$pipes/ci.json' > '$tmp/ci2.json' && '$bin' run '$tmp/ci2.json' -o '$tmp/ci' --dry-run > '$tmp/dry.txt' && grep -q '^run render/aneurysm/ll/semi' '$tmp/dry.txt' && grep -q '^reuse render/aneurysm/mboit/semi' '$tmp/dry.txt' && [ \$(grep -c '^run ' '$tmp/dry.txt') -eq 3 ]"
 check "a failing step is named, exit 4, finished outputs kept" bash -c "sed 's/\"tubes\", \"voxels\"\], \"grid\": 32/\"tubes\"]/' '$pipes/ci.json' > '$tmp/ci3.json' && '$bin' run '$tmp/ci3.json' -o '$tmp/ci3' > /dev/null 2> '$tmp/fail.err'; [ \$? -eq 4 ] && grep -q 'step render/aneurysm/vrc-cpu/semi failed' '$tmp/fail.err' && [ -e '$tmp/ci3/aneurysm/embree-semi_001.png' ] && [ ! -e '$tmp/ci3/report.md' ]"
+# A small pipeline of two data sets: the runs below change one thing each.
+cat > "$tmp/small.json" <<'EOF'
+{"name": "small", "datasets": [{"name": "an", "source": "synth:aneurysm?scale=0.005"},
+                               {"name": "cv", "source": "synth:convection?scale=0.005"}],
+ "assets": {"assets": ["tubes"]},
+ "techniques": [{"technique": "reference", "datasets": ["cv"]}, "embree", "wboit"],
+ "flight": "kf.json", "frames": 2, "size": "32x24"}
+EOF
+cat > "$tmp/kf.json" <<'EOF'
+{"keyframes": [{"eye": [0, 2, 12], "target": [0, 0.5, 0], "up": [0, 1, 0], "fov": 45},
+               {"eye": [6, 2, 10], "target": [0, 0.5, 0], "up": [0, 1, 0], "fov": 45}]}
+EOF
+check "run: where the reference does not run, the others are rendered and reported 'not compared' (the report had failed on a missing compare file)" bash -c "'$bin' run '$tmp/small.json' -o '$tmp/small' > /dev/null 2>&1 && python3 -c \"
+import json; j=json.load(open('$tmp/small/report.json')); r={(x['dataset'], x['technique']): x for x in j['results']}
+assert 'its reference, reference, does not run here' in r[('an', 'embree')]['not_compared'], r[('an', 'embree')]
+assert 'mean_ssim' not in r[('an', 'embree')] and r[('cv', 'embree')]['mean_ssim'] > 0.5
+assert j['warm_up'] == 1
+\" && grep -q '| embree | .* | not compared \[' '$tmp/small/report.md'"
+check "run: an edited key-frame file renders again (it had been reused)" bash -c "sed -i 's/\"fov\": 45}]}/\"fov\": 30}]}/' '$tmp/kf.json' && '$bin' run '$tmp/small.json' -o '$tmp/small' --dry-run | grep -q '^run render/an/embree/semi'"
+check "run: -o spelled 'dir/' or 'parent/./dir' reuses what 'dir' ran" bash -c "sed -i 's/\"fov\": 30}]}/\"fov\": 45}]}/' '$tmp/kf.json' && for o in '$tmp/small/' '$tmp/./small'; do '$bin' run '$tmp/small.json' -o \"\$o\" --dry-run > '$tmp/spelled.txt' && grep -q '^reuse render/an/embree/semi' '$tmp/spelled.txt' && ! grep -q '^run ' '$tmp/spelled.txt' || exit 1; done"
+check "run: a failing step loses its record and the stale reports go (an interrupted step had kept its record beside new outputs)" bash -c "sed 's/\"wboit\"]/{\"technique\": \"wboit\", \"options\": {\"memory-budget\": \"1K\"}}]/' '$tmp/small.json' > '$tmp/small-fail.json' && '$bin' run '$tmp/small-fail.json' -o '$tmp/small' > /dev/null 2>&1; [ \$? -eq 4 ] && [ ! -e '$tmp/small/report.html' ] && [ ! -e '$tmp/small/report.json' ] && '$bin' run '$tmp/small.json' -o '$tmp/small' --dry-run | grep -q '^run render/an/wboit/semi'"
+pipeline_refused() {  # pipeline_refused NAME JSON EXPECTED-TEXT
+  printf '%s' "$2" > "$tmp/refused-$1.json"
+  check "pipeline refused: $1" bash -c "'$bin' run '$tmp/refused-$1.json' --dry-run > /dev/null 2> '$tmp/refused-$1.err'; [ \$? -eq 2 ] && grep -qF -- \"$3\" '$tmp/refused-$1.err'"
+}
+pipeline_refused name-leaving-out '{"name": "../../x", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"]}' "name: '../../x': a name without '/'"
+pipeline_refused empty-output '{"output": "", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"]}' 'output: an empty output directory'
+pipeline_refused tf-same-files '{"output": "o", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"], "transfer_functions": ["semi", "semi.json"]}' "'semi' and 'semi.json' would write the same files"
+pipeline_refused dataset-cache-name '{"output": "o", "datasets": [{"name": "a", "source": "synth:aneurysm"}, {"name": "a.lbc.h5", "source": "synth:aneurysm"}], "techniques": ["reference"]}' "one data set's folder would be the other's cache file"
 # Pipeline typos fail --dry-run with the file, the JSON path and the reason; nothing is run.
 typo() {  # typo NAME SED-EXPRESSION EXPECTED-TEXT
   sed "$2" "$pipes/ci.json" > "$tmp/typo-$1.json"

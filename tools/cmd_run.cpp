@@ -267,6 +267,10 @@ Command add_run(CLI::App& app) {
           "the pipeline's own (" +
           p.output + ")");
     if (!args->output.empty()) p.output = args->output;
+    // One spelling of the directory for the steps' command lines, which their keys hold: "out/p/"
+    // and "./out/p" reuse what "out/p" ran.
+    p.output = std::filesystem::path(p.output).lexically_normal().string();
+    while (p.output.size() > 1 && p.output.back() == '/') p.output.pop_back();
     validate_pipeline(p);
     PlanContext context;
     try {
@@ -299,6 +303,7 @@ Command add_run(CLI::App& app) {
       return true;
     };
     size_t ran = 0, reused = 0, skipped = 0;
+    bool reports_removed = false;
     std::map<std::string, std::string> status;  // id -> ran | reused | skipped
     for (const PipelineStep& s : steps) {
       std::string what = !s.skip_reason.empty() ? "skip" : reusable(s) ? "reuse" : "run";
@@ -319,6 +324,19 @@ Command add_run(CLI::App& app) {
         ++reused;
         continue;
       }
+      // The reports describe the outputs as the last whole run left them: once a step is to
+      // change those, they go (a failed or interrupted run leaves none, not a stale one).
+      if (!reports_removed) {
+        for (const char* report : {"report.html", "report.md", "report.json"})
+          std::filesystem::remove(p.output + "/" + report);
+        reports_removed = true;
+      }
+      // The step's record goes before its outputs change: interrupted or failed, it runs again
+      // next time (its record had stood beside its half-replaced outputs, and was reused).
+      if (state.contains(s.id)) {
+        state.erase(s.id);
+        write_file_atomically(state_path, json_text(state, 1) + "\n");
+      }
       for (const std::string& o : s.outputs)
         std::filesystem::create_directories(std::filesystem::path(o).parent_path());
       std::cerr << "linebake: run: " << s.id << "\n";
@@ -326,8 +344,8 @@ Command add_run(CLI::App& app) {
       const int code = run_child(s.args, s.stdout_file);
       if (interrupt_signal())
         throw Interrupted(interrupt_signal(),
-                          "at step " + s.id + "; the " + std::to_string(ran) +
-                              " step(s) finished before it are kept and reused by the next run");
+                          "at step " + s.id + "; the " + std::to_string(ran + reused) +
+                              " step(s) run or reused before it are kept for the next run");
       if (code != 0)
         throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
                     "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);

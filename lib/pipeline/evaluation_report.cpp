@@ -62,7 +62,10 @@ std::vector<std::string> summary_cells(const nlohmann::json& r, double reference
                  {fixed(r["mean_psnr_db"].get<double>(), 2), fixed(r["mean_ssim"].get<double>(), 4),
                   fixed(r["min_ssim"].get<double>(), 4)});
   else
-    cells.insert(cells.end(), {is_reference ? "reference" : "", "", ""});
+    cells.insert(cells.end(), {is_reference                 ? "reference"
+                               : r.contains("not_compared") ? "not compared"
+                                                            : "",
+                               "", ""});
   cells.push_back(format_bytes(uint64_t(peak)));
   return cells;
 }
@@ -124,6 +127,7 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
                         {"size", p.size},
                         {"flight", p.flight},
                         {"frames", p.frame_count},
+                        {"warm_up", p.warm_up},
                         {"reference", p.reference},
                         {"caches", nlohmann::json::array()},
                         {"results", nlohmann::json::array()}};
@@ -146,13 +150,20 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
         // The acceleration structure the technique built at render time (Embree's BVH for
         // embree and reference): Table 1's build figures when the cache holds none.
         if (stats.contains("bvh")) r["bvh"] = stats["bvh"];
+        // Not compared where the reference did not run (its compare steps skipped).
+        const PipelineStep* compare =
+            t.label == p.reference
+                ? nullptr
+                : by_id.at("compare/" + d.name + "/" + t.label + "/" + tf + "/0");
+        const bool compared = compare && compare->skip_reason.empty();
+        if (compare && !compared) r["not_compared"] = compare->skip_reason;
         nlohmann::json frames = nlohmann::json::array();
         for (int f = 0; f < p.frame_count; ++f) {
           const nlohmann::json& fs = stats.at("frames").at(size_t(f));
           nlohmann::json frame = {{"frame", f}, {"seconds", fs.value("seconds", 0.0)}};
           if (fs.contains("gpu_ms")) frame["gpu_ms"] = fs["gpu_ms"];
           if (fs.contains("frame_bytes")) frame["frame_bytes"] = fs["frame_bytes"];
-          if (t.label != p.reference) {
+          if (compared) {
             const nlohmann::json c = read_json(frame_output(p, stem + "-compare", f, ".json"));
             frame["psnr_db"] = c.at("psnr_db");
             frame["ssim"] = c.at("ssim");
@@ -171,7 +182,7 @@ nlohmann::json evaluation_json(const Pipeline& p, const std::vector<CacheSummary
         const double n = double(frames.size());
         r["frames"] = frames;
         r["mean_seconds"] = seconds / n;
-        if (t.label != p.reference) {
+        if (compared) {
           r["mean_psnr_db"] = psnr / n;
           r["mean_ssim"] = ssim / n;
           r["min_ssim"] = min_ssim;
@@ -227,9 +238,14 @@ std::string markdown_group(const Pipeline& p, const std::vector<const nlohmann::
       notes += mark + " " + name + ": " + (*r)["skipped"].get<std::string>() + "  \n";
       continue;
     }
+    std::vector<std::string> cells = summary_cells(*r, reference_seconds, name == p.reference);
+    if (r->contains("not_compared")) {
+      const std::string mark = "[" + std::to_string(++note) + "]";
+      cells[3] += " " + mark;
+      notes += mark + " " + name + ": " + (*r)["not_compared"].get<std::string>() + "  \n";
+    }
     md += "|";
-    for (const std::string& cell : summary_cells(*r, reference_seconds, name == p.reference))
-      md += " " + cell + " |";
+    for (const std::string& cell : cells) md += " " + cell + " |";
     md += "\n";
   }
   return notes.empty() ? md : md + "\n" + notes;

@@ -252,6 +252,13 @@ std::string summary_table(const Pipeline& p, const std::vector<const nlohmann::j
     std::vector<std::string> cells =
         summary_cells(*r, reference_seconds, (*r)["technique"] == p.reference);
     for (std::string& cell : cells) cell = xml_escape(cell);
+    if (r->contains("not_compared")) {
+      const std::string reason = xml_escape((*r)["not_compared"].get<std::string>());
+      const std::string mark = std::to_string(++note);
+      cells[3] = "<span class=\"skip\" title=\"" + reason + "\">" + cells[3] + "<sup>" + mark +
+                 "</sup></span>";
+      notes += "<li value=\"" + mark + "\">" + name + ": " + reason + "</li>";
+    }
     rows.push_back(std::move(cells));
   }
   std::string html = html_table(summary_columns(), rows);

@@ -97,6 +97,13 @@ std::string key_of(const std::vector<std::string>& parts) {
   return h.hex();
 }
 
+// A transfer function's part of its outputs' names: a file's name without folder and ".json"
+// (semi-vivid.json: "semi-vivid"), so outputs stay in the dataset's folder with readable names.
+std::string transfer_function_stem(const std::string& tf) {
+  const std::filesystem::path path(tf);
+  return path.extension() == ".json" ? path.stem().string() : tf;
+}
+
 std::string error_gain_argument() {
   char text[32];
   std::snprintf(text, sizeof text, "%g", kErrorImageGain);
@@ -116,7 +123,15 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
   Pipeline p;
   p.file = file;
   p.name = string_at(j, "name", std::filesystem::path(file).stem().string(), file, "");
+  // The default output is out/<name>: a name may not lead it elsewhere.
+  if (p.name.empty() || p.name == "." || p.name == ".." ||
+      p.name.find_first_of("/\\") != std::string::npos)
+    throw InputError(file, "name",
+                     "'" + p.name +
+                         "': a name without '/' or '\\', not empty, '.' or '..' (the "
+                         "default output directory is out/<name>)");
   p.output = string_at(j, "output", "out/" + p.name, file, "");
+  if (p.output.empty()) throw InputError(file, "output", "an empty output directory");
   if (!j.contains("datasets") || !j["datasets"].is_array() || j["datasets"].empty())
     throw InputError(file, "datasets", "a list of at least one {name, source} is needed");
   const std::filesystem::path base = std::filesystem::path(file).parent_path();
@@ -133,6 +148,12 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
     if (ds.source.empty()) throw InputError(file, where + ".source", "missing");
     if (!names.insert(ds.name).second)
       throw InputError(file, where + ".name", "'" + ds.name + "' appears twice");
+    // A data set's outputs are <output>/<name>.lbc.h5 and the folder <output>/<name>/.
+    for (const std::string& other : names)
+      if (other == ds.name + ".lbc.h5" || ds.name == other + ".lbc.h5")
+        throw InputError(file, where + ".name",
+                         "'" + ds.name + "' and '" + other +
+                             "': one data set's folder would be the other's cache file");
     if (ds.source.rfind("synth:", 0) != 0 && std::filesystem::path(ds.source).is_relative())
       ds.source = (base / ds.source).lexically_normal().string();
     p.datasets.push_back(ds);
@@ -150,6 +171,13 @@ Pipeline parse_pipeline(const nlohmann::json& j, const std::string& file) {
         throw InputError(
             file, "transfer_functions",
             "'" + tf.get<std::string>() + "' appears twice (every step would run twice)");
+      // Two whose outputs would be the same files (render_stem) are refused.
+      for (const std::string& other : p.transfer_functions)
+        if (transfer_function_stem(other) == transfer_function_stem(tf.get<std::string>()))
+          throw InputError(file, "transfer_functions",
+                           "'" + other + "' and '" + tf.get<std::string>() +
+                               "' would write the same files (a file's outputs take its name "
+                               "without .json)");
       p.transfer_functions.push_back(tf.get<std::string>());
       const std::string& name = p.transfer_functions.back();
       if (!safe_name(name))
@@ -410,13 +438,9 @@ std::string cache_path(const Pipeline& p, const std::string& dataset) {
   return p.output + "/" + dataset + ".lbc.h5";
 }
 
-// A transfer function file gives its name without folder and extension (semi-vivid.json:
-// "semi-vivid"), so outputs stay in the dataset's folder with readable names.
 std::string render_stem(const Pipeline& p, const std::string& dataset, const std::string& label,
                         const std::string& tf) {
-  const std::filesystem::path path(tf);
-  const std::string name = path.extension() == ".json" ? path.stem().string() : tf;
-  return p.output + "/" + dataset + "/" + label + "-" + name;
+  return p.output + "/" + dataset + "/" + label + "-" + transfer_function_stem(tf);
 }
 
 std::string frame_file(const std::string& stem, int frame, const char* suffix) {
@@ -486,9 +510,12 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));
         std::vector<std::string> rparts = render.args;
         rparts.push_back(bake_key);
-        // An edited transfer-function file renders again, as an edited input file bakes again.
+        // An edited transfer-function or key-frame file renders again, as an edited input file
+        // bakes again.
         if (p.transfer_function_files.count(tf) && context.file_hash)
           rparts.push_back(context.file_hash(transfer_function_argument(p, tf)));
+        if (parse_flight_kind(p.flight) == FlightKind::Keyframes && context.file_hash)
+          rparts.push_back(context.file_hash(p.flight));
         render.key = key_of(rparts);
         if (!listed(t.only_datasets, d.name))
           render.skip_reason = "left out of this pipeline on " + d.name + " (it runs on " +
@@ -536,7 +563,10 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
           std::vector<std::string> cparts = c.args;
           cparts.insert(cparts.end(), {render_key, reference_key});
           c.key = key_of(cparts);
-          c.skip_reason = render_skip.empty() ? reference_skip : render_skip;
+          c.skip_reason = !render_skip.empty()     ? render_skip
+                          : reference_skip.empty() ? std::string()
+                                                   : "its reference, " + p.reference +
+                                                         ", does not run here: " + reference_skip;
           steps.push_back(c);
         }
       }
