@@ -481,6 +481,7 @@ pipeline_refused() {  # pipeline_refused NAME JSON EXPECTED-TEXT
 pipeline_refused name-leaving-out '{"name": "../../x", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"]}' "name: '../../x': a name without '/'"
 pipeline_refused empty-output '{"output": "", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"]}' 'output: an empty output directory'
 pipeline_refused tf-same-files '{"output": "o", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "techniques": ["reference"], "transfer_functions": ["semi", "semi.json"]}' "'semi' and 'semi.json' would write the same files"
+pipeline_refused asset-not-baked '{"output": "o", "datasets": [{"name": "a", "source": "synth:aneurysm"}], "assets": {"assets": ["voxels"]}, "techniques": ["reference"]}' "techniques[0]: reference reads the cache's tubes, which the pipeline's assets do not bake"
 pipeline_refused dataset-cache-name '{"output": "o", "datasets": [{"name": "a", "source": "synth:aneurysm"}, {"name": "a.lbc.h5", "source": "synth:aneurysm"}], "techniques": ["reference"]}' "one data set's folder would be the other's cache file"
 # Pipeline typos fail --dry-run with the file, the JSON path and the reason; nothing is run.
 typo() {  # typo NAME SED-EXPRESSION EXPECTED-TEXT

@@ -17,6 +17,7 @@
 #include <iostream>
 #include <optional>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include "cli_contract.hpp"
@@ -28,6 +29,7 @@
 #include "core/json_file.hpp"
 #include "core/nearest.hpp"
 #include "flight_plan.hpp"
+#include "pipeline/bake.hpp"
 #include "pipeline/evaluation_report.hpp"
 #include "pipeline/html_report.hpp"
 #include "pipeline/pipeline.hpp"
@@ -177,6 +179,20 @@ void validate_pipeline(const Pipeline& p) {
   std::vector<std::string> bake = {"bake", p.file};
   bake.insert(bake.end(), p.bake_options.begin(), p.bake_options.end());
   parse(add_bake, bake, "assets");
+  // What each technique reads of the cache must be baked (a render had failed after the bake).
+  std::vector<std::string> baked = BakeOptions{}.assets;
+  for (size_t i = 0; i + 1 < p.bake_options.size(); ++i)
+    if (p.bake_options[i] == "--assets") {
+      baked.clear();
+      std::stringstream list(p.bake_options[i + 1]);
+      for (std::string a; std::getline(list, a, ',');) baked.push_back(a);
+    }
+  for (size_t i = 0; i < p.techniques.size(); ++i)
+    for (const std::string& asset : find_technique(p.techniques[i].technique).info.assets)
+      if (asset != "lines" && std::find(baked.begin(), baked.end(), asset) == baked.end())
+        throw InputError(p.file, "techniques[" + std::to_string(i) + "]",
+                         p.techniques[i].technique + " reads the cache's " + asset +
+                             ", which the pipeline's assets do not bake (add it to assets)");
   for (size_t i = 0; i < p.transfer_functions.size(); ++i) try {
       resolve_transfer_function(transfer_function_argument(p, p.transfer_functions[i]));
     } catch (const Error& e) {
