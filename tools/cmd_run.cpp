@@ -310,6 +310,7 @@ Command add_run(CLI::App& app) {
         state = nlohmann::json::parse(in);
       } catch (const std::exception&) {
         state = nlohmann::json::object();  // unreadable state: run everything again
+        std::cerr << "linebake: run: " << state_path << " is unreadable: every step runs again\n";
       }
     }
     const auto reusable = [&](const PipelineStep& s) {

@@ -60,7 +60,9 @@ std::vector<std::string> options_to_args(const nlohmann::json& options, const st
 std::string string_at(const nlohmann::json& j, const char* key, const std::string& fallback,
                       const std::string& file, const std::string& where) {
   if (!j.contains(key)) return fallback;
-  if (!j[key].is_string()) throw InputError(file, where + "." + key, "must be a string");
+  if (!j[key].is_string())
+    throw InputError(file, where.empty() ? std::string(key) : where + "." + key,
+                     "must be a string");
   return j[key].get<std::string>();
 }
 
@@ -77,7 +79,7 @@ std::vector<std::string> names_at(const nlohmann::json& j, const char* key,
                                   const std::string& where) {
   std::vector<std::string> names;
   if (!j.contains(key)) return names;
-  const std::string at = where + "." + key;
+  const std::string at = where.empty() ? std::string(key) : where + "." + key;
   if (!j[key].is_array() || j[key].empty()) throw InputError(file, at, "a non-empty list of names");
   for (const auto& v : j[key]) {
     if (!v.is_string() || !allowed.count(v.get<std::string>()))
