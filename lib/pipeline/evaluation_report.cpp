@@ -241,7 +241,7 @@ std::string markdown_group(const Pipeline& p, const std::vector<const nlohmann::
     std::vector<std::string> cells = summary_cells(*r, reference_seconds, name == p.reference);
     if (r->contains("not_compared")) {
       const std::string mark = "[" + std::to_string(++note) + "]";
-      cells[3] += " " + mark;
+      cells[kPsnrColumn] += " " + mark;
       notes += mark + " " + name + ": " + (*r)["not_compared"].get<std::string>() + "  \n";
     }
     md += "|";

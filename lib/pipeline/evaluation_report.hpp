@@ -30,6 +30,8 @@ std::string psnr_cap_note();
 // (whose mean time is `reference_seconds`; 0: none), mean PSNR, mean and least SSIM, and the
 // largest frame_bytes. Both reports show the same figures to the same digits.
 const std::vector<std::string>& summary_columns();
+// The place of the PSNR cell among them (a technique not compared carries its note mark there).
+constexpr size_t kPsnrColumn = 3;
 std::vector<std::string> summary_cells(const nlohmann::json& result, double reference_seconds,
                                        bool is_reference);
 // What the speed-up and per-frame memory columns mean: Markdown, or HTML (names escaped and in

@@ -255,8 +255,8 @@ std::string summary_table(const Pipeline& p, const std::vector<const nlohmann::j
     if (r->contains("not_compared")) {
       const std::string reason = xml_escape((*r)["not_compared"].get<std::string>());
       const std::string mark = std::to_string(++note);
-      cells[3] = "<span class=\"skip\" title=\"" + reason + "\">" + cells[3] + "<sup>" + mark +
-                 "</sup></span>";
+      cells[kPsnrColumn] = "<span class=\"skip\" title=\"" + reason + "\">" + cells[kPsnrColumn] +
+                           "<sup>" + mark + "</sup></span>";
       notes += "<li value=\"" + mark + "\">" + name + ": " + reason + "</li>";
     }
     rows.push_back(std::move(cells));
