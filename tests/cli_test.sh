@@ -437,7 +437,7 @@ check "--rt-geometry is an rtx option (usage error)" exit_code 1 "$bin" render "
 check "bake --rtx-geometry must be triangles or capsules" exit_code 1 "$bin" bake "$tmp/c.binlines" -o "$tmp/t.lbc.h5" --assets rtx --rtx-geometry spheres
 # Pipelines: pipelines/ci.json end to end, reuse, --dry-run, a failing step
 pipes="$(dirname "$0")/../pipelines"
-check "run the ci pipeline" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' > '$tmp/run.out' 2> '$tmp/run.err' && grep -q 'report.md' '$tmp/run.out' && grep -q 'report.html' '$tmp/run.out'"
+check "run the ci pipeline" bash -c "'$bin' run '$pipes/ci.json' -o '$tmp/ci' > '$tmp/run.out' 2> '$tmp/run.err' && grep -q 'report.md' '$tmp/run.out' && grep -q 'report.html' '$tmp/run.out' && [ ! -e '$tmp/ci/.linebake-run.lock' ]"
 check "ci report: every technique has PSNR/SSIM, rtx skipped with its reason" python3 -c "
 import json; j=json.load(open('$tmp/ci/report.json')); r={x['technique']: x for x in j['results']}
 assert 'ray tracing' in r['rtx']['skipped'], r['rtx']

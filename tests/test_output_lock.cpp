@@ -117,6 +117,53 @@ TEST(OutputLock, AnotherProcessWaitsUntilTheHolderReleases) {
   EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
 }
 
+// Wait::no refuses a lock another thread or process holds (linebake run's output directory),
+// takes a free one, and lets the holding thread take its own again.
+TEST(OutputLock, WaitNoRefusesAHeldLockAndTakesAFreeOne) {
+  test::TempDir dir;
+  const std::string cache = dir.file("c.lbc.h5");
+  {
+    const OutputLock held(cache);
+    { const OutputLock again(cache, OutputLock::Wait::no); }
+    std::thread other([&] { EXPECT_THROW(OutputLock(cache, OutputLock::Wait::no), OutputBusy); });
+    other.join();
+  }
+  int held_pipe[2], release_pipe[2];
+  ASSERT_EQ(::pipe(held_pipe), 0);
+  ASSERT_EQ(::pipe(release_pipe), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    int status = 1;
+    {
+      const OutputLock held(cache);
+      char byte = 'h';
+      if (::write(held_pipe[1], &byte, 1) == 1 && ::read(release_pipe[0], &byte, 1) == 1)
+        status = 0;
+    }
+    ::_exit(status);
+  }
+  char byte = 0;
+  ASSERT_EQ(::read(held_pipe[0], &byte, 1), 1);
+  try {
+    const OutputLock refused(cache, OutputLock::Wait::no);
+    ADD_FAILURE() << "took a lock another process holds";
+  } catch (const OutputBusy& e) {
+    EXPECT_NE(std::string(e.what()).find("another process is writing it"), std::string::npos)
+        << e.what();
+  }
+  ASSERT_EQ(::write(release_pipe[1], &byte, 1), 1);
+  int status = -1;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  for (int fd : {held_pipe[0], held_pipe[1], release_pipe[0], release_pipe[1]}) ::close(fd);
+  {
+    const OutputLock free_again(cache, OutputLock::Wait::no);
+    EXPECT_TRUE(std::filesystem::exists(cache + ".lock"));
+  }
+  EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
+}
+
 // A child forked while a thread of the parent holds the lock (multiprocessing's fork) waits for
 // the parent's flock like any process, and gets it once the parent lets go: it inherited the
 // parent's table, whose holder is a thread it does not have, and had waited for ever on it.

@@ -5,7 +5,6 @@
 
 #include <fcntl.h>
 #include <spawn.h>
-#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -28,6 +28,7 @@
 #include "core/interrupt.hpp"
 #include "core/json_file.hpp"
 #include "core/nearest.hpp"
+#include "core/output_lock.hpp"
 #include "flight_plan.hpp"
 #include "pipeline/bake.hpp"
 #include "pipeline/evaluation_report.hpp"
@@ -228,32 +229,29 @@ void validate_pipeline(const Pipeline& p) {
 
 // The run's output directory, made where missing and held for the run: two runs into one
 // directory at once would each record their steps over the other's (a later run then reused
-// files the other made). An exclusive flock on <output>/.linebake-run.lock, released when the
-// process ends however it ends; the steps' processes do not inherit it.
+// files the other made). An OutputLock on <output>/.linebake-run (its file .linebake-run.lock,
+// removed when the run ends), refused rather than waited for; the steps' processes do not
+// inherit it.
 class OutputDirectoryLock {
  public:
-  explicit OutputDirectoryLock(const std::string& output) {
+  explicit OutputDirectoryLock(const std::string& output) : lock_(take(output)) {}
+
+ private:
+  static std::unique_ptr<OutputLock> take(const std::string& output) {
     std::error_code ec;
     std::filesystem::create_directories(output, ec);
     if (ec || !std::filesystem::is_directory(output))
       throw OutputError(output, "cannot be the run's output directory" +
                                     (ec ? ": " + ec.message() : std::string(": not a directory")));
-    const std::string path = output + "/.linebake-run.lock";
-    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd_ < 0) throw OutputError(path, std::string("cannot open: ") + std::strerror(errno));
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      ::close(fd_);
+    try {
+      return std::make_unique<OutputLock>(output + "/.linebake-run", OutputLock::Wait::no);
+    } catch (const OutputBusy&) {
       throw OutputError(output,
                         "another linebake run is writing into this directory; wait for it to "
                         "end or give another -o");
     }
   }
-  ~OutputDirectoryLock() { ::close(fd_); }
-  OutputDirectoryLock(const OutputDirectoryLock&) = delete;
-  OutputDirectoryLock& operator=(const OutputDirectoryLock&) = delete;
-
- private:
-  int fd_ = -1;
+  std::unique_ptr<OutputLock> lock_;
 };
 
 }  // namespace

@@ -79,7 +79,8 @@ bool still_there(int fd, const std::string& path) {
 // The lock file's descriptor, once this process holds the flock on the file now at `file`
 // (-1 where the file system has no flock). A file another holder removed as it released it is
 // not the lock any longer: taken again under the file now there.
-int take_file_lock(const std::string& file, const std::string& display, const std::string& output) {
+int take_file_lock(const std::string& file, const std::string& display, const std::string& output,
+                   OutputLock::Wait wait) {
   bool said = false;
   int no_locks = 0;
   for (;;) {
@@ -124,6 +125,8 @@ int take_file_lock(const std::string& file, const std::string& display, const st
     }
     if (error != EWOULDBLOCK && error != EINTR)
       throw OutputError(output, "cannot lock " + display + ": " + std::strerror(error));
+    if (error == EWOULDBLOCK && wait == OutputLock::Wait::no)
+      throw OutputBusy(output, "another process is writing it (it holds " + display + ")");
     if (!said) {
       notify("waiting for another process writing " + output + " to finish (it holds " + display +
              ")");
@@ -140,7 +143,7 @@ std::string OutputLock::lock_path(const std::string& output) {
   return output_target(output) + ".lock";
 }
 
-OutputLock::OutputLock(const std::string& output) {
+OutputLock::OutputLock(const std::string& output, Wait wait) {
   std::call_once(fork_handlers,
                  [] { ::pthread_atfork(before_fork, after_fork_in_parent, after_fork_in_child); });
   const std::string display = lock_path(output);
@@ -166,6 +169,11 @@ OutputLock::OutputLock(const std::string& output) {
     ++e.depth;
     return;
   }
+  if (e.depth > 0 && wait == Wait::no) {
+    lock.unlock();
+    entry_.reset();
+    throw OutputBusy(output, "another thread of this process is writing it");
+  }
   while (e.depth > 0) {
     e.released.wait_for(lock, kPoll);
     if (interrupt_signal() != 0) {
@@ -180,7 +188,7 @@ OutputLock::OutputLock(const std::string& output) {
   e.depth = 1;
   lock.unlock();
   try {
-    const int fd = take_file_lock(e.file, e.display, output);
+    const int fd = take_file_lock(e.file, e.display, output, wait);
     lock.lock();
     e.fd = fd;
   } catch (...) {

@@ -18,13 +18,24 @@
 #include <memory>
 #include <string>
 
+#include "core/error.hpp"
+
 namespace linebake {
+
+// The lock another process holds, where the caller asked not to wait (OutputLock::Wait::no).
+class OutputBusy : public OutputError {
+ public:
+  using OutputError::OutputError;
+};
 
 class OutputLock {
  public:
-  // Waits for the lock on `output`. Throws OutputError when the lock file cannot be created,
+  enum class Wait { yes, no };
+
+  // Takes the lock on `output`, waiting for another process that holds it (Wait::yes) or
+  // throwing OutputBusy (Wait::no). Throws OutputError when the lock file cannot be created,
   // Interrupted on a signal while waiting.
-  explicit OutputLock(const std::string& output);
+  explicit OutputLock(const std::string& output, Wait wait = Wait::yes);
   ~OutputLock();
   OutputLock(const OutputLock&) = delete;
   OutputLock& operator=(const OutputLock&) = delete;
