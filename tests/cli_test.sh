@@ -247,6 +247,7 @@ check "reference without tubes is an error" exit_code 2 "$bin" render "$tmp/v.lb
 check "curves render without tubes" "$bin" render "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/v.png"
 printf '{"keyframes": [{"eye": [0, 0], "target": [0, 0, 0]}]}' > "$tmp/bad_keys.json"
 check "bad keyframes exit 2" exit_code 2 "$bin" render "$tmp/t.lbc.h5" --flight "$tmp/bad_keys.json" --size 32x24 -o "$tmp/x.png"
+check "a mistyped flight is exit 2 with the name it meant" bash -c "'$bin' render '$tmp/t.lbc.h5' --flight orbit_zoom --size 32x24 -o '$tmp/x.png' 2> '$tmp/flight.err'; [ \$? -eq 2 ] && grep -qF \"orbit_zoom: neither a flight (orbit-zoom, orbit) nor a keyframe file: no such file; did you mean 'orbit-zoom'?\" '$tmp/flight.err'"
 check "compare different sizes is an error" exit_code 2 "$bin" compare "$tmp/e.png" "$tmp/f_000.png"
 printf 'not a png' > "$tmp/bad.png"
 check "compare unreadable png exits 2" exit_code 2 "$bin" compare "$tmp/bad.png" "$tmp/e.png"
@@ -494,7 +495,7 @@ typo sort-name 's/"sort": "heap"/"sortt": "heap"/' "techniques[2].options: unkno
 typo option-of-another 's/"sort": "heap"/"moments": 6/' 'techniques[2].options: --moments: not read by ll'
 typo tf 's/"semi"\]/"semmi"]/' "transfer_functions[0]: semmi: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?"
 typo size 's/"64x48"/"64x-36"/' 'size:'
-typo flight 's/"orbit-zoom"/"orbit-zom"/' "flight: 'orbit-zom' is neither orbit-zoom, orbit nor a keyframe file"
+typo flight 's/"orbit-zoom"/"orbit_zoom"/' "flight: 'orbit_zoom' is neither orbit-zoom, orbit nor a keyframe file; did you mean 'orbit-zoom'?"
 typo grid 's/"grid": 32/"grid": "3x"/' 'assets: --grid'
 typo size-of-a-technique 's/"sort": "heap"/"size": "32x24"/' 'techniques[2].options.size: set by the pipeline for every render'
 typo cache-output 's/"grid": 32/"output": "x.lbc.h5"/' 'assets.output: set by the pipeline for every bake'

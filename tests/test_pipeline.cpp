@@ -221,6 +221,27 @@ TEST(Pipeline, YamlErrorsNameLineAndColumnOrTheEntry) {
   }
 }
 
+// A JSON error's place is the failing character's offset from 0, counted by hand; an input that
+// ends too soon is at the file's end (nlohmann counts the end as one more character, and an
+// empty file had been "byte offset 1").
+TEST(Pipeline, JsonErrorsNameTheByteOffsetFromZeroOrTheEnd) {
+  const auto where_of = [](const std::string& path) {
+    try {
+      load_pipeline(path);
+    } catch (const InputError& e) {
+      return e.where() + " | " + e.what();
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(
+      where_of(write_temp("empty.json", "")).rfind("the end of the file (byte offset 0) |", 0), 0u);
+  const std::string cut = where_of(write_temp("cut.json", "{\"a\": "));
+  EXPECT_EQ(cut.rfind("the end of the file (byte offset 6) |", 0), 0u) << cut;
+  EXPECT_NE(cut.find("unexpected end of input"), std::string::npos) << cut;
+  const std::string bad = where_of(write_temp("bad.json", "{\"a\": x}"));
+  EXPECT_EQ(bad.rfind("byte offset 6 |", 0), 0u) << bad;  // the x
+}
+
 // What readers would take silently or expand without bound: a key given twice (JSON and YAML),
 // a second YAML document, aliases nested into billions of nodes (which took 24 GiB before the
 // kernel killed the process).

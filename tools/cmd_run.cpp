@@ -201,7 +201,8 @@ void validate_pipeline(const Pipeline& p) {
     }
   if (parse_flight_kind(p.flight) == FlightKind::Keyframes && !std::filesystem::exists(p.flight))
     throw InputError(p.file, "flight",
-                     "'" + p.flight + "' is neither orbit-zoom, orbit nor a keyframe file");
+                     "'" + p.flight + "' is neither orbit-zoom, orbit nor a keyframe file" +
+                         did_you_mean(p.flight, {"orbit-zoom", "orbit"}));
   try {
     const auto [width, height] = parse_size(p.size);
     if (width < 11 || height < 11)

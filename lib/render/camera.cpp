@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
 
 #include "core/error.hpp"
 #include "core/json_file.hpp"
+#include "core/nearest.hpp"
 
 namespace linebake {
 
@@ -68,6 +70,10 @@ glm::dvec3 read_vec3(const nlohmann::json& j, const char* key, const std::string
 }
 
 std::vector<Camera> read_keyframes(const std::string& file) {
+  if (std::error_code ec; !std::filesystem::exists(file, ec))
+    throw InputError(file, "",
+                     "neither a flight (orbit-zoom, orbit) nor a keyframe file: no such file" +
+                         did_you_mean(file, {"orbit-zoom", "orbit"}));
   const nlohmann::json j = read_json_file(file, "keyframe file");
   if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() ||
       j["keyframes"].empty())
