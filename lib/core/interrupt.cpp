@@ -3,18 +3,37 @@
 #include <atomic>
 #include <csignal>
 #include <cstring>
+#include <ctime>
 
 namespace linebake {
 namespace {
 
 volatile std::sig_atomic_t pending = 0;
+volatile std::sig_atomic_t first_sender = 0;  // the first signal's sending process, 0: the kernel's
+struct timespec first_at {};
 
-void on_signal(int signal) {
-  if (pending) {  // the second one: stop now, as the user asked twice
+// Whether `now` is within a second of the first signal.
+bool soon_after_first(const struct timespec& now) {
+  const long long ns =
+      (now.tv_sec - first_at.tv_sec) * 1000000000LL + (now.tv_nsec - first_at.tv_nsec);
+  return ns >= 0 && ns < 1000000000LL;
+}
+
+void on_signal(int signal, siginfo_t* info, void*) {
+  struct timespec now {};
+  ::clock_gettime(CLOCK_MONOTONIC, &now);  // async-signal-safe (POSIX)
+  const bool sent = info != nullptr && info->si_code == SI_USER && info->si_pid > 0;
+  if (pending) {
+    // coreutils' timeout signals the command and then its process group, so one request can come
+    // twice from one process at once: that copy changes nothing.
+    if (sent && signal == pending && info->si_pid == first_sender && soon_after_first(now)) return;
+    // The second one: stop now, as the user asked twice.
     std::signal(signal, SIG_DFL);
     std::raise(signal);
     return;
   }
+  first_sender = sent ? info->si_pid : 0;
+  first_at = now;
   pending = signal;
 }
 
@@ -35,7 +54,8 @@ Interrupted::Interrupted(int signal, const std::string& where)
 
 void install_interrupt_handlers() {
   struct sigaction action {};
-  action.sa_handler = on_signal;
+  action.sa_sigaction = on_signal;
+  action.sa_flags = SA_SIGINFO;
   sigemptyset(&action.sa_mask);
   for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &action, nullptr);
 }

@@ -2,7 +2,9 @@
 // Ctrl-C, SIGTERM (a scheduler's end of job) and SIGHUP stop long work at its next safe point:
 // the first signal sets a flag that loops check between batches, chunks, frames and steps;
 // throwing Interrupted unwinds the stack, so every temporary and spill file is removed by the
-// object that owns it. A second signal ends the process at once.
+// object that owns it. A second signal ends the process at once, unless it is the first one's
+// copy: the same signal from the same process within a second (coreutils' `timeout` signals the
+// command and then its process group).
 
 #include <string>
 
