@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <optional>
 #include <stdexcept>
 
@@ -414,6 +415,22 @@ class NetcdfReader : public LineReader {
           axes_[axis] ? axes_[axis]->name : "(none: 0)";
   }
 
+  // Observations whose position is missing (an incomplete array's padding too), trajectories
+  // split at them and the lines more they make, trajectories with no position at all.
+  std::map<std::string, uint64_t> counts_read() const override {
+    std::map<std::string, uint64_t> counts;
+    uint64_t missing = 0;
+    for (const MissingCounts& c : missing_) missing += c.total();
+    if (missing > 0) counts["netcdf.missing_observations"] = missing;
+    if (split_trajectories_ > 0) {
+      counts["netcdf.split_trajectories"] = split_trajectories_;
+      counts["netcdf.lines_from_splits"] = lines_from_splits_;
+    }
+    if (trajectories_without_position_ > 0)
+      counts["netcdf.trajectories_without_position"] = trajectories_without_position_;
+    return counts;
+  }
+
   bool next(LineSet& batch, uint64_t max_points) override {
     copy_lines(header_, 0, 0, batch);
     if (serve_pending(batch, max_points)) {
@@ -553,6 +570,7 @@ class NetcdfReader : public LineReader {
       const size_t begin = counts_ ? offsets_[line] - begin_value : (line - first) * row_points_;
       const size_t stop = counts_ ? offsets_[line + 1] - begin_value : begin + row_points_;
       size_t start_points = batch.point_count();
+      uint64_t made = 0;  // lines this trajectory makes
       for (size_t i = begin; i < stop; ++i) {
         bool bad = false;
         for (int axis = 0; axis < 3; ++axis)
@@ -562,7 +580,10 @@ class NetcdfReader : public LineReader {
           }
         ++observations_;
         if (bad) {  // a gap: the positions after it make the next line
-          if (batch.point_count() > start_points) batch.end_line();
+          if (batch.point_count() > start_points) {
+            batch.end_line();
+            ++made;
+          }
           start_points = batch.point_count();
           continue;
         }
@@ -577,7 +598,15 @@ class NetcdfReader : public LineReader {
               var.is_missing(v) ? NAN : static_cast<float>(var.unpack(v)));
         }
       }
-      if (batch.point_count() > start_points) batch.end_line();
+      if (batch.point_count() > start_points) {
+        batch.end_line();
+        ++made;
+      }
+      if (made > 1) {
+        ++split_trajectories_;
+        lines_from_splits_ += made - 1;
+      }
+      if (made == 0) ++trajectories_without_position_;
     }
   }
 
@@ -660,6 +689,7 @@ class NetcdfReader : public LineReader {
   std::vector<std::vector<double>> attribute_values_;
   uint64_t observations_ = 0;  // read so far, missing positions included
   MissingCounts missing_[3];   // positions missing, by the first axis that ruled them out
+  uint64_t split_trajectories_ = 0, lines_from_splits_ = 0, trajectories_without_position_ = 0;
 };
 
 }  // namespace

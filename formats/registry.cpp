@@ -170,6 +170,7 @@ class UniqueNames : public LineReader {
   }
   std::string batch_file() const override { return inner_->batch_file(); }
   uint64_t batch_file_line() const override { return inner_->batch_file_line(); }
+  std::map<std::string, uint64_t> counts_read() const override { return inner_->counts_read(); }
 
  private:
   void rename(LineSet& lines) const {
@@ -396,6 +397,7 @@ class MultiFileReader final : public LineReader {
         batch_file_line_ = in_file;
         return true;
       }
+      add_counts(counts_read_, current_->counts_read());
       if (file_ + 1 == sources_.size()) return false;
       open(file_ + 1);
     }
@@ -403,6 +405,7 @@ class MultiFileReader final : public LineReader {
   std::string batch_file() const override { return sources_[file_]; }
   uint64_t batch_file_line() const override { return batch_file_line_; }
   uint64_t largest_line_hint() const override { return current_->largest_line_hint(); }
+  std::map<std::string, uint64_t> counts_read() const override { return counts_read_; }
 
  private:
   void open(size_t file) {
@@ -429,9 +432,24 @@ class MultiFileReader final : public LineReader {
   size_t file_ = 0;
   uint64_t batch_file_line_ = 0;
   std::unique_ptr<LineReader> current_;
+  std::map<std::string, uint64_t> counts_read_;  // of the files read to their end
 };
 
 }  // namespace
+
+std::string counts_read_note(const std::map<std::string, uint64_t>& counts) {
+  static const std::pair<const char*, const char*> kSaid[] = {
+      {"netcdf.split_trajectories", "trajectories split at missing positions"},
+      {"netcdf.lines_from_splits", "lines more from those splits"},
+      {"netcdf.trajectories_without_position", "trajectories without a position (no line)"},
+  };
+  std::string note;
+  for (const auto& [key, said] : kSaid)
+    if (const auto it = counts.find(key); it != counts.end() && it->second > 0)
+      note +=
+          (note.empty() ? "" : ", ") + std::to_string(it->second) + " " + said + " (" + key + ")";
+  return note;
+}
 
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options) {
@@ -469,6 +487,7 @@ LineSet read_all_within(LineReader& reader, uint64_t limit, const std::string& s
                            "(--memory-budget; memory_budget= in Python)");
     append_lines(lines, batch);
   }
+  add_counts_read(lines.metadata, reader.counts_read());
   return lines;
 }
 

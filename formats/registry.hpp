@@ -75,6 +75,9 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
 // Several files read as one line set, one after the other (batches never span two files). Every
 // file must carry the first file's attributes, by name and in order: InputError naming the file
 // otherwise. Files that cannot stream (OBJ, VTK, VTP) are read whole when their turn comes.
+// What a user should hear of a reader's counts_read (a NetCDF file's trajectories split at
+// missing positions), each with its metadata key; "" when nothing.
+std::string counts_read_note(const std::map<std::string, uint64_t>& counts);
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options = {});
 // Whether `text` is well-formed UTF-8 (RFC 3629: no overlong forms, surrogates or code points

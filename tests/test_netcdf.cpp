@@ -8,6 +8,7 @@
 
 #include "core/error.hpp"
 #include "formats/registry.hpp"
+#include "pipeline/bake.hpp"
 #include "test_util.hpp"
 
 using namespace linebake;
@@ -52,6 +53,73 @@ TEST(NetCdf, LagrantoStyleInvalidValuesEndLines) {
   EXPECT_EQ(l.attributes[0].name, "T");
   EXPECT_EQ(l.attributes[0].values, (std::vector<float>{280, 279, 278, 260, 258}));
   EXPECT_EQ(l.metadata.at("netcdf.layout"), "lagranto");
+  // What the split is, counted: one observation missing, one trajectory split into one line more.
+  EXPECT_EQ(l.metadata.at("netcdf.missing_observations"), "1");
+  EXPECT_EQ(l.metadata.at("netcdf.split_trajectories"), "1");
+  EXPECT_EQ(l.metadata.at("netcdf.lines_from_splits"), "1");
+  EXPECT_EQ(l.metadata.count("netcdf.trajectories_without_position"), 0u);
+}
+
+namespace {
+// A Lagranto-style file of `trajectories` rows of `times` longitudes (latitude 1 where the
+// longitude is given; -999 is the fill value).
+std::string lagranto_file(const TempDir& dir, const std::string& name, int trajectories, int times,
+                          const std::vector<float>& lons) {
+  const std::string path = dir.file(name);
+  int nc, d[2], lon, lat;
+  EXPECT_EQ(nc_create(path.c_str(), NC_CLOBBER, &nc), NC_NOERR);
+  nc_def_dim(nc, "trajectory", size_t(trajectories), &d[0]);
+  nc_def_dim(nc, "time", size_t(times), &d[1]);
+  nc_def_var(nc, "lon", NC_FLOAT, 2, d, &lon);
+  nc_def_var(nc, "lat", NC_FLOAT, 2, d, &lat);
+  const float fill = -999.0f;
+  nc_put_att_float(nc, lon, "_FillValue", NC_FLOAT, 1, &fill);
+  nc_enddef(nc);
+  const std::vector<float> lats(lons.size(), 1.0f);
+  nc_put_var_float(nc, lon, lons.data());
+  nc_put_var_float(nc, lat, lats.data());
+  EXPECT_EQ(nc_close(nc), NC_NOERR);
+  return path;
+}
+}  // namespace
+
+// Counted by hand: trajectory 0 has two gaps (three lines: two more), 1 none, 2 no position; the
+// second file's trajectory 0 one gap at its end (no split), 1 one gap (one line more). The counts
+// add up over files, in read_line_set, in the streamed reader and in a bake's cache and notes.
+TEST(NetCdf, SplitsAtGapsAreCountedInTheMetadata) {
+  TempDir dir;
+  const float x = -999.0f;
+  const std::string a =
+      lagranto_file(dir, "a.nc", 3, 5, {1, x, 2, x, 3, 1, 2, 3, 4, 5, x, x, x, x, x});
+  const std::string b = lagranto_file(dir, "b.nc", 2, 3, {1, 2, x, 1, x, 2});
+  const LineSet one = read_line_set(a);
+  EXPECT_EQ(one.line_count(), 4u);
+  EXPECT_EQ(one.metadata.at("netcdf.missing_observations"), "7");
+  EXPECT_EQ(one.metadata.at("netcdf.split_trajectories"), "1");
+  EXPECT_EQ(one.metadata.at("netcdf.lines_from_splits"), "2");
+  EXPECT_EQ(one.metadata.at("netcdf.trajectories_without_position"), "1");
+
+  const std::unique_ptr<LineReader> both = open_line_reader(std::vector<std::string>{a, b});
+  const LineSet read = read_all(*both);
+  EXPECT_EQ(read.line_count(), 4u + 3u);
+  EXPECT_EQ(read.metadata.at("netcdf.missing_observations"), "9");
+  EXPECT_EQ(read.metadata.at("netcdf.split_trajectories"), "2");
+  EXPECT_EQ(read.metadata.at("netcdf.lines_from_splits"), "3");
+  EXPECT_EQ(read.metadata.at("netcdf.trajectories_without_position"), "1");
+  EXPECT_EQ(counts_read_note(both->counts_read()),
+            "2 trajectories split at missing positions (netcdf.split_trajectories), 3 lines more "
+            "from those splits (netcdf.lines_from_splits), 1 trajectories without a position (no "
+            "line) (netcdf.trajectories_without_position)");
+
+  BakeOptions o = test::quiet_bake(dir, a, "a.lbc.h5");
+  const BakeResult result = bake(o);
+  const LineSet cached = read_line_set(dir.file("a.lbc.h5"));
+  EXPECT_EQ(cached.metadata.at("netcdf.lines_from_splits"), "2");
+  EXPECT_EQ(cached.metadata.at("netcdf.trajectories_without_position"), "1");
+  bool noted = false;
+  for (const std::string& note : result.notes)
+    noted = noted || note.find("1 trajectories split at missing positions") != std::string::npos;
+  EXPECT_TRUE(noted);
 }
 
 TEST(NetCdf, CfMultidimensionalWithAxisAttributes) {

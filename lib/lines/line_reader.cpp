@@ -64,7 +64,18 @@ LineSet read_all(LineReader& reader) {
     throw_if_interrupted();  // reading a large file whole stops between batches on Ctrl-C
     append_lines(lines, batch);
   }
+  add_counts_read(lines.metadata, reader.counts_read());
   return lines;
+}
+
+void add_counts(std::map<std::string, uint64_t>& into,
+                const std::map<std::string, uint64_t>& counts) {
+  for (const auto& [key, n] : counts) into[key] += n;
+}
+
+void add_counts_read(std::map<std::string, std::string>& metadata,
+                     const std::map<std::string, uint64_t>& counts) {
+  for (const auto& [key, n] : counts) metadata[key] = std::to_string(n);
 }
 
 uint64_t batch_points_within(const LineSet& header, std::optional<uint64_t> limit, uint64_t most) {

@@ -5,6 +5,7 @@
 // concatenation of the batches is the line set, whatever the batch sizes.
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -42,6 +43,10 @@ class LineReader {
   // that file.
   virtual std::string batch_file() const { return ""; }
   virtual uint64_t batch_file_line() const { return 0; }
+  // What the reader can count only by reading every line (a NetCDF file's trajectories split at
+  // missing positions), by metadata key, once next() has returned false; several files' counts
+  // add up. Kept in the line set's metadata as decimal text (add_counts_read).
+  virtual std::map<std::string, uint64_t> counts_read() const { return {}; }
 
  protected:
   LineSet header_;
@@ -80,6 +85,12 @@ void copy_lines(const LineSet& lines, size_t first, size_t end, LineSet& batch);
 void append_lines(LineSet& lines, const LineSet& batch);
 // Reads every batch into one line set.
 LineSet read_all(LineReader& reader);
+// Adds `counts` to `into` (a reader's counts_read, or several readers', key by key).
+void add_counts(std::map<std::string, uint64_t>& into,
+                const std::map<std::string, uint64_t>& counts);
+// Keeps `counts` in `metadata` as decimal text.
+void add_counts_read(std::map<std::string, std::string>& metadata,
+                     const std::map<std::string, uint64_t>& counts);
 // The points a batch of `header`'s lines may hold when reading may take `limit` bytes (none: no
 // limit): a quarter of the limit (the reader's buffers, the batch, the work on it) over a point's
 // bytes at most (its position and attributes, and its line's offset and attributes: a line has a

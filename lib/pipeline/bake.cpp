@@ -692,6 +692,10 @@ BakeResult bake(const BakeOptions& options_in) {
         hash.add(batch);
         if (spool) spool->append(batch);
       }
+      const std::map<std::string, uint64_t> counts = input->counts_read();
+      add_counts_read(header.metadata, counts);
+      if (const std::string note = counts_read_note(counts); !note.empty())
+        result.notes.push_back(options.input + ": " + note);
       input.reset();
       whole.reset();
       stats = builder.stats();

@@ -11,6 +11,7 @@
 #include <functional>
 #include <limits>
 #include <numeric>
+#include <sstream>
 
 #include "cache/embree_store.hpp"
 #include "cache/line_store.hpp"
@@ -216,6 +217,10 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   // files are counted round robin.
   std::vector<uint64_t> lines_per_file(inputs.size(), 0);
   std::string my_hashes;  // "index hash\n" for the files this rank hashed
+  // What readers count by reading every line (LineReader::counts_read), summed over the files
+  // this rank counted, then over the ranks: the serial bake's metadata whatever the rank count.
+  // (A format whose header gives its line count is not read here and has none.)
+  std::map<std::string, uint64_t> counts_read;
   ReadOptions read;
   read.format = options.format;
   // A file read whole (OBJ, VTK, VTP) is held within this rank's budget while it is read.
@@ -239,8 +244,22 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
           batch_points_within(reader->header(), read.memory_limit, uint64_t{1} << 20);
       LineSet batch;
       while (reader->next(batch, count_points)) lines_per_file[f] += batch.line_count();
+      add_counts(counts_read, reader->counts_read());
     }
   });
+  {
+    std::string mine;  // "key count\n"
+    for (const auto& [key, n] : counts_read) mine += key + " " + std::to_string(n) + "\n";
+    counts_read.clear();
+    for (const std::string& part : ranks.allgather(mine)) {
+      std::istringstream lines(part);
+      std::string key;
+      uint64_t n = 0;
+      while (lines >> key >> n) counts_read[key] += n;
+    }
+    if (const std::string note = counts_read_note(counts_read); !note.empty())
+      result.notes.push_back(options.input + ": " + note);
+  }
   lines_per_file = ranks.sum(lines_per_file);
   std::vector<std::string> file_hashes;
   if (!synth::is_synth_source(inputs[0])) {
@@ -446,6 +465,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(lines_p)))));
     std::map<std::string, std::string> metadata = header.metadata;
     if (!synth::is_synth_source(inputs[0])) metadata.emplace("source", options.input);
+    add_counts_read(metadata, counts_read);
     store.close(metadata, lines_p);
 
     // Pass 2: the tubes, planned from every rank's kept points.
