@@ -557,6 +557,7 @@ assert [s['stage'] for s in j['stages']][:3] == ['read', 'lines', 'build'], j['s
 assert 0 < j['peak_rss_bytes'] <= 128 << 20 and j['bytes_written'] > 0 and j['memcpy_GBps'] > 0, j
 import os; assert not os.path.exists('$tmp/bench.lbc.h5')"
 check "bench bake without -o: <input name>.bench.lbc.h5 in the working directory, kept with --keep" bash -c "mkdir -p '$tmp/bbd' && cd '$tmp/bbd' && '$bin' bench bake '$tmp/c.binlines' --repeat 1 --keep --json > /dev/null && [ \"\$(ls)\" = c.bench.lbc.h5 ]"
+check "a bake that adds to a cache and runs out of file size (ulimit -f) while copying its reused groups: exit 3, the cache as it was, no lock or temporary file (HDF5's H5Ocopy had crashed, exit 139)" bash -c "mkdir -p '$tmp/fsize' && cd '$tmp/fsize' && '$bin' bake 'synth:convection?scale=0.01' -o f.lbc.h5 > /dev/null 2>&1 && before=\$(md5sum < f.lbc.h5) && bash -c \"trap '' XFSZ; ulimit -f 300; exec '$bin' bake f.lbc.h5 --assets tubes,voxels --no-space-check\" > /dev/null 2> f.err; rc=\$?; [ \$rc -eq 3 ] && grep -q 'File too large' f.err && [ \"\$(md5sum < f.lbc.h5)\" = \"\$before\" ] && [ \"\$(ls -A)\" = \"\$(printf 'f.err\\nf.lbc.h5')\" ]"
 check "Ctrl-C during a bake: exit 130, no cache, no spill or temporary file" bash -c "
 '$bin' synth clouds --scale 0.1 -o '$tmp/k.binlines' 2> /dev/null
 '$bin' bake '$tmp/k.binlines' -o '$tmp/k.lbc.h5' --assets tubes,voxels --grid 128 --memory-budget $(incidental_budget 128M) 2> '$tmp/int.err' > /dev/null & pid=\$!

@@ -14,6 +14,7 @@
 #include <ctime>
 
 #include "cache/chunk_reader.hpp"
+#include "cache/group_copy.hpp"
 #include "core/error.hpp"
 #include "core/h5_probe.hpp"
 #include "core/hash.hpp"
@@ -240,9 +241,7 @@ void CacheWriter::copy_group(const std::string& source_path, const std::string& 
   if (!source.valid()) throw InputError(source_path, "", "cannot open to copy " + group);
   const size_t slash = group.find_last_of('/');
   if (slash > 0) create_group(group.substr(0, slash));
-  if (H5Ocopy(source, group.c_str(), h5_, group.c_str(), H5P_DEFAULT, H5P_DEFAULT) < 0)
-    throw OutputError(
-        path(), "cannot copy " + group + " from " + source_path + " (" + h5::last_error() + ")");
+  copy_group_tree(source, source_path, h5_, path(), group);
 }
 
 void CacheWriter::write_attribute(const std::string& object, const std::string& name,
@@ -349,6 +348,7 @@ void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
 }  // namespace
 
 void DatasetStream::State::write_contiguous(const char* data, uint64_t count) {
+  h5::init();  // may run on TBB's threads (tubes and voxels write together): HDF5's printing off
   const hsize_t start[2] = {written, 0}, extent[2] = {count, columns};
   Handle file_space(H5Dget_space(dataset), H5Sclose);
   H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);

@@ -1,0 +1,194 @@
+#include "cache/group_copy.hpp"
+
+#include <algorithm>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/h5.hpp"
+#include "core/interrupt.hpp"
+
+namespace linebake {
+namespace {
+
+using h5::Handle;
+
+// Rows of a dataset without chunks read and written at a time: about 64 MiB.
+constexpr hsize_t kSlabBytes = hsize_t{64} << 20;
+
+struct Copy {
+  const std::string& source_path;
+  const std::string& target_path;
+
+  [[noreturn]] void cannot_read(const std::string& object, const std::string& what) const {
+    throw InputError(source_path, object, "cannot read " + what + " (" + h5::last_error() + ")");
+  }
+  [[noreturn]] void cannot_write(const std::string& object, const std::string& what) const {
+    throw OutputError(target_path,
+                      object + ": cannot write " + what + " (" + h5::last_error() + ")");
+  }
+
+  // Links and attributes in creation order where the object tracks it, else by name.
+  static H5_index_t index_of(hid_t creation_plist, bool links) {
+    unsigned flags = 0;
+    const herr_t r = links ? H5Pget_link_creation_order(creation_plist, &flags)
+                           : H5Pget_attr_creation_order(creation_plist, &flags);
+    return r >= 0 && (flags & H5P_CRT_ORDER_INDEXED) ? H5_INDEX_CRT_ORDER : H5_INDEX_NAME;
+  }
+
+  void attributes(hid_t from, hid_t to, hid_t creation_plist, const std::string& object) const {
+    H5O_info_t info{};
+    if (H5Oget_info2(from, &info, H5O_INFO_NUM_ATTRS) < 0) cannot_read(object, "its attributes");
+    const H5_index_t index = index_of(creation_plist, false);
+    for (hsize_t i = 0; i < info.num_attrs; ++i) {
+      Handle a(H5Aopen_by_idx(from, ".", index, H5_ITER_INC, i, H5P_DEFAULT, H5P_DEFAULT),
+               H5Aclose);
+      if (!a.valid()) cannot_read(object, "attribute " + std::to_string(i));
+      std::string name(size_t(std::max<ssize_t>(H5Aget_name(a, 0, nullptr), 0)), '\0');
+      H5Aget_name(a, name.size() + 1, name.data());
+      Handle type(H5Aget_type(a), H5Tclose), space(H5Aget_space(a), H5Sclose);
+      Handle acpl(H5Aget_create_plist(a), H5Pclose);
+      if (!type.valid() || !space.valid() || !acpl.valid())
+        cannot_read(object, "attribute " + name);
+      const hssize_t n = H5Sget_simple_extent_npoints(space);
+      std::vector<char> values(size_t(std::max<hssize_t>(n, 1)) * H5Tget_size(type));
+      if (H5Aread(a, type, values.data()) < 0) cannot_read(object, "attribute " + name);
+      const bool variable = H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0;
+      Handle out(H5Acreate2(to, name.c_str(), type, space, acpl, H5P_DEFAULT), H5Aclose);
+      const herr_t written = out.valid() ? H5Awrite(out, type, values.data()) : -1;
+      if (variable) H5Dvlen_reclaim(type, space, H5P_DEFAULT, values.data());
+      if (written < 0) cannot_write(object, "attribute " + name);
+    }
+  }
+
+  void dataset(hid_t from_parent, hid_t to_parent, const std::string& name,
+               const std::string& object) const {
+    Handle from(H5Dopen2(from_parent, name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!from.valid()) cannot_read(object, "the dataset");
+    Handle type(H5Dget_type(from), H5Tclose), space(H5Dget_space(from), H5Sclose);
+    Handle dcpl(H5Dget_create_plist(from), H5Pclose);
+    if (!type.valid() || !space.valid() || !dcpl.valid()) cannot_read(object, "its shape");
+    Handle to(H5Dcreate2(to_parent, name.c_str(), type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+              H5Dclose);
+    if (!to.valid()) cannot_write(object, "the dataset");
+    if (H5Pget_layout(dcpl) == H5D_CHUNKED)
+      chunks(from, to, space, object);
+    else
+      rows(from, to, type, space, object);
+    attributes(from, to, dcpl, object);
+  }
+
+  // Each stored chunk as it is (compressed, with its filter mask).
+  void chunks(hid_t from, hid_t to, hid_t space, const std::string& object) const {
+    hsize_t count = 0;
+    if (H5Dget_num_chunks(from, space, &count) < 0) cannot_read(object, "its chunk index");
+    const int rank = H5Sget_simple_extent_ndims(space);
+    std::vector<hsize_t> offset(size_t(std::max(rank, 1)));
+    std::vector<char> stored;
+    for (hsize_t i = 0; i < count; ++i) {
+      throw_if_interrupted();
+      unsigned mask = 0;
+      haddr_t address = 0;
+      hsize_t size = 0;
+      if (H5Dget_chunk_info(from, space, i, offset.data(), &mask, &address, &size) < 0)
+        cannot_read(object, "chunk " + std::to_string(i));
+      stored.resize(size_t(size));
+      if (H5Dread_chunk(from, H5P_DEFAULT, offset.data(), &mask, stored.data()) < 0)
+        cannot_read(object, "chunk " + std::to_string(i));
+      if (H5Dwrite_chunk(to, H5P_DEFAULT, mask, offset.data(), size_t(size), stored.data()) < 0)
+        cannot_write(object, "chunk " + std::to_string(i));
+    }
+  }
+
+  // A dataset without chunks: slabs of rows along its first dimension.
+  void rows(hid_t from, hid_t to, hid_t type, hid_t space, const std::string& object) const {
+    const int rank = H5Sget_simple_extent_ndims(space);
+    std::vector<hsize_t> dims(size_t(std::max(rank, 1)), 1);
+    if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+    if (rank <= 0 || H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0) {
+      const hssize_t n = H5Sget_simple_extent_npoints(space);
+      if (n == 0) return;
+      std::vector<char> values(size_t(std::max<hssize_t>(n, 1)) * H5Tget_size(type));
+      if (H5Dread(from, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+        cannot_read(object, "its values");
+      const herr_t written = H5Dwrite(to, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+      if (H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0)
+        H5Dvlen_reclaim(type, space, H5P_DEFAULT, values.data());
+      if (written < 0) cannot_write(object, "its values");
+      return;
+    }
+    hsize_t row_bytes = H5Tget_size(type);
+    for (int d = 1; d < rank; ++d) row_bytes *= dims[size_t(d)];
+    const hsize_t slab = std::max<hsize_t>(1, kSlabBytes / std::max<hsize_t>(row_bytes, 1));
+    std::vector<char> values;
+    std::vector<hsize_t> start(dims.size(), 0), extent = dims;
+    for (hsize_t row = 0; row < dims[0]; row += slab) {
+      throw_if_interrupted();
+      start[0] = row;
+      extent[0] = std::min(slab, dims[0] - row);
+      values.resize(size_t(extent[0] * row_bytes));
+      Handle file_space(H5Scopy(space), H5Sclose);
+      Handle memory(H5Screate_simple(rank, extent.data(), nullptr), H5Sclose);
+      H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start.data(), nullptr, extent.data(),
+                          nullptr);
+      if (H5Dread(from, type, memory, file_space, H5P_DEFAULT, values.data()) < 0)
+        cannot_read(object, "rows from " + std::to_string(row));
+      if (H5Dwrite(to, type, memory, file_space, H5P_DEFAULT, values.data()) < 0)
+        cannot_write(object, "rows from " + std::to_string(row));
+    }
+  }
+
+  // `from` exists as `to` already; its attributes and members follow.
+  void group(hid_t from, hid_t to, const std::string& object) const {
+    Handle gcpl(H5Gget_create_plist(from), H5Pclose);
+    if (!gcpl.valid()) cannot_read(object, "the group");
+    attributes(from, to, gcpl, object);
+    H5G_info_t info{};
+    if (H5Gget_info(from, &info) < 0) cannot_read(object, "its members");
+    const H5_index_t index = index_of(gcpl, true);
+    for (hsize_t i = 0; i < info.nlinks; ++i) {
+      std::string name(
+          size_t(std::max<ssize_t>(
+              H5Lget_name_by_idx(from, ".", index, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT), 0)),
+          '\0');
+      if (H5Lget_name_by_idx(from, ".", index, H5_ITER_INC, i, name.data(), name.size() + 1,
+                             H5P_DEFAULT) < 0)
+        cannot_read(object, "member " + std::to_string(i));
+      const std::string member = object + "/" + name;
+      H5L_info_t link{};
+      if (H5Lget_info(from, name.c_str(), &link, H5P_DEFAULT) < 0) cannot_read(member, "its link");
+      if (link.type != H5L_TYPE_HARD)
+        throw InputError(source_path, member, "a link that is not a group or dataset");
+      H5O_info_t kind{};
+      if (H5Oget_info_by_name2(from, name.c_str(), &kind, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
+        cannot_read(member, "its kind");
+      if (kind.type == H5O_TYPE_DATASET) {
+        dataset(from, to, name, member);
+      } else if (kind.type == H5O_TYPE_GROUP) {
+        Handle sub_from(H5Gopen2(from, name.c_str(), H5P_DEFAULT), H5Gclose);
+        Handle sub_gcpl(sub_from.valid() ? H5Gget_create_plist(sub_from) : -1, H5Pclose);
+        if (!sub_gcpl.valid()) cannot_read(member, "the group");
+        Handle sub_to(H5Gcreate2(to, name.c_str(), H5P_DEFAULT, sub_gcpl, H5P_DEFAULT), H5Gclose);
+        if (!sub_to.valid()) cannot_write(member, "the group");
+        group(sub_from, sub_to, member);
+      } else {
+        throw InputError(source_path, member, "neither a group nor a dataset");
+      }
+    }
+  }
+};
+
+}  // namespace
+
+void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
+                     const std::string& target_path, const std::string& group) {
+  const Copy copy{source_path, target_path};
+  Handle from(H5Gopen2(source, group.c_str(), H5P_DEFAULT), H5Gclose);
+  if (!from.valid()) copy.cannot_read(group, "the group");
+  Handle gcpl(H5Gget_create_plist(from), H5Pclose);
+  if (!gcpl.valid()) copy.cannot_read(group, "the group");
+  Handle to(H5Gcreate2(target, group.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
+  if (!to.valid()) copy.cannot_write(group, "the group");
+  copy.group(from, to, group);
+}
+
+}  // namespace linebake

@@ -1,0 +1,20 @@
+#pragma once
+// One HDF5 group copied into another file object by object: its subgroups, datasets (chunks
+// as stored, without decoding) and attributes, in creation order where it is tracked. In place
+// of H5Ocopy, whose error path in HDF5 1.10 crashes (H5T_close_real under H5O_copy_header_map)
+// when the disk fills during the copy: here a failed write is an OutputError like any other.
+
+#include <hdf5.h>
+
+#include <string>
+
+namespace linebake {
+
+// Copies `group` of `source` (opened from `source_path`) to the same path in `target` (the file
+// `target_path`); the groups above it must exist there, the group itself must not. Throws
+// InputError for what cannot be read, OutputError for what cannot be written, Interrupted
+// between chunks on a signal.
+void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
+                     const std::string& target_path, const std::string& group);
+
+}  // namespace linebake
