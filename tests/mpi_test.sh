@@ -4,10 +4,11 @@
 # through stock HDF5); the serial linebake renders and reuses them; a corrupt file read by rank 1
 # stops every rank, naming the rank and the file, and leaves no file behind; so does a write
 # that fails in the collective writing.
-# Usage: mpi_test.sh <linebake> <linebake-mpi>
+# Usage: mpi_test.sh <linebake> <linebake-mpi> <the faults library (tests/faults/faults.c)>
 set -u
 bin=$(realpath "$1")
 mpi=$(realpath "$2")
+faults=$(realpath "$3")
 . "$(dirname "$0")/check.sh"
 # Containers run tests as root, which Open MPI refuses unless told.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
@@ -138,6 +139,27 @@ for n in 1 2; do
     grep -q "mixed/b.binlines: its attributes \[vorticity\], line attributes \[\] differ from the first input's (mixed/a.binlines: \[curvature\], \[\])" mixed/out$n.txt
 done
 check "no mixed cache is left" bash -c "! ls -a | grep -E '^mixed\.lbc\.h5'"
+
+# What the serial bake refuses before it writes, linebake-mpi refuses too (it had baked lines too
+# small for float32 tubes, and started writing onto a file system without room for the cache).
+printf 'line_id,x,y,z\n0,0,0,0\n0,1e-20,0,0\n0,2e-20,0,0\n' > tiny.csv
+for n in 1 2; do
+  mpirun -np "$n" "$mpi" bake tiny.csv -o tiny.lbc.h5 --assets tubes,embree >tiny$n.txt 2>&1
+  code=$?
+  check "np $n: lines spanning 2e-20 units exit 2 as in the serial bake" test "$code" -eq 2
+  check "np $n: the error says the span" grep -q "tiny.csv: the lines span 2e-20 units" tiny$n.txt
+done
+mkdir space
+mpirun -np 2 -x LD_PRELOAD="$faults" -x LINEBAKE_FAULT_FREE=1000000 "$mpi" bake run/part_0.binlines \
+  -o space/s.lbc.h5 >space/out.txt 2>&1
+code=$?
+check "np 2: 1 MB free (statvfs) is refused before writing, exit 3" test "$code" -eq 3
+check "the refusal gives the figures and the way past it" \
+  grep -q "space/s.lbc.h5: needs about .* free on space; --no-space-check bakes anyway" space/out.txt
+check "nothing is left in the directory" bash -c "[ -z \"\$(ls -A space | grep -v out.txt)\" ]"
+mpirun -np 2 -x LD_PRELOAD="$faults" -x LINEBAKE_FAULT_FREE=1000000 "$mpi" bake run/part_0.binlines \
+  -o space/s.lbc.h5 --no-space-check >/dev/null 2>&1
+check "np 2: --no-space-check bakes anyway" test -s space/s.lbc.h5
 
 # Rank 1 of 2 reads the end of the input: part_3 is cut short there.
 mkdir bad

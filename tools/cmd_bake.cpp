@@ -219,8 +219,18 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     for (const BakeStage& stage : result.stages)
       say("stage " + stage.name + ": " + format_seconds(stage.wall_s) + " wall, " +
           format_seconds(stage.cpu_s) + " CPU, peak RSS " + format_bytes(stage.peak_rss_bytes));
-    const CacheReader cache(result.cache, false);
-    const std::vector<CacheSummary> summary{summarize_cache(cache)};
+    // The cache is in place by now: a signal while it is read back for the report (its probe
+    // runs in a child process) says so, as the serial bake's own read-back does.
+    std::vector<CacheSummary> summary;
+    try {
+      const CacheReader cache(result.cache, false);
+      summary.push_back(summarize_cache(cache));
+    } catch (const Interrupted& e) {
+      if (!result.written) throw;
+      throw Interrupted(e.signal(), "after " + result.cache +
+                                        " was written whole (reading its figures back for the "
+                                        "report was cut short)");
+    }
     if (args->json)
       std::cout << json_text(report_json(summary), 2) << "\n";
     else

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <string>
 
 #include "cache/chunk_codec.hpp"
 #include "commands.hpp"
@@ -54,13 +55,14 @@ int main(int argc, char** argv) {
   linebake::install_interrupt_handlers();
   // Every rank has the same error (bake_mpi agrees on it); rank 0 says it.
   const auto say = [&](const char* what) {
-    if (rank == 0) std::cerr << "linebake-mpi: error: " << what << "\n";
+    if (rank == 0) std::cerr << "linebake-mpi: error: " + std::string(what) + "\n";
   };
   try {
     run();
   } catch (const linebake::CollectiveWriteFailed& e) {
     // Only this rank knows; the others may wait in the collective write for ever.
-    std::cerr << "linebake-mpi: error: " << e.what() << "; stopping every rank\n";
+    // One write, so that the ranks' lines do not interleave (std::cerr writes each << at once).
+    std::cerr << "linebake-mpi: error: " + std::string(e.what()) + "; stopping every rank\n";
     MPI_Abort(MPI_COMM_WORLD, e.exit_code());
   } catch (const linebake::Interrupted& e) {
     if (rank == 0)

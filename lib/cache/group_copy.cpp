@@ -27,6 +27,22 @@ struct Copy {
                       object + ": cannot write " + what + " (" + h5::last_error() + ")");
   }
 
+  // A group's creation properties as linebake sets them, taken from the source group's: the
+  // order of links and attributes tracked or not, times not recorded. (The source's own list,
+  // passed as it is, failed for a file written by parallel HDF5: "address of object past end of
+  // allocation".)
+  static Handle group_properties(hid_t source_gcpl) {
+    Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+    unsigned links = 0, attributes = 0;
+    hbool_t times = false;
+    if (H5Pget_link_creation_order(source_gcpl, &links) >= 0)
+      H5Pset_link_creation_order(gcpl, links);
+    if (H5Pget_attr_creation_order(source_gcpl, &attributes) >= 0)
+      H5Pset_attr_creation_order(gcpl, attributes);
+    if (H5Pget_obj_track_times(source_gcpl, &times) >= 0) H5Pset_obj_track_times(gcpl, times);
+    return gcpl;
+  }
+
   // Links and attributes in creation order where the object tracks it, else by name.
   static H5_index_t index_of(hid_t creation_plist, bool links) {
     unsigned flags = 0;
@@ -167,7 +183,9 @@ struct Copy {
         Handle sub_from(H5Gopen2(from, name.c_str(), H5P_DEFAULT), H5Gclose);
         Handle sub_gcpl(sub_from.valid() ? H5Gget_create_plist(sub_from) : -1, H5Pclose);
         if (!sub_gcpl.valid()) cannot_read(member, "the group");
-        Handle sub_to(H5Gcreate2(to, name.c_str(), H5P_DEFAULT, sub_gcpl, H5P_DEFAULT), H5Gclose);
+        Handle sub_to(
+            H5Gcreate2(to, name.c_str(), H5P_DEFAULT, group_properties(sub_gcpl), H5P_DEFAULT),
+            H5Gclose);
         if (!sub_to.valid()) cannot_write(member, "the group");
         group(sub_from, sub_to, member);
       } else {
@@ -186,7 +204,9 @@ void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
   if (!from.valid()) copy.cannot_read(group, "the group");
   Handle gcpl(H5Gget_create_plist(from), H5Pclose);
   if (!gcpl.valid()) copy.cannot_read(group, "the group");
-  Handle to(H5Gcreate2(target, group.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
+  Handle to(
+      H5Gcreate2(target, group.c_str(), H5P_DEFAULT, Copy::group_properties(gcpl), H5P_DEFAULT),
+      H5Gclose);
   if (!to.valid()) copy.cannot_write(group, "the group");
   copy.group(from, to, group);
 }

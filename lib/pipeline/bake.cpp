@@ -492,6 +492,47 @@ BakeEstimate estimate_bake(const LineSetStats& stats, const LineSet& header, con
   return e;
 }
 
+void check_geometry_span(const LineSetStats& stats, const BakeOptions& options) {
+  // Tubes and Embree's curves are float32 geometry: their frames, normals and distance tests
+  // square the distances between points, which underflow for data a trillionth of a unit across
+  // (a span of 1e-30 made "no line has two distinct points"). Refused here, naming the input.
+  const bool float_geometry = contains(options.assets, "tubes") ||
+                              contains(options.assets, "embree") || contains(options.assets, "rtx");
+  // In double: the float diagonal of such data is 0 (its square underflows too).
+  const std::array<float, 3>&lo = stats.bounds.min, &hi = stats.bounds.max;
+  const double span = std::hypot(double(hi[0]) - double(lo[0]), double(hi[1]) - double(lo[1]),
+                                 double(hi[2]) - double(lo[2]));
+  if (float_geometry && span == 0)
+    throw InputError(options.input, "",
+                     "every point of the lines is the same: no extent to build tubes or Embree's "
+                     "curves over");
+  if (float_geometry && !(span >= double(kMinGeometrySpan))) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", span);
+    throw InputError(options.input, "",
+                     std::string("the lines span ") + text +
+                         " units (their bounding box's diagonal): too small for the float32 "
+                         "geometry of tubes and Embree's curves, which needs 1e-12 or more; "
+                         "scale the lines to smaller units first (voxels alone can be baked)");
+  }
+}
+
+void check_free_space(const BakeResult& result, uint64_t already_written,
+                      const BakeOptions& options) {
+  const uint64_t needed =
+      result.estimate.total() - std::min(already_written, result.estimate.total());
+  if (!options.space_check || needed <= result.free_bytes) return;
+  const std::filesystem::path dir = std::filesystem::path(result.cache).has_parent_path()
+                                        ? std::filesystem::path(result.cache).parent_path()
+                                        : std::filesystem::path(".");
+  throw OutputError(result.cache,
+                    "needs about " + format_bytes(needed) + " more (the cache about " +
+                        format_bytes(result.estimate.total() - result.estimate.spill) +
+                        ", temporary spill files about " + format_bytes(result.estimate.spill) +
+                        "), " + format_bytes(result.free_bytes) + " free on " + dir.string() +
+                        "; --no-space-check bakes anyway");
+}
+
 BakeResult bake(const BakeOptions& options_in) {
   const auto bake_start = std::chrono::steady_clock::now();
   BakeOptions options = options_in;
@@ -714,28 +755,7 @@ BakeResult bake(const BakeOptions& options_in) {
     lines_hash = old_lines->stats.value("content_hash", "");
     plan_batches(header);
   }
-  // Tubes and Embree's curves are float32 geometry: their frames, normals and distance tests
-  // square the distances between points, which underflow for data a trillionth of a unit across
-  // (a span of 1e-30 made "no line has two distinct points"). Refused here, naming the input.
-  const bool float_geometry = contains(options.assets, "tubes") ||
-                              contains(options.assets, "embree") || contains(options.assets, "rtx");
-  // In double: the float diagonal of such data is 0 (its square underflows too).
-  const std::array<float, 3>&lo = stats.bounds.min, &hi = stats.bounds.max;
-  const double span = std::hypot(double(hi[0]) - double(lo[0]), double(hi[1]) - double(lo[1]),
-                                 double(hi[2]) - double(lo[2]));
-  if (float_geometry && span == 0)
-    throw InputError(options.input, "",
-                     "every point of the lines is the same: no extent to build tubes or Embree's "
-                     "curves over");
-  if (float_geometry && !(span >= double(kMinGeometrySpan))) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.3g", span);
-    throw InputError(options.input, "",
-                     std::string("the lines span ") + text +
-                         " units (their bounding box's diagonal): too small for the float32 "
-                         "geometry of tubes and Embree's curves, which needs 1e-12 or more; "
-                         "scale the lines to smaller units first (voxels alone can be baked)");
-  }
+  check_geometry_span(stats, options);
   // What the bake will write, against the room on the cache's file system: refused here, before
   // any of it, unless the user says otherwise.
   result.estimate = estimate_bake(stats, header, options, budget.available());
@@ -746,21 +766,7 @@ BakeResult bake(const BakeOptions& options_in) {
     result.wall_s = seconds_since(bake_start);
     return result;
   }
-  {
-    const uint64_t already = spool ? spool->bytes() : 0;  // the spill of the lines is written
-    const uint64_t needed = result.estimate.total() - std::min(already, result.estimate.total());
-    if (options.space_check && needed > result.free_bytes) {
-      const std::filesystem::path dir = std::filesystem::path(result.cache).has_parent_path()
-                                            ? std::filesystem::path(result.cache).parent_path()
-                                            : std::filesystem::path(".");
-      throw OutputError(result.cache,
-                        "needs about " + format_bytes(needed) + " more (the cache about " +
-                            format_bytes(result.estimate.total() - result.estimate.spill) +
-                            ", temporary spill files about " + format_bytes(result.estimate.spill) +
-                            "), " + format_bytes(result.free_bytes) + " free on " + dir.string() +
-                            "; --no-space-check bakes anyway");
-    }
-  }
+  check_free_space(result, spool ? spool->bytes() : 0, options);  // the lines' spill is written
   // Replays the line set: from the spool, or the old cache's /lines.
   const auto replay = [&]() -> std::unique_ptr<LineReader> {
     if (spool) return spool->replay();

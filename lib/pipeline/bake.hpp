@@ -137,6 +137,14 @@ uint64_t cost_per_point(const BakeOptions& options, const LineSet& header, bool 
 // (linebake-mpi hashes the files on several ranks); empty: computed here.
 LinesIdentity lines_identity(const BakeOptions& options,
                              const std::vector<std::string>& file_hashes = {});
+// Refuses (InputError) lines too small for the float32 geometry of the assets that have it
+// (tubes, Embree's curves, rtx): a diagonal under kMinGeometrySpan, or every point the same.
+void check_geometry_span(const LineSetStats& stats, const BakeOptions& options);
+// Refuses (OutputError) a bake whose estimate (result.estimate) less what it has written already
+// passes the room on the cache's file system (result.free_bytes), unless options.space_check is
+// off.
+void check_free_space(const BakeResult& result, uint64_t already_written,
+                      const BakeOptions& options);
 // Throws InputError (bad input), OutputError (cache not writable) or Error (bad options).
 BakeResult bake(const BakeOptions& options);
 

@@ -321,6 +321,18 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       },
       [](const std::string& whole) { return whole; }));
   if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
+  check_geometry_span(stats, options);  // the stats are every rank's: so is the outcome
+  {
+    // The serial bake's space check, by rank 0 for the file system that holds the cache; the
+    // lines' spill of every rank (beside the cache) is written already.
+    const uint64_t spilled = ranks.sum(std::vector<uint64_t>{spool ? spool->bytes() : 0})[0];
+    ranks.agree([&] {
+      if (ranks.rank != 0) return;
+      result.estimate = estimate_bake(stats, header, options, budget.available());
+      result.free_bytes = free_bytes_for(result.cache);
+      check_free_space(result, spilled, options);
+    });
+  }
   LinePiece piece;
   piece.first_line = ranks.exclusive_sum(local_stats.stats().lines);
   piece.first_point = ranks.exclusive_sum(local_stats.stats().points);

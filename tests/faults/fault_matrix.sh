@@ -218,7 +218,7 @@ if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ fsync =~ $FAULT_MATRIX_FILTER ]]; the
   done
 fi
 if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ statvfs =~ $FAULT_MATRIX_FILTER ]]; then
-  # Not implemented yet: bake should see that 1 MB free cannot hold the cache and refuse first.
+  # bake sees that 1 MB free cannot hold the cache and refuses first.
   EXPECT_MESSAGE=free cell "bake --assets tubes" "statvfs: 1000000 B free" out/x.lbc.h5 \
     LINEBAKE_FAULT_FREE=1000000 -- "$bin" bake "$c" -o out/x.lbc.h5 --assets tubes
 fi
