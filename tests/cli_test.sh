@@ -247,6 +247,7 @@ check "reference without tubes is an error" exit_code 2 "$bin" render "$tmp/v.lb
 check "curves render without tubes" "$bin" render "$tmp/v.lbc.h5" --size 32x24 -o "$tmp/v.png"
 printf '{"keyframes": [{"eye": [0, 0], "target": [0, 0, 0]}]}' > "$tmp/bad_keys.json"
 check "bad keyframes exit 2" exit_code 2 "$bin" render "$tmp/t.lbc.h5" --flight "$tmp/bad_keys.json" --size 32x24 -o "$tmp/x.png"
+check "mlabdb --layers 1 is a usage error (exit 1; it was exit 4 from the renderer)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique mlabdb --layers 1 --size 32x24 -o '$tmp/x.png' 2> '$tmp/layers.err'; [ \$? -eq 1 ] && grep -q -- '--layers: mlabdb takes 2 to 64' '$tmp/layers.err'"
 check "a mistyped flight is exit 2 with the name it meant" bash -c "'$bin' render '$tmp/t.lbc.h5' --flight orbit_zoom --size 32x24 -o '$tmp/x.png' 2> '$tmp/flight.err'; [ \$? -eq 2 ] && grep -qF \"orbit_zoom: neither a flight (orbit-zoom, orbit) nor a keyframe file: no such file; did you mean 'orbit-zoom'?\" '$tmp/flight.err'"
 check "compare different sizes is an error" exit_code 2 "$bin" compare "$tmp/e.png" "$tmp/f_000.png"
 printf 'not a png' > "$tmp/bad.png"

@@ -174,8 +174,9 @@ Command add_render(CLI::App& app) {
       ->check(render_option_check("--capacity"));
   sub->add_option("--max-layers", args->max_layers, "dp: peel at most this many layers (2000)")
       ->check(render_option_check("--max-layers"));
-  sub->add_option("--layers", args->layers,
-                  "mlab: nodes per pixel (default 8); mlabdb: 1 front + k-1 back (default 4)")
+  sub->add_option(
+         "--layers", args->layers,
+         "mlab: nodes per pixel (default 8); mlabdb: 1 front + k-1 back, k >= 2 (default 4)")
       ->check(render_option_check("--layers"));
   sub->add_option("--tau-alpha", args->tau_alpha,
                   "mlabdb: opacity above which the back bucket starts (0.2)")

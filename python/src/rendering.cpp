@@ -104,7 +104,17 @@ TechniqueOptions technique_options(const std::string& function, const py::kwargs
                                    int height) {
   TechniqueOptions o;
   o.width = width, o.height = height;
-  set_from(function, kw, "early_termination", o.early_termination);
+  // early_termination=True/False says for every technique what --early-termination or
+  // --no-early-termination says (vrc stops early unless told not to; the rest do not unless
+  // told to); the two keywords exclude each other as the flags do.
+  if (kw.contains("early_termination") && kw.contains("no_early_termination"))
+    throw UsageError(function +
+                     ": early_termination and no_early_termination exclude each other (as "
+                     "--early-termination and --no-early-termination); give one");
+  if (kw.contains("early_termination")) {
+    set_from(function, kw, "early_termination", o.early_termination);
+    o.vrc_early_termination = o.early_termination;
+  }
   set_from(function, kw, "device", o.device);
   set_from(function, kw, "validation", o.validation);
   set_from(function, kw, "hits", o.hits);

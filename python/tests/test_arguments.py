@@ -553,3 +553,36 @@ def test_exceptions_made_in_python_have_the_attributes():
     assert linebake.InputError("x").file is None and linebake.InputError("x").where is None
     assert linebake.OutputError("x").file is None
     assert str(linebake.InputError("x")) == "x"
+
+
+# --- early termination -------------------------------------------------------------------------
+
+
+def test_early_termination_false_stops_vrc_no_earlier_than_the_clis_flag(baked):
+    """vrc stops early by default; early_termination=False composites every hit, as
+    no_early_termination=True and the CLI's --no-early-termination do (it had been ignored)."""
+    cache, _ = baked
+    default, default_stats = linebake.render(cache, technique="vrc", size=SIZE)
+    off, off_stats = linebake.render(cache, technique="vrc", size=SIZE, early_termination=False)
+    flag, flag_stats = linebake.render(cache, technique="vrc", size=SIZE, no_early_termination=True)
+    assert default_stats["early_termination"] is True
+    assert off_stats["early_termination"] is False and flag_stats["early_termination"] is False
+    assert np.array_equal(off, flag)
+    on, on_stats = linebake.render(cache, technique="vrc", size=SIZE, early_termination=True)
+    assert on_stats["early_termination"] is True and np.array_equal(on, default)
+
+
+def test_early_termination_and_its_negation_exclude_each_other(baked):
+    cache, _ = baked
+    for technique in ["vrc", "embree"]:
+        with pytest.raises(linebake.UsageError, match="exclude each other"):
+            linebake.render(cache, technique=technique, size=SIZE, early_termination=True,
+                            no_early_termination=True)
+
+
+def test_mlabdb_needs_two_layers_a_usage_error(baked):
+    if not vulkan_available():
+        pytest.skip("no Vulkan device")
+    cache, _ = baked
+    with pytest.raises(linebake.UsageError, match="--layers: mlabdb takes 2 to 64"):
+        linebake.render(cache, technique="mlabdb", size=SIZE, layers=1)

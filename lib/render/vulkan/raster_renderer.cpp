@@ -729,16 +729,18 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
   const bool mlab = o.technique == RasterTechnique::Mlab;
   const bool buckets = o.technique == RasterTechnique::MlabBuckets;
   if (o.layers == 0) o.layers = buckets ? 4 : 8;
+  // Options out of a technique's range are the command line's (exit 1; Python's UsageError).
   if ((mlab || buckets) && (o.layers < (buckets ? 2 : 1) || o.layers > 64))
-    throw Error(std::string(to_string(o.technique)) + ": layers must be in [" +
-                (buckets ? "2" : "1") + ", 64], not " + std::to_string(o.layers));
+    throw UsageError(std::string("--layers: ") + to_string(o.technique) + " takes " +
+                     (buckets ? "2 to 64 (1 front bucket and at least 1 back node)" : "1 to 64") +
+                     ", not " + std::to_string(o.layers));
   if (o.technique == RasterTechnique::DepthPeeling && o.max_layers < 1)
-    throw Error("dp: max layers must be at least 1");
+    throw UsageError("--max-layers: dp peels at least 1 layer");
   if (o.technique == RasterTechnique::Mboit && o.moments != 4 && o.moments != 6 && o.moments != 8)
-    throw Error("mboit: moments must be 4, 6 or 8, not " + std::to_string(o.moments));
+    throw UsageError("--moments: mboit takes 4, 6 or 8, not " + std::to_string(o.moments));
   if (o.technique == RasterTechnique::Wboit &&
       !(o.wboit_weight == 0 || (o.wboit_weight >= 7 && o.wboit_weight <= 9)))
-    throw Error("wboit: weight must be 0, 7, 8 or 9, not " + std::to_string(o.wboit_weight));
+    throw UsageError("--wboit-weight: 0, 7, 8 or 9, not " + std::to_string(o.wboit_weight));
   const auto start = std::chrono::steady_clock::now();
   State& s = *state_;
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
