@@ -680,6 +680,23 @@ TEST(TransferFunction, PresetsAndJsonRoundTrip) {
     EXPECT_EQ(e.where(), "opacities[0]");
   }
   EXPECT_THROW(transfer_function_preset("rainbow"), Error);
+  // A range runs upwards or is [0, 0] (the data's own): a reversed or empty one had mapped every
+  // value to the colours' middle.
+  for (const char* range : {"[3.14, 0.087]", "[1, 1]", "[-1, -1]"}) {
+    std::ofstream(dir.file("range.json"))
+        << R"({"colours": [[0, 1, 0, 0]], "opacities": [[0, 1]], "range": )" << range << "}";
+    try {
+      load_transfer_function(dir.file("range.json"));
+      ADD_FAILURE() << range;
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.where(), "range") << range;
+    }
+  }
+  for (const char* range : {"[0, 0]", "[-2, 0.5]"}) {
+    std::ofstream(dir.file("range.json"))
+        << R"({"colours": [[0, 1, 0, 0]], "opacities": [[0, 1]], "range": )" << range << "}";
+    EXPECT_NO_THROW(load_transfer_function(dir.file("range.json"))) << range;
+  }
 }
 
 }  // namespace

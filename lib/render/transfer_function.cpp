@@ -109,6 +109,12 @@ TransferFunction load_transfer_function(const std::string& path) {
     if (!j["range"].is_array() || j["range"].size() != 2)
       throw InputError(path, "range", "expected [low, high]");
     tf.range = {number(j["range"][0], "range"), number(j["range"][1], "range")};
+    // [0, 0] is the data's own range; any other must run upwards (a reversed one had mapped every
+    // value to the middle of the colours, silently).
+    if (!(tf.range[0] == 0 && tf.range[1] == 0) && !(tf.range[0] < tf.range[1]))
+      throw InputError(path, "range",
+                       "[low, high] with low below high, or [0, 0] for the data's own range; to "
+                       "reverse the colours, reverse their positions instead");
   }
   return tf;
 }
