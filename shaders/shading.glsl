@@ -43,12 +43,15 @@ vec4 transfer_function(float value) {
               clamp(a, 0.0, 1.0));
 }
 
-// Headlight: the light sits at the eye, so the half vector is the view vector.
-vec3 shade(vec3 position, vec3 normal, vec3 colour) {
-  const vec3 to_eye = normalize(frame.eye.xyz - position);
+// Headlight: the light sits at the eye, so the half vector is the view vector `to_eye` (unit).
+vec3 shade_towards(vec3 to_eye, vec3 normal, vec3 colour) {
   vec3 n = normalize(normal);
   if (dot(n, to_eye) < 0.0) n = -n;  // interpolated normals can tip past the silhouette
   const float lambert = max(0.0, dot(n, to_eye));
   return (frame.shading.x + frame.shading.y * lambert) * colour +
          frame.shading.z * pow(lambert, frame.shading.w);
+}
+
+vec3 shade(vec3 position, vec3 normal, vec3 colour) {
+  return shade_towards(normalize(frame.eye.xyz - position), normal, colour);
 }

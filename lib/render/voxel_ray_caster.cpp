@@ -187,8 +187,9 @@ struct Caster {
           std::array<int64_t, 3> lo{};
           for (size_t k = 0; k < 3; ++k) lo[k] = (v[k] >> level) << level;
           int axis = 0;
-          const double t_exit = exit(lo, size, axis);
-          if (!(t_exit > t_enter)) break;
+          // A ray along a cell's face can leave it where it entered: it still steps out of the
+          // cell (it had ended there, dropping every hit behind).
+          const double t_exit = std::max(exit(lo, size, axis), t_enter);
           t_enter = t_exit;
           for (size_t k = 0; k < 3; ++k)
             v[k] = int(k) == axis

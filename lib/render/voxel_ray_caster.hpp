@@ -39,6 +39,9 @@ struct VrcStats {
   uint64_t hits = 0;  // composited hits
   uint32_t max_depth_complexity = 0;
   uint64_t frame_bytes = 0;
+  // --on gpu: dispatches the frame took, and the voxel steps each walked at most (0: the whole
+  // walk in one; lavapipe's loop limit makes slices, VoxelCaster::render).
+  uint32_t gpu_slices = 0, gpu_slice_steps = 0;
 };
 
 struct VrcCounters {

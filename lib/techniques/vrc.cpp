@@ -58,6 +58,8 @@ class Vrc : public PreparedTechnique {
                  {"frame_bytes", s.frame_bytes}};
     if (caster_) {
       out.stats["gpu_ms"] = caster_->last_gpu_ms();
+      out.stats["slices"] = s.gpu_slices;            // dispatches
+      out.stats["slice_steps"] = s.gpu_slice_steps;  // voxel steps a dispatch, 0: whole walks
       out.gpu_ms["cast"] = caster_->last_gpu_ms();
       out.note = "on " + (*context_)->info().name;
     }

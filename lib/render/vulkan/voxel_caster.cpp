@@ -25,13 +25,21 @@ struct VrcUniforms {
   uint32_t size[4], tf_counts[4];
   float params[4], origin[4];
   uint32_t grid[4], levels[4];
+  float eye_grid[4];
+  uint32_t slicing[4];
   uint32_t level_resolution[kMaxLevels][4];
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
 };
 
-constexpr uint32_t kBindings = 6;   // uniforms, offsets, chords, occupancy, output, hits
-constexpr uint32_t kGridPages = 8;  // bindings 6 and 7: offsets and chords split (vrc.comp)
+constexpr uint32_t kBindings = 7;     // uniforms, offsets, chords, occupancy, output, hits, slices
+constexpr uint32_t kGridPages = 8;    // bindings 7 and 8: offsets and chords split (vrc.comp)
+constexpr uint32_t kStateBytes = 48;  // a sliced walk's pixel between dispatches (vrc.comp)
+constexpr uint32_t kSliceCounters = 16;  // cut_short, unfinished and two spare words
+constexpr uint32_t kFirstSliceSteps = 256;
+// gallivm's limiter (Mesa 22.3: LP_MAX_TGSI_LOOP_ITERATIONS): a loop that must run longer than
+// what is left of it after a cut tells; twice this leaves no doubt.
+constexpr uint32_t kSentinel = 2;
 
 uint32_t log2_floor(uint64_t v) {
   uint32_t l = 0;
@@ -50,6 +58,11 @@ struct VoxelCaster::State {
   std::array<float, 2> attribute_range{};
   std::vector<std::array<uint32_t, 4>> levels;
   Buffer uniforms, offsets, chords, occupancy;
+  Buffer slices;              // counters and, for a sliced walk, a band's pixel states
+  uint64_t slices_bytes = 0;  // what `slices` holds
+  uint64_t max_buffer = 0;    // one storage buffer's bytes at most
+  uint32_t slice_steps = 0;   // 0: one walk (lavapipe: until its limit cuts one short)
+  uint32_t band_rows = 0;     // rows of a sliced walk's band at most (0: one buffer's worth)
   // Split offsets and chords (empty when each fits one buffer): pages of 2^shift units.
   std::vector<Buffer> offset_pages, chord_pages;
   uint32_t offset_shift = 0, chord_shift = 0;
@@ -70,9 +83,9 @@ struct VoxelCaster::State {
   }
 
   void write_descriptors() {
-    write_buffer_set(
-        ctx.device(), set,
-        {&uniforms, &offsets, &chords, &occupancy, &targets.rgba.gpu, &targets.counts.gpu});
+    write_buffer_set(ctx.device(), set,
+                     {&uniforms, &offsets, &chords, &occupancy, &targets.rgba.gpu,
+                      &targets.counts.gpu, &slices});
     for (auto [binding, pages] :
          {std::pair{kBindings, &offset_pages}, std::pair{kBindings + 1, &chord_pages}}) {
       std::vector<const Buffer*> bound;
@@ -103,10 +116,21 @@ struct VoxelCaster::State {
     if (targets.resize(ctx, w, h)) write_descriptors();
   }
 
+  // The slices buffer at `bytes` at least (host-visible: its counters are read after each
+  // dispatch).
+  void hold_slices(uint64_t bytes) {
+    if (slices.buffer != VK_NULL_HANDLE && slices_bytes >= bytes) return;
+    vkDeviceWaitIdle(ctx.device());
+    ctx.destroy(slices);
+    slices = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    slices_bytes = bytes;
+    if (targets.width > 0) write_descriptors();  // else the first resize writes them
+  }
+
   ~State() {
     VkDevice d = ctx.device();
     vkDeviceWaitIdle(d);
-    for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy}) ctx.destroy(*b);
+    for (Buffer* b : {&uniforms, &offsets, &chords, &occupancy, &slices}) ctx.destroy(*b);
     for (auto* pages : {&offset_pages, &chord_pages})
       for (Buffer& b : *pages) ctx.destroy(b);
     targets.release(ctx);
@@ -138,6 +162,7 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   vkGetPhysicalDeviceProperties(context.physical_device(), &props);
   uint64_t limit = props.limits.maxStorageBufferRange;
   if (max_buffer_bytes > 0) limit = std::min(limit, max_buffer_bytes);
+  s.max_buffer = limit;
   // Past one buffer, offsets (4-byte units) and chords (8-byte units) go to pages of a power of
   // two of units, so the shader shifts instead of dividing.
   const bool paged = grid.offsets.bytes() > limit || grid.chords.bytes() > limit;
@@ -163,6 +188,7 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   s.offsets = paged ? s.upload(nullptr, 0) : s.upload(grid.offsets.data(), grid.offsets.bytes());
   s.chords = paged ? s.upload(nullptr, 0) : s.upload(grid.chords.data(), grid.chords.bytes());
   s.occupancy = s.upload(occupancy.words.data(), occupancy.bytes());
+  s.hold_slices(kSliceCounters);
   VkDevice d = context.device();
   const BufferSet b =
       create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT, {kGridPages, kGridPages});
@@ -178,6 +204,11 @@ VoxelCaster::~VoxelCaster() = default;
 
 double VoxelCaster::last_gpu_ms() const {
   return state_->gpu_ms;
+}
+
+void VoxelCaster::set_slice_steps(uint32_t steps, uint32_t band_rows) {
+  state_->slice_steps = steps;
+  state_->band_rows = band_rows;
 }
 
 uint32_t VoxelCaster::grid_buffers() const {
@@ -223,18 +254,65 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   u.levels[1] = s.offset_shift, u.levels[2] = s.chord_shift;
   for (size_t k = 0; k < s.levels.size(); ++k)
     for (size_t c = 0; c < 4; ++c) u.level_resolution[k][c] = s.levels[k][c];
-  std::memcpy(s.uniforms.mapped, &u, sizeof u);
-  s.gpu_ms = s.ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipeline);
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.set, 0,
-                            nullptr);
-    vkCmdDispatch(cmd, uint32_t(o.width + 7) / 8, uint32_t(o.height + 7) / 8, 1);
-    VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-    barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
-                         1, &barrier, 0, nullptr, 0, nullptr);
-  });
+  // The eye's place in the grid in double: float32 world coordinates far from the origin, or of
+  // a grid a millionth of a unit across, lose the ray's start.
+  for (int k = 0; k < 3; ++k)
+    u.eye_grid[k] = float((camera.eye[k] - double(s.origin[size_t(k)])) / double(s.voxel_size));
+  const bool lavapipe = s.ctx.info().lavapipe;
+  u.slicing[2] = lavapipe ? kSentinel : 0u;
+  uint32_t* counters = static_cast<uint32_t*>(s.slices.mapped);
+  // One dispatch over rows [first, first + rows) with the uniforms as set; the counters after it.
+  const auto dispatch = [&](uint32_t first, uint32_t rows) {
+    u.slicing[3] = first;
+    std::memcpy(s.uniforms.mapped, &u, sizeof u);
+    counters = static_cast<uint32_t*>(s.slices.mapped);
+    counters[0] = counters[1] = 0;
+    s.gpu_ms += s.ctx.timed_submit(s.queries, [&](VkCommandBuffer cmd) {
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.pipeline);
+      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, s.layout, 0, 1, &s.set, 0,
+                              nullptr);
+      vkCmdDispatch(cmd, uint32_t(o.width + 7) / 8, (rows + 7) / 8, 1);
+      VkMemoryBarrier barrier{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+      barrier.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+      barrier.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                           1, &barrier, 0, nullptr, 0, nullptr);
+    });
+    ++frame.stats.gpu_slices;
+    return std::pair<uint32_t, uint32_t>{counters[0], counters[1]};  // cut short, unfinished
+  };
+  // The whole frame with walks of at most `steps` a dispatch (0: whole walks); false where the
+  // loop limit cut one short.
+  const auto walk = [&](uint32_t steps) {
+    u.slicing[0] = steps;
+    const uint64_t row_bytes = uint64_t(o.width) * kStateBytes;
+    uint64_t most = s.band_rows > 0 ? s.band_rows : uint64_t(o.height);
+    if (steps > 0) most = std::min(most, (s.max_buffer - kSliceCounters) / row_bytes);
+    const uint32_t band = uint32_t(std::clamp<uint64_t>(most, 1, uint64_t(o.height)));
+    if (steps > 0) s.hold_slices(kSliceCounters + uint64_t(band) * row_bytes);
+    for (uint32_t first = 0; first < uint32_t(o.height); first += band) {
+      const uint32_t rows = std::min(band, uint32_t(o.height) - first);
+      u.slicing[1] = 1;  // the first slice starts every walk at the eye
+      for (;;) {
+        const auto [cut_short, unfinished] = dispatch(first, rows);
+        if (cut_short > 0) return false;
+        if (unfinished == 0) break;
+        u.slicing[1] = 0;
+      }
+    }
+    return true;
+  };
+  // The GPU time and dispatches of walks cut short count: the frame took them.
+  s.gpu_ms = 0;
+  uint32_t steps = s.slice_steps;
+  while (!walk(steps)) {
+    if (steps == 1)
+      throw Error("vrc --on gpu: " + s.ctx.info().name +
+                  "'s loop limit cuts even one voxel step short; use --on cpu");
+    steps = steps == 0 ? kFirstSliceSteps : steps / 2;
+  }
+  s.slice_steps = steps;  // later frames start from what this one needed
+  frame.stats.gpu_slice_steps = steps;
   const uint64_t pixels = uint64_t(o.width) * uint64_t(o.height);
   PixelReadback read = s.targets.read(s.ctx);
   frame.image = std::move(read.image);
@@ -242,7 +320,7 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   frame.depth_complexity = std::move(read.counts);
   frame.stats.hits = read.total;
   frame.stats.max_depth_complexity = read.maximum;
-  frame.stats.frame_bytes = pixels * (16 + 4);
+  frame.stats.frame_bytes = pixels * (16 + 4) + s.slices_bytes;
   frame.stats.seconds = seconds_since(start);
   return frame;
 }
