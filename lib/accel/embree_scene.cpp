@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <limits>
 
 #include "accel/capsule_chain.hpp"
 #include "core/error.hpp"
@@ -36,6 +37,7 @@ struct Part {
   // Curves: the part covers lines [first_line, end_line), points from first_point.
   uint64_t first_point = 0;
   Array<float> vertices;          // FLOAT4 (x, y, z, r), padded
+  Array<float> scene_vertices;    // the same in the scene's frame, where it is not the identity
   Array<uint32_t> indices;        // first vertex of each segment
   Array<uint8_t> flags;           // neighbour flags (linear curves)
   Array<uint32_t> segment_point;  // part-local first point of each segment
@@ -82,6 +84,7 @@ struct EmbreeScene::State {
   Array<float> attribute;  // curves: per point (empty without attribute)
   TubeMesh mesh;           // triangles: shares the caller's arrays
   std::array<double, 2> range{0, 0};
+  SceneFrame frame;
 
   ~State() {
     for (RTCScene s : sub_scenes) rtcReleaseScene(s);
@@ -132,11 +135,48 @@ struct EmbreeScene::State {
   }
 
   // What linebake holds for the scene besides the mesh or lines it views: the prepared input
-  // buffers, each segment's first point, and the attribute's copy.
+  // buffers (their copies in the scene's frame too), each segment's first point, and the
+  // attribute's copy.
   uint64_t held_bytes() const {
     uint64_t bytes = stats.buffer_bytes + attribute.bytes();
     for (const Part& part : parts) bytes += part.segment_point.bytes();
     return bytes;
+  }
+
+  // Short curves into a frame of their own (SceneFrame): the parts' mean segment length (a
+  // segment's ends: Bezier's first and last control points) and their vertices' box centre;
+  // the vertices copied into the frame, radii scaled too.
+  void choose_frame() {
+    if (geometry != EmbreeGeometry::LinearCurve && geometry != EmbreeGeometry::BezierCurve) return;
+    const uint32_t last = geometry == EmbreeGeometry::BezierCurve ? 3 : 1;
+    double length = 0;
+    uint64_t segments = 0;
+    glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+    for (const Part& part : parts) {
+      const float* v = part.vertices.data();
+      for (const uint32_t i : part.indices) {
+        const glm::dvec3 a(v[4 * i], v[4 * i + 1], v[4 * i + 2]);
+        const glm::dvec3 b(v[4 * (i + last)], v[4 * (i + last) + 1], v[4 * (i + last) + 2]);
+        length += glm::length(b - a);
+        ++segments;
+        lo = glm::min(lo, glm::min(a, b));
+        hi = glm::max(hi, glm::max(a, b));
+      }
+    }
+    if (segments == 0 || !(length > 0) || !(length / double(segments) < kShortCurveSegment)) return;
+    frame.scale = double(segments) / length;
+    frame.centre = (lo + hi) * 0.5;
+    for (Part& part : parts) {
+      part.scene_vertices = Array<float>(part.vertices.size());
+      const float* from = part.vertices.data();
+      float* to = part.scene_vertices.data();
+      for (size_t i = 0; i + 3 < part.vertices.size(); i += 4) {
+        const glm::dvec3 p = frame.to_scene(glm::dvec3(from[i], from[i + 1], from[i + 2]));
+        to[i] = float(p.x), to[i + 1] = float(p.y), to[i + 2] = float(p.z);
+        to[i + 3] = float(double(from[i + 3]) * frame.scale);
+      }
+      stats.buffer_bytes += part.scene_vertices.bytes();
+    }
   }
 
   void create_device() {
@@ -187,8 +227,9 @@ struct EmbreeScene::State {
       g = rtcNewGeometry(device, linear ? RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE
                                         : RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE);
       const uint64_t vertices = (part.vertices.size() - 4) / 4;  // less the padding
-      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                 part.vertices.data(), 0, 16, vertices);
+      const Array<float>& seen = part.scene_vertices.empty() ? part.vertices : part.scene_vertices;
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, seen.data(), 0,
+                                 16, vertices);
       rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, part.indices.data(),
                                  0, 4, part.primitives);
       if (linear)
@@ -218,6 +259,7 @@ struct EmbreeScene::State {
   // sub-scenes of at most max_primitives_per_scene, instanced with the identity transform.
   void commit(const EmbreeOptions& o) {
     const auto start = std::chrono::steady_clock::now();
+    choose_frame();
     if (o.max_memory_bytes > 0) {
       if (held_bytes() >= o.max_memory_bytes) throw_over_limit(o.max_memory_bytes);
       limit = int64_t(o.max_memory_bytes - held_bytes());
@@ -530,9 +572,16 @@ Bounds EmbreeScene::bounds() const {
   rtcGetSceneBounds(state_->top, &b);
   Bounds out;
   out.empty = !(b.lower_x <= b.upper_x);
-  out.min = {b.lower_x, b.lower_y, b.lower_z};
-  out.max = {b.upper_x, b.upper_y, b.upper_z};
+  const SceneFrame& f = state_->frame;
+  const glm::dvec3 lo = glm::dvec3(b.lower_x, b.lower_y, b.lower_z) / f.scale + f.centre;
+  const glm::dvec3 hi = glm::dvec3(b.upper_x, b.upper_y, b.upper_z) / f.scale + f.centre;
+  out.min = {float(lo.x), float(lo.y), float(lo.z)};
+  out.max = {float(hi.x), float(hi.y), float(hi.z)};
   return out;
+}
+
+const SceneFrame& EmbreeScene::frame() const {
+  return state_->frame;
 }
 
 std::vector<PreparedCurves> EmbreeScene::prepared_curves() const {

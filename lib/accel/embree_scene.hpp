@@ -110,6 +110,20 @@ void prepare_curves(const LineSet& lines, size_t first, size_t end, uint64_t poi
                     uint64_t segment_base, float radius, EmbreeGeometry geometry,
                     const CurveOutput& out);
 
+// Where Embree sees a scene's geometry: world = scene / scale + centre. The identity but for
+// curves (linear, Bezier) whose segments are short (a mean under kShortCurveSegment): Embree 3's
+// round curve intersectors compare lengths squared with absolute float epsilons (its ulp,
+// 1.2e-7, against (p - p0).(p1 - p0) at the clipping planes), so segments of 2.6e-4 took hits
+// through their caps (22.5 dB against the tube mesh where capsules kept 26.4). Such curves go
+// to Embree about the scene's centre, scaled so that a mean segment is one unit long, and rays
+// are traced in that frame (trace_frame and trace_hits convert).
+struct SceneFrame {
+  glm::dvec3 centre{0};
+  double scale = 1;
+  glm::dvec3 to_scene(const glm::dvec3& world) const { return (world - centre) * scale; }
+};
+constexpr double kShortCurveSegment = 1.0 / 128;
+
 class EmbreeScene {
  public:
   // Curves over the line set with one world-space radius; `attribute` names the vertex
@@ -139,8 +153,10 @@ class EmbreeScene {
   bool adjacent(unsigned geometry, unsigned a, unsigned b) const;
   // The prepared curve buffers per geometry (empty for triangles: those are the tube mesh's).
   std::vector<PreparedCurves> prepared_curves() const;
-  // Scene bounds (for cameras).
+  // Scene bounds (for cameras), in world units.
   Bounds bounds() const;
+  // The frame rays are traced in (identity but for short curves).
+  const SceneFrame& frame() const;
 
   struct State;  // Embree handles and prepared buffers
 

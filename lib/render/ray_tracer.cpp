@@ -212,11 +212,14 @@ std::vector<RayHit> trace_hits(const EmbreeScene& scene, glm::dvec3 origin, glm:
                                double t_near, double t_far, TraceCounters* counters,
                                HitCollection collection) {
   direction = glm::normalize(direction);
+  const SceneFrame& frame = scene.frame();  // traced in the scene's frame, t given back in world's
   std::vector<RawHit> raw;
-  collect(scene, origin, direction, t_near, t_far, collection, raw);
+  collect(scene, frame.to_scene(origin), direction, t_near * frame.scale, t_far * frame.scale,
+          collection, raw);
   std::vector<RayHit> hits;
   TraceCounters local;
   resolve(raw, direction, scene, hits, counters ? *counters : local);
+  for (RayHit& h : hits) h.t /= frame.scale;
   return hits;
 }
 
@@ -349,9 +352,16 @@ std::array<double, 4> walk_intervals(const EmbreeScene& scene, const glm::dvec3&
 
 }  // namespace
 
-Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const TransferFunction& tf_in,
-                  const TraceOptions& options) {
+Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
+                  const TransferFunction& tf_in, const TraceOptions& options) {
   const auto start = std::chrono::steady_clock::now();
+  // Traced in the scene's frame (EmbreeScene::frame: short curves are scaled up); its directions
+  // are the world's, its distances `frame.scale` times as long.
+  const SceneFrame& scene_frame = scene.frame();
+  Camera camera = world_camera;
+  camera.eye = scene_frame.to_scene(world_camera.eye);
+  camera.target = scene_frame.to_scene(world_camera.target);
+  camera.near *= scene_frame.scale, camera.far *= scene_frame.scale;
   TransferFunction tf = tf_in;
   if (tf.range[0] == 0 && tf.range[1] == 0) {
     const auto r = scene.attribute_range();
@@ -373,7 +383,8 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& camera, const Transfer
     size_t peak_raw = 0;
   };
   // The first interval past the first surface: a few tube radii in most sets.
-  const double scale = std::max(1e-6, double(scene.bounds().diagonal()) / 256.0);
+  const double scale =
+      std::max(1e-6, double(scene.bounds().diagonal()) / 256.0) * scene_frame.scale;
   tbb::enumerable_thread_specific<Scratch> scratch;
   const glm::dvec3 forward = camera.forward();
   // The ray through pixel (x, y), clipped against the camera's near and far planes as
