@@ -287,7 +287,18 @@ check_budget "bench embree: a BVH past the budget is refused (exit 4)" bash -c "
 check "render ll (Vulkan) with validation" "$bin" render "$tmp/t.lbc.h5" --technique ll --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o "$tmp/ll.png" --stats "$tmp/ll.json" --depth-complexity "$tmp/lldc.png"
 check "ll stats name the device and passes" bash -c "grep -q '\"gather\"' '$tmp/ll.json' && grep -q '\"device\"' '$tmp/ll.json'"
 check "ll equals the reference (PSNR >= 45 dB)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique reference --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/r8.png' && '$bin' compare '$tmp/ll.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
-check "render opaque (Vulkan)" "$bin" render "$tmp/t.lbc.h5" --technique opaque --validation --tf opaque --size 64x48 -o "$tmp/op.png"
+check "render opaque (Vulkan)" "$bin" render "$tmp/t.lbc.h5" --technique opaque --validation --tf opaque --size 64x48 -o "$tmp/op.png" --stats "$tmp/op.json"
+check "raster stats: fragments and depth complexity only where counted (opaque had zeros), ll's fragments the sum of its counts" python3 -c "
+import json
+o = json.load(open('$tmp/op.json'))['frames'][0]
+assert 'depth_complexity' not in o and 'fragments' not in o, o
+l = json.load(open('$tmp/ll.json'))['frames'][0]
+assert l['fragments'] > 0 and l['depth_complexity']['max'] > 0, l"
+check "ll with a small --capacity: later frames of the size start from the grown pool, which never shrinks (every frame had started from 64 and regrown)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique ll --capacity 64 --frames all --frame-count 6 --size 48x32 -o '$tmp/cap.png' --stats '$tmp/cap.json' > /dev/null 2>&1 && python3 -c \"
+import json
+f = json.load(open('$tmp/cap.json'))['frames']
+c = [x['node_capacity'] for x in f]
+assert f[0]['regrows'] >= 1 and c == sorted(c) and sum(x['regrows'] for x in f) < len(f), [(x['regrows'], x['node_capacity']) for x in f]\""
 check "dp equals the reference (PSNR >= 45 dB)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique dp --validation --tf semi --frame 3 --frame-count 8 --size 96x64 -o '$tmp/dp.png' --stats '$tmp/dp.json' && '$bin' compare '$tmp/dp.png' '$tmp/r8.png' --json | python3 -c 'import json,sys; sys.exit(0 if json.load(sys.stdin)[\"psnr_db\"] >= 45 else 1)'"
 check "dp stats: layers peeled = max depth complexity" python3 -c "import json; f=json.load(open('$tmp/dp.json'))['frames'][0]; assert f['layers'] == f['depth_complexity']['max'] > 0 and not f['layers_capped'], f"
 for t in mlab mlabdb mboit wboit; do

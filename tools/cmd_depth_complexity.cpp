@@ -147,7 +147,9 @@ Command add_depth_complexity(CLI::App& app) {
       options.device = args->device;
       options.validation = args->validation;
       context.emplace(options);
-      if (left > 0) context->set_host_budget(process_budget(budget), frame_bytes);
+      if (left > 0)
+        context->set_host_budget(process_budget(budget), frame_bytes,
+                                 context->first_draw_compile_bytes());
       renderer.emplace(*context, tubes);
       stats["device"] = context->info().name;
     } else {
@@ -164,6 +166,7 @@ Command add_depth_complexity(CLI::App& app) {
       double seconds = 0;
       if (renderer) {
         const vk::RasterFrame f = renderer->count_fragments(camera, tf, width, height);
+        context->drop_compile_reserve();  // the first draw compiled
         if (context->validation_errors() > 0)
           throw Error("Vulkan validation: " + std::to_string(context->validation_errors()) +
                       " error(s); last: " + context->last_validation_error());

@@ -92,7 +92,9 @@ class ContextHolder {
   // (vk::Context::set_host_budget). Called once the technique's data is loaded, so that what the
   // process holds then counts. On a context it shares, the budget it found is put back when it
   // goes, unless a technique prepared since has set its own (vk::Context::restore_host_budget).
-  void budget_host_memory(const TechniqueOptions& options);
+  // `compile`: what the driver takes to compile at the first draw, kept until the technique has
+  // drawn (vk::Context::first_draw_compile_bytes, drop_compile_reserve).
+  void budget_host_memory(const TechniqueOptions& options, uint64_t compile = 0);
 
  private:
   std::unique_ptr<vk::Context> owned_;

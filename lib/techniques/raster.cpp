@@ -21,7 +21,8 @@ class Raster : public PreparedTechnique {
     // that copy is in the machine's memory too (lavapipe, integrated GPUs) the budget refuses the
     // allocation that would pass it.
     const TubeMesh description = load_tube_description(cache);
-    context_.budget_host_memory(o);
+    const uint64_t compile = (*context_).first_draw_compile_bytes();
+    context_.budget_host_memory(o, compile);
     within_budget(info_, [&] {
       renderer_ = std::make_unique<vk::RasterRenderer>(*context_, description, [&](size_t c) {
         check_bytes_fit(info_, o, tube_chunk_bytes(cache, description, c),
@@ -30,7 +31,7 @@ class Raster : public PreparedTechnique {
         return load_tube_chunk(cache, description, c);
       });
     });
-    context_.budget_host_memory(o);  // again, now that the last chunk is let go
+    context_.budget_host_memory(o, compile);  // again, now that the last chunk is let go
     options_.technique = vk::parse_raster_technique(info.name);
     options_.width = o.width, options_.height = o.height;
     options_.sort = vk::parse_list_sort(o.sort);
@@ -53,8 +54,12 @@ class Raster : public PreparedTechnique {
     options_.width = width, options_.height = height;
     vk::RasterFrame frame =
         within_budget(info_, [&] { return renderer_->render(camera, tf, options_); });
+    (*context_).drop_compile_reserve();  // the first draw compiled; what stays of it is resident
     context_.check_validation();
     const vk::RasterStats& s = frame.stats;
+    const bool counted = !frame.depth_complexity.empty();  // dp and ll count fragments
+    uint64_t fragments = 0;
+    for (const uint32_t d : frame.depth_complexity) fragments += d;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
                                          s.seconds, s.frame_bytes);
     nlohmann::json passes = nlohmann::json::object();
@@ -62,13 +67,16 @@ class Raster : public PreparedTechnique {
       passes[name] = ms;
       out.gpu_ms[name] = ms;
     }
-    out.stats = {
-        {"gpu_ms", passes},
-        {"fragments", s.fragments},
-        {"node_capacity", s.capacity},
-        {"regrows", s.regrows},
-        {"depth_complexity", {{"max", s.max_depth_complexity}, {"mean", s.mean_depth_complexity}}},
-        {"frame_bytes", s.frame_bytes}};
+    out.stats = {{"gpu_ms", passes},
+                 {"node_capacity", s.capacity},
+                 {"regrows", s.regrows},
+                 {"frame_bytes", s.frame_bytes}};
+    // Where the technique does not count them, no figures (they had been zeros).
+    if (counted) {
+      out.stats["fragments"] = fragments;
+      out.stats["depth_complexity"] = {{"max", s.max_depth_complexity},
+                                       {"mean", s.mean_depth_complexity}};
+    }
     if (s.layers > 0) {
       out.stats["layers"] = s.layers;
       if (options_.technique == vk::RasterTechnique::DepthPeeling)

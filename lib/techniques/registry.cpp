@@ -219,9 +219,10 @@ ContextHolder::~ContextHolder() {
   if (budget_serial_ && !owned_) context_->restore_host_budget(budget_serial_, found_);
 }
 
-void ContextHolder::budget_host_memory(const TechniqueOptions& options) {
+void ContextHolder::budget_host_memory(const TechniqueOptions& options, uint64_t compile) {
   if (!budget_serial_) found_ = context_->host_budget_state();
-  budget_serial_ = context_->set_host_budget(process_budget(options), frame_output_bytes(options));
+  budget_serial_ =
+      context_->set_host_budget(process_budget(options), frame_output_bytes(options), compile);
 }
 
 uint64_t process_budget(const TechniqueOptions& o) {

@@ -516,9 +516,10 @@ static uint64_t host_limit(const Context::HostBudget& b) {
   return b.held + (b.room > b.reserved ? b.room - b.reserved : 0);
 }
 
-uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved) {
+uint64_t Context::set_host_budget(uint64_t total, uint64_t reserved, uint64_t compile) {
   HostBudget b;
-  b.total = total, b.reserved = reserved, b.serial = ++host_budgets_set_;
+  b.total = total, b.reserved = reserved + compile, b.compile = compile;
+  b.serial = ++host_budgets_set_;
   if (total > 0) {
     const uint64_t resident = trimmed_rss_bytes();  // freed memory still in the heap is not held
     b.held = host_bytes_;
@@ -538,7 +539,17 @@ void Context::restore_host_budget(uint64_t serial, const HostBudget& previous) {
 }
 
 void Context::set_host_reserve(uint64_t reserved) {
-  host_budget_.reserved = reserved;
+  host_budget_.reserved = reserved + host_budget_.compile;
+  host_budget_.limit = host_limit(host_budget_);
+}
+
+uint64_t Context::first_draw_compile_bytes() const {
+  return info_.lavapipe ? uint64_t{96} << 20 : 0;
+}
+
+void Context::drop_compile_reserve() {
+  host_budget_.reserved -= std::min(host_budget_.compile, host_budget_.reserved);
+  host_budget_.compile = 0;
   host_budget_.limit = host_limit(host_budget_);
 }
 
@@ -550,6 +561,19 @@ uint64_t Context::host_bytes_left() const {
   const uint64_t used = current_rss_bytes() + (b.reserved - credit);
   const uint64_t process = b.total > used ? b.total - used : 0;
   return std::min(process, limit > host_bytes_ ? limit - host_bytes_ : 0);
+}
+
+// ", and N is kept for the frame's outputs (and M for ...)": what the reserve holds back.
+std::string Context::kept_for() const {
+  const HostBudget& b = host_budget_;
+  const uint64_t outputs = b.reserved - std::min(b.compile, b.reserved);
+  const uint64_t kept = outputs - std::min(reserve_credit(), outputs);
+  std::string out;
+  if (kept > 0) out = ", and " + format_bytes(kept) + " is kept for the frame's outputs";
+  if (b.compile > 0)
+    out += (out.empty() ? ", and " : " and ") + format_bytes(b.compile) +
+           " for the driver's shader compiles at the first draw";
+  return out;
 }
 
 VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64_t& host_bytes) {
@@ -569,12 +593,7 @@ VkDeviceMemory Context::allocate_memory(const VkMemoryAllocateInfo& info, uint64
         (memory_is_host() ? ", whose memory is this machine's," : " in host memory") +
         " would pass the memory budget of " + format_bytes(host_budget_.total) +
         " (the device's allocations hold " + format_bytes(host_bytes_) + ", the process " +
-        format_bytes(current_rss_bytes()) + " resident" +
-        (host_budget_.reserved > reserve_credit()
-             ? ", and " + format_bytes(host_budget_.reserved - reserve_credit()) +
-                   " is kept for the frame's outputs"
-             : std::string()) +
-        ")");
+        format_bytes(current_rss_bytes()) + " resident" + kept_for() + ")");
   VkDeviceMemory out = VK_NULL_HANDLE;
   const VkResult r = vkAllocateMemory(device_, &info, nullptr, &out);
   if (r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY)
