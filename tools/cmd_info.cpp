@@ -86,11 +86,17 @@ Command add_info(CLI::App& app) {
     if (!s.bounds.empty)
       std::printf("bounds      [%g %g %g] - [%g %g %g]\n", s.bounds.min[0], s.bounds.min[1],
                   s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2]);
+    // A range of the finite values; none where no value is finite.
+    const auto range_text = [](const ValueRange& r) {
+      char text[64] = "no finite value";
+      if (r.finite > 0) std::snprintf(text, sizeof text, "[%g, %g]", r.min, r.max);
+      return std::string(text) +
+             (r.nonfinite ? " " + std::to_string(r.nonfinite) + " non-finite" : "");
+    };
     for (const auto& [name, r] : s.attribute_ranges)
-      std::printf("attribute   %s [%g, %g]%s\n", name.c_str(), r.min, r.max,
-                  r.nonfinite ? (" " + std::to_string(r.nonfinite) + " non-finite").c_str() : "");
+      std::printf("attribute   %s %s\n", name.c_str(), range_text(r).c_str());
     for (const auto& [name, r] : s.line_attribute_ranges)
-      std::printf("line attr.  %s [%g, %g]\n", name.c_str(), r.min, r.max);
+      std::printf("line attr.  %s %s\n", name.c_str(), range_text(r).c_str());
     // Names the file gave twice, or not at all, read under new ones (formats/registry.cpp).
     if (const auto renamed = metadata.find("linebake.renamed_attributes");
         renamed != metadata.end())

@@ -5,8 +5,14 @@
 namespace linebake {
 namespace {
 
+// Without a finite value there is no range: null, not the 0 ValueRange holds (an attribute all
+// NaN had read as a constant 0).
 nlohmann::json range_json(const std::string& name, const ValueRange& r) {
-  return {{"name", name}, {"min", r.min}, {"max", r.max}, {"nonfinite", r.nonfinite}};
+  const bool any = r.finite > 0;
+  return {{"name", name},
+          {"min", any ? nlohmann::json(r.min) : nlohmann::json(nullptr)},
+          {"max", any ? nlohmann::json(r.max) : nlohmann::json(nullptr)},
+          {"nonfinite", r.nonfinite}};
 }
 
 nlohmann::json string_or_null(const std::string& s) {
