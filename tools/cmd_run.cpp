@@ -181,13 +181,7 @@ void validate_pipeline(const Pipeline& p) {
   bake.insert(bake.end(), p.bake_options.begin(), p.bake_options.end());
   parse(add_bake, bake, "assets");
   // What each technique reads of the cache must be baked (a render had failed after the bake).
-  std::vector<std::string> baked = BakeOptions{}.assets;
-  for (size_t i = 0; i + 1 < p.bake_options.size(); ++i)
-    if (p.bake_options[i] == "--assets") {
-      baked.clear();
-      std::stringstream list(p.bake_options[i + 1]);
-      for (std::string a; std::getline(list, a, ',');) baked.push_back(a);
-    }
+  const std::vector<std::string> baked = pipeline_assets(p);
   for (size_t i = 0; i < p.techniques.size(); ++i)
     for (const std::string& asset : find_technique(p.techniques[i].technique).info.assets)
       if (asset != "lines" && std::find(baked.begin(), baked.end(), asset) == baked.end())

@@ -111,8 +111,16 @@ double report_psnr(const nlohmann::json& psnr_db) {
 
 std::vector<CacheSummary> pipeline_caches(const Pipeline& p) {
   std::vector<CacheSummary> summaries;
-  for (const PipelineDataset& d : p.datasets)
-    summaries.push_back(summarize_cache(CacheReader(cache_path(p, d.name), false)));
+  // The assets this pipeline bakes: a cache keeps those an earlier version of it baked, which
+  // its Table 1 had listed too.
+  const std::vector<std::string> baked = pipeline_assets(p);
+  for (const PipelineDataset& d : p.datasets) {
+    CacheSummary summary = summarize_cache(CacheReader(cache_path(p, d.name), false));
+    std::erase_if(summary.assets, [&](const Provenance& a) {
+      return std::find(baked.begin(), baked.end(), a.step) == baked.end();
+    });
+    summaries.push_back(std::move(summary));
+  }
   return summaries;
 }
 

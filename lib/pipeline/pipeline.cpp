@@ -10,11 +10,13 @@
 #include <fstream>
 #include <iterator>
 #include <set>
+#include <sstream>
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/json_file.hpp"
 #include "core/nearest.hpp"
+#include "pipeline/bake.hpp"
 #include "render/camera.hpp"
 #include "render/transfer_function.hpp"
 #include "techniques/technique.hpp"
@@ -375,6 +377,17 @@ bool is_yaml(const std::string& path) {
 }
 
 }  // namespace
+
+std::vector<std::string> pipeline_assets(const Pipeline& p) {
+  std::vector<std::string> assets = BakeOptions{}.assets;
+  for (size_t i = 0; i + 1 < p.bake_options.size(); ++i)
+    if (p.bake_options[i] == "--assets") {
+      assets.clear();
+      std::stringstream list(p.bake_options[i + 1]);
+      for (std::string a; std::getline(list, a, ',');) assets.push_back(a);
+    }
+  return assets;
+}
 
 std::string find_pipeline(const std::string& path, const std::string& shipped_dir) {
   const auto in = [](const std::filesystem::path& base) -> std::string {

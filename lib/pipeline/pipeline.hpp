@@ -47,6 +47,9 @@ struct Pipeline {
   std::string reference = "reference";  // the technique the others are compared with
 };
 
+// The assets the pipeline's bakes build: its `--assets` list, else the bake's default (tubes).
+std::vector<std::string> pipeline_assets(const Pipeline& p);
+
 // The pipeline file `path` names: the file as given, else with .json, .yaml or .yml added, else
 // (where `shipped_dir` is given and `path` is a bare name or pipelines/NAME) the same in
 // `shipped_dir`. A directory is no pipeline file: `run quickstart` beside a quickstart/
