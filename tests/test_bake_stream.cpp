@@ -360,3 +360,27 @@ TEST(BakeMultiFile, MismatchedAttributesEmptyPatternsAndAMissingOutputAreErrors)
 
 }  // namespace
 }  // namespace linebake
+
+namespace linebake {
+namespace {
+
+// float32's spacing at 1e6 is 2^(19 - 23) = 0.0625: over an extent of 1 that is 6.25 %, noted;
+// at 1e3 over 1, 2^(9 - 23) = 6.1e-5 of the extent, under the 1e-4 the note starts at.
+TEST(BakeNotes, LinesFarFromTheOriginForTheirExtentAreNoted) {
+  LineSetStats s;
+  s.bounds.empty = false;
+  s.bounds.min = {1e6f, 1e6f, 0};
+  s.bounds.max = {1e6f + 1, 1e6f, 0};
+  const std::string note = far_from_origin_note(s);
+  EXPECT_NE(note.find("coordinates reach 1e+06 over an extent of 1"), std::string::npos) << note;
+  EXPECT_NE(note.find("steps of 0.0625 there, 6.2 % of the extent"), std::string::npos) << note;
+  s.bounds.min = {1e3f, 0, 0};
+  s.bounds.max = {1e3f + 1, 0, 0};
+  EXPECT_EQ(far_from_origin_note(s), "");
+  s.bounds.min = {-5, -5, -5};
+  s.bounds.max = {5, 5, 5};
+  EXPECT_EQ(far_from_origin_note(s), "");
+}
+
+}  // namespace
+}  // namespace linebake

@@ -140,6 +140,10 @@ LinesIdentity lines_identity(const BakeOptions& options,
 // Refuses (InputError) lines too small for the float32 geometry of the assets that have it
 // (tubes, Embree's curves, rtx): a diagonal under kMinGeometrySpan, or every point the same.
 void check_geometry_span(const LineSetStats& stats, const BakeOptions& options);
+// "" or a note that the lines lie so far from the origin, for their extent, that float32
+// positions lose more than 1e-4 of the extent (coordinates 1e6 over an extent of 1: steps of
+// 0.06).
+std::string far_from_origin_note(const LineSetStats& stats);
 // Refuses (OutputError) a bake whose estimate (result.estimate) less what it has written already
 // passes the room on the cache's file system (result.free_bytes), unless options.space_check is
 // off.

@@ -322,6 +322,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       [](const std::string& whole) { return whole; }));
   if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
   check_geometry_span(stats, options);  // the stats are every rank's: so is the outcome
+  if (const std::string note = far_from_origin_note(stats); !note.empty())
+    result.notes.push_back(options.input + ": " + note);
   {
     // The serial bake's space check, by rank 0 for the file system that holds the cache; the
     // lines' spill of every rank (beside the cache) is written already.
