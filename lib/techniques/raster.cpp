@@ -1,6 +1,8 @@
 // The Vulkan rasterisation techniques (opaque, dp, ll, mlab, mlabdb, mboit, wboit): the cached
 // tube mesh drawn headless by vk::RasterRenderer.
 
+#include <array>
+
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
 #include "render/vulkan/raster_renderer.hpp"
@@ -35,7 +37,7 @@ class Raster : public PreparedTechnique {
     options_.technique = vk::parse_raster_technique(info.name);
     options_.width = o.width, options_.height = o.height;
     options_.sort = vk::parse_list_sort(o.sort);
-    options_.capacity = o.capacity;
+    options_.capacity = given_capacity_ = o.capacity;
     options_.node_bytes = o.node_bytes;
     options_.early_termination = o.early_termination;
     options_.max_layers = o.max_layers;
@@ -51,12 +53,19 @@ class Raster : public PreparedTechnique {
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,
                         int height) override {
+    if (capacity_size_ != std::array<int, 2>{width, height}) options_.capacity = given_capacity_;
     options_.width = width, options_.height = height;
     vk::RasterFrame frame =
         within_budget(info_, [&] { return renderer_->render(camera, tf, options_); });
     (*context_).drop_compile_reserve();  // the first draw compiled; what stays of it is resident
     context_.check_validation();
     const vk::RasterStats& s = frame.stats;
+    // A given --capacity is where the first frame starts; later frames of the size start from
+    // what it grew to (each had started from the given size again, overflowed and drawn twice).
+    if (options_.capacity > 0 && s.capacity > options_.capacity) {
+      options_.capacity = s.capacity;
+      capacity_size_ = {width, height};
+    }
     const bool counted = !frame.depth_complexity.empty();  // dp and ll count fragments
     uint64_t fragments = 0;
     for (const uint32_t d : frame.depth_complexity) fragments += d;
@@ -119,6 +128,8 @@ class Raster : public PreparedTechnique {
   ContextHolder context_;
   std::unique_ptr<vk::RasterRenderer> renderer_;
   vk::RasterOptions options_;
+  uint64_t given_capacity_ = 0;             // --capacity (0: the renderer's own start)
+  std::array<int, 2> capacity_size_{0, 0};  // the size options_.capacity grew for
 };
 
 }  // namespace

@@ -749,10 +749,8 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
     list_capacity = o.capacity;
     if (list_capacity == 0)
       list_capacity = uint64_t(std::ceil(o.expected_depth_complexity * double(pixels)));
-    // Keep a larger capacity from an earlier frame of this size, --capacity given or not (a
-    // given one had gone back to its size every frame, so every frame overflowed and was drawn
-    // twice).
-    if (s.width == o.width && s.height == o.height)
+    // Keep a larger capacity from an earlier frame of this size.
+    if (o.capacity == 0 && s.width == o.width && s.height == o.height)
       list_capacity = std::max(list_capacity, s.list_capacity);
   }
   const auto [pixel_state_bytes, node_bytes] = frame_layout(o, pixels);
