@@ -80,40 +80,61 @@ TEST(OutputLock, TwoSpellingsOfOnePathShareTheLock) {
   waiter.join();
 }
 
+// A forked child that holds the lock on `output` from construction until release(), which
+// returns whether the child held it and exited cleanly.
+class HeldByAChild {
+ public:
+  explicit HeldByAChild(const std::string& output) {
+    if (::pipe(held_) != 0 || ::pipe(release_) != 0) return;
+    child_ = ::fork();
+    if (child_ == 0) {
+      int status = 1;
+      {
+        const OutputLock held(output);
+        char byte = 'h';
+        if (::write(held_[1], &byte, 1) == 1 && ::read(release_[0], &byte, 1) == 1) status = 0;
+      }
+      ::_exit(status);
+    }
+    char byte = 0;
+    holding_ = child_ > 0 && ::read(held_[0], &byte, 1) == 1;
+  }
+  ~HeldByAChild() {
+    if (child_ > 0) release();
+    for (int fd : {held_[0], held_[1], release_[0], release_[1]})
+      if (fd >= 0) ::close(fd);
+  }
+  bool holding() const { return holding_; }
+  bool release() {
+    const char byte = 'r';
+    const bool told = ::write(release_[1], &byte, 1) == 1;
+    int status = -1;
+    const bool ended = ::waitpid(child_, &status, 0) == child_;
+    child_ = -1;
+    return told && ended && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  }
+
+ private:
+  int held_[2] = {-1, -1}, release_[2] = {-1, -1};
+  pid_t child_ = -1;
+  bool holding_ = false;
+};
+
 // The flock is what another process sees: a child holds the lock until told to let it go.
 TEST(OutputLock, AnotherProcessWaitsUntilTheHolderReleases) {
   test::TempDir dir;
   const std::string cache = dir.file("c.lbc.h5");
-  int held_pipe[2], release_pipe[2];
-  ASSERT_EQ(::pipe(held_pipe), 0);
-  ASSERT_EQ(::pipe(release_pipe), 0);
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    int status = 1;
-    {
-      const OutputLock held(cache);
-      char byte = 'h';
-      if (::write(held_pipe[1], &byte, 1) == 1 && ::read(release_pipe[0], &byte, 1) == 1)
-        status = 0;
-    }
-    ::_exit(status);
-  }
-  char byte = 0;
-  ASSERT_EQ(::read(held_pipe[0], &byte, 1), 1);
+  HeldByAChild child(cache);
+  ASSERT_TRUE(child.holding());
   std::atomic<bool> taken{false};
   std::thread waiter([&] {
     const OutputLock second(cache);
     taken = true;
   });
   EXPECT_FALSE(taken_within(taken, 400ms));
-  ASSERT_EQ(::write(release_pipe[1], &byte, 1), 1);
+  EXPECT_TRUE(child.release());
   EXPECT_TRUE(taken_within(taken, 5000ms));
   waiter.join();
-  int status = -1;
-  ASSERT_EQ(::waitpid(child, &status, 0), child);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
-  for (int fd : {held_pipe[0], held_pipe[1], release_pipe[0], release_pipe[1]}) ::close(fd);
   EXPECT_FALSE(std::filesystem::exists(cache + ".lock"));
 }
 
@@ -128,35 +149,18 @@ TEST(OutputLock, WaitNoRefusesAHeldLockAndTakesAFreeOne) {
     std::thread other([&] { EXPECT_THROW(OutputLock(cache, OutputLock::Wait::no), OutputBusy); });
     other.join();
   }
-  int held_pipe[2], release_pipe[2];
-  ASSERT_EQ(::pipe(held_pipe), 0);
-  ASSERT_EQ(::pipe(release_pipe), 0);
-  const pid_t child = ::fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    int status = 1;
-    {
-      const OutputLock held(cache);
-      char byte = 'h';
-      if (::write(held_pipe[1], &byte, 1) == 1 && ::read(release_pipe[0], &byte, 1) == 1)
-        status = 0;
+  {
+    HeldByAChild child(cache);
+    ASSERT_TRUE(child.holding());
+    try {
+      const OutputLock refused(cache, OutputLock::Wait::no);
+      ADD_FAILURE() << "took a lock another process holds";
+    } catch (const OutputBusy& e) {
+      EXPECT_NE(std::string(e.what()).find("another process is writing it"), std::string::npos)
+          << e.what();
     }
-    ::_exit(status);
+    EXPECT_TRUE(child.release());
   }
-  char byte = 0;
-  ASSERT_EQ(::read(held_pipe[0], &byte, 1), 1);
-  try {
-    const OutputLock refused(cache, OutputLock::Wait::no);
-    ADD_FAILURE() << "took a lock another process holds";
-  } catch (const OutputBusy& e) {
-    EXPECT_NE(std::string(e.what()).find("another process is writing it"), std::string::npos)
-        << e.what();
-  }
-  ASSERT_EQ(::write(release_pipe[1], &byte, 1), 1);
-  int status = -1;
-  ASSERT_EQ(::waitpid(child, &status, 0), child);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
-  for (int fd : {held_pipe[0], held_pipe[1], release_pipe[0], release_pipe[1]}) ::close(fd);
   {
     const OutputLock free_again(cache, OutputLock::Wait::no);
     EXPECT_TRUE(std::filesystem::exists(cache + ".lock"));

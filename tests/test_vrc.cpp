@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <iostream>
+#include <optional>
 
 #include "accel/embree_scene.hpp"
 #include "metrics/image_metrics.hpp"
@@ -19,32 +21,39 @@
 namespace linebake {
 namespace {
 
-// 12 x 3 x 3 voxels of size 1 at the origin; voxels 4..7 of the middle row (y = z = 1) hold one
-// chord each, from the x-low face to the x-high face at the face cell (8, 8) of Q = 16: the line
-// y = z = 1 + 8.5 / 16 from x = 4 to x = 8. Voxels x <= 2 and x >= 9 are empty space.
-VoxelGrid one_line_grid() {
+// Voxels of size 1 at the origin, Q = 16, each holding the one chord `chord_of` gives it (none
+// where it gives nullopt).
+using ChordOf = std::function<std::optional<std::array<uint32_t, 2>>(uint32_t, uint32_t, uint32_t)>;
+VoxelGrid grid_of(const std::array<uint32_t, 3>& resolution, const ChordOf& chord_of) {
   VoxelGrid g;
-  g.resolution = {12, 3, 3};
+  g.resolution = resolution;
   g.origin = {0, 0, 0};
   g.voxel_size = 1;
   g.quantization = 16;
   g.attribute_range = {0, 1};
   g.offsets = Array<uint32_t>(g.voxel_count() + 1);
   std::vector<uint32_t> words;
-  for (uint32_t z = 0; z < 3; ++z)
-    for (uint32_t y = 0; y < 3; ++y)
-      for (uint32_t x = 0; x < 12; ++x) {
+  for (uint32_t z = 0; z < resolution[2]; ++z)
+    for (uint32_t y = 0; y < resolution[1]; ++y)
+      for (uint32_t x = 0; x < resolution[0]; ++x) {
         g.offsets[g.index(x, y, z)] = uint32_t(words.size() / 2);
-        if (y == 1 && z == 1 && x >= 4 && x <= 7) {
-          const auto w = pack_chord({0, 8, 8, 0}, {1, 8, 8, 0}, 7, 128, 128, 16);
-          words.push_back(w[0]);
-          words.push_back(w[1]);
-        }
+        if (const auto w = chord_of(x, y, z)) words.insert(words.end(), w->begin(), w->end());
       }
   g.offsets[g.voxel_count()] = uint32_t(words.size() / 2);
   g.chords = Array<uint32_t>(words.size());
   for (size_t i = 0; i < words.size(); ++i) g.chords[i] = words[i];
   return g;
+}
+
+// 12 x 3 x 3 voxels; voxels 4..7 of the middle row (y = z = 1) hold one chord each, from the
+// x-low face to the x-high face at the face cell (8, 8) of Q = 16: the line y = z = 1 + 8.5 / 16
+// from x = 4 to x = 8. Voxels x <= 2 and x >= 9 are empty space.
+VoxelGrid one_line_grid() {
+  return grid_of({12, 3, 3}, [](uint32_t x, uint32_t y, uint32_t z) {
+    return y == 1 && z == 1 && x >= 4 && x <= 7
+               ? std::optional(pack_chord({0, 8, 8, 0}, {1, 8, 8, 0}, 7, 128, 128, 16))
+               : std::nullopt;
+  });
 }
 
 // Distance from the ray to the infinite line y = z = c, and the x where they are closest.
@@ -250,25 +259,11 @@ TEST(Vrc, GpuSlicesAndSkippingGiveTheSameBytes) {
 // its limit lets one invocation run (65535), which had dropped the line at the row's end
 // silently. The caster slices the walk and draws it as the CPU does.
 TEST(Vrc, AWalkPastLavapipesLoopLimitIsSlicedNotCut) {
-  VoxelGrid g;
-  g.resolution = {20000, 1, 1};
-  g.origin = {0, 0, 0};
-  g.voxel_size = 1;
-  g.quantization = 16;
-  g.attribute_range = {0, 1};
-  g.offsets = Array<uint32_t>(g.voxel_count() + 1);
-  std::vector<uint32_t> words;
-  for (uint32_t x = 0; x < 20000; ++x) {
-    g.offsets[x] = uint32_t(words.size() / 2);
-    if (x >= 19990) {  // a chord across the voxel from its y-low face to its y-high face
-      const auto w = pack_chord({2, 8, 8, 0}, {3, 8, 8, 0}, 7, 128, 128, 16);
-      words.push_back(w[0]);
-      words.push_back(w[1]);
-    }
-  }
-  g.offsets[g.voxel_count()] = uint32_t(words.size() / 2);
-  g.chords = Array<uint32_t>(words.size());
-  for (size_t i = 0; i < words.size(); ++i) g.chords[i] = words[i];
+  // In the last ten voxels, a chord across each from its y-low face to its y-high face.
+  const VoxelGrid g = grid_of({20000, 1, 1}, [](uint32_t x, uint32_t, uint32_t) {
+    return x >= 19990 ? std::optional(pack_chord({2, 8, 8, 0}, {3, 8, 8, 0}, 7, 128, 128, 16))
+                      : std::nullopt;
+  });
   const OccupancyPyramid occupancy = build_occupancy(g);
   Camera camera;
   camera.eye = {-1, 0.5, 0.5};
