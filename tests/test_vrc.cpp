@@ -111,6 +111,13 @@ TEST(Vrc, OneLineThroughKnownVoxelsHitsTheExpectedPixels) {
   }
 }
 
+// A Vulkan context whose validation layer fails the test on any error.
+vk::ContextOptions validated() {
+  vk::ContextOptions o;
+  o.validation = true;
+  return o;
+}
+
 struct SynthScene {
   LineSet lines;
   TubeMesh mesh;
@@ -172,9 +179,7 @@ TEST(Vrc, GpuAndCpuAgree) {
   const SynthScene s = aneurysm_scene();
   const VoxelGrid grid = grid_for(s, 96, 32);
   const OccupancyPyramid occupancy = build_occupancy(grid);
-  vk::ContextOptions context_options;
-  context_options.validation = true;
-  vk::Context ctx(context_options);
+  vk::Context ctx(validated());
   vk::VoxelCaster caster(ctx, grid, occupancy);
   for (const std::string preset : {"semi", "transparent"}) {
     const TransferFunction tf = transfer_function_preset(preset);
@@ -230,9 +235,7 @@ TEST(Vrc, GpuSlicesAndSkippingGiveTheSameBytes) {
   const SynthScene s = aneurysm_scene();
   const VoxelGrid grid = grid_for(s, 96, 32);
   const OccupancyPyramid occupancy = build_occupancy(grid);
-  vk::ContextOptions context_options;
-  context_options.validation = true;
-  vk::Context ctx(context_options);
+  vk::Context ctx(validated());
   const TransferFunction tf = transfer_function_preset("semi");
   VrcOptions o;
   o.width = 80, o.height = 60;
