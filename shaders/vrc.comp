@@ -35,6 +35,7 @@ layout(set = 0, binding = 0, std140) uniform VrcUniforms {
   uvec4 levels;      // occupancy levels; log2 offsets and chords per page (split grids), 0
   vec4 eye_grid;     // (eye - origin) / voxel size, computed in double
   uvec4 slicing;     // steps a dispatch (0: the whole walk), first slice, sentinel, first row
+  uvec4 band;        // rows of this dispatch (from slicing.w), 0, 0, 0
   uvec4 level_resolution[kMaxLevels];  // xyz, first word
   vec4 colours[kMaxTfPoints];          // x, sRGB r, g, b
   vec4 opacities[kMaxTfPoints];        // x, opacity
@@ -217,7 +218,9 @@ float cell_exit(vec3 g0, vec3 gd, ivec3 lo, int size, out int axis) {
 
 void main() {
   const uvec2 pixel = uvec2(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y + frame.slicing.w);
-  if (pixel.x >= frame.size.x || pixel.y >= frame.size.y) return;
+  // The last workgroup row of a band reaches past it: those rows are the next band's.
+  if (pixel.x >= frame.size.x || pixel.y >= frame.size.y || gl_GlobalInvocationID.y >= frame.band.x)
+    return;
   const uint index = pixel.y * frame.size.x + pixel.x;
   const uint slot = 3u * (gl_GlobalInvocationID.y * frame.size.x + pixel.x);
   const uint slice_steps = frame.slicing.x;

@@ -535,9 +535,11 @@ TEST(Bake, BadInputLeavesTheOldCacheAlone) {
 namespace linebake {
 
 // copy_group_tree against h5py-free expectations: a source written here with the C API (nested
-// groups tracking creation order, a chunked deflated dataset, a contiguous one larger than one
-// slab row, a scalar, a variable-length string attribute and a fixed one) reads back the same
-// values, chunks stored the same bytes, members and attributes in the same order.
+// groups tracking creation order, a chunked deflated dataset, a contiguous one copied in slabs
+// of 1,000 bytes, a scalar, a chunked dataset of variable-length strings, a soft and an external
+// link, a committed datatype, a variable-length string attribute and a fixed one) reads back the
+// same values, chunks stored the same bytes, members and attributes in the same order. A
+// dataset of references is refused.
 TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
   test::TempDir dir;
   const std::string from = dir.file("from.h5"), to = dir.file("to.h5");
@@ -577,6 +579,23 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
     H5Tset_size(fixed, 3);
     const hid_t a2 = H5Acreate2(g, "b_format", fixed, scalar_space, H5P_DEFAULT, H5P_DEFAULT);
     H5Awrite(a2, fixed, "v42");
+    // Variable-length strings in chunks: their chunks hold ids into this file's heap.
+    const hsize_t two = 2;
+    const hid_t notes_space = H5Screate_simple(1, &two, nullptr);
+    const hid_t notes_dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    H5Pset_chunk(notes_dcpl, 1, &two);
+    const hid_t notes =
+        H5Dcreate2(g, "notes", vstr, notes_space, H5P_DEFAULT, notes_dcpl, H5P_DEFAULT);
+    const char* lines[2] = {"first", "second"};
+    H5Dwrite(notes, vstr, H5S_ALL, H5S_ALL, H5P_DEFAULT, lines);
+    H5Lcreate_soft("/assets/tubes/count", g, "soft", H5P_DEFAULT, H5P_DEFAULT);
+    H5Lcreate_external("other.h5", "/x", g, "elsewhere", H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t kind = H5Tcopy(H5T_NATIVE_INT16);
+    H5Tcommit2(g, "kind", kind, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    H5Tclose(kind);
+    H5Dclose(notes);
+    H5Sclose(notes_space);
+    H5Pclose(notes_dcpl);
     for (hid_t id : {a1, a2}) H5Aclose(id);
     for (hid_t id : {vstr, fixed}) H5Tclose(id);
     for (hid_t id : {chunked, plain, scalar}) H5Dclose(id);
@@ -589,7 +608,7 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
     const hid_t source = H5Fopen(from.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
     const hid_t target = H5Fcreate(to.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     H5Gclose(H5Gcreate2(target, "/assets", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
-    copy_group_tree(source, from, target, to, "/assets/tubes");
+    copy_group_tree(source, from, target, to, "/assets/tubes", 1000);
     H5Fclose(target);
     H5Fclose(source);
   }
@@ -644,6 +663,27 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
   H5Dread(scalar, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &count);
   H5Dclose(scalar);
   EXPECT_EQ(count, 1234567u);
+  {
+    const hid_t notes = H5Dopen2(b, "/assets/tubes/notes", H5P_DEFAULT);
+    const hid_t vstr = H5Tcopy(H5T_C_S1);
+    H5Tset_size(vstr, H5T_VARIABLE);
+    char* read[2] = {nullptr, nullptr};
+    ASSERT_GE(H5Dread(notes, vstr, H5S_ALL, H5S_ALL, H5P_DEFAULT, read), 0);
+    EXPECT_STREQ(read[0], "first");
+    EXPECT_STREQ(read[1], "second");
+    for (char* r : read) H5free_memory(r);
+    H5Tclose(vstr);
+    H5Dclose(notes);
+    char soft[64] = {};
+    ASSERT_GE(H5Lget_val(b, "/assets/tubes/soft", soft, sizeof soft, H5P_DEFAULT), 0);
+    EXPECT_STREQ(soft, "/assets/tubes/count");
+    H5L_info_t link{};
+    ASSERT_GE(H5Lget_info(b, "/assets/tubes/elsewhere", &link, H5P_DEFAULT), 0);
+    EXPECT_EQ(link.type, H5L_TYPE_EXTERNAL);
+    H5O_info_t kind{};
+    ASSERT_GE(H5Oget_info_by_name2(b, "/assets/tubes/kind", &kind, H5O_INFO_BASIC, H5P_DEFAULT), 0);
+    EXPECT_EQ(kind.type, H5O_TYPE_NAMED_DATATYPE);
+  }
   const hid_t g = H5Gopen2(b, "/assets/tubes", H5P_DEFAULT);
   char attribute[64] = {};
   H5Aget_name_by_idx(g, ".", H5_INDEX_CRT_ORDER, H5_ITER_INC, 0, attribute, sizeof attribute,
@@ -666,6 +706,36 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
   H5Gclose(g);
   H5Fclose(a);
   H5Fclose(b);
+}
+
+// References point into their own file: a group holding them is refused, naming the dataset.
+TEST(GroupCopy, ReferencesAreRefused) {
+  test::TempDir dir;
+  const std::string from = dir.file("from.h5"), to = dir.file("to.h5");
+  {
+    const hid_t f = H5Fcreate(from.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t g = H5Gcreate2(f, "/assets", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t scalar = H5Screate(H5S_SCALAR);
+    const hid_t refs =
+        H5Dcreate2(g, "refs", H5T_STD_REF_OBJ, scalar, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    hobj_ref_t ref{};
+    H5Rcreate(&ref, f, "/assets", H5R_OBJECT, -1);
+    H5Dwrite(refs, H5T_STD_REF_OBJ, H5S_ALL, H5S_ALL, H5P_DEFAULT, &ref);
+    H5Dclose(refs);
+    H5Sclose(scalar);
+    H5Gclose(g);
+    H5Fclose(f);
+  }
+  const hid_t source = H5Fopen(from.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t target = H5Fcreate(to.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  try {
+    copy_group_tree(source, from, target, to, "/assets");
+    ADD_FAILURE() << "references copied";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), "/assets/refs");
+  }
+  H5Fclose(target);
+  H5Fclose(source);
 }
 
 }  // namespace linebake

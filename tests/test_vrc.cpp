@@ -288,6 +288,12 @@ TEST(Vrc, AWalkPastLavapipesLoopLimitIsSlicedNotCut) {
   if (ctx.info().lavapipe) {
     EXPECT_GT(gpu.stats.gpu_slice_steps, 0u);
   }
+  // Bands of 7 rows, each walk many slices long: the last workgroup row of a band's dispatch is
+  // the next band's, and had walked with no state of its own, its walk never ending.
+  caster.set_slice_steps(1024, 7);
+  const VrcFrame banded = caster.render(camera, tf, o);
+  EXPECT_EQ(banded.image.pixels, gpu.image.pixels);
+  EXPECT_EQ(banded.stats.gpu_slices, 2u * (20000u / 1024u + 1u));
   std::cout << "hits " << gpu.stats.hits << ", " << gpu.stats.gpu_slices << " dispatches of "
             << gpu.stats.gpu_slice_steps << " steps\n";
 }

@@ -13,12 +13,18 @@ namespace {
 
 using h5::Handle;
 
-// Rows of a dataset without chunks read and written at a time: about 64 MiB.
-constexpr hsize_t kSlabBytes = hsize_t{64} << 20;
+// Values that point into their own file: variable-length data (global heap ids) and references.
+bool holds_heap_ids(hid_t type) {
+  return H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0;
+}
+bool holds_references(hid_t type) {
+  return H5Tdetect_class(type, H5T_REFERENCE) > 0;
+}
 
 struct Copy {
   const std::string& source_path;
   const std::string& target_path;
+  uint64_t slab_bytes;  // rows of a dataset without chunks read and written at a time
 
   [[noreturn]] void cannot_read(const std::string& object, const std::string& what) const {
     throw InputError(source_path, object, "cannot read " + what + " (" + h5::last_error() + ")");
@@ -66,10 +72,11 @@ struct Copy {
       Handle acpl(H5Aget_create_plist(a), H5Pclose);
       if (!type.valid() || !space.valid() || !acpl.valid())
         cannot_read(object, "attribute " + name);
+      if (holds_references(type)) refuse_references(object + " attribute " + name);
       const hssize_t n = H5Sget_simple_extent_npoints(space);
       std::vector<char> values(size_t(std::max<hssize_t>(n, 1)) * H5Tget_size(type));
       if (H5Aread(a, type, values.data()) < 0) cannot_read(object, "attribute " + name);
-      const bool variable = H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0;
+      const bool variable = holds_heap_ids(type);
       Handle out(H5Acreate2(to, name.c_str(), type, space, acpl, H5P_DEFAULT), H5Aclose);
       const herr_t written = out.valid() ? H5Awrite(out, type, values.data()) : -1;
       if (variable) H5Dvlen_reclaim(type, space, H5P_DEFAULT, values.data());
@@ -84,15 +91,24 @@ struct Copy {
     Handle type(H5Dget_type(from), H5Tclose), space(H5Dget_space(from), H5Sclose);
     Handle dcpl(H5Dget_create_plist(from), H5Pclose);
     if (!type.valid() || !space.valid() || !dcpl.valid()) cannot_read(object, "its shape");
+    if (holds_references(type)) refuse_references(object);
     filters_available(dcpl, object);
     Handle to(H5Dcreate2(to_parent, name.c_str(), type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
               H5Dclose);
     if (!to.valid()) cannot_write(object, "the dataset");
-    if (H5Pget_layout(dcpl) == H5D_CHUNKED)
+    // Variable-length values go through HDF5, which writes them to the new file's heap: their
+    // stored chunks hold ids in the old file's (copied as stored, they had pointed at nothing).
+    if (H5Pget_layout(dcpl) == H5D_CHUNKED && !holds_heap_ids(type))
       chunks(from, to, space, object);
     else
       rows(from, to, type, space, object);
     attributes(from, to, dcpl, object);
+  }
+
+  [[noreturn]] void refuse_references(const std::string& object) const {
+    throw InputError(source_path, object,
+                     "holds HDF5 object or region references, which point into this file: not "
+                     "copied (a linebake cache has none)");
   }
 
   // Chunks go across as stored, but HDF5 creates a dataset only with its mandatory filters
@@ -143,21 +159,20 @@ struct Copy {
     const int rank = H5Sget_simple_extent_ndims(space);
     std::vector<hsize_t> dims(size_t(std::max(rank, 1)), 1);
     if (rank > 0) H5Sget_simple_extent_dims(space, dims.data(), nullptr);
-    if (rank <= 0 || H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0) {
+    if (rank <= 0 || holds_heap_ids(type)) {
       const hssize_t n = H5Sget_simple_extent_npoints(space);
       if (n == 0) return;
       std::vector<char> values(size_t(std::max<hssize_t>(n, 1)) * H5Tget_size(type));
       if (H5Dread(from, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
         cannot_read(object, "its values");
       const herr_t written = H5Dwrite(to, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
-      if (H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0)
-        H5Dvlen_reclaim(type, space, H5P_DEFAULT, values.data());
+      if (holds_heap_ids(type)) H5Dvlen_reclaim(type, space, H5P_DEFAULT, values.data());
       if (written < 0) cannot_write(object, "its values");
       return;
     }
     hsize_t row_bytes = H5Tget_size(type);
     for (int d = 1; d < rank; ++d) row_bytes *= dims[size_t(d)];
-    const hsize_t slab = std::max<hsize_t>(1, kSlabBytes / std::max<hsize_t>(row_bytes, 1));
+    const hsize_t slab = std::max<hsize_t>(1, slab_bytes / std::max<hsize_t>(row_bytes, 1));
     std::vector<char> values;
     std::vector<hsize_t> start(dims.size(), 0), extent = dims;
     for (hsize_t row = 0; row < dims[0]; row += slab) {
@@ -195,8 +210,10 @@ struct Copy {
       const std::string member = object + "/" + name;
       H5L_info_t link{};
       if (H5Lget_info(from, name.c_str(), &link, H5P_DEFAULT) < 0) cannot_read(member, "its link");
-      if (link.type != H5L_TYPE_HARD)
-        throw InputError(source_path, member, "a link that is not a group or dataset");
+      if (link.type != H5L_TYPE_HARD) {
+        symbolic_link(from, to, name, link, member);
+        continue;
+      }
       H5O_info_t kind{};
       if (H5Oget_info_by_name2(from, name.c_str(), &kind, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
         cannot_read(member, "its kind");
@@ -211,18 +228,48 @@ struct Copy {
             H5Gclose);
         if (!sub_to.valid()) cannot_write(member, "the group");
         group(sub_from, sub_to, member);
+      } else if (kind.type == H5O_TYPE_NAMED_DATATYPE) {
+        Handle type(H5Topen2(from, name.c_str(), H5P_DEFAULT), H5Tclose);
+        Handle tcpl(type.valid() ? H5Tget_create_plist(type) : -1, H5Pclose);
+        Handle copy(type.valid() ? H5Tcopy(type) : -1, H5Tclose);
+        if (!tcpl.valid() || !copy.valid()) cannot_read(member, "the datatype");
+        if (H5Tcommit2(to, name.c_str(), copy, H5P_DEFAULT, tcpl, H5P_DEFAULT) < 0)
+          cannot_write(member, "the datatype");
+        attributes(type, copy, tcpl, member);
       } else {
-        throw InputError(source_path, member, "neither a group nor a dataset");
+        throw InputError(source_path, member, "neither a group, a dataset nor a datatype");
       }
     }
+  }
+
+  // A soft link as its path, an external one as its file and object: as written, not followed.
+  void symbolic_link(hid_t from, hid_t to, const std::string& name, const H5L_info_t& link,
+                     const std::string& member) const {
+    std::vector<char> value(std::max<size_t>(link.u.val_size, 1));
+    if (H5Lget_val(from, name.c_str(), value.data(), value.size(), H5P_DEFAULT) < 0)
+      cannot_read(member, "its link");
+    herr_t made = -1;
+    if (link.type == H5L_TYPE_SOFT) {
+      made = H5Lcreate_soft(value.data(), to, name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+    } else if (link.type == H5L_TYPE_EXTERNAL) {
+      const char *file = nullptr, *object = nullptr;
+      unsigned flags = 0;
+      if (H5Lunpack_elink_val(value.data(), value.size(), &flags, &file, &object) < 0)
+        cannot_read(member, "its external link");
+      made = H5Lcreate_external(file, object, to, name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+    } else {
+      throw InputError(source_path, member, "a user-defined link: not copied");
+    }
+    if (made < 0) cannot_write(member, "the link");
   }
 };
 
 }  // namespace
 
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
-                     const std::string& target_path, const std::string& group) {
-  const Copy copy{source_path, target_path};
+                     const std::string& target_path, const std::string& group,
+                     uint64_t slab_bytes) {
+  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1)};
   Handle from(H5Gopen2(source, group.c_str(), H5P_DEFAULT), H5Gclose);
   if (!from.valid()) copy.cannot_read(group, "the group");
   Handle gcpl(H5Gget_create_plist(from), H5Pclose);

@@ -6,15 +6,20 @@
 
 #include <hdf5.h>
 
+#include <cstdint>
 #include <string>
 
 namespace linebake {
 
 // Copies `group` of `source` (opened from `source_path`) to the same path in `target` (the file
-// `target_path`); the groups above it must exist there, the group itself must not. Throws
+// `target_path`); the groups above it must exist there, the group itself must not. Chunks go as
+// stored but for variable-length values (read and written through HDF5, whose heap ids are the
+// file's own), datasets without chunks `slab_bytes` of rows at a time; soft and external links
+// as written; committed datatypes too. Object and region references are refused. Throws
 // InputError for what cannot be read, OutputError for what cannot be written, Interrupted
 // between chunks on a signal.
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
-                     const std::string& target_path, const std::string& group);
+                     const std::string& target_path, const std::string& group,
+                     uint64_t slab_bytes = uint64_t{64} << 20);
 
 }  // namespace linebake

@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/measure.hpp"
 #include "render/vulkan/buffer_set.hpp"
 #include "render/vulkan/pixel_readback.hpp"
@@ -27,6 +28,7 @@ struct VrcUniforms {
   uint32_t grid[4], levels[4];
   float eye_grid[4];
   uint32_t slicing[4];
+  uint32_t band[4];
   uint32_t level_resolution[kMaxLevels][4];
   float colours[kMaxTfPoints][4];
   float opacities[kMaxTfPoints][4];
@@ -264,6 +266,7 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
   // One dispatch over rows [first, first + rows) with the uniforms as set; the counters after it.
   const auto dispatch = [&](uint32_t first, uint32_t rows) {
     u.slicing[3] = first;
+    u.band[0] = rows;
     std::memcpy(s.uniforms.mapped, &u, sizeof u);
     counters = static_cast<uint32_t*>(s.slices.mapped);
     counters[0] = counters[1] = 0;
@@ -287,13 +290,37 @@ VrcFrame VoxelCaster::render(const Camera& camera, const TransferFunction& tf_in
     u.slicing[0] = steps;
     const uint64_t row_bytes = uint64_t(o.width) * kStateBytes;
     uint64_t most = s.band_rows > 0 ? s.band_rows : uint64_t(o.height);
-    if (steps > 0) most = std::min(most, (s.max_buffer - kSliceCounters) / row_bytes);
+    if (steps > 0) {
+      most = std::min(most, (s.max_buffer - kSliceCounters) / row_bytes);
+      // Bands of what the memory budget leaves (the state buffer there now goes first).
+      if (const uint64_t left = s.ctx.host_bytes_left(); left != Context::kNoHostLimit) {
+        const uint64_t room = left + s.slices.host_bytes;
+        most = std::min(most, room > kSliceCounters ? (room - kSliceCounters) / row_bytes : 0);
+      }
+    }
     const uint32_t band = uint32_t(std::clamp<uint64_t>(most, 1, uint64_t(o.height)));
-    if (steps > 0) s.hold_slices(kSliceCounters + uint64_t(band) * row_bytes);
+    if (steps > 0) try {
+        s.hold_slices(kSliceCounters + uint64_t(band) * row_bytes);
+      } catch (const HostBudgetExceeded& e) {
+        throw HostBudgetExceeded(std::string("the walks' state between slices (lavapipe's loop "
+                                             "limit cut a walk short): ") +
+                                 e.what());
+      }
+    // A walk takes at most a step a voxel it crosses (a skip leaves its cell through a face):
+    // more dispatches than that would be a fault, not slow work.
+    const uint64_t most_slices =
+        steps == 0 ? 1
+                   : (uint64_t(s.grid_info[0]) + s.grid_info[1] + s.grid_info[2] + 2) / steps + 2;
     for (uint32_t first = 0; first < uint32_t(o.height); first += band) {
       const uint32_t rows = std::min(band, uint32_t(o.height) - first);
       u.slicing[1] = 1;  // the first slice starts every walk at the eye
-      for (;;) {
+      for (uint64_t slice = 0;; ++slice) {
+        throw_if_interrupted();
+        if (slice == most_slices)
+          throw Error("vrc --on gpu: walks of rows " + std::to_string(first) + " to " +
+                      std::to_string(first + rows - 1) + " did not end in " +
+                      std::to_string(most_slices) + " slices of " + std::to_string(steps) +
+                      " steps, more than a walk through the grid takes");
         const auto [cut_short, unfinished] = dispatch(first, rows);
         if (cut_short > 0) return false;
         if (unfinished == 0) break;
