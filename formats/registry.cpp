@@ -397,8 +397,10 @@ class MultiFileReader final : public LineReader {
         batch_file_line_ = in_file;
         return true;
       }
-      add_counts(counts_read_, current_->counts_read());
+      if (!counted_) add_counts(counts_read_, current_->counts_read());
+      counted_ = true;  // once a file: next() may be called again at the end
       if (file_ + 1 == sources_.size()) return false;
+      counted_ = false;
       open(file_ + 1);
     }
   }
@@ -433,6 +435,7 @@ class MultiFileReader final : public LineReader {
   uint64_t batch_file_line_ = 0;
   std::unique_ptr<LineReader> current_;
   std::map<std::string, uint64_t> counts_read_;  // of the files read to their end
+  bool counted_ = false;                         // the current file's counts are in counts_read_
 };
 
 }  // namespace

@@ -248,6 +248,14 @@ check "curves render without tubes" "$bin" render "$tmp/v.lbc.h5" --size 32x24 -
 printf '{"keyframes": [{"eye": [0, 0], "target": [0, 0, 0]}]}' > "$tmp/bad_keys.json"
 check "bad keyframes exit 2" exit_code 2 "$bin" render "$tmp/t.lbc.h5" --flight "$tmp/bad_keys.json" --size 32x24 -o "$tmp/x.png"
 check "info: an attribute with no finite value has no range (null in JSON, said in text; it had read as [0, 0])" bash -c "printf 'line_id,x,y,z,a\\n0,0,0,0,nan\\n0,1,0,0,nan\\n' > '$tmp/allnan.csv' && '$bin' info '$tmp/allnan.csv' | grep -q 'attribute   a no finite value 2 non-finite' && '$bin' info '$tmp/allnan.csv' --json | python3 -c 'import json, sys; a = json.load(sys.stdin)[\"attributes\"][0]; assert a[\"min\"] is None and a[\"max\"] is None and a[\"nonfinite\"] == 2, a'"
+check "info of a NetCDF file gives what its gaps did (netcdf.split_trajectories and the rest; the bake's cache had them, info not); a --flight that is a directory is exit 2 naming it" bash -c "/usr/bin/python3 -c \"
+import netCDF4
+f = netCDF4.Dataset('$tmp/gaps.nc', 'w')
+f.createDimension('trajectory', 2); f.createDimension('time', 5)
+lon = f.createVariable('lon', 'f4', ('trajectory', 'time'), fill_value=-999.0)
+lat = f.createVariable('lat', 'f4', ('trajectory', 'time'))
+lon[:] = [[1, -999, 2, -999, 3], [1, 2, 3, 4, 5]]; lat[:] = [[1] * 5, [1] * 5]
+f.close()\" && '$bin' info '$tmp/gaps.nc' --json | python3 -c 'import json, sys; m = json.load(sys.stdin)[\"metadata\"]; assert m[\"netcdf.split_trajectories\"] == \"1\" and m[\"netcdf.lines_from_splits\"] == \"2\" and m[\"netcdf.missing_observations\"] == \"2\", m' && { '$bin' render '$tmp/t.lbc.h5' --flight '$tmp' --size 32x24 -o '$tmp/x.png' 2> '$tmp/flightdir.err'; [ \$? -eq 2 ]; } && grep -q 'is a directory, not a keyframe file' '$tmp/flightdir.err'"
 check "mlabdb --layers 1 is a usage error (exit 1; it was exit 4 from the renderer)" bash -c "'$bin' render '$tmp/t.lbc.h5' --technique mlabdb --layers 1 --size 32x24 -o '$tmp/x.png' 2> '$tmp/layers.err'; [ \$? -eq 1 ] && grep -q -- '--layers: mlabdb takes 2 to 64' '$tmp/layers.err'"
 check "a mistyped flight is exit 2 with the name it meant" bash -c "'$bin' render '$tmp/t.lbc.h5' --flight orbit_zoom --size 32x24 -o '$tmp/x.png' 2> '$tmp/flight.err'; [ \$? -eq 2 ] && grep -qF \"orbit_zoom: neither a flight (orbit-zoom, orbit) nor a keyframe file: no such file; did you mean 'orbit-zoom'?\" '$tmp/flight.err'"
 check "compare different sizes is an error" exit_code 2 "$bin" compare "$tmp/e.png" "$tmp/f_000.png"
@@ -506,6 +514,7 @@ typo() {  # typo NAME SED-EXPRESSION EXPECTED-TEXT
 typo technique 's/"embree",/"embre",/' 'techniques[1]: unknown technique'
 typo sort-value 's/"sort": "heap"/"sort": "hep"/' "techniques[2].options: --sort: unknown 'hep' (insertion, shell, heap, quick-hybrid); did you mean 'heap'?"
 typo sort-name 's/"sort": "heap"/"sortt": "heap"/' "techniques[2].options: unknown option 'sortt'; did you mean 'sort'?"
+typo mlabdb-layers 's/"mboit",/{"technique": "mlabdb", "options": {"layers": 1}},/' "techniques[3].options.layers: mlabdb takes 2 to 64 layers, not 1"
 typo option-of-another 's/"sort": "heap"/"moments": 6/' 'techniques[2].options: --moments: not read by ll'
 typo tf 's/"semi"\]/"semmi"]/' "transfer_functions[0]: semmi: neither a transfer-function preset (opaque, semi, transparent) nor a file; did you mean 'semi'?"
 typo size 's/"64x48"/"64x-36"/' 'size:'

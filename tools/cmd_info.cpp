@@ -64,6 +64,7 @@ Command add_info(CLI::App& app) {
           line_base += batch.line_count();
         }
         s = builder.stats();
+        add_counts_read(metadata, input->counts_read());  // a NetCDF file's splits at gaps
       }
     }
     if (!synth::is_synth_source(args->input)) metadata.emplace("source", args->input);

@@ -37,6 +37,7 @@
 #include "render/camera.hpp"
 #include "render/transfer_function.hpp"
 #include "render/vulkan/context.hpp"
+#include "render/vulkan/raster_renderer.hpp"
 #include "synth/synth.hpp"
 #include "techniques/technique.hpp"
 
@@ -166,6 +167,16 @@ void validate_pipeline(const Pipeline& p) {
     std::vector<std::string> args = {"render", p.file, "-o", "x.png", "--technique", t.technique};
     args.insert(args.end(), options.begin(), options.end());
     parse(add_render, args, where);
+    // Ranges a technique narrows (mlabdb's layers), which the render checks only as it starts.
+    if (t.technique == "mlab" || t.technique == "mlabdb")
+      for (size_t k = 0; k + 1 < options.size(); ++k)
+        if (options[k] == "--layers") {
+          const int least = vk::min_layers(vk::parse_raster_technique(t.technique));
+          if (std::atoi(options[k + 1].c_str()) < least)
+            throw InputError(p.file, where + ".layers",
+                             t.technique + " takes " + std::to_string(least) +
+                                 " to 64 layers, not " + options[k + 1]);
+        }
     std::vector<std::string> given;
     for (const std::string& a : options)
       if (a.rfind("--", 0) == 0) given.push_back(a.substr(2));

@@ -74,6 +74,8 @@ std::vector<Camera> read_keyframes(const std::string& file) {
     throw InputError(file, "",
                      "neither a flight (orbit-zoom, orbit) nor a keyframe file: no such file" +
                          did_you_mean(file, {"orbit-zoom", "orbit"}));
+  if (std::error_code ec; std::filesystem::is_directory(file, ec))
+    throw InputError(file, "", "is a directory, not a keyframe file");
   const nlohmann::json j = read_json_file(file, "keyframe file");
   if (!j.is_object() || !j.contains("keyframes") || !j["keyframes"].is_array() ||
       j["keyframes"].empty())

@@ -722,6 +722,10 @@ std::pair<uint64_t, uint64_t> frame_layout(const RasterOptions& o, uint64_t pixe
 
 }  // namespace
 
+int min_layers(RasterTechnique technique) {
+  return technique == RasterTechnique::MlabBuckets ? 2 : technique == RasterTechnique::Mlab ? 1 : 0;
+}
+
 RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction& tf,
                                    const RasterOptions& options) {
   if (options.width < 1 || options.height < 1) throw Error("render: empty image size");
@@ -730,7 +734,7 @@ RasterFrame RasterRenderer::render(const Camera& camera, const TransferFunction&
   const bool buckets = o.technique == RasterTechnique::MlabBuckets;
   if (o.layers == 0) o.layers = buckets ? 4 : 8;
   // Options out of a technique's range are the command line's (exit 1; Python's UsageError).
-  if ((mlab || buckets) && (o.layers < (buckets ? 2 : 1) || o.layers > 64))
+  if ((mlab || buckets) && (o.layers < min_layers(o.technique) || o.layers > 64))
     throw UsageError(std::string("--layers: ") + to_string(o.technique) + " takes " +
                      (buckets ? "2 to 64 (1 front bucket and at least 1 back node)" : "1 to 64") +
                      ", not " + std::to_string(o.layers));

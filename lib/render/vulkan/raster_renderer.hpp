@@ -29,6 +29,9 @@ namespace linebake::vk {
 enum class RasterTechnique { Opaque, DepthPeeling, LinkedLists, Mlab, MlabBuckets, Mboit, Wboit };
 // opaque | dp | ll | mlab | mlabdb | mboit | wboit
 RasterTechnique parse_raster_technique(const std::string& name);
+// The fewest --layers a technique takes (mlab 1, mlabdb 2: a front bucket and a back node; the
+// others none); at most 64.
+int min_layers(RasterTechnique technique);
 const char* to_string(RasterTechnique technique);
 bool is_raster_technique(const std::string& name);
 
