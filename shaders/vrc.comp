@@ -318,7 +318,9 @@ void main() {
       if (v[axis] < 0 || v[axis] >= res[axis]) break;
     }
   }
-  // gallivm's limiter, where it cut this invocation short, leaves this loop short too.
+  // gallivm's limiter, where it cut this invocation short, leaves this loop short too. It holds
+  // while the compiler keeps the loop a loop (Mesa 22.3 does: the trip count is a uniform, not a
+  // constant); one that folds it into trips = slicing.z would hide a cut.
   uint trips = 0u;
   for (uint k = 0u; k < frame.slicing.z; ++k) ++trips;
   if (trips != frame.slicing.z) atomicAdd(slices.cut_short, 1u);

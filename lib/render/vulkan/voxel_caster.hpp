@@ -25,7 +25,8 @@ class VoxelCaster {
   // the traversal counters (voxels visited, cells skipped, chords tested) are CPU-only and stay 0.
   // On lavapipe, whose loop limit cuts an invocation short after 65535 trips of its loops
   // together, a walk the limit cut short is rendered again in slices of at most N voxel steps
-  // a dispatch (256, then halved until none is cut short; kept for later frames), the pixels'
+  // a dispatch (256, then halved until none is cut short; kept for the caster's later frames,
+  // which then walk in slices even where one walk would do), the pixels'
   // state kept between dispatches in bands of rows that fit one storage buffer: the same bytes as
   // one walk. Throws Error where even a step a dispatch is cut short.
   VrcFrame render(const Camera& camera, const TransferFunction& tf, const VrcOptions& options);
