@@ -589,6 +589,18 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
     const char* lines[2] = {"first", "second"};
     H5Dwrite(notes, vstr, H5S_ALL, H5S_ALL, H5P_DEFAULT, lines);
     H5Lcreate_soft("/assets/tubes/count", g, "soft", H5P_DEFAULT, H5P_DEFAULT);
+    // A group linked twice, and the group linked into itself: copied once, linked again.
+    H5Lcreate_hard(g, "zeta", g, "again", H5P_DEFAULT, H5P_DEFAULT);
+    H5Lcreate_hard(f, "/assets/tubes", g, "loop", H5P_DEFAULT, H5P_DEFAULT);
+    // Chunks of arrays of two variable-length strings.
+    const hsize_t pair = 2;
+    const hid_t pairs_type = H5Tarray_create2(vstr, 1, &pair);
+    const hid_t pairs =
+        H5Dcreate2(g, "pairs", pairs_type, notes_space, H5P_DEFAULT, notes_dcpl, H5P_DEFAULT);
+    const char* words[4] = {"a", "bb", "ccc", "dddd"};
+    H5Dwrite(pairs, pairs_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, words);
+    H5Dclose(pairs);
+    H5Tclose(pairs_type);
     H5Lcreate_external("other.h5", "/x", g, "elsewhere", H5P_DEFAULT, H5P_DEFAULT);
     const hid_t kind = H5Tcopy(H5T_NATIVE_INT16);
     H5Tcommit2(g, "kind", kind, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
@@ -683,6 +695,26 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
     H5O_info_t kind{};
     ASSERT_GE(H5Oget_info_by_name2(b, "/assets/tubes/kind", &kind, H5O_INFO_BASIC, H5P_DEFAULT), 0);
     EXPECT_EQ(kind.type, H5O_TYPE_NAMED_DATATYPE);
+    const auto address = [&](const char* path) {
+      H5O_info_t info{};
+      EXPECT_GE(H5Oget_info_by_name2(b, path, &info, H5O_INFO_BASIC, H5P_DEFAULT), 0) << path;
+      return info.addr;
+    };
+    EXPECT_EQ(address("/assets/tubes/again"), address("/assets/tubes/zeta"));
+    EXPECT_EQ(address("/assets/tubes/loop"), address("/assets/tubes"));
+    const hid_t pairs = H5Dopen2(b, "/assets/tubes/pairs", H5P_DEFAULT);
+    const hid_t vstr2 = H5Tcopy(H5T_C_S1);
+    H5Tset_size(vstr2, H5T_VARIABLE);
+    const hsize_t pair = 2;
+    const hid_t pairs_type = H5Tarray_create2(vstr2, 1, &pair);
+    char* words[4] = {};
+    ASSERT_GE(H5Dread(pairs, pairs_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, words), 0);
+    EXPECT_STREQ(words[0], "a");
+    EXPECT_STREQ(words[3], "dddd");
+    for (char* w : words) H5free_memory(w);
+    H5Tclose(pairs_type);
+    H5Tclose(vstr2);
+    H5Dclose(pairs);
   }
   const hid_t g = H5Gopen2(b, "/assets/tubes", H5P_DEFAULT);
   char attribute[64] = {};

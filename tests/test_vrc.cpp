@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "accel/embree_scene.hpp"
+#include "core/measure.hpp"
 #include "metrics/image_metrics.hpp"
 #include "render/ray_tracer.hpp"
 #include "render/voxel_ray_caster.hpp"
@@ -296,6 +297,35 @@ TEST(Vrc, AWalkPastLavapipesLoopLimitIsSlicedNotCut) {
   EXPECT_EQ(banded.stats.gpu_slices, 2u * (20000u / 1024u + 1u));
   std::cout << "hits " << gpu.stats.hits << ", " << gpu.stats.gpu_slices << " dispatches of "
             << gpu.stats.gpu_slice_steps << " steps\n";
+}
+
+}  // namespace
+}  // namespace linebake
+
+namespace linebake {
+namespace {
+
+// The walks' state refused by the memory budget: an error, and the caster still renders the next
+// frame (it had kept no buffer for its counters and wrote through a null mapping).
+TEST(Vrc, ARefusedWalkStateLeavesACasterThatRendersAgain) {
+  const SynthScene s = aneurysm_scene();
+  const VoxelGrid grid = grid_for(s, 64, 32);
+  const OccupancyPyramid occupancy = build_occupancy(grid);
+  vk::Context ctx;
+  if (!ctx.memory_is_host()) GTEST_SKIP() << ctx.info().name << " has memory of its own";
+  vk::VoxelCaster caster(ctx, grid, occupancy);
+  const TransferFunction tf = transfer_function_preset("semi");
+  VrcOptions o;
+  o.width = 64, o.height = 48;
+  o.radius = s.mesh.radius;
+  const VrcFrame first = caster.render(s.camera, tf, o);
+  caster.set_slice_steps(4);
+  ctx.set_host_budget(trimmed_rss_bytes() + 64);  // no room for a row of state
+  EXPECT_THROW(caster.render(s.camera, tf, o), BudgetExceeded);
+  ctx.set_host_budget(0);
+  caster.set_slice_steps(0);
+  const VrcFrame again = caster.render(s.camera, tf, o);
+  EXPECT_EQ(again.image.pixels, first.image.pixels);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -172,7 +173,8 @@ void validate_pipeline(const Pipeline& p) {
       for (size_t k = 0; k + 1 < options.size(); ++k)
         if (options[k] == "--layers") {
           const int least = vk::min_layers(vk::parse_raster_technique(t.technique));
-          if (std::atoi(options[k + 1].c_str()) < least)
+          // As CLI11 reads an integer: decimal, 0x hexadecimal, 0 octal.
+          if (std::strtol(options[k + 1].c_str(), nullptr, 0) < least)
             throw InputError(p.file, where + ".layers",
                              t.technique + " takes " + std::to_string(least) +
                                  " to 64 layers, not " + options[k + 1]);

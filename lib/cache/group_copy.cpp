@@ -1,6 +1,7 @@
 #include "cache/group_copy.hpp"
 
 #include <algorithm>
+#include <map>
 #include <vector>
 
 #include "cache/chunk_codec.hpp"
@@ -14,8 +15,23 @@ namespace {
 using h5::Handle;
 
 // Values that point into their own file: variable-length data (global heap ids) and references.
+// A variable-length string counts as a string to H5Tdetect_class, and arrays and compounds of
+// them are looked into here.
 bool holds_heap_ids(hid_t type) {
-  return H5Tdetect_class(type, H5T_VLEN) > 0 || H5Tis_variable_str(type) > 0;
+  if (H5Tis_variable_str(type) > 0 || H5Tget_class(type) == H5T_VLEN) return true;
+  const H5T_class_t kind = H5Tget_class(type);
+  if (kind == H5T_ARRAY || kind == H5T_ENUM) {
+    Handle base(H5Tget_super(type), H5Tclose);
+    return base.valid() && holds_heap_ids(base);
+  }
+  if (kind == H5T_COMPOUND) {
+    const int members = H5Tget_nmembers(type);
+    for (int i = 0; i < members; ++i) {
+      Handle member(H5Tget_member_type(type, unsigned(i)), H5Tclose);
+      if (member.valid() && holds_heap_ids(member)) return true;
+    }
+  }
+  return false;
 }
 bool holds_references(hid_t type) {
   return H5Tdetect_class(type, H5T_REFERENCE) > 0;
@@ -25,6 +41,10 @@ struct Copy {
   const std::string& source_path;
   const std::string& target_path;
   uint64_t slab_bytes;  // rows of a dataset without chunks read and written at a time
+  hid_t target_file;
+  // The objects copied, by their place in the source file, with their path in the target: an
+  // object linked twice (or a group linked into itself) is linked again, not copied again.
+  mutable std::map<haddr_t, std::string> copied;
 
   [[noreturn]] void cannot_read(const std::string& object, const std::string& what) const {
     throw InputError(source_path, object, "cannot read " + what + " (" + h5::last_error() + ")");
@@ -122,7 +142,8 @@ struct Copy {
       size_t values = 0;
       const H5Z_filter_t id =
           H5Pget_filter2(dcpl, unsigned(i), &flags, &values, nullptr, 0, nullptr, &config);
-      if (id < 0 || H5Zfilter_avail(id) > 0) continue;
+      // An optional filter HDF5 skips where it is missing; chunks go as stored either way.
+      if (id < 0 || (flags & H5Z_FLAG_OPTIONAL) || H5Zfilter_avail(id) > 0) continue;
       if (id == H5Z_filter_t(kLz4Filter) || id == H5Z_filter_t(kBloscFilter))
         register_hdf5_filters();
       if (H5Zfilter_avail(id) <= 0)
@@ -217,6 +238,13 @@ struct Copy {
       H5O_info_t kind{};
       if (H5Oget_info_by_name2(from, name.c_str(), &kind, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
         cannot_read(member, "its kind");
+      if (const auto seen = copied.find(kind.addr); seen != copied.end()) {
+        if (H5Lcreate_hard(target_file, seen->second.c_str(), to, name.c_str(), H5P_DEFAULT,
+                           H5P_DEFAULT) < 0)
+          cannot_write(member, "a link to " + seen->second);
+        continue;
+      }
+      copied[kind.addr] = member;
       if (kind.type == H5O_TYPE_DATASET) {
         dataset(from, to, name, member);
       } else if (kind.type == H5O_TYPE_GROUP) {
@@ -269,9 +297,11 @@ struct Copy {
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
                      const std::string& target_path, const std::string& group,
                      uint64_t slab_bytes) {
-  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1)};
+  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1), target, {}};
   Handle from(H5Gopen2(source, group.c_str(), H5P_DEFAULT), H5Gclose);
   if (!from.valid()) copy.cannot_read(group, "the group");
+  if (H5O_info_t top{}; H5Oget_info2(from, &top, H5O_INFO_BASIC) >= 0)
+    copy.copied[top.addr] = group;
   Handle gcpl(H5Gget_create_plist(from), H5Pclose);
   if (!gcpl.valid()) copy.cannot_read(group, "the group");
   Handle to(

@@ -120,12 +120,25 @@ struct VoxelCaster::State {
 
   // The slices buffer at `bytes` at least (host-visible: its counters are read after each
   // dispatch).
+  // A refused one leaves the counters alone in its place (the next frame's whole walk reads
+  // them; it had written through a null mapping), and throws.
   void hold_slices(uint64_t bytes) {
     if (slices.buffer != VK_NULL_HANDLE && slices_bytes >= bytes) return;
     vkDeviceWaitIdle(ctx.device());
     ctx.destroy(slices);
-    slices = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-    slices_bytes = bytes;
+    slices_bytes = 0;
+    try {
+      slices = ctx.create_buffer(bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+      slices_bytes = bytes;
+    } catch (...) {
+      {
+        const Context::ReservedAllocations counters_only(ctx);  // 16 bytes the budget had held
+        slices = ctx.create_buffer(kSliceCounters, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+      }
+      slices_bytes = kSliceCounters;
+      if (targets.width > 0) write_descriptors();
+      throw;
+    }
     if (targets.width > 0) write_descriptors();  // else the first resize writes them
   }
 
