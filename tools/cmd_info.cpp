@@ -102,6 +102,14 @@ Command add_info(CLI::App& app) {
     if (const auto renamed = metadata.find("linebake.renamed_attributes");
         renamed != metadata.end())
       std::printf("renamed     %s\n", renamed->second.c_str());
+    // What a NetCDF file's gaps did (the reader's counts, formats/netcdf.cpp).
+    std::map<std::string, uint64_t> counts;
+    for (const auto& [key, value] : metadata)
+      if (key.rfind("netcdf.", 0) == 0 && !value.empty() &&
+          value.find_first_not_of("0123456789") == std::string::npos)
+        counts[key] = std::stoull(value);
+    if (const std::string note = counts_read_note(counts); !note.empty())
+      std::printf("gaps        %s\n", note.c_str());
     std::printf(
         "validation  %s%s\n", v.summary().c_str(),
         v.clean() || v.first_problem.empty() ? "" : ("; the first: " + v.first_problem).c_str());
