@@ -55,6 +55,15 @@ serial, mpi = (json.loads(h5py.File(f, 'r')['/lines'].attrs['provenance'])
 assert mpi['memory_bytes'] == serial['memory_bytes'], (mpi['memory_bytes'], serial['memory_bytes'])
 assert mpi['build']['cpu_s'] > 0 and mpi['build']['rss_before_bytes'] > 0, mpi['build']
 "
+  # Embree's BVH is not built under MPI, but its primitives and parts are known from the plan.
+  check "np $n: Embree's provenance gives the serial bake's primitives and parts" \
+    /usr/bin/python3 -c "
+import h5py, json
+serial, mpi = (json.loads(h5py.File(f, 'r')['/assets/embree'].attrs['provenance'])['stats']
+               for f in ('serial.lbc.h5', 'mpi$n.lbc.h5'))
+assert 'not built' in mpi['bvh'], mpi
+assert (mpi['primitives'], mpi['parts']) == (serial['primitives'], serial['parts']) and mpi['parts'] >= 4, (mpi, serial)
+"
 done
 check "h5py (no MPI) reads every dataset of the 3-rank cache equal to the serial one's" \
   /usr/bin/python3 -c "

@@ -84,6 +84,12 @@ uint64_t EmbreeStoreWriter::close_part(size_t i) {
   return disk;
 }
 
+uint64_t EmbreeStoreWriter::segments() const {
+  uint64_t n = 0;
+  for (const CurvePart& part : parts_) n += part.segments;
+  return n;
+}
+
 void EmbreeStoreWriter::append(const LineSet& batch) {
   const uint64_t first = line_, end = line_ + batch.line_count();
   while (part_ < parts_.size() && parts_[part_].first_line < end) {

@@ -46,6 +46,9 @@ class EmbreeStoreWriter {
   void close(Provenance provenance);
   // Bytes of the buffers in memory, as a scene would hold them.
   uint64_t buffer_bytes() const { return buffer_bytes_; }
+  // The parts planned: their count, and the segments (Embree's primitives) over all of them.
+  size_t part_count() const { return parts_.size(); }
+  uint64_t segments() const;
 
  private:
   struct PartStreams {

@@ -1044,6 +1044,9 @@ BakeResult bake(const BakeOptions& options_in) {
     p.stats =
         embree_stats(options.embree, curves, embree_clock.wall_s, embree_writer->buffer_bytes());
     p.memory_bytes = embree_writer->buffer_bytes();
+    // Known from the plan, whether the BVH is built here or not (render builds it then).
+    p.stats["primitives"] = embree_writer->segments();
+    p.stats["parts"] = embree_writer->part_count();
     // The BVH is built and measured where it fits the budget: the line set, the buffers and
     // Embree's BVH (about the buffers' size again for linear curves) in memory at once. The
     // estimate decides whether to try; Embree's memory monitor holds the build to what the

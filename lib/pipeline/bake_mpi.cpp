@@ -619,6 +619,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       p.stats =
           embree_stats(options.embree, curves, ranks.max_value(prepare_s), embree.buffer_bytes());
       p.stats["ranks"] = ranks.size;
+      p.stats["primitives"] = embree.segments();
+      p.stats["parts"] = embree.part_count();
       p.stats["bvh"] =
           "not built under MPI (it needs the whole line set in one process); render builds it";
       p.memory_bytes = embree.buffer_bytes();
