@@ -301,4 +301,30 @@ void say_wrote(const std::string& path, double seconds) {
       format_seconds(seconds));
 }
 
+const CLI::Validator& bake_number_check(const std::string& option) {
+  static const std::vector<std::pair<std::string, CLI::Validator>> table = {
+      {"--tube-sides", CLI::Range(3, 32)},
+      {"--radius", positive_float()},
+      {"--compression-level", CLI::Range(1, 9)},
+      {"--chunk-bytes", CLI::Range(uint64_t{1024}, uint64_t{1} << 40)},
+      {"--quantization", CLI::IsMember({16, 32, 64})},
+      {"--max-chords", CLI::Range(1, 65535)},
+      {"--embree-max-primitives", CLI::Range(uint64_t{1}, uint64_t{0xFFFFFFFF})},
+  };
+  for (const auto& [name, check] : table)
+    if (name == option) return check;
+  throw std::logic_error("bake_number_check: no check for " + option);
+}
+
+std::string bake_number_problem(const std::string& option, const std::string& value) {
+  std::string text = value;
+  std::string problem;
+  try {
+    problem = bake_number_check(option)(text);
+  } catch (const CLI::ValidationError& e) {  // as CLI11's Option::_validate reports it
+    problem = e.what();
+  }
+  return problem.empty() ? "" : option + ": " + problem;
+}
+
 }  // namespace linebake::cli

@@ -22,6 +22,13 @@ CLI::Validator memory_budget_size();          // byte_size, and not 0 (unlimited
 CLI::Validator grid_check();
 // One of `names`; else the list and the nearest ("did you mean").
 CLI::Validator one_of(const std::vector<std::string>& names);
+// The numbers `linebake bake` takes (--tube-sides, --radius, --compression-level, --chunk-bytes,
+// --quantization, --max-chords, --embree-max-primitives): its options and the Python module's
+// bake() check them alike. std::logic_error for another option.
+const CLI::Validator& bake_number_check(const std::string& option);
+// "" when `value` (as on the command line) passes the option's check, else "OPTION: " and the
+// CLI's message.
+std::string bake_number_problem(const std::string& option, const std::string& value);
 
 // An old spelling kept for one release: `command` ("render", "bench", ...; "" for any), the old
 // option (or technique value) and its replacement ("" when the value becomes a positional).

@@ -55,10 +55,10 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->delimiter(',')
       ->allow_extra_args(false);
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
-      ->check(CLI::Range(3, 32));
+      ->check(bake_number_check("--tube-sides"));
   sub->add_option("--radius", o.tubes.radius,
                   "Tube radius as a fraction of the bounding-box diagonal (default 0.001)")
-      ->check(positive_float());
+      ->check(bake_number_check("--radius"));
   sub->add_flag("--radius-absolute", o.tubes.radius_absolute,
                 "--radius is in world units, not a fraction of the diagonal");
   sub->add_option("--radius-attribute", o.tubes.radius_attribute,
@@ -74,16 +74,16 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->expected(2);
   sub->add_option("--chunk-bytes", o.tubes.max_chunk_bytes,
                   "Byte budget per tube chunk (default 4 GiB)")
-      ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 40));
+      ->check(bake_number_check("--chunk-bytes"));
   sub->add_option("--grid", args->grid,
                   "Voxels: auto (default), N along the longest axis, or NxNxN")
       ->check(grid_check());
   sub->add_option("--quantization", o.voxels.quantization,
                   "Voxels: cells per face axis for chord ends, 16 | 32 (default) | 64")
-      ->check(CLI::IsMember({16, 32, 64}));
+      ->check(bake_number_check("--quantization"));
   sub->add_option("--max-chords", o.voxels.max_chords_per_voxel,
                   "Voxels: chords kept per voxel (default 32); the rest are counted and dropped")
-      ->check(CLI::Range(1, 65535));
+      ->check(bake_number_check("--max-chords"));
   sub->add_option("--voxel-attribute", o.voxels.attribute,
                   "Voxels: vertex attribute stored as unorm8 at chord ends (default: the first; "
                   "none)");
@@ -97,7 +97,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
   sub->add_option("--embree-max-primitives", o.embree.max_primitives_per_scene,
                   "Embree: segments per scene; a larger set is cut into parts of whole lines, "
                   "instanced in one top-level scene (default 4294967295)")
-      ->check(CLI::Range(uint64_t{1}, uint64_t{0xFFFFFFFF}));
+      ->check(bake_number_check("--embree-max-primitives"));
   sub->add_option("--rtx-geometry", o.rtx.geometry,
                   "rtx: BLAS over the tube mesh's triangles (default) or capsule AABBs")
       ->check(one_of({"triangles", "capsules"}));
@@ -112,7 +112,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       ->check(one_of({"none", "deflate", "lz4", "blosc-zstd"}));
   sub->add_option("--compression-level", o.compression_level,
                   "Codec level: deflate 1-9 (default 4), blosc-zstd 1-9 (default 5)")
-      ->check(CLI::Range(1, 9));
+      ->check(bake_number_check("--compression-level"));
   sub->add_option("--memory-budget", args->memory_budget,
                   "Resident memory the bake may use, the process included: e.g. 2G, 512M; "
                   "unlimited (default: half of physical memory, or of the cgroup's or ulimit -v's "

@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -133,6 +134,26 @@ std::array<float, 2> range_from(const py::handle& value, const std::string& what
   return range;
 }
 
+// The numbers bake() takes, as their text on the command line, through `linebake bake`'s own
+// checks: a value the CLI refuses is a UsageError with its message (they had reached the bake: a
+// negative tube_sides as a budget of 16 million TiB, compression_level 100 as a codec failure).
+void check_numbers_as_cli(const py::kwargs& kw) {
+  static const char* const kNumbers[] = {
+      "tube_sides",   "radius",     "compression_level",    "chunk_bytes",
+      "quantization", "max_chords", "embree_max_primitives"};
+  for (const char* key : kNumbers) {
+    if (!kw.contains(key)) continue;
+    const py::handle value = kw[key];
+    const std::string text =
+        is_integer(value)
+            ? std::string(py::str(py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()))))
+            : std::string(py::repr(py::float_(py::reinterpret_borrow<py::object>(value))));
+    if (const std::string problem = cli::bake_number_problem("--" + option_name(key), text);
+        !problem.empty())
+      throw UsageError("bake: " + problem);
+  }
+}
+
 BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& assets,
                          bool progress) {
   check_keywords("bake", kw, kBakeKeywords);
@@ -187,6 +208,7 @@ BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& a
   if (auto v = keyword<bool>("bake", kw, "force")) o.force = *v;
   if (auto v = keyword<bool>("bake", kw, "no_space_check")) o.space_check = !*v;
   if (auto v = keyword<bool>("bake", kw, "dry_run")) o.dry_run = *v;
+  check_numbers_as_cli(kw);  // once each is of its kind (a TypeError first)
   o.progress = progress;
   return o;
 }

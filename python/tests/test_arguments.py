@@ -586,3 +586,23 @@ def test_mlabdb_needs_two_layers_a_usage_error(baked):
     cache, _ = baked
     with pytest.raises(linebake.UsageError, match="--layers: mlabdb takes 2 to 64"):
         linebake.render(cache, technique="mlabdb", size=SIZE, layers=1)
+
+
+# --- bake's numbers, checked as the CLI checks them -------------------------------------------
+
+
+@pytest.mark.parametrize("keywords, message", [
+    ({"tube_sides": -3}, "--tube-sides: Value -3 not in range 3 to 32"),
+    ({"tube_sides": 10**9}, "--tube-sides: Value 1000000000 not in range 3 to 32"),
+    ({"compression": "deflate", "compression_level": 100},
+     "--compression-level: Value 100 not in range 1 to 9"),
+    ({"compression": "blosc-zstd", "compression_level": 0},
+     "--compression-level: Value 0 not in range 1 to 9"),
+    ({"radius": float("nan")}, "--radius: nan is out of range"),
+], ids=repr)
+def test_bake_numbers_out_of_the_clis_range(tmp_path, keywords, message):
+    """They had reached the bake: a negative tube_sides as a memory estimate of 16 million TiB,
+    compression_level 100 as a codec failure, -1 and blosc's 0 accepted."""
+    with pytest.raises(linebake.UsageError, match=message.replace("(", r"\(")):
+        linebake.bake(small_lines(), str(tmp_path / "x.lbc.h5"), **keywords)
+    assert not (tmp_path / "x.lbc.h5").exists()
