@@ -190,8 +190,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
-    if (!options.dry_run)
-      check_output_location(options.cache);  // "" : the default beside the input
+    // A dry run too: it would fail there (its free space had read 2^64 - 1 bytes).
+    check_output_location(options.cache);  // "" : the default beside the input
     // Held around the bake (which takes it again) and the report read back after it, so that
     // another bake's cache renamed there in between is not the one reported. linebake-mpi: on
     // the rank that prints, rank 0, which holds it in the bake too.

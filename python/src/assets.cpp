@@ -329,8 +329,9 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   if (py::isinstance<PyLineSet>(lines_or_path)) {
     if (o.cache.empty()) throw UsageError("bake: a LineSet needs a cache path");
     if (o.format) throw UsageError("format: read only when baking a file");
-    // Before the temporary input: a directory that does not exist is the cache's.
-    if (!o.dry_run) check_output_location(o.cache);
+    // Before the temporary input: a directory that does not exist is the cache's (a dry run's
+    // too: its free space had read 2^64 - 1 bytes).
+    check_output_location(o.cache);
     const PyLineSet& set = lines_or_path.cast<const PyLineSet&>();
     set_name = set.source.empty() ? "<arrays>" : set.source;
     // The file the set was read from is its input too: a cache never replaces it.
@@ -341,7 +342,7 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   } else {
     o.input = path_arg(lines_or_path, "bake");  // a str, bytes or os.PathLike
     cli::check_input_file(o.input);
-    if (!o.dry_run) check_output_location(o.cache);
+    check_output_location(o.cache);
   }
   if (temporary) {
     o.input = temporary->path();

@@ -606,3 +606,9 @@ def test_bake_numbers_out_of_the_clis_range(tmp_path, keywords, message):
     with pytest.raises(linebake.UsageError, match=message.replace("(", r"\(")):
         linebake.bake(small_lines(), str(tmp_path / "x.lbc.h5"), **keywords)
     assert not (tmp_path / "x.lbc.h5").exists()
+
+
+def test_a_dry_run_into_a_directory_that_does_not_exist_is_an_output_error(tmp_path):
+    """As the bake would be; its free space had read 2**64 - 1 bytes."""
+    with pytest.raises(linebake.OutputError, match="does not exist"):
+        linebake.bake(small_lines(), str(tmp_path / "nodir" / "x.lbc.h5"), dry_run=True)
