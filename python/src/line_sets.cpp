@@ -60,6 +60,10 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
   for (const auto& [key, value] : mapping_arg(mapping, what)) {
     Attribute attribute;
     attribute.name = text_arg(key, std::string(what) + " name");
+    // Every format names its attributes; an empty name had read back as "unnamed" from most and
+    // made a CSV linebake cannot read ("header column has no name").
+    if (attribute.name.empty())
+      throw py::value_error(std::string(what) + " names must not be empty");
     const FloatArray values = FloatArray::ensure(value);
     if (!values || values.ndim() != 1 || size_t(values.size()) != count)
       throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +

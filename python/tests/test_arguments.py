@@ -612,3 +612,12 @@ def test_a_dry_run_into_a_directory_that_does_not_exist_is_an_output_error(tmp_p
     """As the bake would be; its free space had read 2**64 - 1 bytes."""
     with pytest.raises(linebake.OutputError, match="does not exist"):
         linebake.bake(small_lines(), str(tmp_path / "nodir" / "x.lbc.h5"), dry_run=True)
+
+
+def test_an_empty_attribute_name_is_refused():
+    """It had read back as 'unnamed' from most formats and made a CSV linebake cannot read."""
+    points = np.zeros((2, 3))
+    with pytest.raises(ValueError, match="attribute names must not be empty"):
+        linebake.LineSet(points, [0, 2], {"": np.zeros(2)})
+    with pytest.raises(ValueError, match="line attribute names must not be empty"):
+        linebake.LineSet(points, [0, 2], line_attributes={"": np.zeros(1)})
