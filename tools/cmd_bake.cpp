@@ -190,8 +190,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
       options.memory_budget = BakeOptions::kUnlimited;
     else if (!args->memory_budget.empty())
       options.memory_budget = std::max<uint64_t>(parse_size(args->memory_budget), 1);
-    // A dry run too: it would fail there (its free space had read 2^64 - 1 bytes).
-    check_output_location(options.cache);  // "" : the default beside the input
+    if (!options.dry_run)
+      check_output_location(options.cache);  // "" : the default beside the input
     // Held around the bake (which takes it again) and the report read back after it, so that
     // another bake's cache renamed there in between is not the one reported. linebake-mpi: on
     // the rank that prints, rank 0, which holds it in the bake too.
@@ -207,8 +207,12 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                 << " (lines " << format_bytes(e.lines);
       for (const std::string& a : options.assets)
         if (e.step(a)) std::cout << ", " << a << " " << format_bytes(e.step(a));
-      std::cout << "), temporary spill files about " << format_bytes(e.spill) << "; "
-                << format_bytes(result.free_bytes) << " free there\n";
+      std::cout
+          << "), temporary spill files about " << format_bytes(e.spill) << "; "
+          << (result.free_bytes == UINT64_MAX
+                  ? "free space unknown: the directory cannot be asked (it does not exist yet?)"
+                  : format_bytes(result.free_bytes) + " free there")
+          << "\n";
       return;
     }
     for (const std::string& note : result.notes) std::cerr << "linebake: " << note << "\n";

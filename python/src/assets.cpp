@@ -240,7 +240,9 @@ nlohmann::json result_json(const BakeResult& r) {
   j["bytes_written"] = r.bytes_written;
   j["wall_s"] = r.wall_s;
   j["estimate"] = estimate_json(r.estimate);
-  j["free_bytes"] = r.free_bytes;
+  // None where the file system could not be asked (a directory that does not exist yet).
+  j["free_bytes"] =
+      r.free_bytes == UINT64_MAX ? nlohmann::json(nullptr) : nlohmann::json(r.free_bytes);
   return j;
 }
 
@@ -329,9 +331,8 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   if (py::isinstance<PyLineSet>(lines_or_path)) {
     if (o.cache.empty()) throw UsageError("bake: a LineSet needs a cache path");
     if (o.format) throw UsageError("format: read only when baking a file");
-    // Before the temporary input: a directory that does not exist is the cache's (a dry run's
-    // too: its free space had read 2^64 - 1 bytes).
-    check_output_location(o.cache);
+    // Before the temporary input: a directory that does not exist is the cache's.
+    if (!o.dry_run) check_output_location(o.cache);
     const PyLineSet& set = lines_or_path.cast<const PyLineSet&>();
     set_name = set.source.empty() ? "<arrays>" : set.source;
     // The file the set was read from is its input too: a cache never replaces it.
@@ -342,7 +343,7 @@ py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
   } else {
     o.input = path_arg(lines_or_path, "bake");  // a str, bytes or os.PathLike
     cli::check_input_file(o.input);
-    check_output_location(o.cache);
+    if (!o.dry_run) check_output_location(o.cache);
   }
   if (temporary) {
     o.input = temporary->path();
