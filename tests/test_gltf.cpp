@@ -229,6 +229,39 @@ TEST(Gltf, DracoPrimitivesDecodeToTheSameMesh) {
   }
 }
 
+// KHR_draco_mesh_compression: POSITION's min and max are the decompressed data's. At 4 bits the
+// quantised positions reach well past the input's box (the input's bounds had been written).
+TEST(Gltf, DracoPositionBoundsAreTheDecodedOnes) {
+  test::TempDir dir;
+  const TubeMesh mesh = capped_tubes();
+  GltfOptions g;
+  g.draco = true;
+  g.draco_position_bits = 4;
+  write_gltf(dir.file("d.glb"), &mesh, nullptr, g);
+  const Glb glb = read_glb(dir.file("d.glb"));
+  size_t past_the_input = 0;
+  for (const json& primitive : glb.doc["meshes"][0]["primitives"]) {
+    const json& accessor = glb.doc["accessors"][primitive["attributes"]["POSITION"].get<int>()];
+    const std::vector<float> pos = decode_primitive(glb, primitive).positions;
+    for (int k = 0; k < 3; ++k) {
+      float lo = INFINITY, hi = -INFINITY;
+      for (size_t i = size_t(k); i < pos.size(); i += 3)
+        lo = std::min(lo, pos[i]), hi = std::max(hi, pos[i]);
+      EXPECT_EQ(accessor["min"][k].get<double>(), double(lo)) << k;
+      EXPECT_EQ(accessor["max"][k].get<double>(), double(hi)) << k;
+    }
+  }
+  // The quantisation moved some bound past the input's own (what the test is about).
+  const Bounds input = compute_bounds(mesh);
+  for (const json& primitive : glb.doc["meshes"][0]["primitives"]) {
+    const json& accessor = glb.doc["accessors"][primitive["attributes"]["POSITION"].get<int>()];
+    for (int k = 0; k < 3; ++k)
+      past_the_input += accessor["max"][k].get<double>() > double(input.max[size_t(k)]) + 1e-6 ||
+                        accessor["min"][k].get<double>() < double(input.min[size_t(k)]) - 1e-6;
+  }
+  EXPECT_GT(past_the_input, 0u);
+}
+
 // A chunk larger than the pieces the plain export converts at a time (262,144 vertices) holds the
 // mesh exactly, to the byte, with bounds that are the data's own: the pieces meet.
 TEST(Gltf, PlainExportOfAChunkLargerThanItsPiecesIsExact) {
