@@ -728,8 +728,17 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
                               uint64_t count) {
     if (list.empty()) return;
     out.write(std::string(section) + " " + std::to_string(count) + "\n");
-    for (const Attribute& a : list) {
-      out.write("SCALARS " + io::encode_name(a.name) + " float 1\nLOOKUP_TABLE default\n");
+    // The first as the active SCALARS, the others as a FIELD block, as VTK's own writer does:
+    // its readers keep only the first SCALARS section unless told to read them all (every
+    // attribute as SCALARS had lost all but the first in ParaView and VTK's default readers).
+    const Attribute& first = list.front();
+    out.write("SCALARS " + io::encode_name(first.name) + " float 1\nLOOKUP_TABLE default\n");
+    write_floats(first.values.data(), first.values.size(), 9);
+    if (list.size() == 1) return;
+    out.write("FIELD FieldData " + std::to_string(list.size() - 1) + "\n");
+    for (size_t i = 1; i < list.size(); ++i) {
+      const Attribute& a = list[i];
+      out.write(io::encode_name(a.name) + " 1 " + std::to_string(count) + " float\n");
       write_floats(a.values.data(), a.values.size(), 9);
     }
   };

@@ -52,6 +52,12 @@ for name, reader_type in readers:
     assert poly.GetNumberOfLines() == info["lines"], (name, poly.GetNumberOfLines())
     check(poly.GetPointData(), "point", point_name, info["points"], name)
     check(poly.GetCellData(), "cell", line_name, info["lines"], name)
+    # Every attribute, with the readers' defaults (a legacy file of SCALARS sections only had
+    # shown the first alone: VTK reads one SCALARS unless told ReadAllScalarsOn).
+    for data, attributes in ((poly.GetPointData(), info["attributes"]),
+                             (poly.GetCellData(), info["line_attributes"])):
+        seen = {data.GetArrayName(i) for i in range(data.GetNumberOfArrays())}
+        assert {a["name"] for a in attributes} <= seen, (name, seen, attributes)
     print(f"{name}: active scalars {point_name!r} ({info['points']} points), "
           f"{line_name!r} ({info['lines']} lines)")
 EOF
