@@ -171,6 +171,15 @@ void write(const PyLineSet& set, const py::object& path_object,
            const std::optional<std::string>& format, bool ascii, uint32_t binlines_version,
            const std::string& vtp_encoding, bool vtp_compress, bool strict) {
   const std::string path = path_arg(path_object, "write");
+  // Checked as `linebake convert` checks --binlines-version and --vtp-encoding, before the
+  // format's warnings (an unknown name had been a plain Error, after them).
+  if (binlines_version < 1 || binlines_version > 2)
+    throw UsageError("write: binlines_version: 1 or 2, not " + std::to_string(binlines_version));
+  std::string encoding = vtp_encoding;
+  if (const std::string problem =
+          cli::one_of({"appended", "appended-base64", "base64", "ascii"})(encoding);
+      !problem.empty())
+    throw UsageError("write: vtp_encoding: " + problem);
   if (!set.source.empty()) refuse_input_as_output(path, {set.source});
   WriteOptions options;
   options.format =

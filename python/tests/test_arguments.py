@@ -617,3 +617,13 @@ def test_an_empty_attribute_name_is_refused():
         linebake.LineSet(points, [0, 2], {"": np.zeros(2)})
     with pytest.raises(ValueError, match="line attribute names must not be empty"):
         linebake.LineSet(points, [0, 2], line_attributes={"": np.zeros(1)})
+
+
+def test_write_options_are_checked_as_convert_checks_them(tmp_path):
+    """An unknown vtp_encoding or binlines_version had been a plain Error, after the warnings."""
+    lines = small_lines()
+    with pytest.raises(linebake.UsageError, match="vtp_encoding: .*'nope'"):
+        linebake.write(lines, str(tmp_path / "x.vtp"), vtp_encoding="nope")
+    with pytest.raises(linebake.UsageError, match="binlines_version: 1 or 2, not 9"):
+        linebake.write(lines, str(tmp_path / "x.binlines"), binlines_version=9)
+    assert not list(tmp_path.iterdir())
