@@ -676,45 +676,44 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
   H5Dclose(scalar);
   EXPECT_EQ(count, 1234567u);
   {
-    const hid_t notes = H5Dopen2(b, "/assets/tubes/notes", H5P_DEFAULT);
+    // Variable-length strings read back through `type` (`n` of them).
+    const auto strings = [&](const char* path, hid_t type, size_t n) {
+      std::vector<char*> read(n, nullptr);
+      const hid_t d = H5Dopen2(b, path, H5P_DEFAULT);
+      EXPECT_GE(H5Dread(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, read.data()), 0) << path;
+      H5Dclose(d);
+      std::vector<std::string> out;
+      for (char* r : read) {
+        out.push_back(r ? r : "");
+        H5free_memory(r);
+      }
+      return out;
+    };
     const hid_t vstr = H5Tcopy(H5T_C_S1);
     H5Tset_size(vstr, H5T_VARIABLE);
-    char* read[2] = {nullptr, nullptr};
-    ASSERT_GE(H5Dread(notes, vstr, H5S_ALL, H5S_ALL, H5P_DEFAULT, read), 0);
-    EXPECT_STREQ(read[0], "first");
-    EXPECT_STREQ(read[1], "second");
-    for (char* r : read) H5free_memory(r);
+    EXPECT_EQ(strings("/assets/tubes/notes", vstr, 2),
+              (std::vector<std::string>{"first", "second"}));
+    const hsize_t pair = 2;
+    const hid_t pairs_type = H5Tarray_create2(vstr, 1, &pair);
+    const std::vector<std::string> words = strings("/assets/tubes/pairs", pairs_type, 4);
+    EXPECT_EQ(words[0], "a");
+    EXPECT_EQ(words[3], "dddd");
+    H5Tclose(pairs_type);
     H5Tclose(vstr);
-    H5Dclose(notes);
     char soft[64] = {};
     ASSERT_GE(H5Lget_val(b, "/assets/tubes/soft", soft, sizeof soft, H5P_DEFAULT), 0);
     EXPECT_STREQ(soft, "/assets/tubes/count");
     H5L_info_t link{};
     ASSERT_GE(H5Lget_info(b, "/assets/tubes/elsewhere", &link, H5P_DEFAULT), 0);
     EXPECT_EQ(link.type, H5L_TYPE_EXTERNAL);
-    H5O_info_t kind{};
-    ASSERT_GE(H5Oget_info_by_name2(b, "/assets/tubes/kind", &kind, H5O_INFO_BASIC, H5P_DEFAULT), 0);
-    EXPECT_EQ(kind.type, H5O_TYPE_NAMED_DATATYPE);
-    const auto address = [&](const char* path) {
+    const auto info_of = [&](const char* path) {
       H5O_info_t info{};
       EXPECT_GE(H5Oget_info_by_name2(b, path, &info, H5O_INFO_BASIC, H5P_DEFAULT), 0) << path;
-      return info.addr;
+      return info;
     };
-    EXPECT_EQ(address("/assets/tubes/again"), address("/assets/tubes/zeta"));
-    EXPECT_EQ(address("/assets/tubes/loop"), address("/assets/tubes"));
-    const hid_t pairs = H5Dopen2(b, "/assets/tubes/pairs", H5P_DEFAULT);
-    const hid_t vstr2 = H5Tcopy(H5T_C_S1);
-    H5Tset_size(vstr2, H5T_VARIABLE);
-    const hsize_t pair = 2;
-    const hid_t pairs_type = H5Tarray_create2(vstr2, 1, &pair);
-    char* words[4] = {};
-    ASSERT_GE(H5Dread(pairs, pairs_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, words), 0);
-    EXPECT_STREQ(words[0], "a");
-    EXPECT_STREQ(words[3], "dddd");
-    for (char* w : words) H5free_memory(w);
-    H5Tclose(pairs_type);
-    H5Tclose(vstr2);
-    H5Dclose(pairs);
+    EXPECT_EQ(info_of("/assets/tubes/kind").type, H5O_TYPE_NAMED_DATATYPE);
+    EXPECT_EQ(info_of("/assets/tubes/again").addr, info_of("/assets/tubes/zeta").addr);
+    EXPECT_EQ(info_of("/assets/tubes/loop").addr, info_of("/assets/tubes").addr);
   }
   const hid_t g = H5Gopen2(b, "/assets/tubes", H5P_DEFAULT);
   char attribute[64] = {};

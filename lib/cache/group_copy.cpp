@@ -18,8 +18,8 @@ using h5::Handle;
 // A variable-length string counts as a string to H5Tdetect_class, and arrays and compounds of
 // them are looked into here.
 bool holds_heap_ids(hid_t type) {
-  if (H5Tis_variable_str(type) > 0 || H5Tget_class(type) == H5T_VLEN) return true;
   const H5T_class_t kind = H5Tget_class(type);
+  if (kind == H5T_VLEN || H5Tis_variable_str(type) > 0) return true;
   if (kind == H5T_ARRAY || kind == H5T_ENUM) {
     Handle base(H5Tget_super(type), H5Tclose);
     return base.valid() && holds_heap_ids(base);

@@ -492,6 +492,14 @@ BakeEstimate estimate_bake(const LineSetStats& stats, const LineSet& header, con
   return e;
 }
 
+namespace {
+// The bounds' diagonal computed in double (a float diagonal of tiny data underflows to 0).
+double diagonal_in_double(const Bounds& b) {
+  return std::hypot(double(b.max[0]) - double(b.min[0]), double(b.max[1]) - double(b.min[1]),
+                    double(b.max[2]) - double(b.min[2]));
+}
+}  // namespace
+
 void check_geometry_span(const LineSetStats& stats, const BakeOptions& options) {
   // Tubes and Embree's curves are float32 geometry: their frames, normals and distance tests
   // square the distances between points, which underflow for data a trillionth of a unit across
@@ -499,9 +507,7 @@ void check_geometry_span(const LineSetStats& stats, const BakeOptions& options) 
   const bool float_geometry = contains(options.assets, "tubes") ||
                               contains(options.assets, "embree") || contains(options.assets, "rtx");
   // In double: the float diagonal of such data is 0 (its square underflows too).
-  const std::array<float, 3>&lo = stats.bounds.min, &hi = stats.bounds.max;
-  const double span = std::hypot(double(hi[0]) - double(lo[0]), double(hi[1]) - double(lo[1]),
-                                 double(hi[2]) - double(lo[2]));
+  const double span = diagonal_in_double(stats.bounds);
   if (float_geometry && span == 0)
     throw InputError(options.input, "",
                      "every point of the lines is the same: no extent to build tubes or Embree's "
@@ -522,8 +528,7 @@ std::string far_from_origin_note(const LineSetStats& stats) {
   double reach = 0;
   for (int k = 0; k < 3; ++k)
     reach = std::max({reach, std::fabs(double(lo[size_t(k)])), std::fabs(double(hi[size_t(k)]))});
-  const double span = std::hypot(double(hi[0]) - double(lo[0]), double(hi[1]) - double(lo[1]),
-                                 double(hi[2]) - double(lo[2]));
+  const double span = diagonal_in_double(stats.bounds);
   // float32's spacing at the largest coordinate: half an ulp is the most a position is off.
   const double step = reach > 0 ? std::ldexp(1.0, std::ilogb(reach) - 23) : 0;
   if (!(span > 0) || step <= span * 1e-4) return "";

@@ -67,8 +67,6 @@ class Raster : public PreparedTechnique {
       capacity_size_ = {width, height};
     }
     const bool counted = !frame.depth_complexity.empty();  // dp and ll count fragments
-    uint64_t fragments = 0;
-    for (const uint32_t d : frame.depth_complexity) fragments += d;
     TechniqueFrame out = technique_frame(std::move(frame.image), std::move(frame.depth_complexity),
                                          s.seconds, s.frame_bytes);
     nlohmann::json passes = nlohmann::json::object();
@@ -82,7 +80,7 @@ class Raster : public PreparedTechnique {
                  {"frame_bytes", s.frame_bytes}};
     // Where the technique does not count them, no figures (they had been zeros).
     if (counted) {
-      out.stats["fragments"] = fragments;
+      out.stats["fragments"] = s.fragments;
       out.stats["depth_complexity"] = {{"max", s.max_depth_complexity},
                                        {"mean", s.mean_depth_complexity}};
     }

@@ -648,6 +648,7 @@ void RasterRenderer::State::read_depth_complexity(RasterFrame& frame) {
     total += d;
   }
   frame.stats.mean_depth_complexity = double(total) / double(pixels());
+  if (frame.stats.fragments == 0) frame.stats.fragments = total;  // ll counted its own already
 }
 
 void RasterRenderer::State::render_opaque(RasterFrame& frame) {

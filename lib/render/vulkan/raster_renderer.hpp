@@ -84,7 +84,7 @@ struct RasterStats {
   double seconds = 0;  // wall time of the frame, re-renders included
   std::vector<std::pair<std::string, double>> pass_ms;  // GPU timestamps of the final render
   uint64_t frame_bytes = 0;   // the technique's per-frame buffers and images
-  uint64_t fragments = 0;     // fragments gathered (linked lists)
+  uint64_t fragments = 0;     // fragments gathered (ll), or counted (dp, fragment counts)
   uint64_t capacity = 0;      // node capacity used for the final render
   uint32_t node_buffers = 0;  // ll: storage buffers the node pool took
   int regrows = 0;            // re-renders after an overflow of the node buffer
