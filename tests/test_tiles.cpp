@@ -6,6 +6,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <glm/glm.hpp>
 #include <memory>
 #include <optional>
@@ -13,6 +14,7 @@
 #include "accel/capsule_segments.hpp"
 #include "accel/embree_scene.hpp"
 #include "cache/cache.hpp"
+#include "cache/line_store.hpp"
 #include "cache/tube_store.hpp"
 #include "core/error.hpp"
 #include "metrics/image_metrics.hpp"
@@ -94,27 +96,89 @@ void expect_matches(const std::string& source, const char* geometry, const char*
   EXPECT_TRUE(ours.stats().contains("sort_subgroup_size"));
 }
 
-// Per pixel, the front hits tiles counts are Embree's: the composite tests only the pixels whose
-// block the capsule's screen bounds cover, and of those only the rays that pass near the
-// segment, so a bound too tight would drop hits that the image's PSNR could hide. Close up
-// (zoom 0.25) capsules span many blocks and tiles; far away (zoom 1), several share a block.
+// Where the ray from `eye` along `d` passes the capsules of `lines` (radius `radius`), in double,
+// relative to the radius: `grazing`, the least |distance to a segment - radius| (how near it
+// passes to a surface), and `deepest`, the least distance - radius (below 0: it hits one). The
+// distance from a point moving along a segment to a ray is convex in the segment's parameter, so
+// a ternary search finds its minimum.
+struct CapsuleMargins {
+  double grazing = INFINITY, deepest = INFINITY;
+};
+CapsuleMargins capsule_margins(const LineSet& lines, float radius, const glm::dvec3& eye,
+                               const glm::dvec3& d) {
+  const auto distance_to_ray = [&](const glm::dvec3& p) {
+    const double t = std::max(0.0, glm::dot(p - eye, d));
+    return glm::length(p - (eye + t * d));
+  };
+  CapsuleMargins margins;
+  const auto point = [&](uint64_t i) {
+    return glm::dvec3(lines.positions[3 * i], lines.positions[3 * i + 1],
+                      lines.positions[3 * i + 2]);
+  };
+  for (size_t line = 0; line < lines.line_count(); ++line)
+    for (uint64_t i = lines.line_offsets[line]; i + 1 < lines.line_offsets[line + 1]; ++i) {
+      const glm::dvec3 a = point(i), b = point(i + 1);
+      double lo = 0, hi = 1;
+      for (int k = 0; k < 80; ++k) {
+        const double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+        if (distance_to_ray(a + m1 * (b - a)) < distance_to_ray(a + m2 * (b - a)))
+          hi = m2;
+        else
+          lo = m1;
+      }
+      const double nearest = distance_to_ray(a + 0.5 * (lo + hi) * (b - a));
+      margins.grazing = std::min(margins.grazing, std::fabs(nearest - radius) / radius);
+      margins.deepest = std::min(margins.deepest, (nearest - radius) / radius);
+    }
+  return margins;
+}
+
+// Per pixel, the front hits tiles counts are Embree's, except where a ray grazes a capsule so
+// nearly that float32 cannot say whether it hits (both test in float32, with other formulas and,
+// on a GPU, another compiler's rounding: NVIDIA's H200 differed from Embree at one pixel of
+// ACapsuleEnteredAtItsRimIsCompositedOnce's frame, which lavapipe matches). Such a pixel differs
+// by one hit and its ray passes within kNoise of a capsule's surface; a binning bound too tight
+// (hits dropped) or a crossing composited twice leaves a pixel whose ray is far from every
+// surface, or one that differs by more. Returns the pixels of `camera`'s frame Embree hits.
+uint64_t expect_front_hits_as_embree(PreparedPair& pair, const Camera& camera,
+                                     const std::string& what) {
+  constexpr double kNoise = 1e-3;
+  const TransferFunction tf = transfer_function_preset("semi");
+  const TechniqueFrame a = pair.ours->render(camera, tf, 160, 120);
+  const TechniqueFrame b = pair.theirs->render(camera, tf, 160, 120);
+  EXPECT_EQ(a.depth_complexity.size(), b.depth_complexity.size()) << what;
+  if (a.depth_complexity.size() != b.depth_complexity.size()) return 0;
+  std::optional<LineSet> lines;
+  float radius = 0;  // the cached tubes', which the capsules take
+  uint64_t hits = 0, differing = 0;
+  for (size_t i = 0; i < a.depth_complexity.size(); ++i) {
+    hits += b.depth_complexity[i];
+    const uint32_t ours = a.depth_complexity[i], theirs = b.depth_complexity[i];
+    if (ours == theirs) continue;
+    ++differing;
+    if (!lines) lines = load_lines(*pair.cache), radius = load_tubes(*pair.cache).radius;
+    const double x = double(i % 160), y = double(i / 160);
+    const double margin =
+        capsule_margins(*lines, radius, camera.eye, camera.ray_direction(x, y, 160, 120)).grazing;
+    const std::string pixel =
+        what + ": pixel " + std::to_string(i % 160) + ", " + std::to_string(i / 160) + " takes " +
+        std::to_string(ours) + " front hits, Embree " + std::to_string(theirs) +
+        ", its ray within " + std::to_string(margin) + " radii of a capsule's surface";
+    std::printf("%s\n", pixel.c_str());
+    EXPECT_LE(std::max(ours, theirs) - std::min(ours, theirs), 1u) << pixel;
+    EXPECT_LE(margin, kNoise) << pixel;
+  }
+  EXPECT_LE(differing, 2u) << what;
+  return hits;
+}
+
+// Close up (zoom 0.25) capsules span many blocks and tiles; far away (zoom 1), several share a
+// block.
 TEST(Tiles, CapsulesHitThePixelsEmbreeHits) {
   const auto pair = prepare_pair("synth:aneurysm?scale=0.01", "capsules", "embree");
-  PreparedTechnique& ours = *pair->ours;
-  PreparedTechnique& theirs = *pair->theirs;
-  const TransferFunction tf = transfer_function_preset("semi");
   for (const double zoom : {1.0, 0.25}) {
     const Camera camera = frame_bounds(flight_bounds(*pair->cache), 160.0 / 120.0, 30, 20, zoom);
-    const TechniqueFrame a = ours.render(camera, tf, 160, 120);
-    const TechniqueFrame b = theirs.render(camera, tf, 160, 120);
-    ASSERT_EQ(a.depth_complexity.size(), b.depth_complexity.size());
-    uint64_t hits = 0, differing = 0;
-    for (size_t i = 0; i < a.depth_complexity.size(); ++i) {
-      hits += b.depth_complexity[i];
-      differing += a.depth_complexity[i] != b.depth_complexity[i];
-    }
-    EXPECT_GT(hits, 1000u) << "zoom " << zoom;
-    EXPECT_EQ(differing, 0u) << "zoom " << zoom;
+    EXPECT_GT(expect_front_hits_as_embree(*pair, camera, "zoom " + std::to_string(zoom)), 1000u);
   }
 }
 
@@ -122,23 +186,14 @@ TEST(Tiles, CapsulesHitThePixelsEmbreeHits) {
 // and an end sphere, the float32 capsule test can report both, the same point twice. Frame 12
 // of a 32-frame orbit-zoom flight over turbulence at scale 0.01 has one such pixel at 160x120
 // (found by comparing 192 small frames with Embree's counts): composited twice, it took one hit
-// more than Embree's; the composite takes a primitive's nearest front crossing only.
+// more than Embree's, a ray far from grazing; the composite takes a primitive's nearest front
+// crossing only.
 TEST(Tiles, ACapsuleEnteredAtItsRimIsCompositedOnce) {
   const auto pair = prepare_pair("synth:turbulence?scale=0.01", "capsules", "embree");
   FlightOptions flight;
   flight.frames = 32;
   const Camera camera = make_flight(flight_bounds(*pair->cache), 160.0 / 120.0, flight).at(12);
-  const TransferFunction tf = transfer_function_preset("semi");
-  const TechniqueFrame a = pair->ours->render(camera, tf, 160, 120);
-  const TechniqueFrame b = pair->theirs->render(camera, tf, 160, 120);
-  ASSERT_EQ(a.depth_complexity.size(), b.depth_complexity.size());
-  uint64_t hits = 0, differing = 0;
-  for (size_t i = 0; i < a.depth_complexity.size(); ++i) {
-    hits += b.depth_complexity[i];
-    differing += a.depth_complexity[i] != b.depth_complexity[i];
-  }
-  EXPECT_GT(hits, 1000u);
-  EXPECT_EQ(differing, 0u);
+  EXPECT_GT(expect_front_hits_as_embree(*pair, camera, "frame 12"), 1000u);
 }
 
 TEST(Tiles, CapsulesMatchEmbreeCapsulesForEveryPreset) {
@@ -731,7 +786,7 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
 // The composite's workgroups take the crowded tiles first; in raster order the image, hits and
 // walks are the same: each workgroup writes its own tile, whatever the order they run.
 // The aneurysm seen from afar, so that its few central tiles are crowded (more than 8 times the
-// mean keys), in slices and with walks again, as capsules and as triangles.
+// mean keys), in slices and with walks again, as capsules and as triangles, on any device.
 TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
   vk::Context ctx;
   const TransferFunction tf = transfer_function_preset("transparent");
@@ -755,13 +810,15 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
     EXPECT_EQ(first.stats.window_overflows, raster.stats.window_overflows) << what;
   };
   // Slices of 64 keys.
+  // The 8-hit window of the loops of fixed trips (lavapipe's; a GPU's 16 and 64 hold these
+  // pixels' hits in one walk).
   vk::TileRenderer capsules(
       ctx, build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name), 0,
-      64);
+      64, true, vk::WindowLoops::fixed);
   expect_same(capsules, "capsules");
   TubeOptions tube;
   tube.radius = 0.004f;
-  vk::TileRenderer triangles(ctx, build_tubes(lines, tube), 0, 64);
+  vk::TileRenderer triangles(ctx, build_tubes(lines, tube), 0, 64, true, vk::WindowLoops::fixed);
   expect_same(triangles, "triangles");
 }
 
