@@ -457,14 +457,15 @@ TEST(Vulkan, MlabEqualsTheReferenceWithEnoughNodesAndACpuMlabWithFew) {
   const size_t off_reference = pixels_differing(merged.image, reference.image, 1e-4);
   const size_t off_model = pixels_differing(merged.image, model, 1e-4);
   // PSNR saturates at 60 dB here (the colours of the merged lines are close), so count pixels
-  // off by more than 1e-4: many against the reference, only silhouette flips against the model.
-  EXPECT_GT(off_reference, 20u);
-  EXPECT_LE(off_model, 2u);
-  EXPECT_GE(model_db, 50.0);
-  // The exact image's own pixels off the reference by more than 1e-4: the device's shading noise
-  // at that threshold (on an H100 the one-node image was 110 pixels off the model; printed so a
-  // GPU run tells noise from merge order).
+  // off by more than 1e-4, beside the exact image's own pixels off the reference by that much:
+  // the device's shading noise at that threshold (1 pixel on lavapipe; on NVIDIA's H200,
+  // 2026-11-30, 110 with 12 nodes, and the one-node image 110 off the model and 139 off the
+  // reference, so noise, not merge order). Many more than the noise against the reference, only
+  // silhouette flips more against the model.
   const size_t exact_off = pixels_differing(f.image, reference.image, 1e-4);
+  EXPECT_GT(off_reference, exact_off + 20);
+  EXPECT_LE(off_model, exact_off + 2);
+  EXPECT_GE(model_db, 50.0);
   std::cout << "mlab: k 12 " << db << " dB (" << f.stats.critical_section << ", " << exact_off
             << " pixels off the reference by > 1e-4); k 1 " << merged_db
             << " dB against the reference (" << off_reference << " pixels off by > 1e-4), "
