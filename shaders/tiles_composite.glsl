@@ -37,6 +37,12 @@
 // seam_of(i, direction), how near two hits of neighbouring primitives are one seam's
 // (seam_twins below; 0: never).
 
+// Compiled with TILES_PIXEL_HITS (TileOptions::pixel_hits), each pixel computes its own pairs'
+// hits instead, as the composite did before the rounds (3120a50): lavapipe's composite is
+// faster with the rounds, and on NVIDIA's H200 the capsules' frames took 42 to 49 % longer on
+// the aneurysm and convection than the H100's of 3120a50 (docs/tiles.md, "Measured on an NVIDIA
+// H200"): bench render's tiles-pixel-hits is the A/B a GPU decides. The same bytes.
+//
 // Compiled with TILES_STRIPS (a choice of the host's, TileOptions::strips), a tile's pixels
 // are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
 // keys: a crowded tile is shared by four workgroups, and a workgroup waiting at a barrier holds
@@ -472,6 +478,20 @@ void main() {
         continue;
       if (may_cross(words, direction)) set_entry(near, i, true), ++left;
     }
+#ifdef TILES_PIXEL_HITS
+    // Each pixel computes its own entries' hits, in key order: the same hits, taken in the same
+    // order, as the rounds below (the same bytes), without their shared-memory traffic and two
+    // barriers a round, each pixel's work on its own lane.
+    for (uint i = first_entry(near); i < kBatch && !done; i = first_entry(near)) {
+      set_entry(near, i, false);
+      float t;
+      vec4 c;
+      if (!first_hit(i, direction, t, c)) continue;
+      flush(bound_t(depth_bound(i), t_per_z));
+      if (done) break;
+      insert(t, c, batch_primitive[i], seam_of(i, direction));
+    }
+#else
     // Rounds of pairs until every pixel has had its pairs' hits. The counters alternate by the
     // round's parity: those of the next round are cleared in this one, after their last reads.
     for (;; ++round) {
@@ -522,6 +542,7 @@ void main() {
       if (!more) break;
     }
     ++round;
+#endif
     // Hits of the later keys lie past their depth bounds, so once those pass the pixel's floor
     // it takes none of them in this walk.
     if (inside && !done && !written && floor_t > bound_t(next_bound, t_per_z))

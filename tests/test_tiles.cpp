@@ -885,6 +885,51 @@ TEST(Tiles, StripsOfATileGiveTheSameBytes) {
   }
 }
 
+// Each pixel computing its own hits (TileOptions::pixel_hits) takes the same hits in the same
+// order as the workgroup's rounds of pairs: the same bytes, hits, walks and overflows. The
+// aneurysm seen whole, as capsules and as triangles, with the loops of fixed trips in slices of
+// 64 keys and walks again, and with the loops that exit in one slice (walks again with the deep
+// window for the capsules). Strips are not built for it: a usage error.
+TEST(Tiles, PixelHitsGiveTheSameBytes) {
+  vk::Context ctx;
+  const TransferFunction tf = transfer_function_preset("transparent");
+  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
+  const Bounds bounds = compute_bounds(lines);
+  const Camera camera = frame_bounds(bounds, 150.0 / 108.0, 30, 20, 0.85);
+  const auto expect_same = [&](vk::TileRenderer& renderer, const std::string& what,
+                               bool walks_again) {
+    vk::TileOptions o;
+    o.width = 150, o.height = 108;
+    renderer.render(camera, tf, o);  // the pixels' states' buffer made, as in the strips test
+    const vk::TileFrame pairs = renderer.render(camera, tf, o);
+    o.pixel_hits = true;
+    const vk::TileFrame own = renderer.render(camera, tf, o);
+    EXPECT_GE(pairs.stats.walks, walks_again ? 2u : 1u) << what;
+    EXPECT_GT(pairs.stats.hits, 5000u) << what;
+    EXPECT_EQ(pairs.image.pixels, own.image.pixels) << what;
+    EXPECT_EQ(pairs.depth_complexity, own.depth_complexity) << what;
+    EXPECT_EQ(pairs.stats.hits, own.stats.hits) << what;
+    EXPECT_EQ(pairs.stats.walks, own.stats.walks) << what;
+    EXPECT_EQ(pairs.stats.window_overflows, own.stats.window_overflows) << what;
+    o.strips = vk::TileStrips::crowded;
+    EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what;
+  };
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
+  TubeOptions tube;
+  tube.radius = 0.004f;
+  const TubeMesh mesh = build_tubes(lines, tube);
+  for (const bool exits : {false, true}) {
+    const vk::WindowLoops loops = exits ? vk::WindowLoops::exits : vk::WindowLoops::fixed;
+    const uint32_t slice_keys = exits ? 0 : 64;
+    const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
+    vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
+    expect_same(over_capsules, "capsules" + how, true);
+    vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
+    expect_same(over_triangles, "triangles" + how, !exits);
+  }
+}
+
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments
 // (clouds: most shorter than the radius; convection) seen whole and zoomed in, and on tube
 // meshes, fewer keys and the same bytes, hits and depth complexity as binning by the bounds

@@ -216,7 +216,9 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 // last bit of coverage), tiles-raster-order is tiles dispatching every tile in raster order
 // instead of the crowded ones first (the A/B of that order), tiles-strips is tiles with four
 // workgroups a tile, each over a strip of 16x4 pixels, and tiles-crowded-strips with four for
-// the crowded tiles and the small walks again (the A/B of workgroups of 64 against 256).
+// the crowded tiles and the small walks again (the A/B of workgroups of 64 against 256);
+// tiles-pixel-hits and tiles-triangles-pixel-hits have each pixel compute its own hits instead of
+// the composite's rounds of pairs (the A/B of the rounds on a GPU).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -230,6 +232,12 @@ constexpr BenchVariant kBenchVariants[] = {
     {"tiles-raster-order", "tiles", [](TechniqueOptions& o) { o.tiles_most_keys_first = false; }},
     {"tiles-crowded-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = "crowded"; }},
     {"tiles-strips", "tiles", [](TechniqueOptions& o) { o.tiles_strips = "all"; }},
+    {"tiles-pixel-hits", "tiles", [](TechniqueOptions& o) { o.tiles_pixel_hits = true; }},
+    {"tiles-triangles-pixel-hits", "tiles",
+     [](TechniqueOptions& o) {
+       o.tiles_geometry = "triangles";
+       o.tiles_pixel_hits = true;
+     }},
 };
 
 const BenchVariant* variant_of(const std::string& name) {

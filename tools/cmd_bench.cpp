@@ -661,9 +661,10 @@ Command add_bench(CLI::App& app) {
           "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
           "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
           "dispatching its tiles in raster order, tiles-strips, tiles with four workgroups "
-          "a tile, and tiles-crowded-strips, with four for the crowded tiles and the walks "
-          "again, when named; those this machine cannot run are listed as skipped, with the "
-          "reason)")
+          "a tile, tiles-crowded-strips, with four for the crowded tiles and the walks "
+          "again, and tiles-pixel-hits and tiles-triangles-pixel-hits, tiles with each "
+          "pixel computing its own hits, when named; those this machine cannot run are "
+          "listed as skipped, with the reason)")
       ->delimiter(',');
   rendering
       ->add_option("--tf", render->transfer_functions,

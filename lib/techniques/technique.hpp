@@ -89,6 +89,10 @@ struct TechniqueOptions {
   // crowded | all (vk::TileStrips; render --tiles-strips, bench render's tiles-crowded-strips
   // and tiles-strips).
   std::string tiles_strips = "none";
+  // Each pixel computes its own hits instead of the composite's rounds of pairs
+  // (vk::TileOptions::pixel_hits; bench render's tiles-pixel-hits and
+  // tiles-triangles-pixel-hits, no command-line option).
+  bool tiles_pixel_hits = false;
   // The process's memory budget in bytes (render --memory-budget; 0: none given, half of
   // physical memory). Data is read only where the cache's provenance says it fits; embree and
   // reference build their BVH within what it leaves of the process's resident memory; the

@@ -92,6 +92,7 @@ class Tiles : public PreparedTechnique {
       frame_budget_ = o.memory_budget;
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
+    options_.pixel_hits = o.tiles_pixel_hits;
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,

@@ -133,10 +133,11 @@ struct TileRenderer::State {
   BufferSet set;
   // bin, ranges, composite; and where the window loops exit, the composite with the deeper
   // window for walks again over tiles of one slice (shaders/tiles_composite.glsl); then the two
-  // composites again over strips of tiles (TileOptions::strips), made when first used.
+  // composites again over strips of tiles (TileOptions::strips) and the two with each pixel's
+  // own hits (TileOptions::pixel_hits), made when first used.
   static constexpr size_t kMadeAtInit = 4;  // the rest: when first used
-  std::array<std::string, 6> shaders;
-  std::array<VkPipeline, 6> pipelines{};
+  std::array<std::string, 8> shaders;
+  std::array<VkPipeline, 8> pipelines{};
   VkQueryPool queries = VK_NULL_HANDLE;
 
   State(Context& c, bool sort_subgroups) : ctx(c), sorter(c, sort_subgroups) {}
@@ -255,7 +256,9 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
              composite + variant,
              exits ? composite + ":deep" : "",
              composite + (variant.empty() ? ":strips" : variant + "-strips"),
-             exits ? composite + ":deep-strips" : ""};
+             exits ? composite + ":deep-strips" : "",
+             composite + (exits ? ":exits-pixels" : ":pixels"),
+             exits ? composite + ":deep-pixels" : ""};
   // The composites of strips are made when a frame first asks for them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
     if (!shaders[i].empty())
@@ -551,6 +554,8 @@ TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFun
       o(options),
       tile_keys{state.ranges, state.walk_first, state.chunk_far} {
   if (o.width < 1 || o.height < 1) throw Error("tiles: empty image size");
+  if (o.pixel_hits && o.strips != TileStrips::none)
+    throw UsageError("tiles: each pixel's own hits (pixel_hits) are not built for strips");
   const bool resized = s.targets.resize(ctx, o.width, o.height);
   tiles_x = (uint32_t(o.width) + kTile - 1) / kTile;
   tiles_y = (uint32_t(o.height) + kTile - 1) / kTile;
@@ -684,7 +689,7 @@ double TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_til
   std::copy(plan.tiles.begin(), plan.tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
   // Walks again over tiles of one slice take the deeper window where there is one.
   const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-  const VkPipeline tiles_whole = s.pipeline(deep ? 3 : 2);
+  const VkPipeline tiles_whole = o.pixel_hits ? s.pipeline(deep ? 7 : 6) : s.pipeline(deep ? 3 : 2);
   const VkPipeline tiles_strips = order.strip_tiles > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
   const double ms = pass([&](VkCommandBuffer cmd) {
     const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {

@@ -63,6 +63,10 @@ struct TileOptions {
   // Which tiles get four composite workgroups of 64 invocations, a strip of 16x4 pixels each,
   // instead of one of 256 (TileStrips).
   TileStrips strips = TileStrips::none;
+  // Each pixel computes its own hits instead of the workgroup's rounds of (pixel, primitive)
+  // pairs (shaders/tiles_composite.glsl, TILES_PIXEL_HITS): the composite before the rounds, kept
+  // as the A/B for GPUs (bench render's tiles-pixel-hits). The same bytes. Not with strips.
+  bool pixel_hits = false;
   // TileStrips::crowded takes every tile of a walk over fewer tiles than this in strips (tests
   // lower it to 0: then only the crowded).
   uint32_t few_tiles = 512;
