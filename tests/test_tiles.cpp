@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <glm/glm.hpp>
 #include <memory>
 #include <optional>
@@ -826,22 +827,44 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
   expect_same(triangles, "triangles");
 }
 
-// Four workgroups a tile, each over a strip of 16x4 pixels, composite the same pixels with the
-// same hits in the same order as one workgroup a tile: the same bytes, hits, walks and
-// overflows, for every tile in strips and for the crowded ones only (beside the others' one
-// workgroup each, in the same slice). The aneurysm framed a little closer than whole in an image
-// whose last row and column of tiles are cut (150x108: the last column's strips hold 6 of their
-// 16 columns of pixels, the last row's fourth strip no pixel), through walks again, as capsules and
-// as triangles, with the loops of fixed trips in slices of 64 keys and with the loops that exit in
-// one slice (walks again with the deep window; the triangles' 16-hit window has room enough here).
-TEST(Tiles, StripsOfATileGiveTheSameBytes) {
+// The aneurysm framed a little closer than whole in an image whose last row and column of tiles
+// are cut (150x108: the last column's strips hold 6 of their 16 columns of pixels, the last
+// row's fourth strip no pixel), as capsules and as triangles, each composited with the loops of
+// fixed trips in slices of 64 keys and with the loops that exit in one slice (walks again with
+// the deep window): `check(renderer, camera, what, walks_again)` for each of the four, where
+// walks_again says whether that build walks tiles again here (the triangles' 16-hit window has
+// room enough).
+using CompositeCheck =
+    std::function<void(vk::TileRenderer&, const Camera&, const std::string&, bool)>;
+void for_each_composite_build(const CompositeCheck& check) {
   vk::Context ctx;
-  const TransferFunction tf = transfer_function_preset("transparent");
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
   const Bounds bounds = compute_bounds(lines);
   const Camera camera = frame_bounds(bounds, 150.0 / 108.0, 30, 20, 0.85);
-  const auto expect_same = [&](vk::TileRenderer& renderer, const std::string& what,
-                               bool walks_again) {
+  const CapsuleSegments capsules =
+      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
+  TubeOptions tube;
+  tube.radius = 0.004f;
+  const TubeMesh mesh = build_tubes(lines, tube);
+  for (const bool exits : {false, true}) {
+    const vk::WindowLoops loops = exits ? vk::WindowLoops::exits : vk::WindowLoops::fixed;
+    const uint32_t slice_keys = exits ? 0 : 64;
+    const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
+    vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
+    check(over_capsules, camera, "capsules" + how, true);
+    vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
+    check(over_triangles, camera, "triangles" + how, !exits);
+  }
+}
+
+// Four workgroups a tile, each over a strip of 16x4 pixels, composite the same pixels with the
+// same hits in the same order as one workgroup a tile: the same bytes, hits, walks and
+// overflows, for every tile in strips and for the crowded ones only (beside the others' one
+// workgroup each, in the same slice), in every build of for_each_composite_build.
+TEST(Tiles, StripsOfATileGiveTheSameBytes) {
+  const TransferFunction tf = transfer_function_preset("transparent");
+  for_each_composite_build([&](vk::TileRenderer& renderer, const Camera& camera,
+                               const std::string& what, bool walks_again) {
     vk::TileOptions o;
     o.width = 150, o.height = 108;
     // A frame first, so that both below find the pixels' states' buffer made (the first walk
@@ -868,36 +891,16 @@ TEST(Tiles, StripsOfATileGiveTheSameBytes) {
       EXPECT_EQ(whole.stats.walks, strips->stats.walks) << where;
       EXPECT_EQ(whole.stats.window_overflows, strips->stats.window_overflows) << where;
     }
-  };
-  const CapsuleSegments capsules =
-      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
-  TubeOptions tube;
-  tube.radius = 0.004f;
-  const TubeMesh mesh = build_tubes(lines, tube);
-  for (const bool exits : {false, true}) {
-    const vk::WindowLoops loops = exits ? vk::WindowLoops::exits : vk::WindowLoops::fixed;
-    const uint32_t slice_keys = exits ? 0 : 64;
-    const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
-    vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
-    expect_same(over_capsules, "capsules" + how, true);
-    vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
-    expect_same(over_triangles, "triangles" + how, !exits);
-  }
+  });
 }
 
 // Each pixel computing its own hits (TileOptions::pixel_hits) takes the same hits in the same
-// order as the workgroup's rounds of pairs: the same bytes, hits, walks and overflows. The
-// aneurysm seen whole, as capsules and as triangles, with the loops of fixed trips in slices of
-// 64 keys and walks again, and with the loops that exit in one slice (walks again with the deep
-// window for the capsules). Strips are not built for it: a usage error.
+// order as the workgroup's rounds of pairs: the same bytes, hits, walks and overflows, in every
+// build of for_each_composite_build. Strips are not built for it: a usage error.
 TEST(Tiles, PixelHitsGiveTheSameBytes) {
-  vk::Context ctx;
   const TransferFunction tf = transfer_function_preset("transparent");
-  const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
-  const Bounds bounds = compute_bounds(lines);
-  const Camera camera = frame_bounds(bounds, 150.0 / 108.0, 30, 20, 0.85);
-  const auto expect_same = [&](vk::TileRenderer& renderer, const std::string& what,
-                               bool walks_again) {
+  for_each_composite_build([&](vk::TileRenderer& renderer, const Camera& camera,
+                               const std::string& what, bool walks_again) {
     vk::TileOptions o;
     o.width = 150, o.height = 108;
     renderer.render(camera, tf, o);  // the pixels' states' buffer made, as in the strips test
@@ -913,21 +916,7 @@ TEST(Tiles, PixelHitsGiveTheSameBytes) {
     EXPECT_EQ(pairs.stats.window_overflows, own.stats.window_overflows) << what;
     o.strips = vk::TileStrips::crowded;
     EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what;
-  };
-  const CapsuleSegments capsules =
-      build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name);
-  TubeOptions tube;
-  tube.radius = 0.004f;
-  const TubeMesh mesh = build_tubes(lines, tube);
-  for (const bool exits : {false, true}) {
-    const vk::WindowLoops loops = exits ? vk::WindowLoops::exits : vk::WindowLoops::fixed;
-    const uint32_t slice_keys = exits ? 0 : 64;
-    const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
-    vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
-    expect_same(over_capsules, "capsules" + how, true);
-    vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
-    expect_same(over_triangles, "triangles" + how, !exits);
-  }
+  });
 }
 
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments

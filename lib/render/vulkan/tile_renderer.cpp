@@ -259,7 +259,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
              exits ? composite + ":deep-strips" : "",
              composite + (exits ? ":exits-pixels" : ":pixels"),
              exits ? composite + ":deep-pixels" : ""};
-  // The composites of strips are made when a frame first asks for them.
+  // The composites of strips and of the pixels' own hits are made when a frame first asks for
+  // them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
     if (!shaders[i].empty())
       pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str(), &paging_info);
