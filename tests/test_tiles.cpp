@@ -827,6 +827,16 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
   expect_same(triangles, "triangles");
 }
 
+// Two frames of one scene alike to the byte: image, depth complexity, hits, walks, overflows.
+void expect_same_tile_frame(const vk::TileFrame& a, const vk::TileFrame& b,
+                            const std::string& where) {
+  EXPECT_EQ(a.image.pixels, b.image.pixels) << where;
+  EXPECT_EQ(a.depth_complexity, b.depth_complexity) << where;
+  EXPECT_EQ(a.stats.hits, b.stats.hits) << where;
+  EXPECT_EQ(a.stats.walks, b.stats.walks) << where;
+  EXPECT_EQ(a.stats.window_overflows, b.stats.window_overflows) << where;
+}
+
 // The aneurysm framed a little closer than whole in an image whose last row and column of tiles
 // are cut (150x108: the last column's strips hold 6 of their 16 columns of pixels, the last
 // row's fourth strip no pixel), as capsules and as triangles, each composited with the loops of
@@ -883,14 +893,8 @@ TEST(Tiles, StripsOfATileGiveTheSameBytes) {
     EXPECT_EQ(all.stats.composite_workgroups, 4 * whole.stats.composite_workgroups) << what;
     EXPECT_GT(crowded.stats.composite_workgroups, whole.stats.composite_workgroups) << what;
     EXPECT_LT(crowded.stats.composite_workgroups, all.stats.composite_workgroups) << what;
-    for (const auto& [strips, how] : {std::pair{&all, "all"}, {&crowded, "crowded"}}) {
-      const std::string where = what + ", strips: " + how;
-      EXPECT_EQ(whole.image.pixels, strips->image.pixels) << where;
-      EXPECT_EQ(whole.depth_complexity, strips->depth_complexity) << where;
-      EXPECT_EQ(whole.stats.hits, strips->stats.hits) << where;
-      EXPECT_EQ(whole.stats.walks, strips->stats.walks) << where;
-      EXPECT_EQ(whole.stats.window_overflows, strips->stats.window_overflows) << where;
-    }
+    expect_same_tile_frame(whole, all, what + ", strips: all");
+    expect_same_tile_frame(whole, crowded, what + ", strips: crowded");
   });
 }
 
@@ -909,11 +913,7 @@ TEST(Tiles, PixelHitsGiveTheSameBytes) {
     const vk::TileFrame own = renderer.render(camera, tf, o);
     EXPECT_GE(pairs.stats.walks, walks_again ? 2u : 1u) << what;
     EXPECT_GT(pairs.stats.hits, 5000u) << what;
-    EXPECT_EQ(pairs.image.pixels, own.image.pixels) << what;
-    EXPECT_EQ(pairs.depth_complexity, own.depth_complexity) << what;
-    EXPECT_EQ(pairs.stats.hits, own.stats.hits) << what;
-    EXPECT_EQ(pairs.stats.walks, own.stats.walks) << what;
-    EXPECT_EQ(pairs.stats.window_overflows, own.stats.window_overflows) << what;
+    expect_same_tile_frame(pairs, own, what + ", pixel hits");
     o.strips = vk::TileStrips::crowded;
     EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what;
   });
