@@ -788,6 +788,16 @@ TEST(Tiles, SmallTrianglesGetKeysOnlyWhereTheyHoldAPixelCentre) {
   expect_the_same_frame(f, "triangles");
 }
 
+// Two frames of one scene alike to the byte: image, depth complexity, hits, walks, overflows.
+void expect_same_tile_frame(const vk::TileFrame& a, const vk::TileFrame& b,
+                            const std::string& where) {
+  EXPECT_EQ(a.image.pixels, b.image.pixels) << where;
+  EXPECT_EQ(a.depth_complexity, b.depth_complexity) << where;
+  EXPECT_EQ(a.stats.hits, b.stats.hits) << where;
+  EXPECT_EQ(a.stats.walks, b.stats.walks) << where;
+  EXPECT_EQ(a.stats.window_overflows, b.stats.window_overflows) << where;
+}
+
 // The composite's workgroups take the crowded tiles first; in raster order the image, hits and
 // walks are the same: each workgroup writes its own tile, whatever the order they run.
 // The aneurysm seen from afar, so that its few central tiles are crowded (more than 8 times the
@@ -808,15 +818,10 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
     EXPECT_GT(first.stats.crowded_tiles, 0u) << what;
     EXPECT_EQ(raster.stats.crowded_tiles, 0u) << what;
     EXPECT_GT(first.stats.walks, 1u) << what;
-    EXPECT_EQ(first.image.pixels, raster.image.pixels) << what;
-    EXPECT_EQ(first.depth_complexity, raster.depth_complexity) << what;
-    EXPECT_EQ(first.stats.hits, raster.stats.hits) << what;
-    EXPECT_EQ(first.stats.walks, raster.stats.walks) << what;
-    EXPECT_EQ(first.stats.window_overflows, raster.stats.window_overflows) << what;
+    expect_same_tile_frame(first, raster, what);
   };
-  // Slices of 64 keys.
-  // The 8-hit window of the loops of fixed trips (lavapipe's; a GPU's 16 and 64 hold these
-  // pixels' hits in one walk).
+  // Slices of 64 keys, with the 8-hit window of the loops of fixed trips (lavapipe's; a GPU's
+  // 16 and 64 hold these pixels' hits in one walk).
   vk::TileRenderer capsules(
       ctx, build_capsule_segments(lines, 0.004f * bounds.diagonal(), lines.attributes[0].name), 0,
       64, true, vk::WindowLoops::fixed);
@@ -825,16 +830,6 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
   tube.radius = 0.004f;
   vk::TileRenderer triangles(ctx, build_tubes(lines, tube), 0, 64, true, vk::WindowLoops::fixed);
   expect_same(triangles, "triangles");
-}
-
-// Two frames of one scene alike to the byte: image, depth complexity, hits, walks, overflows.
-void expect_same_tile_frame(const vk::TileFrame& a, const vk::TileFrame& b,
-                            const std::string& where) {
-  EXPECT_EQ(a.image.pixels, b.image.pixels) << where;
-  EXPECT_EQ(a.depth_complexity, b.depth_complexity) << where;
-  EXPECT_EQ(a.stats.hits, b.stats.hits) << where;
-  EXPECT_EQ(a.stats.walks, b.stats.walks) << where;
-  EXPECT_EQ(a.stats.window_overflows, b.stats.window_overflows) << where;
 }
 
 // The aneurysm framed a little closer than whole in an image whose last row and column of tiles

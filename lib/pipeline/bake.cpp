@@ -240,13 +240,15 @@ std::string dropped_chords_note(const VoxelGrid& g) {
 }
 
 nlohmann::json embree_stats(const EmbreeOptions& embree, const StoredCurves& curves,
-                            double prepare_s, uint64_t buffer_bytes) {
+                            double prepare_s, const EmbreeStoreWriter& writer) {
   return {{"geometry", to_string(embree.geometry)},
           {"quality", to_string(embree.quality)},
           {"radius_world", curves.radius},
           {"attribute", curves.attribute},
           {"prepare_s", prepare_s},
-          {"buffer_bytes", buffer_bytes}};
+          {"buffer_bytes", writer.buffer_bytes()},
+          {"primitives", writer.segments()},
+          {"parts", writer.part_count()}};
 }
 
 nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan) {
@@ -1046,12 +1048,8 @@ BakeResult bake(const BakeOptions& options_in) {
     finish_provenance(p, "embree", embree_clock);
     p.input_hash = lines_hash;
     p.parameters = to_json(options.embree, options.tubes);
-    p.stats =
-        embree_stats(options.embree, curves, embree_clock.wall_s, embree_writer->buffer_bytes());
+    p.stats = embree_stats(options.embree, curves, embree_clock.wall_s, *embree_writer);
     p.memory_bytes = embree_writer->buffer_bytes();
-    // Known from the plan, whether the BVH is built here or not (render builds it then).
-    p.stats["primitives"] = embree_writer->segments();
-    p.stats["parts"] = embree_writer->part_count();
     // The BVH is built and measured where it fits the budget: the line set, the buffers and
     // Embree's BVH (about the buffers' size again for linear curves) in memory at once. The
     // estimate decides whether to try; Embree's memory monitor holds the build to what the

@@ -42,9 +42,10 @@ nlohmann::json tube_stats(const TubeMesh& mesh, const std::vector<TubeChunkPlan>
 nlohmann::json voxel_stats(const VoxelGrid& grid, uint64_t chords, uint64_t bytes_with_density,
                            uint64_t records_in_memory, uint64_t records_spilled);
 std::string dropped_chords_note(const VoxelGrid& grid);
-// The Embree step's provenance figures (bake and linebake-mpi).
+// The Embree step's provenance figures (bake and linebake-mpi), with the writer's buffers and
+// the primitives and parts of its plan (known whether the BVH is built at bake or not).
 nlohmann::json embree_stats(const EmbreeOptions& embree, const StoredCurves& curves,
-                            double prepare_s, uint64_t buffer_bytes);
+                            double prepare_s, const EmbreeStoreWriter& writer);
 
 struct BakeOptions {
   std::string input;  // file or synth: source

@@ -616,11 +616,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
                          options.compression_level);
       p.input_hash = lines_hash;
       p.parameters = to_json(options.embree, options.tubes);
-      p.stats =
-          embree_stats(options.embree, curves, ranks.max_value(prepare_s), embree.buffer_bytes());
+      p.stats = embree_stats(options.embree, curves, ranks.max_value(prepare_s), embree);
       p.stats["ranks"] = ranks.size;
-      p.stats["primitives"] = embree.segments();
-      p.stats["parts"] = embree.part_count();
       p.stats["bvh"] =
           "not built under MPI (it needs the whole line set in one process); render builds it";
       p.memory_bytes = embree.buffer_bytes();
