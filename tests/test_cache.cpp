@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -740,6 +741,102 @@ TEST(GroupCopy, EveryObjectAndAttributeArrivesAsStored) {
 }
 
 // References point into their own file: a group holding them is refused, naming the dataset.
+// Datasets that use a committed datatype use the target's copy of it, as in the source: one
+// committed before them (opened there) and one linked after them (committed without a name,
+// then linked in its place, the links' creation order kept); a type outside the group copied
+// is a copy of the dataset's own. Values and the type's attribute arrive too.
+TEST(GroupCopy, DatasetsShareTheirCommittedDatatypes) {
+  test::TempDir dir;
+  const std::string from = dir.file("from.h5"), to = dir.file("to.h5");
+  const std::vector<int16_t> values = {-3, 7, 32000};
+  {
+    const hid_t f = H5Fcreate(from.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t gcpl = H5Pcreate(H5P_GROUP_CREATE);
+    H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
+    const hid_t g = H5Gcreate2(f, "/assets", H5P_DEFAULT, gcpl, H5P_DEFAULT);
+    const hsize_t n = values.size();
+    const hid_t space = H5Screate_simple(1, &n, nullptr);
+    const auto typed = [&](const char* name, hid_t type) {
+      const hid_t d = H5Dcreate2(g, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+      H5Dwrite(d, H5T_NATIVE_INT16, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+      H5Dclose(d);
+    };
+    // Committed without a name, used, then linked: the link comes after the dataset's.
+    const hid_t late = H5Tcopy(H5T_STD_I16BE);
+    H5Tcommit_anon(f, late, H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t scalar = H5Screate(H5S_SCALAR);
+    const hid_t units = H5Acreate2(late, "units", H5T_NATIVE_INT, scalar, H5P_DEFAULT, H5P_DEFAULT);
+    const int unit = 42;
+    H5Awrite(units, H5T_NATIVE_INT, &unit);
+    H5Aclose(units);
+    typed("before", late);
+    H5Olink(late, g, "late_kind", H5P_DEFAULT, H5P_DEFAULT);
+    const hid_t kind = H5Tcopy(H5T_STD_I16LE);
+    H5Tcommit2(g, "kind", kind, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    typed("after", kind);
+    typed("again", late);
+    const hid_t outside = H5Tcopy(H5T_STD_I32LE);
+    H5Tcommit2(f, "/outside_kind", outside, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    typed("foreign", outside);
+    for (hid_t id : {late, kind, outside}) H5Tclose(id);
+    for (hid_t id : {space, scalar}) H5Sclose(id);
+    H5Pclose(gcpl);
+    H5Gclose(g);
+    H5Fclose(f);
+  }
+  {
+    const hid_t source = H5Fopen(from.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    const hid_t target = H5Fcreate(to.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    copy_group_tree(source, from, target, to, "/assets");
+    H5Fclose(target);
+    H5Fclose(source);
+  }
+  const hid_t b = H5Fopen(to.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(b, 0);
+  const auto address = [&](const char* path) {
+    H5O_info_t info{};
+    EXPECT_GE(H5Oget_info_by_name2(b, path, &info, H5O_INFO_BASIC, H5P_DEFAULT), 0) << path;
+    return info.addr;
+  };
+  // Whether the dataset's type is committed, and where; its values.
+  const auto type_of = [&](const char* path) {
+    const hid_t d = H5Dopen2(b, path, H5P_DEFAULT);
+    const hid_t type = H5Dget_type(d);
+    H5O_info_t info{};
+    const bool committed = H5Tcommitted(type) > 0;
+    if (committed) H5Oget_info2(type, &info, H5O_INFO_BASIC);
+    std::vector<int16_t> read(values.size(), 0);
+    EXPECT_GE(H5Dread(d, H5T_NATIVE_INT16, H5S_ALL, H5S_ALL, H5P_DEFAULT, read.data()), 0) << path;
+    EXPECT_EQ(read, values) << path;
+    H5Tclose(type);
+    H5Dclose(d);
+    return committed ? std::optional<haddr_t>(info.addr) : std::nullopt;
+  };
+  EXPECT_EQ(type_of("/assets/before"), address("/assets/late_kind"));
+  EXPECT_EQ(type_of("/assets/again"), address("/assets/late_kind"));
+  EXPECT_EQ(type_of("/assets/after"), address("/assets/kind"));
+  EXPECT_EQ(type_of("/assets/foreign"), std::nullopt);
+  const hid_t late = H5Topen2(b, "/assets/late_kind", H5P_DEFAULT);
+  EXPECT_EQ(H5Tget_order(late), H5T_ORDER_BE);
+  int unit = 0;
+  const hid_t units = H5Aopen(late, "units", H5P_DEFAULT);
+  EXPECT_GE(H5Aread(units, H5T_NATIVE_INT, &unit), 0);
+  EXPECT_EQ(unit, 42);
+  H5Aclose(units);
+  H5Tclose(late);
+  // The links in the source's creation order.
+  const hid_t g = H5Gopen2(b, "/assets", H5P_DEFAULT);
+  std::vector<std::string> names;
+  for (hsize_t i = 0; i < 5; ++i) {
+    char name[64] = {};
+    H5Lget_name_by_idx(g, ".", H5_INDEX_CRT_ORDER, H5_ITER_INC, i, name, sizeof name, H5P_DEFAULT);
+    names.push_back(name);
+  }
+  EXPECT_EQ(names, (std::vector<std::string>{"before", "late_kind", "kind", "after", "again"}));
+  H5Gclose(g);
+  H5Fclose(b);
+}
+
 TEST(GroupCopy, ReferencesAreRefused) {
   test::TempDir dir;
   const std::string from = dir.file("from.h5"), to = dir.file("to.h5");

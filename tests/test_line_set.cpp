@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "lines/line_set.hpp"
+#include "lines/validate.hpp"
 
 using namespace linebake;
 
@@ -57,16 +58,22 @@ TEST(LineSet, MergedStatisticsAreTheWholeSets) {
   }
 }
 
-TEST(LineSet, BoundsSkipNonFinitePoints) {
+TEST(LineSet, BoundsSkipTheInvalidPoints) {
+  // Validation's invalid points: a NaN or Inf coordinate, or one past 1e10 (the points a bake
+  // drops or refuses); 1e10 itself is valid.
   LineSet lines;
   lines.append_point(NAN, 100, 100);
   lines.append_point(1, 1, 1);
   lines.append_point(2, INFINITY, 0);
+  lines.append_point(3, 1.5e10f, 0);
+  lines.append_point(-2e10f, 0, 0);
+  lines.append_point(1e10f, 2, -1);
   lines.end_line();
   const Bounds b = compute_bounds(lines);
   EXPECT_FALSE(b.empty);
-  EXPECT_EQ(b.min, (std::array<float, 3>{1, 1, 1}));
-  EXPECT_EQ(b.max, (std::array<float, 3>{1, 1, 1}));
+  EXPECT_EQ(b.min, (std::array<float, 3>{1, 1, -1}));
+  EXPECT_EQ(b.max, (std::array<float, 3>{1e10f, 2, 1}));
+  EXPECT_EQ(inspect(lines).invalid_points, 4u);
 }
 
 TEST(LineSet, SameDataIsBitExact) {

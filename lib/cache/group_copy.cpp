@@ -42,9 +42,14 @@ struct Copy {
   const std::string& target_path;
   uint64_t slab_bytes;  // rows of a dataset without chunks read and written at a time
   hid_t target_file;
+  const std::string& root;  // the group copied
   // The objects copied, by their place in the source file, with their path in the target: an
   // object linked twice (or a group linked into itself) is linked again, not copied again.
   mutable std::map<haddr_t, std::string> copied;
+  // The target's committed datatypes that datasets took, by the source type's place: opened
+  // where the type was copied before them, committed without a name where it comes later (and
+  // linked when the copy reaches it).
+  mutable std::map<haddr_t, Handle> shared_types;
 
   [[noreturn]] void cannot_read(const std::string& object, const std::string& what) const {
     throw InputError(source_path, object, "cannot read " + what + " (" + h5::last_error() + ")");
@@ -113,7 +118,9 @@ struct Copy {
     if (!type.valid() || !space.valid() || !dcpl.valid()) cannot_read(object, "its shape");
     if (holds_references(type)) refuse_references(object);
     filters_available(dcpl, object);
-    Handle to(H5Dcreate2(to_parent, name.c_str(), type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+    const hid_t shared = shared_type(type, object);
+    Handle to(H5Dcreate2(to_parent, name.c_str(), shared >= 0 ? shared : hid_t(type), space,
+                         H5P_DEFAULT, dcpl, H5P_DEFAULT),
               H5Dclose);
     if (!to.valid()) cannot_write(object, "the dataset");
     // Variable-length values go through HDF5, which writes them to the new file's heap: their
@@ -123,6 +130,34 @@ struct Copy {
     else
       rows(from, to, type, space, object);
     attributes(from, to, dcpl, object);
+  }
+
+  // A dataset's committed datatype as the target's, so that the datasets share it there as in
+  // the source: the one copied already, else, for a type inside the group copied (one linked
+  // after the dataset), one committed now without a name and linked when the copy reaches its
+  // name. -1 for a transient type or one outside the group: the dataset keeps a copy of its own
+  // (HDF5 makes a type committed in another file transient).
+  hid_t shared_type(hid_t type, const std::string& object) const {
+    if (H5Tcommitted(type) <= 0) return -1;
+    H5O_info_t info{};
+    if (H5Oget_info2(type, &info, H5O_INFO_BASIC) < 0) cannot_read(object, "its datatype");
+    if (const auto taken = shared_types.find(info.addr); taken != shared_types.end())
+      return taken->second;
+    if (const auto seen = copied.find(info.addr); seen != copied.end()) {
+      Handle opened(H5Topen2(target_file, seen->second.c_str(), H5P_DEFAULT), H5Tclose);
+      if (!opened.valid()) cannot_write(object, "its datatype " + seen->second);
+      return shared_types.emplace(info.addr, std::move(opened)).first->second;
+    }
+    std::string path(size_t(std::max<ssize_t>(H5Iget_name(type, nullptr, 0), 0)), '\0');
+    if (!path.empty()) H5Iget_name(type, path.data(), path.size() + 1);
+    if (path.rfind(root + "/", 0) != 0) return -1;
+    Handle tcpl(H5Tget_create_plist(type), H5Pclose);
+    Handle copy(H5Tcopy(type), H5Tclose);
+    if (!tcpl.valid() || !copy.valid()) cannot_read(path, "the datatype");
+    if (H5Tcommit_anon(target_file, copy, tcpl, H5P_DEFAULT) < 0)
+      cannot_write(path, "the datatype");
+    attributes(type, copy, tcpl, path);
+    return shared_types.emplace(info.addr, std::move(copy)).first->second;
   }
 
   [[noreturn]] void refuse_references(const std::string& object) const {
@@ -257,6 +292,12 @@ struct Copy {
         if (!sub_to.valid()) cannot_write(member, "the group");
         group(sub_from, sub_to, member);
       } else if (kind.type == H5O_TYPE_NAMED_DATATYPE) {
+        if (const auto early = shared_types.find(kind.addr); early != shared_types.end()) {
+          // Committed for a dataset before, without a name.
+          if (H5Olink(early->second, to, name.c_str(), H5P_DEFAULT, H5P_DEFAULT) < 0)
+            cannot_write(member, "the datatype");
+          continue;
+        }
         Handle type(H5Topen2(from, name.c_str(), H5P_DEFAULT), H5Tclose);
         Handle tcpl(type.valid() ? H5Tget_create_plist(type) : -1, H5Pclose);
         Handle copy(type.valid() ? H5Tcopy(type) : -1, H5Tclose);
@@ -297,7 +338,8 @@ struct Copy {
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
                      const std::string& target_path, const std::string& group,
                      uint64_t slab_bytes) {
-  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1), target, {}};
+  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1), target, group,
+                  {},          {}};
   Handle from(H5Gopen2(source, group.c_str(), H5P_DEFAULT), H5Gclose);
   if (!from.valid()) copy.cannot_read(group, "the group");
   if (H5O_info_t top{}; H5Oget_info2(from, &top, H5O_INFO_BASIC) >= 0)

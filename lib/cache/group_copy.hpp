@@ -16,9 +16,11 @@ namespace linebake {
 // stored but for variable-length values (read and written through HDF5, whose heap ids are the
 // file's own), datasets without chunks `slab_bytes` of rows at a time; soft and external links
 // as written; an object linked twice (or a group linked into itself) copied once and linked again.
-// A committed datatype is copied as one, but the datasets that used it get their own copy of the
-// type (HDF5 makes a type committed in another file transient). Object and region references
-// are refused. Throws
+// A committed datatype is copied as one, and the datasets in the group that used it use the
+// copy (one linked after them is committed first without a name, then linked in its place);
+// a dataset whose committed type lies outside the group, and an attribute with a committed
+// type, get their own copy of the type (HDF5 makes a type committed in another file transient).
+// Object and region references are refused. Throws
 // InputError for what cannot be read, OutputError for what cannot be written, Interrupted
 // between chunks on a signal.
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,

@@ -58,10 +58,16 @@ bool LineSet::same_data(const LineSet& other) const {
          same_attributes(line_attributes, other.line_attributes);
 }
 
+bool valid_point(const float* p) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(p[k]) || std::fabs(p[k]) > kMaxCoordinate) return false;
+  return true;
+}
+
 void include_points(Bounds& b, std::span<const float> xyz) {
   for (size_t i = 0; i + 2 < xyz.size(); i += 3) {
     const float* p = &xyz[i];
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) continue;
+    if (!valid_point(p)) continue;
     for (int k = 0; k < 3; ++k) {
       if (b.empty || p[k] < b.min[k]) b.min[k] = p[k];
       if (b.empty || p[k] > b.max[k]) b.max[k] = p[k];

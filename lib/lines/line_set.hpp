@@ -48,9 +48,17 @@ struct LineSet {
   bool same_data(const LineSet& other) const;
 };
 
-// Bounds of all finite points.
+// Points with a NaN/Inf coordinate, or any |coordinate| above this, are invalid (the public
+// LineVis viewer drops such points too): validation counts them, repair drops them, and bounds
+// leave them out.
+inline constexpr float kMaxCoordinate = 1e10f;
+// Whether the point x y z at `p` is valid (above).
+bool valid_point(const float* p);
+
+// Bounds of the valid points (valid_point).
 Bounds compute_bounds(const LineSet& lines);
-// Grows `bounds` by points given as x y z triples; non-finite points are skipped.
+// Grows `bounds` by points given as x y z triples; invalid points are skipped, so that the bounds
+// `info` prints are those of the points a bake keeps.
 void include_points(Bounds& bounds, std::span<const float> xyz);
 
 // An option names an attribute the lines do not have: a UsageError (exit 1) naming the option,

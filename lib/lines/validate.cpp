@@ -9,12 +9,6 @@ namespace linebake {
 
 namespace {
 
-bool valid_point(const float* p) {
-  for (int k = 0; k < 3; ++k)
-    if (!std::isfinite(p[k]) || std::fabs(p[k]) > kMaxCoordinate) return false;
-  return true;
-}
-
 bool same_point(const float* a, const float* b) {
   return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
 }

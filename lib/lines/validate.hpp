@@ -14,10 +14,6 @@ enum class InvalidPolicy {
   repair,  // drop bad points (splitting lines there), repeated points, short lines; report it
 };
 
-// Points with a NaN/Inf coordinate, or any |coordinate| above this, are invalid (the public
-// LineVis viewer drops such points too).
-inline constexpr float kMaxCoordinate = 1e10f;
-
 struct ValidationReport {
   uint64_t invalid_points = 0;   // NaN/Inf or |c| > kMaxCoordinate
   uint64_t repeated_points = 0;  // equal to the previous point of the same line
