@@ -16,8 +16,16 @@
 
 #include "lines/line_set.hpp"
 #include "pipeline/bake.hpp"
+#include "render/vulkan/context.hpp"
 
 namespace linebake::test {
+
+// A Vulkan context whose validation layer fails the test on any error.
+inline vk::ContextOptions validated() {
+  vk::ContextOptions o;
+  o.validation = true;
+  return o;
+}
 
 // A fresh directory per test, removed afterwards.
 class TempDir {

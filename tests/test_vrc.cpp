@@ -16,11 +16,14 @@
 #include "render/voxel_ray_caster.hpp"
 #include "render/vulkan/voxel_caster.hpp"
 #include "synth/synth.hpp"
+#include "test_util.hpp"
 #include "tubes/tube_builder.hpp"
 #include "voxels/voxelizer.hpp"
 
 namespace linebake {
 namespace {
+
+using test::validated;
 
 // Voxels of size 1 at the origin, Q = 16, each holding the one chord `chord_of` gives it (none
 // where it gives nullopt).
@@ -110,13 +113,6 @@ TEST(Vrc, OneLineThroughKnownVoxelsHitsTheExpectedPixels) {
     else
       EXPECT_EQ(f.stats.cells_skipped, 0u);
   }
-}
-
-// A Vulkan context whose validation layer fails the test on any error.
-vk::ContextOptions validated() {
-  vk::ContextOptions o;
-  o.validation = true;
-  return o;
 }
 
 struct SynthScene {

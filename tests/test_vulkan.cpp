@@ -16,10 +16,13 @@
 #include "render/vulkan/context.hpp"
 #include "render/vulkan/raster_renderer.hpp"
 #include "synth/synth.hpp"
+#include "test_util.hpp"
 #include "tubes/tube_builder.hpp"
 
 namespace linebake {
 namespace {
+
+using test::validated;
 
 // Six wavy lines stacked in depth, nearly in phase: up to six overlapping tubes per pixel.
 // Interleaved: drawn in the depth order 0, 3, 1, 4, 2, 5 instead of front to back.
@@ -91,12 +94,6 @@ vk::RasterOptions raster_options(vk::RasterTechnique technique, int size) {
   vk::RasterOptions o;
   o.technique = technique;
   o.width = o.height = size;
-  return o;
-}
-
-vk::ContextOptions validated() {
-  vk::ContextOptions o;
-  o.validation = true;
   return o;
 }
 

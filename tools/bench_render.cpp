@@ -333,7 +333,7 @@ void bench_render(const BenchRenderArgs& args) {
   std::vector<TransferFunction> tfs;
   for (const std::string& name : args.transfer_functions)
     tfs.push_back(resolve_transfer_function(name));
-  const auto [width, height] = parse_size(args.size);
+  const auto [width, height] = parse_image_size(args.size);
   // Checked before any work: the frames are compared with the reference by SSIM at the end.
   if (width < 11 || height < 11)
     throw UsageError("--size '" + args.size +

@@ -96,7 +96,7 @@ Command add_depth_complexity(CLI::App& app) {
   });
   const auto body = [args] {
     check_cache_input(args->cache);
-    const auto [width, height] = parse_size(args->size);
+    const auto [width, height] = parse_image_size(args->size);
     check_depth_image_output(args->output);
     check_output_location(args->stats);
     check_frame_outputs({args->output}, {args->stats},

@@ -264,7 +264,7 @@ Command add_render(CLI::App& app) {
     // An option the technique does not read is a mistake, not a no-op.
     check_technique_options(find_technique(args->technique).info, given_options(sub));
     check_cache_input(args->cache);
-    const auto [width, height] = parse_size(args->size);
+    const auto [width, height] = parse_image_size(args->size);
     if (args->frames.empty() && args->frame >= args->frame_count)
       throw UsageError("--frame " + std::to_string(args->frame) + ": the flight has " +
                        std::to_string(args->frame_count) + " frames, 0 to " +

@@ -211,7 +211,7 @@ void validate_pipeline(const Pipeline& p) {
                      "'" + p.flight + "' is neither orbit-zoom, orbit nor a keyframe file" +
                          did_you_mean(p.flight, {"orbit-zoom", "orbit"}));
   try {
-    const auto [width, height] = parse_size(p.size);
+    const auto [width, height] = parse_image_size(p.size);
     if (width < 11 || height < 11)
       throw Error("'" + p.size +
                   "': the report compares frames by SSIM, which needs at least 11x11 pixels");

@@ -522,7 +522,7 @@ Command add_view(CLI::App& app) {
   return [options, size_text] {
     check_cache_input(options->cache);
     if (!options->script.empty()) check_input_file(options->script);
-    const auto [w, h] = parse_size(*size_text);
+    const auto [w, h] = parse_image_size(*size_text);
     options->width = w, options->height = h;
     Viewer viewer(*options);
     viewer.run();

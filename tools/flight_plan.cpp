@@ -10,7 +10,7 @@
 
 namespace linebake::cli {
 
-std::array<int, 2> parse_size(const std::string& text) {
+std::array<int, 2> parse_image_size(const std::string& text) {
   static const std::regex pattern(R"((\d{1,5})x(\d{1,5}))");
   std::smatch m;
   if (!std::regex_match(text, m, pattern)) throw Error("--size: expected WxH, got '" + text + "'");
@@ -23,7 +23,7 @@ CLI::Validator image_size_check() {
   return CLI::Validator(
       [](std::string& text) {
         try {
-          parse_size(text);
+          parse_image_size(text);
         } catch (const std::exception& e) {
           // CLI11 names the option itself.
           const std::string message = e.what();

@@ -14,8 +14,9 @@
 namespace linebake::cli {
 
 // "WxH", 1..16384 per axis.
-std::array<int, 2> parse_size(const std::string& text);
-// parse_size as a CLI11 check, so a bad size is a usage error found when the command line is read.
+std::array<int, 2> parse_image_size(const std::string& text);
+// parse_image_size as a CLI11 check, so a bad size is a usage error found when the command line is
+// read.
 CLI::Validator image_size_check();
 
 // A 16-bit PNG of counts per pixel (render --depth-complexity, depth-complexity -o): .png, in a

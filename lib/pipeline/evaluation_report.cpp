@@ -26,12 +26,6 @@ nlohmann::json read_json(const std::string& path) {
   }
 }
 
-std::string fixed(double value, int digits) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.*f", digits, value);
-  return text;
-}
-
 }  // namespace
 
 const std::vector<std::string>& summary_columns() {
@@ -91,6 +85,12 @@ std::string summary_note(const nlohmann::json& machine, const std::string& refer
          ". Per-frame memory is what a frame takes (the image, its outputs and the technique's "
          "per-pixel storage: --stats' frame_bytes), not the scene the technique holds (its BVH, "
          "mesh or voxel grid: Table 1, and --stats' mesh_bytes).";
+}
+
+std::string fixed(double value, int digits) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
 }
 
 std::string warm_up_note(const Pipeline& p) {

@@ -40,6 +40,8 @@ std::string summary_note(const nlohmann::json& machine, const std::string& refer
 // What the frame times count: "each technique's frames timed after its N untimed warm-up
 // frame(s)" (or that none was rendered first), for both reports.
 std::string warm_up_note(const Pipeline& pipeline);
+// `value` with `digits` digits after the point ("%.*f"), as both reports print figures.
+std::string fixed(double value, int digits);
 
 std::string evaluation_markdown(const Pipeline& pipeline, const std::vector<CacheSummary>& caches,
                                 const nlohmann::json& evaluation);

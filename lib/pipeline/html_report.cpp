@@ -20,12 +20,6 @@ namespace {
 
 constexpr int kThumbnailWidth = 320;
 
-std::string fixed(double value, int digits) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.*f", digits, value);
-  return text;
-}
-
 std::string png_uri(const Image& image) {
   return "data:image/png;base64," + base64_encode(encode_png(image));
 }

@@ -16,7 +16,7 @@ namespace {
 
 using glm::vec3;
 
-vec3 point(const LineSet& lines, uint64_t i) {
+vec3 point_at(const LineSet& lines, uint64_t i) {
   return {lines.positions[3 * i], lines.positions[3 * i + 1], lines.positions[3 * i + 2]};
 }
 
@@ -28,7 +28,7 @@ void for_each_kept_point(const LineSet& lines, size_t line, float min_distance, 
   vec3 last{};
   bool any = false;
   for (uint64_t i = lines.line_offsets[line]; i < lines.line_offsets[line + 1]; ++i) {
-    const vec3 p = point(lines, i);
+    const vec3 p = point_at(lines, i);
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
     const vec3 d = p - last;
     if (any && !(glm::dot(d, d) > min2)) continue;  // repeated points always go

@@ -178,7 +178,7 @@ std::array<int, 2> size_from(const std::string& function, const py::handle& size
   }
   if (const std::string problem = cli::render_option_problem("--size", text); !problem.empty())
     throw UsageError(problem);
-  return cli::parse_size(text);
+  return cli::parse_image_size(text);
 }
 
 // Three numbers.

@@ -14,7 +14,7 @@ namespace {
 constexpr uint32_t kBlockItems = 256 * 16;
 constexpr uint32_t kRadix = 256;
 constexpr uint32_t kPartition = 1024;
-constexpr uint32_t kBindings = 6;
+constexpr uint32_t kSortBindings = 6;
 
 struct PassConstants {
   uint32_t count, shift, blocks, total;
@@ -79,9 +79,9 @@ struct RadixSorter::State {
     const std::array<std::array<const Buffer*, 4>, 2> pairs = {
         {{&keys, &values, &keys2, &values2}, {&keys2, &values2, &keys, &values}}};
     for (size_t s = 0; s < 2; ++s) {
-      std::array<VkDescriptorBufferInfo, kBindings> infos{};
-      std::array<VkWriteDescriptorSet, kBindings> writes{};
-      for (uint32_t i = 0; i < kBindings; ++i) {
+      std::array<VkDescriptorBufferInfo, kSortBindings> infos{};
+      std::array<VkWriteDescriptorSet, kSortBindings> writes{};
+      for (uint32_t i = 0; i < kSortBindings; ++i) {
         const Buffer* b = i < 4 ? pairs[s][i] : i == 4 ? &counts : &partitions;
         infos[i] = {b->buffer, 0, VK_WHOLE_SIZE};
         writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -91,7 +91,7 @@ struct RadixSorter::State {
         writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
         writes[i].pBufferInfo = &infos[i];
       }
-      vkUpdateDescriptorSets(ctx.device(), kBindings, writes.data(), 0, nullptr);
+      vkUpdateDescriptorSets(ctx.device(), kSortBindings, writes.data(), 0, nullptr);
     }
   }
 
@@ -125,11 +125,11 @@ RadixSorter::RadixSorter(Context& context, bool use_subgroups)
   if (use_subgroups && subgroups_supported(context.info()))
     s.subgroup_size = context.info().subgroup_size;
   VkDevice d = context.device();
-  std::array<VkDescriptorSetLayoutBinding, kBindings> bindings{};
-  for (uint32_t i = 0; i < kBindings; ++i)
+  std::array<VkDescriptorSetLayoutBinding, kSortBindings> bindings{};
+  for (uint32_t i = 0; i < kSortBindings; ++i)
     bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
   VkDescriptorSetLayoutCreateInfo set_info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  set_info.bindingCount = kBindings;
+  set_info.bindingCount = kSortBindings;
   set_info.pBindings = bindings.data();
   check(vkCreateDescriptorSetLayout(d, &set_info, nullptr, &s.set_layout), "radix sort layout");
   const VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(PassConstants)};
@@ -139,7 +139,7 @@ RadixSorter::RadixSorter(Context& context, bool use_subgroups)
   layout_info.pushConstantRangeCount = 1;
   layout_info.pPushConstantRanges = &range;
   check(vkCreatePipelineLayout(d, &layout_info, nullptr, &s.layout), "radix sort pipeline layout");
-  const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * kBindings};
+  const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2 * kSortBindings};
   VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   pool_info.maxSets = 2;
   pool_info.poolSizeCount = 1;

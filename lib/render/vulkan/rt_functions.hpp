@@ -4,6 +4,8 @@
 
 #include <vulkan/vulkan.h>
 
+#include <cstdint>
+
 namespace linebake::vk {
 
 struct RtFunctions {
@@ -24,5 +26,11 @@ struct RtFunctions {
   // Throws Error naming the first entry point the device does not provide.
   static RtFunctions load(VkDevice device);
 };
+
+// `value` rounded up to a multiple of `alignment` (shader binding table strides, scratch and
+// acceleration structure offsets); 0 or 1: as it is.
+inline uint64_t align_up(uint64_t value, uint64_t alignment) {
+  return alignment > 1 ? (value + alignment - 1) / alignment * alignment : value;
+}
 
 }  // namespace linebake::vk

@@ -27,14 +27,10 @@ struct RtUniforms {
 };
 
 // Binding 0 the TLAS, 1 uniforms, 2 chunk table, 3 output, 4 hit counts, 5 counters.
-constexpr uint32_t kBindings = 6;
+constexpr uint32_t kRtBindings = 6;
 constexpr VkShaderStageFlags kHitStages = VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR |
                                           VK_SHADER_STAGE_ANY_HIT_BIT_KHR |
                                           VK_SHADER_STAGE_INTERSECTION_BIT_KHR;
-
-uint64_t align_up(uint64_t value, uint64_t alignment) {
-  return alignment > 1 ? (value + alignment - 1) / alignment * alignment : value;
-}
 
 }  // namespace
 
@@ -69,28 +65,28 @@ struct RtRenderer::State {
 
   void create_layout() {
     VkDevice d = ctx.device();
-    std::array<VkDescriptorSetLayoutBinding, kBindings> b{};
-    const VkDescriptorType types[kBindings] = {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR,
-                                               VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
-                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                               VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
-    const VkShaderStageFlags stages[kBindings] = {
+    std::array<VkDescriptorSetLayoutBinding, kRtBindings> b{};
+    const VkDescriptorType types[kRtBindings] = {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR,
+                                                 VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+                                                 VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                                 VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                                 VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                                 VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+    const VkShaderStageFlags stages[kRtBindings] = {
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR | kHitStages | VK_SHADER_STAGE_MISS_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR | kHitStages,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR,
         VK_SHADER_STAGE_RAYGEN_BIT_KHR};
-    for (uint32_t i = 0; i < kBindings; ++i) {
+    for (uint32_t i = 0; i < kRtBindings; ++i) {
       b[i].binding = i;
       b[i].descriptorType = types[i];
       b[i].descriptorCount = 1;
       b[i].stageFlags = stages[i];
     }
     VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    info.bindingCount = kBindings;
+    info.bindingCount = kRtBindings;
     info.pBindings = b.data();
     check(vkCreateDescriptorSetLayout(d, &info, nullptr, &set_layout), "descriptor set layout");
     VkPipelineLayoutCreateInfo pl{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
@@ -202,12 +198,12 @@ struct RtRenderer::State {
         VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
     as.accelerationStructureCount = 1;
     as.pAccelerationStructures = &tlas;
-    const Buffer* buffers[kBindings] = {
+    const Buffer* buffers[kRtBindings] = {
         nullptr,           &uniforms,           &scene.chunk_table(),
         &targets.rgba.gpu, &targets.counts.gpu, &counters.gpu};
-    std::array<VkDescriptorBufferInfo, kBindings> infos{};
-    std::array<VkWriteDescriptorSet, kBindings> writes{};
-    for (uint32_t i = 0; i < kBindings; ++i) {
+    std::array<VkDescriptorBufferInfo, kRtBindings> infos{};
+    std::array<VkWriteDescriptorSet, kRtBindings> writes{};
+    for (uint32_t i = 0; i < kRtBindings; ++i) {
       writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
       writes[i].dstSet = set;
       writes[i].dstBinding = i;
@@ -222,7 +218,7 @@ struct RtRenderer::State {
           i == 1 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
       writes[i].pBufferInfo = &infos[i];
     }
-    vkUpdateDescriptorSets(ctx.device(), kBindings, writes.data(), 0, nullptr);
+    vkUpdateDescriptorSets(ctx.device(), kRtBindings, writes.data(), 0, nullptr);
   }
 };
 

@@ -26,10 +26,6 @@ constexpr VkBufferUsageFlags kInputUsage =
 constexpr VkBufferUsageFlags kAsUsage = VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_STORAGE_BIT_KHR |
                                         VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;
 
-uint64_t align_up(uint64_t value, uint64_t alignment) {
-  return alignment > 1 ? (value + alignment - 1) / alignment * alignment : value;
-}
-
 // An acceleration structure and the buffer it lives in.
 struct As {
   VkAccelerationStructureKHR handle = VK_NULL_HANDLE;

@@ -31,7 +31,7 @@ constexpr uint32_t kTile = 16;
 // chunks, 17 each tile's first key in a walk again, 18 the uniforms again as a storage buffer
 // (shaders/tiles.glsl, tiles_composite.glsl); 19 and 20 (arrays) the primitives' units and
 // words past one storage buffer, pages 1 on (shaders/tiles_pages.glsl).
-constexpr uint32_t kBindings = 19;
+constexpr uint32_t kTileBindings = 19;
 // Pages of units (points; vertices, two each) and of words (segment words; indices), the first
 // at bindings 1 and 2: 8 and 4 keep the set's storage buffers within Mesa gallium's 32 a stage
 // (shaders/pages.glsl), and on NVIDIA (pages of 2 GiB) hold 2^30 points, more than a segment word
@@ -161,8 +161,8 @@ struct TileRenderer::State {
                       &slice_tiles, &walk_again, &tile_slots, &chunk_far, &walk_first, &uniforms});
     // Pages not there are bound to the first, which the shaders then never read through them.
     for (const auto& [binding, first, pages, count] :
-         {std::tuple{kBindings, &points, &point_pages, kUnitPages},
-          std::tuple{kBindings + 1, &segments, &segment_pages, kWordPages}}) {
+         {std::tuple{kTileBindings, &points, &point_pages, kUnitPages},
+          std::tuple{kTileBindings + 1, &segments, &segment_pages, kWordPages}}) {
       std::vector<const Buffer*> bound;
       for (size_t i = 0; i + 1 < count; ++i)
         bound.push_back(i < pages->size() ? &(*pages)[i] : first);
@@ -238,7 +238,7 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
   const bool lavapipe = ctx.info().lavapipe;
   slice_keys = slice_keys_wanted > 0 ? slice_keys_wanted : lavapipe ? kCappedSliceKeys : 0;
   VkDevice d = ctx.device();
-  set = create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT,
+  set = create_buffer_set(d, kTileBindings, VK_SHADER_STAGE_COMPUTE_BIT,
                           {kUnitPages - 1, kWordPages - 1});
   // The composite whose window loops leave past the pending hits, except on lavapipe, where
   // they run slower than loops of fixed trips (shaders/tiles_composite.glsl).

@@ -34,7 +34,7 @@ struct VrcUniforms {
   float opacities[kMaxTfPoints][4];
 };
 
-constexpr uint32_t kBindings = 7;     // uniforms, offsets, chords, occupancy, output, hits, slices
+constexpr uint32_t kVrcBindings = 7;  // uniforms, offsets, chords, occupancy, output, hits, slices
 constexpr uint32_t kGridPages = 8;    // bindings 7 and 8: offsets and chords split (vrc.comp)
 constexpr uint32_t kStateBytes = 48;  // a sliced walk's pixel between dispatches (vrc.comp)
 constexpr uint32_t kSliceCounters = 16;  // cut_short, unfinished and two spare words
@@ -89,7 +89,7 @@ struct VoxelCaster::State {
                      {&uniforms, &offsets, &chords, &occupancy, &targets.rgba.gpu,
                       &targets.counts.gpu, &slices});
     for (auto [binding, pages] :
-         {std::pair{kBindings, &offset_pages}, std::pair{kBindings + 1, &chord_pages}}) {
+         {std::pair{kVrcBindings, &offset_pages}, std::pair{kVrcBindings + 1, &chord_pages}}) {
       std::vector<const Buffer*> bound;
       for (uint32_t i = 0; i < kGridPages; ++i)
         bound.push_back(i < pages->size() ? &(*pages)[i] : &occupancy);
@@ -206,7 +206,7 @@ VoxelCaster::VoxelCaster(Context& context, const VoxelGrid& grid, const Occupanc
   s.hold_slices(kSliceCounters);
   VkDevice d = context.device();
   const BufferSet b =
-      create_buffer_set(d, kBindings, VK_SHADER_STAGE_COMPUTE_BIT, {kGridPages, kGridPages});
+      create_buffer_set(d, kVrcBindings, VK_SHADER_STAGE_COMPUTE_BIT, {kGridPages, kGridPages});
   s.set_layout = b.set_layout, s.layout = b.layout, s.pool = b.pool, s.set = b.set;
   const uint32_t paged_constant = paged ? 1u : 0u;  // vrc.comp kPaged
   const VkSpecializationMapEntry entry{0, 0, 4};
