@@ -45,11 +45,11 @@ struct Copy {
   const std::string& root;  // the group copied
   // The objects copied, by their place in the source file, with their path in the target: an
   // object linked twice (or a group linked into itself) is linked again, not copied again.
-  mutable std::map<haddr_t, std::string> copied;
+  mutable std::map<haddr_t, std::string> copied{};
   // The target's committed datatypes that datasets took, by the source type's place: opened
   // where the type was copied before them, committed without a name where it comes later (and
   // linked when the copy reaches it).
-  mutable std::map<haddr_t, Handle> shared_types;
+  mutable std::map<haddr_t, Handle> shared_types{};
 
   [[noreturn]] void cannot_read(const std::string& object, const std::string& what) const {
     throw InputError(source_path, object, "cannot read " + what + " (" + h5::last_error() + ")");
@@ -338,8 +338,7 @@ struct Copy {
 void copy_group_tree(hid_t source, const std::string& source_path, hid_t target,
                      const std::string& target_path, const std::string& group,
                      uint64_t slab_bytes) {
-  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1), target, group,
-                  {},          {}};
+  const Copy copy{source_path, target_path, std::max<uint64_t>(slab_bytes, 1), target, group};
   Handle from(H5Gopen2(source, group.c_str(), H5P_DEFAULT), H5Gclose);
   if (!from.valid()) copy.cannot_read(group, "the group");
   if (H5O_info_t top{}; H5Oget_info2(from, &top, H5O_INFO_BASIC) >= 0)
