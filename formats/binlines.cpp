@@ -111,10 +111,25 @@ std::unique_ptr<LineReader> open_binlines(const std::string& path, const ReadOpt
 
 namespace {
 
+// `n` points from `xyz` as world coordinates: the format holds float32 only, so a line set with
+// an origin (lines/origin.hpp) is written with it added and rounded to float32 (convert says what
+// that loses: formats/registry.hpp, lost_in_format).
+template <typename Out>
+void write_positions(Out& out, const float* xyz, uint64_t n, const std::optional<Origin>& origin) {
+  if (!origin) return out.write(xyz, 12 * n);
+  std::vector<float> world(3 * n);
+  for (size_t i = 0; i < world.size(); ++i)
+    world[i] = static_cast<float>(to_world(xyz[i], (*origin)[i % 3]));
+  out.write(world.data(), 12 * n);
+}
+
 class BinlinesWriter : public LineWriter {
  public:
   BinlinesWriter(const std::string& path, const LineSet& header, const WriteOptions& options)
-      : file_(path), out_(file_.temp_path()), options_(options) {
+      : file_(path),
+        out_(file_.temp_path()),
+        options_(options),
+        origin_(optional_origin(header, path)) {
     if (options.binlines_version != 1 && options.binlines_version != 2)
       throw Error(".binlines version must be 1 or 2");
     attributes_ = header.attributes.size();
@@ -141,7 +156,7 @@ class BinlinesWriter : public LineWriter {
       if (n > UINT32_MAX) throw Error(".binlines lines hold at most 2^32-1 points");
       if (lines_ == UINT32_MAX) throw Error(".binlines holds at most 2^32-1 lines");
       out_.write_value<uint32_t>(static_cast<uint32_t>(n));
-      out_.write(batch.positions.data() + 3 * begin, 12 * n);
+      write_positions(out_, batch.positions.data() + 3 * begin, n, origin_);
       for (const Attribute& a : batch.attributes) out_.write(a.values.data() + begin, 4 * n);
       ++lines_;
     }
@@ -161,6 +176,7 @@ class BinlinesWriter : public LineWriter {
   AtomicFile file_;
   io::Writer out_;
   WriteOptions options_;
+  std::optional<Origin> origin_;
   size_t attributes_ = 0;
   uint64_t lines_ = 0;
 };
@@ -178,6 +194,7 @@ void write_binlines(const LineSet& lines, const std::string& path, const WriteOp
   if (options.binlines_version != 1 && options.binlines_version != 2)
     throw Error(".binlines version must be 1 or 2");
   if (lines.line_count() > UINT32_MAX) throw Error(".binlines holds at most 2^32-1 lines");
+  const std::optional<Origin> origin = optional_origin(lines, path);
   io::Writer out(path);
   out.write_value<uint32_t>(options.binlines_version);
   out.write_value<uint32_t>(static_cast<uint32_t>(lines.line_count()));
@@ -191,7 +208,7 @@ void write_binlines(const LineSet& lines, const std::string& path, const WriteOp
     const uint64_t begin = lines.line_offsets[line], n = lines.line_size(line);
     if (n > UINT32_MAX) throw Error(".binlines lines hold at most 2^32-1 points");
     out.write_value<uint32_t>(static_cast<uint32_t>(n));
-    out.write(lines.positions.data() + 3 * begin, 12 * n);
+    write_positions(out, lines.positions.data() + 3 * begin, n, origin);
     for (const Attribute& a : lines.attributes) out.write(a.values.data() + begin, 4 * n);
     if (options.progress && line % 16384 == 0) options.progress(line, lines.line_count());
   }

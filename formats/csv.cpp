@@ -165,7 +165,7 @@ class IdSet {
 class CsvReader : public LineReader {
  public:
   CsvReader(const std::string& path, const ReadOptions& options)
-      : in_(path, options.progress), memory_limit_(options.memory_limit) {
+      : in_(path, options.progress), memory_limit_(options.memory_limit), origin_(options.origin) {
     std::string_view row;
     if (!in_.next(row)) throw InputError(path, at_line(1), "empty file (expected a header)");
     // A UTF-8 byte-order mark (Excel's "CSV UTF-8") is no part of the first name.
@@ -228,7 +228,7 @@ class CsvReader : public LineReader {
         open_id_ = id;
       }
       float xyz[3];
-      for (int k = 0; k < 3; ++k) number(io::trim(fields[1 + k]), "coordinate", xyz[k]);
+      for (int k = 0; k < 3; ++k) coordinate(io::trim(fields[1 + k]), k, xyz[k]);
       open_.append_point(xyz[0], xyz[1], xyz[2]);
       for (size_t k = 4; k < fields.size(); ++k) {
         float v;
@@ -314,6 +314,18 @@ class CsvReader : public LineReader {
     }
   }
 
+  // A coordinate of `axis`, relative to the origin when there is one: read as a double and
+  // subtracted before it is rounded to float32 (lines/origin.hpp).
+  void coordinate(std::string_view token, int axis, float& out) const {
+    if (!origin_) return number(token, "coordinate", out);
+    double world;
+    if (!io::parse_double(token, world)) {
+      number(token, "coordinate", out);  // fails with the float32 reading's words
+      world = out;
+    }
+    out = to_local(world, (*origin_)[axis]);
+  }
+
   // Moves the open line into the batch.
   void close_line(LineSet& batch) {
     open_.end_line();
@@ -324,6 +336,7 @@ class CsvReader : public LineReader {
   static constexpr uint64_t kCheckPoints = 65536;  // the open line's memory checked so often
   io::TextReader in_;
   std::optional<uint64_t> memory_limit_;
+  std::optional<Origin> origin_;
   size_t columns_ = 0;
   IdSet finished_;
   std::optional<int64_t> open_id_;  // id of the line being read
@@ -340,6 +353,8 @@ std::unique_ptr<LineReader> open_csv(const std::string& path, const ReadOptions&
 }
 
 void write_csv(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  // World coordinates, in float64 text where the lines have an origin (lines/origin.hpp).
+  const std::optional<Origin> origin = optional_origin(lines, path);
   io::Writer out(path);
   std::string text = "line_id,x,y,z";
   for (const Attribute& a : lines.attributes) {
@@ -366,7 +381,10 @@ void write_csv(const LineSet& lines, const std::string& path, const WriteOptions
       text += id;
       for (int k = 0; k < 3; ++k) {
         text += ',';
-        io::append_float(text, lines.positions[3 * i + k]);
+        if (origin)
+          io::append_double(text, to_world(lines.positions[3 * i + k], (*origin)[k]));
+        else
+          io::append_float(text, lines.positions[3 * i + k]);
       }
       for (const Attribute& a : lines.attributes) {
         text += ',';

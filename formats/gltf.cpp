@@ -673,10 +673,14 @@ Pass run_pass(const TubeChunks* tubes, const LineSet* lines, const GltfOptions& 
   if (tubes) add_tubes(model, builder, *tubes, options, draco, chunk_done);
   if (lines) add_lines(model, builder, *lines, options);
   tinygltf::Scene scene;
+  const std::array<double, 3>& o = options.origin;
   for (size_t m = 0; m < model.meshes.size(); ++m) {
     tinygltf::Node node;
     node.mesh = int(m);
     node.name = model.meshes[m].name;
+    if (o != std::array<double, 3>{0, 0, 0})  // in glTF's axes, as the vertices
+      node.translation = options.axes == GltfAxes::ZUp ? std::vector<double>{o[0], o[2], -o[1]}
+                                                       : std::vector<double>{o[0], o[1], o[2]};
     model.nodes.push_back(node);
     scene.nodes.push_back(int(m));
   }

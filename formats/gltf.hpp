@@ -45,6 +45,10 @@ struct GltfOptions {
   std::vector<std::array<uint8_t, 3>> colour_map;
   std::array<float, 2> colour_range{0, 0};
   bool line_strips = false;  // the lines as one LINE_STRIP per polyline
+  // The lines' origin (lines/origin.hpp), data axes: every node's translation (glTF's numbers are
+  // JSON doubles), so that the float32 vertices stay relative to it and a viewer places them in
+  // world coordinates.
+  std::array<double, 3> origin{0, 0, 0};
 };
 
 // The tube mesh a chunk at a time (cache/tube_store.hpp's load_tube_description and

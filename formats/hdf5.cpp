@@ -101,7 +101,10 @@ bool numeric_attribute_text(hid_t file, const std::string& name, std::string& te
 class Hdf5Reader : public LineReader {
  public:
   Hdf5Reader(const std::string& path, const ReadOptions& options)
-      : path_(path), progress_(options.progress), memory_limit_(options.memory_limit) {
+      : path_(path),
+        progress_(options.progress),
+        memory_limit_(options.memory_limit),
+        origin_(options.origin) {
     h5::init();
     if (H5Fis_hdf5(path.c_str()) <= 0)
       throw InputError(path, "", "not an HDF5 file (or unreadable)");
@@ -144,6 +147,12 @@ class Hdf5Reader : public LineReader {
     const std::vector<hsize_t> dims = h5::shape_of(points_.dataset);
     if (dims.size() != 2 || dims[1] != 3)
       throw InputError(path, "dataset " + points_.name, "expected shape N x 3");
+    // The points are relative to the file's own origin (lines/origin.hpp): a cache's metadata,
+    // a line file's root attribute `origin` (3 float64, as write_hdf5 stores it).
+    frame_ = origin_of(header_, path);
+    if (has_origin(header_)) set_origin(header_, frame_);  // written as linebake writes it
+    Handle type(H5Dget_type(points_.dataset), H5Tclose);
+    points_float64_ = H5Tget_class(type) == H5T_FLOAT && H5Tget_size(type) > 4;
     const uint64_t n = dims[0];
     read_offsets(n);
     for (const std::string& name : h5::group_members(file_, prefix_ + "/attributes")) {
@@ -169,11 +178,12 @@ class Hdf5Reader : public LineReader {
     const uint64_t p1 = offsets_[end];
     if (end == first + 1)  // a line that comes alone
       io::check_line_memory(
-          path_, first, p1 - p0, double(p1 - p0) * double(12 + 4 * attributes_.size()) + 16.0,
+          path_, first, p1 - p0,
+          double(p1 - p0) * double(12 + 4 * attributes_.size() + points_held_as_float64()) + 16.0,
           "dataset " + prefix_ + "/points, rows " + std::to_string(p0) + ".." + std::to_string(p1),
           memory_limit_);
     batch.positions.resize(3 * (p1 - p0));
-    read(points_, p0, p1 - p0, batch.positions.data());
+    read_points(p0, p1 - p0, batch.positions.data());
     batch.line_offsets.resize(end - first + 1);
     for (size_t l = first; l <= end; ++l) batch.line_offsets[l - first] = offsets_[l] - p0;
     for (size_t a = 0; a < attributes_.size(); ++a) {
@@ -237,7 +247,33 @@ class Hdf5Reader : public LineReader {
     return d;
   }
 
+  // Bytes a point's float64 copy takes while it is moved to the origin asked for (read_points).
+  size_t points_held_as_float64() const { return origin_ && points_float64_ ? 24 : 0; }
+
+  // Rows of the points relative to the origin asked for, if any: the file's coordinates and its
+  // origin added and the new origin subtracted in double, then rounded once (float64 points are
+  // read as such).
+  void read_points(uint64_t first, uint64_t count, float* out) {
+    if (!origin_) return read(points_, first, count, out);
+    const Origin& to = *origin_;
+    if (!points_float64_) {
+      read(points_, first, count, out);
+      for (size_t i = 0; i < 3 * count; ++i)
+        out[i] = to_local(to_world(out[i], frame_[i % 3]), to[i % 3]);
+      return;
+    }
+    std::vector<double> world(3 * count);
+    read(points_, first, count, H5T_NATIVE_DOUBLE, world.data());
+    for (size_t i = 0; i < world.size(); ++i)
+      out[i] = to_local(world[i] + frame_[i % 3], to[i % 3]);
+  }
+
   void read(Data& d, uint64_t first, uint64_t count, float* out) {
+    read(d, first, count, H5T_NATIVE_FLOAT, out);
+  }
+
+  // `count` rows as `memory_type` (NATIVE_FLOAT or NATIVE_DOUBLE); a float32 read is hashed.
+  void read(Data& d, uint64_t first, uint64_t count, hid_t memory_type, void* out) {
     if (count == 0) return;
     const std::vector<hsize_t> dims = h5::shape_of(d.dataset);
     const hsize_t columns = dims.size() == 2 ? dims[1] : 1;
@@ -245,11 +281,12 @@ class Hdf5Reader : public LineReader {
     Handle file_space(H5Dget_space(d.dataset), H5Sclose);
     H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start, nullptr, extent, nullptr);
     Handle memory_space(H5Screate_simple(int(dims.size()), extent, nullptr), H5Sclose);
-    if (!read_direct(d.dataset, H5T_NATIVE_FLOAT, first, count, out, d.name) &&
-        H5Dread(d.dataset, H5T_NATIVE_FLOAT, memory_space, file_space, H5P_DEFAULT, out) < 0)
+    if (!read_direct(d.dataset, memory_type, first, count, out, d.name) &&
+        H5Dread(d.dataset, memory_type, memory_space, file_space, H5P_DEFAULT, out) < 0)
       throw InputError(path_, "dataset " + d.name,
                        "cannot read rows " + std::to_string(first) + ".." +
                            std::to_string(first + count) + " (wrong type or corrupt data)");
+    if (memory_type != H5T_NATIVE_FLOAT) return;  // hashes cover float32 data only (open)
     if (d.hash) d.hash->update(out, count * columns * sizeof(float));
     if (d.flat_hash) d.flat_hash->update(out, count * columns * sizeof(float));
   }
@@ -402,6 +439,9 @@ class Hdf5Reader : public LineReader {
   std::string path_;
   ProgressFn progress_;
   std::optional<uint64_t> memory_limit_;
+  std::optional<Origin> origin_;  // asked for
+  Origin frame_{0, 0, 0};         // the file's
+  bool points_float64_ = false;
   Handle file_;
   std::string prefix_;
   std::vector<uint64_t> offsets_;
@@ -424,7 +464,19 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
   Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl), H5Fclose);
   if (!file.valid()) throw OutputError(path, "cannot create HDF5 file");
   write_string_attribute(path, file, "linebake_version", LINEBAKE_VERSION);
-  for (const auto& [key, value] : lines.metadata) write_string_attribute(path, file, key, value);
+  // The origin (lines/origin.hpp) as 3 float64, what h5py users read as f.attrs['origin']; the
+  // points stay float32 relative to it.
+  for (const auto& [key, value] : lines.metadata)
+    if (key != kOriginKey) write_string_attribute(path, file, key, value);
+  if (has_origin(lines)) {
+    const Origin origin = origin_of(lines);
+    const hsize_t three = 3;
+    Handle space(H5Screate_simple(1, &three, nullptr), H5Sclose);
+    Handle attribute(H5Acreate2(file, kOriginKey, H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT),
+                     H5Aclose);
+    if (!attribute.valid() || H5Awrite(attribute, H5T_NATIVE_DOUBLE, origin.data()) < 0)
+      throw OutputError(path, "cannot write attribute origin: " + h5::last_error());
+  }
   write_dataset(path, file, "points", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, lines.positions.data(),
                 {lines.point_count(), 3});
   write_dataset(path, file, "line_offsets", H5T_STD_U64LE, H5T_NATIVE_UINT64,

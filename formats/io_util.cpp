@@ -277,6 +277,16 @@ void append_float(std::string& out, float v) {
   out.append(buffer, r.ptr);
 }
 
+void append_double(std::string& out, double v) {
+  if (std::isnan(v)) {
+    out += "nan";
+    return;
+  }
+  char buffer[32];
+  auto r = std::to_chars(buffer, buffer + sizeof(buffer), v);
+  out.append(buffer, r.ptr);
+}
+
 Writer::Writer(const std::string& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd_ < 0) throw OutputError(path, std::string("cannot create: ") + std::strerror(errno));

@@ -194,6 +194,7 @@ std::string component_name(const std::string& name, size_t c, size_t components,
 
 // Shortest text that parses back to exactly `v` ("nan", "inf", "-inf" for non-finite).
 void append_float(std::string& out, float v);
+void append_double(std::string& out, double v);
 
 // Buffered binary/text writer over an AtomicFile's temporary path, on POSIX write(2): a write
 // error (a full disk, a quota) is an OutputError with the system's reason, and a pending

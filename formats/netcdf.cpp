@@ -326,7 +326,10 @@ bool invalid(const Variable& v, double raw) {
 class NetcdfReader : public LineReader {
  public:
   NetcdfReader(const std::string& path, const ReadOptions& options)
-      : nc_(path), progress_(options.progress), memory_limit_(options.memory_limit) {
+      : nc_(path),
+        progress_(options.progress),
+        memory_limit_(options.memory_limit),
+        origin_(options.origin.value_or(Origin{0, 0, 0})) {
     vars_ = variables(nc_);
     const bool cf = lower(text_attribute(nc_, NC_GLOBAL, "featureType")) == "trajectory";
 
@@ -587,10 +590,11 @@ class NetcdfReader : public LineReader {
           start_points = batch.point_count();
           continue;
         }
+        // Unpacked in double, the origin (lines/origin.hpp) subtracted, then rounded.
         batch.append_point(
-            static_cast<float>(axes_[0]->unpack(position_values_[0][i])),
-            static_cast<float>(axes_[1]->unpack(position_values_[1][i])),
-            axes_[2] ? static_cast<float>(axes_[2]->unpack(position_values_[2][i])) : 0.0f);
+            to_local(axes_[0]->unpack(position_values_[0][i]), origin_[0]),
+            to_local(axes_[1]->unpack(position_values_[1][i]), origin_[1]),
+            to_local(axes_[2] ? axes_[2]->unpack(position_values_[2][i]) : 0.0, origin_[2]));
         for (size_t a = 0; a < attribute_vars_.size(); ++a) {
           const Variable& var = *attribute_vars_[a];
           const double v = attribute_values_[a][i];  // packed: the fill is compared as stored
@@ -675,6 +679,7 @@ class NetcdfReader : public LineReader {
   Nc nc_;
   ProgressFn progress_;
   std::optional<uint64_t> memory_limit_;
+  Origin origin_;
   std::vector<Variable> vars_;
   const Variable* counts_ = nullptr;  // the ragged count variable, if any
   const Variable* axes_[3] = {nullptr, nullptr, nullptr};

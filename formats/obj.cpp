@@ -84,9 +84,12 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
     if (key == "v") {
       if (tokens.size() < 4) in.fail("vertex needs 3 coordinates");
       for (int k = 1; k <= 3; ++k) {
-        float value;
-        if (!io::parse_float(tokens[k], value))
+        float value = 0;
+        double world = 0;  // with an origin, subtracted before rounding (lines/origin.hpp)
+        if (options.origin ? !io::parse_double(tokens[k], world)
+                           : !io::parse_float(tokens[k], value))
           in.fail("bad coordinate '" + std::string(tokens[k]) + "'");
+        if (options.origin) value = to_local(world, (*options.origin)[k - 1]);
         positions.push_back(value);
       }
       const bool has_color = tokens.size() == 7;
@@ -179,6 +182,8 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
 }
 
 void write_obj(const LineSet& lines, const std::string& path, const WriteOptions& options) {
+  // World coordinates, in float64 text where the lines have an origin (lines/origin.hpp).
+  const std::optional<Origin> origin = optional_origin(lines, path);
   io::Writer out(path);
   std::string text;
   text.reserve(1 << 20);
@@ -196,7 +201,10 @@ void write_obj(const LineSet& lines, const std::string& path, const WriteOptions
     text += "v";
     for (int k = 0; k < 3; ++k) {
       text += ' ';
-      io::append_float(text, lines.positions[3 * i + k]);
+      if (origin)
+        io::append_double(text, to_world(lines.positions[3 * i + k], (*origin)[k]));
+      else
+        io::append_float(text, lines.positions[3 * i + k]);
     }
     text += '\n';
     if (!lines.attributes.empty()) {

@@ -105,11 +105,17 @@ std::vector<std::string> lost_in_format(const LineSet& lines, Format format,
     for (const Attribute& a : lines.line_attributes) lost.push_back("line attribute " + a.name);
   if (format == Format::binlines && options.binlines_version == 1 && !lines.attributes.empty())
     lost.push_back("attribute names (binlines version 1)");
+  // A float32-only format holds the world coordinates of lines with an origin (lines/origin.hpp)
+  // rounded to float32 again.
+  if (has_origin(lines) && format == Format::binlines)
+    lost.push_back("positions' digits past float32 at world coordinates (origin " +
+                   lines.metadata.at(kOriginKey) +
+                   "; vtk, vtp, csv and obj keep them as float64, hdf5 keeps the origin)");
   if (!info.metadata) {
     std::string keys;
     for (const auto& [key, value] : lines.metadata)
       // The renames note is the read file's (with_unique_names): not the data's to keep.
-      if (key != "source" && key != "linebake.renamed_attributes")
+      if (key != "source" && key != "linebake.renamed_attributes" && key != kOriginKey)
         keys += (keys.empty() ? "" : ", ") + key;
     if (!keys.empty()) lost.push_back("metadata (" + keys + ")");
   }
@@ -223,12 +229,64 @@ std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader
   return std::make_unique<UniqueNames>(std::move(reader), std::move(header));
 }
 
+// The lines in the frame ReadOptions::origin asks for (lines/origin.hpp). The readers of text and
+// float64 numbers subtract it themselves, before rounding; a float32 source's points (`shift`:
+// binlines, TrackVis, MRtrix, synth) are moved here, which is as exact. The header says the frame:
+// the origin asked for; else a linebake HDF5 file's own; else none (an "origin" that another
+// format's metadata carries is not its points' frame, and is dropped).
+class InFrame : public LineReader {
+ public:
+  InFrame(std::unique_ptr<LineReader> inner, LineSet header, std::optional<Origin> shift)
+      : inner_(std::move(inner)), shift_(shift) {
+    header_ = std::move(header);
+  }
+  bool next(LineSet& batch, uint64_t max_points) override {
+    const bool more = inner_->next(batch, max_points);
+    if (shift_) shift_positions(batch.positions, *shift_);
+    lines_read_ = inner_->lines_read();
+    return more;
+  }
+  bool streams() const override { return inner_->streams(); }
+  uint64_t largest_line_hint() const override { return inner_->largest_line_hint(); }
+  std::optional<uint64_t> line_count_hint() const override { return inner_->line_count_hint(); }
+  std::optional<LineSet> take_whole() override {
+    std::optional<LineSet> whole = inner_->take_whole();
+    if (whole) {
+      if (shift_) shift_positions(whole->positions, *shift_);
+      whole->metadata = header_.metadata;
+    }
+    return whole;
+  }
+  std::string batch_file() const override { return inner_->batch_file(); }
+  uint64_t batch_file_line() const override { return inner_->batch_file_line(); }
+  std::map<std::string, uint64_t> counts_read() const override { return inner_->counts_read(); }
+
+ private:
+  std::unique_ptr<LineReader> inner_;
+  std::optional<Origin> shift_;
+};
+
+std::unique_ptr<LineReader> in_frame(std::unique_ptr<LineReader> reader, bool float32_source,
+                                     bool own_frame, const ReadOptions& options) {
+  LineSet header = reader->header();
+  const bool carried = has_origin(header) && !own_frame;
+  if (!options.origin && !carried) return reader;
+  if (options.origin)
+    set_origin(header, *options.origin);
+  else
+    header.metadata.erase(kOriginKey);
+  std::optional<Origin> shift;
+  if (float32_source && options.origin) shift = options.origin;
+  return std::make_unique<InFrame>(std::move(reader), std::move(header), shift);
+}
+
 }  // namespace
 
 std::unique_ptr<LineReader> open_line_reader(const std::string& source,
                                              const ReadOptions& options) {
   if (synth::is_synth_source(source))
-    return synth::open_generator(synth::parse_synth_source(source), options.progress);
+    return in_frame(synth::open_generator(synth::parse_synth_source(source), options.progress),
+                    true, false, options);
   const Format format = resolve_input_format(source, options.format);
   std::unique_ptr<LineReader> reader;
   const auto whole = [](LineSet lines) {
@@ -281,7 +339,10 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
         throw InputError(source, "attribute " + a.name,
                          "its name is not UTF-8 text; rename it (linebake keeps names in JSON, "
                          "which holds UTF-8 only)");
-  return with_unique_names(std::move(reader));
+  const bool float32_source =
+      format == Format::binlines || format == Format::trk || format == Format::tck;
+  return in_frame(with_unique_names(std::move(reader)), float32_source, format == Format::hdf5,
+                  options);
 }
 
 bool valid_utf8(std::string_view text) {
@@ -412,7 +473,8 @@ class MultiFileReader final : public LineReader {
  private:
   void open(size_t file) {
     file_ = file;
-    current_ = open_line_reader(sources_[file], options_);
+    current_ = file == 0 ? open_line_reader(sources_[file], options_)
+                         : open_in_frame(sources_[file], options_, origin_of(header_, sources_[0]));
     if (!current_->streams()) {
       // Read whole (OBJ, VTK, VTP): batches are cut from it, so its arrays must agree.
       LineSet whole = *current_->take_whole();
@@ -454,11 +516,47 @@ std::string counts_read_note(const std::map<std::string, uint64_t>& counts) {
   return note;
 }
 
+std::unique_ptr<LineReader> open_in_frame(const std::string& source, const ReadOptions& options,
+                                          const Origin& frame) {
+  std::unique_ptr<LineReader> reader = open_line_reader(source, options);
+  if (options.origin || origin_of(reader->header(), source) == frame) return reader;
+  ReadOptions in_frame = options;
+  in_frame.origin = frame;
+  return open_line_reader(source, in_frame);
+}
+
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options) {
   if (sources.empty()) throw Error("no input");
   if (sources.size() == 1) return open_line_reader(sources[0], options);
   return std::make_unique<MultiFileReader>(sources, options);
+}
+
+Origin auto_origin(const std::vector<std::string>& sources, const ReadOptions& options) {
+  ReadOptions plain = options;
+  plain.origin.reset();
+  plain.progress = nullptr;
+  const std::unique_ptr<LineReader> reader = open_line_reader(sources, plain);
+  const Origin frame = origin_of(reader->header(), sources.front());
+  LineSet batch;
+  while (reader->next(batch, 4096))
+    for (size_t i = 0; i < batch.point_count(); ++i) {
+      const float* p = &batch.positions[3 * i];
+      if (valid_point(p))
+        return rounded_origin(
+            {to_world(p[0], frame[0]), to_world(p[1], frame[1]), to_world(p[2], frame[2])});
+    }
+  return frame;
+}
+
+std::optional<Origin> resolve_origin(const std::string& text,
+                                     const std::vector<std::string>& sources,
+                                     const ReadOptions& options) {
+  if (text.empty()) return std::nullopt;
+  if (text == "auto") return auto_origin(sources, options);
+  const std::optional<Origin> origin = parse_origin(text);
+  if (!origin) throw UsageError("--origin: '" + text + "' is not auto nor X,Y,Z (three numbers)");
+  return origin;
 }
 
 namespace {

@@ -11,6 +11,7 @@
 #include "core/progress.hpp"
 #include "lines/line_reader.hpp"
 #include "lines/line_set.hpp"
+#include "lines/origin.hpp"
 
 namespace linebake {
 
@@ -49,6 +50,11 @@ struct ReadOptions {
   // line alone has more, and such a line is refused at its place (its byte offset, text line or
   // dataset rows) before it is read (LineReader::next).
   std::optional<uint64_t> memory_limit;
+  // Positions relative to this origin (lines/origin.hpp): each reader subtracts it in double
+  // where it turns the file's numbers into float32, and the header's metadata "origin" says it.
+  // None: the file's own frame (a linebake HDF5 file or cache keeps its origin; any other file's
+  // coordinates are taken as they are).
+  std::optional<Origin> origin;
 };
 
 struct WriteOptions {
@@ -80,6 +86,19 @@ std::vector<std::string> expand_inputs(const std::vector<std::string>& patterns)
 std::string counts_read_note(const std::map<std::string, uint64_t>& counts);
 std::unique_ptr<LineReader> open_line_reader(const std::vector<std::string>& sources,
                                              const ReadOptions& options = {});
+// One of several files read as one line set, in `frame`, the first file's origin
+// (lines/origin.hpp), where no origin is asked for and the file has another (a linebake HDF5 file's
+// own): opened again with `frame` as the origin asked for.
+std::unique_ptr<LineReader> open_in_frame(const std::string& source, const ReadOptions& options,
+                                          const Origin& frame);
+// `--origin auto` (lines/origin.hpp): the first valid point of the sources, in world coordinates,
+// rounded to integers; the sources' own origin (a linebake HDF5 file's) where no point is valid.
+// It reads the sources up to that point (a format read whole: all of it).
+Origin auto_origin(const std::vector<std::string>& sources, const ReadOptions& options = {});
+// An --origin option's text: "" none, "auto" (auto_origin) or X,Y,Z; UsageError otherwise.
+std::optional<Origin> resolve_origin(const std::string& text,
+                                     const std::vector<std::string>& sources,
+                                     const ReadOptions& options = {});
 // Whether `text` is well-formed UTF-8 (RFC 3629: no overlong forms, surrogates or code points
 // past U+10FFFF).
 bool valid_utf8(std::string_view text);

@@ -162,7 +162,8 @@ uint64_t vdb_build_bytes(const VoxelGrid& g) {
   return bytes + bytes / 10 + (uint64_t{16} << 20);
 }
 
-void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes) {
+void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes,
+               const std::array<double, 3>& origin) {
   const VoxelGrid& g = pieces.description();
   // OpenVDB's linear transforms refuse a scale whose determinant is below 3e-15 (ScaleMap, in
   // openvdb/math/Maps.h), so voxels smaller than about 1.45e-5 units cannot be written.
@@ -188,8 +189,10 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
   if (has_attribute) specs.push_back({"attribute_chord_max", attribute_max.c_str(), 0});
   // OpenVDB index (i, j, k) is the centre of a voxel; ours spans [origin + i h, origin + (i+1) h].
   const double h = g.voxel_size;
-  const double first_centre[3] = {double(g.origin[0]) + 0.5 * h, double(g.origin[1]) + 0.5 * h,
-                                  double(g.origin[2]) + 0.5 * h};
+  // The lines' origin (world = origin + position) moves the grid's, in double.
+  const double first_centre[3] = {origin[0] + double(g.origin[0]) + 0.5 * h,
+                                  origin[1] + double(g.origin[1]) + 0.5 * h,
+                                  origin[2] + double(g.origin[2]) + 0.5 * h};
   VdbBuild build(module, path);
   build.check(module.begin(h, first_centre, specs.data(), uint32_t(specs.size()), &build.grids,
                            build.error, sizeof build.error));
@@ -290,9 +293,10 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
   out.commit();
 }
 
-void write_vdb(const std::string& path, const VoxelGrid& grid) {
+void write_vdb(const std::string& path, const VoxelGrid& grid,
+               const std::array<double, 3>& origin) {
   GridPieces pieces(grid);
-  write_vdb(path, pieces);
+  write_vdb(path, pieces, {}, origin);
 }
 
 }  // namespace linebake

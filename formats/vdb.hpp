@@ -13,7 +13,8 @@
 //                        chords (where lines cross its faces or end in it), in data units;
 //                        a polyline point inside the voxel does not count.
 // Voxel (i, j, k) of the grid maps to OpenVDB index (i, j, k), and the linear transform puts
-// each index at the world-space centre of its voxel: the data's own axes (docs/cli.md, "Axes").
+// each index at the world-space centre of its voxel: the data's own axes (docs/cli.md, "Axes"),
+// the lines' origin (lines/origin.hpp) added in double.
 // Blosc-compressed. OpenVDB itself is loaded on first use (formats/vdb_module.h says why).
 
 #include <array>
@@ -45,8 +46,10 @@ uint64_t vdb_build_bytes(const VoxelGrid& description);
 // Writes the grid read a piece at a time (a cache's, voxel_store.hpp: never whole in memory).
 // Throws OutputError when the file cannot be written or the OpenVDB module cannot be loaded,
 // InputError (from the pieces) where the grid's arrays are not sound; nothing is left then.
-void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes = {});
+void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& sizes = {},
+               const std::array<double, 3>& origin = {0, 0, 0});
 // The same for a grid in memory.
-void write_vdb(const std::string& path, const VoxelGrid& grid);
+void write_vdb(const std::string& path, const VoxelGrid& grid,
+               const std::array<double, 3>& origin = {0, 0, 0});
 
 }  // namespace linebake

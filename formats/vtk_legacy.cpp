@@ -188,9 +188,11 @@ std::vector<std::string> read_metadata(LegacyStream& in, size_t components) {
   return names;
 }
 
+// `count` values into `out`; `before` and `total` place them in a larger array read in parts, for
+// the message of a file that ends early.
 template <typename Out>
 void read_values(LegacyStream& in, bool binary, const std::string& type_name, size_t count,
-                 Out* out) {
+                 Out* out, size_t before = 0, size_t total = 0) {
   const std::optional<io::Scalar> type = legacy_type(type_name);
   if (!type) in.fail("unsupported data type '" + type_name + "'");
   if (!binary) {
@@ -198,8 +200,8 @@ void read_values(LegacyStream& in, bool binary, const std::string& type_name, si
       const std::string t = in.token();
       double v;
       if (t.empty())
-        in.fail("file ends after " + std::to_string(i) + " of " + std::to_string(count) +
-                " values");
+        in.fail("file ends after " + std::to_string(before + i) + " of " +
+                std::to_string(total ? total : count) + " values");
       if (!io::parse_double(t, v)) in.fail("bad number '" + t + "'");
       if (!io::convert_scalar(v, out[i])) in.fail("value " + t + " is outside the array's range");
     }
@@ -215,6 +217,19 @@ void read_values(LegacyStream& in, bool binary, const std::string& type_name, si
     in.bytes(raw.data(), n * size);
     if (!io::decode_scalars(*type, raw.data(), n, swap, out + done))
       in.fail("a " + type_name + " value outside the range of the array it is read into");
+  }
+}
+
+// Points relative to `origin` (lines/origin.hpp): read as doubles a block at a time, the origin
+// subtracted, then rounded to float32.
+void read_local_points(LegacyStream& in, bool binary, const std::string& type_name, size_t count,
+                       float* out, const Origin& origin) {
+  constexpr size_t kBlock = 3 * 21845;  // whole points
+  std::vector<double> world(std::min(count, kBlock));
+  for (size_t done = 0; done < count; done += kBlock) {
+    const size_t n = std::min(kBlock, count - done);
+    read_values(in, binary, type_name, n, world.data(), done, count);
+    for (size_t i = 0; i < n; ++i) out[done + i] = to_local(world[i], origin[(done + i) % 3]);
   }
 }
 
@@ -474,7 +489,10 @@ LineSet read_vtk_legacy(const std::string& path, const ReadOptions& options) {
       if (binary) in.skip_line();
       hold(12.0 * double(n), 0, "POINTS (" + std::to_string(n) + " points)");
       points.resize(3 * n);
-      read_values(in, binary, type, 3 * n, points.data());
+      if (options.origin)
+        read_local_points(in, binary, type, 3 * n, points.data(), *options.origin);
+      else
+        read_values(in, binary, type, 3 * n, points.data());
     } else if (key == "LINES" || key == "VERTICES" || key == "POLYGONS" ||
                key == "TRIANGLE_STRIPS") {
       uint64_t a, b;
@@ -647,26 +665,35 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
   text += "linebake " LINEBAKE_VERSION " line set\n";
   text += binary ? "BINARY\n" : "ASCII\n";
   text += "DATASET POLYDATA\n";
+  // World coordinates, float64 where the lines have an origin (lines/origin.hpp), which is then
+  // no part of the metadata.
+  const std::optional<Origin> origin = optional_origin(lines, path);
+  const std::map<std::string, std::string> metadata = metadata_without_origin(lines);
   // Metadata as a data-set FIELD of one-value string arrays, as VTK writes a vtkStringArray.
-  if (!lines.metadata.empty()) {
-    text += "FIELD FieldData " + std::to_string(lines.metadata.size()) + "\n";
-    for (const auto& [key, value] : lines.metadata) {
+  if (!metadata.empty()) {
+    text += "FIELD FieldData " + std::to_string(metadata.size()) + "\n";
+    for (const auto& [key, value] : metadata) {
       text += io::encode_name(key) + " 1 1 string\n";
       text += binary ? vtk_binary_string(value) : encode_string(value);
       text += "\n";
     }
   }
-  text += "POINTS " + std::to_string(n) + " float\n";
+  text += "POINTS " + std::to_string(n) + (origin ? " double\n" : " float\n");
   out.write(text);
 
-  auto write_floats = [&](const float* values, size_t count, size_t per_row) {
+  // `count` values value(0), value(1), ...: floats or doubles.
+  auto write_values = [&](size_t count, size_t per_row, const auto& value) {
     std::string chunk;
     for (size_t i = 0; i < count; ++i) {
+      const auto v = value(i);
       if (binary) {
-        const float v = io::byteswap_value(values[i]);
-        chunk.append(reinterpret_cast<const char*>(&v), 4);
+        const auto swapped = io::byteswap_value(v);
+        chunk.append(reinterpret_cast<const char*>(&swapped), sizeof swapped);
       } else {
-        io::append_float(chunk, values[i]);
+        if constexpr (std::is_same_v<decltype(v), const double>)
+          io::append_double(chunk, v);
+        else
+          io::append_float(chunk, v);
         chunk += (i + 1) % per_row == 0 ? '\n' : ' ';
       }
       if (chunk.size() > (1 << 20)) {
@@ -677,6 +704,9 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
     if (!binary && count % per_row != 0) chunk += '\n';
     if (binary) chunk += '\n';
     out.write(chunk);
+  };
+  auto write_floats = [&](const float* values, size_t count, size_t per_row) {
+    write_values(count, per_row, [&](size_t i) { return values[i]; });
   };
   auto write_ints = [&](const std::vector<int64_t>& values, bool wide, size_t per_row) {
     std::string chunk;
@@ -701,7 +731,11 @@ void write_vtk_legacy(const LineSet& lines, const std::string& path, const Write
     out.write(chunk);
   };
 
-  write_floats(lines.positions.data(), lines.positions.size(), 3);
+  if (origin)
+    write_values(lines.positions.size(), 3,
+                 [&](size_t i) { return to_world(lines.positions[i], (*origin)[i % 3]); });
+  else
+    write_floats(lines.positions.data(), lines.positions.size(), 3);
   if (options.progress) options.progress(1, 3);
   if (modern) {
     out.write("LINES " + std::to_string(l + 1) + " " + std::to_string(n) + "\n");

@@ -455,6 +455,8 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
     }
   };
   reading(piece.child("Points"), 3 * point_count, false);
+  // With an origin, the points are read as doubles first (below).
+  if (options.origin) largest_read += 24 * double(point_count);
   reading(piece.child("PointData"), point_count, true);
   reading(piece.child("CellData"), cells, true);
   for (pugi::xml_node a : piece.child("Lines").children("DataArray"))
@@ -475,7 +477,14 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
   if (points) {
     if (points.attribute("NumberOfComponents").as_ullong(1) != 3)
       throw InputError(path, "Points", "points need 3 components");
-    lines.positions = read_array<float>(ctx, points, 3 * point_count);
+    if (options.origin) {  // subtracted in double, then rounded (lines/origin.hpp)
+      const std::vector<double> world = read_array<double>(ctx, points, 3 * point_count);
+      lines.positions.resize(world.size());
+      for (size_t i = 0; i < world.size(); ++i)
+        lines.positions[i] = to_local(world[i], (*options.origin)[i % 3]);
+    } else {
+      lines.positions = read_array<float>(ctx, points, 3 * point_count);
+    }
   }
   std::vector<int64_t> connectivity, offsets;
   for (pugi::xml_node a : piece.child("Lines").children("DataArray")) {
@@ -567,7 +576,9 @@ class VtpWriter {
     if (options_.vtp_encoding == "ascii") {
       std::string text = head + " format=\"ascii\">\n";
       for (size_t i = 0; i < count; ++i) {
-        if constexpr (std::is_floating_point_v<T>)
+        if constexpr (std::is_same_v<T, double>)
+          io::append_double(text, values[i]);
+        else if constexpr (std::is_floating_point_v<T>)
           io::append_float(text, static_cast<float>(values[i]));
         else
           text += std::to_string(values[i]);
@@ -681,11 +692,15 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" "
       "byte_order=\"LittleEndian\"" +
       w.header_attributes() + ">\n<PolyData>\n";
+  // World coordinates, Float64 where the lines have an origin (lines/origin.hpp), which is then
+  // no part of the metadata.
+  const std::optional<Origin> origin = optional_origin(lines, path);
+  const std::map<std::string, std::string> metadata = metadata_without_origin(lines);
   // Metadata as FieldData string arrays (what VTK writes for a vtkStringArray; ParaView shows
   // them in its Information panel).
-  if (!lines.metadata.empty()) {
+  if (!metadata.empty()) {
     body += "<FieldData>\n";
-    for (const auto& [key, value] : lines.metadata) {
+    for (const auto& [key, value] : metadata) {
       body += "<Array type=\"String\" Name=\"" + VtpWriter::escape(key) +
               "\" NumberOfTuples=\"1\" format=\"ascii\">\n";
       for (unsigned char c : value) body += std::to_string(c) + " ";
@@ -696,8 +711,15 @@ void write_vtp(const LineSet& lines, const std::string& path, const WriteOptions
   body += "<Piece NumberOfPoints=\"" + std::to_string(n) +
           "\" NumberOfVerts=\"0\" NumberOfLines=\"" + std::to_string(l) +
           "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
-  body +=
-      "<Points>\n" + w.array("Points", "Float32", 3, lines.positions.data(), 3 * n) + "</Points>\n";
+  if (origin) {
+    std::vector<double> world(3 * n);
+    for (size_t i = 0; i < world.size(); ++i)
+      world[i] = to_world(lines.positions[i], (*origin)[i % 3]);
+    body += "<Points>\n" + w.array("Points", "Float64", 3, world.data(), 3 * n) + "</Points>\n";
+  } else {
+    body += "<Points>\n" + w.array("Points", "Float32", 3, lines.positions.data(), 3 * n) +
+            "</Points>\n";
+  }
   std::vector<int64_t> connectivity(n), offsets(l);
   for (uint64_t i = 0; i < n; ++i) connectivity[i] = static_cast<int64_t>(i);
   for (uint64_t i = 0; i < l; ++i) offsets[i] = static_cast<int64_t>(lines.line_offsets[i + 1]);

@@ -53,6 +53,8 @@ class LineSet:
     @property
     def metadata(self) -> dict[str, str]: ...
     @property
+    def origin(self) -> Optional[Tuple[float, float, float]]: ...
+    @property
     def source(self) -> Optional[str]: ...
     @property
     def point_count(self) -> int: ...
@@ -68,7 +70,11 @@ class LineSet:
     def same_data(self, other: "LineSet") -> bool: ...
 
 def read(
-    source: StrPath, format: Optional[str] = None, *, memory_budget: Optional[MemoryBudget] = None
+    source: StrPath,
+    format: Optional[str] = None,
+    *,
+    memory_budget: Optional[MemoryBudget] = None,
+    origin: Union[None, str, Sequence[float]] = None,
 ) -> LineSet: ...
 def write(
     lines: LineSet,
@@ -104,6 +110,7 @@ def bake(
     progress: bool = False,
     format: str = ...,
     on_invalid: str = ...,
+    origin: Union[None, str, Sequence[float]] = ...,
     tube_sides: int = ...,
     radius: float = ...,
     radius_absolute: bool = ...,

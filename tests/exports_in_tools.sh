@@ -107,5 +107,73 @@ assert np.all(np.abs(vlo - data_lo) <= tolerance) and np.all(np.abs(vhi - data_h
 print("VDB", vlo, vhi, "glTF in data axes", data_lo, data_hi, "voxel", h, "radius", radius)
 EOF
 
+# Far-off lines (lines/origin.hpp): UTM-like coordinates whose centimetres float32 cannot hold at
+# 5.4e6, baked at `--origin auto`. VTK's readers (python3-vtk9) see the .vtp's and .vtk's float64
+# world points equal to the CSV's numbers; pyopenvdb's transform and the glTF's node translation
+# put the voxels and the tubes back at the world coordinates.
+$python - <<'EOF'
+with open("utm.csv", "w") as f:
+    f.write("line_id,x,y,z,speed\n")
+    for l in range(4):
+        for i in range(40):
+            f.write(f"{l},{500000.25 + 2.0 * i + 0.01 * l},{5400000.07 + 1.5 * l + 0.03 * i},{120.5 + 0.1 * i},{i}\n")
+EOF
+check "bake --origin auto" "$bin" bake utm.csv --origin auto --assets tubes,voxels -o utm.lbc.h5
+check "export of lines with an origin" "$bin" export utm.lbc.h5 -o utm.glb -o utm.vdb
+check "convert --origin auto to vtp" "$bin" convert utm.csv --origin auto -o utm.vtp
+check "convert --origin auto to vtk" "$bin" convert utm.csv --origin auto -o utm.vtk
+origin=$("$bin" info utm.lbc.h5 --json | $python -c 'import json,sys; print(json.load(sys.stdin)["metadata"]["origin"])')
+check "the tools place far-off lines at their world coordinates" $python - "$origin" <<'EOF'
+import json, struct, sys
+import numpy as np
+import pyopenvdb as vdb
+import vtk
+
+origin = np.array([float(v) for v in sys.argv[1].split()])
+world = np.loadtxt("utm.csv", delimiter=",", skiprows=1)[:, 1:4]
+# The first point (as float32 reads it), rounded half away from 0: auto's origin.
+first = world[0].astype(np.float32).astype(np.float64)
+assert np.array_equal(origin, np.sign(first) * np.floor(np.abs(first) + 0.5)), (origin, first)
+lo, hi = world.min(axis=0), world.max(axis=0)
+for name, reader in (("utm.vtp", vtk.vtkXMLPolyDataReader()), ("utm.vtk", vtk.vtkPolyDataReader())):
+    reader.SetFileName(name)
+    reader.Update()
+    points = reader.GetOutput().GetPoints()
+    assert points.GetDataType() == vtk.VTK_DOUBLE, (name, points.GetDataType())
+    got = np.array([points.GetPoint(i) for i in range(points.GetNumberOfPoints())])
+    # float32 relative to the origin, added back in float64: the CSV's numbers to half a float32
+    # step at the largest distance from the origin (4e-6 here; read as float32 world coordinates
+    # they would be up to 0.25 off).
+    step = float(np.spacing(np.float32(np.abs(world - origin).max())))
+    assert np.abs(got - world).max() <= step / 2 * (1 + 1e-9), (name, np.abs(got - world).max(), step)
+    assert np.abs(world.astype(np.float32) - world).max() > 0.01
+
+data = open("utm.glb", "rb").read()
+json_len, = struct.unpack_from("<I", data, 12)
+doc = json.loads(data[20:20 + json_len])
+for node in doc["nodes"]:
+    assert node["translation"] == [origin[0], origin[2], -origin[1]], node  # glTF +y is data +z
+prims = doc["meshes"][0]["primitives"]
+glo = np.min([doc["accessors"][p["attributes"]["POSITION"]]["min"] for p in prims], axis=0)
+ghi = np.max([doc["accessors"][p["attributes"]["POSITION"]]["max"] for p in prims], axis=0)
+t = np.array(doc["nodes"][0]["translation"])
+tube_lo = np.array([glo[0] + t[0], -(ghi[2] + t[2]), glo[1] + t[1]])
+tube_hi = np.array([ghi[0] + t[0], -(glo[2] + t[2]), ghi[1] + t[1]])
+radius = doc["meshes"][0]["extras"]["linebake_tube_radius"]
+assert np.all(np.abs(tube_lo - lo) <= radius + 1e-3) and np.all(np.abs(tube_hi - hi) <= radius + 1e-3), (tube_lo, lo, tube_hi, hi)
+
+density = vdb.read("utm.vdb", "density")
+ijk_lo, ijk_hi = density.evalActiveVoxelBoundingBox()
+h = density.transform.voxelSize()[0]
+vlo = np.array(density.transform.indexToWorld(ijk_lo)) - h / 2
+vhi = np.array(density.transform.indexToWorld(ijk_hi)) + h / 2
+assert np.all(np.abs(vlo - lo) <= h + 1e-3) and np.all(np.abs(vhi - hi) <= h + 1e-3), (vlo, lo, vhi, hi, h)
+print("world", lo, hi, "VDB", vlo, vhi, "glTF", tube_lo, tube_hi)
+EOF
+# A bake at another origin reads the lines again; baking a cache in place cannot move them.
+check "a bake at another origin rebuilds the lines" bash -c '"$0" bake utm.csv --origin 500000,5400000,0 --assets tubes,voxels -o utm.lbc.h5 && "$0" info utm.lbc.h5 | grep -qx "origin      500000 5400000 0"' "$bin"
+check "--origin on a cache baked in place is refused" exit_code 1 "$bin" bake utm.lbc.h5 --origin 1,2,3 --assets embree
+check "--origin that is not three numbers is refused" exit_code 1 "$bin" convert utm.csv --origin 1,2 -o x.vtp
+
 echo "exports_in_tools: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -130,6 +130,23 @@ check "three ranks, two lines: the serial bake's datasets" bash -c "
        <(h5dump -A two-mpi.lbc.h5 | grep -A12 xxh3_128_blocks) > /dev/null &&
   [ \$(h5dump -A two-mpi.lbc.h5 | grep -c xxh3_128_blocks) -ge 5 ]"
 
+# Far-off lines (lines/origin.hpp): the parts moved by 5e6 and baked at --origin auto, which every
+# rank finds alone (the first point of the first file); the MPI cache's datasets and metadata are
+# the serial bake's.
+mkdir far
+for f in run/part_*; do
+  "$bin" convert "$f" -o near.csv >/dev/null 2>&1
+  awk -F, -v OFS=, 'NR > 1 { $2 = sprintf("%.9f", $2 + 5000000); $3 = sprintf("%.9f", $3 + 5000000) } 1' \
+    near.csv > "far/$(basename "${f%.*}").csv"
+done
+"$bin" bake 'far/part_*' -o far-serial.lbc.h5 --origin auto >/dev/null 2>&1
+check "np 3 at --origin auto: the serial bake's datasets and origin" bash -c "
+  mpirun -np 3 '$mpi' bake 'far/part_*' -o far-mpi.lbc.h5 --origin auto > /dev/null &&
+  diff <(hashes far-serial.lbc.h5) <(hashes far-mpi.lbc.h5) &&
+  '$bin' info far-mpi.lbc.h5 | grep -E '^origin +5000' &&
+  diff <('$bin' info far-serial.lbc.h5 | grep -E '^(origin|world)') \
+       <('$bin' info far-mpi.lbc.h5 | grep -E '^(origin|world)')"
+
 check "one file: the serial bake finds the MPI cache up to date (same identity)" bash -c "
   mpirun -np 2 '$mpi' bake run/part_0.binlines -o one.lbc.h5 > /dev/null &&
   '$bin' bake run/part_0.binlines -o one.lbc.h5 2>&1 | grep -q 'is up to date'"

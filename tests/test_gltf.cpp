@@ -507,5 +507,31 @@ TEST(Gltf, NothingToExportIsAnError) {
   EXPECT_TRUE(dir.entries().empty());
 }
 
+// Lines with an origin (lines/origin.hpp): the vertices stay float32 relative to it, and every
+// node carries it as its translation, in the output's axes; none without one.
+TEST(Gltf, NodesCarryTheLinesOriginAsTheirTranslation) {
+  test::TempDir dir;
+  const LineSet lines = spiral_lines(3);
+  const TubeMesh mesh = chunked_tubes(lines);
+  GltfOptions options;
+  write_gltf(dir.file("none.glb"), &mesh, &lines, options);
+  for (const json& node : read_glb(dir.file("none.glb")).doc["nodes"])
+    EXPECT_FALSE(node.contains("translation"));
+  options.origin = {500000.25, 5400000.5, -12};
+  write_gltf(dir.file("z.glb"), &mesh, &lines, options);
+  const Glb z = read_glb(dir.file("z.glb"));
+  ASSERT_EQ(z.doc["nodes"].size(), 2u);  // the tubes and the lines
+  for (const json& node : z.doc["nodes"])
+    EXPECT_EQ(node["translation"].get<std::vector<double>>(),
+              (std::vector<double>{500000.25, -12, -5400000.5}));  // glTF (x, y, z) = (x, z, -y)
+  options.axes = GltfAxes::Raw;
+  write_gltf(dir.file("raw.glb"), &mesh, &lines, options);
+  const Glb raw = read_glb(dir.file("raw.glb"));
+  EXPECT_EQ(raw.doc["nodes"][0]["translation"].get<std::vector<double>>(),
+            (std::vector<double>{500000.25, 5400000.5, -12}));
+  // The vertices are the chunks' own, unmoved.
+  expect_chunk_arrays(raw, raw.doc["meshes"][0]["primitives"][0], mesh.chunks[0]);
+}
+
 }  // namespace
 }  // namespace linebake

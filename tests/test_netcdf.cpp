@@ -149,6 +149,44 @@ TEST(NetCdf, CfMultidimensionalWithAxisAttributes) {
   EXPECT_EQ(l.metadata.at("netcdf.layout"), "cf-multidimensional");
 }
 
+// Earth-centred coordinates (6.4e6 m) read at an origin: unpacked and moved in double, rounded
+// once, so the centimetres float32 cannot hold at 6.4e6 (steps of 0.5 m) are kept.
+TEST(NetCdf, PositionsAreMovedToTheOriginBeforeFloat32) {
+  TempDir dir;
+  const std::string path = dir.file("ecef.nc");
+  int nc, d[2], x, y, z;
+  ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
+  ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc, "trajectory", 1, &d[0]));
+  ok(nc_def_dim(nc, "obs", 3, &d[1]));
+  ok(nc_def_var(nc, "x", NC_DOUBLE, 2, d, &x));
+  ok(nc_put_att_text(nc, x, "axis", 1, "X"));
+  ok(nc_def_var(nc, "y", NC_DOUBLE, 2, d, &y));
+  ok(nc_put_att_text(nc, y, "axis", 1, "Y"));
+  ok(nc_def_var(nc, "z", NC_DOUBLE, 2, d, &z));
+  ok(nc_put_att_text(nc, z, "axis", 1, "Z"));
+  ok(nc_enddef(nc));
+  const double xs[] = {4198944.61, 4198944.62, 4198944.63}, ys[] = {174747.25, 174747.5, 174748},
+               zs[] = {4781886.07, 4781886.08, 4781886.09};
+  ok(nc_put_var_double(nc, x, xs));
+  ok(nc_put_var_double(nc, y, ys));
+  ok(nc_put_var_double(nc, z, zs));
+  ok(nc_close(nc));
+  ReadOptions options;
+  options.origin = Origin{4198944, 174747, 4781886};
+  const LineSet l = read_line_set(path, options);
+  ASSERT_EQ(l.positions.size(), 9u);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(l.positions[3 * i], float(xs[i] - 4198944));
+    EXPECT_EQ(l.positions[3 * i + 1], float(ys[i] - 174747));
+    EXPECT_EQ(l.positions[3 * i + 2], float(zs[i] - 4781886));
+  }
+  // Without it the three x differ by 1 cm and read as one float32 value.
+  const LineSet plain = read_line_set(path);
+  EXPECT_EQ(plain.positions[0], plain.positions[3]);
+  EXPECT_NE(l.positions[0], l.positions[3]);
+}
+
 TEST(NetCdf, CfContiguousRagged) {
   TempDir dir;
   const std::string path = dir.file("ragged.nc");

@@ -133,6 +133,15 @@ CLI::Validator one_of(const std::vector<std::string>& names) {
       "{" + list + "}");
 }
 
+CLI::Validator origin_value() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text == "auto" || parse_origin(text)) return {};
+        return "'" + text + "' is not auto nor X,Y,Z (three finite numbers)";
+      },
+      "auto|X,Y,Z");
+}
+
 const std::vector<DeprecatedAlias>& deprecated_aliases() {
   // The spelling each concept has in every command: an asset's or technique's options carry its
   // name (bake's spelling), inputs are positional, outputs are -o.

@@ -22,6 +22,12 @@ CLI::Validator memory_budget_size();          // byte_size, and not 0 (unlimited
 CLI::Validator grid_check();
 // One of `names`; else the list and the nearest ("did you mean").
 CLI::Validator one_of(const std::vector<std::string>& names);
+// --origin (lines/origin.hpp): "auto" or X,Y,Z.
+CLI::Validator origin_value();
+// --origin's help, the same in every command that reads lines.
+inline constexpr const char* kOriginHelp =
+    "Keep positions relative to this origin, subtracted in double before float32 (for UTM or "
+    "ECEF coordinates): X,Y,Z, or auto (the first valid point, rounded); exports add it back";
 // The numbers `linebake bake` takes (--tube-sides, --radius, --compression-level, --chunk-bytes,
 // --quantization, --max-chords, --embree-max-primitives): its options and the Python module's
 // bake() check them alike. std::logic_error for another option.

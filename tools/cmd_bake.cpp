@@ -50,6 +50,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(one_of({"reject", "repair"}));
+  sub->add_option("--origin", o.origin, kOriginHelp)->check(origin_value());
   sub->add_option("--assets", o.assets,
                   "Assets to build: tubes, voxels, embree, rtx (default: tubes)")
       ->delimiter(',')

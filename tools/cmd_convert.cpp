@@ -55,7 +55,7 @@ Command add_convert(CLI::App& app) {
   auto* sub = app.add_subcommand("convert", "Convert a line set between formats");
   struct Args {
     std::string input, output, positional_output, from, to,
-        on_invalid = "repair", vtp_encoding = "appended", memory_budget;
+        on_invalid = "repair", vtp_encoding = "appended", memory_budget, origin;
     std::vector<std::string> derive;
     bool ascii = false, no_compress = false, strict = false;
     uint32_t binlines_version = 2;
@@ -74,6 +74,7 @@ Command add_convert(CLI::App& app) {
   sub->add_option("--on-invalid", args->on_invalid,
                   "reject: fail on invalid data; repair: drop/split and report (default)")
       ->check(one_of({"reject", "repair"}));
+  sub->add_option("--origin", args->origin, kOriginHelp)->check(origin_value());
   sub->add_option("--derive", args->derive,
                   "Add derived attributes: segment_length, arc_length, curvature, "
                   "index_along_line, line_length (one of the input's own names is replaced)")
@@ -159,6 +160,7 @@ Command add_convert(CLI::App& app) {
     const WholeOutput whole_output(args->memory_budget, *write.format);
     const std::string advice = "convert to .binlines (written as it is read)";
     if (!budget.unlimited()) read.memory_limit = budget.available();
+    read.origin = resolve_origin(args->origin, {args->input}, read);
     std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
     ValidationReport report;
     std::optional<LineSet> whole;

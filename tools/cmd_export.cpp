@@ -18,6 +18,7 @@
 #include "core/memory_budget.hpp"
 #include "formats/gltf.hpp"
 #include "formats/vdb.hpp"
+#include "lines/origin.hpp"
 #include "render/transfer_function.hpp"
 #include "whole_output.hpp"
 
@@ -217,7 +218,12 @@ Command add_export(CLI::App& app) {
     }
     const CacheReader cache(args->cache);
     check_export_memory(*args, cache);
-    if (!args->vdb.empty()) write_vdb(args->vdb, *voxel_pieces(cache));
+    // Both place the lines at their world coordinates: their origin added (lines/origin.hpp).
+    LineSet metadata;
+    metadata.metadata = load_line_metadata(cache);
+    const Origin origin = origin_of(metadata, args->cache);
+    args->gltf.origin = origin;
+    if (!args->vdb.empty()) write_vdb(args->vdb, *voxel_pieces(cache), {}, origin);
     if (args->glb.empty()) return;
     // The tube mesh a chunk at a time (formats/gltf.hpp reads each twice).
     TubeChunks tubes;

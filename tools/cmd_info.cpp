@@ -22,12 +22,13 @@ namespace linebake::cli {
 Command add_info(CLI::App& app) {
   auto* sub = app.add_subcommand("info", "Print statistics of a line set (file or synth: source)");
   struct Args {
-    std::string input, from;
+    std::string input, from, origin;
     bool json = false;
   };
   auto args = std::make_shared<Args>();
   sub->add_option("input", args->input, "Input file, or synth:<name>?scale=..&seed=..")->required();
   sub->add_option("--from", args->from, "Input format, overriding the extension");
+  sub->add_option("--origin", args->origin, kOriginHelp)->check(origin_value());
   sub->add_flag("--json", args->json, "Machine-readable output (schema in docs/cli.md)");
   return [args] {
     check_input_file(args->input);
@@ -44,6 +45,7 @@ Command add_info(CLI::App& app) {
       // A format read whole, or a line larger than a batch, is held within the default budget
       // (half of physical memory).
       read.memory_limit = MemoryBudget(default_memory_budget()).available();
+      read.origin = resolve_origin(args->origin, {args->input}, read);
       const std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
       metadata = input->header().metadata;
       if (std::optional<LineSet> whole = input->take_whole()) {
@@ -84,9 +86,22 @@ Command add_info(CLI::App& app) {
                 static_cast<double>(s.position_bytes) / (1 << 20),
                 static_cast<double>(s.offset_bytes) / (1 << 20),
                 static_cast<double>(s.attribute_bytes) / (1 << 20));
+    // Positions relative to an origin (lines/origin.hpp): it, and the bounds in both frames.
+    const auto origin = metadata.find(kOriginKey);
+    if (origin != metadata.end()) std::printf("origin      %s\n", origin->second.c_str());
     if (!s.bounds.empty)
-      std::printf("bounds      [%g %g %g] - [%g %g %g]\n", s.bounds.min[0], s.bounds.min[1],
-                  s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2]);
+      std::printf("bounds      [%g %g %g] - [%g %g %g]%s\n", s.bounds.min[0], s.bounds.min[1],
+                  s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2],
+                  origin != metadata.end() ? " (relative to the origin)" : "");
+    if (!s.bounds.empty && origin != metadata.end()) {
+      LineSet frame;
+      frame.metadata = metadata;
+      const Origin o = origin_of(frame, args->input);
+      std::printf("world       [%.10g %.10g %.10g] - [%.10g %.10g %.10g]\n",
+                  to_world(s.bounds.min[0], o[0]), to_world(s.bounds.min[1], o[1]),
+                  to_world(s.bounds.min[2], o[2]), to_world(s.bounds.max[0], o[0]),
+                  to_world(s.bounds.max[1], o[1]), to_world(s.bounds.max[2], o[2]));
+    }
     // A range of the finite values; none where no value is finite.
     const auto range_text = [](const ValueRange& r) {
       char text[64] = "no finite value";

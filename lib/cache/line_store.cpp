@@ -298,14 +298,18 @@ LineSet load_lines(const CacheReader& cache) {
     lines.line_attributes.push_back(
         {decode_link_name(name),
          to_vector(cache.read<float>("/lines/line_attributes/" + name, lines.line_count()))});
-  if (const auto text = cache.attribute("/lines", "metadata")) {
-    try {
-      lines.metadata = nlohmann::json::parse(*text).get<std::map<std::string, std::string>>();
-    } catch (const std::exception& e) {
-      throw InputError(cache.path(), "group /lines", std::string("bad metadata: ") + e.what());
-    }
-  }
+  lines.metadata = load_line_metadata(cache);
   return lines;
+}
+
+std::map<std::string, std::string> load_line_metadata(const CacheReader& cache) {
+  const auto text = cache.attribute("/lines", "metadata");
+  if (!text) return {};
+  try {
+    return nlohmann::json::parse(*text).get<std::map<std::string, std::string>>();
+  } catch (const std::exception& e) {
+    throw InputError(cache.path(), "group /lines", std::string("bad metadata: ") + e.what());
+  }
 }
 
 void include_dataset_points(Bounds& bounds, const CacheReader& cache, const std::string& dataset,

@@ -83,5 +83,7 @@ class LineStoreWriter {
 // Writes /lines with its metadata and provenance; fills provenance.disk_bytes.
 void store_lines(CacheWriter& cache, const LineSet& lines, Provenance provenance);
 LineSet load_lines(const CacheReader& cache);
+// The lines' metadata alone (their origin, lines/origin.hpp, is what exports need of it).
+std::map<std::string, std::string> load_line_metadata(const CacheReader& cache);
 
 }  // namespace linebake

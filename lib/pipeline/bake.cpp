@@ -100,7 +100,20 @@ LinesIdentity lines_identity(const BakeOptions& options,
                   file_hashes);
   id.format = options.format ? format_info(*options.format).name : "auto";
   id.policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
-  id.key = key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy});
+  if (!options.origin.empty() && options.origin != "auto") {
+    const std::optional<Origin> origin = parse_origin(options.origin);
+    if (!origin)
+      throw UsageError("--origin: '" + options.origin + "' is not auto nor X,Y,Z (three numbers)");
+    id.origin = origin_text(*origin);
+  } else {
+    id.origin = options.origin;
+  }
+  // Lines read without an origin keep the key they had before origins existed.
+  id.key =
+      id.origin.empty()
+          ? key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy})
+          : key_of({"lines", std::to_string(kLinesVersion), id.source_hash, id.format, id.policy,
+                    "origin", id.origin});
   return id;
 }
 
@@ -612,6 +625,10 @@ BakeResult bake(const BakeOptions& options_in) {
                    std::filesystem::hard_link_count(result.cache, same_error) > 1))
     throw OutputError(result.cache,
                       "is a link; bake the cache under its own path to add assets in place");
+  if (in_place && !options.origin.empty())
+    throw UsageError(
+        "--origin: a cache baked in place keeps its lines and their origin; bake the "
+        "lines' source file (or -o another cache) to place them at another origin");
   const uint64_t budget_bytes =
       options.memory_budget == BakeOptions::kDefaultBudget ? default_memory_budget()
       : options.memory_budget == BakeOptions::kUnlimited   ? 0
@@ -652,7 +669,8 @@ BakeResult bake(const BakeOptions& options_in) {
   const LinesIdentity identity =
       keep_identity ? LinesIdentity{old_lines->input_hash, old_lines->key,
                                     old_lines->parameters.value("format", "auto"),
-                                    old_lines->parameters.value("on_invalid", "repair")}
+                                    old_lines->parameters.value("on_invalid", "repair"),
+                                    old_lines->parameters.value("origin", "")}
                     : lines_identity(options);
   const std::string& source = identity.source_hash;
   const std::string& format = identity.format;
@@ -704,8 +722,9 @@ BakeResult bake(const BakeOptions& options_in) {
       TerminalProgress progress("reading " + options.input);
       ReadOptions read;
       read.format = options.format;
-      if (options.progress) read.progress = progress.callback();
       if (!budget.unlimited()) read.memory_limit = budget.available();
+      read.origin = resolve_origin(options.origin, inputs, read);
+      if (options.progress) read.progress = progress.callback();
       input = open_line_reader(inputs, read);
       ValidationReport total;
       std::optional<LineSet> whole;
@@ -914,6 +933,7 @@ BakeResult bake(const BakeOptions& options_in) {
         p.parameters = {{"source", options.source_name.value_or(options.input)},
                         {"format", format},
                         {"on_invalid", policy}};
+        if (!identity.origin.empty()) p.parameters["origin"] = identity.origin;
         if (inputs.size() > 1) p.parameters["files"] = inputs;
       }
       p.stats = to_json(stats);

@@ -58,6 +58,9 @@ struct BakeOptions {
   std::vector<std::string> inputs;
   std::optional<Format> format;  // overrides the input's extension
   InvalidPolicy on_invalid = InvalidPolicy::repair;
+  // The lines' origin (lines/origin.hpp): "" none (the input's own frame), "auto" (the first
+  // valid point, rounded: formats/registry.hpp, auto_origin) or "X,Y,Z".
+  std::string origin;
   std::string cache;                         // output; default <input stem>.lbc.h5
   std::vector<std::string> assets{"tubes"};  // and/or "voxels", "embree", "rtx"
   TubeOptions tubes;
@@ -128,6 +131,7 @@ std::string bake_output_path(const BakeOptions& options);
 // source's parameters) and the provenance key made of it, the format and the invalid policy.
 struct LinesIdentity {
   std::string source_hash, key, format, policy;
+  std::string origin;  // as asked ("auto", or the numbers as origin_text writes them); "" none
 };
 // Bytes of memory one input point costs while it passes through the asset builders (the line
 // set's arrays, the tube rings and triangles, voxel records, Embree buffers): what sets the

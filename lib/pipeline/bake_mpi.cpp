@@ -49,16 +49,17 @@ struct FileRange {
 // read and skipped (formats read front to back), the file is closed after the range.
 class RangeReader {
  public:
+  // `frame`: the first file's origin, the others' read in it (formats/registry.hpp).
   RangeReader(const std::vector<std::string>& files, std::vector<FileRange> ranges,
-              const ReadOptions& read)
-      : files_(files), ranges_(std::move(ranges)), read_(read) {}
+              const ReadOptions& read, const Origin& frame)
+      : files_(files), ranges_(std::move(ranges)), read_(read), frame_(frame) {}
 
   // False at the end. `where`: the file and its lines of the batch, for messages.
   bool next(LineSet& batch, uint64_t max_points, std::string& where) {
     while (range_ < ranges_.size()) {
       const FileRange& r = ranges_[range_];
       if (!reader_) {
-        reader_ = open_line_reader(files_[r.file], read_);
+        reader_ = open_in_frame(files_[r.file], read_, frame_);
         line_ = 0;
       }
       LineSet read;
@@ -87,6 +88,7 @@ class RangeReader {
   const std::vector<std::string>& files_;
   std::vector<FileRange> ranges_;
   ReadOptions read_;
+  Origin frame_;
   size_t range_ = 0;
   uint64_t line_ = 0, first_line_ = 0;
   std::unique_ptr<LineReader> reader_;
@@ -227,6 +229,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   if (budget_bytes != 0) read.memory_limit = MemoryBudget(budget_bytes).available();
   LineSet header;
   ranks.agree([&] {
+    // Every rank finds the same origin (the same first point of the same files).
+    read.origin = resolve_origin(options.origin, inputs, read);
     header = header_of(open_line_reader(inputs[0], read)->header());
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
       // The input's identity is its files' bytes: each file hashed by one rank.
@@ -294,7 +298,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const std::string spill_name = result.cache + ".rank" + std::to_string(ranks.rank);
   ranks.agree([&] {
     spool.emplace(spill_name, header);
-    RangeReader reader(inputs, share_of(lines_per_file, ranks.rank, ranks.size), read);
+    RangeReader reader(inputs, share_of(lines_per_file, ranks.rank, ranks.size), read,
+                       origin_of(header, inputs[0]));
     LineSet batch;
     std::string where;
     TerminalProgress progress("reading " + options.input);
@@ -472,6 +477,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     lines_p.input_hash = identity.source_hash;
     lines_p.parameters = {
         {"source", options.input}, {"format", identity.format}, {"on_invalid", identity.policy}};
+    if (!identity.origin.empty()) lines_p.parameters["origin"] = identity.origin;
     if (inputs.size() > 1) lines_p.parameters["files"] = inputs;
     lines_p.stats = to_json(stats);
     lines_p.stats["content_hash"] = lines_hash;

@@ -37,6 +37,7 @@ namespace {
 // bake's keyword arguments: the CLI's long options with '_' for '-' ("from" is `format`).
 const std::vector<std::string> kBakeKeywords = {"format",
                                                 "on_invalid",
+                                                "origin",
                                                 "tube_sides",
                                                 "radius",
                                                 "radius_absolute",
@@ -173,6 +174,7 @@ BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& a
     return as_usage_error([&] { return parse(value); });
   };
   o.on_invalid = parsed("on_invalid", "repair", parse_invalid_policy);
+  if (kw.contains("origin")) o.origin = origin_arg(kw["origin"], "bake: origin");
   o.compression = as_usage_error([&] { return parse_compression(compression); });
   if (auto v = keyword<int>("bake", kw, "compression_level")) o.compression_level = *v;
   if (auto v = keyword<int>("bake", kw, "tube_sides")) o.tubes.sides = *v;

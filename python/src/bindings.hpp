@@ -98,6 +98,11 @@ std::string text_arg(const py::handle& value, const std::string& what);
 // (not bool) a number of bytes; a TypeError naming `what` for anything else.
 std::string budget_arg(const py::handle& value, const std::string& what);
 
+// An origin (lines/origin.hpp) as the CLI's --origin text: None "", a str ("auto", "x,y,z") as
+// it is, three numbers (a tuple, list or NumPy array) as their exact text; a TypeError naming
+// `what` for anything else.
+std::string origin_arg(const py::handle& value, const std::string& what);
+
 template <class T>
 constexpr const char* wanted_kind() {
   if constexpr (std::is_same_v<T, bool>)

@@ -144,7 +144,7 @@ py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle se
 
 std::shared_ptr<PyLineSet> read(const py::object& source_arg,
                                 const std::optional<std::string>& format,
-                                const py::object& memory_budget) {
+                                const py::object& memory_budget, const py::object& origin_arg_) {
   const std::string source = path_arg(source_arg, "read");
   // "8G", "unlimited" or bytes, as bake takes it; None: the CLI's default.
   const std::string budget_text =
@@ -156,9 +156,11 @@ std::shared_ptr<PyLineSet> read(const py::object& source_arg,
   // of physical memory) while it is read: past it, BudgetExceeded rather than the kernel's kill.
   const MemoryBudget budget(cli::memory_budget_bytes(budget_text));
   if (!budget.unlimited()) options.memory_limit = budget.available();
+  const std::string origin = origin_arg(origin_arg_, "read: origin");
   auto result = std::make_shared<PyLineSet>();
   {
     const LongCall call;
+    options.origin = resolve_origin(origin, {source}, options);
     result->lines = read_line_set(source, options);
     result->format = source_format_name(source, options);
   }
@@ -305,6 +307,15 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
           },
           "{str: str}: provenance, units, source notes (a copy).")
       .def_property_readonly(
+          "origin",
+          [](const PyLineSet& s) -> py::object {
+            const std::optional<Origin> o = optional_origin(s.lines);
+            if (!o) return py::none();
+            return py::make_tuple((*o)[0], (*o)[1], (*o)[2]);
+          },
+          "(x, y, z) floats the points are relative to (world = points + origin, in float64), "
+          "or None.")
+      .def_property_readonly(
           "source",
           [](const PyLineSet& s) {
             return s.source.empty() ? py::object(py::none()) : py::object(fs_str(s.source));
@@ -347,13 +358,16 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
       .def("__repr__", &repr);
 
   module.def("read", &read, py::arg("source"), py::arg("format") = py::none(), py::kw_only(),
-             py::arg("memory_budget") = py::none(),
+             py::arg("memory_budget") = py::none(), py::arg("origin") = py::none(),
              R"doc(Reads a line set: a file of any readable format (by extension unless
 `format` names it) or a synthetic source "synth:<name>?scale=..&seed=..". Raises
 linebake.InputError naming the file and place on bad input. Read within `memory_budget` ("8G",
 "unlimited" or bytes as an int; default half of physical memory, or of the cgroup's or ulimit
 -v's limit when less): OBJ, VTK and VTP files whole, the others gathered batch by batch; past
-it, linebake.BudgetExceeded naming the file and place. Releases the GIL.)doc");
+it, linebake.BudgetExceeded naming the file and place. `origin` (x, y, z), or 'auto' for the
+first valid point rounded: the points come relative to it, subtracted in double before they are
+rounded to float32 (for UTM or Earth-centred coordinates); `LineSet.origin` says it. Releases
+the GIL.)doc");
   module.def("write", &write, py::arg("lines"), py::arg("path"), py::arg("format") = py::none(),
              py::kw_only(), py::arg("ascii") = false, py::arg("binlines_version") = 2,
              py::arg("vtp_encoding") = "appended", py::arg("vtp_compress") = true,

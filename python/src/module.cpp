@@ -3,6 +3,7 @@
 
 #include "bindings.hpp"
 #include "core/h5.hpp"
+#include "lines/origin.hpp"
 
 namespace linebake::python {
 
@@ -77,6 +78,23 @@ std::string budget_arg(const py::handle& value, const std::string& what) {
   } catch (const py::type_error&) {
     wrong_kind(value, what, wanted);
   }
+}
+
+std::string origin_arg(const py::handle& value, const std::string& what) {
+  const char* wanted = "None, 'auto', or three numbers (x, y, z)";
+  if (value.is_none()) return "";
+  if (PyUnicode_Check(value.ptr())) return text_arg(value, what);
+  if (!PySequence_Check(value.ptr()) && !py::hasattr(value, "__array__"))
+    wrong_kind(value, what, wanted);
+  const py::sequence xyz =
+      py::reinterpret_borrow<py::sequence>(py::module_::import("builtins").attr("list")(value));
+  if (xyz.size() != 3) wrong_kind(value, what, wanted);
+  Origin origin{};
+  for (size_t k = 0; k < 3; ++k) {
+    if (!is_number(xyz[k])) wrong_kind(value, what, wanted);
+    origin[k] = typed_arg<double>(xyz[k], what);
+  }
+  return origin_text(origin);
 }
 
 py::object to_python(const nlohmann::json& value) {

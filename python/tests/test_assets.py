@@ -250,3 +250,23 @@ def test_ctrl_c_leaves_other_threads_and_the_users_handler_alone(tmp_path):
         "handled poked during the call: True", "handled finished [1]",
         "['handled.lbc.h5', 'ignored.lbc.h5', 'main.lbc.h5', 'worker.lbc.h5']"], \
         done.stdout + done.stderr
+
+
+def test_bake_keeps_the_lines_origin(tmp_path):
+    # Far-off lines baked from a file at an origin, and from a LineSet read at one: the cache's
+    # lines are relative to it, and its metadata and the /lines step say it.
+    csv = tmp_path / "utm.csv"
+    csv.write_text("line_id,x,y,z\n0,500000.25,5400000.07,12.5\n0,500001.5,5400000.93,13\n"
+                   "0,500002.75,5400001.5,13.5\n")
+    from_file = str(tmp_path / "file.lbc.h5")
+    linebake.bake(str(csv), from_file, origin=(500000, 5400000, 0))
+    lines = linebake.open_cache(from_file).lines()
+    assert lines.origin == (500000.0, 5400000.0, 0.0)
+    assert linebake.open_cache(from_file).provenance("lines")["parameters"]["origin"] == \
+        "500000 5400000 0"
+    assert np.array_equal(lines.points, linebake.read(csv, origin=(500000, 5400000, 0)).points)
+    from_set = str(tmp_path / "set.lbc.h5")
+    linebake.bake(linebake.read(csv, origin="auto"), from_set)
+    assert linebake.open_cache(from_set).lines().origin == (500000.0, 5400000.0, 13.0)
+    with pytest.raises(TypeError, match="origin"):
+        linebake.bake(str(csv), str(tmp_path / "x.lbc.h5"), origin=[1, 2])

@@ -395,3 +395,31 @@ def test_a_memory_budget_of_zero_is_a_usage_error(tmp_path, budget):
         linebake.bake(path, tmp_path / "small.lbc.h5", memory_budget=budget)
     assert not (tmp_path / "small.lbc.h5").exists()
 
+
+
+def test_read_at_an_origin_keeps_far_off_digits(tmp_path):
+    # UTM-like coordinates: float32 steps by 0.5 at 5.4e6, so only relative to an origin do the
+    # centimetres survive; LineSet.origin says it and points + origin are the world coordinates.
+    csv = tmp_path / "utm.csv"
+    world = np.array([[500000.25, 5400000.07, 12.5], [500001.5, 5400000.93, 13.0]])
+    csv.write_text("line_id,x,y,z\n" + "".join(f"0,{x!r},{y!r},{z!r}\n" for x, y, z in world))
+    plain = linebake.read(csv)
+    assert plain.origin is None
+    assert np.abs(plain.points.astype(np.float64) - world).max() > 0.05
+    for origin in [(500000, 5400000, 0), np.array([500000.0, 5400000.0, 0.0]), "500000,5400000,0"]:
+        local = linebake.read(csv, origin=origin)
+        assert local.origin == (500000.0, 5400000.0, 0.0)
+        assert local.metadata["origin"] == "500000 5400000 0"
+        expected = (world - [500000, 5400000, 0]).astype(np.float32)
+        assert np.array_equal(local.points, expected)
+    auto = linebake.read(csv, origin="auto")
+    assert auto.origin == (500000.0, 5400000.0, 13.0)  # the first point, rounded
+    # Written where the format holds float64, the world coordinates come back.
+    linebake.write(local, tmp_path / "w.vtp")
+    assert np.array_equal(linebake.read(tmp_path / "w.vtp", origin=(500000, 5400000, 0)).points,
+                          local.points)
+    for bad in [(1, 2), ("a", 1, 2), 5, b"1,2,3"]:
+        with pytest.raises(TypeError, match="origin"):
+            linebake.read(csv, origin=bad)
+    with pytest.raises(linebake.UsageError, match="origin"):
+        linebake.read(csv, origin="1,2")
