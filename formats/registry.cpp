@@ -146,20 +146,16 @@ std::string source_format_name(const std::string& source, const ReadOptions& opt
 
 namespace {
 
-// Attributes are found by name (--attribute, HDF5 datasets, JSON), so each list's names must be
-// one each and not empty. Files do repeat them (VTK's writer names every unnamed FIELD array
-// "unknown"; a reader's own "unnamed" or "scalar_k" can meet a name in the file): the later ones
-// are renamed name_2, name_3, ... (an empty name "unnamed"), and the renames are kept in the
-// metadata as linebake.renamed_attributes, which `info --json` shows. A reader of the same file in
-// the same order gives the same names.
-class UniqueNames : public LineReader {
+// A reader that passes another's lines on with a header of its own, each batch (and the set taken
+// whole, which gets the header's metadata) changed by adjust(); the rest is the inner reader's.
+class AdjustingReader : public LineReader {
  public:
-  UniqueNames(std::unique_ptr<LineReader> inner, LineSet header) : inner_(std::move(inner)) {
+  AdjustingReader(std::unique_ptr<LineReader> inner, LineSet header) : inner_(std::move(inner)) {
     header_ = std::move(header);
   }
   bool next(LineSet& batch, uint64_t max_points) override {
     const bool more = inner_->next(batch, max_points);
-    rename(batch);
+    adjust(batch);
     lines_read_ = inner_->lines_read();
     return more;
   }
@@ -169,7 +165,7 @@ class UniqueNames : public LineReader {
   std::optional<LineSet> take_whole() override {
     std::optional<LineSet> whole = inner_->take_whole();
     if (whole) {
-      rename(*whole);
+      adjust(*whole);
       whole->metadata = header_.metadata;
     }
     return whole;
@@ -179,13 +175,27 @@ class UniqueNames : public LineReader {
   std::map<std::string, uint64_t> counts_read() const override { return inner_->counts_read(); }
 
  private:
-  void rename(LineSet& lines) const {
+  virtual void adjust(LineSet& lines) const = 0;
+  std::unique_ptr<LineReader> inner_;
+};
+
+// Attributes are found by name (--attribute, HDF5 datasets, JSON), so each list's names must be
+// one each and not empty. Files do repeat them (VTK's writer names every unnamed FIELD array
+// "unknown"; a reader's own "unnamed" or "scalar_k" can meet a name in the file): the later ones
+// are renamed name_2, name_3, ... (an empty name "unnamed"), and the renames are kept in the
+// metadata as linebake.renamed_attributes, which `info --json` shows. A reader of the same file in
+// the same order gives the same names.
+class UniqueNames : public AdjustingReader {
+ public:
+  using AdjustingReader::AdjustingReader;
+
+ private:
+  void adjust(LineSet& lines) const override {
     for (size_t a = 0; a < lines.attributes.size() && a < header_.attributes.size(); ++a)
       lines.attributes[a].name = header_.attributes[a].name;
     for (size_t a = 0; a < lines.line_attributes.size() && a < header_.line_attributes.size(); ++a)
       lines.line_attributes[a].name = header_.line_attributes[a].name;
   }
-  std::unique_ptr<LineReader> inner_;
 };
 
 // Renames within one list; what was renamed, for the note.
@@ -234,35 +244,15 @@ std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader
 // binlines, TrackVis, MRtrix, synth) are moved here, which is as exact. The header says the frame:
 // the origin asked for; else a linebake HDF5 file's own; else none (an "origin" that another
 // format's metadata carries is not its points' frame, and is dropped).
-class InFrame : public LineReader {
+class InFrame : public AdjustingReader {
  public:
   InFrame(std::unique_ptr<LineReader> inner, LineSet header, std::optional<Origin> shift)
-      : inner_(std::move(inner)), shift_(shift) {
-    header_ = std::move(header);
-  }
-  bool next(LineSet& batch, uint64_t max_points) override {
-    const bool more = inner_->next(batch, max_points);
-    if (shift_) shift_positions(batch.positions, *shift_);
-    lines_read_ = inner_->lines_read();
-    return more;
-  }
-  bool streams() const override { return inner_->streams(); }
-  uint64_t largest_line_hint() const override { return inner_->largest_line_hint(); }
-  std::optional<uint64_t> line_count_hint() const override { return inner_->line_count_hint(); }
-  std::optional<LineSet> take_whole() override {
-    std::optional<LineSet> whole = inner_->take_whole();
-    if (whole) {
-      if (shift_) shift_positions(whole->positions, *shift_);
-      whole->metadata = header_.metadata;
-    }
-    return whole;
-  }
-  std::string batch_file() const override { return inner_->batch_file(); }
-  uint64_t batch_file_line() const override { return inner_->batch_file_line(); }
-  std::map<std::string, uint64_t> counts_read() const override { return inner_->counts_read(); }
+      : AdjustingReader(std::move(inner), std::move(header)), shift_(shift) {}
 
  private:
-  std::unique_ptr<LineReader> inner_;
+  void adjust(LineSet& lines) const override {
+    if (shift_) shift_positions(lines.positions, *shift_);
+  }
   std::optional<Origin> shift_;
 };
 

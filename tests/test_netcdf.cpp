@@ -122,21 +122,28 @@ TEST(NetCdf, SplitsAtGapsAreCountedInTheMetadata) {
   EXPECT_TRUE(noted);
 }
 
+namespace {
+// A double variable over `dims` that its `axis` attribute ("X", "Y", "Z") names a coordinate.
+int axis_variable(int nc, const char* name, const int* dims, const char* axis) {
+  int id = -1;
+  ok(nc_def_var(nc, name, NC_DOUBLE, 2, dims, &id));
+  ok(nc_put_att_text(nc, id, "axis", 1, axis));
+  return id;
+}
+}  // namespace
+
 TEST(NetCdf, CfMultidimensionalWithAxisAttributes) {
   TempDir dir;
   const std::string path = dir.file("cf.nc");
-  int nc, d[2], a, b, c;
+  int nc, d[2];
   ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
   ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
   ok(nc_def_dim(nc, "trajectory", 2, &d[0]));
   ok(nc_def_dim(nc, "obs", 2, &d[1]));
   // Names that say nothing: the axis attributes decide (and the order in the file is z, x, y).
-  ok(nc_def_var(nc, "c", NC_DOUBLE, 2, d, &c));
-  ok(nc_put_att_text(nc, c, "axis", 1, "Z"));
-  ok(nc_def_var(nc, "a", NC_DOUBLE, 2, d, &a));
-  ok(nc_put_att_text(nc, a, "axis", 1, "X"));
-  ok(nc_def_var(nc, "b", NC_DOUBLE, 2, d, &b));
-  ok(nc_put_att_text(nc, b, "axis", 1, "Y"));
+  const int c = axis_variable(nc, "c", d, "Z");
+  const int a = axis_variable(nc, "a", d, "X");
+  const int b = axis_variable(nc, "b", d, "Y");
   ok(nc_enddef(nc));
   const double xs[] = {1, 2, 3, NAN}, ys[] = {4, 5, 6, 7}, zs[] = {7, 8, 9, 10};
   ok(nc_put_var_double(nc, a, xs));
@@ -154,17 +161,14 @@ TEST(NetCdf, CfMultidimensionalWithAxisAttributes) {
 TEST(NetCdf, PositionsAreMovedToTheOriginBeforeFloat32) {
   TempDir dir;
   const std::string path = dir.file("ecef.nc");
-  int nc, d[2], x, y, z;
+  int nc, d[2];
   ok(nc_create(path.c_str(), NC_CLOBBER | NC_NETCDF4, &nc));
   ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
   ok(nc_def_dim(nc, "trajectory", 1, &d[0]));
   ok(nc_def_dim(nc, "obs", 3, &d[1]));
-  ok(nc_def_var(nc, "x", NC_DOUBLE, 2, d, &x));
-  ok(nc_put_att_text(nc, x, "axis", 1, "X"));
-  ok(nc_def_var(nc, "y", NC_DOUBLE, 2, d, &y));
-  ok(nc_put_att_text(nc, y, "axis", 1, "Y"));
-  ok(nc_def_var(nc, "z", NC_DOUBLE, 2, d, &z));
-  ok(nc_put_att_text(nc, z, "axis", 1, "Z"));
+  const int x = axis_variable(nc, "x", d, "X");
+  const int y = axis_variable(nc, "y", d, "Y");
+  const int z = axis_variable(nc, "z", d, "Z");
   ok(nc_enddef(nc));
   const double xs[] = {4198944.61, 4198944.62, 4198944.63}, ys[] = {174747.25, 174747.5, 174748},
                zs[] = {4781886.07, 4781886.08, 4781886.09};

@@ -219,9 +219,7 @@ Command add_export(CLI::App& app) {
     const CacheReader cache(args->cache);
     check_export_memory(*args, cache);
     // Both place the lines at their world coordinates: their origin added (lines/origin.hpp).
-    LineSet metadata;
-    metadata.metadata = load_line_metadata(cache);
-    const Origin origin = origin_of(metadata, args->cache);
+    const Origin origin = origin_of(load_line_metadata(cache), args->cache);
     args->gltf.origin = origin;
     if (!args->vdb.empty()) write_vdb(args->vdb, *voxel_pieces(cache), {}, origin);
     if (args->glb.empty()) return;

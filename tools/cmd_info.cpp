@@ -94,9 +94,7 @@ Command add_info(CLI::App& app) {
                   s.bounds.min[2], s.bounds.max[0], s.bounds.max[1], s.bounds.max[2],
                   origin != metadata.end() ? " (relative to the origin)" : "");
     if (!s.bounds.empty && origin != metadata.end()) {
-      LineSet frame;
-      frame.metadata = metadata;
-      const Origin o = origin_of(frame, args->input);
+      const Origin o = origin_of(metadata, args->input);
       std::printf("world       [%.10g %.10g %.10g] - [%.10g %.10g %.10g]\n",
                   to_world(s.bounds.min[0], o[0]), to_world(s.bounds.min[1], o[1]),
                   to_world(s.bounds.min[2], o[2]), to_world(s.bounds.max[0], o[0]),

@@ -47,8 +47,12 @@ std::optional<Origin> parse_origin(std::string_view text) {
 }
 
 Origin origin_of(const LineSet& lines, const std::string& where) {
-  const auto it = lines.metadata.find(kOriginKey);
-  if (it == lines.metadata.end()) return {0, 0, 0};
+  return origin_of(lines.metadata, where);
+}
+
+Origin origin_of(const std::map<std::string, std::string>& metadata, const std::string& where) {
+  const auto it = metadata.find(kOriginKey);
+  if (it == metadata.end()) return {0, 0, 0};
   const std::optional<Origin> origin = parse_origin(it->second);
   if (!origin)
     throw InputError(where, "metadata \"origin\"",

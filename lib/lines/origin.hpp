@@ -34,6 +34,9 @@ std::optional<Origin> parse_origin(std::string_view text);
 // The line set's origin: its metadata "origin", {0, 0, 0} without one. Throws InputError naming
 // `where` when the metadata is not three finite numbers.
 Origin origin_of(const LineSet& lines, const std::string& where = "metadata");
+// The same from metadata alone (a cache's /lines, read without the lines).
+Origin origin_of(const std::map<std::string, std::string>& metadata,
+                 const std::string& where = "metadata");
 bool has_origin(const LineSet& lines);
 // origin_of where the line set has an origin, else none: what a writer of world coordinates asks.
 std::optional<Origin> optional_origin(const LineSet& lines, const std::string& where = "metadata");
