@@ -92,15 +92,18 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
         if (options.origin) value = to_local(world, (*options.origin)[k - 1]);
         positions.push_back(value);
       }
-      const bool has_color = tokens.size() == 7;
+      // A colour follows the coordinates (`v x y z r g b`), or the weight w, which lines leave
+      // unused (`v x y z w r g b`).
+      const size_t color_at = tokens.size() == 7 ? 4 : tokens.size() == 8 ? 5 : 0;
+      const bool has_color = color_at != 0;
       if (has_color && !colored) {
         colored = true;
         colors.assign(positions.size() - 3, std::numeric_limits<float>::quiet_NaN());
       }
-      for (size_t k = 4; colored && k < 7; ++k) {
+      for (size_t c = 0; colored && c < 3; ++c) {
         float value = std::numeric_limits<float>::quiet_NaN();
-        if (has_color && !io::parse_float(tokens[k], value))
-          in.fail("bad colour value '" + std::string(tokens[k]) + "'");
+        if (has_color && !io::parse_float(tokens[color_at + c], value))
+          in.fail("bad colour value '" + std::string(tokens[color_at + c]) + "'");
         colors.push_back(value);
       }
     } else if (key == "vt") {

@@ -446,9 +446,9 @@ TEST(MalformedInput, TckHeaderKeysRepeatedAndDataOffsets) {
   expect_error(tck("past.tck", 100000, false), "'file: . 100000' points past the end of the");
 }
 
-// OBJ vertex colours (`v x y z r g b`) are the attributes color_r/_g/_b after the vt ones,
-// gathered along the `l` indices as vt values are (they had been dropped silently); a vertex
-// without one, in a file that colours others, has NaN (no value) there (review finding: such
+// OBJ vertex colours (`v x y z r g b`, or `v x y z w r g b`) are the attributes color_r/_g/_b after
+// the vt ones, gathered along the `l` indices as vt values are (they had been dropped silently); a
+// vertex without one, in a file that colours others, has NaN (no value) there (review finding: such
 // files had read before and were refused).
 TEST(MalformedInput, ObjVertexColoursAreAttributes) {
   TempDir dir;
@@ -473,6 +473,14 @@ TEST(MalformedInput, ObjVertexColoursAreAttributes) {
   EXPECT_TRUE(std::isnan(some.attributes[1].values[2]));
   write_text(dir.file("w.obj"), "v 0 0 0 1\nv 1 0 0 1\nl 1 2\n");
   EXPECT_TRUE(read_line_set(dir.file("w.obj")).attributes.empty());
+  // With the weight w, the colour comes after it (it had been left unread).
+  write_text(dir.file("wrgb.obj"), "v 0 0 0 1 0.25 0.5 0.75\nv 1 0 0 2 1 0 0\nl 1 2\n");
+  const LineSet wrgb = read_line_set(dir.file("wrgb.obj"));
+  ASSERT_EQ(wrgb.attributes.size(), 3u);
+  EXPECT_EQ(wrgb.positions, (std::vector<float>{0, 0, 0, 1, 0, 0}));
+  EXPECT_EQ(wrgb.attributes[0].values, (std::vector<float>{0.25f, 1}));
+  EXPECT_EQ(wrgb.attributes[1].values, (std::vector<float>{0.5f, 0}));
+  EXPECT_EQ(wrgb.attributes[2].values, (std::vector<float>{0.75f, 0}));
 }
 
 // OBJ continues a statement on the next line after a trailing backslash: a long `l` split so
