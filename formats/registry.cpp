@@ -539,14 +539,18 @@ Origin auto_origin(const std::vector<std::string>& sources, const ReadOptions& o
   return frame;
 }
 
-std::optional<Origin> resolve_origin(const std::string& text,
-                                     const std::vector<std::string>& sources,
-                                     const ReadOptions& options) {
-  if (text.empty()) return std::nullopt;
-  if (text == "auto") return auto_origin(sources, options);
+std::optional<Origin> origin_option_numbers(const std::string& text) {
+  if (text.empty() || text == "auto") return std::nullopt;
   const std::optional<Origin> origin = parse_origin(text);
   if (!origin) throw UsageError("--origin: '" + text + "' is not auto nor X,Y,Z (three numbers)");
   return origin;
+}
+
+std::optional<Origin> resolve_origin(const std::string& text,
+                                     const std::vector<std::string>& sources,
+                                     const ReadOptions& options) {
+  if (text == "auto") return auto_origin(sources, options);
+  return origin_option_numbers(text);
 }
 
 namespace {

@@ -95,6 +95,8 @@ std::unique_ptr<LineReader> open_in_frame(const std::string& source, const ReadO
 // rounded to integers; the sources' own origin (a linebake HDF5 file's) where no point is valid.
 // It reads the sources up to that point (a format read whole: all of it).
 Origin auto_origin(const std::vector<std::string>& sources, const ReadOptions& options = {});
+// An --origin option's numbers: none for "" and "auto"; UsageError unless it is X,Y,Z.
+std::optional<Origin> origin_option_numbers(const std::string& text);
 // An --origin option's text: "" none, "auto" (auto_origin) or X,Y,Z; UsageError otherwise.
 std::optional<Origin> resolve_origin(const std::string& text,
                                      const std::vector<std::string>& sources,

@@ -100,14 +100,9 @@ LinesIdentity lines_identity(const BakeOptions& options,
                   file_hashes);
   id.format = options.format ? format_info(*options.format).name : "auto";
   id.policy = options.on_invalid == InvalidPolicy::reject ? "reject" : "repair";
-  if (!options.origin.empty() && options.origin != "auto") {
-    const std::optional<Origin> origin = parse_origin(options.origin);
-    if (!origin)
-      throw UsageError("--origin: '" + options.origin + "' is not auto nor X,Y,Z (three numbers)");
-    id.origin = origin_text(*origin);
-  } else {
-    id.origin = options.origin;
-  }
+  // "auto" as asked (the same source bytes give the same origin), numbers as origin_text writes.
+  const std::optional<Origin> numbers = origin_option_numbers(options.origin);
+  id.origin = numbers ? origin_text(*numbers) : options.origin;
   // Lines read without an origin keep the key they had before origins existed.
   id.key =
       id.origin.empty()
