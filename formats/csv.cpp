@@ -323,7 +323,9 @@ class CsvReader : public LineReader {
       number(token, "coordinate", out);  // fails with the float32 reading's words
       world = out;
     }
-    out = to_local(world, (*origin_)[axis]);
+    if (!to_local_in_range(world, (*origin_)[axis], out))
+      in_.fail("coordinate '" + std::string(token) +
+               "' is outside float32's range from the origin (magnitude above 3.4028235e38)");
   }
 
   // Moves the open line into the batch.

@@ -98,6 +98,16 @@ bool numeric_attribute_text(hid_t file, const std::string& name, std::string& te
   return true;
 }
 
+// Whether the root attribute `origin` is a frame, as write_hdf5 stores one: three finite
+// floating-point numbers. Any other `origin` (text, integers, another count: another tool's grid
+// corner or seed point) is kept as metadata "source_origin" (lines/origin.hpp).
+bool frame_attribute(hid_t file, const std::string& text) {
+  Handle attribute(H5Aopen(file, kOriginKey, H5P_DEFAULT), H5Aclose);
+  if (!attribute.valid()) return false;
+  Handle type(H5Aget_type(attribute), H5Tclose);
+  return H5Tget_class(type) == H5T_FLOAT && parse_origin(text).has_value();
+}
+
 class Hdf5Reader : public LineReader {
  public:
   Hdf5Reader(const std::string& path, const ReadOptions& options)
@@ -142,6 +152,8 @@ class Hdf5Reader : public LineReader {
                                            numeric_attribute_text(file_, name, value)))
           header_.metadata[name] = value;
       }
+      if (has_origin(header_) && !frame_attribute(file_, header_.metadata.at(kOriginKey)))
+        keep_as_source_origin(header_.metadata);
     }
     points_ = open(prefix_ + "/points");
     const std::vector<hsize_t> dims = h5::shape_of(points_.dataset);
@@ -151,8 +163,11 @@ class Hdf5Reader : public LineReader {
     // a line file's root attribute `origin` (3 float64, as write_hdf5 stores it).
     frame_ = origin_of(header_, path);
     if (has_origin(header_)) set_origin(header_, frame_);  // written as linebake writes it
+    // Points float32 does not hold exactly (float64; integers of more than 16 bits, such as
+    // millimetres in int32 or int64) are read as double where an origin is subtracted.
     Handle type(H5Dget_type(points_.dataset), H5Tclose);
-    points_float64_ = H5Tget_class(type) == H5T_FLOAT && H5Tget_size(type) > 4;
+    points_as_double_ =
+        H5Tget_class(type) == H5T_FLOAT ? H5Tget_size(type) > 4 : H5Tget_size(type) > 2;
     const uint64_t n = dims[0];
     read_offsets(n);
     for (const std::string& name : h5::group_members(file_, prefix_ + "/attributes")) {
@@ -248,15 +263,15 @@ class Hdf5Reader : public LineReader {
   }
 
   // Bytes a point's float64 copy takes while it is moved to the origin asked for (read_points).
-  size_t points_held_as_float64() const { return origin_ && points_float64_ ? 24 : 0; }
+  size_t points_held_as_float64() const { return origin_ && points_as_double_ ? 24 : 0; }
 
   // Rows of the points relative to the origin asked for, if any: the file's coordinates and its
-  // origin added and the new origin subtracted in double, then rounded once (float64 points are
-  // read as such).
+  // origin added and the new origin subtracted in double, then rounded once (points float32 does
+  // not hold exactly are read as double).
   void read_points(uint64_t first, uint64_t count, float* out) {
     if (!origin_) return read(points_, first, count, out);
     const Origin& to = *origin_;
-    if (!points_float64_) {
+    if (!points_as_double_) {
       read(points_, first, count, out);
       for (size_t i = 0; i < 3 * count; ++i)
         out[i] = to_local(to_world(out[i], frame_[i % 3]), to[i % 3]);
@@ -439,9 +454,9 @@ class Hdf5Reader : public LineReader {
   std::string path_;
   ProgressFn progress_;
   std::optional<uint64_t> memory_limit_;
-  std::optional<Origin> origin_;  // asked for
-  Origin frame_{0, 0, 0};         // the file's
-  bool points_float64_ = false;
+  std::optional<Origin> origin_;   // asked for
+  Origin frame_{0, 0, 0};          // the file's
+  bool points_as_double_ = false;  // where an origin is asked for (open)
   Handle file_;
   std::string prefix_;
   std::vector<uint64_t> offsets_;

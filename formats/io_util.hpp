@@ -114,12 +114,17 @@ size_t scalar_size(Scalar type);
 
 // `v` as Out. Where Out is an integer type, a floating-point `v` must be finite and inside Out's
 // range, since the cast is undefined behaviour otherwise: false (and `out` untouched) where not.
+// A finite double past float's range is refused too (float32 would hold infinity: the value is
+// lost, not invalid; CSV's reader refuses it so as well); infinity and NaN are read as they are.
 template <typename Out, typename T>
 [[nodiscard]] bool convert_scalar(T v, Out& out) {
   if constexpr (std::is_integral_v<Out> && std::is_floating_point_v<T>) {
     const double lowest = double(std::numeric_limits<Out>::lowest());
     const double past_max = std::ldexp(1.0, std::numeric_limits<Out>::digits);  // max + 1
     if (!(double(v) >= lowest && double(v) < past_max)) return false;
+  }
+  if constexpr (std::is_same_v<Out, float> && std::is_same_v<T, double>) {
+    if (std::isfinite(v) && std::isinf(static_cast<float>(v))) return false;
   }
   out = static_cast<Out>(v);
   return true;

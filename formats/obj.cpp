@@ -89,7 +89,9 @@ LineSet read_obj(const std::string& path, const ReadOptions& options) {
         if (options.origin ? !io::parse_double(tokens[k], world)
                            : !io::parse_float(tokens[k], value))
           in.fail("bad coordinate '" + std::string(tokens[k]) + "'");
-        if (options.origin) value = to_local(world, (*options.origin)[k - 1]);
+        if (options.origin && !to_local_in_range(world, (*options.origin)[k - 1], value))
+          in.fail("coordinate '" + std::string(tokens[k]) +
+                  "' is outside float32's range from the origin");
         positions.push_back(value);
       }
       // A colour follows the coordinates (`v x y z r g b`), or the weight w, which lines leave

@@ -241,9 +241,9 @@ std::unique_ptr<LineReader> with_unique_names(std::unique_ptr<LineReader> reader
 
 // The lines in the frame ReadOptions::origin asks for (lines/origin.hpp). The readers of text and
 // float64 numbers subtract it themselves, before rounding; a float32 source's points (`shift`:
-// binlines, TrackVis, MRtrix, synth) are moved here, which is as exact. The header says the frame:
-// the origin asked for; else a linebake HDF5 file's own; else none (an "origin" that another
-// format's metadata carries is not its points' frame, and is dropped).
+// binlines, TrackVis, synth) are moved here, which is as exact. The header says the frame: the
+// origin asked for; else a linebake HDF5 file's own; else none (an "origin" that another format's
+// metadata carries is not its points' frame: it is kept as "source_origin").
 class InFrame : public AdjustingReader {
  public:
   InFrame(std::unique_ptr<LineReader> inner, LineSet header, std::optional<Origin> shift)
@@ -261,10 +261,8 @@ std::unique_ptr<LineReader> in_frame(std::unique_ptr<LineReader> reader, bool fl
   LineSet header = reader->header();
   const bool carried = has_origin(header) && !own_frame;
   if (!options.origin && !carried) return reader;
-  if (options.origin)
-    set_origin(header, *options.origin);
-  else
-    header.metadata.erase(kOriginKey);
+  if (carried) keep_as_source_origin(header.metadata);
+  if (options.origin) set_origin(header, *options.origin);
   std::optional<Origin> shift;
   if (float32_source && options.origin) shift = options.origin;
   return std::make_unique<InFrame>(std::move(reader), std::move(header), shift);
@@ -329,8 +327,8 @@ std::unique_ptr<LineReader> open_line_reader(const std::string& source,
         throw InputError(source, "attribute " + a.name,
                          "its name is not UTF-8 text; rename it (linebake keeps names in JSON, "
                          "which holds UTF-8 only)");
-  const bool float32_source =
-      format == Format::binlines || format == Format::trk || format == Format::tck;
+  // MRtrix's reader subtracts the origin itself (its points may be Float64).
+  const bool float32_source = format == Format::binlines || format == Format::trk;
   return in_frame(with_unique_names(std::move(reader)), float32_source, format == Format::hdf5,
                   options);
 }

@@ -229,7 +229,10 @@ void read_local_points(LegacyStream& in, bool binary, const std::string& type_na
   for (size_t done = 0; done < count; done += kBlock) {
     const size_t n = std::min(kBlock, count - done);
     read_values(in, binary, type_name, n, world.data(), done, count);
-    for (size_t i = 0; i < n; ++i) out[done + i] = to_local(world[i], origin[(done + i) % 3]);
+    for (size_t i = 0; i < n; ++i)
+      if (!to_local_in_range(world[i], origin[(done + i) % 3], out[done + i]))
+        in.fail("point " + std::to_string((done + i) / 3) +
+                ": a coordinate outside float32's range from the origin");
   }
 }
 

@@ -481,7 +481,10 @@ LineSet read_vtp(const std::string& path, const ReadOptions& options) {
       const std::vector<double> world = read_array<double>(ctx, points, 3 * point_count);
       lines.positions.resize(world.size());
       for (size_t i = 0; i < world.size(); ++i)
-        lines.positions[i] = to_local(world[i], (*options.origin)[i % 3]);
+        if (!to_local_in_range(world[i], (*options.origin)[i % 3], lines.positions[i]))
+          throw InputError(path, "Points",
+                           "point " + std::to_string(i / 3) +
+                               ": a coordinate outside float32's range from the origin");
     } else {
       lines.positions = read_array<float>(ctx, points, 3 * point_count);
     }

@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
+#include <optional>
+#include <utility>
 
 #include "core/error.hpp"
 #include "formats/registry.hpp"
@@ -74,9 +77,14 @@ TEST(Origin, TextRoundTripsAndRefusesWhatIsNotThreeNumbers) {
   EXPECT_EQ(parse_origin(" 500000 , 5400000.125 ,-0.1 "), o);
   EXPECT_EQ(parse_origin("+1e300,2,3"), (Origin{1e300, 2, 3}));
   EXPECT_EQ(parse_origin(origin_text({1e300, 2e-9, 0})), (Origin{1e300, 2e-9, 0}));
-  for (const char* bad :
-       {"", "1,2", "1,2,3,4", "1,,2,3", "1-2 3", "nan,0,0", "inf 0 0", "a,b,c", "1e999,0,0"})
+  for (const char* bad : {"", "1,2", "1,2,3,4", "1,,2,3", "1-2 3", "nan,0,0", "inf 0 0", "a,b,c",
+                          "1e999,0,0", "+-5,0,0", "++5,0,0", "+,0,0"})
     EXPECT_FALSE(parse_origin(bad)) << bad;
+  // -0 is 0: one text, so one /lines key.
+  const std::optional<Origin> zero = parse_origin("-0,0,-0.0");
+  ASSERT_TRUE(zero);
+  EXPECT_FALSE(std::signbit((*zero)[0]) || std::signbit((*zero)[2]));
+  EXPECT_EQ(origin_text(*zero), "0 0 0");
   LineSet lines;
   EXPECT_FALSE(has_origin(lines));
   EXPECT_EQ(origin_of(lines), (Origin{0, 0, 0}));
@@ -223,7 +231,13 @@ TEST(Origin, AnotherFormatsOriginMetadataIsNotAFrame) {
   test::write_text(dir.file("b.vtp"), text);
   const LineSet back = read_line_set(dir.file("b.vtp"));
   EXPECT_FALSE(has_origin(back));
+  EXPECT_EQ(back.metadata.at("source_origin"), "1 2 3");  // kept, under another name
   EXPECT_EQ(back.positions, lines.positions);
+  // Read at an origin: the frame asked for, the file's own "origin" still kept beside it.
+  const LineSet moved = read_line_set(dir.file("b.vtp"), at({1, 1, 1}));
+  EXPECT_EQ(moved.metadata.at("origin"), "1 1 1");
+  EXPECT_EQ(moved.metadata.at("source_origin"), "1 2 3");
+  EXPECT_EQ(moved.positions, (std::vector<float>{0, 1, 2, 3, 4, 5}));
 }
 
 // Points enough for the VTK reader's blocks of doubles (65,535 values) to cut a file's POINTS in
@@ -247,30 +261,172 @@ TEST(Origin, VtkPointsReadInBlocksAreMovedEach) {
   }
 }
 
-// An HDF5 line file from another tool with float64 points (h5py's default for Python floats):
-// read at an origin, its coordinates are moved in double, not rounded to float32 first.
-TEST(Origin, Float64HdfPointsAreMovedBeforeFloat32) {
-  TempDir dir;
-  const std::string path = dir.file("f64.h5");
-  const double points[] = {6378137.01, 1.5, -20.25, 6378137.02, 2.5, -20.5, 6378137.03, 3.5, -21};
-  const uint64_t offsets[] = {0, 3};
+namespace {
+
+// An HDF5 line file as another tool (h5py) writes one: `n` points of `file_type`, given in
+// `memory_type`, one line; `attributes` adds root attributes.
+void write_foreign_h5(const std::string& path, hid_t file_type, hid_t memory_type,
+                      const void* points, hsize_t n,
+                      const std::function<void(hid_t)>& attributes = {}) {
+  const uint64_t offsets[] = {0, n};
   const hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-  const hsize_t dims[2] = {3, 3}, two = 2;
+  const hsize_t dims[2] = {n, 3}, two = 2;
   const hid_t space = H5Screate_simple(2, dims, nullptr),
               line_space = H5Screate_simple(1, &two, nullptr);
   const hid_t p =
-      H5Dcreate2(file, "points", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+      H5Dcreate2(file, "points", file_type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   const hid_t o = H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, line_space, H5P_DEFAULT,
                              H5P_DEFAULT, H5P_DEFAULT);
-  ASSERT_GE(H5Dwrite(p, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, points), 0);
+  ASSERT_GE(H5Dwrite(p, memory_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, points), 0);
   ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+  if (attributes) attributes(file);
   H5Dclose(p), H5Dclose(o), H5Sclose(space), H5Sclose(line_space), H5Fclose(file);
+}
+
+// A root attribute of `count` values of `file_type` (given in `memory_type`).
+void numeric_attribute(hid_t file, const char* name, hid_t file_type, hid_t memory_type,
+                       const void* values, hsize_t count) {
+  const hid_t space = H5Screate_simple(1, &count, nullptr);
+  const hid_t a = H5Acreate2(file, name, file_type, space, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(H5Awrite(a, memory_type, values), 0);
+  H5Aclose(a), H5Sclose(space);
+}
+
+}  // namespace
+
+// An HDF5 line file from another tool with float64 points (h5py's default for Python floats), or
+// integers (millimetres in int64): read at an origin, its coordinates are moved in double, not
+// rounded to float32 first.
+TEST(Origin, WideHdfPointsAreMovedBeforeFloat32) {
+  TempDir dir;
+  const double points[] = {6378137.01, 1.5, -20.25, 6378137.02, 2.5, -20.5, 6378137.03, 3.5, -21};
+  write_foreign_h5(dir.file("f64.h5"), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, points, 3);
   const Origin origin{6378137, 0, -20};
-  const LineSet local = read_line_set(path, at(origin));
+  const LineSet local = read_line_set(dir.file("f64.h5"), at(origin));
   ASSERT_EQ(local.positions.size(), 9u);
   for (size_t i = 0; i < 9; ++i) EXPECT_EQ(local.positions[i], float(points[i] - origin[i % 3]));
   // Without it the three x (1 cm apart at 6.4e6) are one float32 value.
-  const LineSet plain = read_line_set(path);
+  const LineSet plain = read_line_set(dir.file("f64.h5"));
   EXPECT_EQ(plain.positions[0], plain.positions[6]);
   EXPECT_NE(local.positions[0], local.positions[6]);
+
+  // Millimetres: 500,000,123 mm and its neighbours, one float32 value (steps of 32 there).
+  const int64_t mm[] = {500000123, 5400000123, 7,          500000124, 5400000125,
+                        8,         500000127,  5400000126, 9};
+  write_foreign_h5(dir.file("mm.h5"), H5T_STD_I64LE, H5T_NATIVE_INT64, mm, 3);
+  const Origin mm_origin{500000000, 5400000000, 0};
+  const LineSet mm_local = read_line_set(dir.file("mm.h5"), at(mm_origin));
+  ASSERT_EQ(mm_local.positions.size(), 9u);
+  for (size_t i = 0; i < 9; ++i)
+    EXPECT_EQ(mm_local.positions[i], float(double(mm[i]) - mm_origin[i % 3])) << i;
+  const LineSet mm_plain = read_line_set(dir.file("mm.h5"));
+  EXPECT_EQ(mm_plain.positions[0], mm_plain.positions[6]);
+}
+
+// A root attribute `origin` is the points' frame only as linebake writes one (three floating-point
+// numbers); another tool's (text, integers, another count) is kept as "source_origin" and moves
+// nothing.
+TEST(Origin, AnHdfRootOriginIsAFrameOnlyAsThreeFloats) {
+  TempDir dir;
+  const float points[] = {1, 2, 3, 4, 5, 6};
+  const double frame[] = {10.5, 20, 30};
+  write_foreign_h5(dir.file("frame.h5"), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, points, 2,
+                   [&](hid_t file) {
+                     numeric_attribute(file, "origin", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, frame, 3);
+                   });
+  const LineSet framed = read_line_set(dir.file("frame.h5"));
+  EXPECT_EQ(framed.metadata.at("origin"), "10.5 20 30");
+  EXPECT_FALSE(framed.metadata.contains("source_origin"));
+  const int64_t corner[] = {10, 20, 30};
+  const double two[] = {1, 2};
+  const std::vector<std::pair<std::string, std::function<void(hid_t)>>> foreign = {
+      {"10 20 30",
+       [&](hid_t file) {
+         numeric_attribute(file, "origin", H5T_STD_I64LE, H5T_NATIVE_INT64, corner, 3);
+       }},
+      {"1 2",
+       [&](hid_t file) {
+         numeric_attribute(file, "origin", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, two, 2);
+       }},
+      {"lower-left", [&](hid_t file) {
+         const hid_t type = H5Tcopy(H5T_C_S1);
+         H5Tset_size(type, 10);
+         const hid_t space = H5Screate(H5S_SCALAR);
+         const hid_t a = H5Acreate2(file, "origin", type, space, H5P_DEFAULT, H5P_DEFAULT);
+         ASSERT_GE(H5Awrite(a, type, "lower-left"), 0);
+         H5Aclose(a), H5Sclose(space), H5Tclose(type);
+       }}};
+  for (const auto& [text, add] : foreign) {
+    write_foreign_h5(dir.file("foreign.h5"), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, points, 2, add);
+    const LineSet back = read_line_set(dir.file("foreign.h5"));
+    EXPECT_FALSE(has_origin(back)) << text;
+    EXPECT_EQ(back.metadata.at("source_origin"), text);
+    EXPECT_EQ(back.positions, std::vector<float>(points, points + 6)) << text;
+    // Written again, it is metadata like any other: no frame either.
+    write_line_set(back, dir.file("again.h5"));
+    EXPECT_FALSE(has_origin(read_line_set(dir.file("again.h5")))) << text;
+  }
+}
+
+// MRtrix's Float64 data is read in double: at an origin it keeps what float32 would round away.
+TEST(Origin, Float64TckPointsAreMovedBeforeFloat32) {
+  TempDir dir;
+  const double points[] = {500000.125, 5400000.125, 10.5, 500000.375, 5400000.625, 11.25};
+  const double nan = std::nan(""), inf = HUGE_VAL;
+  std::string header = "mrtrix tracks\ndatatype: Float64LE\ncount: 1\nfile: . 64\nEND\n";
+  header.resize(64, '\0');
+  std::string data = header;
+  const auto put = [&](double v) { data.append(reinterpret_cast<const char*>(&v), 8); };
+  for (double v : points) put(v);
+  for (double v : {nan, nan, nan, inf, inf, inf}) put(v);
+  test::write_text(dir.file("f64.tck"), data);
+  const LineSet local = read_line_set(dir.file("f64.tck"), at(kOrigin));
+  ASSERT_EQ(local.positions.size(), 6u);
+  for (size_t i = 0; i < 6; ++i) EXPECT_EQ(local.positions[i], float(points[i] - kOrigin[i % 3]));
+  EXPECT_EQ(local.metadata.at("origin"), "500000 5400000 0");
+  // Without it both northings round to float32's steps of 0.5 there.
+  const LineSet plain = read_line_set(dir.file("f64.tck"));
+  EXPECT_EQ(plain.positions[1], 5400000.0f);
+  EXPECT_EQ(plain.positions[4], 5400000.5f);
+}
+
+// A coordinate beyond float32's range from the origin is refused as it is without one (the text
+// and VTK readers), not read as an infinite, invalid point.
+TEST(Origin, CoordinatesBeyondFloat32FromTheOriginAreRefused) {
+  TempDir dir;
+  // x of 1e38 and 2e38 locally, at 1.1e39 and 1.2e39 in the world (past float32's 3.4e38): read
+  // back at that origin, exact (float32's steps there are 1e31, double's error 1e23).
+  LineSet lines;
+  lines.append_point(1e38f, 2, 3);
+  lines.append_point(2e38f, 5, 6);
+  lines.end_line();
+  set_origin(lines, {1e39, 0, 0});
+  WriteOptions ascii;
+  ascii.ascii = true;
+  WriteOptions vtp_ascii;
+  vtp_ascii.vtp_encoding = "ascii";
+  const std::vector<std::pair<std::string, WriteOptions>> files = {
+      {"a.csv", {}},    {"a.obj", {}}, {"a.vtk", {}},
+      {"b.vtk", ascii}, {"a.vtp", {}}, {"b.vtp", vtp_ascii}};
+  for (const auto& [name, options] : files) {
+    write_line_set(lines, dir.file(name), options);
+    EXPECT_THROW(read_line_set(dir.file(name)), InputError) << name;
+    EXPECT_THROW(read_line_set(dir.file(name), at({0, 0, 0})), InputError) << name;
+    EXPECT_EQ(read_line_set(dir.file(name), at({1e39, 0, 0})).positions, lines.positions) << name;
+  }
+}
+
+TEST(Origin, SameDataComparesTheFrame) {
+  LineSet a;
+  a.append_point(1, 2, 3);
+  a.append_point(4, 5, 6);
+  a.end_line();
+  LineSet b = a;
+  EXPECT_TRUE(a.same_data(b));
+  set_origin(b, {0, 0, 0});
+  EXPECT_TRUE(a.same_data(b));  // none is (0, 0, 0)
+  set_origin(b, {500000, 0, 0});
+  EXPECT_FALSE(a.same_data(b));
+  set_origin(a, {500000, 0, 0});
+  EXPECT_TRUE(a.same_data(b));
 }

@@ -694,14 +694,18 @@ TEST(Vulkan, MlabdbBeatsMboitForOpaqueAndSemiAndLosesForTransparent) {
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
 }
 
+// A wrong --device (exit 1, as any wrong option value), naming the devices there are.
 TEST(Vulkan, AnUnknownDeviceNameIsAClearError) {
   vk::ContextOptions o;
   o.device = "no such device 123";
   try {
     vk::Context ctx(o);
     FAIL();
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("no device named"), std::string::npos) << e.what();
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("(have: "), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no Vulkan device named 'no such device 123'"),
+              std::string::npos)
+        << e.what();
   }
 }
 

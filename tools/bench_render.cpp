@@ -297,6 +297,9 @@ void print_markdown(const nlohmann::json& result) {
       }
       if (r.contains("stopped"))
         notes += (notes.empty() ? "" : "; ") + r["stopped"].get<std::string>();
+      // An empty PSNR says why.
+      if (r.contains("quality_skipped"))
+        notes += (notes.empty() ? "" : "; ") + r["quality_skipped"].get<std::string>();
       const bool gpu = r.contains("gpu_ms");
       std::cout << r["device"].get<std::string>() << " | " << r["frames"].get<int>() << " | "
                 << (gpu ? fixed(r["gpu_ms"]["median"], 1) : "") << " | "
@@ -423,6 +426,10 @@ void bench_render(const BenchRenderArgs& args) {
           row["quality_skipped"] = "no reference: " + references.why_not();
         }
       }
+      if (!references.why_not().empty())
+        std::cerr << "bench render: " << run["cache"].get<std::string>()
+                  << ": no PSNR or SSIM, the reference cannot render: " << references.why_not()
+                  << "\n";
     }
     result["runs"].push_back(std::move(run));
   }

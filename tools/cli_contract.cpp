@@ -1,6 +1,7 @@
 #include "cli_contract.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -72,10 +73,17 @@ CLI::Validator within(double lo, double hi) {
 
 CLI::Validator unsigned_integer() {
   return CLI::Validator(
+      // Decimal digits only, as synth:NAME?seed=N takes them: CLI11 would take "0x10" as 16 and
+      // clamp a number past 2^64 - 1 to it.
       [](std::string& text) -> std::string {
-        return text.find('-') == std::string::npos
-                   ? ""
-                   : "Value " + text + " not in range 0 to 2^64 - 1";
+        uint64_t value = 0;
+        const char* end = text.data() + text.size();
+        const auto r = std::from_chars(text.data(), end, value);
+        if (!text.empty() && text[0] == '-') return "Value " + text + " not in range 0 to 2^64 - 1";
+        if (r.ptr != end || r.ec == std::errc::invalid_argument)
+          return "Value " + text + " is not an unsigned decimal integer";
+        if (r.ec != std::errc()) return "Value " + text + " not in range 0 to 2^64 - 1";
+        return "";
       },
       "UINT");
 }
@@ -162,7 +170,7 @@ namespace {
 // bench once took its step as a positional anywhere among the options (`bench --input x tubes`);
 // the step is now a subcommand, so options given before it move behind it. The step is the first
 // of the names that is not the value of the option before it (every option before it takes a
-// value except the flags).
+// value except the flags). Warns, as every deprecated spelling does, where it moved any.
 void move_options_behind_bench_step(std::vector<std::string>& args) {
   static const std::vector<std::string> steps = {"tubes", "voxels", "embree", "bake", "render"};
   static const std::vector<std::string> flags = {"--json", "--keep", "-h", "--help"};
@@ -173,7 +181,11 @@ void move_options_behind_bench_step(std::vector<std::string>& args) {
   for (size_t i = 0; i < args.size(); ++i) {
     if (i > 0 && takes_value(args[i - 1])) continue;
     if (std::find(steps.begin(), steps.end(), args[i]) == steps.end()) continue;
-    if (i > 0) std::rotate(args.begin(), args.begin() + i, args.begin() + i + 1);
+    if (i == 0) return;
+    std::cerr << "linebake: warning: bench options before the step (" << args[0]
+              << ") are deprecated; give them after it: linebake bench " << args[i]
+              << " ... (docs/cli.md, deprecated spellings)\n";
+    std::rotate(args.begin(), args.begin() + i, args.begin() + i + 1);
     return;
   }
 }

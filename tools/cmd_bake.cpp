@@ -29,7 +29,7 @@ Command add_bake(CLI::App& app) {
 
 Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
                       bool print) {
-  auto* sub = app.add_subcommand("bake", "Build renderable assets (tubes) into an asset cache");
+  auto* sub = app.add_subcommand("bake", "Build renderable assets (tubes, voxels, embree, rtx) into an asset cache");
   struct Args {
     BakeOptions options;
     std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";
@@ -77,7 +77,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   "Byte budget per tube chunk (default 4 GiB)")
       ->check(bake_number_check("--chunk-bytes"));
   sub->add_option("--grid", args->grid,
-                  "Voxels: auto (default), N along the longest axis, or NxNxN")
+                  "Voxels: auto (default), N along the longest axis, or XxYxZ")
       ->check(grid_check());
   sub->add_option("--quantization", o.voxels.quantization,
                   "Voxels: cells per face axis for chord ends, 16 | 32 (default) | 64")
@@ -89,7 +89,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   "Voxels: vertex attribute stored as unorm8 at chord ends (default: the first; "
                   "none)");
   sub->add_option("--embree-geometry", args->embree_geometry,
-                  "Embree: linear (default, round linear curves) | bezier (Catmull-Rom)")
+                  "Embree: linear (default, round linear curves) | bezier (Catmull-Rom) | capsules "
+                  "(round linear curves, as tiles and rtx --rtx-geometry capsules draw them)")
       ->check(one_of({"linear", "bezier", "capsules"}));
   sub->add_option("--embree-quality", args->embree_quality, "Embree: low | medium (default) | high")
       ->check(one_of({"low", "medium", "high"}));
@@ -161,7 +162,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   args->compression == "deflate" || args->compression == "blosc-zstd",
                   "with --compression deflate or blosc-zstd (lz4 and none have no levels)");
   });
-  return [args, run, print] {
+  return [args, run, print, sub] {
     BakeOptions options = args->options;
     for (const std::string& input : args->inputs)
       if (input.find_first_of("*?[") == std::string::npos) check_input_file(input);
@@ -170,6 +171,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     if (!args->from.empty()) options.format = parse_format(args->from);
     options.on_invalid = parse_invalid_policy(args->on_invalid);
     options.compression = parse_compression(args->compression);
+    // Not given: a bake into an existing cache keeps its codec (BakeOptions::compression_given).
+    options.compression_given = given(sub, "compression");
     options.tubes.normals = parse_normal_encoding(args->normals);
     parse_grid(args->grid, options.voxels);
     options.embree.geometry = parse_embree_geometry(args->embree_geometry);

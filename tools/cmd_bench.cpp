@@ -707,7 +707,8 @@ Command add_bench(CLI::App& app) {
       ->check(CLI::Range(1, 100));
   isolation
       ->add_option("--resident", isolation_args->resident,
-                   "Memory to touch first, e.g. 8G: a fork copies the page tables of all of it")
+                   "Memory to touch first, e.g. 8G (default 0): a fork copies the page tables of "
+                   "all of it")
       ->check(byte_size());
   isolation->add_flag("--json", isolation_args->json, "Print the figures as JSON");
   auto shaders_args = std::make_shared<BenchShadersArgs>();

@@ -69,7 +69,8 @@ Command add_depth_complexity(CLI::App& app) {
       ->check(one_of({"gpu", "cpu"}));
   sub->add_option(
       "--tf", args->tf,
-      "Transfer function (recorded; every front fragment counts, whatever its opacity)");
+      "Transfer function (default semi; recorded: every front fragment counts, whatever its "
+      "opacity)");
   sub->add_option("--flight", args->flight, "orbit-zoom (default) | orbit | KEYFRAMES.json");
   sub->add_option("--frame-count", args->frame_count, "Frames in the flight (default 64)")
       ->check(CLI::Range(1, 100000));

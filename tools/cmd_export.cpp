@@ -183,8 +183,10 @@ Command add_export(CLI::App& app) {
                                                           : args->cache;
       if (&slot == &args->cache)
         throw OutputError(out, "export writes .glb or .gltf (glTF) or .vdb (OpenVDB)");
-      if (!slot.empty())
-        throw UsageError("-o " + out + ": a " + ext + " output is given twice (" + slot + ")");
+      if (!slot.empty())  // one output a format: export writes each from the cache once
+        throw UsageError(std::string(&slot == &args->vdb ? "an OpenVDB" : "a glTF") +
+                         " output is given twice (" + slot + " and " + out +
+                         "); export writes one of each");
       slot = out;
     }
     if (args->glb.empty() && args->vdb.empty())

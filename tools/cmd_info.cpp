@@ -11,6 +11,7 @@
 #include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
+#include "whole_output.hpp"
 #include "formats/registry.hpp"
 #include "lines/line_info.hpp"
 #include "lines/line_reader.hpp"
@@ -22,13 +23,18 @@ namespace linebake::cli {
 Command add_info(CLI::App& app) {
   auto* sub = app.add_subcommand("info", "Print statistics of a line set (file or synth: source)");
   struct Args {
-    std::string input, from, origin;
+    std::string input, from, origin, memory_budget;
     bool json = false;
   };
   auto args = std::make_shared<Args>();
   sub->add_option("input", args->input, "Input file, or synth:<name>?scale=..&seed=..")->required();
   sub->add_option("--from", args->from, "Input format, overriding the extension");
   sub->add_option("--origin", args->origin, kOriginHelp)->check(origin_value());
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "Resident memory at most for a format read whole (OBJ, VTK, VTP) or a line "
+                  "larger than a batch, e.g. 8G (default: half of physical memory, or of the "
+                  "cgroup's or ulimit -v's limit when less); unlimited")
+      ->check(memory_budget_size());
   sub->add_flag("--json", args->json, "Machine-readable output (schema in docs/cli.md)");
   return [args] {
     check_input_file(args->input);
@@ -42,9 +48,9 @@ Command add_info(CLI::App& app) {
     {
       TerminalProgress progress("reading");
       read.progress = progress.callback();
-      // A format read whole, or a line larger than a batch, is held within the default budget
-      // (half of physical memory).
-      read.memory_limit = MemoryBudget(default_memory_budget()).available();
+      // A format read whole, or a line larger than a batch, is held within the budget.
+      const MemoryBudget budget(memory_budget_bytes(args->memory_budget));
+      if (!budget.unlimited()) read.memory_limit = budget.available();
       read.origin = resolve_origin(args->origin, {args->input}, read);
       const std::unique_ptr<LineReader> input = open_line_reader(args->input, read);
       metadata = input->header().metadata;

@@ -9,10 +9,40 @@
 
 #include "cli_contract.hpp"
 #include "commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
 #include "core/interrupt.hpp"
 #include "core/nearest.hpp"
+
+namespace {
+
+// What a command printed (--json, a report, help) is one of its outputs: a write that failed
+// there (a full disk behind a redirection) fails the command, exit 3, so that nothing, `run`
+// included, takes a cut-short output for a whole one. The outputs the command had already
+// renamed into place are whole, and the message names them. std::cout, synchronised with stdio,
+// flushes stdout itself: the failing fflush is usually that one, and the second finds nothing
+// left to write.
+int standard_output_written() {
+  errno = 0;
+  const bool was_good = static_cast<bool>(std::cout);
+  std::cout.flush();
+  const int cout_error = was_good && !std::cout ? errno : 0;
+  errno = 0;
+  const bool flushed = std::fflush(stdout) == 0;
+  const int error = !flushed ? errno : cout_error;
+  if (std::cout && flushed && !std::ferror(stdout)) return linebake::cli::kOk;
+  // The reason only where these flushes failed: an earlier write's errno is gone.
+  std::string message = "linebake: error: standard output: a write failed";
+  if (error != 0) message += std::string(": ") + std::strerror(error);
+  const std::vector<std::string> whole = linebake::outputs_written();
+  for (size_t i = 0; i < whole.size(); ++i)
+    message += (i == 0 ? " (written whole before it: " : ", ") + whole[i];
+  std::cerr << message << (whole.empty() ? "" : ")") << "\n";
+  return linebake::cli::kOutput;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
@@ -57,13 +87,13 @@ int main(int argc, char** argv) {
     for (auto a = args.begin(); a != command; ++a) {
       if (*a == "--version") {
         std::cout << LINEBAKE_VERSION << "\n";
-        return kOk;
+        return standard_output_written();
       }
       if (*a == "-h" || *a == "--help")
         for (const auto& [sub, run] : commands)
           if (sub->get_name() == *command) {
             std::cout << sub->help("linebake");
-            return kOk;
+            return standard_output_written();
           }
     }
     std::vector<std::string> rest(command + 1, args.end());
@@ -82,33 +112,15 @@ int main(int argc, char** argv) {
     try {
       app.parse(args);
     } catch (const CLI::ParseError& e) {
-      const int code = app.exit(e);
-      return code == 0 ? kOk : kUsage;
+      const int code = app.exit(e);  // help and --version print to stdout and give 0
+      return code == 0 ? standard_output_written() : kUsage;
     }
     // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
     // temporary files (core/interrupt.hpp).
     linebake::install_interrupt_handlers();
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
-    // What a command printed (--json, a report) is one of its outputs: a write that failed
-    // there (a full disk behind a redirection) fails the command, so that nothing, `run`
-    // included, takes a cut-short output for a whole one.
-    // std::cout, synchronised with stdio, flushes stdout itself: the failing fflush is usually
-    // that one, and the second finds nothing left to write.
-    errno = 0;
-    const bool was_good = static_cast<bool>(std::cout);
-    std::cout.flush();
-    const int cout_error = was_good && !std::cout ? errno : 0;
-    errno = 0;
-    const bool flushed = std::fflush(stdout) == 0;
-    const int error = !flushed ? errno : cout_error;
-    if (!std::cout || !flushed || std::ferror(stdout))
-      // The reason only where these flushes failed: an earlier write's errno is gone.
-      throw linebake::OutputError(
-          "standard output",
-          std::string("a write failed") +
-              (error != 0 ? std::string(": ") + std::strerror(error) : std::string()));
-    return kOk;
+    return standard_output_written();
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";
     return 128 + e.signal();

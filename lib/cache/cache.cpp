@@ -118,7 +118,8 @@ nlohmann::json to_json(const Provenance& p) {
                       {"memory_bytes", p.memory_bytes},
                       {"disk_bytes", p.disk_bytes},
                       {"estimated_disk_bytes", p.estimated_disk_bytes},
-                      {"compression", p.compression}};
+                      {"compression", p.compression},
+                      {"compression_level", p.compression_level}};
   // Only where the step shared its passes (caches before 2026-11-29 have no such field).
   if (!p.build.built_with.empty()) j["build"]["built_with"] = p.build.built_with;
   return j;
@@ -149,6 +150,7 @@ Provenance provenance_from_json(const nlohmann::json& j) {
   p.disk_bytes = j.at("disk_bytes");
   p.estimated_disk_bytes = j.value("estimated_disk_bytes", uint64_t{0});
   p.compression = j.value("compression", "");
+  p.compression_level = j.value("compression_level", -1);
   return p;
 }
 

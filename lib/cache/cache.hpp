@@ -40,6 +40,7 @@ struct Provenance {
   uint64_t memory_bytes = 0;  // the representation in memory
   uint64_t disk_bytes = 0;    // its datasets as stored
   std::string compression;
+  int compression_level = -1;         // -1: the codec's default (and caches before 2026-11-30)
   uint64_t memory_budget = 0;         // the bake's budget (0: unlimited)
   uint64_t spill_bytes = 0;           // what the step wrote to temporary files beside the cache
   uint64_t estimated_disk_bytes = 0;  // what the bake expected disk_bytes to be (0: no estimate)

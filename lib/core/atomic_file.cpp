@@ -219,6 +219,14 @@ AtomicFile::~AtomicFile() {
 
 namespace {
 thread_local OutputGroup* open_group = nullptr;
+
+std::mutex written_mutex;
+std::vector<std::string> written;  // outputs_written()
+
+void record_written(const std::string& path) {
+  const std::lock_guard<std::mutex> lock(written_mutex);
+  written.push_back(path);
+}
 }
 
 OutputGroup::OutputGroup() : previous_(open_group) {
@@ -244,8 +252,14 @@ void OutputGroup::commit() {
                                      std::strerror(error) + " (" + f.temp + ")");
     }
     ++renamed;
+    record_written(f.final);
   }
   for (const File& f : files_) sync_directory_of(f.final, f.final);
+}
+
+std::vector<std::string> outputs_written() {
+  const std::lock_guard<std::mutex> lock(written_mutex);
+  return written;
 }
 
 void AtomicFile::commit() {
@@ -264,6 +278,7 @@ void AtomicFile::commit() {
                                        std::strerror(errno) + " (" + temp_path_ + ")");
   }
   committed_ = true;
+  record_written(final_path_);
   sync_directory_of(final_path_, final_path_);
 }
 

@@ -6,6 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/nearest.hpp"
+#include "lines/origin.hpp"
 
 namespace linebake {
 
@@ -53,9 +54,14 @@ const Attribute* LineSet::find_line_attribute(const std::string& name) const {
 }
 
 bool LineSet::same_data(const LineSet& other) const {
+  // The same local positions at another origin are other world positions (none: 0, 0, 0).
+  const auto frame = [](const LineSet& lines) -> std::optional<Origin> {
+    const auto it = lines.metadata.find(kOriginKey);
+    return it == lines.metadata.end() ? Origin{0, 0, 0} : parse_origin(it->second);
+  };
   return same_bits(positions, other.positions) && line_offsets == other.line_offsets &&
          same_attributes(attributes, other.attributes) &&
-         same_attributes(line_attributes, other.line_attributes);
+         same_attributes(line_attributes, other.line_attributes) && frame(*this) == frame(other);
 }
 
 bool valid_point(const float* p) {

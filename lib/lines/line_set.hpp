@@ -44,7 +44,8 @@ struct LineSet {
   const Attribute* find_attribute(const std::string& name) const;
   const Attribute* find_line_attribute(const std::string& name) const;
 
-  // Exact equality of every array and name (metadata excluded). Used by round-trip tests.
+  // Exact equality of every array and name, and of the origin (lines/origin.hpp: the same world
+  // positions); the rest of the metadata excluded. Used by round-trip tests.
   bool same_data(const LineSet& other) const;
 };
 

@@ -36,9 +36,11 @@ std::optional<Origin> parse_origin(std::string_view text) {
       skip_blanks();
       if (at == before) return std::nullopt;
     }
-    if (at < text.size() && text[at] == '+') ++at;
+    // One sign at most: from_chars takes a '-' but not a '+'.
+    if (at + 1 < text.size() && text[at] == '+' && text[at + 1] != '-') ++at;
     const auto r = std::from_chars(text.data() + at, text.data() + text.size(), origin[k]);
     if (r.ec != std::errc() || !std::isfinite(origin[k])) return std::nullopt;
+    origin[k] += 0.0;  // -0 is 0: one text, one /lines key
     at = size_t(r.ptr - text.data());
   }
   skip_blanks();
@@ -77,6 +79,13 @@ std::map<std::string, std::string> metadata_without_origin(const LineSet& lines)
 
 void set_origin(LineSet& lines, const Origin& origin) {
   lines.metadata[kOriginKey] = origin_text(origin);
+}
+
+void keep_as_source_origin(std::map<std::string, std::string>& metadata) {
+  const auto it = metadata.find(kOriginKey);
+  if (it == metadata.end()) return;
+  metadata.try_emplace(kSourceOriginKey, std::move(it->second));
+  metadata.erase(it);
 }
 
 void shift_positions(std::span<float> xyz, const Origin& by) {

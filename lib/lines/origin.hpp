@@ -11,6 +11,7 @@
 // shortest that read back to the same doubles, separated by spaces.
 
 #include <array>
+#include <cmath>
 #include <map>
 #include <optional>
 #include <span>
@@ -24,6 +25,9 @@ namespace linebake {
 using Origin = std::array<double, 3>;
 
 inline constexpr const char* kOriginKey = "origin";
+// An "origin" a file's metadata carries that is not its points' frame (a VTK field, a NetCDF or
+// foreign HDF5 attribute: a grid's corner, a seed point, text) is kept under this name instead.
+inline constexpr const char* kSourceOriginKey = "source_origin";
 
 // "x y z" as above.
 std::string origin_text(const Origin& origin);
@@ -44,11 +48,21 @@ std::optional<Origin> optional_origin(const LineSet& lines, const std::string& w
 std::map<std::string, std::string> metadata_without_origin(const LineSet& lines);
 // Sets the metadata "origin" (an all-zero origin is stored too: the lines were placed so).
 void set_origin(LineSet& lines, const Origin& origin);
+// Renames the metadata "origin" to "source_origin" (kept as it was written; where the file has a
+// "source_origin" of its own, that one is kept and the "origin" dropped).
+void keep_as_source_origin(std::map<std::string, std::string>& metadata);
 
 // A world coordinate as a position relative to `origin`: subtracted in double, then rounded to
 // float32 once. NaN and infinity stay what they are.
 inline float to_local(double world, double origin) {
   return static_cast<float>(world - origin);
+}
+// to_local, and false where a finite world coordinate lies farther from the origin than float32
+// reaches (the position would be infinite): what a reader that refuses such a number without an
+// origin refuses with one.
+inline bool to_local_in_range(double world, double origin, float& local) {
+  local = to_local(world, origin);
+  return !std::isinf(local) || std::isinf(world);
 }
 inline double to_world(float local, double origin) {
   return static_cast<double>(local) + origin;

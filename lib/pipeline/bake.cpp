@@ -658,6 +658,14 @@ BakeResult bake(const BakeOptions& options_in) {
   // Which steps run: the lines when their key changed, an asset when its key did.
   BakeStep lines_step{"lines", false, {}};
   const auto old_lines = old_provenance("/lines");
+  if (!options.compression_given && old_lines) {
+    try {
+      options.compression = parse_compression(old_lines->compression);
+      options.compression_level = old_lines->compression_level;
+    } catch (const Error&) {
+      // A codec this build does not name: the option's default, as before.
+    }
+  }
   // In place the lines keep the identity of what they were first read from: the cache is not
   // their source, and hashing it would read the whole file for a key nobody compares.
   const bool keep_identity = in_place && old_lines.has_value();
@@ -882,6 +890,7 @@ BakeResult bake(const BakeOptions& options_in) {
     p.created = utc_now_iso8601();
     p.threads = threads();
     p.compression = to_string(options.compression);
+    p.compression_level = options.compression_level;
     p.memory_budget = budget_bytes;
     p.estimated_disk_bytes = result.estimate.step(step);
   };

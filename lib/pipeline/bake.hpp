@@ -70,6 +70,10 @@ struct BakeOptions {
   RtxOptions rtx;
   Compression compression = Compression::Lz4;
   int compression_level = -1;  // codec default
+  // Whether `compression` and its level were asked for. Where not (`bake` without --compression),
+  // a bake into an existing cache keeps the cache's own, its /lines' codec and level: adding an
+  // asset to a cache baked with `none` rebuilds nothing for a default's sake.
+  bool compression_given = true;
   bool force = false;          // rebuild every step; replace an output file that is not a cache
   bool progress = true;        // terminal progress bars (drawn only on a TTY)
   bool space_check = true;     // refuse up front when the output's file system is too full

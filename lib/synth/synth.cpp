@@ -179,7 +179,11 @@ class Generator : public LineReader {
     std::vector<float>& attribute = batch.attributes[0].values;
     const bool derived = spec_.attribute == "curvature";
     while (segments_ < target_) {
-      if (queued_ == queue_.size()) refill();
+      if (queued_ == queue_.size()) {
+        refill();
+        // Every 2,048 lines, not only per batch: a set of one batch takes seconds to generate.
+        if (progress_) progress_(segments_, target_);
+      }
       GeneratedLine& line = queue_[queued_];
       const uint64_t n = line.xyz.size() / 3;
       if (n < 2) {

@@ -237,9 +237,11 @@ std::optional<std::string> data_does_not_fit(const TechniqueOptions& o, uint64_t
   trimmed_rss_bytes();  // memory freed but still resident in the heap is not held
   const MemoryBudget budget(process_budget(o));
   if (bytes <= budget.available()) return std::nullopt;
+  // What the process holds already (the Vulkan driver, its compiler) is not left: said so, with
+  // no figure of its own, which differs from process to process (the CLI's and Python's).
   return "the " + data + " take " + format_bytes(bytes) +
          " in memory, more than the memory budget leaves (" + format_bytes(budget.available()) +
-         " of " + format_bytes(budget.total()) + ")";
+         " of " + format_bytes(budget.total()) + ", less what the process holds already)";
 }
 
 void check_data_fits(const TechniqueInfo& info, const TechniqueOptions& o, const CacheReader& cache,

@@ -176,6 +176,8 @@ BakeOptions bake_options(const py::kwargs& kw, const std::vector<std::string>& a
   o.on_invalid = parsed("on_invalid", "repair", parse_invalid_policy);
   if (kw.contains("origin")) o.origin = origin_arg(kw["origin"], "bake: origin");
   o.compression = as_usage_error([&] { return parse_compression(compression); });
+  // Not given: a bake into an existing cache keeps its codec, as the CLI's does.
+  o.compression_given = kw.contains("compression");
   if (auto v = keyword<int>("bake", kw, "compression_level")) o.compression_level = *v;
   if (auto v = keyword<int>("bake", kw, "tube_sides")) o.tubes.sides = *v;
   if (auto v = keyword<float>("bake", kw, "radius")) o.tubes.radius = *v;

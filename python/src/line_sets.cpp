@@ -111,6 +111,16 @@ std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
             pair);
       }
     }
+  // The frame the points are relative to (LineSet.origin): checked here, not at the first write.
+  if (has_origin(lines)) {
+    const std::optional<Origin> origin = parse_origin(lines.metadata.at(kOriginKey));
+    if (!origin)
+      throw py::value_error(
+          "metadata: 'origin' is the frame the points are relative to, three "
+          "finite numbers 'x y z'; got " +
+          repr_of(py::str(lines.metadata.at(kOriginKey))));
+    set_origin(lines, *origin);
+  }
   return result;
 }
 
@@ -354,7 +364,9 @@ the line set's own memory (no copy); they keep the line set alive.)doc")
       .def(
           "same_data",
           [](const PyLineSet& a, const PyLineSet& b) { return a.lines.same_data(b.lines); },
-          py::arg("other"), "Exact equality of every array and name (metadata excluded).")
+          py::arg("other"),
+          "Exact equality of every array and name, and of the origin (the same world points); "
+          "the rest of the metadata excluded.")
       .def("__repr__", &repr);
 
   module.def("read", &read, py::arg("source"), py::arg("format") = py::none(), py::kw_only(),

@@ -83,7 +83,13 @@ std::string budget_arg(const py::handle& value, const std::string& what) {
 std::string origin_arg(const py::handle& value, const std::string& what) {
   const char* wanted = "None, 'auto', or three numbers (x, y, z)";
   if (value.is_none()) return "";
-  if (PyUnicode_Check(value.ptr())) return text_arg(value, what);
+  if (PyUnicode_Check(value.ptr())) {
+    std::string text = text_arg(value, what);
+    // "" is no origin to the option parser; here None says that.
+    if (text.empty())
+      throw UsageError(what + ": '' is neither 'auto' nor 'x,y,z' (None: no origin)");
+    return text;
+  }
   if (!PySequence_Check(value.ptr()) && !py::hasattr(value, "__array__"))
     wrong_kind(value, what, wanted);
   const py::sequence xyz =
@@ -93,6 +99,8 @@ std::string origin_arg(const py::handle& value, const std::string& what) {
   for (size_t k = 0; k < 3; ++k) {
     if (!is_number(xyz[k])) wrong_kind(value, what, wanted);
     origin[k] = typed_arg<double>(xyz[k], what);
+    if (!std::isfinite(origin[k]))
+      throw UsageError(what + ": " + repr_of(value) + " is not three finite numbers");
   }
   return origin_text(origin);
 }

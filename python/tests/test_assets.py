@@ -270,3 +270,20 @@ def test_bake_keeps_the_lines_origin(tmp_path):
     assert linebake.open_cache(from_set).lines().origin == (500000.0, 5400000.0, 13.0)
     with pytest.raises(TypeError, match="origin"):
         linebake.bake(str(csv), str(tmp_path / "x.lbc.h5"), origin=[1, 2])
+
+
+def test_bake_into_a_cache_keeps_its_compression_unless_asked(tmp_path):
+    # A cache baked uncompressed: adding voxels without `compression` rebuilds neither /lines nor
+    # the tubes for the default's sake, and writes the voxels uncompressed as well.
+    csv = tmp_path / "l.csv"
+    csv.write_text("line_id,x,y,z\n0,0,0,0\n0,1,0,0\n0,1,1,0\n1,0,0,1\n1,0,1,1\n")
+    cache = str(tmp_path / "c.lbc.h5")
+    linebake.bake(str(csv), cache, compression="none")
+    added = linebake.bake(cache, assets=["tubes", "voxels"], grid=8)
+    assert [(s["step"], s["built"]) for s in added["steps"]] == \
+        [("lines", False), ("tubes", False), ("voxels", True)]
+    opened = linebake.open_cache(cache)
+    assert [opened.provenance(s)["compression"] for s in ("lines", "tubes", "voxels")] == \
+        ["none"] * 3
+    linebake.bake(cache, assets=["tubes"], compression="lz4")
+    assert linebake.open_cache(cache).provenance("lines")["compression"] == "lz4"

@@ -423,3 +423,20 @@ def test_read_at_an_origin_keeps_far_off_digits(tmp_path):
             linebake.read(csv, origin=bad)
     with pytest.raises(linebake.UsageError, match="origin"):
         linebake.read(csv, origin="1,2")
+    # "" is not None, and a number that is not finite no origin.
+    for bad in ["", (float("nan"), 0, 0), [0, float("inf"), 0]]:
+        with pytest.raises(linebake.UsageError, match="read: origin"):
+            linebake.read(csv, origin=bad)
+
+
+def test_an_origin_in_metadata_is_checked_and_counts_in_same_data():
+    points = np.array([[0, 0, 0], [1, 2, 3]], np.float32)
+    with pytest.raises(ValueError, match="origin"):
+        linebake.LineSet(points, [0, 2], metadata={"origin": "lower-left"})
+    at = linebake.LineSet(points, [0, 2], metadata={"origin": "5e5, 5.4e6, -0"})
+    assert at.origin == (500000.0, 5400000.0, 0.0)
+    assert at.metadata["origin"] == "500000 5400000 0"  # the one text of those numbers
+    # The same local points elsewhere are other world points; no origin is (0, 0, 0).
+    assert not at.same_data(linebake.LineSet(points, [0, 2]))
+    assert linebake.LineSet(points, [0, 2]).same_data(
+        linebake.LineSet(points, [0, 2], metadata={"origin": "0 0 0"}))

@@ -177,7 +177,8 @@ def test_the_scene_is_built_within_the_memory_budget(baked, tmp_path):
         linebake.Renderer(cache, "ll", size=(16, 16), memory_budget="1M")
     assert str(caught.value).startswith("ll: the tube mesh's buffers of chunk 0 ")
     assert "more than the memory budget leaves" in str(caught.value)
-    assert "of 1.00 MiB); raise --memory-budget" in str(caught.value)
+    assert "of 1.00 MiB, less what the process holds already); raise --memory-budget" in \
+        str(caught.value)
     # Unlimited: the same frame as under the default budget.
     unlimited, _ = linebake.render(cache, technique="reference", size=SIZE, frame=FRAME,
                                    memory_budget="unlimited")

@@ -52,6 +52,16 @@ for enc in appended appended-base64 base64 ascii; do
 done
 quiet "$bin" convert "$l" -o "$tmp/raw.vtp" --no-compress && seed vtp "$tmp/raw.vtp" uncompressed.vtp
 quiet "$bin" convert "$l" -o "$tmp/a.h5" --derive line_length && seed hdf5 "$tmp/a.h5" lines.h5
+# Far-off coordinates (UTM-like) written at an origin: float64 points in VTK and VTP, the HDF5
+# file's root attribute `origin` (docs/cli.md, "Far-off coordinates").
+printf 'line_id,x,y,z\n0,500000.25,5400000.5,12\n0,500001,5400001.75,12.5\n1,500002,5400000,13\n1,500003,5400002.5,13\n' \
+  >"$tmp/far.csv"
+seed csv "$tmp/far.csv" far-off.csv
+for ext in vtk vtp h5; do
+  target=$ext && [ "$ext" = h5 ] && target=hdf5
+  quiet "$bin" convert "$tmp/far.csv" -o "$tmp/far.$ext" --origin auto &&
+    seed "$target" "$tmp/far.$ext" "far-off.$ext"
+done
 
 # The cache: lines, tubes, voxels and Embree curves, uncompressed and LZ4.
 for codec in none lz4; do
