@@ -29,7 +29,8 @@ Command add_bake(CLI::App& app) {
 
 Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
                       bool print) {
-  auto* sub = app.add_subcommand("bake", "Build renderable assets (tubes, voxels, embree, rtx) into an asset cache");
+  auto* sub = app.add_subcommand(
+      "bake", "Build renderable assets (tubes, voxels, embree, rtx) into an asset cache");
   struct Args {
     BakeOptions options;
     std::string from, on_invalid = "repair", compression = "lz4", normals = "float32";

@@ -11,12 +11,12 @@
 #include "core/json_file.hpp"
 #include "core/memory_budget.hpp"
 #include "core/progress.hpp"
-#include "whole_output.hpp"
 #include "formats/registry.hpp"
 #include "lines/line_info.hpp"
 #include "lines/line_reader.hpp"
 #include "lines/validate.hpp"
 #include "synth/synth.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 

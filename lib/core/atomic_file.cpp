@@ -227,7 +227,7 @@ void record_written(const std::string& path) {
   const std::lock_guard<std::mutex> lock(written_mutex);
   written.push_back(path);
 }
-}
+}  // namespace
 
 OutputGroup::OutputGroup() : previous_(open_group) {
   open_group = this;

@@ -74,10 +74,10 @@ struct BakeOptions {
   // a bake into an existing cache keeps the cache's own, its /lines' codec and level: adding an
   // asset to a cache baked with `none` rebuilds nothing for a default's sake.
   bool compression_given = true;
-  bool force = false;          // rebuild every step; replace an output file that is not a cache
-  bool progress = true;        // terminal progress bars (drawn only on a TTY)
-  bool space_check = true;     // refuse up front when the output's file system is too full
-  bool dry_run = false;        // read the input, print the estimates, write nothing
+  bool force = false;       // rebuild every step; replace an output file that is not a cache
+  bool progress = true;     // terminal progress bars (drawn only on a TTY)
+  bool space_check = true;  // refuse up front when the output's file system is too full
+  bool dry_run = false;     // read the input, print the estimates, write nothing
   // The process's resident memory at most, in bytes: kDefaultBudget is half of physical memory,
   // kUnlimited holds everything in memory that fits.
   uint64_t memory_budget = kDefaultBudget;

@@ -210,8 +210,8 @@ Context::Context(const ContextOptions& options) {
       physical_ = devices.front(), info_ = describe(physical_);
     // A name no device has is a wrong --device (exit 1), none at all this machine's lack (4).
     if (!physical_ && !options.device.empty())
-      throw UsageError("--device: no Vulkan device named '" + options.device + "' (have: " +
-                       names + ")");
+      throw UsageError("--device: no Vulkan device named '" + options.device + "' (have: " + names +
+                       ")");
     if (!physical_) throw Error("Vulkan: no device found");
     if (VK_API_VERSION_MINOR(info_.api_version) < 3 && VK_API_VERSION_MAJOR(info_.api_version) == 1)
       throw Error("Vulkan: " + info_.name + " supports Vulkan " +
