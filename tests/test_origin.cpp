@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <optional>
 #include <utility>
 
@@ -59,6 +61,14 @@ std::vector<float> expected_local(const Origin& origin) {
       for (int k = 0; k < 3; ++k)
         out.push_back(static_cast<float>((k == 0 ? p.x : k == 1 ? p.y : p.z) - origin[k]));
   return out;
+}
+
+// One line through `points`.
+LineSet one_line(std::initializer_list<std::array<float, 3>> points) {
+  LineSet lines;
+  for (const auto& p : points) lines.append_point(p[0], p[1], p[2]);
+  lines.end_line();
+  return lines;
 }
 
 ReadOptions at(const Origin& origin) {
@@ -218,10 +228,7 @@ TEST(Origin, SeveralFilesAreReadInTheFirstFilesFrame) {
 TEST(Origin, AnotherFormatsOriginMetadataIsNotAFrame) {
   TempDir dir;
   // A VTP whose field data happens to carry "origin": its points are what they are.
-  LineSet lines;
-  lines.append_point(1, 2, 3);
-  lines.append_point(4, 5, 6);
-  lines.end_line();
+  const LineSet lines = one_line({{1, 2, 3}, {4, 5, 6}});
   write_line_set(lines, dir.file("a.vtp"));
   std::string text = test::read_text(dir.file("a.vtp"));
   const std::string field =
@@ -396,10 +403,7 @@ TEST(Origin, CoordinatesBeyondFloat32FromTheOriginAreRefused) {
   TempDir dir;
   // x of 1e38 and 2e38 locally, at 1.1e39 and 1.2e39 in the world (past float32's 3.4e38): read
   // back at that origin, exact (float32's steps there are 1e31, double's error 1e23).
-  LineSet lines;
-  lines.append_point(1e38f, 2, 3);
-  lines.append_point(2e38f, 5, 6);
-  lines.end_line();
+  LineSet lines = one_line({{1e38f, 2, 3}, {2e38f, 5, 6}});
   set_origin(lines, {1e39, 0, 0});
   WriteOptions ascii;
   ascii.ascii = true;
@@ -417,10 +421,7 @@ TEST(Origin, CoordinatesBeyondFloat32FromTheOriginAreRefused) {
 }
 
 TEST(Origin, SameDataComparesTheFrame) {
-  LineSet a;
-  a.append_point(1, 2, 3);
-  a.append_point(4, 5, 6);
-  a.end_line();
+  LineSet a = one_line({{1, 2, 3}, {4, 5, 6}});
   LineSet b = a;
   EXPECT_TRUE(a.same_data(b));
   set_origin(b, {0, 0, 0});
