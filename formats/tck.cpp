@@ -17,7 +17,9 @@ namespace {
 class TckReader : public LineReader {
  public:
   TckReader(const std::string& path, const ReadOptions& options)
-      : in_(path, options.progress), memory_limit_(options.memory_limit), origin_(options.origin) {
+      : in_(path, options.progress),
+        memory_limit_(options.memory_limit),
+        origin_(options.origin.value_or(Origin{0, 0, 0})) {
     std::string datatype;
     uint64_t data_offset = 0, header_end = 0;
     {
@@ -112,9 +114,8 @@ class TckReader : public LineReader {
       }
       // Relative to the origin asked for, subtracted before Float64 data is rounded
       // (lines/origin.hpp); Float32 data comes out as a shift of its float32 values would.
-      const Origin at = origin_.value_or(Origin{0, 0, 0});
-      open_.insert(open_.end(),
-                   {to_local(xyz[0], at[0]), to_local(xyz[1], at[1]), to_local(xyz[2], at[2])});
+      open_.insert(open_.end(), {to_local(xyz[0], origin_[0]), to_local(xyz[1], origin_[1]),
+                                 to_local(xyz[2], origin_[2])});
       // A streamline's length is known only at its NaN: what it holds is checked as it grows
       // (its buffer and the batch's copy, both growing by doubling).
       const uint64_t open_points = open_.size() / 3;
@@ -131,7 +132,7 @@ class TckReader : public LineReader {
   static constexpr uint64_t kCheckPoints = 65536;  // the open streamline's memory checked so often
   io::BinaryReader in_;
   std::optional<uint64_t> memory_limit_;
-  std::optional<Origin> origin_;
+  Origin origin_;  // asked for; none is 0, 0, 0 (subtracting 0 changes no value)
   int64_t declared_count_ = -1;
   size_t size_ = 0;
   bool swap_ = false;
