@@ -27,22 +27,37 @@ shared vec4 batch_before[kBatch];  // xyz, flags
 shared vec3 batch_after[kBatch];
 shared vec2 batch_values[kBatch];  // the attribute at p0 and p1
 
-void load_primitive(uint lane, uint s, float bound, float far) {
+// Segment s's capsule and the attribute at its ends, read from the primitive buffers.
+CapsuleSegment stored_segment(uint s, out vec2 values) {
   const uint word = segment_at(s);
   const uint p = word >> 2u, flags = word & 3u;
   const vec4 p0 = point_at(p), p1 = point_at(p + 1u);
+  CapsuleSegment c;
+  c.p0 = p0.xyz;
+  c.p1 = p1.xyz;
+  c.before = (flags & 1u) != 0u ? point_at(p - 1u).xyz : p0.xyz;
+  c.after = (flags & 2u) != 0u ? point_at(p + 2u).xyz : p1.xyz;
+  c.flags = flags;
+  c.radius = view.params.y;
+  values = vec2(p0.w, p1.w);
+  return c;
+}
+
+void load_primitive(uint lane, uint s, float bound, float far) {
+  vec2 values;
+  const CapsuleSegment c = stored_segment(s, values);
 #ifdef TILES_WIDE_WORDS
-  batch_ends[lane] = u64vec4(packUint2x32(floatBitsToUint(p0.xy)),
-                             packUint2x32(floatBitsToUint(vec2(p0.z, bound))),
-                             packUint2x32(floatBitsToUint(p1.xy)),
-                             packUint2x32(floatBitsToUint(vec2(p1.z, far))));
+  batch_ends[lane] = u64vec4(packUint2x32(floatBitsToUint(c.p0.xy)),
+                             packUint2x32(floatBitsToUint(vec2(c.p0.z, bound))),
+                             packUint2x32(floatBitsToUint(c.p1.xy)),
+                             packUint2x32(floatBitsToUint(vec2(c.p1.z, far))));
 #else
-  batch_p0[lane] = vec4(p0.xyz, bound);
-  batch_p1[lane] = vec4(p1.xyz, far);
+  batch_p0[lane] = vec4(c.p0, bound);
+  batch_p1[lane] = vec4(c.p1, far);
 #endif
-  batch_values[lane] = vec2(p0.w, p1.w);
-  batch_before[lane] = vec4((flags & 1u) != 0u ? point_at(p - 1u).xyz : p0.xyz, float(flags));
-  batch_after[lane] = (flags & 2u) != 0u ? point_at(p + 2u).xyz : p1.xyz;
+  batch_values[lane] = values;
+  batch_before[lane] = vec4(c.before, float(c.flags));
+  batch_after[lane] = c.after;
 }
 
 // What may_cross reads of batch entry i, and the depth bound.
@@ -79,10 +94,30 @@ bool may_cross(vec4 words[kNearWords], vec3 direction) {
   return dot(miss, miss) <= reach * reach;
 }
 
-// The nearest front crossing of the ray with batch entry i's capsule chain surface, shaded. A
-// capsule is convex, so a ray enters it once; capsule_front_crossing can report a front crossing
-// on both sides of a joint only as the float double of one, and that double is not composited
-// again (seam_of).
+// The nearest front crossing of the ray with capsule chain surface c: its t along the ray, the
+// surface normal there and where along the segment it lies (0 to 1). A capsule is convex, so a
+// ray enters it once; capsule_front_crossing can report a front crossing on both sides of a
+// joint only as the float double of one, and that double is not composited again (seam_of).
+bool capsule_hit(CapsuleSegment c, vec3 direction, out float t_hit, out vec3 normal,
+                 out float along) {
+  // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius
+  // against the squared distance from a far eye.
+  const float t0 = dot(c.p0 - view.eye, direction);
+  float t;
+  t_hit = 0.0;
+  if (!capsule_front_crossing(c, view.eye + t0 * direction, direction, t0, t, normal, along))
+    return false;
+  t_hit = t + t0;
+  return true;
+}
+
+// The shaded colour of a capsule_hit, `values` the attribute at the segment's ends.
+vec4 capsule_colour(vec3 direction, float t_hit, vec3 normal, float along, vec2 values) {
+  const vec4 base = transfer_function(values.x + along * (values.y - values.x));
+  return vec4(shade(view.eye + t_hit * direction, normal, base.rgb), base.a);
+}
+
+// Batch entry i's hit, shaded unless the window shades late.
 bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   CapsuleSegment c;
   vec4 words[kNearWords];
@@ -93,21 +128,24 @@ bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   c.after = batch_after[i];
   c.flags = uint(batch_before[i].w);
   c.radius = view.params.y;
-  // From the ray's point nearest the segment's start: in float32 the quadratics lose the radius
-  // against the squared distance from a far eye.
-  const float t0 = dot(c.p0 - view.eye, direction);
-  float t;
   vec3 normal;
   float along;
-  t_hit = 0.0;
   colour = vec4(0.0);
-  if (!capsule_front_crossing(c, view.eye + t0 * direction, direction, t0, t, normal, along))
-    return false;
-  t_hit = t + t0;
-  const vec2 ends = batch_values[i];
-  const vec4 base = transfer_function(ends.x + along * (ends.y - ends.x));
-  colour = vec4(shade(view.eye + t_hit * direction, normal, base.rgb), base.a);
+  if (!capsule_hit(c, direction, t_hit, normal, along)) return false;
+  if (!kLateShading) colour = capsule_colour(direction, t_hit, normal, along, batch_values[i]);
   return true;
+}
+
+// The colour of a pending hit on segment s, composited late: the same test on the same floats,
+// read again from the primitive buffers, gives the same hit (TILES_LATE_SHADING,
+// tiles_composite.glsl).
+vec4 hit_colour(uint s, vec3 direction) {
+  vec2 values;
+  const CapsuleSegment c = stored_segment(s, values);
+  float t_hit, along;
+  vec3 normal;
+  capsule_hit(c, direction, t_hit, normal, along);
+  return capsule_colour(direction, t_hit, normal, along, values);
 }
 
 // Two reports of one joint differ by the float error of the crossings (capsule.glsl), measured

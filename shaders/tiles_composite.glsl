@@ -33,15 +33,26 @@
 // the near test's five loads were 35 % of the aneurysm's composite instructions;
 // docs/tiles.md, "Per-lane shared loads on lavapipe"); may_cross(words, direction), a test
 // that keeps every batch entry the ray from the eye along `direction` may hit; first_hit(i,
-// direction, t, colour), the nearest front hit and its shaded colour (false: none); and
-// seam_of(i, direction), how near two hits of neighbouring primitives are one seam's
-// (seam_twins below; 0: never).
+// direction, t, colour), the nearest front hit and its shaded colour (false: none; no colour
+// with TILES_LATE_SHADING, kLateShading in tiles.glsl); seam_of(i, direction), how near two
+// hits of neighbouring primitives are one seam's (seam_twins below; 0: never); and
+// hit_colour(primitive, direction), the shaded colour of the hit first_hit finds, from the
+// primitive buffers (for TILES_LATE_SHADING).
 
 // Compiled with TILES_PIXEL_HITS (TileOptions::pixel_hits), each pixel computes its own pairs'
 // hits instead, as the composite did before the rounds (3120a50): lavapipe's composite is
 // faster with the rounds, and on NVIDIA's H200 the capsules' frames took 42 to 49 % longer on
 // the aneurysm and convection than the H100's of 3120a50 (docs/tiles.md, "Measured on an NVIDIA
 // H200"): bench render's tiles-pixel-hits is the A/B a GPU decides. The same bytes.
+//
+// Compiled with TILES_LATE_SHADING (TileOptions::late_shading), the window holds each pending
+// hit's t and primitive only, not its colour: first_hit computes no colour, and a hit is shaded
+// when it is composited, its primitive read again from the primitive buffers and tested again
+// (hit_colour). A composited hit costs two tests instead of one, and its shading moves from the
+// rounds to the pixel's own lane; the window and the state between walks shrink from 6 words a
+// hit to 2. For GPUs, where the window in registers bounds how many workgroups run at once
+// (docs/tiles.md, "Shading late"): bench render's tiles-late-shading is the A/B. The same bytes:
+// the same test on the same floats gives the same hit.
 //
 // Compiled with TILES_STRIPS (a choice of the host's, TileOptions::strips), a tile's pixels
 // are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
@@ -129,7 +140,9 @@ shared uint batch_far;
 const uint kRoundSlots = min(kSlots, kLanes);
 shared uint slot_pair[kRoundSlots];
 shared uvec4 slot_hit[kRoundSlots];
+#ifndef TILES_LATE_SHADING
 shared vec4 slot_colour[kRoundSlots];
+#endif
 shared uint round_hits[kLanes];
 shared uint round_claimed[2], round_more[2];
 // A pixel's pairs in one round: one bit each in round_hits.
@@ -202,7 +215,10 @@ layout(set = 0, binding = 17, std430) readonly buffer WalkFirst { uint walk_firs
 
 float window_t[kWindow];
 uint window_primitive[kWindow];
+#ifndef TILES_LATE_SHADING
 vec4 window_colour[kWindow];
+#endif
+vec3 pixel_direction;  // the pixel's ray, for hit_colour
 // The hits passed last (composited, or seam doubles), nearest last, for seams whose second report
 // comes after them: last_t and the kPassed - 1 before it. A chain of short segments crossed at
 // one point can bring a twin after others of the chain were passed: clouds' frame 5 of 8 at
@@ -268,7 +284,9 @@ void pop_front() {
     if (kWindowExits && j + 1 >= pending) break;
     window_t[j] = window_t[j + 1];
     window_primitive[j] = window_primitive[j + 1];
+#ifndef TILES_LATE_SHADING
     window_colour[j] = window_colour[j + 1];
+#endif
   }
   --pending;
 }
@@ -280,7 +298,11 @@ void flush(float bound) {
     if ((window_primitive[0] & kDropped) != 0u) {
       pass_hit(window_t[0], window_primitive[0] & ~kDropped);
     } else {
+#ifdef TILES_LATE_SHADING
+      composite(window_t[0], window_primitive[0], hit_colour(window_primitive[0], pixel_direction));
+#else
       composite(window_t[0], window_primitive[0], window_colour[0]);
+#endif
     }
     pop_front();
   }
@@ -350,11 +372,14 @@ void insert(float t, vec4 c, uint primitive, float seam) {
     if (j < at) continue;
     const float next_t = window_t[j];
     const uint next_primitive = window_primitive[j];
-    const vec4 next_colour = window_colour[j];
     window_t[j] = t;
     window_primitive[j] = primitive;
+    t = next_t, primitive = next_primitive;
+#ifndef TILES_LATE_SHADING
+    const vec4 next_colour = window_colour[j];
     window_colour[j] = c;
-    t = next_t, primitive = next_primitive, c = next_colour;
+    c = next_colour;
+#endif
   }
   ++pending;
 }
@@ -419,10 +444,13 @@ void main() {
       if (k >= pending) continue;
       window_t[k] = states[state].t[k];
       window_primitive[k] = states[state].primitive[k];
+#ifndef TILES_LATE_SHADING
       window_colour[k] = states[state].colour[k];
+#endif
     }
   }
   const vec3 direction = ray_direction(pixel);
+  pixel_direction = direction;
   // A key's depth bound is a view depth z; along this pixel's unit ray a point at view depth z
   // lies at t = z / dot(direction, forward), so the bound in the units of t is that much
   // farther. Comparing hits with the view depth itself left them pending up to 20 % longer off
@@ -522,7 +550,9 @@ void main() {
           const float bound = bound_t(depth_bound(i), t_per_z_of(ray, -1.0));
           slot_hit[lane] = uvec4(floatBitsToUint(t), floatBitsToUint(bound),
                                  floatBitsToUint(seam_of(i, ray)), batch_primitive[i]);
+#ifndef TILES_LATE_SHADING
           slot_colour[lane] = c;
+#endif
           atomicOr(round_hits[p], 1u << (pair >> 16u));
         }
       }
@@ -534,7 +564,12 @@ void main() {
         const uvec4 hit = slot_hit[s];
         flush(uintBitsToFloat(hit.y));
         if (done) break;
-        insert(uintBitsToFloat(hit.x), slot_colour[s], hit.w, uintBitsToFloat(hit.z));
+#ifdef TILES_LATE_SHADING
+        const vec4 c = vec4(0.0);  // shaded when composited
+#else
+        const vec4 c = slot_colour[s];
+#endif
+        insert(uintBitsToFloat(hit.x), c, hit.w, uintBitsToFloat(hit.z));
       }
       if (done) left = 0u;
       const bool more = round_more[r] != 0u;
@@ -593,7 +628,9 @@ void main() {
       if (k >= pending) continue;
       states[state].t[k] = window_t[k];
       states[state].primitive[k] = window_primitive[k];
+#ifndef TILES_LATE_SHADING
       states[state].colour[k] = window_colour[k];
+#endif
     }
   }
   if (!last_slice || again) return;

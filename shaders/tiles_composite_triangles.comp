@@ -15,19 +15,29 @@ shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];
 // 16 bytes an element).
 shared float batch_normals[11][kBatch];
 
-void load_primitive(uint lane, uint s, float bound, float far) {
-  const uint a = index_at(3u * s), b = index_at(3u * s + 1u), c = index_at(3u * s + 2u);
-  const vec4 va = vertex_at(a), vb = vertex_at(b);
-  batch_a[lane] = vec4(va.xyz, bound);
-  batch_b[lane] = vec4(vb.xyz, far);
-  batch_c[lane] = vertex_at(c);
-  batch_normals[9][lane] = va.w;
-  batch_normals[10][lane] = vb.w;
-  const vec3 na = normal_at(a).xyz, nb = normal_at(b).xyz, nc = normal_at(c).xyz;
+// Triangle s's corners (xyz, the attribute value in w) and their normals, read from the tube
+// mesh.
+void stored_triangle(uint s, out vec4 corner[3], out vec3 normal[3]) {
   for (int k = 0; k < 3; ++k) {
-    batch_normals[k][lane] = na[k];
-    batch_normals[3 + k][lane] = nb[k];
-    batch_normals[6 + k][lane] = nc[k];
+    const uint v = index_at(3u * s + uint(k));
+    corner[k] = vertex_at(v);
+    normal[k] = normal_at(v).xyz;
+  }
+}
+
+void load_primitive(uint lane, uint s, float bound, float far) {
+  vec4 corner[3];
+  vec3 normal[3];
+  stored_triangle(s, corner, normal);
+  batch_a[lane] = vec4(corner[0].xyz, bound);
+  batch_b[lane] = vec4(corner[1].xyz, far);
+  batch_c[lane] = corner[2];
+  batch_normals[9][lane] = corner[0].w;
+  batch_normals[10][lane] = corner[1].w;
+  for (int k = 0; k < 3; ++k) {
+    batch_normals[k][lane] = normal[0][k];
+    batch_normals[3 + k][lane] = normal[1][k];
+    batch_normals[6 + k][lane] = normal[2][k];
   }
 }
 
@@ -71,17 +81,39 @@ bool may_cross(vec4 words[kNearWords], vec3 direction) {
   return triangle_hit(words[0].xyz, words[1].xyz, words[2].xyz, direction, t, u, v);
 }
 
+// The colour of the hit at t with barycentric weights u, v of corners b and c: the attribute and
+// the normal interpolated as the CPU ray tracer interpolates them.
+vec4 triangle_colour(vec3 direction, float t, float u, float v, vec3 values, vec3 normal[3]) {
+  const float w = 1.0 - u - v;
+  const float value = w * values.x + u * values.y + v * values.z;
+  const vec3 n = w * normal[0] + u * normal[1] + v * normal[2];
+  const vec4 base = transfer_function(value);
+  return vec4(shade(view.eye + t * direction, n, base.rgb), base.a);
+}
+
+// Batch entry i's hit, shaded unless the window shades late.
 bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
   float u, v;
   colour = vec4(0.0);
   if (!triangle_hit(batch_a[i].xyz, batch_b[i].xyz, batch_c[i].xyz, direction, t, u, v))
     return false;
-  const float w = 1.0 - u - v;
-  const float value = w * batch_normals[9][i] + u * batch_normals[10][i] + v * batch_c[i].w;
-  const vec3 n = w * batch_normal(0, i) + u * batch_normal(1, i) + v * batch_normal(2, i);
-  const vec4 base = transfer_function(value);
-  colour = vec4(shade(view.eye + t * direction, n, base.rgb), base.a);
+  if (!kLateShading) {
+    const vec3 normal[3] = vec3[3](batch_normal(0, i), batch_normal(1, i), batch_normal(2, i));
+    const vec3 values = vec3(batch_normals[9][i], batch_normals[10][i], batch_c[i].w);
+    colour = triangle_colour(direction, t, u, v, values, normal);
+  }
   return true;
+}
+
+// The colour of a pending hit on triangle s, composited late: the same test on the same floats,
+// read again from the tube mesh, gives the same hit (TILES_LATE_SHADING, tiles_composite.glsl).
+vec4 hit_colour(uint s, vec3 direction) {
+  vec4 corner[3];
+  vec3 normal[3];
+  stored_triangle(s, corner, normal);
+  float t, u, v;
+  triangle_hit(corner[0].xyz, corner[1].xyz, corner[2].xyz, direction, t, u, v);
+  return triangle_colour(direction, t, u, v, vec3(corner[0].w, corner[1].w, corner[2].w), normal);
 }
 
 // A ray meets a shared edge of two triangles with probability zero: no seams.

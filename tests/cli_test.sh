@@ -386,19 +386,20 @@ vrc = rows['vrc']
 assert vrc['device'] == 'CPU' and 'gpu_ms' not in vrc and vrc['wall_s']['median'] > 0 and 10 < vrc['psnr_db'] < 60, vrc
 assert 'psnr_db' not in rows['reference'] and rows['reference']['frames'] == 2, rows['reference']
 assert 'ray tracing is not supported' in rows['rtx'].get('skipped', '') or rows['rtx']['frames'] == 2, rows['rtx']"
-check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference; tiles-raster-order; tiles-strips; tiles-pixel-hits; --warm-up 0" python3 -c "
+check "bench render tiles-triangles: tiles over the tube mesh, exact against the reference; tiles-raster-order; tiles-strips; tiles-pixel-hits; tiles-late-shading; --warm-up 0" python3 -c "
 import json, subprocess
-variants = ['tiles', 'tiles-triangles', 'tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips', 'tiles-pixel-hits', 'tiles-triangles-pixel-hits']
+variants = ['tiles', 'tiles-triangles', 'tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips', 'tiles-pixel-hits', 'tiles-triangles-pixel-hits', 'tiles-late-shading', 'tiles-triangles-late-shading', 'tiles-pixel-hits-late-shading']
 j = json.loads(subprocess.run(['$bin', 'bench', 'render', '$tmp/t.lbc.h5', '--techniques', ','.join(variants), '--frames', '1', '--size', '64x48', '--warm-up', '0', '--json'], check=True, capture_output=True, text=True).stdout)
 rows = {r['technique']: r for r in j['runs'][0]['rows']}
 assert list(rows) == variants, rows
 assert j['warm_up'] == 0 and not any('warm_up_s' in r for r in rows.values()), rows
 # The old tile order, and four workgroups a tile (every tile; the crowded, and every tile of a
 # walk over fewer than 512, so here every tile too): the same image.
-for v in ('tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips', 'tiles-pixel-hits'):
+for v in ('tiles-raster-order', 'tiles-strips', 'tiles-crowded-strips', 'tiles-pixel-hits', 'tiles-late-shading', 'tiles-pixel-hits-late-shading'):
     assert rows[v]['psnr_db'] == rows['tiles']['psnr_db'], (v, rows)
-# Each pixel's own hits, over the tube mesh too: the same image.
-assert rows['tiles-triangles-pixel-hits']['psnr_db'] == rows['tiles-triangles']['psnr_db'], rows
+# Each pixel's own hits and late shading, over the tube mesh too: the same image.
+for v in ('tiles-triangles-pixel-hits', 'tiles-triangles-late-shading'):
+    assert rows[v]['psnr_db'] == rows['tiles-triangles']['psnr_db'], (v, rows)
 # 64x48: 12 tiles, each walked at least once.
 whole, strips, crowded = (rows[t]['tiles']['frames'][0] for t in ('tiles', 'tiles-strips', 'tiles-crowded-strips'))
 assert whole['workgroups'] >= 12 and strips['workgroups'] == 4 * whole['workgroups'] == crowded['workgroups'], (whole, strips, crowded)

@@ -894,9 +894,11 @@ TEST(Tiles, StripsOfATileGiveTheSameBytes) {
 }
 
 // Each pixel computing its own hits (TileOptions::pixel_hits) takes the same hits in the same
-// order as the workgroup's rounds of pairs: the same bytes, hits, walks and overflows, in every
-// build of for_each_composite_build. Strips are not built for it: a usage error.
-TEST(Tiles, PixelHitsGiveTheSameBytes) {
+// order as the workgroup's rounds of pairs, and shading a hit late (TileOptions::late_shading),
+// when it is composited, tests its primitive again and gives the colour the rounds gave it: the
+// same bytes, hits, walks and overflows for each of the four, in every build of
+// for_each_composite_build. Neither is built for strips: a usage error.
+TEST(Tiles, PixelHitsAndLateShadingGiveTheSameBytes) {
   const TransferFunction tf = transfer_function_preset("transparent");
   for_each_composite_build([&](vk::TileRenderer& renderer, const Camera& camera,
                                const std::string& what, bool walks_again) {
@@ -904,13 +906,18 @@ TEST(Tiles, PixelHitsGiveTheSameBytes) {
     o.width = 150, o.height = 108;
     renderer.render(camera, tf, o);  // the pixels' states' buffer made, as in the strips test
     const vk::TileFrame pairs = renderer.render(camera, tf, o);
-    o.pixel_hits = true;
-    const vk::TileFrame own = renderer.render(camera, tf, o);
     EXPECT_GE(pairs.stats.walks, walks_again ? 2u : 1u) << what;
     EXPECT_GT(pairs.stats.hits, 5000u) << what;
-    expect_same_tile_frame(pairs, own, what + ", pixel hits");
-    o.strips = vk::TileStrips::crowded;
-    EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what;
+    for (const bool own : {false, true})
+      for (const bool late : {false, true}) {
+        if (!own && !late) continue;
+        o.pixel_hits = own, o.late_shading = late, o.strips = vk::TileStrips::none;
+        const std::string which =
+            std::string(own ? ", pixel hits" : "") + (late ? ", late shading" : "");
+        expect_same_tile_frame(pairs, renderer.render(camera, tf, o), what + which);
+        o.strips = vk::TileStrips::crowded;
+        EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what + which;
+      }
   });
 }
 

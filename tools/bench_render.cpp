@@ -218,7 +218,9 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
 // workgroups a tile, each over a strip of 16x4 pixels, and tiles-crowded-strips with four for
 // the crowded tiles and the small walks again (the A/B of workgroups of 64 against 256);
 // tiles-pixel-hits and tiles-triangles-pixel-hits have each pixel compute its own hits instead of
-// the composite's rounds of pairs (the A/B of the rounds on a GPU).
+// the composite's rounds of pairs (the A/B of the rounds on a GPU); tiles-late-shading,
+// tiles-triangles-late-shading and tiles-pixel-hits-late-shading shade each hit when it is
+// composited, the window holding no colours (the A/B of the window's registers on a GPU).
 struct BenchVariant {
   const char* name;
   const char* technique;
@@ -237,6 +239,17 @@ constexpr BenchVariant kBenchVariants[] = {
      [](TechniqueOptions& o) {
        o.tiles_geometry = "triangles";
        o.tiles_pixel_hits = true;
+     }},
+    {"tiles-late-shading", "tiles", [](TechniqueOptions& o) { o.tiles_late_shading = true; }},
+    {"tiles-triangles-late-shading", "tiles",
+     [](TechniqueOptions& o) {
+       o.tiles_geometry = "triangles";
+       o.tiles_late_shading = true;
+     }},
+    {"tiles-pixel-hits-late-shading", "tiles",
+     [](TechniqueOptions& o) {
+       o.tiles_pixel_hits = true;
+       o.tiles_late_shading = true;
      }},
 };
 

@@ -662,8 +662,10 @@ Command add_bench(CLI::App& app) {
           "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
           "dispatching its tiles in raster order, tiles-strips, tiles with four workgroups "
           "a tile, tiles-crowded-strips, with four for the crowded tiles and the walks "
-          "again, and tiles-pixel-hits and tiles-triangles-pixel-hits, tiles with each "
-          "pixel computing its own hits, when named; those this machine cannot run are "
+          "again, tiles-pixel-hits and tiles-triangles-pixel-hits, tiles with each "
+          "pixel computing its own hits, and tiles-late-shading, "
+          "tiles-triangles-late-shading and tiles-pixel-hits-late-shading, tiles shading "
+          "each hit when it composites it, when named; those this machine cannot run are "
           "listed as skipped, with the reason)")
       ->delimiter(',');
   rendering

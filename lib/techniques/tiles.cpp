@@ -93,6 +93,7 @@ class Tiles : public PreparedTechnique {
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
     options_.pixel_hits = o.tiles_pixel_hits;
+    options_.late_shading = o.tiles_late_shading;
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,

@@ -133,11 +133,12 @@ struct TileRenderer::State {
   BufferSet set;
   // bin, ranges, composite; and where the window loops exit, the composite with the deeper
   // window for walks again over tiles of one slice (shaders/tiles_composite.glsl); then the two
-  // composites again over strips of tiles (TileOptions::strips) and the two with each pixel's
-  // own hits (TileOptions::pixel_hits), made when first used.
+  // composites again over strips of tiles (TileOptions::strips), the two with each pixel's own
+  // hits (TileOptions::pixel_hits), the two that shade late (TileOptions::late_shading) and the
+  // two with both, made when first used.
   static constexpr size_t kMadeAtInit = 4;  // the rest: when first used
-  std::array<std::string, 8> shaders;
-  std::array<VkPipeline, 8> pipelines{};
+  std::array<std::string, 12> shaders;
+  std::array<VkPipeline, 12> pipelines{};
   VkQueryPool queries = VK_NULL_HANDLE;
 
   State(Context& c, bool sort_subgroups) : ctx(c), sorter(c, sort_subgroups) {}
@@ -148,7 +149,7 @@ struct TileRenderer::State {
 
   // Pipeline i, made now if it was left for its first use ("": none).
   VkPipeline pipeline(size_t i) {
-    if (!pipelines[i] && !shaders[i].empty())
+    if (!pipelines.at(i) && !shaders.at(i).empty())
       pipelines[i] =
           create_compute_pipeline(ctx.device(), set.layout, shaders[i].c_str(), &paging_info);
     return pipelines[i];
@@ -258,7 +259,11 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
              composite + (variant.empty() ? ":strips" : variant + "-strips"),
              exits ? composite + ":deep-strips" : "",
              composite + (exits ? ":exits-pixels" : ":pixels"),
-             exits ? composite + ":deep-pixels" : ""};
+             exits ? composite + ":deep-pixels" : "",
+             composite + (exits ? ":exits-late" : ":late"),
+             exits ? composite + ":deep-late" : "",
+             composite + (exits ? ":exits-pixels-late" : ":pixels-late"),
+             exits ? composite + ":deep-pixels-late" : ""};
   // The composites of strips and of the pixels' own hits are made when a frame first asks for
   // them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
@@ -557,6 +562,8 @@ TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFun
   if (o.width < 1 || o.height < 1) throw Error("tiles: empty image size");
   if (o.pixel_hits && o.strips != TileStrips::none)
     throw UsageError("tiles: each pixel's own hits (pixel_hits) are not built for strips");
+  if (o.late_shading && o.strips != TileStrips::none)
+    throw UsageError("tiles: late shading (late_shading) is not built for strips");
   const bool resized = s.targets.resize(ctx, o.width, o.height);
   tiles_x = (uint32_t(o.width) + kTile - 1) / kTile;
   tiles_y = (uint32_t(o.height) + kTile - 1) / kTile;
@@ -690,7 +697,9 @@ double TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_til
   std::copy(plan.tiles.begin(), plan.tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
   // Walks again over tiles of one slice take the deeper window where there is one.
   const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-  const VkPipeline tiles_whole = o.pixel_hits ? s.pipeline(deep ? 7 : 6) : s.pipeline(deep ? 3 : 2);
+  // Whole tiles: the rounds 2, each pixel's own hits 6, late shading 8, both 10 (State::shaders).
+  const size_t whole = o.late_shading ? (o.pixel_hits ? 10 : 8) : (o.pixel_hits ? 6 : 2);
+  const VkPipeline tiles_whole = s.pipeline(whole + (deep ? 1 : 0));
   const VkPipeline tiles_strips = order.strip_tiles > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
   const double ms = pass([&](VkCommandBuffer cmd) {
     const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {

@@ -67,6 +67,11 @@ struct TileOptions {
   // pairs (shaders/tiles_composite.glsl, TILES_PIXEL_HITS): the composite before the rounds, kept
   // as the A/B for GPUs (bench render's tiles-pixel-hits). The same bytes. Not with strips.
   bool pixel_hits = false;
+  // The composite's window holds each pending hit's t and primitive, not its colour: a hit is
+  // shaded when it is composited, its primitive tested again (shaders/tiles_composite.glsl,
+  // TILES_LATE_SHADING): fewer registers a pixel, for GPUs, where they bound how many workgroups
+  // run at once (bench render's tiles-late-shading). The same bytes. Not with strips.
+  bool late_shading = false;
   // TileStrips::crowded takes every tile of a walk over fewer tiles than this in strips (tests
   // lower it to 0: then only the crowded).
   uint32_t few_tiles = 512;
