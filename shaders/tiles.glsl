@@ -9,14 +9,6 @@
 const int kMaxTfPoints = 32;
 const uint kTile = 16;
 
-// The composite's pending hits carry no colour: a hit is shaded when it is composited
-// (TILES_LATE_SHADING, tiles_composite.glsl).
-#ifdef TILES_LATE_SHADING
-const bool kLateShading = true;
-#else
-const bool kLateShading = false;
-#endif
-
 layout(set = 0, binding = 0, std140) uniform TileUniforms {
 #include "tiles_frame.glsl"
 } frame;

@@ -25,7 +25,9 @@ shared vec4 batch_p1[kBatch];      // xyz, the farthest view depth
 #endif
 shared vec4 batch_before[kBatch];  // xyz, flags
 shared vec3 batch_after[kBatch];
-shared vec2 batch_values[kBatch];  // the attribute at p0 and p1
+#ifndef TILES_LATE_SHADING
+shared vec2 batch_values[kBatch];  // the attribute at p0 and p1 (late shading reads them again)
+#endif
 
 // Segment s's capsule and the attribute at its ends, read from the primitive buffers.
 CapsuleSegment stored_segment(uint s, out vec2 values) {
@@ -55,7 +57,9 @@ void load_primitive(uint lane, uint s, float bound, float far) {
   batch_p0[lane] = vec4(c.p0, bound);
   batch_p1[lane] = vec4(c.p1, far);
 #endif
+#ifndef TILES_LATE_SHADING
   batch_values[lane] = values;
+#endif
   batch_before[lane] = vec4(c.before, float(c.flags));
   batch_after[lane] = c.after;
 }
@@ -132,20 +136,25 @@ bool first_hit(uint i, vec3 direction, out float t_hit, out vec4 colour) {
   float along;
   colour = vec4(0.0);
   if (!capsule_hit(c, direction, t_hit, normal, along)) return false;
-  if (!kLateShading) colour = capsule_colour(direction, t_hit, normal, along, batch_values[i]);
+#ifndef TILES_LATE_SHADING
+  colour = capsule_colour(direction, t_hit, normal, along, batch_values[i]);
+#endif
   return true;
 }
 
-// The colour of a pending hit on segment s, composited late: the same test on the same floats,
-// read again from the primitive buffers, gives the same hit (TILES_LATE_SHADING,
-// tiles_composite.glsl).
-vec4 hit_colour(uint s, vec3 direction) {
+// The colour of a pending hit at t on segment s, composited late: the same test on the same
+// floats, read again from the primitive buffers, gives the same hit (TILES_LATE_SHADING,
+// tiles_composite.glsl). Should a compiler compute the test otherwise here (no test is marked
+// precise), false and the colour of the segment's start facing the ray: counted, not lost.
+bool hit_colour(uint s, float t, vec3 direction, out vec4 colour) {
   vec2 values;
   const CapsuleSegment c = stored_segment(s, values);
   float t_hit, along;
   vec3 normal;
-  capsule_hit(c, direction, t_hit, normal, along);
-  return capsule_colour(direction, t_hit, normal, along, values);
+  const bool found = capsule_hit(c, direction, t_hit, normal, along);
+  if (!found) t_hit = t, normal = -direction, along = 0.0;
+  colour = capsule_colour(direction, t_hit, normal, along, values);
+  return found;
 }
 
 // Two reports of one joint differ by the float error of the crossings (capsule.glsl), measured

@@ -34,10 +34,10 @@
 // docs/tiles.md, "Per-lane shared loads on lavapipe"); may_cross(words, direction), a test
 // that keeps every batch entry the ray from the eye along `direction` may hit; first_hit(i,
 // direction, t, colour), the nearest front hit and its shaded colour (false: none; no colour
-// with TILES_LATE_SHADING, kLateShading in tiles.glsl); seam_of(i, direction), how near two
-// hits of neighbouring primitives are one seam's (seam_twins below; 0: never); and
-// hit_colour(primitive, direction), the shaded colour of the hit first_hit finds, from the
-// primitive buffers (for TILES_LATE_SHADING).
+// with TILES_LATE_SHADING); seam_of(i, direction), how near two hits of neighbouring primitives
+// are one seam's (seam_twins below; 0: never); and hit_colour(primitive, t, direction, colour),
+// the shaded colour of the hit at t that first_hit finds, from the primitive buffers (for
+// TILES_LATE_SHADING; false: its test missed it there).
 
 // Compiled with TILES_PIXEL_HITS (TileOptions::pixel_hits), each pixel computes its own pairs'
 // hits instead, as the composite did before the rounds (3120a50): lavapipe's composite is
@@ -49,10 +49,12 @@
 // hit's t and primitive only, not its colour: first_hit computes no colour, and a hit is shaded
 // when it is composited, its primitive read again from the primitive buffers and tested again
 // (hit_colour). A composited hit costs two tests instead of one, and its shading moves from the
-// rounds to the pixel's own lane; the window and the state between walks shrink from 6 words a
-// hit to 2. For GPUs, where the window in registers bounds how many workgroups run at once
+// rounds to the pixel's own lane; the window holds 2 words a hit instead of 6 (the state between
+// walks keeps its colour slots, unread), and the batch keeps no attributes or normals in shared
+// memory. For GPUs, where the window in registers bounds how many workgroups run at once
 // (docs/tiles.md, "Shading late"): bench render's tiles-late-shading is the A/B. The same bytes:
-// the same test on the same floats gives the same hit.
+// the same test on the same floats gives the same hit (a test that misses it the second time is
+// counted in late_misses: the stats of the late builds hold it to 0).
 //
 // Compiled with TILES_STRIPS (a choice of the host's, TileOptions::strips), a tile's pixels
 // are composited by four workgroups, each of a strip of 16x4 pixels, walking all of the tile's
@@ -173,7 +175,9 @@ bool mark_blocks(uint entry, bool bounded, vec2 lo, vec2 hi, ivec2 origin) {
   return true;
 }
 
-layout(set = 0, binding = 9, std430) buffer Stats { uint window_overflows, cut_short; } stats;
+layout(set = 0, binding = 9, std430) buffer Stats {
+  uint window_overflows, cut_short, late_misses;
+} stats;
 // This dispatch's slice: keys [slice * slice_keys, (slice + 1) * slice_keys) of each tile's range,
 // for the tiles slice_tiles[tile_offset, tile_offset + tile_count). `walk` > 0: a walk again
 // over tiles whose pixels left hits for it (their state carries over). The first `strip_tiles`
@@ -299,7 +303,10 @@ void flush(float bound) {
       pass_hit(window_t[0], window_primitive[0] & ~kDropped);
     } else {
 #ifdef TILES_LATE_SHADING
-      composite(window_t[0], window_primitive[0], hit_colour(window_primitive[0], pixel_direction));
+      vec4 c;
+      if (!hit_colour(window_primitive[0], window_t[0], pixel_direction, c))
+        atomicAdd(stats.late_misses, 1u);
+      composite(window_t[0], window_primitive[0], c);
 #else
       composite(window_t[0], window_primitive[0], window_colour[0]);
 #endif

@@ -11,9 +11,11 @@
 const uint kBatch = 256, kSlots = 128;
 // a: xyz, the key's depth bound; b: xyz, the farthest view depth; c: xyz, c's attribute.
 shared vec4 batch_a[kBatch], batch_b[kBatch], batch_c[kBatch];
+#ifndef TILES_LATE_SHADING
 // The vertices' normals, x, y, z of a, b, c, then a's and b's attribute (floats: vec3 arrays take
-// 16 bytes an element).
+// 16 bytes an element). Late shading reads them again.
 shared float batch_normals[11][kBatch];
+#endif
 
 // Triangle s's corners (xyz, the attribute value in w) and their normals, read from the tube
 // mesh.
@@ -32,6 +34,7 @@ void load_primitive(uint lane, uint s, float bound, float far) {
   batch_a[lane] = vec4(corner[0].xyz, bound);
   batch_b[lane] = vec4(corner[1].xyz, far);
   batch_c[lane] = corner[2];
+#ifndef TILES_LATE_SHADING
   batch_normals[9][lane] = corner[0].w;
   batch_normals[10][lane] = corner[1].w;
   for (int k = 0; k < 3; ++k) {
@@ -39,12 +42,15 @@ void load_primitive(uint lane, uint s, float bound, float far) {
     batch_normals[3 + k][lane] = normal[1][k];
     batch_normals[6 + k][lane] = normal[2][k];
   }
+#endif
 }
 
+#ifndef TILES_LATE_SHADING
 vec3 batch_normal(int vertex, uint i) {
   return vec3(batch_normals[3 * vertex][i], batch_normals[3 * vertex + 1][i],
               batch_normals[3 * vertex + 2][i]);
 }
+#endif
 
 // The ray's front-face hit with the triangle a, b, c: t and the barycentric weights u, v of b
 // and c.
@@ -97,23 +103,29 @@ bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
   colour = vec4(0.0);
   if (!triangle_hit(batch_a[i].xyz, batch_b[i].xyz, batch_c[i].xyz, direction, t, u, v))
     return false;
-  if (!kLateShading) {
-    const vec3 normal[3] = vec3[3](batch_normal(0, i), batch_normal(1, i), batch_normal(2, i));
-    const vec3 values = vec3(batch_normals[9][i], batch_normals[10][i], batch_c[i].w);
-    colour = triangle_colour(direction, t, u, v, values, normal);
-  }
+#ifndef TILES_LATE_SHADING
+  const vec3 normal[3] = vec3[3](batch_normal(0, i), batch_normal(1, i), batch_normal(2, i));
+  const vec3 values = vec3(batch_normals[9][i], batch_normals[10][i], batch_c[i].w);
+  colour = triangle_colour(direction, t, u, v, values, normal);
+#endif
   return true;
 }
 
-// The colour of a pending hit on triangle s, composited late: the same test on the same floats,
-// read again from the tube mesh, gives the same hit (TILES_LATE_SHADING, tiles_composite.glsl).
-vec4 hit_colour(uint s, vec3 direction) {
+// The colour of a pending hit at t on triangle s, composited late: the same test on the same
+// floats, read again from the tube mesh, gives the same hit (TILES_LATE_SHADING,
+// tiles_composite.glsl). Should a compiler compute the test otherwise here (no test is marked
+// precise), false and the colour of corner a facing the ray: counted, not lost.
+bool hit_colour(uint s, float t, vec3 direction, out vec4 colour) {
   vec4 corner[3];
   vec3 normal[3];
   stored_triangle(s, corner, normal);
-  float t, u, v;
-  triangle_hit(corner[0].xyz, corner[1].xyz, corner[2].xyz, direction, t, u, v);
-  return triangle_colour(direction, t, u, v, vec3(corner[0].w, corner[1].w, corner[2].w), normal);
+  const vec3 values = vec3(corner[0].w, corner[1].w, corner[2].w);
+  float t_hit, u, v;
+  const bool found =
+      triangle_hit(corner[0].xyz, corner[1].xyz, corner[2].xyz, direction, t_hit, u, v);
+  if (!found) t_hit = t, u = 0.0, v = 0.0, normal[0] = -direction;
+  colour = triangle_colour(direction, t_hit, u, v, values, normal);
+  return found;
 }
 
 // A ray meets a shared edge of two triangles with probability zero: no seams.

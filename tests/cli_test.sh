@@ -403,6 +403,9 @@ for v in ('tiles-triangles-pixel-hits', 'tiles-triangles-late-shading'):
 # 64x48: 12 tiles, each walked at least once.
 whole, strips, crowded = (rows[t]['tiles']['frames'][0] for t in ('tiles', 'tiles-strips', 'tiles-crowded-strips'))
 assert whole['workgroups'] >= 12 and strips['workgroups'] == 4 * whole['workgroups'] == crowded['workgroups'], (whole, strips, crowded)
+# Late shading's second tests found every hit again; the other variants do not report it.
+assert all(rows[v]['tiles']['frames'][0]['late_misses'] == 0 for v in variants if 'late' in v), rows
+assert 'late_misses' not in whole, whole
 # What tiles' time follows, per frame, and its composite split into the first walk and the rest.
 t = rows['tiles']['tiles']
 assert len(t['frames']) == 1 and t['frames'][0]['keys'] > 0 and t['frames'][0]['walks'] >= 1, t
@@ -447,6 +450,12 @@ for name, s in shaders.items():
 plain, exits, deep = (shaders['tiles_composite.comp' + v]['statistics'] for v in ('', ':exits', ':deep'))
 assert plain['VGPRs'] < exits['VGPRs'] <= deep['VGPRs'], (plain, exits, deep)
 assert deep['Scratch size'] > 0 and plain['Scratch size'] == 0, (plain, deep)
+# Late shading keeps no colours in the window: fewer registers, and the 64-hit window of the
+# walks again mostly out of scratch memory (docs/tiles.md, Shading late).
+for c in ('tiles_composite.comp', 'tiles_composite_triangles.comp'):
+    s = {v: shaders[c + v]['statistics'] for v in (':exits', ':exits-late', ':deep', ':deep-late')}
+    assert s[':exits-late']['VGPRs'] < s[':exits']['VGPRs'], (c, s)
+    assert s[':deep-late']['Scratch size'] < s[':deep']['Scratch size'], (c, s)
 text = subprocess.run(['$bin', 'bench', 'shaders', '--shaders', 'tiles_bin', '--statistics', 'VGPRs,Scratch'], check=True, capture_output=True, text=True).stdout
 assert 'tiles_bin.comp (Compute Shader, subgroup' in text and 'tiles_bin_triangles.comp' in text and 'tiles_composite' not in text, text
 assert 'VGPRs' in text and 'Scratch size' in text and 'Instructions' not in text, text

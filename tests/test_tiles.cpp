@@ -914,7 +914,9 @@ TEST(Tiles, PixelHitsAndLateShadingGiveTheSameBytes) {
         o.pixel_hits = own, o.late_shading = late, o.strips = vk::TileStrips::none;
         const std::string which =
             std::string(own ? ", pixel hits" : "") + (late ? ", late shading" : "");
-        expect_same_tile_frame(pairs, renderer.render(camera, tf, o), what + which);
+        const vk::TileFrame f = renderer.render(camera, tf, o);
+        expect_same_tile_frame(pairs, f, what + which);
+        EXPECT_EQ(f.stats.late_misses, 0u) << what + which;
         o.strips = vk::TileStrips::crowded;
         EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what + which;
       }

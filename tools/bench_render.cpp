@@ -165,6 +165,8 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
                                 {"crowded_tiles", frame.stats["crowded_tiles"]},
                                 {"walks", frame.stats["walks"]},
                                 {"workgroups", frame.stats["composite_workgroups"]}});
+        if (frame.stats.contains("late_misses"))
+          tiles_frames.back()["late_misses"] = frame.stats["late_misses"];
         const std::vector<double> walks = frame.stats["walk_ms"].get<std::vector<double>>();
         double again = 0;
         for (size_t w = 1; w < walks.size(); ++w) again += walks[w];

@@ -140,6 +140,7 @@ class Tiles : public PreparedTechnique {
         {"gpu_ms", {{"bin", s.bin_ms}, {"sort", s.sort_ms}, {"composite", s.composite_ms}}},
         {"depth_complexity", {{"max", s.max_depth_complexity}}},
         {"frame_bytes", s.frame_bytes}};
+    if (options_.late_shading) out.stats["late_misses"] = s.late_misses;
     out.note = std::to_string(s.keys) + " keys on " + context_->info().name;
     return out;
   }

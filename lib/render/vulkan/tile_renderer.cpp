@@ -90,7 +90,7 @@ struct Counters {
   uint32_t key_count, binned;
 };
 struct CompositeStats {
-  uint32_t window_overflows, cut_short;
+  uint32_t window_overflows, cut_short, late_misses;
 };
 // Slice `slice` composites keys [slice * slice_keys, (slice + 1) * slice_keys) of the tiles
 // slice_tiles[tile_offset, tile_offset + tile_count): those that have keys there (slice 0: all).
@@ -264,8 +264,8 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
              exits ? composite + ":deep-late" : "",
              composite + (exits ? ":exits-pixels-late" : ":pixels-late"),
              exits ? composite + ":deep-pixels-late" : ""};
-  // The composites of strips and of the pixels' own hits are made when a frame first asks for
-  // them.
+  // The other composites (strips, the pixels' own hits, late shading) are made when a frame
+  // first asks for them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
     if (!shaders[i].empty())
       pipelines[i] = create_compute_pipeline(d, set.layout, shaders[i].c_str(), &paging_info);
@@ -910,6 +910,7 @@ TileFrame TileRenderer::Frame::render() {
   CompositeStats cs;
   std::memcpy(&cs, s.stats.mapped, sizeof cs);
   st.window_overflows = cs.window_overflows;
+  st.late_misses = cs.late_misses;
   PixelReadback read = s.targets.read(ctx);
   frame.image = std::move(read.image);
   frame.depth_complexity = std::move(read.counts);

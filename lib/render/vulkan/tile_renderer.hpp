@@ -89,6 +89,9 @@ struct TileStats {
   uint32_t tiles = 0;                                // 16x16 tiles of the image
   uint64_t hits = 0;                                 // front crossings composited
   uint64_t window_overflows = 0;  // pixel walks that left hits for another (a full window)
+  // Late shading (TileOptions::late_shading): hits whose second test missed them, composited in
+  // a stand-in colour. 0 where the compiler computes the test alike in both places.
+  uint64_t late_misses = 0;
   uint32_t max_depth_complexity = 0;
   uint64_t frame_bytes = 0;    // keys, values, sort scratch, ranges, pixels
   uint32_t rebins = 0;         // binning passes repeated for more key room
