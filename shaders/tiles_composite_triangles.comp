@@ -114,7 +114,7 @@ bool first_hit(uint i, vec3 direction, out float t, out vec4 colour) {
 // The colour of a pending hit at t on triangle s, composited late: the same test on the same
 // floats, read again from the tube mesh, gives the same hit (TILES_LATE_SHADING,
 // tiles_composite.glsl). Should a compiler compute the test otherwise here (no test is marked
-// precise), false and the colour of corner a facing the ray: counted, not lost.
+// precise), false and the colour of corner a: counted, not lost.
 bool hit_colour(uint s, float t, vec3 direction, out vec4 colour) {
   vec4 corner[3];
   vec3 normal[3];
@@ -123,7 +123,7 @@ bool hit_colour(uint s, float t, vec3 direction, out vec4 colour) {
   float t_hit, u, v;
   const bool found =
       triangle_hit(corner[0].xyz, corner[1].xyz, corner[2].xyz, direction, t_hit, u, v);
-  if (!found) t_hit = t, u = 0.0, v = 0.0, normal[0] = -direction;
+  if (!found) t_hit = t, u = 0.0, v = 0.0;
   colour = triangle_colour(direction, t_hit, u, v, values, normal);
   return found;
 }
