@@ -836,12 +836,11 @@ TEST(Tiles, TheOrderOfTheTilesChangesNoByte) {
 // are cut (150x108: the last column's strips hold 6 of their 16 columns of pixels, the last
 // row's fourth strip no pixel), as capsules and as triangles, each composited with the loops of
 // fixed trips in slices of 64 keys and with the loops that exit in one slice (walks again with
-// the deep window): `check(renderer, camera, what, walks_again)` for each of the four, where
-// walks_again says whether that build walks tiles again here: all four do (the triangles' tubes
-// are thicker than the capsules, so that a pixel fills even the 16-hit window and its tile takes
-// the deep window's walk again; with the capsules' radius none did).
-using CompositeCheck =
-    std::function<void(vk::TileRenderer&, const Camera&, const std::string&, bool)>;
+// the deep window): `check(renderer, camera, what)` for each of the four, each of which walks
+// tiles again here (the triangles' tubes are thicker than the capsules, so that a pixel fills
+// even the 16-hit window and its tile takes the deep window's walk again; with the capsules'
+// radius none did).
+using CompositeCheck = std::function<void(vk::TileRenderer&, const Camera&, const std::string&)>;
 void for_each_composite_build(const CompositeCheck& check) {
   vk::Context ctx;
   const LineSet lines = synth::generate(synth::parse_synth_source("synth:aneurysm?scale=0.01"));
@@ -857,9 +856,9 @@ void for_each_composite_build(const CompositeCheck& check) {
     const uint32_t slice_keys = exits ? 0 : 64;
     const std::string how = exits ? ", window loops that exit" : ", slices of 64 keys";
     vk::TileRenderer over_capsules(ctx, capsules, 0, slice_keys, true, loops);
-    check(over_capsules, camera, "capsules" + how, true);
+    check(over_capsules, camera, "capsules" + how);
     vk::TileRenderer over_triangles(ctx, mesh, 0, slice_keys, true, loops);
-    check(over_triangles, camera, "triangles" + how, true);
+    check(over_triangles, camera, "triangles" + how);
   }
 }
 
@@ -869,29 +868,29 @@ void for_each_composite_build(const CompositeCheck& check) {
 // workgroup each, in the same slice), in every build of for_each_composite_build.
 TEST(Tiles, StripsOfATileGiveTheSameBytes) {
   const TransferFunction tf = transfer_function_preset("transparent");
-  for_each_composite_build([&](vk::TileRenderer& renderer, const Camera& camera,
-                               const std::string& what, bool walks_again) {
-    vk::TileOptions o;
-    o.width = 150, o.height = 108;
-    // A frame first, so that both below find the pixels' states' buffer made (the first walk
-    // that needs it composites its tiles again: more workgroups).
-    renderer.render(camera, tf, o);
-    const vk::TileFrame whole = renderer.render(camera, tf, o);
-    EXPECT_GE(whole.stats.walks, walks_again ? 2u : 1u) << what;
-    EXPECT_GT(whole.stats.hits, 5000u) << what;
-    EXPECT_GT(whole.stats.crowded_tiles, 0u) << what;
-    // Every tile in strips; then only the crowded (no walk counts as few), the two composites
-    // dispatched together in each slice.
-    o.strips = vk::TileStrips::all;
-    const vk::TileFrame all = renderer.render(camera, tf, o);
-    o.strips = vk::TileStrips::crowded, o.few_tiles = 0;
-    const vk::TileFrame crowded = renderer.render(camera, tf, o);
-    EXPECT_EQ(all.stats.composite_workgroups, 4 * whole.stats.composite_workgroups) << what;
-    EXPECT_GT(crowded.stats.composite_workgroups, whole.stats.composite_workgroups) << what;
-    EXPECT_LT(crowded.stats.composite_workgroups, all.stats.composite_workgroups) << what;
-    expect_same_tile_frame(whole, all, what + ", strips: all");
-    expect_same_tile_frame(whole, crowded, what + ", strips: crowded");
-  });
+  for_each_composite_build(
+      [&](vk::TileRenderer& renderer, const Camera& camera, const std::string& what) {
+        vk::TileOptions o;
+        o.width = 150, o.height = 108;
+        // A frame first, so that both below find the pixels' states' buffer made (the first walk
+        // that needs it composites its tiles again: more workgroups).
+        renderer.render(camera, tf, o);
+        const vk::TileFrame whole = renderer.render(camera, tf, o);
+        EXPECT_GE(whole.stats.walks, 2u) << what;
+        EXPECT_GT(whole.stats.hits, 5000u) << what;
+        EXPECT_GT(whole.stats.crowded_tiles, 0u) << what;
+        // Every tile in strips; then only the crowded (no walk counts as few), the two composites
+        // dispatched together in each slice.
+        o.strips = vk::TileStrips::all;
+        const vk::TileFrame all = renderer.render(camera, tf, o);
+        o.strips = vk::TileStrips::crowded, o.few_tiles = 0;
+        const vk::TileFrame crowded = renderer.render(camera, tf, o);
+        EXPECT_EQ(all.stats.composite_workgroups, 4 * whole.stats.composite_workgroups) << what;
+        EXPECT_GT(crowded.stats.composite_workgroups, whole.stats.composite_workgroups) << what;
+        EXPECT_LT(crowded.stats.composite_workgroups, all.stats.composite_workgroups) << what;
+        expect_same_tile_frame(whole, all, what + ", strips: all");
+        expect_same_tile_frame(whole, crowded, what + ", strips: crowded");
+      });
 }
 
 // Each pixel computing its own hits (TileOptions::pixel_hits) takes the same hits in the same
@@ -901,27 +900,27 @@ TEST(Tiles, StripsOfATileGiveTheSameBytes) {
 // for_each_composite_build. Neither is built for strips: a usage error.
 TEST(Tiles, PixelHitsAndLateShadingGiveTheSameBytes) {
   const TransferFunction tf = transfer_function_preset("transparent");
-  for_each_composite_build([&](vk::TileRenderer& renderer, const Camera& camera,
-                               const std::string& what, bool walks_again) {
-    vk::TileOptions o;
-    o.width = 150, o.height = 108;
-    renderer.render(camera, tf, o);  // the pixels' states' buffer made, as in the strips test
-    const vk::TileFrame pairs = renderer.render(camera, tf, o);
-    EXPECT_GE(pairs.stats.walks, walks_again ? 2u : 1u) << what;
-    EXPECT_GT(pairs.stats.hits, 5000u) << what;
-    for (const bool own : {false, true})
-      for (const bool late : {false, true}) {
-        if (!own && !late) continue;
-        o.pixel_hits = own, o.late_shading = late, o.strips = vk::TileStrips::none;
-        const std::string which =
-            std::string(own ? ", pixel hits" : "") + (late ? ", late shading" : "");
-        const vk::TileFrame f = renderer.render(camera, tf, o);
-        expect_same_tile_frame(pairs, f, what + which);
-        EXPECT_EQ(f.stats.late_misses, 0u) << what + which;
-        o.strips = vk::TileStrips::crowded;
-        EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what + which;
-      }
-  });
+  for_each_composite_build(
+      [&](vk::TileRenderer& renderer, const Camera& camera, const std::string& what) {
+        vk::TileOptions o;
+        o.width = 150, o.height = 108;
+        renderer.render(camera, tf, o);  // the pixels' states' buffer made, as in the strips test
+        const vk::TileFrame pairs = renderer.render(camera, tf, o);
+        EXPECT_GE(pairs.stats.walks, 2u) << what;
+        EXPECT_GT(pairs.stats.hits, 5000u) << what;
+        for (const bool own : {false, true})
+          for (const bool late : {false, true}) {
+            if (!own && !late) continue;
+            o.pixel_hits = own, o.late_shading = late, o.strips = vk::TileStrips::none;
+            const std::string which =
+                std::string(own ? ", pixel hits" : "") + (late ? ", late shading" : "");
+            const vk::TileFrame f = renderer.render(camera, tf, o);
+            expect_same_tile_frame(pairs, f, what + which);
+            EXPECT_EQ(f.stats.late_misses, 0u) << what + which;
+            o.strips = vk::TileStrips::crowded;
+            EXPECT_THROW(renderer.render(camera, tf, o), UsageError) << what + which;
+          }
+      });
 }
 
 // Binning's pixel tests leave out only keys without a hit: on sets of many short segments

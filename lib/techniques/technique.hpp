@@ -94,8 +94,8 @@ struct TechniqueOptions {
   // tiles-triangles-pixel-hits, no command-line option).
   bool tiles_pixel_hits = false;
   // The composite shades each hit when it composites it, its window holding no colours
-  // (vk::TileOptions::late_shading; bench render's tiles-late-shading and
-  // tiles-triangles-late-shading, no command-line option).
+  // (vk::TileOptions::late_shading; bench render's tiles-late-shading,
+  // tiles-triangles-late-shading and tiles-pixel-hits-late-shading, no command-line option).
   bool tiles_late_shading = false;
   // The process's memory budget in bytes (render --memory-budget; 0: none given, half of
   // physical memory). Data is read only where the cache's provenance says it fits; embree and
