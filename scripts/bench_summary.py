@@ -112,7 +112,10 @@ def main():
             tiles_text = (f"{median_keys:,} (median), {walks}, "
                           f"{fmt(tiles.get('first_walk_ms', {}).get('median'))} / "
                           f"{fmt(tiles.get('walks_again_ms', {}).get('median'))}")
+        # Late shading's hits that its second test missed (composited in a stand-in colour).
+        misses = [f["late_misses"] for f in (tiles or {}).get("frames", []) if "late_misses" in f]
         notes = "; ".join(text for text in (
+            f"late misses {sum(misses)}" if misses else None,
             row.get("skipped"), "failed: " + row["failed"] if "failed" in row else None,
             "stopped " + row["stopped"] if "stopped" in row else None,
             row.get("quality_skipped")) if text)
