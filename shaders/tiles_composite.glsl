@@ -200,7 +200,9 @@ struct PixelState {
   uint passed_primitive[kPassed - 1], pad0;
   float t[kStateWindow];
   uint primitive[kStateWindow];
-  vec4 colour[kStateWindow];
+#ifndef TILES_LATE_SHADING
+  vec4 colour[kStateWindow];  // the builds that shade late keep none (the host sizes both)
+#endif
 };
 // The pixels' states, kTile * kTile per tile slot: as many tiles as one storage buffer holds
 // are composited at a time (the host's groups), each group's tiles in slots 0, 1, ...

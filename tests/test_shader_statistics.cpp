@@ -50,6 +50,20 @@ TEST(SpirvLayout, ReadsTheBindingsTheShaderUses) {
       (std::vector<uint32_t>{1, 2, 3, 4, 6, 7, 8, 9, 10, 11, 13, 14, 15, 16, 17, 18, 19, 20}));
   for (const vk::SpirvBinding& b : composite.bindings)
     EXPECT_EQ(b.count, b.binding == 19 ? 7u : b.binding == 20 ? 3u : 1u) << b.binding;
+  // The stride of a block's runtime array: the pixels' states (binding 11), by std430's rules
+  // from the GLSL's PixelState: a vec4, 11 words and 3 + 3 words of the last hits passed with a
+  // word to pad make 80 bytes, then t and primitive of each of the window's hits (8 or 16) and,
+  // unless the build shades late, a vec4 colour. The slice's block (10) ends in no array.
+  const auto stride = [](const std::string& shader, uint32_t binding) {
+    for (const vk::SpirvBinding& b : vk::reflect_layout(vk::shader_spirv(shader), shader).bindings)
+      if (b.binding == binding) return b.array_stride;
+    return ~0u;
+  };
+  EXPECT_EQ(stride("tiles_composite.comp", 11), 80u + 8 * (4 + 4 + 16));
+  EXPECT_EQ(stride("tiles_composite.comp:late", 11), 80u + 8 * (4 + 4));
+  EXPECT_EQ(stride("tiles_composite.comp:exits", 11), 80u + 16 * (4 + 4 + 16));
+  EXPECT_EQ(stride("tiles_composite_triangles.comp:deep-pixels-late", 11), 80u + 16 * (4 + 4));
+  EXPECT_EQ(stride("tiles_composite.comp", 10), 0u);
 
   // A vertex shader is read as one.
   EXPECT_EQ(vk::reflect_layout(vk::shader_spirv("tube.vert"), "tube.vert").stage,

@@ -342,6 +342,24 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   const vk::TileFrame d = fine.render(camera, tf, o);
   EXPECT_EQ(d.stats.groups, 2u);
   EXPECT_EQ(d.image.pixels, b.image.pixels);
+  // The builds that shade late keep t and the primitive of a pending hit, no colour: 144 and 208
+  // bytes a pixel (20 words, then 8 bytes a hit, where the others keep 24). A budget of 3 tiles'
+  // states with colours holds 5 of theirs on lavapipe (3 x 272 / 144 = 5.7: the 12 tiles in 3
+  // groups) and 6 where the window loops exit (3 x 464 / 208 = 6.7: 2 groups); one of 3 of
+  // theirs, 4 groups. (The renderer checked each composite's own layout of the state against
+  // these sizes when it was made.)
+  const uint64_t late_state = fine.tile_state_bytes(true);
+  EXPECT_EQ(late_state, 16u * 16u * (ctx.info().lavapipe ? 144u : 208u));
+  o.late_shading = true;
+  o.max_state_bytes = 3 * tile_state;
+  const vk::TileFrame e = fine.render(camera, tf, o);
+  EXPECT_EQ(e.stats.groups, ctx.info().lavapipe ? 3u : 2u);
+  EXPECT_EQ(e.image.pixels, b.image.pixels);
+  EXPECT_EQ(e.stats.late_misses, 0u);
+  o.max_state_bytes = 3 * late_state;
+  const vk::TileFrame f = fine.render(camera, tf, o);
+  EXPECT_EQ(f.stats.groups, 4u);
+  EXPECT_EQ(f.image.pixels, b.image.pixels);
 }
 
 // Binning counts each tile row's keys per workgroup in shared memory for images of up to 1,024

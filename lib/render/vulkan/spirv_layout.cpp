@@ -17,13 +17,20 @@ enum Op : uint32_t {
   kOpTypeSampledImage = 27,
   kOpTypeArray = 28,
   kOpTypeRuntimeArray = 29,
+  kOpTypeStruct = 30,
   kOpTypePointer = 32,
   kOpConstant = 43,
   kOpVariable = 59,
   kOpDecorate = 71,
   kOpTypeAccelerationStructureKHR = 5341,
 };
-enum Decoration : uint32_t { kBlock = 2, kBufferBlock = 3, kBinding = 33, kDescriptorSet = 34 };
+enum Decoration : uint32_t {
+  kBlock = 2,
+  kBufferBlock = 3,
+  kArrayStride = 6,
+  kBinding = 33,
+  kDescriptorSet = 34,
+};
 enum StorageClass : uint32_t {
   kUniformConstant = 0,
   kUniform = 2,
@@ -97,8 +104,9 @@ SpirvLayout reflect_layout(const Spirv& code, const std::string& name) {
 
   SpirvLayout layout;
   bool entry_seen = false;
-  std::map<uint32_t, uint32_t> set_of, binding_of, constant;
-  std::map<uint32_t, bool> buffer_block;                    // struct id: BufferBlock (or Block)
+  std::map<uint32_t, uint32_t> set_of, binding_of, constant, array_stride;
+  std::map<uint32_t, uint32_t> last_member;  // struct type id: its last member's type id
+  std::map<uint32_t, bool> buffer_block;     // struct id: BufferBlock (or Block)
   std::map<uint32_t, std::pair<uint32_t, uint32_t>> array;  // id: element type, length id
   std::map<uint32_t, uint32_t> pointee;                     // pointer type id: pointee type id
   std::map<uint32_t, VkDescriptorType> opaque;              // image, sampler, AS type ids
@@ -117,12 +125,15 @@ SpirvLayout reflect_layout(const Spirv& code, const std::string& name) {
       if (o[1] == kBinding && n >= 3) binding_of[o[0]] = o[2];
       if (o[1] == kBlock) buffer_block.emplace(o[0], false);
       if (o[1] == kBufferBlock) buffer_block[o[0]] = true;
+      if (o[1] == kArrayStride && n >= 3) array_stride[o[0]] = o[2];
     } else if (in.opcode == kOpConstant && n >= 3) {
       constant[o[1]] = o[2];
     } else if (in.opcode == kOpTypeArray && n >= 3) {
       array[o[0]] = {o[1], o[2]};
     } else if (in.opcode == kOpTypeRuntimeArray && n >= 2) {
       array[o[0]] = {o[1], 0};
+    } else if (in.opcode == kOpTypeStruct && n >= 2) {
+      last_member[o[0]] = o[n - 1];
     } else if (in.opcode == kOpTypePointer && n >= 3) {
       pointee[o[0]] = o[2];
     } else if (in.opcode == kOpTypeImage && n >= 7) {
@@ -167,6 +178,12 @@ SpirvLayout reflect_layout(const Spirv& code, const std::string& name) {
                    "a plain constant (a specialisation constant?)");
       b.count = length->second;
       type = a->second.first;
+    }
+    if (const auto member = last_member.find(type); member != last_member.end()) {
+      const auto a = array.find(member->second);
+      const auto stride = array_stride.find(member->second);
+      if (a != array.end() && a->second.second == 0 && stride != array_stride.end())
+        b.array_stride = stride->second;
     }
     if (v.storage == kStorageBuffer) {
       b.type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;

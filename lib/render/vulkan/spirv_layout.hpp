@@ -18,6 +18,9 @@ struct SpirvBinding {
   uint32_t set = 0, binding = 0;
   VkDescriptorType type = VK_DESCRIPTOR_TYPE_MAX_ENUM;
   uint32_t count = 1;  // an array of descriptors: its length
+  // A buffer block whose last member is a runtime array: that array's ArrayStride, the bytes of
+  // one element as the compiler laid it out (std430 for storage buffers); else 0.
+  uint32_t array_stride = 0;
 };
 
 struct SpirvLayout {

@@ -18,6 +18,7 @@
 #include "render/vulkan/pixel_readback.hpp"
 #include "render/vulkan/radix_sort.hpp"
 #include "render/vulkan/shaders.hpp"
+#include "render/vulkan/spirv_layout.hpp"
 #include "render/vulkan/transfer_table.hpp"
 #include "render/vulkan/view_uniforms.hpp"
 
@@ -61,10 +62,27 @@ constexpr VkBufferUsageFlags kSortedUsage =
 constexpr uint32_t state_window_of(bool window_exits) {
   return window_exits ? 16 : 8;
 }
-// A tile's pixels' states between slices (tiles_composite.glsl PixelState, std430: 20 words,
-// then t, primitive and an rgba colour per pending hit).
-constexpr uint64_t tile_state_bytes_of(uint32_t state_window) {
-  return uint64_t(kTile) * kTile * (20 * 4 + state_window * (4 + 4 + 16));
+// A pixel's state between slices (tiles_composite.glsl PixelState, std430: 20 words, then t,
+// primitive and, unless the build shades late, an rgba colour per pending hit). The renderer
+// checks each composite's own layout against it when it is made.
+constexpr uint64_t pixel_state_bytes_of(uint32_t state_window, bool late_shading) {
+  return 20 * 4 + state_window * (4 + 4 + (late_shading ? 0 : 16));
+}
+constexpr uint64_t tile_state_bytes_of(uint32_t state_window, bool late_shading) {
+  return uint64_t(kTile) * kTile * pixel_state_bytes_of(state_window, late_shading);
+}
+// The composite's pixel state as its SPIR-V lays it out (the stride of binding 11's array)
+// against the bytes the host sizes the states with.
+void check_state_layout(const std::string& shader, uint32_t state_window, bool late_shading) {
+  const uint64_t expected = pixel_state_bytes_of(state_window, late_shading);
+  for (const SpirvBinding& b : reflect_layout(shader_spirv(shader), shader).bindings)
+    if (b.set == 0 && b.binding == 11) {
+      if (b.array_stride == expected) return;
+      throw Error("tiles: shader " + shader + " lays out a pixel's state in " +
+                  std::to_string(b.array_stride) + " bytes, the renderer sizes it as " +
+                  std::to_string(expected) + " (a build of shaders and code that disagree)");
+    }
+  throw Error("tiles: shader " + shader + " has no pixel states at binding 11");
 }
 // Keys per tile per dispatch to start with where the driver caps an invocation's loop iterations
 // (lavapipe's gallivm: 65535 in all): 32 trips a key. A key's entry, pair and hit take a few
@@ -136,7 +154,8 @@ struct TileRenderer::State {
   // composites again over strips of tiles (TileOptions::strips), the two with each pixel's own
   // hits (TileOptions::pixel_hits), the two that shade late (TileOptions::late_shading) and the
   // two with both, made when first used.
-  static constexpr size_t kMadeAtInit = 4;  // the rest: when first used
+  static constexpr size_t kMadeAtInit = 4;   // the rest: when first used
+  static constexpr size_t kLateShaders = 8;  // shaders 8 to 11 shade late
   std::array<std::string, 12> shaders;
   std::array<VkPipeline, 12> pipelines{};
   VkQueryPool queries = VK_NULL_HANDLE;
@@ -264,6 +283,10 @@ void TileRenderer::State::init(const std::vector<float>& vertex_words,
              exits ? composite + ":deep-late" : "",
              composite + (exits ? ":exits-pixels-late" : ":pixels-late"),
              exits ? composite + ":deep-pixels-late" : ""};
+  // A composite that lays out a pixel's state otherwise than the host sizes it reads and writes
+  // past the states it was given (one such build hung a walk again): refused here instead.
+  for (size_t i = 2; i < shaders.size(); ++i)
+    if (!shaders[i].empty()) check_state_layout(shaders[i], state_window, i >= kLateShaders);
   // The other composites (strips, the pixels' own hits, late shading) are made when a frame
   // first asks for them.
   for (size_t i = 0; i < kMadeAtInit; ++i)
@@ -617,12 +640,12 @@ TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFun
   // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
   // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
   // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
-  // 1080p has 8,160).
+  // 1080p has 8,160; 52 and 36 KiB where the composite shades late).
   const uint64_t state_limit =
       o.max_state_bytes > 0 ? std::min(s.max_buffer, o.max_state_bytes) : s.max_buffer;
-  group_tiles =
-      uint32_t(std::clamp<uint64_t>(state_limit / tile_state_bytes_of(s.state_window), 1, tiles));
-  state_bytes = uint64_t(group_tiles) * tile_state_bytes_of(s.state_window);
+  const uint64_t tile_state = tile_state_bytes_of(s.state_window, o.late_shading);
+  group_tiles = uint32_t(std::clamp<uint64_t>(state_limit / tile_state, 1, tiles));
+  state_bytes = uint64_t(group_tiles) * tile_state;
 }
 
 double TileRenderer::Frame::pass(const std::function<void(VkCommandBuffer)>& record) {
@@ -929,8 +952,8 @@ uint32_t TileRenderer::sort_subgroup_size() const {
   return state_->sorter.subgroup_size();
 }
 
-uint64_t TileRenderer::tile_state_bytes() const {
-  return tile_state_bytes_of(state_->state_window);
+uint64_t TileRenderer::tile_state_bytes(bool late_shading) const {
+  return tile_state_bytes_of(state_->state_window, late_shading);
 }
 
 size_t TileRenderer::primitive_buffers() const {

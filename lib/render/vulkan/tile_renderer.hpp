@@ -41,7 +41,8 @@ struct TileOptions {
   // as one storage buffer allows). A frame with more keys renders in bands of tile rows.
   uint64_t max_key_bytes = 0;
   // Device memory the pixels' states between slices and walks may take (0: one storage buffer):
-  // the tiles are composited in groups whose states fit, at least one tile (68 or 116 KiB) a group.
+  // the tiles are composited in groups whose states fit, at least one tile (68 or 116 KiB, 36 or 52
+  // shading late) a group.
   uint64_t max_state_bytes = 0;
   // Bits of a (tile, depth) key (0: 24 where the tiles take at most 14, else 32; tests): the
   // depth takes what the tile index leaves. Fewer bits tie more keys, in an order the sort
@@ -159,8 +160,9 @@ class TileRenderer {
   // The subgroup size the key sort runs with (radix_sort.hpp); 0: its shared-memory path.
   uint32_t sort_subgroup_size() const;
   // The device memory one tile's pixels keep between slices and walks (their windows of pending
-  // hits: 8 with the window loops of fixed trips, 16 with those that exit).
-  uint64_t tile_state_bytes() const;
+  // hits: 8 with the window loops of fixed trips, 16 with those that exit; the builds that shade
+  // late keep no colours there, TileOptions::late_shading).
+  uint64_t tile_state_bytes(bool late_shading = false) const;
   // The storage buffers the primitives take: 2 where the points and the segment words (or the
   // vertices and the indices) fit one each, more where they go in pages.
   size_t primitive_buffers() const;
