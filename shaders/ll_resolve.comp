@@ -1,7 +1,8 @@
 #version 460
 // Per-pixel linked lists, resolve pass: copy the pixel's list (up to kMaxFragments nodes) into
 // local arrays, sort by depth and blend front to back over the background. Longer lists are
-// reported through `longest` and the host re-runs the resolve with room for them.
+// reported through `longest` and the host re-runs the resolve with room for them, for those
+// pixels only (kResolvedUpTo).
 //
 // Fragments of equal depth (coincident tubes: repeated lines are common in real data) are
 // ordered by a key of their colour. A list holds its fragments in the order they arrived, which
@@ -16,6 +17,9 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(constant_id = 0) const uint kMaxFragments = 256;
 // 0 insertion, 1 shell (24, 9, 4, 1), 2 heap, 3 quicksort with insertion sort below 16
 layout(constant_id = 1) const uint kSort = 2;
+// The resolve again after one whose arrays held this many fragments: the pixels whose lists it
+// held whole (their depth complexity, which it wrote) are done. 0: every pixel.
+layout(constant_id = 4) const uint kResolvedUpTo = 0;
 
 layout(set = 0, binding = 1, std430) readonly buffer Heads { uint heads[]; };
 layout(set = 0, binding = 4, std430) writeonly buffer Output { vec4 pixels[]; };
@@ -163,6 +167,7 @@ void main() {
   const uvec2 p = gl_GlobalInvocationID.xy;
   if (p.x >= frame.size.x || p.y >= frame.size.y) return;
   const uint pixel = p.y * frame.size.x + p.x;
+  if (kResolvedUpTo > 0u && depth_complexity[pixel] <= kResolvedUpTo) return;
   uint count = 0u, total = 0u;
   for (uint n = heads[pixel]; n != 0xFFFFFFFFu; n = node_next(n)) {
     if (count < kMaxFragments) {

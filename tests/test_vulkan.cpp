@@ -126,18 +126,19 @@ TEST(Vulkan, LinkedListsWithEverySortEqualTheReference) {
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
 }
 
-TEST(Vulkan, EverySortOrdersLongLists) {
-  // 40 straight lines stacked along the view direction, drawn in a scrambled depth order: lists
-  // of 40 fragments, past the quick-hybrid sort's insertion-sort cut-off (16) and the shell
-  // sort's first gap (24).
+// `count` straight lines stacked along the view direction, drawn in a scrambled depth order;
+// with `halves`, every other line ends at x = 0, so the pixels left of the middle have lists of
+// `count` fragments and those right of it half as many.
+Scene stacked_lines(int count, bool halves) {
   LineSet lines;
   Attribute a{"value", {}};
-  for (int line = 0; line < 40; ++line) {
-    const int i = (line * 17) % 40;
+  for (int line = 0; line < count; ++line) {
+    const int i = (line * 17) % count;
+    const float end = halves && i % 2 == 1 ? 0.0f : 1.0f;
     lines.append_point(-1, 0.01f * float(i), 0.05f * float(i));
-    lines.append_point(1, -0.01f * float(i), 0.05f * float(i));
-    a.values.push_back(float(i) / 40);
-    a.values.push_back(float(i) / 40);
+    lines.append_point(end, -0.01f * float(i) * end, 0.05f * float(i));
+    a.values.push_back(float(i) / float(count));
+    a.values.push_back(float(i) / float(count));
     lines.end_line();
   }
   lines.attributes.push_back(a);
@@ -147,6 +148,19 @@ TEST(Vulkan, EverySortOrdersLongLists) {
   s.camera.eye = {0, 0, -5};  // looking down the stack
   s.camera.near = 0.1, s.camera.far = 100;
   s.trace.width = s.trace.height = 64;
+  return s;
+}
+
+bool has_pass(const vk::RasterFrame& f, const std::string& name) {
+  for (const auto& [pass, ms] : f.stats.pass_ms)
+    if (pass == name) return ms >= 0;
+  return false;
+}
+
+TEST(Vulkan, EverySortOrdersLongLists) {
+  // Lists of 40 fragments, past the quick-hybrid sort's insertion-sort cut-off (16) and the shell
+  // sort's first gap (24); within the resolve's first arrays (64), so no pixel is resolved again.
+  const Scene s = stacked_lines(40, false);
   const TransferFunction tf = transfer_function_preset("transparent");
   const Frame reference = reference_frame(s, tf);
   ASSERT_GE(reference.stats.max_depth_complexity, 40u);
@@ -160,6 +174,49 @@ TEST(Vulkan, EverySortOrdersLongLists) {
     const vk::RasterFrame f = renderer.render(s.camera, tf, o);
     EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0) << to_string(sort);
     EXPECT_LE(pixels_differing(f.image, reference.image), 64u * 64u / 500) << to_string(sort);
+    EXPECT_TRUE(has_pass(f, "resolve"));
+    EXPECT_FALSE(has_pass(f, "resolve again"));
+  }
+  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+TEST(Vulkan, ListsLongerThanTheResolvesArraysAreResolvedAgain) {
+  // Lists of 100 fragments left of the middle, 50 right of it: the first resolve holds 64, so the
+  // left pixels are resolved again with arrays of 128, the right ones stay as it blended them.
+  // Both halves equal the reference (with the transparent preset a fragment past the 64th still
+  // moves a pixel: a resolve that left the long lists cut at 64 fails), and the pass is in the
+  // frame's GPU times.
+  const Scene s = stacked_lines(100, true);
+  const TransferFunction tf = transfer_function_preset("transparent");
+  const Frame reference = reference_frame(s, tf);
+  ASSERT_GE(reference.stats.max_depth_complexity, 100u);
+  vk::Context ctx(validated());
+  vk::RasterRenderer renderer(ctx, s.mesh);
+  for (const auto sort : {vk::ListSort::Heap, vk::ListSort::QuickHybrid}) {
+    vk::RasterOptions o;
+    o.width = o.height = 64;
+    o.sort = sort;
+    const vk::RasterFrame f = renderer.render(s.camera, tf, o);
+    EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0) << to_string(sort);
+    EXPECT_LE(pixels_differing(f.image, reference.image), 64u * 64u / 500) << to_string(sort);
+    EXPECT_EQ(f.stats.max_depth_complexity, reference.stats.max_depth_complexity);
+    EXPECT_TRUE(has_pass(f, "resolve again")) << to_string(sort);
+    // The pixels of each kind against the reference: lists the first resolve held whole (40 to
+    // 64 fragments), and those it did not.
+    size_t held = 0, held_off = 0, long_lists = 0, long_off = 0;
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 64; ++x) {
+        const uint32_t fragments = f.depth_complexity[size_t(y) * 64 + size_t(x)];
+        bool off = false;
+        for (int c = 0; c < f.image.channels; ++c)
+          off = off || std::abs(f.image.at(x, y, c) - reference.image.at(x, y, c)) > 1e-3f;
+        if (fragments >= 40 && fragments <= 64) ++held, held_off += off ? 1 : 0;
+        if (fragments > 64) ++long_lists, long_off += off ? 1 : 0;
+      }
+    EXPECT_GT(held, 64u);
+    EXPECT_GT(long_lists, 64u);
+    EXPECT_LE(held_off, 4u) << to_string(sort);
+    EXPECT_LE(long_off, 4u) << to_string(sort);
   }
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
 }

@@ -52,14 +52,22 @@ void RasterRenderer::State::render_lists(const Camera& camera, const TransferFun
     needed = gather_and_resolve();
   }
   read_timings(frame.stats);
-  // Lists longer than the resolve's local arrays: resolve again with room for them.
+  // Lists longer than the resolve's local arrays: resolve those pixels again with room for them
+  // (a pass of its own in the frame's GPU time).
   const uint32_t longest = *static_cast<const uint32_t*>(ctx.read_back(stats, 4));
   if (longest > resolve_max) {
+    const uint32_t resolved = resolve_max;
     resolve_max = next_power_of_two(longest);
     ctx.submit([&](VkCommandBuffer cmd) {
-      dispatch(cmd, compute("ll_resolve.comp",
-                            {resolve_max, uint32_t(o.sort), paged(), page_unit_bytes / 4}));
+      begin_timing(cmd);
+      dispatch(cmd, compute("ll_resolve.comp", {resolve_max, uint32_t(o.sort), paged(),
+                                                page_unit_bytes / 4, resolved}));
+      mark(cmd, "resolve again");
     });
+    RasterStats again;
+    read_timings(again);
+    frame.stats.pass_ms.insert(frame.stats.pass_ms.end(), again.pass_ms.begin(),
+                               again.pass_ms.end());
   }
   frame.stats.fragments = needed;
   frame.stats.capacity = list_capacity;
