@@ -606,6 +606,10 @@ check "Ctrl-C during a Draco export (about 4.7 s on the development VM): exit 13
 '$bin' export '$tmp/c.lbc.h5' -o '$tmp/kx.glb' --draco --draco-speed 0 2> '$tmp/xint.err' > /dev/null & pid=\$!
 sleep 0.7; kill -INT \$pid; wait \$pid; rc=\$?
 [ \$rc -eq 130 ] && grep -q 'interrupted by SIGINT' '$tmp/xint.err' && [ ! -e '$tmp/kx.glb' ] && ! ls '$tmp' | grep -q tmp-"
+check "SIGTERM during a render's only frame (about 1.6 s at 1600x1200 on the development VM): exit 143 with no image, or, where the frame was done first, exit 143 naming the image written whole (it had exited 0)" bash -c "
+'$bin' render '$tmp/c.lbc.h5' --technique embree --size 1600x1200 -o '$tmp/term.png' 2> '$tmp/term.err' > /dev/null & pid=\$!
+sleep 1; kill -TERM \$pid; wait \$pid; rc=\$?
+[ \$rc -eq 143 ] && ! ls '$tmp' | grep -q 'term.png.*tmp-' && { { [ ! -e '$tmp/term.png' ] && grep -q '^linebake: interrupted by SIGTERM; its temporary files are removed' '$tmp/term.err'; } || grep -qF 'interrupted by SIGTERM as the command finished: $tmp/term.png was written whole' '$tmp/term.err'; }"
 
 # One contract (docs/cli.md): catalogues, help, in-place bakes, what is dropped, what stays on a terminal
 check "techniques --json lists every technique render accepts" python3 -c "

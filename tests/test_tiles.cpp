@@ -410,9 +410,18 @@ TEST(Tiles, BandsGiveTheSameBytes) {
   EXPECT_EQ(banded.image.pixels, whole.image.pixels);
   EXPECT_EQ(banded.depth_complexity, whole.depth_complexity);
   EXPECT_GT(whole.stats.hits, 100u);
-  // Fewer keys than one row of tiles holds: refused, naming the budget.
+  // Fewer keys than one row of tiles holds: refused, naming the budget and the primitives.
   o.max_key_bytes = 18;
-  EXPECT_THROW(renderer.render(camera, tf, o), BudgetExceeded);
+  try {
+    renderer.render(camera, tf, o);
+    ADD_FAILURE() << "a row of tiles past the key budget rendered";
+  } catch (const BudgetExceeded& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("(tile, segment) keys, more than a band may: 1, what the memory budget "
+                        "leaves the keys (18 bytes each); raise --memory-budget"),
+              std::string::npos)
+        << what;
+  }
 }
 
 // Primitives whose arrays pass one storage buffer go in pages (lavapipe's 128 MiB held 610 MiB

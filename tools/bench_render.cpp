@@ -206,7 +206,9 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {
+    // A failed row has no figures, frame 0's quality included (it may have rendered).
     row["failed"] = e.what();
+    first.reset();
   }
   return row;
 }

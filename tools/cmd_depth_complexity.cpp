@@ -180,6 +180,7 @@ Command add_depth_complexity(CLI::App& app) {
         counts = f.depth_complexity;
         seconds = f.stats.seconds;
       }
+      throw_if_interrupted();  // during the frame: it is not written, the finished ones are kept
       if (!args->output.empty())
         write_png_counts(counts, width, height, frame_path(args->output, plan.frames[i], numbered));
       nlohmann::json entry = summarise(counts);

@@ -56,6 +56,7 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
     const int number = plan.frames[i];
     const Camera& c = plan.cameras[size_t(number)];
     const TechniqueFrame frame = prepared->render(c, tf, options.width, options.height);
+    throw_if_interrupted();  // during the frame: it is not written, the finished ones are kept
     write_image(frame.image, frame_path(args.output, number, numbered), args.png_bits);
     if (!args.depth_image.empty() && !frame.depth_complexity.empty())
       write_png_counts(frame.depth_complexity, options.width, options.height,

@@ -17,6 +17,7 @@
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/nearest.hpp"
 #include "flight_plan.hpp"
 #include "metrics/image_metrics.hpp"
@@ -149,7 +150,8 @@ class Viewer {
     int wait_frames = 0;
     double last_x = 0, last_y = 0;
     bool dragging = false;
-    while (!quit_ && !glfwWindowShouldClose(window_)) {
+    // Ctrl-C in the terminal closes the window too (the command then ends as interrupted).
+    while (!quit_ && !glfwWindowShouldClose(window_) && interrupt_signal() == 0) {
       glfwPollEvents();
       // Mouse orbit: 0.3 degrees per pixel dragged.
       double x, y;

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <iostream>
 #include <new>
+#include <string>
+#include <vector>
 
 #include "cli_contract.hpp"
 #include "commands.hpp"
@@ -40,6 +42,17 @@ int standard_output_written() {
     message += (i == 0 ? " (written whole before it: " : ", ") + whole[i];
   std::cerr << message << (whole.empty() ? "" : ")") << "\n";
   return linebake::cli::kOutput;
+}
+
+// What a signal that came too late to stop the command leaves: its outputs, whole.
+std::string as_the_command_finished(const std::vector<std::string>& whole) {
+  if (whole.empty()) return "as the command finished, which wrote no file";
+  std::string names = whole.front();
+  if (whole.size() == 2) names += ", " + whole.back();
+  if (whole.size() > 2)
+    names = std::to_string(whole.size()) + " files, " + whole.front() + " .. " + whole.back();
+  return "as the command finished: " + names + (whole.size() == 1 ? " was" : " were") +
+         " written whole";
 }
 
 }  // namespace
@@ -120,6 +133,10 @@ int main(int argc, char** argv) {
     linebake::install_interrupt_handlers();
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
+    // A signal that came after the command's last safe point (during a render's last frame, a
+    // bake's report) still ends it so, naming what it wrote whole.
+    if (const int signal = linebake::interrupt_signal(); signal != 0)
+      throw linebake::Interrupted(signal, as_the_command_finished(linebake::outputs_written()));
     return standard_output_written();
   } catch (const linebake::Interrupted& e) {
     std::cerr << "linebake: " << e.what() << "; its temporary files are removed\n";

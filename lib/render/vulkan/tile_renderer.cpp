@@ -547,9 +547,10 @@ struct TileRenderer::Frame {
   uint32_t tiles_x = 0, tiles_y = 0, tiles = 0;
   uint32_t key_bits = 0;
   TileUniforms u{};
-  uint64_t key_limit = 0;    // keys one band may hold
-  uint32_t group_tiles = 0;  // tiles whose pixels' states one group holds
-  uint64_t state_bytes = 0;  // those states
+  uint64_t key_limit = 0;         // keys one band may hold
+  uint64_t buffer_key_limit = 0;  // of those, what one storage buffer allows
+  uint32_t group_tiles = 0;       // tiles whose pixels' states one group holds
+  uint64_t state_bytes = 0;       // those states
   TileKeys tile_keys;
   TileFrame frame;
   TileStats& st = frame.stats;
@@ -634,9 +635,9 @@ TileRenderer::Frame::Frame(State& state, const Camera& camera, const TransferFun
   st.tiles = tiles;
   // Keys one band may hold: within one storage buffer each for keys and values (with an eighth
   // more for the next frame), and within the frame's key budget where one is set.
-  key_limit = s.max_buffer / 4 / 9 * 8;
+  buffer_key_limit = std::min<uint64_t>(s.max_buffer / 4 / 9 * 8, UINT32_MAX - 1);
+  key_limit = buffer_key_limit;
   if (o.max_key_bytes > 0) key_limit = std::min(key_limit, o.max_key_bytes / kKeyBytes);
-  key_limit = std::min<uint64_t>(key_limit, UINT32_MAX - 1);
   // The pixels' states of as many tiles as one storage buffer (or the state budget) holds: the
   // tiles are composited in groups of that many (a tile's state takes 116 KiB with the window
   // loops that exit, 68 KiB with those of fixed trips: lavapipe's 128 MiB hold 1,927 tiles,
@@ -903,11 +904,16 @@ TileFrame TileRenderer::Frame::render() {
   const std::vector<std::pair<uint32_t, uint32_t>> bands =
       plan_bands(row_keys.data(), tiles_y, key_limit);
   if (bands.empty()) {
-    throw BudgetExceeded("tiles: one row of tiles holds " + std::to_string(st.max_row_keys) +
-                         " (tile, segment) keys, more than a band may (" +
-                         std::to_string(key_limit) + ": one storage buffer on " + ctx.info().name +
-                         (o.max_key_bytes > 0 ? ", or the memory budget" : "") +
-                         "); a smaller image renders");
+    // Which bound a band met: the keys of one storage buffer, or what the budget left them.
+    const bool budget = o.max_key_bytes > 0 && o.max_key_bytes / kKeyBytes < buffer_key_limit;
+    throw BudgetExceeded(
+        "tiles: one row of tiles holds " + std::to_string(st.max_row_keys) + " (tile, " +
+        (s.radius > 0 ? "segment" : "triangle") +
+        ") keys, more than a band may: " + std::to_string(key_limit) +
+        (budget ? ", what the memory budget leaves the keys (" + std::to_string(kKeyBytes) +
+                      " bytes each); raise --memory-budget or render a smaller image"
+                : ", what one storage buffer holds on " + ctx.info().name +
+                      "; render a smaller image"));
   }
   st.bands = uint32_t(bands.size());
   uint64_t longest_band = 0;
