@@ -83,6 +83,11 @@ class Tiles : public PreparedTechnique {
       within_budget(info, [&] { renderer_.emplace(*context_, capsules, 0, 0, sort_subgroups); });
       radius_ = radius;
     }
+    // The composites these options run, made before the frames' budget is taken: lavapipe's
+    // compiler takes the machine's memory, which the budget then counts as held.
+    options_.pixel_hits = o.tiles_pixel_hits;
+    options_.late_shading = o.tiles_late_shading;
+    within_budget(info, [&] { renderer_->make_pipelines(options_); });
     context_.budget_host_memory(o);
     // The frames' keys and states: where the device's memory is the machine's, what the budget
     // leaves now that the scene is held; elsewhere --memory-budget's bytes where given.
@@ -92,8 +97,6 @@ class Tiles : public PreparedTechnique {
       frame_budget_ = o.memory_budget;
     options_.early_termination = o.early_termination;
     options_.most_keys_first = o.tiles_most_keys_first;
-    options_.pixel_hits = o.tiles_pixel_hits;
-    options_.late_shading = o.tiles_late_shading;
   }
 
   TechniqueFrame render(const Camera& camera, const TransferFunction& tf, int width,

@@ -167,6 +167,11 @@ struct TileRenderer::State {
             uint32_t slice_keys_wanted, bool triangles, WindowLoops window_loops);
 
   // Pipeline i, made now if it was left for its first use ("": none).
+  // The composite of whole tiles for these options: the rounds 2, each pixel's own hits 6, late
+  // shading 8, both 10 (`shaders`); the next one is its walks again with the deeper window.
+  static size_t whole_composite(const TileOptions& o) {
+    return o.late_shading ? (o.pixel_hits ? 10 : 8) : (o.pixel_hits ? 6 : 2);
+  }
   VkPipeline pipeline(size_t i) {
     if (!pipelines.at(i) && !shaders.at(i).empty())
       pipelines[i] =
@@ -721,9 +726,7 @@ double TileRenderer::Frame::composite_walk(const std::vector<uint32_t>& walk_til
   std::copy(plan.tiles.begin(), plan.tiles.end(), static_cast<uint32_t*>(s.slice_tiles.mapped));
   // Walks again over tiles of one slice take the deeper window where there is one.
   const bool deep = walk > 0 && slices == 1 && s.pipelines[3];
-  // Whole tiles: the rounds 2, each pixel's own hits 6, late shading 8, both 10 (State::shaders).
-  const size_t whole = o.late_shading ? (o.pixel_hits ? 10 : 8) : (o.pixel_hits ? 6 : 2);
-  const VkPipeline tiles_whole = s.pipeline(whole + (deep ? 1 : 0));
+  const VkPipeline tiles_whole = s.pipeline(State::whole_composite(o) + (deep ? 1 : 0));
   const VkPipeline tiles_strips = order.strip_tiles > 0 ? s.pipeline(deep ? 5 : 4) : VK_NULL_HANDLE;
   const double ms = pass([&](VkCommandBuffer cmd) {
     const auto dispatch = [&](VkPipeline pipeline, uint32_t groups) {
@@ -956,6 +959,13 @@ TileFrame TileRenderer::Frame::render() {
 
 uint32_t TileRenderer::sort_subgroup_size() const {
   return state_->sorter.subgroup_size();
+}
+
+void TileRenderer::make_pipelines(const TileOptions& options) {
+  State& s = *state_;
+  const size_t whole = State::whole_composite(options);
+  for (size_t i : {whole, whole + 1}) s.pipeline(i);
+  if (options.strips != TileStrips::none) s.pipeline(4), s.pipeline(5);
 }
 
 uint64_t TileRenderer::tile_state_bytes(bool late_shading) const {

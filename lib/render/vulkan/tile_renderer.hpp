@@ -157,6 +157,10 @@ class TileRenderer {
   TileRenderer& operator=(const TileRenderer&) = delete;
 
   TileFrame render(const Camera& camera, const TransferFunction& tf, const TileOptions& options);
+  // Makes the composites a frame with these options runs, which a frame would make when it first
+  // needs them: where the driver's compiler takes the machine's memory (lavapipe), before a
+  // budget counts what the process holds.
+  void make_pipelines(const TileOptions& options);
   // The subgroup size the key sort runs with (radix_sort.hpp); 0: its shared-memory path.
   uint32_t sort_subgroup_size() const;
   // The device memory one tile's pixels keep between slices and walks (their windows of pending
