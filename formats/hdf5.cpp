@@ -164,7 +164,7 @@ class Hdf5Reader : public LineReader {
     frame_ = origin_of(header_, path);
     if (has_origin(header_)) set_origin(header_, frame_);  // written as linebake writes it
     // Points float32 does not hold exactly (float64; integers of more than 16 bits, such as
-    // millimetres in int32 or int64) are read as double where an origin is subtracted.
+    // millimetres in int32 or int64) are read as double (read_points).
     Handle type(H5Dget_type(points_.dataset), H5Tclose);
     points_as_double_ =
         H5Tget_class(type) == H5T_FLOAT ? H5Tget_size(type) > 4 : H5Tget_size(type) > 2;
@@ -263,24 +263,36 @@ class Hdf5Reader : public LineReader {
   }
 
   // Bytes a point's float64 copy takes while it is moved to the origin asked for (read_points).
-  size_t points_held_as_float64() const { return origin_ && points_as_double_ ? 24 : 0; }
+  size_t points_held_as_float64() const { return points_as_double_ ? 24 : 0; }
 
   // Rows of the points relative to the origin asked for, if any: the file's coordinates and its
   // origin added and the new origin subtracted in double, then rounded once (points float32 does
   // not hold exactly are read as double).
+  // Points float32 holds are read as it; wider ones (float64, wide integers) as double, so that a
+  // finite coordinate past float32's range is refused, as the other readers refuse it, instead
+  // of becoming an infinity in HDF5's conversion. With an origin, each coordinate is moved to it
+  // in double and refused where it lies beyond float32's range from it.
   void read_points(uint64_t first, uint64_t count, float* out) {
-    if (!origin_) return read(points_, first, count, out);
-    const Origin& to = *origin_;
+    const auto refuse = [&](size_t i) {
+      return InputError(
+          path_, "dataset " + points_.name,
+          "row " + std::to_string(first + i / 3) + ": a coordinate outside float32's range" +
+              (origin_ ? " from the origin" : "") + " (magnitude above 3.4028235e38)");
+    };
     if (!points_as_double_) {
       read(points_, first, count, out);
+      if (!origin_) return;
       for (size_t i = 0; i < 3 * count; ++i)
-        out[i] = to_local(to_world(out[i], frame_[i % 3]), to[i % 3]);
+        if (!to_local_in_range(to_world(out[i], frame_[i % 3]), (*origin_)[i % 3], out[i]))
+          throw refuse(i);
       return;
     }
-    std::vector<double> world(3 * count);
-    read(points_, first, count, H5T_NATIVE_DOUBLE, world.data());
-    for (size_t i = 0; i < world.size(); ++i)
-      out[i] = to_local(world[i] + frame_[i % 3], to[i % 3]);
+    std::vector<double> stored(3 * count);
+    read(points_, first, count, H5T_NATIVE_DOUBLE, stored.data());
+    for (size_t i = 0; i < stored.size(); ++i)
+      if (origin_ ? !to_local_in_range(stored[i] + frame_[i % 3], (*origin_)[i % 3], out[i])
+                  : !to_local_in_range(stored[i], 0.0, out[i]))
+        throw refuse(i);
   }
 
   void read(Data& d, uint64_t first, uint64_t count, float* out) {
@@ -349,7 +361,16 @@ class Hdf5Reader : public LineReader {
     } else if (prefix_.empty() && H5Lexists(file_, lengths.c_str(), H5P_DEFAULT) > 0) {
       const std::vector<uint64_t> line_lengths = read_whole(lengths);
       offsets_.assign(1, 0);
-      for (uint64_t length : line_lengths) offsets_.push_back(offsets_.back() + length);
+      // Each length within the points left, so that the running sum can neither wrap past 2^64
+      // (lengths near it had made offsets that go back) nor pass the point count.
+      for (size_t i = 0; i < line_lengths.size(); ++i) {
+        if (line_lengths[i] > points - offsets_.back())
+          throw InputError(path_, "dataset " + lengths,
+                           "lengths up to index " + std::to_string(i) +
+                               " sum past the point count " + std::to_string(points) + " (line " +
+                               std::to_string(i) + " has " + std::to_string(line_lengths[i]) + ")");
+        offsets_.push_back(offsets_.back() + line_lengths[i]);
+      }
       if (offsets_.back() != points)
         throw InputError(path_, "dataset " + lengths,
                          "lengths sum to " + std::to_string(offsets_.back()) +
@@ -456,7 +477,7 @@ class Hdf5Reader : public LineReader {
   std::optional<uint64_t> memory_limit_;
   std::optional<Origin> origin_;   // asked for
   Origin frame_{0, 0, 0};          // the file's
-  bool points_as_double_ = false;  // where an origin is asked for (open)
+  bool points_as_double_ = false;  // wider than float32 holds (open)
   Handle file_;
   std::string prefix_;
   std::vector<uint64_t> offsets_;

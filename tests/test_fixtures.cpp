@@ -5,6 +5,7 @@
 
 #include <bit>
 #include <cstring>
+#include <limits>
 
 #include "core/error.hpp"
 #include "formats/registry.hpp"
@@ -222,30 +223,91 @@ TEST(Vtp, AsciiAsParaViewWritesIt) {
   EXPECT_EQ(l.line_attributes[0].values, (std::vector<float>{4}));
 }
 
+// A line file as h5py writes one: float64 points (N x 3) and /line_lengths of `length_type`
+// (an HDF5 file type, written from `lengths` in the matching native type).
+template <class Length>
+void write_points_and_lengths(const std::string& path, const std::vector<double>& points,
+                              hid_t length_type, hid_t native, const std::vector<Length>& lengths) {
+  hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  hsize_t dims[2] = {points.size() / 3, 3};
+  hid_t s = H5Screate_simple(2, dims, nullptr);
+  hid_t d = H5Dcreate2(f, "points", H5T_IEEE_F64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, points.data());
+  H5Dclose(d);
+  H5Sclose(s);
+  hsize_t n = lengths.size();
+  s = H5Screate_simple(1, &n, nullptr);
+  d = H5Dcreate2(f, "line_lengths", length_type, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  H5Dwrite(d, native, H5S_ALL, H5S_ALL, H5P_DEFAULT, lengths.data());
+  H5Dclose(d);
+  H5Sclose(s);
+  H5Fclose(f);
+}
+
+using linebake::test::read_error;
+
 TEST(Hdf5, DoublePointsAndLineLengthsAsH5pyWrites) {
   TempDir dir;
   const std::string path = dir.file("a.h5");
-  {
-    hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-    const double points[] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3.5, 0, 0};
-    hsize_t dims[2] = {4, 3};
-    hid_t s = H5Screate_simple(2, dims, nullptr);
-    hid_t d = H5Dcreate2(f, "points", H5T_IEEE_F64LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, points);
-    H5Dclose(d);
-    H5Sclose(s);
-    const int32_t lengths[] = {3, 1};
-    hsize_t n = 2;
-    s = H5Screate_simple(1, &n, nullptr);
-    d = H5Dcreate2(f, "line_lengths", H5T_STD_I32LE, s, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    H5Dwrite(d, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, lengths);
-    H5Dclose(d);
-    H5Sclose(s);
-    H5Fclose(f);
-  }
+  write_points_and_lengths(path, {0, 0, 0, 1, 1, 1, 2, 2, 2, 3.5, 0, 0}, H5T_STD_I32LE,
+                           H5T_NATIVE_INT32, std::vector<int32_t>{3, 1});
   const LineSet l = read_line_set(path);
   EXPECT_EQ(l.line_offsets, (std::vector<uint64_t>{0, 3, 4}));
   EXPECT_EQ(l.positions[9], 3.5f);
+}
+
+// Lengths whose running sum wraps past 2^64 had made offsets that go back (a line of 2^64 - 1
+// points over a set of 5, which Python's views and the writers then read outside their arrays):
+// each length is held to the points left.
+TEST(Hdf5, LineLengthsPastThePointsAreRefusedWhereverTheSumWraps) {
+  TempDir dir;
+  const std::vector<double> points(15, 0.5);
+  const uint64_t most = UINT64_MAX;
+  write_points_and_lengths(dir.file("a.h5"), points, H5T_STD_U64LE, H5T_NATIVE_UINT64,
+                           std::vector<uint64_t>{most, 6});
+  EXPECT_NE(read_error(dir.file("a.h5"))
+                .find("dataset /line_lengths: lengths up to index 0 sum past the point count 5"),
+            std::string::npos)
+      << read_error(dir.file("a.h5"));
+  // 3 + (2^64 - 2) + 4 wraps to the point count, 5.
+  write_points_and_lengths(dir.file("b.h5"), points, H5T_STD_U64LE, H5T_NATIVE_UINT64,
+                           std::vector<uint64_t>{3, most - 1, 4});
+  EXPECT_NE(read_error(dir.file("b.h5")).find("lengths up to index 1 sum past the point count 5"),
+            std::string::npos)
+      << read_error(dir.file("b.h5"));
+  write_points_and_lengths(dir.file("c.h5"), points, H5T_STD_U64LE, H5T_NATIVE_UINT64,
+                           std::vector<uint64_t>{3, 2});
+  EXPECT_EQ(read_line_set(dir.file("c.h5")).line_offsets, (std::vector<uint64_t>{0, 3, 5}));
+}
+
+// A float64 coordinate past float32's range is refused, as the VTK, VTP and CSV readers refuse
+// it (HDF5's own conversion had made it an infinity), and so is one that an origin moves past
+// it; the largest float32 itself reads.
+TEST(Hdf5, DoublePointsPastFloat32AreRefusedNamingTheRow) {
+  TempDir dir;
+  write_points_and_lengths(dir.file("a.h5"), {0, 0, 0, 2, 0, 0, 0, -1e39, 0}, H5T_STD_U8LE,
+                           H5T_NATIVE_UINT8, std::vector<uint8_t>{3});
+  EXPECT_NE(read_error(dir.file("a.h5"))
+                .find("dataset /points: row 2: a coordinate outside float32's range (magnitude"),
+            std::string::npos)
+      << read_error(dir.file("a.h5"));
+  const double largest = std::numeric_limits<float>::max();
+  write_points_and_lengths(dir.file("b.h5"), {0, 0, 0, largest, 0, -largest}, H5T_STD_U8LE,
+                           H5T_NATIVE_UINT8, std::vector<uint8_t>{2});
+  const LineSet b = read_line_set(dir.file("b.h5"));
+  EXPECT_EQ(b.positions[3], std::numeric_limits<float>::max());
+  EXPECT_EQ(b.positions[5], -std::numeric_limits<float>::max());
+  ReadOptions far;
+  far.origin = Origin{-largest, 0, 0};  // moves x = largest to twice float32's range
+  try {
+    read_line_set(dir.file("b.h5"), far);
+    ADD_FAILURE() << "read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("row 1: a coordinate outside float32's range from the "
+                                         "origin"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Hdf5, BadOffsetsNameTheDataset) {

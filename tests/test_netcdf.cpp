@@ -249,17 +249,7 @@ TEST(NetCdf, RaggedCountsPastTheDataAreAnError) {
   EXPECT_THROW(read_line_set(dir.file("text.nc")), InputError);
 }
 
-namespace {
-// The InputError message of reading `path`, or "" when it reads.
-std::string read_error(const std::string& path) {
-  try {
-    read_line_set(path);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-}  // namespace
+using linebake::test::read_error;
 
 TEST(NetCdf, PackedVariablesAreUnpacked) {
   // CF 8.1: unpacked = packed * scale_factor + add_offset; _FillValue is in packed units.

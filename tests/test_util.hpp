@@ -14,6 +14,8 @@
 #include <limits>
 #include <string>
 
+#include "core/error.hpp"
+#include "formats/registry.hpp"
 #include "lines/line_set.hpp"
 #include "pipeline/bake.hpp"
 #include "render/vulkan/context.hpp"
@@ -153,6 +155,16 @@ inline void flip_byte(const std::string& path, uint64_t offset) {
   c = static_cast<char>(c ^ 0x5A);
   f.seekp(std::streamoff(offset));
   f.write(&c, 1);
+}
+
+// The InputError message of reading `path`, or "" when it reads.
+inline std::string read_error(const std::string& path) {
+  try {
+    read_line_set(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 }  // namespace linebake::test

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <numeric>
 #include <tuple>
@@ -157,42 +158,19 @@ bool has_pass(const vk::RasterFrame& f, const std::string& name) {
   return false;
 }
 
-TEST(Vulkan, EverySortOrdersLongLists) {
-  // Lists of 40 fragments, past the quick-hybrid sort's insertion-sort cut-off (16) and the shell
-  // sort's first gap (24); within the resolve's first arrays (64), so no pixel is resolved again.
-  const Scene s = stacked_lines(40, false);
+// ll with each of `sorts` over stacked_lines(count, halves) with the transparent preset, against
+// the reference; `again`: whether some pixel's list passes the resolve's first arrays (64), so
+// that it is resolved again, a pass of the frame's GPU times. `more`: further checks of a frame.
+void expect_sorts_equal_the_reference(
+    int count, bool halves, std::initializer_list<vk::ListSort> sorts, bool again,
+    const std::function<void(const vk::RasterFrame&, const Frame&)>& more = {}) {
+  const Scene s = stacked_lines(count, halves);
   const TransferFunction tf = transfer_function_preset("transparent");
   const Frame reference = reference_frame(s, tf);
-  ASSERT_GE(reference.stats.max_depth_complexity, 40u);
+  ASSERT_GE(reference.stats.max_depth_complexity, uint32_t(count));
   vk::Context ctx(validated());
   vk::RasterRenderer renderer(ctx, s.mesh);
-  for (const auto sort : {vk::ListSort::Insertion, vk::ListSort::Shell, vk::ListSort::Heap,
-                          vk::ListSort::QuickHybrid}) {
-    vk::RasterOptions o;
-    o.width = o.height = 64;
-    o.sort = sort;
-    const vk::RasterFrame f = renderer.render(s.camera, tf, o);
-    EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0) << to_string(sort);
-    EXPECT_LE(pixels_differing(f.image, reference.image), 64u * 64u / 500) << to_string(sort);
-    EXPECT_TRUE(has_pass(f, "resolve"));
-    EXPECT_FALSE(has_pass(f, "resolve again"));
-  }
-  EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
-}
-
-TEST(Vulkan, ListsLongerThanTheResolvesArraysAreResolvedAgain) {
-  // Lists of 100 fragments left of the middle, 50 right of it: the first resolve holds 64, so the
-  // left pixels are resolved again with arrays of 128, the right ones stay as it blended them.
-  // Both halves equal the reference (with the transparent preset a fragment past the 64th still
-  // moves a pixel: a resolve that left the long lists cut at 64 fails), and the pass is in the
-  // frame's GPU times.
-  const Scene s = stacked_lines(100, true);
-  const TransferFunction tf = transfer_function_preset("transparent");
-  const Frame reference = reference_frame(s, tf);
-  ASSERT_GE(reference.stats.max_depth_complexity, 100u);
-  vk::Context ctx(validated());
-  vk::RasterRenderer renderer(ctx, s.mesh);
-  for (const auto sort : {vk::ListSort::Heap, vk::ListSort::QuickHybrid}) {
+  for (const auto sort : sorts) {
     vk::RasterOptions o;
     o.width = o.height = 64;
     o.sort = sort;
@@ -200,25 +178,47 @@ TEST(Vulkan, ListsLongerThanTheResolvesArraysAreResolvedAgain) {
     EXPECT_GE(psnr(display(f.image), display(reference.image)), 50.0) << to_string(sort);
     EXPECT_LE(pixels_differing(f.image, reference.image), 64u * 64u / 500) << to_string(sort);
     EXPECT_EQ(f.stats.max_depth_complexity, reference.stats.max_depth_complexity);
-    EXPECT_TRUE(has_pass(f, "resolve again")) << to_string(sort);
-    // The pixels of each kind against the reference: lists the first resolve held whole (40 to
-    // 64 fragments), and those it did not.
-    size_t held = 0, held_off = 0, long_lists = 0, long_off = 0;
-    for (int y = 0; y < 64; ++y)
-      for (int x = 0; x < 64; ++x) {
-        const uint32_t fragments = f.depth_complexity[size_t(y) * 64 + size_t(x)];
-        bool off = false;
-        for (int c = 0; c < f.image.channels; ++c)
-          off = off || std::abs(f.image.at(x, y, c) - reference.image.at(x, y, c)) > 1e-3f;
-        if (fragments >= 40 && fragments <= 64) ++held, held_off += off ? 1 : 0;
-        if (fragments > 64) ++long_lists, long_off += off ? 1 : 0;
-      }
-    EXPECT_GT(held, 64u);
-    EXPECT_GT(long_lists, 64u);
-    EXPECT_LE(held_off, 4u) << to_string(sort);
-    EXPECT_LE(long_off, 4u) << to_string(sort);
+    EXPECT_TRUE(has_pass(f, "resolve"));
+    EXPECT_EQ(has_pass(f, "resolve again"), again) << to_string(sort);
+    if (more) more(f, reference);
   }
   EXPECT_EQ(ctx.validation_errors(), 0u) << ctx.last_validation_error();
+}
+
+TEST(Vulkan, EverySortOrdersLongLists) {
+  // Lists of 40 fragments, past the quick-hybrid sort's insertion-sort cut-off (16) and the shell
+  // sort's first gap (24); within the resolve's first arrays (64), so no pixel is resolved again.
+  expect_sorts_equal_the_reference(
+      40, false,
+      {vk::ListSort::Insertion, vk::ListSort::Shell, vk::ListSort::Heap, vk::ListSort::QuickHybrid},
+      false);
+}
+
+TEST(Vulkan, ListsLongerThanTheResolvesArraysAreResolvedAgain) {
+  // Lists of 100 fragments on one side of the middle, 50 on the other: the first resolve holds
+  // 64, so the pixels of 100 are resolved again with arrays of 128, the others stay as it blended
+  // them. Both kinds equal the reference (with the transparent preset a fragment past the 64th
+  // still moves a pixel: a resolve that left the long lists cut at 64 fails).
+  expect_sorts_equal_the_reference(
+      100, true, {vk::ListSort::Heap, vk::ListSort::QuickHybrid}, true,
+      [](const vk::RasterFrame& f, const Frame& reference) {
+        // The pixels of each kind: lists the first resolve held whole (40 to 64 fragments), and
+        // those it did not.
+        size_t held = 0, held_off = 0, long_lists = 0, long_off = 0;
+        for (int y = 0; y < 64; ++y)
+          for (int x = 0; x < 64; ++x) {
+            const uint32_t fragments = f.depth_complexity[size_t(y) * 64 + size_t(x)];
+            bool off = false;
+            for (int c = 0; c < f.image.channels; ++c)
+              off = off || std::abs(f.image.at(x, y, c) - reference.image.at(x, y, c)) > 1e-3f;
+            if (fragments >= 40 && fragments <= 64) ++held, held_off += off ? 1 : 0;
+            if (fragments > 64) ++long_lists, long_off += off ? 1 : 0;
+          }
+        EXPECT_GT(held, 64u);
+        EXPECT_GT(long_lists, 64u);
+        EXPECT_LE(held_off, 4u);
+        EXPECT_LE(long_off, 4u);
+      });
 }
 
 TEST(Vulkan, CoincidentTubesBlendAlikeInAnyDrawOrder) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
@@ -131,6 +132,9 @@ int main(int argc, char** argv) {
     // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
     // temporary files (core/interrupt.hpp).
     linebake::install_interrupt_handlers();
+    // A write past `ulimit -f` fails with EFBIG, said and exit 3 as a full disk is, its
+    // temporary files removed; the signal's default would end the process and leave them.
+    std::signal(SIGXFSZ, SIG_IGN);
     for (auto& [sub, run] : commands)
       if (sub->parsed()) run();
     // A signal that came after the command's last safe point (during a render's last frame, a

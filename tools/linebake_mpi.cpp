@@ -3,6 +3,7 @@
 #include <malloc.h>
 #include <mpi.h>
 
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
     return code;
   }
   linebake::install_interrupt_handlers();
+  std::signal(SIGXFSZ, SIG_IGN);  // past `ulimit -f`: EFBIG, said and exit 3 (as linebake)
   // Every rank has the same error (bake_mpi agrees on it); rank 0 says it.
   const auto say = [&](const char* what) {
     if (rank == 0) std::cerr << "linebake-mpi: error: " + std::string(what) + "\n";
