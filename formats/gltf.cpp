@@ -168,7 +168,8 @@ std::vector<uint16_t> unorm16_of(const std::vector<float>& values, std::array<fl
   std::vector<uint16_t> out(values.size());
   for (size_t i = 0; i < values.size(); ++i) {
     const double t = span > 0 ? (double(values[i]) - range[0]) / span : 0.5;
-    out[i] = uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * 65535.0));
+    // Infinities clamp to the range's ends; NaN (glTF stores no NaN) is its low end.
+    out[i] = std::isnan(t) ? 0 : uint16_t(std::lround(std::clamp(t, 0.0, 1.0) * 65535.0));
   }
   return out;
 }
@@ -530,12 +531,12 @@ void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lin
   const Attribute* attribute = lines.attributes.empty() ? nullptr : &lines.attributes[0];
   std::array<float, 2> range{};
   AttributeArrays arrays;
-  int values = -1;
+  int values = -1;  // _ATTRIBUTE as the tubes store it: normalised UNSIGNED_SHORT, padded to 4
   if (attribute) {
     range = value_range(attribute->values);
     const std::vector<uint16_t> unorm = unorm16_of(attribute->values, range);
     arrays = attribute_arrays(unorm.data(), points, range, options);
-    values = builder.add_view(attribute->values.data(), attribute->values.size() * sizeof(float),
+    values = builder.add_view(arrays.padded.data(), arrays.padded.size() * sizeof(uint16_t),
                               kArrayBuffer, 4);
   }
   if (!options.line_strips) {
@@ -553,7 +554,7 @@ void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lin
                              points, false, min, max);
     if (attribute) {
       primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-          values, 0, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, points);
+          values, 0, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_SCALAR, points, true);
       add_mapped_attributes(builder, primitive, arrays, points);
     }
     primitive.indices = builder.add_accessor(
@@ -580,8 +581,9 @@ void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lin
           builder.add_accessor(position_view, 12 * first, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                TINYGLTF_TYPE_VEC3, count, false, min, max);
       if (attribute) {
-        primitive.attributes["_ATTRIBUTE"] = builder.add_accessor(
-            values, 4 * first, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_SCALAR, count);
+        primitive.attributes["_ATTRIBUTE"] =
+            builder.add_accessor(values, 4 * first, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
+                                 TINYGLTF_TYPE_SCALAR, count, true);
         primitive.attributes["TEXCOORD_0"] =
             builder.add_accessor(texcoord_view, 4 * first, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                  TINYGLTF_TYPE_VEC2, count, true);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
@@ -442,6 +443,43 @@ TEST(Gltf, DefaultAxesColoursAndIndexedLines) {
 // A mesh given a chunk at a time: each chunk is read twice (laid out, then written) and never
 // kept, Draco's chunks encoded once (kept in a spill file, which goes), the bytes those of the
 // whole mesh's export; a chunk that changes between the passes is an error, and nothing is left.
+// The lines' _ATTRIBUTE is stored as the tubes' is, normalised UNSIGNED_SHORT over the range in
+// the mesh's extras (the finite values' range): it had been the raw floats, NaN and infinities
+// included, which glTF forbids in accessor data. NaN takes the range's low end, infinities its
+// ends. Both the LINES primitive and the strips.
+TEST(Gltf, TheLinesAttributeIsNormalisedAndHoldsNoNaN) {
+  test::TempDir dir;
+  LineSet lines;
+  lines.attributes.push_back({"a", {}});
+  const float values[] = {1, std::nanf(""), 3, 4, std::numeric_limits<float>::infinity(), 2};
+  for (int i = 0; i < 6; ++i) {
+    lines.append_point(float(i), float(i % 2), 0);
+    lines.attributes[0].values.push_back(values[i]);
+    if (i == 3) lines.end_line();
+  }
+  lines.end_line();
+  // Hand-computed over the range [1, 4]: (v - 1) / 3 x 65535, rounded.
+  const std::vector<uint16_t> expected = {0, 0, 43690, 65535, 65535, 21845};
+  for (const bool strips : {false, true}) {
+    GltfOptions g;
+    g.line_strips = strips;
+    write_gltf(dir.file("l.glb"), static_cast<const TubeMesh*>(nullptr), &lines, g);
+    const Glb glb = read_glb(dir.file("l.glb"));
+    const json& mesh = glb.doc["meshes"][0];
+    EXPECT_EQ(mesh["extras"]["linebake_attribute_range"], json::array({1.0, 4.0}));
+    std::vector<uint16_t> got;
+    for (const json& p : mesh["primitives"]) {
+      const int index = p["attributes"]["_ATTRIBUTE"];
+      const json& a = glb.doc["accessors"][index];
+      EXPECT_EQ(a["componentType"], 5123);  // UNSIGNED_SHORT
+      EXPECT_TRUE(a["normalized"]);
+      const std::vector<uint16_t> v = accessor_values<uint16_t>(glb, index, 1);
+      got.insert(got.end(), v.begin(), v.end());
+    }
+    EXPECT_EQ(got, expected) << (strips ? "strips" : "lines");
+  }
+}
+
 TEST(Gltf, ChunksAreReadOneAtATimeInTwoPasses) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(40);
