@@ -67,7 +67,19 @@ TEST(Voxels, AutomaticResolution) {
   parse_grid("256", o);
   EXPECT_EQ(o.grid, 256u);
   EXPECT_FALSE(o.resolution);
-  EXPECT_THROW(parse_grid("12x3", o), Error);
+  EXPECT_THROW(parse_grid("12x3", o), UsageError);
+  // Numbers outside 1..4096, each said as such (0 had meant auto; 5 digits and more were "not
+  // N"; 5000 passed the parse and failed the bake with exit 4).
+  parse_grid("4096x1x4096", o);
+  EXPECT_EQ(*o.resolution, (std::array<uint32_t, 3>{4096, 1, 4096}));
+  for (const char* bad : {"0", "4097", "5000", "100000", "0x4x4", "4x4x99999999999999999999"}) {
+    try {
+      parse_grid(bad, o);
+      ADD_FAILURE() << bad;
+    } catch (const UsageError& e) {
+      EXPECT_NE(std::string(e.what()).find("is outside 1..4096"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Voxels, GridCoversTheBoundsWithCubicVoxels) {

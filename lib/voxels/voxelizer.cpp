@@ -260,7 +260,8 @@ void VoxelStreamBuilder::State::place_grid(const LineSetStats& stats) {
     const auto& r = *options.resolution;
     double h = 0;
     for (int k = 0; k < 3; ++k) {
-      if (r[k] == 0 || r[k] > 4096) throw Error("voxels: resolution per axis must be 1..4096");
+      if (r[k] == 0 || r[k] > kMaxGridResolution)
+        throw Error("voxels: resolution per axis must be 1.." + std::to_string(kMaxGridResolution));
       h = std::max(h, extent[k] / r[k]);
     }
     grid.voxel_size = float(h > 0 ? h : 1.0);
@@ -268,8 +269,8 @@ void VoxelStreamBuilder::State::place_grid(const LineSetStats& stats) {
   } else {
     const uint32_t longest_res =
         options.grid ? options.grid : automatic_grid_resolution(stats.segments);
-    if (longest_res == 0 || longest_res > 4096)
-      throw Error("voxels: grid resolution must be 1..4096");
+    if (longest_res == 0 || longest_res > kMaxGridResolution)
+      throw Error("voxels: grid resolution must be 1.." + std::to_string(kMaxGridResolution));
     grid.voxel_size = float(span / longest_res);
     for (int k = 0; k < 3; ++k)
       grid.resolution[k] = std::clamp<uint32_t>(
@@ -1016,19 +1017,26 @@ uint32_t automatic_grid_resolution(uint64_t segments) {
 }
 
 void parse_grid(const std::string& text, VoxelOptions& options) {
-  static const std::regex single(R"(\d{1,4})"), triple(R"((\d{1,4})x(\d{1,4})x(\d{1,4}))");
+  static const std::regex single(R"(\d+)"), triple(R"((\d+)x(\d+)x(\d+))");
+  // Each number within what the grid may have along an axis, said in plain numbers (a usage
+  // error, as any option out of range): 0 had meant auto, and past 4 digits the form was refused.
+  const auto axis = [&](const std::string& digits) {
+    if (digits.size() > 4 || std::stoul(digits) == 0 || std::stoul(digits) > kMaxGridResolution)
+      throw UsageError("--grid: " + digits + " is outside 1.." +
+                       std::to_string(kMaxGridResolution) + " (auto: sized from the data)");
+    return uint32_t(std::stoul(digits));
+  };
   std::smatch m;
   if (text == "auto") {
     options.grid = 0;
     options.resolution.reset();
   } else if (std::regex_match(text, single)) {
-    options.grid = uint32_t(std::stoul(text));
+    options.grid = axis(text);
     options.resolution.reset();
   } else if (std::regex_match(text, m, triple)) {
-    options.resolution = std::array<uint32_t, 3>{
-        uint32_t(std::stoul(m[1])), uint32_t(std::stoul(m[2])), uint32_t(std::stoul(m[3]))};
+    options.resolution = std::array<uint32_t, 3>{axis(m[1]), axis(m[2]), axis(m[3])};
   } else {
-    throw Error("--grid: expected auto, N or NxNxN, got '" + text + "'");
+    throw UsageError("--grid: expected auto, N or NxNxN, got '" + text + "'");
   }
 }
 

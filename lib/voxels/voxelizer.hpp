@@ -34,7 +34,10 @@ struct VoxelOptions {
 };
 
 uint32_t automatic_grid_resolution(uint64_t segments);
-// "256" -> longest axis 256; "113x110x128" -> explicit. Throws Error on anything else.
+// Voxels along a grid's axis at most.
+inline constexpr uint32_t kMaxGridResolution = 4096;
+// "256" -> longest axis 256; "113x110x128" -> explicit; "auto". Throws UsageError on anything
+// else, a number outside 1..kMaxGridResolution included.
 void parse_grid(const std::string& text, VoxelOptions& options);
 
 VoxelGrid voxelize(const LineSet& lines, const VoxelOptions& options,

@@ -2,7 +2,9 @@
 // renders and image metrics, through the same library calls as the CLI (issue 24).
 
 #include "bindings.hpp"
+#include "core/error.hpp"
 #include "core/h5.hpp"
+#include "core/memory_budget.hpp"
 #include "lines/origin.hpp"
 
 namespace linebake::python {
@@ -71,7 +73,16 @@ std::string text_arg(const py::handle& value, const std::string& what) {
 
 std::string budget_arg(const py::handle& value, const std::string& what) {
   const char* wanted = "a size str ('2G', 'unlimited') or a number of bytes (an int >= 0)";
-  if (PyUnicode_Check(value.ptr())) return text_arg(value, what);
+  if (PyUnicode_Check(value.ptr())) {
+    // A size the CLI would refuse is a UsageError naming the argument, as --memory-budget's is.
+    std::string text = text_arg(value, what);
+    try {
+      if (text != "unlimited") parse_size(text);
+    } catch (const Error& e) {
+      throw UsageError(what + ": " + e.what());
+    }
+    return text;
+  }
   if (!is_integer(value)) wrong_kind(value, what, wanted);
   try {
     return std::to_string(typed_arg<uint64_t>(value, what));

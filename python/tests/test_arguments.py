@@ -144,6 +144,19 @@ def test_bake_memory_budget_of_the_wrong_kind(tmp_path, value):
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.parametrize("call", ["read", "bake"])
+def test_a_bad_budget_text_is_a_usage_error_naming_the_argument(tmp_path, call):
+    # It was a plain linebake.Error, "bad size 'abc' ...", naming no argument (render's named it).
+    source = tmp_path / "s.h5"
+    linebake.write(small_lines(), source)
+    with pytest.raises(linebake.UsageError, match=rf"^{call}: memory_budget: bad size 'abc'"):
+        if call == "read":
+            linebake.read(source, memory_budget="abc")
+        else:
+            linebake.bake(small_lines(), tmp_path / "m.lbc.h5", memory_budget="abc")
+    assert os.listdir(tmp_path) == ["s.h5"]
+
+
 @pytest.mark.parametrize("value", [None, True, 16.7, [16, 16, 16], b"16"], ids=repr)
 def test_bake_grid_of_the_wrong_kind(tmp_path, value):
     # It was str()'d: grid=None said "--grid: expected auto, N or NxNxN, got 'None'".
