@@ -292,7 +292,7 @@ std::vector<Out> read_array(const Context& ctx, const pugi::xml_node& node, size
     ctx.fail(where,
              std::to_string(bytes.size()) + " bytes, expected " + std::to_string(count * size));
   if (!io::decode_scalars(*type, bytes.data(), count, ctx.swap, out.data()))
-    ctx.fail(where, "a " + type_name + " value outside the range of the indices it holds");
+    ctx.fail(where, "a " + type_name + " value outside the range of the array it is read into");
   return out;
 }
 

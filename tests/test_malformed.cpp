@@ -289,7 +289,8 @@ TEST(FuzzFindings, IndicesOutsideTheirIntegerRange) {
   expect_error(dir.file("huge.vtp"), "DataArray 'connectivity': value 2e110 is outside");
   // Float32 {0, NaN}, binary: a UInt64 byte count, then the data, in base64.
   write_text(dir.file("nan.vtp"), lines("Float32", "binary", "CAAAAAAAAAAAAAAAAADAfw=="));
-  expect_error(dir.file("nan.vtp"), "a Float32 value outside the range of the indices");
+  expect_error(dir.file("nan.vtp"),
+               "a Float32 value outside the range of the array it is read into");
   write_text(dir.file("huge.vtk"),
              "# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n"
              "0 0 0 1 1 1\nLINES 1 3\n2 0 1e300\n");
