@@ -262,16 +262,15 @@ class Hdf5Reader : public LineReader {
     return d;
   }
 
-  // Bytes a point's float64 copy takes while it is moved to the origin asked for (read_points).
+  // Bytes a point's float64 copy takes while it is read (read_points).
   size_t points_held_as_float64() const { return points_as_double_ ? 24 : 0; }
 
   // Rows of the points relative to the origin asked for, if any: the file's coordinates and its
-  // origin added and the new origin subtracted in double, then rounded once (points float32 does
-  // not hold exactly are read as double).
-  // Points float32 holds are read as it; wider ones (float64, wide integers) as double, so that a
-  // finite coordinate past float32's range is refused, as the other readers refuse it, instead
-  // of becoming an infinity in HDF5's conversion. With an origin, each coordinate is moved to it
-  // in double and refused where it lies beyond float32's range from it.
+  // origin added and the new origin subtracted in double, then rounded once. Points float32 does
+  // not hold exactly (float64, wide integers) are read as double with or without an origin, so
+  // that a finite coordinate past float32's range (from the origin, where there is one) is
+  // refused, as the other readers refuse it, instead of becoming an infinity in HDF5's
+  // conversion.
   void read_points(uint64_t first, uint64_t count, float* out) {
     const auto refuse = [&](size_t i) {
       return InputError(
