@@ -759,6 +759,7 @@ for f, R in (('empty.vtp', vtk.vtkXMLPolyDataReader), ('empty.vtk', vtk.vtkPolyD
 rc=0; '$bin' bake '$corpus/tck/empty.tck' -o '$tmp/empty.lbc.h5' 2> '$tmp/empty.err' || rc=\$?
 [ \$rc -eq 2 ] && grep -q 'has no lines: nothing to bake' '$tmp/empty.err' && [ ! -e '$tmp/empty.lbc.h5' ]
 "
+check "bake of lines that repair drops every one of: exit 2, says that repair dropped them (it said 'has no lines')" bash -c "printf 'v nan 0 0\\nv 1 1 1\\nl 1 2\\n' > '$tmp/nan.obj'; rc=0; '$bin' bake '$tmp/nan.obj' -o '$tmp/nan.lbc.h5' 2> '$tmp/nan.err' || rc=\$?; [ \$rc -eq 2 ] && grep -q 'has no line left once repaired (1 invalid points' '$tmp/nan.err' && [ ! -e '$tmp/nan.lbc.h5' ]"
 
 echo "cli: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

@@ -790,8 +790,11 @@ BakeResult bake(const BakeOptions& options_in) {
       stats = builder.stats();
       if (stats.lines == 0)
         throw InputError(options.input, "",
-                         "has no lines: nothing to bake (an empty line set reads and converts, "
-                         "but a cache holds lines); no cache written");
+                         std::string(total.clean() ? "has no lines"
+                                                   : "has no line left once repaired (" +
+                                                         total.summary() + ")") +
+                             ": nothing to bake (an empty line set reads and converts, but a "
+                             "cache holds lines); no cache written");
       if (!total.clean()) result.notes.push_back(options.input + ": " + total.summary());
       lines_hash = hash.hex();
       result.spill_peak_bytes = spool ? spool->bytes() : 0;

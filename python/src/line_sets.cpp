@@ -196,6 +196,15 @@ void write(const PyLineSet& set, const py::object& path_object,
   WriteOptions options;
   options.format =
       resolve_output_format(path, format ? std::optional(parse_format(*format)) : std::nullopt);
+  // Options of other formats refused as `linebake convert` refuses them (only values other
+  // than the defaults can tell that they were given).
+  const Format f = *options.format;
+  if (ascii && f != Format::vtk && f != Format::vtp)
+    throw UsageError("write: ascii: only for vtk and vtp outputs");
+  if (binlines_version != 2 && f != Format::binlines)
+    throw UsageError("write: binlines_version: only for binlines outputs");
+  if ((vtp_encoding != "appended" || !vtp_compress) && f != Format::vtp)
+    throw UsageError("write: vtp_encoding and vtp_compress: only for vtp outputs");
   options.ascii = ascii;
   options.binlines_version = binlines_version;
   options.vtp_encoding = ascii ? "ascii" : vtp_encoding;

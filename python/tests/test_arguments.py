@@ -639,4 +639,14 @@ def test_write_options_are_checked_as_convert_checks_them(tmp_path):
         linebake.write(lines, str(tmp_path / "x.vtp"), vtp_encoding="nope")
     with pytest.raises(linebake.UsageError, match="binlines_version: 1 or 2, not 9"):
         linebake.write(lines, str(tmp_path / "x.binlines"), binlines_version=9)
+    # Another format's options are refused, as convert refuses them (they had been ignored).
+    with pytest.raises(linebake.UsageError, match="^write: ascii: only for vtk and vtp outputs"):
+        linebake.write(lines, str(tmp_path / "x.h5"), ascii=True)
+    with pytest.raises(linebake.UsageError, match="^write: binlines_version: only for binlines"):
+        linebake.write(lines, str(tmp_path / "x.vtk"), binlines_version=1)
+    with pytest.raises(linebake.UsageError, match="^write: vtp_encoding and vtp_compress: only"):
+        linebake.write(lines, str(tmp_path / "x.csv"), vtp_compress=False)
     assert not list(tmp_path.iterdir())
+    linebake.write(lines, str(tmp_path / "x.vtk"), ascii=True)
+    linebake.write(lines, str(tmp_path / "x.binlines"), binlines_version=1)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.binlines", "x.vtk"]
