@@ -188,5 +188,6 @@ def compare(
     reference: Union[npt.ArrayLike, StrPath],
     *,
     srgb_encoded: Optional[bool] = None,  # None: float arrays linear, uint8/uint16 sRGB-encoded
+    memory_budget: Optional[MemoryBudget] = None,
 ) -> dict[str, Json]: ...
 def techniques(device: str = "") -> list[dict[str, Json]]: ...

@@ -545,6 +545,19 @@ typo missing-source 's/synth:aneurysm?scale=0.01/nothere.binlines/' "nothere.bin
 typo tf-twice 's/"semi"\]/"semi", "semi"]/' "transfer_functions: 'semi' appears twice"
 check "run into a directory another run holds: exit 3, nothing recorded; into a file: exit 3" bash -c "mkdir -p '$tmp/held' && { flock '$tmp/held/.linebake-run.lock' sleep 60 & holder=\$!; } && for i in \$(seq 200); do flock -n '$tmp/held/.linebake-run.lock' true || break; sleep 0.05; done; '$bin' run '$pipes/ci.json' -o '$tmp/held' > /dev/null 2> '$tmp/held.err'; rc=\$?; pkill -P \$holder sleep; wait; [ \$rc -eq 3 ] && grep -q 'another linebake run is writing into this directory' '$tmp/held.err' && [ ! -e '$tmp/held/.linebake-run.json' ] && touch '$tmp/afile' && { '$bin' run '$pipes/ci.json' -o '$tmp/afile' 2> /dev/null; [ \$? -eq 3 ]; }"
 check "compare: grey against colour and images under 11x11 are exit 2 naming the image; an error image as PFM" bash -c "cd '$tmp' && '$bin' compare '$tmp/dep.png' '$tmp/dep.png' --error-image grey.png > /dev/null && { '$bin' compare grey.png '$tmp/dep.png' 2> grey.err; [ \$? -eq 2 ]; } && grep -q 'grey.png: 1 channel (grey), but the reference .*dep.png has 3 channels' grey.err && printf 'PF\n5 5\n-1\n' > tiny.pfm && head -c 300 /dev/zero >> tiny.pfm && { '$bin' compare tiny.pfm tiny.pfm 2> tiny.err; [ \$? -eq 2 ]; } && grep -q 'tiny.pfm: 5x5: SSIM needs images of at least 11x11 pixels' tiny.err && '$bin' compare '$tmp/dep.png' '$tmp/dep.png' --error-image e.pfm > /dev/null && head -c 3 e.pfm | grep -q '^Pf'"
+# A 20000x20000 grey PNG of 400 KB (zeros deflate 1000 to 1): 1.49 GiB as floats. Under a 1G
+# budget compare refuses it before allocating (exit 4, naming the file and the bytes; under
+# ulimit -v an allocation of its pixels would fail otherwise); before 2026-11-30 compare held
+# about 130 bytes a pixel of two such images and met the OOM killer.
+check "compare: an image past --memory-budget is exit 4 naming the file, before its pixels are allocated" bash -c "/usr/bin/python3 -c \"
+import struct, sys, zlib
+def chunk(kind, data):
+    return struct.pack('>I', len(data)) + kind + data + struct.pack('>I', zlib.crc32(kind + data))
+z = zlib.compressobj(9)
+row = bytes(20001)
+body = b''.join(z.compress(row) for _ in range(20000)) + z.flush()
+open(sys.argv[1], 'wb').write(b'\\x89PNG\\r\\n\\x1a\\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', 20000, 20000, 8, 0, 0, 0, 0)) + chunk(b'IDAT', body) + chunk(b'IEND', b''))
+\" '$tmp/wide_zero.png' && (ulimit -v 1200000; '$bin' compare '$tmp/wide_zero.png' '$tmp/wide_zero.png' --memory-budget 1G 2> '$tmp/wide_zero.err'); [ \$? -eq 4 ] && grep -q 'wide_zero.png: 20000x20000, 1 channel, takes 1.49 GiB as floats and 381.62 MiB to decode, more than the .* the memory budget leaves; raise --memory-budget' '$tmp/wide_zero.err'"
 check "run -o '' is a usage error (it was ignored); a PFM whose scale is NaN is not an image" bash -c "'$bin' run '$pipes/ci.json' -o '' --dry-run 2> '$tmp/emptyo.err'; [ \$? -eq 1 ] && grep -q -- '-o: an empty output directory' '$tmp/emptyo.err' && printf 'Pf\n2 2\nnan\n' > '$tmp/nan.pfm' && head -c 16 /dev/zero >> '$tmp/nan.pfm' && { '$bin' compare '$tmp/nan.pfm' '$tmp/nan.pfm' 2> '$tmp/nanpfm.err'; [ \$? -eq 2 ]; } && grep -q 'nan.pfm: header: implausible size or scale' '$tmp/nanpfm.err'"
 check "a file name that is not UTF-8 bakes; JSON records it with U+FFFD" /usr/bin/python3 -c "
 import json, os, shutil, subprocess

@@ -1,6 +1,7 @@
 // PSNR and SSIM against hand-computed values and scikit-image's; image files round trip.
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <fstream>
@@ -63,6 +64,66 @@ TEST(Metrics, MatchScikitImage) {
   EXPECT_NEAR(psnr(a, noise), 27.508969989057, 1e-5);
   EXPECT_NEAR(ssim(a, contrast), 0.972911435396, 1e-6);
   EXPECT_NEAR(psnr(a, contrast), 28.063220737005, 1e-5);
+}
+
+// SSIM by its definition, a second method: each window's weighted means computed directly over
+// its 11x11 pixels (weights w_i w_j), not by separable passes in bands of rows.
+double ssim_by_windows(const Image& a, const Image& b) {
+  double w[11], sum = 0;
+  for (int i = -5; i <= 5; ++i) sum += w[i + 5] = std::exp(-0.5 * i * i / (1.5 * 1.5));
+  for (double& v : w) v /= sum;
+  double total = 0;
+  for (int c = 0; c < a.channels; ++c) {
+    double channel = 0;
+    for (int y = 0; y + 11 <= a.height; ++y)
+      for (int x = 0; x + 11 <= a.width; ++x) {
+        double mx = 0, my = 0, mxx = 0, myy = 0, mxy = 0;
+        for (int j = 0; j < 11; ++j)
+          for (int i = 0; i < 11; ++i) {
+            const double k = w[i] * w[j], u = a.at(x + i, y + j, c), v = b.at(x + i, y + j, c);
+            mx += k * u, my += k * v, mxx += k * u * u, myy += k * v * v, mxy += k * u * v;
+          }
+        const double vx = mxx - mx * mx, vy = myy - my * my, cov = mxy - mx * my;
+        channel += (2 * mx * my + 1e-4) * (2 * cov + 9e-4) /
+                   ((mx * mx + my * my + 1e-4) * (vx + vy + 9e-4));
+      }
+    total += channel / double((a.width - 10) * (a.height - 10));
+  }
+  return total / a.channels;
+}
+
+// Noise-like images whose output rows span three bands of rows (128 each) and a part.
+Image speckled(int w, int h, int channels, unsigned seed) {
+  Image img(w, h, channels);
+  for (size_t i = 0; i < img.pixels.size(); ++i) {
+    seed = seed * 1664525u + 1013904223u;
+    img.pixels[i] = float(seed >> 8) / float(1u << 24);
+  }
+  return img;
+}
+
+TEST(Metrics, SsimInBandsEqualsTheWindowsDefinitionForAnyThreadCount) {
+  const Image a = speckled(97, 421, 3, 1), b = speckled(97, 421, 3, 2);
+  Image c = a;
+  for (size_t i = 0; i < c.pixels.size(); i += 7) c.pixels[i] = 1.0f - c.pixels[i];
+  for (const Image* other : {&b, static_cast<const Image*>(&c)}) {
+    const double expected = ssim_by_windows(a, *other);
+    double one = 0, four = 0;
+    tbb::task_arena(1).execute([&] { one = ssim(a, *other); });
+    tbb::task_arena(4).execute([&] { four = ssim(a, *other); });
+    EXPECT_NEAR(one, expected, 1e-12);
+    EXPECT_EQ(one, four);  // the same value, whatever the bands' threads
+  }
+  // Grey too, and a height of exactly one band.
+  const Image g = speckled(40, 138, 1, 3), h = speckled(40, 138, 1, 4);
+  EXPECT_NEAR(ssim(g, h), ssim_by_windows(g, h), 1e-12);
+  // About 480 bytes a column a thread and a double an output row: a 20000x20000 image's SSIM
+  // holds about 9 MiB a thread, not the 88 bytes a pixel (33 GiB) of whole planes.
+  EXPECT_EQ(ssim_scratch_bytes(20000, 20000, 1), 5u * (11u * 19990u + 20000u) * 8u + 19990u * 8u);
+  EXPECT_EQ(ssim_scratch_bytes(20000, 20000, 2),
+            2 * ssim_scratch_bytes(20000, 20000, 1) - 19990u * 8u);
+  // Scratch for as many bands as there are: 138 rows have 128 windows' rows, one band.
+  EXPECT_EQ(ssim_scratch_bytes(40, 138, 8), ssim_scratch_bytes(40, 138, 1));
 }
 
 TEST(Metrics, RejectMismatchedOrTinyImages) {
@@ -135,6 +196,36 @@ std::string big_endian(uint32_t v) {
 
 // The fuzzer's finding (CI, 2026-11-23): a PFM header asking for gigabytes in a small file was
 // allocated before the pixels were read. Both image readers now refuse such a header first.
+// A read within a budget: the image's floats (64 x 64 x 3 x 4 = 49,152 bytes), and for a PNG
+// its decoded rows (64 x 192 bytes) and their pointers (64 x 8) as well, refused before they
+// are allocated, naming the file; exactly enough reads it.
+TEST(ImageFiles, AReadPastItsBytesIsRefusedNamingTheFile) {
+  test::TempDir dir;
+  const Image image = constant(0.25f, 64, 64);
+  write_pfm(image, dir.file("a.pfm"));
+  write_png(image, dir.file("a.png"), 8);
+  EXPECT_EQ(read_pfm(dir.file("a.pfm"), 49152).pixels, image.pixels);
+  EXPECT_EQ(read_png(dir.file("a.png"), 49152 + 12288 + 512).width, 64);
+  try {
+    read_image(dir.file("a.pfm"), 40000);
+    FAIL();
+  } catch (const BudgetExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("a.pfm: 64x64, 3 channels, takes 48.00 KiB as floats, "
+                                         "more than the 39.06 KiB the memory budget leaves"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    read_image(dir.file("a.png"), 49152 + 12288 + 511);
+    FAIL();
+  } catch (const BudgetExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("a.png: 64x64, 3 channels, takes 48.00 KiB as floats "
+                                         "and 12.50 KiB to decode"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ImageFiles, AHeaderAskingForMoreThanTheFileHoldsIsRefusedBeforeAllocating) {
   test::TempDir dir;
   std::ofstream(dir.file("huge.pfm"), std::ios::binary) << "PF\n65536 65536\n-1.0\n0123";

@@ -1,16 +1,21 @@
 // linebake compare <image> <reference>: PSNR and SSIM as the paper reports them.
 
+#include <tbb/task_arena.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <utility>
 
 #include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/json_file.hpp"
+#include "core/memory_budget.hpp"
 #include "metrics/image_metrics.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::cli {
 
@@ -18,7 +23,7 @@ Command add_compare(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "compare", "PSNR and SSIM of an image against a reference (display-encoded values)");
   struct Args {
-    std::string image, reference, error_image;
+    std::string image, reference, error_image, memory_budget;
     double error_scale = 1;
     bool json = false;
   };
@@ -30,6 +35,11 @@ Command add_compare(CLI::App& app) {
       "Per-pixel absolute error, inverted grey (white = equal): .png (8-bit) or .pfm (float)");
   sub->add_option("--error-scale", args->error_scale, "Error image gain (default 1)")
       ->check(positive());
+  sub->add_option("--memory-budget", args->memory_budget,
+                  "Resident memory at most for the two images and SSIM's rows, e.g. 8G "
+                  "(default: half of physical memory, or of the cgroup's or ulimit -v's limit "
+                  "when less); unlimited")
+      ->check(memory_budget_size());
   sub->add_flag("--json", args->json, "Print JSON");
   return [args] {
     // Linear PFMs are display-encoded first, so a PFM and a PNG of one frame compare equal.
@@ -41,16 +51,25 @@ Command add_compare(CLI::App& app) {
     if (!args->error_image.empty() && error_format != ".png" && error_format != ".pfm")
       throw OutputError(args->error_image,
                         "an error image is .png (8-bit grey) or .pfm (float grey)");
-    // Checked as read: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
-    const Image raw_a = read_image(args->image), raw_b = read_image(args->reference);
-    for (const auto& [image, path] :
-         {std::pair(&raw_a, args->image), std::pair(&raw_b, args->reference)})
-      if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
+    // Each image is read within what the budget leaves (its floats and its decoding), checked
+    // as read (the display encoding clamps an infinity to 0 or 1; a NaN stays) and encoded in
+    // place, so that the command holds two images and SSIM's rows, no more.
+    MemoryBudget budget(memory_budget_bytes(args->memory_budget));
+    const auto read = [&budget](const std::string& path) {
+      Image image = read_image(path, budget.available());
+      budget.reserve(image_bytes(image.width, image.height, image.channels), path);
+      if (const std::string place = first_nonfinite_pixel(image); !place.empty())
         throw InputError(path, place,
                          "not a finite value (NaN or infinity): PSNR and SSIM need finite values");
-    const Image a = display_encoded(raw_a), b = display_encoded(raw_b);
+      return display_encoded(std::move(image));
+    };
+    const Image a = read(args->image), b = read(args->reference);
     if (const std::string problem = comparison_problem(a, b, args->reference); !problem.empty())
       throw InputError(args->image, "", problem);
+    budget.reserve(ssim_scratch_bytes(a.width, a.height, tbb::this_task_arena::max_concurrency()),
+                   "SSIM's rows");
+    if (!args->error_image.empty())  // its floats, and a PFM's bytes or a PNG's samples and file
+      budget.reserve(2 * image_bytes(a.width, a.height, 1), "the error image " + args->error_image);
     const double p = psnr(a, b), s = ssim(a, b);
     if (error_format == ".pfm")
       write_pfm(error_image(a, b, args->error_scale), args->error_image);

@@ -1,11 +1,15 @@
 #include "metrics/image_metrics.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 
 namespace linebake {
 namespace {
@@ -31,25 +35,71 @@ std::array<double, 2 * kRadius + 1> gaussian_weights() {
   return w;
 }
 
-// Separable Gaussian mean of `plane` at every pixel whose window lies inside the image; the
-// result is (width - 2r) x (height - 2r).
-std::vector<double> window_means(const std::vector<double>& plane, int width, int height) {
+// SSIM's window means, computed a band of output rows at a time: each band keeps the Gaussian
+// row sums of the last 11 image rows (a ring) for the five quantities SSIM averages (x, y, x^2,
+// y^2, xy), so memory grows with the width, not the image (a whole plane of each quantity, as
+// before 2026-11-30, took about 88 bytes a pixel: two 20000x20000 images drove the process to the
+// kernel's OOM killer). The sums run in the same order as a pass over whole planes, so the
+// values are those of that pass; each output row's sum is kept and the rows added in order, so
+// the result does not depend on the bands or the threads.
+constexpr int kWindow = 2 * kRadius + 1;
+constexpr int kQuantities = 5;  // x, y, x^2, y^2, xy
+constexpr int kBandRows = 128;  // output rows a band computes
+
+// The scratch one band holds, for an image `width` pixels wide.
+uint64_t band_scratch_bytes(int width) {
+  const uint64_t ow = uint64_t(std::max(width - 2 * kRadius, 0));
+  return uint64_t(kQuantities) * (uint64_t(kWindow) * ow + uint64_t(width)) * sizeof(double);
+}
+
+// Adds to row_sums[oy] the SSIM of every window of channel c whose top row is oy, for output
+// rows [first, last).
+void ssim_band(const Image& a, const Image& b, int c, int first, int last,
+               std::vector<double>& row_sums) {
   static const auto w = gaussian_weights();
-  const int ow = width - 2 * kRadius, oh = height - 2 * kRadius;
-  std::vector<double> rows(size_t(ow) * height), out(size_t(ow) * oh);
-  for (int y = 0; y < height; ++y)
-    for (int x = 0; x < ow; ++x) {
-      double s = 0;
-      for (int k = 0; k <= 2 * kRadius; ++k) s += w[k] * plane[size_t(y) * width + x + k];
-      rows[size_t(y) * ow + x] = s;
+  constexpr double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;  // (K L)^2 with data range L = 1
+  const int width = a.width, ow = width - 2 * kRadius;
+  const size_t channels = size_t(a.channels);
+  std::vector<double> row(size_t(kQuantities) * width);          // one image row's quantities
+  std::vector<double> ring(size_t(kQuantities) * kWindow * ow);  // their row sums, by row % 11
+  const auto ring_row = [&](int q, int y) {
+    return ring.data() + (size_t(q) * kWindow + y % kWindow) * ow;
+  };
+  for (int y = first; y < last + 2 * kRadius; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t i = (size_t(y) * width + x) * channels + c;
+      const double vx = a.pixels[i], vy = b.pixels[i];
+      row[x] = vx;
+      row[size_t(width) + x] = vy;
+      row[2 * size_t(width) + x] = vx * vx;
+      row[3 * size_t(width) + x] = vy * vy;
+      row[4 * size_t(width) + x] = vx * vy;
     }
-  for (int y = 0; y < oh; ++y)
-    for (int x = 0; x < ow; ++x) {
-      double s = 0;
-      for (int k = 0; k <= 2 * kRadius; ++k) s += w[k] * rows[size_t(y + k) * ow + x];
-      out[size_t(y) * ow + x] = s;
+    for (int q = 0; q < kQuantities; ++q) {
+      const double* plane = row.data() + size_t(q) * width;
+      double* sums = ring_row(q, y);
+      for (int x = 0; x < ow; ++x) {
+        double s = 0;
+        for (int k = 0; k < kWindow; ++k) s += w[k] * plane[x + k];
+        sums[x] = s;
+      }
     }
-  return out;
+    const int oy = y - 2 * kRadius;  // the output row whose window's last row this is
+    if (oy < first) continue;
+    double sum = 0;
+    for (int x = 0; x < ow; ++x) {
+      double m[kQuantities];
+      for (int q = 0; q < kQuantities; ++q) {
+        double s = 0;
+        for (int k = 0; k < kWindow; ++k) s += w[k] * ring_row(q, oy + k)[x];
+        m[q] = s;
+      }
+      const double mx = m[0], my = m[1];
+      const double vx = m[2] - mx * mx, vy = m[3] - my * my, cov = m[4] - mx * my;
+      sum += (2 * mx * my + c1) * (2 * cov + c2) / ((mx * mx + my * my + c1) * (vx + vy + c2));
+    }
+    row_sums[size_t(oy)] += sum;
+  }
 }
 
 }  // namespace
@@ -97,33 +147,31 @@ double psnr(const Image& a, const Image& b) {
   return mse > 0 ? std::min(kPsnrCap, -10.0 * std::log10(mse)) + 0.0 : kPsnrCap;
 }
 
+uint64_t ssim_scratch_bytes(int width, int height, int threads) {
+  const uint64_t oh = uint64_t(std::max(height - 2 * kRadius, 0));
+  const uint64_t bands = (oh + kBandRows - 1) / kBandRows;
+  return uint64_t(std::min<uint64_t>(bands, uint64_t(std::max(threads, 1)))) *
+             band_scratch_bytes(width) +
+         oh * sizeof(double);
+}
+
 double ssim(const Image& a, const Image& b) {
   require_same_shape(a, b);
-  if (a.width < 2 * kRadius + 1 || a.height < 2 * kRadius + 1)
+  if (a.width < kWindow || a.height < kWindow)
     throw Error("SSIM needs images of at least 11x11 pixels");
-  constexpr double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;  // (K L)^2 with data range L = 1
-  const size_t n = size_t(a.width) * a.height;
+  const int oh = a.height - 2 * kRadius;
+  const size_t windows = size_t(a.width - 2 * kRadius) * size_t(oh);
+  const int bands = (oh + kBandRows - 1) / kBandRows;
   double total = 0;
   for (int c = 0; c < a.channels; ++c) {
-    std::vector<double> x(n), y(n), xx(n), yy(n), xy(n);
-    for (size_t i = 0; i < n; ++i) {
-      x[i] = a.pixels[i * a.channels + c];
-      y[i] = b.pixels[i * b.channels + c];
-      xx[i] = x[i] * x[i];
-      yy[i] = y[i] * y[i];
-      xy[i] = x[i] * y[i];
-    }
-    const auto mx = window_means(x, a.width, a.height), my = window_means(y, a.width, a.height);
-    const auto mxx = window_means(xx, a.width, a.height), myy = window_means(yy, a.width, a.height);
-    const auto mxy = window_means(xy, a.width, a.height);
+    std::vector<double> row_sums(size_t(oh), 0.0);
+    tbb::parallel_for(0, bands, [&](int band) {
+      throw_if_interrupted();  // a large image's SSIM takes seconds to minutes
+      ssim_band(a, b, c, band * kBandRows, std::min(oh, (band + 1) * kBandRows), row_sums);
+    });
     double sum = 0;
-    for (size_t i = 0; i < mx.size(); ++i) {
-      const double vx = mxx[i] - mx[i] * mx[i], vy = myy[i] - my[i] * my[i];
-      const double cov = mxy[i] - mx[i] * my[i];
-      sum += (2 * mx[i] * my[i] + c1) * (2 * cov + c2) /
-             ((mx[i] * mx[i] + my[i] * my[i] + c1) * (vx + vy + c2));
-    }
-    total += sum / double(mx.size());
+    for (const double s : row_sums) sum += s;
+    total += sum / double(windows);
   }
   return total / a.channels;
 }

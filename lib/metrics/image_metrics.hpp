@@ -2,6 +2,7 @@
 // Image-quality metrics as the paper reports them (techniques.md section 11). Both run on the
 // values as given in [0, 1]: compare display-encoded images with display-encoded ones.
 
+#include <cstdint>
 #include <string>
 
 #include "render/image.hpp"
@@ -29,7 +30,12 @@ double psnr(const Image& a, const Image& b);
 // over the channels (per-channel SSIM, not luminance). Matches scikit-image's
 // structural_similarity(gaussian_weights=True, sigma=1.5, use_sample_covariance=False,
 // data_range=1, channel_axis=-1). Images must be at least 11x11.
+// Runs in bands of rows on TBB's threads, holding per thread a few rows of the width (below), not
+// planes of the image; the same value for any thread count.
 double ssim(const Image& a, const Image& b);
+// The memory ssim() holds beside the two images, at most, for images of width x height run on
+// `threads` threads: about 480 bytes a column a thread.
+uint64_t ssim_scratch_bytes(int width, int height, int threads);
 
 // 1 - |a - b| (mean over channels) x scale, clamped: white where equal, as in the paper's
 // figures.

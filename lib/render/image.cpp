@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/memory_budget.hpp"
 #include "render/transfer_function.hpp"
 
 namespace linebake {
@@ -88,11 +89,13 @@ std::string encode_png_rows(const std::string& what, int width, int height, int 
 }
 
 std::vector<unsigned char> quantized_samples(const Image& image, int bits) {
-  const Image encoded = display_encoded(image);
   const double scale = bits == 8 ? 255.0 : 65535.0;
-  std::vector<unsigned char> data(encoded.pixels.size() * size_t(bits / 8));
-  for (size_t i = 0; i < encoded.pixels.size(); ++i) {
-    const auto v = uint32_t(std::lround(std::clamp(double(encoded.pixels[i]), 0.0, 1.0) * scale));
+  std::vector<unsigned char> data(image.pixels.size() * size_t(bits / 8));
+  for (size_t i = 0; i < image.pixels.size(); ++i) {
+    // As display_encoded encodes it, without a copy of the image.
+    const float encoded =
+        image.srgb_encoded ? image.pixels[i] : float(linear_to_srgb(image.pixels[i]));
+    const auto v = uint32_t(std::lround(std::clamp(double(encoded), 0.0, 1.0) * scale));
     if (bits == 8) {
       data[i] = uint8_t(v);
     } else {
@@ -105,12 +108,15 @@ std::vector<unsigned char> quantized_samples(const Image& image, int bits) {
 
 }  // namespace
 
-Image display_encoded(const Image& image) {
-  Image out = image;
+Image display_encoded(Image image) {
   if (!image.srgb_encoded)
-    for (float& v : out.pixels) v = float(linear_to_srgb(v));
-  out.srgb_encoded = true;
-  return out;
+    for (float& v : image.pixels) v = float(linear_to_srgb(v));
+  image.srgb_encoded = true;
+  return image;
+}
+
+uint64_t image_bytes(int width, int height, int channels) {
+  return uint64_t(width) * uint64_t(height) * uint64_t(channels) * sizeof(float);
 }
 
 std::string encode_png(const Image& image, int bits) {
@@ -136,7 +142,25 @@ void write_png_counts(const std::vector<uint32_t>& counts, int width, int height
   write_file_atomically(path, encode_png_rows(path, width, height, 1, 16, false, data));
 }
 
-Image read_png(const std::string& path) {
+namespace {
+
+// Refuses a read that would hold more than `max_bytes` (the image as floats, and what decoding it
+// holds beside them), before anything is allocated.
+void check_read_bytes(const std::string& path, int width, int height, int channels,
+                      uint64_t decoding, uint64_t max_bytes) {
+  const uint64_t floats = image_bytes(width, height, channels);
+  if (floats + decoding <= max_bytes) return;
+  throw BudgetExceeded(path + ": " + std::to_string(width) + "x" + std::to_string(height) + ", " +
+                       std::to_string(channels) + (channels == 1 ? " channel" : " channels") +
+                       ", takes " + format_bytes(floats) + " as floats" +
+                       (decoding > 0 ? " and " + format_bytes(decoding) + " to decode" : "") +
+                       ", more than the " + format_bytes(max_bytes) +
+                       " the memory budget leaves; raise --memory-budget");
+}
+
+}  // namespace
+
+Image read_png(const std::string& path, uint64_t max_bytes) {
   FilePtr f = open_file(path, "rb");
   if (!f) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
   unsigned char signature[8] = {};
@@ -177,6 +201,15 @@ Image read_png(const std::string& path) {
                          " pixels need more than the " + std::to_string(file_bytes) +
                          "-byte file can inflate to");
   }
+  if (channels == 1 || channels == 3) {
+    const uint64_t decoding = uint64_t(row_bytes) * uint64_t(height) + sizeof(png_bytep) * height;
+    try {
+      check_read_bytes(path, width, height, channels, decoding, max_bytes);
+    } catch (...) {
+      png_destroy_read_struct(&png, &info, nullptr);
+      throw;
+    }
+  }
   data.resize(row_bytes * height);
   rows.resize(height);
   for (int y = 0; y < height; ++y) rows[y] = data.data() + y * row_bytes;
@@ -204,7 +237,7 @@ void write_pfm(const Image& image, const std::string& path) {
   write_file_atomically(path, bytes);
 }
 
-Image read_pfm(const std::string& path) {
+Image read_pfm(const std::string& path, uint64_t max_bytes) {
   FilePtr f = open_file(path, "rb");
   if (!f) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
   char kind[3] = {};
@@ -226,6 +259,7 @@ Image read_pfm(const std::string& path) {
                      "truncated pixel data: the header's " + std::to_string(width) + "x" +
                          std::to_string(height) + " pixels need " + std::to_string(pixel_bytes) +
                          " bytes, the file has " + std::to_string(left) + " left");
+  check_read_bytes(path, width, height, channels, 0, max_bytes);
   Image image(width, height, channels);
   const size_t row = size_t(width) * image.channels;
   for (int y = height - 1; y >= 0; --y)
@@ -247,9 +281,9 @@ void write_image(const Image& image, const std::string& path, int png_bits) {
   throw OutputError(path, "unknown image format (use .png or .pfm)");
 }
 
-Image read_image(const std::string& path) {
-  if (ends_with(path, ".pfm")) return read_pfm(path);
-  return read_png(path);
+Image read_image(const std::string& path, uint64_t max_bytes) {
+  if (ends_with(path, ".pfm")) return read_pfm(path, max_bytes);
+  return read_png(path, max_bytes);
 }
 
 }  // namespace linebake

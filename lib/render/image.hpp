@@ -20,8 +20,11 @@ struct Image {
   float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
 };
 
-// The values a display shows, in [0, 1]: linear images are sRGB-encoded, encoded ones copied.
-Image display_encoded(const Image& image);
+// The values a display shows, in [0, 1]: linear images are sRGB-encoded, encoded ones kept (in
+// place when given an rvalue).
+Image display_encoded(Image image);
+// The bytes of an image's float pixels.
+uint64_t image_bytes(int width, int height, int channels);
 
 // PNG with 8 or 16 bits per channel, sRGB chunk set. Linear images are encoded on the way out.
 void write_png(const Image& image, const std::string& path, int bits = 8);
@@ -32,17 +35,19 @@ void write_png_counts(const std::vector<uint32_t>& counts, int width, int height
                       const std::string& path);
 // 8/16-bit grey, grey+alpha, RGB or RGBA; alpha dropped, grey kept as one channel. Values are
 // the stored ones in [0, 1] (srgb_encoded = true).
-Image read_png(const std::string& path);
+// `max_bytes`: refuse (BudgetExceeded naming the file, its size and the bytes) an image whose
+// floats and decoding buffers would take more, before allocating them (read_image too).
+Image read_png(const std::string& path, uint64_t max_bytes = UINT64_MAX);
 
 // Portable float map (little-endian "PF"/"Pf"): the exact float values, bottom row first on disk.
 void write_pfm(const Image& image, const std::string& path);
-Image read_pfm(const std::string& path);  // srgb_encoded = false
+Image read_pfm(const std::string& path, uint64_t max_bytes = UINT64_MAX);  // not srgb_encoded
 
 // By extension: .png or .pfm.
 void write_image(const Image& image, const std::string& path, int png_bits = 8);
 // Before any work: what write_image would refuse (an extension other than .png or .pfm, a missing
 // or read-only directory), as OutputError naming the path.
 void check_image_output(const std::string& path);
-Image read_image(const std::string& path);
+Image read_image(const std::string& path, uint64_t max_bytes = UINT64_MAX);
 
 }  // namespace linebake

@@ -2,6 +2,8 @@
 // info(), validation and derived attributes.
 
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <optional>
 
 #include "bindings.hpp"
@@ -22,8 +24,28 @@ namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
+// A finite value that float32 cannot hold, in an array of wider floats: refused naming its row
+// (`unit` i), as the file readers refuse one, before NumPy's cast makes it an infinity with no
+// more than a RuntimeWarning. NaN and infinities given as such are data, validated later.
+void check_float32_range(const py::array& given, const std::string& what, size_t columns,
+                         const char* unit) {
+  if (given.dtype().kind() != 'f' || given.dtype().itemsize() <= 4) return;
+  const auto wide = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
+  if (!wide) return;  // the caller's own conversion says what is wrong
+  const double* values = wide.data();
+  for (size_t i = 0; i < size_t(wide.size()); ++i)
+    if (std::isfinite(values[i]) && !std::isfinite(float(values[i]))) {
+      char text[32];  // the shortest text that reads back as the value, as Python's repr
+      const auto end = std::to_chars(text, text + sizeof text, values[i]).ptr;
+      throw py::value_error(what + ": " + unit + " " + std::to_string(i / columns) + ": " +
+                            std::string(text, end) +
+                            " is outside float32's range (magnitude above 3.4028235e38)");
+    }
+}
+
 // (n, 3) float32 positions, copied into the line set.
 std::vector<float> positions_from(const py::array& points) {
+  if (points.ndim() == 2 && points.shape(1) == 3) check_float32_range(points, "points", 3, "row");
   const FloatArray xyz = FloatArray::ensure(points);
   if (!xyz || xyz.ndim() != 2 || xyz.shape(1) != 3)
     throw py::value_error("points: expected an (n, 3) array of positions");
@@ -64,6 +86,12 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
     // made a CSV linebake cannot read ("header column has no name").
     if (attribute.name.empty())
       throw py::value_error(std::string(what) + " names must not be empty");
+    // Lists of Python floats are float64 arrays here, checked as such.
+    if (const py::array given = py::array::ensure(value); given)
+      check_float32_range(given, std::string(what) + " '" + attribute.name + "'", 1,
+                          std::string(what) == "attribute" ? "point" : "line");
+    else
+      PyErr_Clear();
     const FloatArray values = FloatArray::ensure(value);
     if (!values || values.ndim() != 1 || size_t(values.size()) != count)
       throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +

@@ -1,10 +1,13 @@
 // linebake.render() and linebake.Renderer: frames of any technique this machine can run, as
 // (h, w, 4) float32 arrays with the CLI's --stats fields; linebake.compare(): PSNR and SSIM.
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <mutex>
 #include <optional>
 #include <type_traits>
+#include <utility>
 
 #include "assets.hpp"
 #include "bindings.hpp"
@@ -17,6 +20,7 @@
 #include "render_option_ranges.hpp"
 #include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::python {
 
@@ -345,13 +349,15 @@ class PyRenderer {
 // (sRGB-encoded) values unless `srgb_encoded` says otherwise. A file says itself what its values
 // are (.png encoded, .pfm linear).
 Image image_from(const py::object& source, const std::optional<bool>& srgb_encoded,
-                 const char* which) {
+                 const char* which, MemoryBudget& budget) {
   const std::string what = std::string("compare: ") + which;
   if (PyUnicode_Check(source.ptr()) || PyBytes_Check(source.ptr()) ||
       py::hasattr(source, "__fspath__")) {
     const std::string path = path_arg(source, what);
     cli::check_input_file(path);
-    return read_image(path);
+    Image image = read_image(path, budget.available());
+    budget.reserve(image_bytes(image.width, image.height, image.channels), path);
+    return image;
   }
   const py::array given = py::array::ensure(source);
   if (!given) {
@@ -370,6 +376,16 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     throw py::value_error(
         "compare: expected an (h, w, 3), (h, w, 4), (h, w) or (h, w, 1) image or a file name");
   const size_t channels = grey ? 1 : 3;
+  // The image's floats, and the array converted to float32 or uint16 (C order) where it is not
+  // so already, checked before either is allocated.
+  const size_t word = scale != 0 ? sizeof(uint16_t) : sizeof(float);
+  const bool converted = given.dtype().itemsize() != py::ssize_t(word) ||
+                         (scale == 0) != (kind == 'f') || !(given.flags() & py::array::c_style);
+  const uint64_t floats = image_bytes(int(given.shape(1)), int(given.shape(0)), int(channels));
+  const uint64_t copy = converted ? uint64_t(given.size()) * word : 0;
+  budget.reserve(floats + copy, what + "'s " + std::to_string(given.shape(0)) + "x" +
+                                    std::to_string(given.shape(1)) + " array (" +
+                                    std::to_string(given.size()) + " values)");
   Image image(int(given.shape(1)), int(given.shape(0)), int(channels));
   image.srgb_encoded = srgb_encoded.value_or(scale != 0);
   const size_t stride = given.ndim() == 2 ? 1 : size_t(given.shape(2));
@@ -382,31 +398,37 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     for (size_t i = 0; i < pixels; ++i)
       for (size_t c = 0; c < channels; ++c)
         image.pixels[channels * i + c] = float(in[stride * i + c] / scale);
-    return image;
+  } else {
+    using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
+    const Floats floats_in = Floats::ensure(given);
+    const float* in = floats_in.data();
+    for (size_t i = 0; i < pixels; ++i)
+      for (size_t c = 0; c < channels; ++c) image.pixels[channels * i + c] = in[stride * i + c];
   }
-  using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
-  const Floats floats = Floats::ensure(given);
-  const float* in = floats.data();
-  for (size_t i = 0; i < pixels; ++i)
-    for (size_t c = 0; c < channels; ++c) image.pixels[channels * i + c] = in[stride * i + c];
+  budget.release(copy);
   return image;
 }
 
-py::dict compare(const py::object& a, const py::object& b,
-                 const std::optional<bool>& srgb_encoded) {
-  // Checked as given: the display encoding clamps an infinity to 0 or 1 (a NaN stays).
-  const Image raw_first = image_from(a, srgb_encoded, "image"),
-              raw_second = image_from(b, srgb_encoded, "reference");
-  for (const auto& [image, which] :
-       {std::pair(&raw_first, "image"), std::pair(&raw_second, "reference")})
-    if (const std::string place = first_nonfinite_pixel(*image); !place.empty())
+py::dict compare(const py::object& a, const py::object& b, const std::optional<bool>& srgb_encoded,
+                 const py::object& memory_budget) {
+  MemoryBudget budget(cli::memory_budget_bytes(budget_from("compare", memory_budget)));
+  // Each checked as given (the display encoding clamps an infinity to 0 or 1; a NaN stays) and
+  // encoded in place: two images and SSIM's rows, no more.
+  const auto read = [&](const py::object& source, const char* which) {
+    Image image = image_from(source, srgb_encoded, which, budget);
+    if (const std::string place = first_nonfinite_pixel(image); !place.empty())
       throw py::value_error(std::string("compare: the ") + which + "'s " + place +
                             " is not a finite value (NaN or infinity): PSNR and SSIM need "
                             "finite values");
-  const Image first = display_encoded(raw_first), second = display_encoded(raw_second);
+    return display_encoded(std::move(image));
+  };
+  const Image first = read(a, "image"), second = read(b, "reference");
   // As `linebake compare` says it.
   if (const std::string problem = comparison_problem(first, second, ""); !problem.empty())
     throw Error(problem);
+  budget.reserve(
+      ssim_scratch_bytes(first.width, first.height, tbb::this_task_arena::max_concurrency()),
+      "compare: SSIM's rows");
   double p = 0, s = 0;
   {
     const LongCall call;
@@ -505,12 +527,17 @@ for Renderer, checked against the CLI's ranges (linebake.UsageError with the CLI
 memory_budget: '40G', 'unlimited' or bytes (an int); None: half of physical memory, or of the cgroup's or ulimit -v's limit when less. Releases
 the GIL.)doc");
   module.def("compare", &compare, py::arg("image"), py::arg("reference"), py::kw_only(),
-             py::arg("srgb_encoded").noconvert() = py::none(), R"doc(
+             py::arg("srgb_encoded").noconvert() = py::none(),
+             py::arg("memory_budget") = py::none(), R"doc(
 PSNR (dB, capped at 60) and SSIM of an image against a reference, as `linebake compare`: both
 display-encoded first. Each is an (h, w, 3|4) array (alpha ignored) or a .png/.pfm file (str,
 bytes or os.PathLike). Float arrays are linear values, uint8 and uint16 arrays the values of a
 PNG of that depth (scaled by 1/255, 1/65535; sRGB-encoded), unless srgb_encoded (True or False)
-says what they are; other dtypes are a TypeError. Returns {'psnr_db', 'ssim', 'ssim_mode'}.)doc");
+says what they are; other dtypes are a TypeError. Returns {'psnr_db', 'ssim', 'ssim_mode'}.
+memory_budget: '8G', 'unlimited' or bytes (an int); None: half of physical memory, or of the
+cgroup's or ulimit -v's limit when less. The two images (float32 copies, 12 bytes a pixel each in
+colour) and SSIM's rows are held within it, refused before they are allocated
+(linebake.BudgetExceeded naming the array or file). Releases the GIL for PSNR and SSIM.)doc");
   module.def("techniques", &technique_list, py::arg("device") = "",
              "Every technique: what it reads and needs, and whether it runs here (as `linebake "
              "techniques --json`).");

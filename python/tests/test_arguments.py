@@ -400,6 +400,30 @@ def test_integer_images_may_say_they_are_linear():
         linebake.compare(a, b, srgb_encoded=1)
 
 
+def test_compare_holds_its_images_within_the_memory_budget():
+    # Each image as float32 (48 MB for 2000x2000 RGB), and a copy where the array is another
+    # dtype or order, reserved from what the budget leaves beside the process's resident memory
+    # before anything is allocated: compare() of two 20000x20000 arrays had met the OOM killer.
+    a = np.random.default_rng(7).random((2000, 2000, 3), dtype=np.float32)
+    b = np.flip(a, axis=0).copy()
+    page = os.sysconf("SC_PAGE_SIZE")
+    resident = lambda: int(open("/proc/self/statm").read().split()[1]) * page  # noqa: E731
+    mib = 1 << 20
+    with pytest.raises(linebake.BudgetExceeded,
+                       match=r"^compare: reference's 2000x2000 array \(12000000 values\) needs "
+                             r"about 45.78 MiB"):
+        linebake.compare(a, b, memory_budget=resident() + 70 * mib)
+    with pytest.raises(linebake.BudgetExceeded,
+                       match=r"^compare: image's 2000x2000 array \(12000000 values\) needs "
+                             r"about 91.55 MiB"):  # its float64 values converted first
+        linebake.compare(a.astype(np.float64), b, memory_budget=resident() + 70 * mib)
+    fitted = linebake.compare(a, b, memory_budget=resident() + 130 * mib)
+    assert fitted == linebake.compare(a, b, memory_budget="unlimited")
+    assert 0 < fitted["ssim"] < 0.1
+    with pytest.raises(linebake.UsageError, match="memory_budget"):
+        linebake.compare(a, b, memory_budget="lots")
+
+
 @pytest.mark.parametrize("dtype", [np.bool_, np.int8, np.int32, np.int64, np.uint32, np.uint64,
                                    np.complex64])
 def test_other_dtypes_are_type_errors(dtype):

@@ -440,3 +440,27 @@ def test_an_origin_in_metadata_is_checked_and_counts_in_same_data():
     assert not at.same_data(linebake.LineSet(points, [0, 2]))
     assert linebake.LineSet(points, [0, 2]).same_data(
         linebake.LineSet(points, [0, 2], metadata={"origin": "0 0 0"}))
+
+
+def test_values_float32_cannot_hold_are_refused_naming_their_row():
+    # A finite float64 past float32's range became an infinity with only NumPy's RuntimeWarning;
+    # the file readers refuse it naming the row, and so does LineSet. float32's largest value,
+    # and NaN or infinities given as such (data that validation counts), are kept.
+    points = np.zeros((4, 3))
+    points[2, 1] = 1e39
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no cast ran: NumPy warned of none
+        with pytest.raises(ValueError, match=r"^points: row 2: 1e\+39 is outside "
+                                             r"float32's range \(magnitude above 3.4028235e38\)"):
+            linebake.LineSet(points, [0, 2, 4])
+        with pytest.raises(ValueError, match=r"^points: row 2: "):
+            linebake.LineSet(points.tolist(), [0, 2, 4])
+        edge = np.zeros((2, 3))
+        edge[1] = [np.finfo(np.float32).max, -np.inf, np.nan]
+        kept = linebake.LineSet(edge, [0, 2])
+        assert kept.points[1, 0] == np.finfo(np.float32).max
+        assert np.isneginf(kept.points[1, 1]) and np.isnan(kept.points[1, 2])
+        with pytest.raises(ValueError, match=r"^attribute 'speed': point 3: -4e\+40 is outside"):
+            linebake.LineSet(np.zeros((4, 3)), [0, 2, 4], {"speed": [0.0, 1.0, 2.0, -4e40]})
+        with pytest.raises(ValueError, match=r"^line attribute 'id': line 1: 1e\+300 is outside"):
+            linebake.LineSet(np.zeros((4, 3)), [0, 2, 4], line_attributes={"id": np.array([1.0, 1e300])})
