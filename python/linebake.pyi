@@ -41,6 +41,8 @@ class LineSet:
         attributes: Optional[Mapping[str, npt.ArrayLike]] = None,
         line_attributes: Optional[Mapping[str, npt.ArrayLike]] = None,
         metadata: Optional[Mapping[str, str]] = None,
+        *,
+        memory_budget: Optional[MemoryBudget] = None,
     ) -> None: ...
     @property
     def points(self) -> npt.NDArray[np.float32]: ...  # (n, 3), read-only view

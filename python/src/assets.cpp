@@ -100,13 +100,11 @@ void refuse_unused(const py::kwargs& given, const std::vector<std::string>& asse
 }
 
 // 2G, 512M, unlimited, or a number of bytes; 0 (no room for any work) is a UsageError, as on the
-// command line.
+// command line (budget_arg).
 uint64_t memory_budget_from(const py::handle& value) {
   const std::string text = budget_arg(value, "bake: memory_budget");
   if (text == "unlimited") return BakeOptions::kUnlimited;
-  const uint64_t bytes = PyUnicode_Check(value.ptr()) ? parse_size(text) : std::stoull(text);
-  if (bytes == 0) throw UsageError(std::string("memory_budget: ") + kZeroBudget);
-  return bytes;
+  return PyUnicode_Check(value.ptr()) ? parse_size(text) : std::stoull(text);
 }
 
 // The voxel grid: "auto", N or "NxNxN" (parse_grid's rule, as --grid), an int N.

@@ -95,8 +95,10 @@ bool is_number(const py::handle& value);   // int, float or NumPy number, not bo
 std::string text_arg(const py::handle& value, const std::string& what);
 
 // A memory budget as the CLI's --memory-budget text: a str ("8G", "unlimited") as it is, an int
-// (not bool) a number of bytes; a TypeError naming `what` for anything else.
-std::string budget_arg(const py::handle& value, const std::string& what);
+// (not bool) a number of bytes; a TypeError naming `what` for anything else, a UsageError naming
+// it for a size the CLI refuses, 0 included unless `refuse_zero` is false (render()'s options,
+// refused in the CLI's own words).
+std::string budget_arg(const py::handle& value, const std::string& what, bool refuse_zero = true);
 
 // An origin (lines/origin.hpp) as the CLI's --origin text: None "", a str ("auto", "x,y,z") as
 // it is, three numbers (a tuple, list or NumPy array) as their exact text; a TypeError naming

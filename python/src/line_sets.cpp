@@ -113,15 +113,60 @@ py::array array_like(const py::object& value, const char* what) {
   return array;
 }
 
+// The bytes copying `value` into a line set's array of `word`-byte values takes: the copy, and a
+// conversion before it unless the value is a C-order array of that kind already (a list is
+// made a float64 array first).
+uint64_t copy_bytes(const py::handle& value, char kind, size_t word) {
+  if (!py::isinstance<py::array>(value)) {
+    const py::ssize_t n = PyObject_Length(value.ptr());
+    if (n < 0) PyErr_Clear();
+    return n < 0 ? 0 : uint64_t(n) * (word + word + 8);
+  }
+  const auto array = py::reinterpret_borrow<py::array>(value);
+  const uint64_t copy = uint64_t(array.size()) * word;
+  const bool as_is = array.dtype().kind() == kind && size_t(array.dtype().itemsize()) == word &&
+                     (array.flags() & py::array::c_style) != 0;
+  // Wider floats out of C order are also copied as float64 for the range check.
+  const bool wide_copy = array.dtype().kind() == 'f' && array.dtype().itemsize() > 4 &&
+                         (array.flags() & py::array::c_style) == 0;
+  return (as_is ? copy : 2 * copy) + (wide_copy ? uint64_t(array.size()) * 8 : 0);
+}
+
+// What the line set's copies take, checked against what `memory_budget` leaves before any is
+// made (the caller's arrays are in the process's resident memory already).
+void check_copies(const py::array& points, const py::array& offsets, const py::object& attributes,
+                  const py::object& line_attributes, const py::object& memory_budget) {
+  const std::string text =
+      memory_budget.is_none() ? "" : budget_arg(memory_budget, "LineSet: memory_budget");
+  MemoryBudget budget(cli::memory_budget_bytes(text));
+  uint64_t bytes = copy_bytes(points, 'f', sizeof(float)) +
+                   2 * copy_bytes(offsets, 'u', sizeof(uint64_t));  // signed ones checked first
+  size_t count = 0;
+  for (const auto& [mapping, what] :
+       {std::pair(&attributes, "attribute"), std::pair(&line_attributes, "line attribute")})
+    if (!mapping->is_none())
+      for (const auto& [key, value] : mapping_arg(*mapping, what)) {
+        bytes += copy_bytes(value, 'f', sizeof(float));
+        ++count;
+      }
+  budget.reserve(bytes, "LineSet: copying " + std::to_string(points.size() / 3) + " points, " +
+                            std::to_string(std::max<py::ssize_t>(offsets.size() - 1, 0)) +
+                            " lines and " + std::to_string(count) + " attributes");
+}
+
 std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
                                          const py::object& offsets_like,
                                          const py::object& attributes,
                                          const py::object& line_attributes,
-                                         const py::object& metadata) {
+                                         const py::object& metadata,
+                                         const py::object& memory_budget) {
   auto result = std::make_shared<PyLineSet>();
   LineSet& lines = result->lines;
-  lines.positions = positions_from(array_like(points_like, "points"));
-  lines.line_offsets = offsets_from(array_like(offsets_like, "offsets"), lines.point_count());
+  const py::array points = array_like(points_like, "points");
+  const py::array offsets = array_like(offsets_like, "offsets");
+  check_copies(points, offsets, attributes, line_attributes, memory_budget);
+  lines.positions = positions_from(points);
+  lines.line_offsets = offsets_from(offsets, lines.point_count());
   lines.attributes = attributes_from(attributes, lines.point_count(), "attribute");
   lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
   if (!metadata.is_none())
@@ -309,16 +354,20 @@ void bind_line_sets(py::module_& module) {
   py::class_<PyLineSet, std::shared_ptr<PyLineSet>>(module, "LineSet", R"doc(
 A set of 3D polylines: positions, line offsets and float32 attributes per point or per line.
 
-LineSet(points, offsets, attributes=None, line_attributes=None, metadata=None)
+LineSet(points, offsets, attributes=None, line_attributes=None, metadata=None, *,
+        memory_budget=None)
 
 points: (n, 3) positions (converted to float32); offsets: line i spans points
 offsets[i]:offsets[i+1], from 0 to n (converted to uint64); attributes: {name: n values};
-line_attributes: {name: one value per line}; metadata: {str: str}. The arrays are copied in.
+line_attributes: {name: one value per line}; metadata: {str: str}. The arrays are copied in,
+within memory_budget ('8G', 'unlimited' or bytes; None: half of physical memory, or of the
+cgroup's or ulimit -v's limit when less): copies past what it leaves beside the process's
+resident memory are refused before they are made (linebake.BudgetExceeded).
 The properties points, offsets, attributes and line_attributes are read-only NumPy views of
 the line set's own memory (no copy); they keep the line set alive.)doc")
       .def(py::init(&make_line_set), py::arg("points"), py::arg("offsets"),
            py::arg("attributes") = py::none(), py::arg("line_attributes") = py::none(),
-           py::arg("metadata") = py::none())
+           py::arg("metadata") = py::none(), py::kw_only(), py::arg("memory_budget") = py::none())
       .def_property_readonly(
           "points",
           [](py::object self) {

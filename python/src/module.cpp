@@ -71,24 +71,30 @@ std::string text_arg(const py::handle& value, const std::string& what) {
   return std::string(data, size_t(size));
 }
 
-std::string budget_arg(const py::handle& value, const std::string& what) {
+std::string budget_arg(const py::handle& value, const std::string& what, bool refuse_zero) {
   const char* wanted = "a size str ('2G', 'unlimited') or a number of bytes (an int >= 0)";
+  std::string text;
+  uint64_t bytes = 1;
   if (PyUnicode_Check(value.ptr())) {
     // A size the CLI would refuse is a UsageError naming the argument, as --memory-budget's is.
-    std::string text = text_arg(value, what);
+    text = text_arg(value, what);
     try {
-      if (text != "unlimited") parse_size(text);
+      if (text != "unlimited") bytes = parse_size(text);
     } catch (const Error& e) {
       throw UsageError(what + ": " + e.what());
     }
-    return text;
+  } else {
+    if (!is_integer(value)) wrong_kind(value, what, wanted);
+    try {
+      bytes = typed_arg<uint64_t>(value, what);
+    } catch (const py::type_error&) {
+      wrong_kind(value, what, wanted);
+    }
+    text = std::to_string(bytes);
   }
-  if (!is_integer(value)) wrong_kind(value, what, wanted);
-  try {
-    return std::to_string(typed_arg<uint64_t>(value, what));
-  } catch (const py::type_error&) {
-    wrong_kind(value, what, wanted);
-  }
+  // No room for any work ('unlimited' is the word for none), as on the command line.
+  if (bytes == 0 && refuse_zero) throw UsageError(what + ": " + kZeroBudget);
+  return text;
 }
 
 std::string origin_arg(const py::handle& value, const std::string& what) {

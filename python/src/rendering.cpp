@@ -97,7 +97,8 @@ void set_from(const std::string& function, const py::kwargs& kw, const char* nam
 // checks it; "" for None (half of physical memory).
 std::string budget_from(const std::string& function, const py::handle& value) {
   if (value.is_none()) return "";
-  const std::string text = budget_arg(value, function + ": memory_budget");
+  // render()'s options are refused in the CLI's words (0 too).
+  const std::string text = budget_arg(value, function + ": memory_budget", false);
   if (const std::string problem = cli::render_option_problem("--memory-budget", text);
       !problem.empty())
     throw UsageError(problem);
@@ -411,7 +412,8 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
 
 py::dict compare(const py::object& a, const py::object& b, const std::optional<bool>& srgb_encoded,
                  const py::object& memory_budget) {
-  MemoryBudget budget(cli::memory_budget_bytes(budget_from("compare", memory_budget)));
+  MemoryBudget budget(cli::memory_budget_bytes(
+      memory_budget.is_none() ? "" : budget_arg(memory_budget, "compare: memory_budget")));
   // Each checked as given (the display encoding clamps an infinity to 0 or 1; a NaN stays) and
   // encoded in place: two images and SSIM's rows, no more.
   const auto read = [&](const py::object& source, const char* which) {

@@ -389,10 +389,17 @@ def test_a_memory_budget_of_zero_is_a_usage_error(tmp_path, budget):
     points = np.arange(3 * 10, dtype=np.float32).reshape(-1, 3)
     path = tmp_path / "small.binlines"
     linebake.write(linebake.LineSet(points, np.array([0, 10], dtype=np.uint64)), path)
-    with pytest.raises(linebake.UsageError, match="0 bytes leaves no room for any work"):
+    # Each naming its call's argument (compare's and render's had named --memory-budget).
+    zero = "memory_budget: a memory budget of 0 bytes leaves no room for any work"
+    with pytest.raises(linebake.UsageError, match="^read: " + zero):
         linebake.read(path, memory_budget=str(budget))
-    with pytest.raises(linebake.UsageError, match="0 bytes leaves no room for any work"):
+    with pytest.raises(linebake.UsageError, match="^bake: " + zero):
         linebake.bake(path, tmp_path / "small.lbc.h5", memory_budget=budget)
+    with pytest.raises(linebake.UsageError, match="^LineSet: " + zero):
+        linebake.LineSet(points, np.array([0, 10], dtype=np.uint64), memory_budget=budget)
+    image = np.zeros((16, 16, 3), np.float32)
+    with pytest.raises(linebake.UsageError, match="^compare: " + zero):
+        linebake.compare(image, image, memory_budget=budget)
     assert not (tmp_path / "small.lbc.h5").exists()
 
 
@@ -464,3 +471,26 @@ def test_values_float32_cannot_hold_are_refused_naming_their_row():
             linebake.LineSet(np.zeros((4, 3)), [0, 2, 4], {"speed": [0.0, 1.0, 2.0, -4e40]})
         with pytest.raises(ValueError, match=r"^line attribute 'id': line 1: 1e\+300 is outside"):
             linebake.LineSet(np.zeros((4, 3)), [0, 2, 4], line_attributes={"id": np.array([1.0, 1e300])})
+
+
+def test_copies_are_held_within_the_memory_budget():
+    # 4 million float64 points: their float32 copy (48 MB) and the conversion before it (48 MB),
+    # reserved before either is made; exactly float32 C-order points need the copy alone.
+    n = 4_000_000
+    wide = np.zeros((n, 3))
+    narrow = np.zeros((n, 3), np.float32)
+    offsets = np.array([0, n], np.uint64)
+    page = os.sysconf("SC_PAGE_SIZE")
+    resident = lambda: int(open("/proc/self/statm").read().split()[1]) * page  # noqa: E731
+    mib = 1 << 20
+    with pytest.raises(linebake.BudgetExceeded,
+                       match=r"^LineSet: copying 4000000 points, 1 lines and 0 attributes needs "
+                             r"about 91.55 MiB"):
+        linebake.LineSet(wide, offsets, memory_budget=resident() + 70 * mib)
+    kept = linebake.LineSet(narrow, offsets, memory_budget=resident() + 70 * mib)
+    assert kept.points.shape == (n, 3)
+    # A float64 attribute of 4 million values: 16 MB converted and 16 MB copied more.
+    with pytest.raises(linebake.BudgetExceeded, match=r"1 attributes needs about 122.07 MiB"):
+        linebake.LineSet(wide, offsets, {"t": np.zeros(n)}, memory_budget=resident() + 70 * mib)
+    with pytest.raises(linebake.UsageError, match="LineSet: memory_budget: bad size"):
+        linebake.LineSet(narrow, offsets, memory_budget="lots")
