@@ -21,6 +21,12 @@ import linebake  # noqa: E402  (after the environment above)
 SYNTH = "synth:aneurysm?scale=0.01"
 
 
+def resident_bytes():
+    """This process's resident memory, as a memory budget counts it at its start."""
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
 def cli_path():
     """The linebake binary beside the module: <build>/tools/linebake, or $LINEBAKE_CLI."""
     if os.environ.get("LINEBAKE_CLI"):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import linebake
-from conftest import cli_error, cli_json, cli_path, vulkan_available
+from conftest import cli_error, cli_json, cli_path, resident_bytes, vulkan_available
 
 SIZE = (32, 24)
 
@@ -406,18 +406,16 @@ def test_compare_holds_its_images_within_the_memory_budget():
     # before anything is allocated: compare() of two 20000x20000 arrays had met the OOM killer.
     a = np.random.default_rng(7).random((2000, 2000, 3), dtype=np.float32)
     b = np.flip(a, axis=0).copy()
-    page = os.sysconf("SC_PAGE_SIZE")
-    resident = lambda: int(open("/proc/self/statm").read().split()[1]) * page  # noqa: E731
     mib = 1 << 20
     with pytest.raises(linebake.BudgetExceeded,
                        match=r"^compare: reference's 2000x2000 array \(12000000 values\) needs "
                              r"about 45.78 MiB"):
-        linebake.compare(a, b, memory_budget=resident() + 70 * mib)
+        linebake.compare(a, b, memory_budget=resident_bytes() + 70 * mib)
     with pytest.raises(linebake.BudgetExceeded,
                        match=r"^compare: image's 2000x2000 array \(12000000 values\) needs "
                              r"about 91.55 MiB"):  # its float64 values converted first
-        linebake.compare(a.astype(np.float64), b, memory_budget=resident() + 70 * mib)
-    fitted = linebake.compare(a, b, memory_budget=resident() + 130 * mib)
+        linebake.compare(a.astype(np.float64), b, memory_budget=resident_bytes() + 70 * mib)
+    fitted = linebake.compare(a, b, memory_budget=resident_bytes() + 130 * mib)
     assert fitted == linebake.compare(a, b, memory_budget="unlimited")
     assert 0 < fitted["ssim"] < 0.1
     with pytest.raises(linebake.UsageError, match="memory_budget"):

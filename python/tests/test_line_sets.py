@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import linebake
-from conftest import SYNTH, cli_error, cli_json
+from conftest import SYNTH, cli_error, cli_json, resident_bytes
 
 
 def sample_arrays():
@@ -480,17 +480,15 @@ def test_copies_are_held_within_the_memory_budget():
     wide = np.zeros((n, 3))
     narrow = np.zeros((n, 3), np.float32)
     offsets = np.array([0, n], np.uint64)
-    page = os.sysconf("SC_PAGE_SIZE")
-    resident = lambda: int(open("/proc/self/statm").read().split()[1]) * page  # noqa: E731
     mib = 1 << 20
     with pytest.raises(linebake.BudgetExceeded,
                        match=r"^LineSet: copying 4000000 points, 1 lines and 0 attributes needs "
                              r"about 91.55 MiB"):
-        linebake.LineSet(wide, offsets, memory_budget=resident() + 70 * mib)
-    kept = linebake.LineSet(narrow, offsets, memory_budget=resident() + 70 * mib)
+        linebake.LineSet(wide, offsets, memory_budget=resident_bytes() + 70 * mib)
+    kept = linebake.LineSet(narrow, offsets, memory_budget=resident_bytes() + 70 * mib)
     assert kept.points.shape == (n, 3)
     # A float64 attribute of 4 million values: 16 MB converted and 16 MB copied more.
     with pytest.raises(linebake.BudgetExceeded, match=r"1 attributes needs about 122.07 MiB"):
-        linebake.LineSet(wide, offsets, {"t": np.zeros(n)}, memory_budget=resident() + 70 * mib)
+        linebake.LineSet(wide, offsets, {"t": np.zeros(n)}, memory_budget=resident_bytes() + 70 * mib)
     with pytest.raises(linebake.UsageError, match="LineSet: memory_budget: bad size"):
         linebake.LineSet(narrow, offsets, memory_budget="lots")
