@@ -558,7 +558,50 @@ row = bytes(20001)
 body = b''.join(z.compress(row) for _ in range(20000)) + z.flush()
 open(sys.argv[1], 'wb').write(b'\\x89PNG\\r\\n\\x1a\\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', 20000, 20000, 8, 0, 0, 0, 0)) + chunk(b'IDAT', body) + chunk(b'IEND', b''))
 \" '$tmp/wide_zero.png' && (ulimit -v 1200000; '$bin' compare '$tmp/wide_zero.png' '$tmp/wide_zero.png' --memory-budget 1G 2> '$tmp/wide_zero.err'); [ \$? -eq 4 ] && grep -q 'wide_zero.png: 20000x20000, 1 channel, takes 1.49 GiB as floats and 381.62 MiB to decode, more than the .* the memory budget leaves; raise --memory-budget' '$tmp/wide_zero.err'"
-check "run -o '' is a usage error (it was ignored); a PFM whose scale is NaN is not an image" bash -c "'$bin' run '$pipes/ci.json' -o '' --dry-run 2> '$tmp/emptyo.err'; [ \$? -eq 1 ] && grep -q -- '-o: an empty output directory' '$tmp/emptyo.err' && printf 'Pf\n2 2\nnan\n' > '$tmp/nan.pfm' && head -c 16 /dev/zero >> '$tmp/nan.pfm' && { '$bin' compare '$tmp/nan.pfm' '$tmp/nan.pfm' 2> '$tmp/nanpfm.err'; [ \$? -eq 2 ]; } && grep -q 'nan.pfm: header: implausible size or scale' '$tmp/nanpfm.err'"
+check "run -o '' is a usage error (it was ignored); a PFM whose scale is NaN is not an image" bash -c "'$bin' run '$pipes/ci.json' -o '' --dry-run 2> '$tmp/emptyo.err'; [ \$? -eq 1 ] && grep -q -- '-o: an empty value names no file and no setting' '$tmp/emptyo.err' && printf 'Pf\n2 2\nnan\n' > '$tmp/nan.pfm' && head -c 16 /dev/zero >> '$tmp/nan.pfm' && { '$bin' compare '$tmp/nan.pfm' '$tmp/nan.pfm' 2> '$tmp/nanpfm.err'; [ \$? -eq 2 ]; } && grep -q 'nan.pfm: header: implausible size or scale' '$tmp/nanpfm.err'"
+# A probe's findings (2026-11-30), each reproduced before its fix.
+check "an empty option value is exit 1 naming the option (render -o '' had failed on the format, depth-complexity --stats '' and compare --error-image '' were ignored, info '' had said no such file)" bash -c "for cmd in \"render '$tmp/c.lbc.h5' -o ''\" \"depth-complexity '$tmp/c.lbc.h5' --size 16x16 --stats ''\" \"compare '$tmp/e.png' '$tmp/e.png' --error-image ''\"; do eval \"'$bin' \$cmd\" 2> '$tmp/empty.err'; [ \$? -eq 1 ] && grep -q -- ': an empty value names no file and no setting; give one, or leave' '$tmp/empty.err' || exit 1; done; '$bin' info '' 2> '$tmp/empty.err'; [ \$? -eq 1 ] && grep -q 'input: an empty value names no file' '$tmp/empty.err'"
+check "bench bake refuses an -o that exists (exit 3, the file kept, even when the options are refused too); a run's cache is removed after it, and after an interrupted run" bash -c "mkdir -p '$tmp/bbo' && cd '$tmp/bbo' && echo notes > notes.txt && for extra in '--assets nope' '--repeat 1'; do '$bin' bench bake '$tmp/c.binlines' \$extra -o notes.txt 2> o.err; [ \$? -eq 3 ] && grep -q 'notes.txt: exists: bench bake bakes a new cache there on every run' o.err && [ \"\$(cat notes.txt)\" = notes ] || exit 1; done && '$bin' bench bake '$tmp/c.binlines' --repeat 1 -o fresh.lbc.h5 > /dev/null && [ ! -e fresh.lbc.h5 ] && { timeout -s INT 1 '$bin' bench bake '$tmp/c.binlines' --repeat 50 -o int.lbc.h5 > /dev/null 2>&1; [ ! -e int.lbc.h5 ] && [ \"\$(ls)\" = \"notes.txt
+o.err\" ]; }"
+check "compare: an ancillary PNG chunk declaring 2 GiB is skipped unread (libpng had allocated it: 2 GB resident for a 43-byte file); palette and 1-bit PNGs compare (they were refused against their expanded rows)" /usr/bin/python3 -c "
+import resource, struct, subprocess, zlib
+def chunk(kind, data):
+    return struct.pack('>I', len(data)) + kind + data + struct.pack('>I', zlib.crc32(kind + data))
+def png(name, width, height, depth, kind, rows, extra=b''):
+    open('$tmp/' + name, 'wb').write(b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', width, height, depth, kind, 0, 0, 0)) + extra + chunk(b'IDAT', zlib.compress(rows, 9)) + chunk(b'IEND', b''))
+header = b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', 16, 12, 8, 2, 0, 0, 0))
+open('$tmp/huge_text.png', 'wb').write(header + struct.pack('>I', 0x7fffffff) + b'tEXtab')
+png('small.png', 16, 12, 8, 2, b''.join(b'\0' + bytes(48) for _ in range(12)))
+r = subprocess.run(['$bin', 'compare', '$tmp/huge_text.png', '$tmp/small.png'], capture_output=True, text=True)
+assert r.returncode == 2 and 'huge_text.png: byte offset' in r.stderr, r
+assert resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss < 200000, resource.getrusage(resource.RUSAGE_CHILDREN)
+png('palette.png', 1000, 1000, 8, 3, b''.join(b'\0' + bytes(1000) for _ in range(1000)), chunk(b'PLTE', bytes(768)))
+png('bits.png', 1000, 1000, 1, 0, b''.join(b'\0' + bytes(125) for _ in range(1000)))
+for name in ('palette.png', 'bits.png'):
+    r = subprocess.run(['$bin', 'compare', '$tmp/' + name, '$tmp/' + name], capture_output=True, text=True)
+    assert r.returncode == 0 and '60.0000 dB' in r.stdout, r
+"
+check "compare: a PFM header ending in CRLF reads the pixels where they are (they were read a byte off: 2.7 dB against the same pixels); bytes after the pixels, or 'PF4', are exit 2" /usr/bin/python3 -c "
+import struct, subprocess
+pixels = struct.pack('<576f', *[0.5] * 576)
+for name, data in (('lf', b'PF\n16 12\n-1.0\n' + pixels), ('crlf', b'PF\r\n16 12\r\n-1.0\r\n' + pixels), ('junk', b'PF\n16 12\n-1.0\n' + pixels + b'junk'), ('pf4', b'PF4\n16 12\n-1.0\n' + pixels)):
+    open('$tmp/' + name + '.pfm', 'wb').write(data)
+r = subprocess.run(['$bin', 'compare', '$tmp/crlf.pfm', '$tmp/lf.pfm'], capture_output=True, text=True)
+assert r.returncode == 0 and '60.0000 dB' in r.stdout, r
+r = subprocess.run(['$bin', 'compare', '$tmp/junk.pfm', '$tmp/lf.pfm'], capture_output=True, text=True)
+assert r.returncode == 2 and 'junk.pfm: byte offset 2318: 4 bytes after the pixel data' in r.stderr, r
+r = subprocess.run(['$bin', 'compare', '$tmp/pf4.pfm', '$tmp/lf.pfm'], capture_output=True, text=True)
+assert r.returncode == 2 and 'pf4.pfm: byte offset 0: not a PFM file' in r.stderr, r
+"
+check "a FIFO as input is exit 2 at once, naming it (commands had waited in open() for a writer, a signal restarting the wait)" bash -c "rm -f '$tmp/pipe.pfm' && mkfifo '$tmp/pipe.pfm' && for cmd in 'depth-complexity' 'compare' 'info'; do extra=''; [ \$cmd = compare ] && extra='$tmp/pipe.pfm'; timeout -k 5 20 '$bin' \$cmd '$tmp/pipe.pfm' \$extra 2> '$tmp/pipe.err'; [ \$? -eq 2 ] && grep -q 'pipe.pfm: is a FIFO (a pipe), not a file' '$tmp/pipe.err' || exit 1; done"
+check_budget "synth to .binlines under a budget below what it holds is exit 4, nothing written (it had ignored the budget, 52 MB resident under 20M); under 64M its batches fit, the same bytes as unlimited" bash -c "'$bin' synth aneurysm --scale 0.05 -o '$tmp/sb.binlines' --memory-budget 20M 2> '$tmp/sb.err'; [ \$? -eq 4 ] && grep -q \"sb.binlines: the process's resident memory reached\" '$tmp/sb.err' && [ ! -e '$tmp/sb.binlines' ] && '$bin' synth aneurysm --scale 0.05 -o '$tmp/sb.binlines' --memory-budget 64M 2> /dev/null && '$bin' synth aneurysm --scale 0.05 -o '$tmp/sb2.binlines' --memory-budget unlimited 2> /dev/null && cmp '$tmp/sb.binlines' '$tmp/sb2.binlines'"
+check_budget "bench tubes --repeat 10 under 40M peaks within it (memcpy's buffers had been sized from the budget's start: 52 MB)" /usr/bin/python3 -c "
+import os, subprocess
+subprocess.run(['$bin', 'synth', 'aneurysm', '--scale', '0.01', '-o', '$tmp/tubes_a.binlines'], check=True, capture_output=True)
+bench = subprocess.Popen(['$bin', 'bench', 'tubes', '$tmp/tubes_a.binlines', '--memory-budget', '40M', '--repeat', '10'], stdout=subprocess.DEVNULL)
+_, status, usage = os.wait4(bench.pid, 0)  # this child's own peak
+assert os.waitstatus_to_exitcode(status) == 0 and usage.ru_maxrss <= 40 * 1024, (status, usage.ru_maxrss)
+"
 check "a file name that is not UTF-8 bakes; JSON records it with U+FFFD" /usr/bin/python3 -c "
 import json, os, shutil, subprocess
 name = os.path.join(b'$tmp', b'n\\xff.binlines')

@@ -254,6 +254,23 @@ void check_when_parsed(CLI::App* sub, std::function<void()> check) {
   });
 }
 
+void refuse_empty_values(const CLI::App& app) {
+  for (const CLI::App* sub : app.get_subcommands()) {
+    for (const CLI::Option* option : sub->get_options()) {
+      if (option->count() == 0 || option->get_type_size_max() == 0) continue;  // flags
+      const auto& results = option->results();
+      if (std::find(results.begin(), results.end(), std::string()) == results.end()) continue;
+      if (option->get_snames().empty() && option->get_lnames().empty())  // a positional
+        throw UsageError(option->get_name(true) + ": an empty value names no file");
+      const std::string name = !option->get_snames().empty() ? "-" + option->get_snames()[0]
+                                                             : "--" + option->get_lnames()[0];
+      throw UsageError(name + ": an empty value names no file and no setting; give one, or leave " +
+                       name + " out");
+    }
+    refuse_empty_values(*sub);
+  }
+}
+
 void check_input_file(const std::string& path) {
   if (synth::is_synth_source(path)) return;
   std::error_code ec;
@@ -264,6 +281,15 @@ void check_input_file(const std::string& path) {
   if (!std::filesystem::exists(status)) throw InputError(path, "", "no such file");
   if (std::filesystem::is_directory(status))
     throw InputError(path, "", "is a directory, not a file");
+  // Every reader reads by offset, some more than once (a header first, HDF5 anywhere): a pipe
+  // has no offsets, and opening a FIFO with no writer waits for one (a signal restarted that wait
+  // or failed it as "cannot open: Interrupted system call"; <(...) read as an empty file).
+  if (std::filesystem::is_fifo(status) || std::filesystem::is_socket(status))
+    throw InputError(path, "",
+                     std::string("is a ") +
+                         (std::filesystem::is_fifo(status) ? "FIFO (a pipe)" : "socket") +
+                         ", not a file: linebake reads its inputs by offset; write it to a file "
+                         "first");
 }
 
 void check_cache_input(const std::string& path) {

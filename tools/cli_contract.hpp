@@ -61,7 +61,13 @@ void refuse_unless(const CLI::App* sub, const std::vector<std::string>& names, b
 // error, exit 1.
 void check_when_parsed(CLI::App* sub, std::function<void()> check);
 
-// InputError (exit 2) when `path` does not exist or is a directory; synth: sources pass.
+// A UsageError naming the first option of a parsed command (or a subcommand of it) given an
+// empty value ("-o ''", "--stats ''"): it names no file and no setting. Each command had taken
+// one its own way (ignored it, failed on its format, said the option was missing).
+void refuse_empty_values(const CLI::App& app);
+
+// InputError (exit 2) when `path` does not exist or is a directory, a FIFO or a socket; synth:
+// sources pass.
 void check_input_file(const std::string& path);
 // check_input_file, and an InputError saying what the file is when it is not a linebake cache
 // ("a line file (binlines): bake it first: linebake bake c.binlines").

@@ -2,6 +2,7 @@
 // measured in the same run, or of the rendering techniques (bench render, bench_render.cpp).
 // Targets are checked and printed, never asserted in tests.
 
+#include <hdf5.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
@@ -428,11 +429,14 @@ void bench_tubes(const BenchArgs& args) {
     triangles = mesh.triangle_count();
     peak = std::max(peak, f.peak_rss);
   }
-  // Two buffers of a third of what the budget leaves each, the mesh let go.
+  // Two buffers of a third of what the budget leaves each, the mesh let go: of what it leaves
+  // now, the builds' heap trimmed (their allocator's slack stays, about 1 MiB a repeat; sized
+  // from the budget's start, --repeat 10 under 40M had peaked at 52 MB).
+  const uint64_t resident = trimmed_rss_bytes();
+  const uint64_t left = budget.total() > resident ? budget.total() - resident : 0;
   const uint64_t copy_bytes =
-      budget.unlimited()
-          ? uint64_t{1} << 30
-          : std::clamp<uint64_t>(budget.available() / 3, uint64_t{1} << 20, uint64_t{1} << 30);
+      budget.unlimited() ? uint64_t{1} << 30
+                         : std::clamp<uint64_t>(left / 3, uint64_t{1} << 20, uint64_t{1} << 30);
   const double bandwidth = memcpy_bandwidth(5, size_t(copy_bytes));
   std::sort(times.begin(), times.end());
   const double best = times.front(), median_s = median(times);
@@ -498,14 +502,38 @@ void bench_bake(const BenchArgs& args) {
       args.output.empty()
           ? bake_name.substr(0, bake_name.size() - std::string(".lbc.h5").size()) + ".bench.lbc.h5"
           : args.output;
-  // Each run starts from no cache, so the output is removed first: never the input.
   refuse_input_as_output(options.cache, {args.input});
   // Held across the runs and the removals of their cache, the last one's included: a bake of
   // another process into this path waits (bake() takes it again).
   const OutputLock one_writer(options.cache);
+  // Each run bakes a new cache there and removes it, so only a path with nothing there is this
+  // command's to write: a file the user has there (a cache, a kept bench cache, anything) is
+  // not removed (it had been, before any check, even when the options were then refused).
+  std::error_code ec;
+  if (std::filesystem::symlink_status(options.cache, ec).type() !=
+      std::filesystem::file_type::not_found)
+    throw OutputError(options.cache,
+                      "exists: bench bake bakes a new cache there on every run and removes it "
+                      "(unless --keep); remove it, or name another path with -o");
+  // The cache goes on the way out unless kept: a run that fails or is interrupted leaves none.
+  struct RemovedUnlessKept {
+    const std::string& path;
+    bool keep;
+    ~RemovedUnlessKept() {
+      std::error_code ignored;
+      if (!keep) std::filesystem::remove(path, ignored);
+    }
+  } cache_after{options.cache, args.keep};
   std::vector<BakeResult> runs;
   for (int r = 0; r < args.repeat; ++r) {
     std::filesystem::remove(options.cache);
+    // What the last run freed goes back to the system first, HDF5's free lists too: each run
+    // starts from what the process holds (a run left about 8 MiB in the heap, and a second run
+    // under a budget the first met was refused).
+    if (r > 0) {
+      H5garbage_collect();
+      trimmed_rss_bytes();
+    }
     runs.push_back(bake(options));
   }
   // Its two buffers (256 MiB each at most) take no more than two thirds of what the budget
@@ -517,7 +545,6 @@ void bench_bake(const BenchArgs& args) {
   const uint64_t copy_bytes = std::clamp<uint64_t>((budget > resident ? budget - resident : 0) / 3,
                                                    uint64_t{1} << 20, uint64_t{256} << 20);
   const double bandwidth = memcpy_bandwidth(5, size_t(copy_bytes));
-  if (!args.keep) std::filesystem::remove(options.cache);
   std::vector<double> walls;
   for (const BakeResult& r : runs) walls.push_back(r.wall_s);
   std::sort(walls.begin(), walls.end());

@@ -203,6 +203,7 @@ Command add_convert(CLI::App& app) {
       line_base += batch.line_count();
       points += batch.point_count();
       for (const std::string& name : args->derive) add_derived(batch, name);
+      if (output->streams()) whole_output.check_resident(args->output);
       if (!output->streams()) {
         held += line_set_bytes(batch);
         if (!whole)

@@ -269,25 +269,19 @@ Command add_run(CLI::App& app) {
       "run", "Run a pipeline: bake, render and compare every step, then write the report");
   struct Args {
     std::string pipeline, output;
-    bool dry_run = false, force = false, given_output = false;
+    bool dry_run = false, force = false;
   };
   auto args = std::make_shared<Args>();
   sub->add_option("pipeline", args->pipeline,
                   "Pipeline file (.json, .yaml; the extension may be left out), or the name of "
                   "a pipeline shipped with linebake: quickstart, ci, paper-small, paper")
       ->required();
-  sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)")
-      ->each([args](const std::string&) { args->given_output = true; });
+  sub->add_option("-o,--output", args->output, "Output directory (default: the pipeline's)");
   sub->add_flag("--dry-run", args->dry_run,
                 "List the steps and whether each would run or be reused");
   sub->add_flag("--force", args->force, "Run every step, even unchanged ones");
   return [args] {
     Pipeline p = load_pipeline(find_pipeline(args->pipeline, LINEBAKE_PIPELINES_DIR));
-    if (args->given_output && args->output.empty())
-      throw UsageError(
-          "-o: an empty output directory; give a directory, or leave -o out for "
-          "the pipeline's own (" +
-          p.output + ")");
     if (!args->output.empty()) p.output = args->output;
     // One spelling of the directory for the steps' command lines, which their keys hold: "out/p/"
     // and "./out/p" reuse what "out/p" ran.

@@ -63,10 +63,16 @@ Command add_synth(CLI::App& app) {
     const WholeOutput whole(args->memory_budget, resolve_output_format(args->output, write.format));
     LineSet batch;
     uint64_t segments = 0, points = 0, held = 0;
-    while (generator->next(batch, uint64_t{1} << 20)) {
+    // .binlines in batches the budget holds; the other formats in batches of a million points,
+    // collected (and checked) as they come.
+    const uint64_t max_points = whole.streams()
+                                    ? whole.batch_points(generator->header(), uint64_t{1} << 20)
+                                    : uint64_t{1} << 20;
+    while (generator->next(batch, max_points)) {
       throw_if_interrupted();
       segments += batch.segment_count();
       points += batch.point_count();
+      if (whole.streams()) whole.check_resident(args->output);
       if (!whole.streams()) {
         held += line_set_bytes(batch);
         whole.check(

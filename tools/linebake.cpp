@@ -129,6 +129,7 @@ int main(int argc, char** argv) {
       const int code = app.exit(e);  // help and --version print to stdout and give 0
       return code == 0 ? standard_output_written() : kUsage;
     }
+    refuse_empty_values(app);
     // Every command stops at its next safe point on SIGINT, SIGTERM or SIGHUP, removing its
     // temporary files (core/interrupt.hpp).
     linebake::install_interrupt_handlers();

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "cache/chunk_codec.hpp"
+#include "cli_contract.hpp"
 #include "commands.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
@@ -60,6 +61,7 @@ int main(int argc, char** argv) {
     if (rank == 0) std::cerr << "linebake-mpi: error: " + std::string(what) + "\n";
   };
   try {
+    refuse_empty_values(app);  // as linebake's commands (every rank sees the same arguments)
     run();
   } catch (const linebake::CollectiveWriteFailed& e) {
     // Only this rank knows; the others may wait in the collective write for ever.

@@ -1,5 +1,7 @@
 #include "whole_output.hpp"
 
+#include <algorithm>
+
 #include "core/error.hpp"
 #include "core/measure.hpp"
 
@@ -44,6 +46,20 @@ void WholeOutput::check(uint64_t held, uint64_t points, double overhead, const s
       ", more than the memory budget of " + format_bytes(total_) + " leaves (" +
       format_bytes(total_ > before_ ? total_ - before_ : 0) + "); " + advice +
       ", or raise --memory-budget");
+}
+
+uint64_t WholeOutput::batch_points(const LineSet& header, uint64_t most) const {
+  const uint64_t per_point = 12 + 4 * header.attributes.size() + 8;
+  const uint64_t left = total_ == 0 ? UINT64_MAX : (total_ > before_ ? total_ - before_ : 0);
+  return std::clamp<uint64_t>(left / 16 / per_point, 4096, std::max<uint64_t>(most, 4096));
+}
+
+void WholeOutput::check_resident(const std::string& where) const {
+  const uint64_t peak = peak_rss_bytes();
+  if (total_ == 0 || peak <= total_) return;
+  throw BudgetExceeded(where + ": the process's resident memory reached " + format_bytes(peak) +
+                       ", more than the memory budget of " + format_bytes(total_) + " (it held " +
+                       format_bytes(before_) + " before the first batch); raise --memory-budget");
 }
 
 }  // namespace linebake::cli

@@ -28,6 +28,12 @@ class WholeOutput {
   // and `overhead` times them more do not fit what the budget left.
   void check(uint64_t held, uint64_t points, double overhead, const std::string& where,
              const std::string& why, const std::string& advice) const;
+  // For a .binlines output, written as the batches come: points a batch of `header`'s lines may
+  // hold, a sixteenth of what the budget left over a point's bytes, from 4,096 to `most`.
+  uint64_t batch_points(const LineSet& header, uint64_t most) const;
+  // After a batch: throws BudgetExceeded naming `where` when the process's resident high-water
+  // mark has passed the budget (the reader's or generator's own buffers are not estimated).
+  void check_resident(const std::string& where) const;
 
  private:
   uint64_t total_ = 0, before_ = 0;

@@ -3,6 +3,7 @@
 #include <png.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -184,8 +185,18 @@ Image read_png(const std::string& path, uint64_t max_bytes) {
   png_init_io(png, f.get());
   png_set_sig_bytes(png, 8);
   png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  // An ancillary chunk (text, a suggested palette, ...) is read whole by libpng, at the length
+  // the file declares: a 43-byte file declaring a tEXt chunk of 2 GiB had libpng allocate it
+  // (its chunk_malloc_max did not stop that). None of them matters here (alpha is dropped, the
+  // values are taken as stored), so every one is skipped unread, a piece at a time; libpng
+  // still reads IHDR, PLTE, tRNS, IDAT and IEND, whose lengths it bounds.
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, nullptr, -1);
   const size_t file_bytes = bytes_left(f.get()) + 8;
   png_read_info(png, info);
+  // The rows as stored, before they are expanded: palette indices and grey of 1 to 4 bits are
+  // what the file's deflate stream holds (a valid 1000x1000 palette image of 1.8 KB had been
+  // refused against its expanded RGB rows).
+  const size_t stored_row_bytes = png_get_rowbytes(png, info);
   png_set_expand(png);  // palette -> RGB, low-bit grey -> 8 bits, tRNS -> alpha
   png_set_strip_alpha(png);
   png_read_update_info(png, info);
@@ -194,7 +205,7 @@ Image read_png(const std::string& path, uint64_t max_bytes) {
   const int bits = png_get_bit_depth(png, info);
   const int channels = png_get_channels(png, info);
   const size_t row_bytes = png_get_rowbytes(png, info);
-  if ((row_bytes + 1) * size_t(height) > kDeflateMaxRatio * file_bytes) {
+  if (stored_row_bytes * size_t(height) > kDeflateMaxRatio * file_bytes) {
     png_destroy_read_struct(&png, &info, nullptr);
     throw InputError(path, "IHDR",
                      std::to_string(width) + "x" + std::to_string(height) +
@@ -240,20 +251,36 @@ void write_pfm(const Image& image, const std::string& path) {
 Image read_pfm(const std::string& path, uint64_t max_bytes) {
   FilePtr f = open_file(path, "rb");
   if (!f) throw InputError(path, "", std::string("cannot open: ") + std::strerror(errno));
+  // "PF" or "Pf" and a whitespace ("PF4" is not a PFM header), then width, height and scale.
   char kind[3] = {};
   int width = 0, height = 0;
   double scale = 0;
-  if (std::fscanf(f.get(), "%2s %d %d %lf", kind, &width, &height, &scale) != 4 ||
-      (std::strcmp(kind, "PF") != 0 && std::strcmp(kind, "Pf") != 0))
+  const bool magic = std::fread(kind, 1, 2, f.get()) == 2 &&
+                     (std::strcmp(kind, "PF") == 0 || std::strcmp(kind, "Pf") == 0) &&
+                     std::isspace(std::fgetc(f.get()));
+  if (!magic || std::fscanf(f.get(), "%d %d %lf", &width, &height, &scale) != 3)
     throw InputError(path, "byte offset 0", "not a PFM file (expected PF or Pf header)");
   // The scale's sign is the byte order and its size a unit: NaN, infinity and 0 are neither.
   if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide || scale == 0 ||
       !std::isfinite(scale))
     throw InputError(path, "header", "implausible size or scale");
   if (scale > 0) throw InputError(path, "header", "big-endian PFM is not supported");
-  std::fgetc(f.get());  // the single whitespace after the scale
+  // The single whitespace after the scale; a CRLF header's "\r\n" is one too (read as the
+  // "\r" alone, the pixels had been read a byte off and the image compared at 2.7 dB).
+  if (std::fgetc(f.get()) == '\r') {
+    const int next = std::fgetc(f.get());
+    if (next != '\n' && next != EOF) std::ungetc(next, f.get());
+  }
   const int channels = kind[1] == 'F' ? 3 : 1;
   const size_t pixel_bytes = size_t(width) * height * channels * 4, left = bytes_left(f.get());
+  // Bytes past the pixels mean the header was read otherwise than it was written (a .binlines
+  // refuses them too).
+  if (pixel_bytes < left)
+    throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get()) + long(pixel_bytes)),
+                     std::to_string(left - pixel_bytes) +
+                         " bytes after the pixel data: the header's " + std::to_string(width) +
+                         "x" + std::to_string(height) + " pixels take " +
+                         std::to_string(pixel_bytes) + " bytes");
   if (pixel_bytes > left)
     throw InputError(path, "byte offset " + std::to_string(std::ftell(f.get())),
                      "truncated pixel data: the header's " + std::to_string(width) + "x" +
