@@ -46,6 +46,9 @@ class BinlinesReader : public LineReader {
           in_.fail_at(at, "implausible attribute name length " + std::to_string(length));
         std::string name(length, '\0');
         in_.read(name.data(), length, "attribute name");
+        // Every consumer reads a name as C text (HDF5, VTK, the terminal): a NUL had cut it short.
+        if (const size_t nul = name.find('\0'); nul != std::string::npos)
+          in_.fail_at(at + 4 + nul, "attribute name holds a NUL byte");
         header_.attributes[a].name = name;
       }
     }

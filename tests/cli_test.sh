@@ -595,6 +595,11 @@ assert r.returncode == 2 and 'pf4.pfm: byte offset 0: not a PFM file' in r.stder
 "
 check "a FIFO as input is exit 2 at once, naming it (commands had waited in open() for a writer, a signal restarting the wait)" bash -c "rm -f '$tmp/pipe.pfm' && mkfifo '$tmp/pipe.pfm' && for cmd in 'depth-complexity' 'compare' 'info'; do extra=''; [ \$cmd = compare ] && extra='$tmp/pipe.pfm'; timeout -k 5 20 '$bin' \$cmd '$tmp/pipe.pfm' \$extra 2> '$tmp/pipe.err'; [ \$? -eq 2 ] && grep -q 'pipe.pfm: is a FIFO (a pipe), not a file' '$tmp/pipe.err' || exit 1; done"
 check_budget "synth to .binlines under a budget below what it holds is exit 4, nothing written (it had ignored the budget, 52 MB resident under 20M); under 64M its batches fit, the same bytes as unlimited" bash -c "'$bin' synth aneurysm --scale 0.05 -o '$tmp/sb.binlines' --memory-budget 20M 2> '$tmp/sb.err'; [ \$? -eq 4 ] && grep -q \"sb.binlines: the process's resident memory reached\" '$tmp/sb.err' && [ ! -e '$tmp/sb.binlines' ] && '$bin' synth aneurysm --scale 0.05 -o '$tmp/sb.binlines' --memory-budget 64M 2> /dev/null && '$bin' synth aneurysm --scale 0.05 -o '$tmp/sb2.binlines' --memory-budget unlimited 2> /dev/null && cmp '$tmp/sb.binlines' '$tmp/sb2.binlines'"
+check "a synth: source giving a parameter twice is exit 2 naming it (the last one had been taken); a .binlines attribute name holding a NUL is exit 2 at its byte (it had been cut short)" bash -c "'$bin' info 'synth:aneurysm?scale=0.01&scale=2' 2> '$tmp/twice.err'; [ \$? -eq 2 ] && grep -q 'scale: given twice; give it once' '$tmp/twice.err' && /usr/bin/python3 -c \"
+import struct, sys
+name = b'sp\\0eed'
+open(sys.argv[1], 'wb').write(struct.pack('<IIII', 2, 1, 1, len(name)) + name + struct.pack('<I6f2f', 2, 0, 0, 0, 1, 1, 1, 0, 1))
+\" '$tmp/nul.binlines' && { '$bin' info '$tmp/nul.binlines' 2> '$tmp/nul.err'; [ \$? -eq 2 ]; } && grep -q 'nul.binlines: byte offset 18: attribute name holds a NUL byte' '$tmp/nul.err'"
 check_budget "bench tubes --repeat 10 under 40M peaks within it (memcpy's buffers had been sized from the budget's start: 52 MB)" /usr/bin/python3 -c "
 import os, subprocess
 subprocess.run(['$bin', 'synth', 'aneurysm', '--scale', '0.01', '-o', '$tmp/tubes_a.binlines'], check=True, capture_output=True)

@@ -54,6 +54,7 @@ SynthParams parse_synth_source(const std::string& source) {
                          did_you_mean(params.name, names));
   if (q == std::string::npos) return params;
   std::string query = rest.substr(q + 1);
+  std::vector<std::string> given;  // a key given twice is refused, not the last one taken
   size_t start = 0;
   while (start <= query.size()) {
     const size_t amp = std::min(query.find('&', start), query.size());
@@ -64,6 +65,9 @@ SynthParams parse_synth_source(const std::string& source) {
     const std::string key = pair.substr(0, eq);
     const std::string value = eq == std::string::npos ? "" : pair.substr(eq + 1);
     const char* end = value.data() + value.size();
+    if (std::find(given.begin(), given.end(), key) != given.end())
+      throw InputError(source, key, "given twice; give it once");
+    given.push_back(key);
     if (key == "scale") {
       auto r = std::from_chars(value.data(), end, params.scale);
       if (r.ec != std::errc() || r.ptr != end || !(params.scale >= kMinScale) ||
