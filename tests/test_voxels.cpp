@@ -80,6 +80,18 @@ TEST(Voxels, AutomaticResolution) {
       EXPECT_NE(std::string(e.what()).find("is outside 1..4096"), std::string::npos) << e.what();
     }
   }
+  // NxNxN past a grid's 2^32 - 1 voxels is known from the option: a usage error (it had been a
+  // BudgetExceeded, exit 4, once the data was read). 4096 x 1024 x 1023 = 4,290,772,992 fits.
+  parse_grid("4096x1024x1023", o);
+  try {
+    parse_grid("2048x2048x1024", o);
+    ADD_FAILURE();
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("--grid: 2048x2048x1024 is 4294967296 voxels, more than "
+                                         "the 2^32 - 1 a grid may hold"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(Voxels, GridCoversTheBoundsWithCubicVoxels) {

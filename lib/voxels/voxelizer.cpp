@@ -1035,6 +1035,13 @@ void parse_grid(const std::string& text, VoxelOptions& options) {
     options.resolution.reset();
   } else if (std::regex_match(text, m, triple)) {
     options.resolution = std::array<uint32_t, 3>{axis(m[1]), axis(m[2]), axis(m[3])};
+    // Known from the option alone (N alone takes the data's aspect): a usage error, as the
+    // grid's own limit (place_grid) is for a grid sized from the data.
+    const auto& r = *options.resolution;
+    const uint64_t voxels = uint64_t(r[0]) * r[1] * r[2];
+    if (voxels >= 0xFFFFFFFFull)
+      throw UsageError("--grid: " + text + " is " + std::to_string(voxels) +
+                       " voxels, more than the 2^32 - 1 a grid may hold");
   } else {
     throw UsageError("--grid: expected auto, N or NxNxN, got '" + text + "'");
   }
