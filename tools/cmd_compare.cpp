@@ -56,8 +56,7 @@ Command add_compare(CLI::App& app) {
     // place, so that the command holds two images and SSIM's rows, no more.
     MemoryBudget budget(memory_budget_bytes(args->memory_budget));
     const auto read = [&budget](const std::string& path) {
-      Image image = read_image(path, budget.available());
-      budget.reserve(image_bytes(image.width, image.height, image.channels), path);
+      Image image = read_image(path, budget);
       if (const std::string place = first_nonfinite_pixel(image); !place.empty())
         throw InputError(path, place,
                          "not a finite value (NaN or infinity): PSNR and SSIM need finite values");

@@ -313,4 +313,10 @@ Image read_image(const std::string& path, uint64_t max_bytes) {
   return read_png(path, max_bytes);
 }
 
+Image read_image(const std::string& path, MemoryBudget& budget) {
+  Image image = read_image(path, budget.available());
+  budget.reserve(image_bytes(image.width, image.height, image.channels), path);
+  return image;
+}
+
 }  // namespace linebake

@@ -8,6 +8,8 @@
 
 namespace linebake {
 
+class MemoryBudget;
+
 struct Image {
   int width = 0, height = 0, channels = 3;  // 1 (grey) or 3 (RGB)
   // What the values mean: linear light (renderers) or already sRGB-encoded (a PNG read back).
@@ -49,5 +51,7 @@ void write_image(const Image& image, const std::string& path, int png_bits = 8);
 // or read-only directory), as OutputError naming the path.
 void check_image_output(const std::string& path);
 Image read_image(const std::string& path, uint64_t max_bytes = UINT64_MAX);
+// read_image within what `budget` leaves, its floats then reserved from it (named by the path).
+Image read_image(const std::string& path, MemoryBudget& budget);
 
 }  // namespace linebake

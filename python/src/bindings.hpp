@@ -22,6 +22,7 @@
 
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
+#include "core/memory_budget.hpp"
 #include "lines/line_set.hpp"
 
 namespace linebake::python {
@@ -99,6 +100,8 @@ std::string text_arg(const py::handle& value, const std::string& what);
 // it for a size the CLI refuses, 0 included unless `refuse_zero` is false (render()'s options,
 // refused in the CLI's own words).
 std::string budget_arg(const py::handle& value, const std::string& what, bool refuse_zero = true);
+// The process's budget from a memory_budget argument (None: the CLI's default), named `what`.
+MemoryBudget budget_of(const py::object& value, const std::string& what);
 
 // An origin (lines/origin.hpp) as the CLI's --origin text: None "", a str ("auto", "x,y,z") as
 // it is, three numbers (a tuple, list or NumPy array) as their exact text; a TypeError naming

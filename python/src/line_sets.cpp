@@ -86,13 +86,14 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
     // made a CSV linebake cannot read ("header column has no name").
     if (attribute.name.empty())
       throw py::value_error(std::string(what) + " names must not be empty");
-    // Lists of Python floats are float64 arrays here, checked as such.
-    if (const py::array given = py::array::ensure(value); given)
+    // Lists of Python floats are float64 arrays here, checked as such, and converted once.
+    const py::array given = py::array::ensure(value);
+    if (given)
       check_float32_range(given, std::string(what) + " '" + attribute.name + "'", 1,
                           std::string(what) == "attribute" ? "point" : "line");
     else
       PyErr_Clear();
-    const FloatArray values = FloatArray::ensure(value);
+    const FloatArray values = FloatArray::ensure(given ? py::object(given) : value);
     if (!values || values.ndim() != 1 || size_t(values.size()) != count)
       throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +
                             std::to_string(count) + " float32 values, one per " +
@@ -136,9 +137,7 @@ uint64_t copy_bytes(const py::handle& value, char kind, size_t word) {
 // made (the caller's arrays are in the process's resident memory already).
 void check_copies(const py::array& points, const py::array& offsets, const py::object& attributes,
                   const py::object& line_attributes, const py::object& memory_budget) {
-  const std::string text =
-      memory_budget.is_none() ? "" : budget_arg(memory_budget, "LineSet: memory_budget");
-  MemoryBudget budget(cli::memory_budget_bytes(text));
+  MemoryBudget budget = budget_of(memory_budget, "LineSet: memory_budget");
   uint64_t bytes = copy_bytes(points, 'f', sizeof(float)) +
                    2 * copy_bytes(offsets, 'u', sizeof(uint64_t));  // signed ones checked first
   size_t count = 0;

@@ -6,6 +6,7 @@
 #include "core/h5.hpp"
 #include "core/memory_budget.hpp"
 #include "lines/origin.hpp"
+#include "whole_output.hpp"
 
 namespace linebake::python {
 
@@ -95,6 +96,10 @@ std::string budget_arg(const py::handle& value, const std::string& what, bool re
   // No room for any work ('unlimited' is the word for none), as on the command line.
   if (bytes == 0 && refuse_zero) throw UsageError(what + ": " + kZeroBudget);
   return text;
+}
+
+MemoryBudget budget_of(const py::object& value, const std::string& what) {
+  return MemoryBudget(cli::memory_budget_bytes(value.is_none() ? "" : budget_arg(value, what)));
 }
 
 std::string origin_arg(const py::handle& value, const std::string& what) {

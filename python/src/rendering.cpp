@@ -20,7 +20,6 @@
 #include "render_option_ranges.hpp"
 #include "techniques/framing.hpp"
 #include "techniques/technique.hpp"
-#include "whole_output.hpp"
 
 namespace linebake::python {
 
@@ -356,9 +355,7 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
       py::hasattr(source, "__fspath__")) {
     const std::string path = path_arg(source, what);
     cli::check_input_file(path);
-    Image image = read_image(path, budget.available());
-    budget.reserve(image_bytes(image.width, image.height, image.channels), path);
-    return image;
+    return read_image(path, budget);
   }
   const py::array given = py::array::ensure(source);
   if (!given) {
@@ -412,8 +409,7 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
 
 py::dict compare(const py::object& a, const py::object& b, const std::optional<bool>& srgb_encoded,
                  const py::object& memory_budget) {
-  MemoryBudget budget(cli::memory_budget_bytes(
-      memory_budget.is_none() ? "" : budget_arg(memory_budget, "compare: memory_budget")));
+  MemoryBudget budget = budget_of(memory_budget, "compare: memory_budget");
   // Each checked as given (the display encoding clamps an infinity to 0 or 1; a NaN stays) and
   // encoded in place: two images and SSIM's rows, no more.
   const auto read = [&](const py::object& source, const char* which) {

@@ -166,12 +166,12 @@ struct TileRenderer::State {
             uint64_t primitives, uint32_t vertex_stride, uint64_t max_buffer_bytes,
             uint32_t slice_keys_wanted, bool triangles, WindowLoops window_loops);
 
-  // Pipeline i, made now if it was left for its first use ("": none).
   // The composite of whole tiles for these options: the rounds 2, each pixel's own hits 6, late
   // shading 8, both 10 (`shaders`); the next one is its walks again with the deeper window.
   static size_t whole_composite(const TileOptions& o) {
     return o.late_shading ? (o.pixel_hits ? 10 : 8) : (o.pixel_hits ? 6 : 2);
   }
+  // Pipeline i, made now if it was left for its first use ("": none).
   VkPipeline pipeline(size_t i) {
     if (!pipelines.at(i) && !shaders.at(i).empty())
       pipelines[i] =
