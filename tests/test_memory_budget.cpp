@@ -62,3 +62,31 @@ TEST(MemoryBudget, TheDefaultIsHalfOfWhatTheProcessMayHave) {
   EXPECT_EQ(default_memory_budget(), physical_memory_bytes() / 2);
   EXPECT_GT(physical_memory_bytes(), 0u);
 }
+
+// Sizes as users write them, with the bytes worked out by hand; what std::stod had also taken
+// (spaces, signs, hexadecimal: "0x100M" was 256 MiB) and Kubernetes' "Gi" it had refused.
+TEST(MemoryBudget, SizesAreDecimalNumbersWithBinaryUnits) {
+  EXPECT_EQ(parse_size("4096"), 4096u);
+  EXPECT_EQ(parse_size("4096B"), 4096u);
+  EXPECT_EQ(parse_size("64k"), 65536u);
+  EXPECT_EQ(parse_size("512M"), 536870912u);
+  EXPECT_EQ(parse_size("512MB"), 536870912u);
+  EXPECT_EQ(parse_size("1.5GiB"), 1610612736u);
+  EXPECT_EQ(parse_size("2Gi"), 2147483648u);
+  EXPECT_EQ(parse_size("2gib"), 2147483648u);
+  EXPECT_EQ(parse_size("1T"), 1099511627776u);
+  EXPECT_EQ(parse_size(".5K"), 512u);
+  EXPECT_EQ(parse_size("1e9"), 1000000000u);
+  EXPECT_EQ(parse_size("0"), 0u);
+  for (const char* text : {"", "G", " 2", "2 ", "+2", "-1", "0x10", "0x100M", "1e", "2GG", "2P",
+                           "inf", "nan", "1,5G", "2 G", "1e400"}) {
+    try {
+      parse_size(text);
+      ADD_FAILURE() << "'" << text << "' was taken";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string("'") + text + "'"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_THROW(parse_size("16777216T"), Error);  // 2^64 bytes
+}

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,24 +18,28 @@
 namespace linebake {
 
 uint64_t parse_size(const std::string& text) {
-  size_t end = 0;
+  // A decimal number as written (digits, a fraction, an exponent), then the unit: std::stod had
+  // also taken leading spaces, a sign and hexadecimal ("0x100M" was 256 MiB).
   double value = 0;
-  try {
-    value = std::stod(text, &end);
-  } catch (const std::exception&) {
-    end = 0;
+  const char* const last = text.data() + text.size();
+  const char* end = text.data();
+  if (!text.empty() && (std::isdigit(static_cast<unsigned char>(text[0])) || text[0] == '.')) {
+    const auto parsed = std::from_chars(text.data(), last, value, std::chars_format::general);
+    if (parsed.ec == std::errc()) end = parsed.ptr;
   }
-  std::string unit = text.substr(end);
+  std::string unit(end, last);
   for (char& c : unit) c = char(std::toupper(static_cast<unsigned char>(c)));
   int shift = -1;
   if (unit.empty() || unit == "B") shift = 0;
   const char* prefixes = "KMGT";
   for (int i = 0; i < 4; ++i) {
     const std::string p(1, prefixes[i]);
-    if (unit == p || unit == p + "B" || unit == p + "IB") shift = 10 * (i + 1);
+    if (unit == p || unit == p + "B" || unit == p + "I" || unit == p + "IB") shift = 10 * (i + 1);
   }
-  if (end == 0 || shift < 0 || !(value >= 0) || !std::isfinite(value))
-    throw Error("bad size '" + text + "' (expected bytes, or a number with K, M, G or T)");
+  if (end == text.data() || shift < 0 || !std::isfinite(value))
+    throw Error("bad size '" + text +
+                "' (expected a number of bytes, or one with the binary unit K, M, G or T, "
+                "as 512M, 1.5GiB or 2Gi)");
   const double bytes = value * std::ldexp(1.0, shift);
   if (bytes > 1.8e19) throw Error("size '" + text + "' is too large");
   return uint64_t(std::llround(bytes));

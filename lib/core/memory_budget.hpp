@@ -8,8 +8,9 @@
 
 namespace linebake {
 
-// "2G", "1.5GiB", "512M", "64k", "4096": binary units (K, M, G, T = 2^10, 2^20, 2^30, 2^40),
-// with or without "iB"/"B". Throws Error on anything else.
+// "2G", "1.5GiB", "2Gi", "512M", "64k", "4096", "1e9": a decimal number and a binary unit (K, M,
+// G, T = 2^10, 2^20, 2^30, 2^40, with or without "B", "i" or "iB"; any case). Throws Error on
+// anything else: spaces, a sign, hexadecimal.
 uint64_t parse_size(const std::string& text);
 // "1.50 GiB", "512.00 MiB", "17 B": binary units, two decimals.
 std::string format_bytes(uint64_t bytes);
