@@ -128,7 +128,13 @@ std::array<float, 2> range_from(const py::handle& value, const std::string& what
   std::array<float, 2> range{};
   for (size_t i = 0; i < 2; ++i) {
     if (!is_number(pair[i])) wrong_kind(value, what, wanted);
-    range[i] = typed_arg<float>(pair[i], what);
+    // A number float32 cannot hold is the wrong value, not the wrong kind (the docs' ValueError).
+    const double number = typed_arg<double>(pair[i], what);
+    range[i] = float(number);
+    if (std::isfinite(number) && !std::isfinite(range[i]))
+      throw py::value_error(what + ": expected two finite numbers lo < hi, got (" +
+                            repr_of(pair[0]) + ", " + repr_of(pair[1]) + "): " + repr_of(pair[i]) +
+                            " is outside float32's range");
   }
   return range;
 }
@@ -324,9 +330,12 @@ class TemporaryInput {
 };
 
 py::dict bake_lines(const py::object& lines_or_path, const py::object& cache,
-                    const std::vector<std::string>& assets, bool progress,
+                    const py::object& assets, const py::object& progress,
                     const py::kwargs& options) {
-  BakeOptions o = bake_options(options, assets, progress);
+  // Named when of another kind (a str of assets and a number as progress had been pybind11's
+  // "incompatible function arguments" and taken as a flag).
+  BakeOptions o = bake_options(options, text_list(assets, "bake: assets"),
+                               typed_arg<bool>(progress, "bake: progress"));
   o.cache = cache.is_none() ? "" : path_arg(cache, "bake: cache");
   std::optional<TemporaryInput> temporary;
   std::string set_name;  // how messages name a LineSet's lines
@@ -417,7 +426,8 @@ const VoxelGrid& PyCache::voxels() {
 
 namespace {
 
-py::object provenance_of(const PyCache& cache, const std::string& step) {
+py::object provenance_of(const PyCache& cache, const py::object& step_arg) {
+  const std::string step = typed_arg<std::string>(step_arg, "provenance: step");
   const std::string group = step == "lines" ? "/lines" : "/assets/" + step;
   const std::optional<Provenance> p = cache.reader().provenance(group);
   if (!p) throw InputError(cache.path(), group, "no provenance (no such step in the cache)");

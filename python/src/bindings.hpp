@@ -95,6 +95,10 @@ bool is_number(const py::handle& value);   // int, float or NumPy number, not bo
 // UTF-8 cannot encode (a lone surrogate).
 std::string text_arg(const py::handle& value, const std::string& what);
 
+// A list, tuple or other iterable of str (not a str itself, whose characters are no names) as
+// names; a TypeError naming `what` for anything else.
+std::vector<std::string> text_list(const py::handle& value, const std::string& what);
+
 // A memory budget as the CLI's --memory-budget text: a str ("8G", "unlimited") as it is, an int
 // (not bool) a number of bytes; a TypeError naming `what` for anything else, a UsageError naming
 // it for a size the CLI refuses, 0 included unless `refuse_zero` is false (render()'s options,
@@ -161,6 +165,43 @@ template <class T>
 std::optional<T> keyword(const std::string& function, const py::kwargs& options, const char* name) {
   if (!options.contains(name)) return std::nullopt;
   return typed_arg<T>(options[name], function + ": " + name);
+}
+
+// `value` as NumPy converts an array-like (numpy.asarray), for an argument of numbers: a
+// TypeError naming `what` for what is none (NumPy's own TypeError or ValueError, as for a
+// ragged list; an array of text, dates, complex numbers or records, which NumPy would convert
+// with a warning at most), and a ValueError for a masked array holding masked values (the
+// values under the mask would be read). Anything else the conversion raises (MemoryError; an
+// OSError or KeyboardInterrupt from a lazy array's __array__) is raised as it is:
+// py::array::ensure had put every failure down to the argument's kind. `kinds`: the NumPy kinds
+// taken, nullptr for any (the caller checks them itself).
+py::array number_array(const py::handle& value, const std::string& what, const char* wanted,
+                       const char* kinds = "biufO");
+
+// `array` (of number_array) as C-order T, a copy unless it is one already: NumPy's TypeError or
+// ValueError (an object array holding something else) as number_array says them, anything else
+// as it is.
+template <class T>
+py::array_t<T, py::array::c_style | py::array::forcecast> c_array(const py::array& array,
+                                                                  const std::string& what,
+                                                                  const char* wanted) {
+  try {
+    return py::array_t<T, py::array::c_style | py::array::forcecast>(array);
+  } catch (py::error_already_set& e) {
+    if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
+    throw py::type_error(what + ": expected " + wanted + " (" + e.what() + ")");
+  }
+}
+
+// The first finite value of an array of floats wider than float32 that float32 cannot hold
+// (NumPy's cast makes it an infinity with no more than a RuntimeWarning): its index in C order
+// and its text as Python's repr writes it. Nothing for any other array.
+std::optional<std::pair<size_t, std::string>> beyond_float32(const py::array& given,
+                                                             const std::string& what,
+                                                             const char* wanted);
+// What beyond_float32 found, said after its place.
+inline std::string beyond_float32_text(const std::string& value) {
+  return value + " is outside float32's range (magnitude above 3.4028235e38)";
 }
 
 // Any mapping (a dict, types.MappingProxyType, ...) or iterable of pairs as a dict, as the stub's

@@ -22,33 +22,19 @@ namespace linebake::python {
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+const char* const kPositions = "an (n, 3) array of positions";
 
-// A finite value that float32 cannot hold, in an array of wider floats: refused naming its row
-// (`unit` i), as the file readers refuse one, before NumPy's cast makes it an infinity with no
-// more than a RuntimeWarning. NaN and infinities given as such are data, validated later.
-void check_float32_range(const py::array& given, const std::string& what, size_t columns,
-                         const char* unit) {
-  if (given.dtype().kind() != 'f' || given.dtype().itemsize() <= 4) return;
-  const auto wide = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
-  if (!wide) return;  // the caller's own conversion says what is wrong
-  const double* values = wide.data();
-  for (size_t i = 0; i < size_t(wide.size()); ++i)
-    if (std::isfinite(values[i]) && !std::isfinite(float(values[i]))) {
-      char text[32];  // the shortest text that reads back as the value, as Python's repr
-      const auto end = std::to_chars(text, text + sizeof text, values[i]).ptr;
-      throw py::value_error(what + ": " + unit + " " + std::to_string(i / columns) + ": " +
-                            std::string(text, end) +
-                            " is outside float32's range (magnitude above 3.4028235e38)");
-    }
-}
-
-// (n, 3) float32 positions, copied into the line set.
+// (n, 3) float32 positions, copied into the line set. A finite value past float32's range is
+// refused naming its row, as the file readers refuse one; NaN and infinities given as such are
+// data, validated later.
 std::vector<float> positions_from(const py::array& points) {
-  if (points.ndim() == 2 && points.shape(1) == 3) check_float32_range(points, "points", 3, "row");
-  const FloatArray xyz = FloatArray::ensure(points);
-  if (!xyz || xyz.ndim() != 2 || xyz.shape(1) != 3)
-    throw py::value_error("points: expected an (n, 3) array of positions");
+  if (points.ndim() == 2 && points.shape(1) == 3)
+    if (const auto beyond = beyond_float32(points, "points", kPositions))
+      throw py::value_error("points: row " + std::to_string(beyond->first / 3) + ": " +
+                            beyond_float32_text(beyond->second));
+  const auto xyz = c_array<float>(points, "points", kPositions);
+  if (xyz.ndim() != 2 || xyz.shape(1) != 3)
+    throw py::value_error(std::string("points: expected ") + kPositions);
   return {xyz.data(), xyz.data() + xyz.size()};
 }
 
@@ -58,12 +44,13 @@ std::vector<uint64_t> offsets_from(const py::array& offsets, size_t points) {
   if (offsets.ndim() != 1 || (kind != 'i' && kind != 'u'))
     throw py::value_error("offsets: expected a 1-D integer array (uint64)");
   // Signed input is checked before the cast, which would wrap negative values.
-  const auto signed_values = py::array_t<int64_t, py::array::forcecast>::ensure(offsets);
-  if (kind == 'i')
+  const char* wanted = "a 1-D integer array (uint64)";
+  if (kind == 'i') {
+    const auto signed_values = c_array<int64_t>(offsets, "offsets", wanted);
     for (py::ssize_t i = 0; i < signed_values.size(); ++i)
-      if (signed_values.at(i) < 0) throw py::value_error("offsets: negative offset");
-  const auto values =
-      py::array_t<uint64_t, py::array::c_style | py::array::forcecast>::ensure(offsets);
+      if (signed_values.data()[i] < 0) throw py::value_error("offsets: negative offset");
+  }
+  const auto values = c_array<uint64_t>(offsets, "offsets", wanted);
   std::vector<uint64_t> result(values.data(), values.data() + values.size());
   if (result.empty() || result.front() != 0)
     throw py::value_error("offsets: must start at 0 (one more offset than lines)");
@@ -76,10 +63,9 @@ std::vector<uint64_t> offsets_from(const py::array& offsets, size_t points) {
 }
 
 // {name: values} with one float32 value per point (or per line), in the dict's order.
-std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, const char* what) {
+std::vector<Attribute> attributes_from(const py::dict& mapping, size_t count, const char* what) {
   std::vector<Attribute> attributes;
-  if (mapping.is_none()) return attributes;
-  for (const auto& [key, value] : mapping_arg(mapping, what)) {
+  for (const auto& [key, value] : mapping) {
     Attribute attribute;
     attribute.name = text_arg(key, std::string(what) + " name");
     // Every format names its attributes; an empty name had read back as "unnamed" from most and
@@ -87,31 +73,20 @@ std::vector<Attribute> attributes_from(const py::object& mapping, size_t count, 
     if (attribute.name.empty())
       throw py::value_error(std::string(what) + " names must not be empty");
     // Lists of Python floats are float64 arrays here, checked as such, and converted once.
-    const py::array given = py::array::ensure(value);
-    if (given)
-      check_float32_range(given, std::string(what) + " '" + attribute.name + "'", 1,
-                          std::string(what) == "attribute" ? "point" : "line");
-    else
-      PyErr_Clear();
-    const FloatArray values = FloatArray::ensure(given ? py::object(given) : value);
-    if (!values || values.ndim() != 1 || size_t(values.size()) != count)
-      throw py::value_error(std::string(what) + " '" + attribute.name + "': expected " +
-                            std::to_string(count) + " float32 values, one per " +
-                            (std::string(what) == "attribute" ? "point" : "line"));
+    const std::string named = std::string(what) + " '" + attribute.name + "'";
+    const char* unit = std::string(what) == "attribute" ? "point" : "line";
+    const std::string wanted = std::to_string(count) + " float32 values, one per " + unit;
+    const py::array given = number_array(value, named, wanted.c_str());
+    if (const auto beyond = beyond_float32(given, named, wanted.c_str()))
+      throw py::value_error(named + ": " + unit + " " + std::to_string(beyond->first) + ": " +
+                            beyond_float32_text(beyond->second));
+    const auto values = c_array<float>(given, named, wanted.c_str());
+    if (values.ndim() != 1 || size_t(values.size()) != count)
+      throw py::value_error(named + ": expected " + wanted);
     attribute.values.assign(values.data(), values.data() + values.size());
     attributes.push_back(std::move(attribute));
   }
   return attributes;
-}
-
-// Array-likes (lists, tuples, arrays of any dtype), as NumPy's asarray takes them.
-py::array array_like(const py::object& value, const char* what) {
-  py::array array = py::array::ensure(value);
-  if (!array) {
-    PyErr_Clear();
-    throw py::type_error(std::string(what) + ": expected an array-like, got " + repr_of(value));
-  }
-  return array;
 }
 
 // The bytes copying `value` into a line set's array of `word`-byte values takes: the copy, and a
@@ -135,19 +110,17 @@ uint64_t copy_bytes(const py::handle& value, char kind, size_t word) {
 
 // What the line set's copies take, checked against what `memory_budget` leaves before any is
 // made (the caller's arrays are in the process's resident memory already).
-void check_copies(const py::array& points, const py::array& offsets, const py::object& attributes,
-                  const py::object& line_attributes, const py::object& memory_budget) {
+void check_copies(const py::array& points, const py::array& offsets, const py::dict& attributes,
+                  const py::dict& line_attributes, const py::object& memory_budget) {
   MemoryBudget budget = budget_of(memory_budget, "LineSet: memory_budget");
   uint64_t bytes = copy_bytes(points, 'f', sizeof(float)) +
                    2 * copy_bytes(offsets, 'u', sizeof(uint64_t));  // signed ones checked first
   size_t count = 0;
-  for (const auto& [mapping, what] :
-       {std::pair(&attributes, "attribute"), std::pair(&line_attributes, "line attribute")})
-    if (!mapping->is_none())
-      for (const auto& [key, value] : mapping_arg(*mapping, what)) {
-        bytes += copy_bytes(value, 'f', sizeof(float));
-        ++count;
-      }
+  for (const py::dict* mapping : {&attributes, &line_attributes})
+    for (const auto& [key, value] : *mapping) {
+      bytes += copy_bytes(value, 'f', sizeof(float));
+      ++count;
+    }
   budget.reserve(bytes, "LineSet: copying " + std::to_string(points.size() / 3) + " points, " +
                             std::to_string(std::max<py::ssize_t>(offsets.size() - 1, 0)) +
                             " lines and " + std::to_string(count) + " attributes");
@@ -161,13 +134,20 @@ std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
                                          const py::object& memory_budget) {
   auto result = std::make_shared<PyLineSet>();
   LineSet& lines = result->lines;
-  const py::array points = array_like(points_like, "points");
-  const py::array offsets = array_like(offsets_like, "offsets");
-  check_copies(points, offsets, attributes, line_attributes, memory_budget);
+  const py::array points = number_array(points_like, "points", kPositions);
+  const py::array offsets = number_array(offsets_like, "offsets", "a 1-D integer array (uint64)");
+  // Each mapping taken once: an iterator of pairs (zip(names, arrays)) is spent by the first
+  // look (its attributes had been counted for the budget and then found empty).
+  const auto as_dict = [](const py::object& mapping, const char* what) {
+    return mapping.is_none() ? py::dict() : mapping_arg(mapping, what);
+  };
+  const py::dict point_values = as_dict(attributes, "attribute");
+  const py::dict line_values = as_dict(line_attributes, "line attribute");
+  check_copies(points, offsets, point_values, line_values, memory_budget);
   lines.positions = positions_from(points);
   lines.line_offsets = offsets_from(offsets, lines.point_count());
-  lines.attributes = attributes_from(attributes, lines.point_count(), "attribute");
-  lines.line_attributes = attributes_from(line_attributes, lines.line_count(), "line attribute");
+  lines.attributes = attributes_from(point_values, lines.point_count(), "attribute");
+  lines.line_attributes = attributes_from(line_values, lines.line_count(), "line attribute");
   if (!metadata.is_none())
     for (const auto& [key, value] : mapping_arg(metadata, "metadata")) {
       const std::string pair = repr_of(key) + ": " + repr_of(value);
@@ -224,10 +204,12 @@ py::dict attribute_views(const std::vector<Attribute>& attributes, py::handle se
   return views;
 }
 
-std::shared_ptr<PyLineSet> read(const py::object& source_arg,
-                                const std::optional<std::string>& format,
+std::shared_ptr<PyLineSet> read(const py::object& source_arg, const py::object& format_arg,
                                 const py::object& memory_budget, const py::object& origin_arg_) {
   const std::string source = path_arg(source_arg, "read");
+  const std::optional<std::string> format =
+      format_arg.is_none() ? std::nullopt
+                           : std::optional(typed_arg<std::string>(format_arg, "read: format"));
   // "8G", "unlimited" or bytes, as bake takes it; None: the CLI's default.
   const std::string budget_text =
       memory_budget.is_none() ? "" : budget_arg(memory_budget, "read: memory_budget");
@@ -251,14 +233,27 @@ std::shared_ptr<PyLineSet> read(const py::object& source_arg,
 }
 
 // As `linebake convert`: what the format cannot hold is a warning, or an Error when strict.
-void write(const PyLineSet& set, const py::object& path_object,
-           const std::optional<std::string>& format, bool ascii, uint32_t binlines_version,
-           const std::string& vtp_encoding, bool vtp_compress, bool strict) {
+void write(const PyLineSet& set, const py::object& path_object, const py::object& format_arg,
+           const py::object& ascii_arg, const py::object& binlines_version_arg,
+           const py::object& vtp_encoding_arg, const py::object& vtp_compress_arg,
+           const py::object& strict_arg) {
   const std::string path = path_arg(path_object, "write");
+  // Each of its own kind, named when not (a number had been taken as a flag, True as version 1,
+  // and a None or a float had been pybind11's "incompatible function arguments").
+  const std::optional<std::string> format =
+      format_arg.is_none() ? std::nullopt
+                           : std::optional(typed_arg<std::string>(format_arg, "write: format"));
+  const bool ascii = typed_arg<bool>(ascii_arg, "write: ascii");
+  const bool vtp_compress = typed_arg<bool>(vtp_compress_arg, "write: vtp_compress");
+  const bool strict = typed_arg<bool>(strict_arg, "write: strict");
+  const std::string vtp_encoding = typed_arg<std::string>(vtp_encoding_arg, "write: vtp_encoding");
+  const int64_t binlines_version =
+      typed_arg<int64_t>(binlines_version_arg, "write: binlines_version");
   // Checked as `linebake convert` checks --binlines-version and --vtp-encoding, before the
   // format's warnings (an unknown name had been a plain Error, after them).
   if (binlines_version < 1 || binlines_version > 2)
     throw UsageError("write: binlines_version: 1 or 2, not " + std::to_string(binlines_version));
+  // (binlines_version is 1 or 2 from here)
   std::string encoding = vtp_encoding;
   if (const std::string problem =
           cli::one_of({"appended", "appended-base64", "base64", "ascii"})(encoding);
@@ -278,7 +273,7 @@ void write(const PyLineSet& set, const py::object& path_object,
   if ((vtp_encoding != "appended" || !vtp_compress) && f != Format::vtp)
     throw UsageError("write: vtp_encoding and vtp_compress: only for vtp outputs");
   options.ascii = ascii;
-  options.binlines_version = binlines_version;
+  options.binlines_version = uint32_t(binlines_version);
   options.vtp_encoding = ascii ? "ascii" : vtp_encoding;
   options.vtp_compress = vtp_compress;
   check_output_location(path);
@@ -295,8 +290,8 @@ void write(const PyLineSet& set, const py::object& path_object,
   write_line_set(set.lines, path, options);
 }
 
-std::shared_ptr<PyLineSet> with_derived(const PyLineSet& set,
-                                        const std::vector<std::string>& names) {
+std::shared_ptr<PyLineSet> with_derived(const PyLineSet& set, const py::object& names_arg) {
+  const std::vector<std::string> names = text_list(names_arg, "with_derived: names");
   auto result = std::make_shared<PyLineSet>(set);
   LineSet& lines = result->lines;
   for (const std::string& name : names) {
@@ -310,7 +305,8 @@ std::shared_ptr<PyLineSet> with_derived(const PyLineSet& set,
   return result;
 }
 
-py::tuple validated(const PyLineSet& set, const std::string& policy) {
+py::tuple validated(const PyLineSet& set, const py::object& policy_arg) {
+  const std::string policy = typed_arg<std::string>(policy_arg, "validate: policy");
   auto result = std::make_shared<PyLineSet>(set);
   const InvalidPolicy parsed = as_usage_error([&] { return parse_invalid_policy(policy); });
   const std::string source = set.source.empty() ? "<arrays>" : set.source;

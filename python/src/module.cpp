@@ -1,6 +1,10 @@
 // The `linebake` Python module: line sets from and to NumPy, every format, bakes, caches,
 // renders and image metrics, through the same library calls as the CLI (issue 24).
 
+#include <charconv>
+#include <cstring>
+#include <string_view>
+
 #include "bindings.hpp"
 #include "core/error.hpp"
 #include "core/h5.hpp"
@@ -69,7 +73,64 @@ std::string text_arg(const py::handle& value, const std::string& what) {
     PyErr_Clear();
     wrong_kind(value, what, "a str that UTF-8 can encode (no lone surrogates)");
   }
+  // The C library would end the text at a NUL: an attribute name had been written cut short
+  // to HDF5 and as U+FFFD to VTP, a provenance step read as the one before it.
+  if (std::memchr(data, 0, size_t(size)) != nullptr)
+    throw py::value_error(what + ": embedded null byte in " + repr_of(value));
   return std::string(data, size_t(size));
+}
+
+py::array number_array(const py::handle& value, const std::string& what, const char* wanted,
+                       const char* kinds) {
+  const py::module_ masked = py::module_::import("numpy.ma");
+  if (py::isinstance(value, masked.attr("MaskedArray")) &&
+      masked.attr("is_masked")(value).cast<bool>())
+    throw py::value_error(what +
+                          ": a masked array with masked values, whose values under the "
+                          "mask would be read; fill them first (a.filled(numpy.nan))");
+  py::array array;
+  try {
+    array = py::array(py::reinterpret_borrow<py::object>(value));
+  } catch (py::error_already_set& e) {
+    if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
+    wrong_kind(value, what, wanted);
+  }
+  // By default booleans, integers, floats, and objects NumPy converts one by one (c_array says
+  // which fail).
+  if (kinds && std::string_view(kinds).find(array.dtype().kind()) == std::string_view::npos)
+    throw py::type_error(what + ": expected " + wanted + ", got an array of " +
+                         std::string(py::str(array.dtype())));
+  return array;
+}
+
+std::optional<std::pair<size_t, std::string>> beyond_float32(const py::array& given,
+                                                             const std::string& what,
+                                                             const char* wanted) {
+  if (given.dtype().kind() != 'f' || given.dtype().itemsize() <= 4) return std::nullopt;
+  const auto wide = c_array<double>(given, what, wanted);
+  const double* values = wide.data();
+  for (size_t i = 0; i < size_t(wide.size()); ++i)
+    if (std::isfinite(values[i]) && !std::isfinite(float(values[i]))) {
+      char text[32];  // the shortest text that reads back as the value, as Python's repr
+      const auto end = std::to_chars(text, text + sizeof text, values[i]).ptr;
+      return std::pair(i, std::string(text, end));
+    }
+  return std::nullopt;
+}
+
+std::vector<std::string> text_list(const py::handle& value, const std::string& what) {
+  const char* wanted = "a list of str";
+  if (PyUnicode_Check(value.ptr()) || PyBytes_Check(value.ptr())) wrong_kind(value, what, wanted);
+  py::list items;
+  try {
+    items = py::list(py::reinterpret_borrow<py::object>(value));
+  } catch (py::error_already_set& e) {
+    if (!e.matches(PyExc_TypeError)) throw;
+    wrong_kind(value, what, wanted);
+  }
+  std::vector<std::string> names;
+  for (const py::handle item : items) names.push_back(typed_arg<std::string>(item, what));
+  return names;
 }
 
 std::string budget_arg(const py::handle& value, const std::string& what, bool refuse_zero) {

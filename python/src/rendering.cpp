@@ -357,11 +357,8 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     cli::check_input_file(path);
     return read_image(path, budget);
   }
-  const py::array given = py::array::ensure(source);
-  if (!given) {
-    PyErr_Clear();
-    wrong_kind(source, what, "an (h, w, 3|4) array or a path (str, bytes, os.PathLike)");
-  }
+  const char* wanted = "an (h, w, 3|4) array or a path (str, bytes, os.PathLike)";
+  const py::array given = number_array(source, what, wanted, nullptr);  // its kinds below
   const char kind = given.dtype().kind();
   const size_t bytes = size_t(given.dtype().itemsize());
   const double scale = kind == 'u' && bytes == 1 ? 255.0 : kind == 'u' && bytes == 2 ? 65535.0 : 0;
@@ -374,6 +371,15 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     throw py::value_error(
         "compare: expected an (h, w, 3), (h, w, 4), (h, w) or (h, w, 1) image or a file name");
   const size_t channels = grey ? 1 : 3;
+  // A finite value NumPy's cast would make an infinity, said as such (it had been called "not a
+  // finite value").
+  if (const auto beyond = beyond_float32(given, what, wanted)) {
+    const size_t pixel = beyond->first / size_t(given.ndim() == 2 ? 1 : given.shape(2));
+    const size_t width = size_t(std::max<py::ssize_t>(given.shape(1), 1));
+    throw py::value_error(what + ": pixel (" + std::to_string(pixel % width) + ", " +
+                          std::to_string(pixel / width) +
+                          "): " + beyond_float32_text(beyond->second));
+  }
   // The image's floats, and the array converted to float32 or uint16 (C order) where it is not
   // so already, checked before either is allocated.
   const size_t word = scale != 0 ? sizeof(uint16_t) : sizeof(float);
@@ -391,14 +397,14 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
   if (scale != 0) {
     // uint8 widened to uint16 exactly; each value as read_png computes it.
     using Words = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>;
-    const Words words = Words::ensure(given);
+    const Words words = c_array<uint16_t>(given, what, wanted);
     const uint16_t* in = words.data();
     for (size_t i = 0; i < pixels; ++i)
       for (size_t c = 0; c < channels; ++c)
         image.pixels[channels * i + c] = float(in[stride * i + c] / scale);
   } else {
     using Floats = py::array_t<float, py::array::c_style | py::array::forcecast>;
-    const Floats floats_in = Floats::ensure(given);
+    const Floats floats_in = c_array<float>(given, what, wanted);
     const float* in = floats_in.data();
     for (size_t i = 0; i < pixels; ++i)
       for (size_t c = 0; c < channels; ++c) image.pixels[channels * i + c] = in[stride * i + c];
@@ -407,8 +413,12 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
   return image;
 }
 
-py::dict compare(const py::object& a, const py::object& b, const std::optional<bool>& srgb_encoded,
+py::dict compare(const py::object& a, const py::object& b, const py::object& srgb_encoded_arg,
                  const py::object& memory_budget) {
+  const std::optional<bool> srgb_encoded =
+      srgb_encoded_arg.is_none()
+          ? std::nullopt
+          : std::optional(typed_arg<bool>(srgb_encoded_arg, "compare: srgb_encoded"));
   MemoryBudget budget = budget_of(memory_budget, "compare: memory_budget");
   // Each checked as given (the display encoding clamps an infinity to 0 or 1; a NaN stays) and
   // encoded in place: two images and SSIM's rows, no more.
@@ -440,7 +450,8 @@ py::dict compare(const py::object& a, const py::object& b, const std::optional<b
   return result;
 }
 
-py::list technique_list(const std::string& device) {
+py::list technique_list(const py::object& device_arg) {
+  const std::string device = typed_arg<std::string>(device_arg, "techniques: device");
   py::list rows;
   for (const Technique& t : techniques()) {
     TechniqueOptions options;
@@ -525,8 +536,7 @@ for Renderer, checked against the CLI's ranges (linebake.UsageError with the CLI
 memory_budget: '40G', 'unlimited' or bytes (an int); None: half of physical memory, or of the cgroup's or ulimit -v's limit when less. Releases
 the GIL.)doc");
   module.def("compare", &compare, py::arg("image"), py::arg("reference"), py::kw_only(),
-             py::arg("srgb_encoded").noconvert() = py::none(),
-             py::arg("memory_budget") = py::none(), R"doc(
+             py::arg("srgb_encoded") = py::none(), py::arg("memory_budget") = py::none(), R"doc(
 PSNR (dB, capped at 60) and SSIM of an image against a reference, as `linebake compare`: both
 display-encoded first. Each is an (h, w, 3|4) array (alpha ignored) or a .png/.pfm file (str,
 bytes or os.PathLike). Float arrays are linear values, uint8 and uint16 arrays the values of a

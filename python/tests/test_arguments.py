@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import linebake
-from conftest import cli_error, cli_json, cli_path, resident_bytes, vulkan_available
+from conftest import SYNTH, cli_error, cli_json, cli_path, resident_bytes, vulkan_available
 
 SIZE = (32, 24)
 
@@ -672,3 +672,63 @@ def test_write_options_are_checked_as_convert_checks_them(tmp_path):
     linebake.write(lines, str(tmp_path / "x.vtk"), ascii=True)
     linebake.write(lines, str(tmp_path / "x.binlines"), binlines_version=1)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.binlines", "x.vtk"]
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda p: linebake.write(small_lines(), p, ascii=1.5), "^write: ascii: expected True or False, got 1.5"),
+    (lambda p: linebake.write(small_lines(), p, strict=None), "^write: strict: expected True or False, got None"),
+    (lambda p: linebake.write(small_lines(), p, vtp_compress=2), "^write: vtp_compress: expected True or False"),
+    (lambda p: linebake.write(small_lines(), p, binlines_version=True), "^write: binlines_version: expected an integer"),
+    (lambda p: linebake.write(small_lines(), p, binlines_version=2.0), "^write: binlines_version: expected an integer"),
+    (lambda p: linebake.write(small_lines(), p, vtp_encoding=None), "^write: vtp_encoding: expected a str, got None"),
+    (lambda p: linebake.write(small_lines(), p, format=3), "^write: format: expected a str, got 3"),
+    (lambda p: linebake.read(SYNTH, 3), "^read: format: expected a str, got 3"),
+    (lambda p: linebake.bake(small_lines(), p, progress=1.5), "^bake: progress: expected True or False, got 1.5"),
+    (lambda p: linebake.bake(small_lines(), p, assets="tubes"), "^bake: assets: expected a list of str, got 'tubes'"),
+    (lambda p: linebake.bake(small_lines(), p, assets=["tubes", 1]), "^bake: assets: expected a str, got 1"),
+    (lambda p: linebake.compare(np.zeros((16, 16, 3)), np.zeros((16, 16, 3)), srgb_encoded=1),
+     "^compare: srgb_encoded: expected True or False, got 1"),
+    (lambda p: linebake.techniques(None), "^techniques: device: expected a str, got None"),
+    (lambda p: small_lines().with_derived("curvature"), "^with_derived: names: expected a list of str"),
+    (lambda p: small_lines().validate(None), "^validate: policy: expected a str, got None"),
+])
+def test_arguments_of_the_wrong_kind_are_named(tmp_path, call, message):
+    """A number had been taken as a flag (progress=1.5, ascii=nan), True as binlines version 1,
+    and the rest had been pybind11's 'incompatible function arguments', naming no argument."""
+    with pytest.raises(TypeError, match=message.replace("(", r"\(")):
+        call(str(tmp_path / "x.vtk"))
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_iterable_of_assets_is_taken(tmp_path):
+    report = linebake.bake(small_lines(), str(tmp_path / "x.lbc.h5"),
+                           assets=(a for a in ["tubes"]))
+    assert [s["step"] for s in report["steps"] if s["step"] != "lines"] == ["tubes"]
+
+
+@pytest.mark.parametrize("call, what", [
+    (lambda: linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a\0b": np.zeros(2)}), "attribute name"),
+    (lambda: linebake.LineSet(np.zeros((2, 3)), [0, 2], metadata={"k": "v\0w"}), "metadata"),
+    (lambda: linebake.techniques("0\0"), "techniques: device"),
+    (lambda: linebake.read(SYNTH, memory_budget="1G\0x"), "read: memory_budget"),
+])
+def test_text_with_a_null_byte_is_refused(call, what):
+    """The C library ends text at a NUL: an attribute name had been written cut short to HDF5
+    ('a') and as U+FFFD to VTP, a provenance step read as the one before it."""
+    with pytest.raises(ValueError, match=f"^{what}: embedded null byte in "):
+        call()
+
+
+def test_a_provenance_step_with_a_null_byte_is_refused(baked):
+    cache = linebake.open_cache(baked[0])
+    assert cache.provenance("tubes")["step"] == "tubes"
+    with pytest.raises(ValueError, match="^provenance: step: embedded null byte"):
+        cache.provenance("tubes\0x")
+    with pytest.raises(TypeError, match="^provenance: step: expected a str, got None"):
+        cache.provenance(None)
+
+
+def test_an_attribute_range_past_float32_is_a_value_error(tmp_path):
+    with pytest.raises(ValueError, match=r"^bake: attribute_range: .*1e\+300 is outside float32"):
+        linebake.bake(small_lines(), str(tmp_path / "x.lbc.h5"), attribute_range=(-1, 1e300))
+    assert not list(tmp_path.iterdir())

@@ -492,3 +492,70 @@ def test_copies_are_held_within_the_memory_budget():
         linebake.LineSet(wide, offsets, {"t": np.zeros(n)}, memory_budget=resident_bytes() + 70 * mib)
     with pytest.raises(linebake.UsageError, match="LineSet: memory_budget: bad size"):
         linebake.LineSet(narrow, offsets, memory_budget="lots")
+
+
+def test_attributes_as_an_iterator_of_pairs():
+    """zip(names, arrays) had been spent by the budget's look and left no attributes."""
+    points, offsets, attributes, line_attributes = sample_arrays()
+    lines = linebake.LineSet(points, offsets, zip(attributes, attributes.values()),
+                             iter(line_attributes.items()))
+    assert list(lines.attributes) == list(attributes)
+    assert list(lines.line_attributes) == ["seed_id"]
+    for name, values in attributes.items():
+        np.testing.assert_array_equal(lines.attributes[name], values)
+
+
+class _Lazy:
+    """An array-like whose loading fails, as a lazy xarray or netCDF variable's may."""
+
+    def __init__(self, error):
+        self.error = error
+
+    def __array__(self, dtype=None, copy=None):
+        raise self.error
+
+
+@pytest.mark.parametrize("error", [KeyboardInterrupt(), MemoryError(), OSError(5, "I/O error")])
+def test_an_array_that_fails_to_load_raises_its_own_error(error):
+    """Each had been put down to the argument's kind: 'points: expected an array-like'."""
+    kind = type(error)
+    with pytest.raises(kind):
+        linebake.LineSet(_Lazy(error), [0, 2])
+    with pytest.raises(kind):
+        linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": _Lazy(error)})
+    with pytest.raises(kind):
+        linebake.compare(_Lazy(error), np.zeros((16, 16, 3), np.float32))
+
+
+@pytest.mark.parametrize("values, message", [
+    (np.zeros((2, 3), np.complex64), "points: expected an \\(n, 3\\) array of positions, got an array of complex64"),
+    (np.array([["1", "2", "3"]] * 2), "points: expected .* got an array of <U1"),
+    (np.zeros((2, 3), "datetime64[s]"), "points: expected .* got an array of datetime64"),
+    (np.array([[1, 2, "x"]] * 2, dtype=object), "points: expected an \\(n, 3\\) array of positions \\(ValueError"),
+])
+def test_values_that_are_no_numbers_are_refused(values, message):
+    """NumPy had converted them with a ComplexWarning at most (text parsed, dates as seconds)."""
+    with pytest.raises(TypeError, match=message):
+        linebake.LineSet(values, [0, 2])
+
+
+def test_a_masked_array_with_masked_values_is_refused():
+    points = np.ma.masked_invalid(np.array([[0, 0, 0], [1, np.nan, 1]]))
+    with pytest.raises(ValueError, match="^points: a masked array with masked values"):
+        linebake.LineSet(points, [0, 2])
+    filled = linebake.LineSet(points.filled(np.nan), [0, 2])
+    assert np.isnan(filled.points[1, 1])
+    # With no value masked, its values are all there is.
+    whole = linebake.LineSet(np.ma.masked_invalid(np.ones((2, 3))), [0, 2])
+    np.testing.assert_array_equal(whole.points, np.ones((2, 3), np.float32))
+    with pytest.raises(ValueError, match="^attribute 'a': a masked array"):
+        linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": np.ma.masked_equal([0.0, 1.0], 1.0)})
+
+
+def test_compare_names_a_finite_value_past_float32():
+    """It had been called 'not a finite value (NaN or infinity)' after NumPy's overflow warning."""
+    image = np.zeros((6, 5, 3))
+    image[4, 2, 1] = 1e300
+    with pytest.raises(ValueError, match=r"^compare: image: pixel \(2, 4\): 1e\+300 is outside "
+                                         r"float32's range"):
+        linebake.compare(image, np.zeros((6, 5, 3), np.float32))
