@@ -513,10 +513,41 @@ std::array<float, 2> value_range(const std::vector<float>& values) {
   return r[0] <= r[1] ? r : std::array<float, 2>{0, 0};
 }
 
+// The lines' attribute, a value per point: the tubes' (a line attribute repeated along its
+// line) over the tubes' range, so that both meshes carry one quantity alike (or the one the
+// options name); else the first point attribute over its own range. The lines had taken the first
+// point attribute whatever the tubes showed (bake --attribute curvature: tubes of curvature, lines
+// of vorticity).
+struct LinesAttribute {
+  std::string name;
+  const Attribute* per_point = nullptr;  // the line set's own values, not copied
+  std::vector<float> expanded;           // else a line attribute's, a value per point
+  std::array<float, 2> range{};
+  const std::vector<float>& values() const { return per_point ? per_point->values : expanded; }
+};
+std::optional<LinesAttribute> lines_attribute(const LineSet& lines, const TubeMesh* tubes,
+                                              const GltfOptions& options) {
+  const std::string& name = tubes ? tubes->attribute : options.lines_attribute;
+  const std::array<float, 2> range = tubes ? tubes->attribute_range : options.lines_attribute_range;
+  if (!name.empty()) {
+    if (const Attribute* a = lines.find_attribute(name)) return LinesAttribute{name, a, {}, range};
+    if (const Attribute* a = lines.find_line_attribute(name)) {
+      LinesAttribute expanded{name, nullptr, {}, range};
+      expanded.expanded.reserve(lines.point_count());
+      for (size_t l = 0; l < lines.line_count(); ++l)
+        expanded.expanded.insert(expanded.expanded.end(), lines.line_size(l), a->values[l]);
+      return expanded;
+    }
+  }
+  if (lines.attributes.empty()) return std::nullopt;
+  const Attribute& first = lines.attributes[0];
+  return LinesAttribute{first.name, &first, {}, value_range(first.values)};
+}
+
 // The lines: one indexed LINES primitive (a segment per pair of consecutive points), or one
 // LINE_STRIP per polyline over a shared position view.
 void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lines,
-               const GltfOptions& options) {
+               const TubeMesh* tubes, const GltfOptions& options) {
   tinygltf::Mesh mesh;
   mesh.name = "lines";
   const uint64_t points = lines.point_count();
@@ -528,13 +559,13 @@ void add_lines(tinygltf::Model& model, ModelBuilder& builder, const LineSet& lin
   const std::vector<float> positions = in_axes(lines.positions.data(), points, options.axes);
   const int position_view = builder.add_view(positions.data(), positions.size() * sizeof(float),
                                              kArrayBuffer, 12);  // shared: explicit stride
-  const Attribute* attribute = lines.attributes.empty() ? nullptr : &lines.attributes[0];
+  const std::optional<LinesAttribute> attribute = lines_attribute(lines, tubes, options);
   std::array<float, 2> range{};
   AttributeArrays arrays;
   int values = -1;  // _ATTRIBUTE as the tubes store it: normalised UNSIGNED_SHORT, padded to 4
   if (attribute) {
-    range = value_range(attribute->values);
-    const std::vector<uint16_t> unorm = unorm16_of(attribute->values, range);
+    range = attribute->range;
+    const std::vector<uint16_t> unorm = unorm16_of(attribute->values(), range);
     arrays = attribute_arrays(unorm.data(), points, range, options);
     values = builder.add_view(arrays.padded.data(), arrays.padded.size() * sizeof(uint16_t),
                               kArrayBuffer, 4);
@@ -673,7 +704,7 @@ Pass run_pass(const TubeChunks* tubes, const LineSet* lines, const GltfOptions& 
   material.pbrMetallicRoughness.roughnessFactor = 0.6;
   model.materials.push_back(material);
   if (tubes) add_tubes(model, builder, *tubes, options, draco, chunk_done);
-  if (lines) add_lines(model, builder, *lines, options);
+  if (lines) add_lines(model, builder, *lines, tubes ? &tubes->description : nullptr, options);
   tinygltf::Scene scene;
   const std::array<double, 3>& o = options.origin;
   for (size_t m = 0; m < model.meshes.size(); ++m) {

@@ -45,6 +45,11 @@ struct GltfOptions {
   std::vector<std::array<uint8_t, 3>> colour_map;
   std::array<float, 2> colour_range{0, 0};
   bool line_strips = false;  // the lines as one LINE_STRIP per polyline
+  // The attribute the lines carry and the range it is normalised over: the tube mesh's when it
+  // is exported too, else these when the name is set (export --no-tubes sets the cache's tubes'),
+  // else the first point attribute over its finite range.
+  std::string lines_attribute;
+  std::array<float, 2> lines_attribute_range{0, 0};
   // The lines' origin (lines/origin.hpp), data axes: every node's translation (glTF's numbers are
   // JSON doubles), so that the float32 vertices stay relative to it and a viewer places them in
   // world coordinates.

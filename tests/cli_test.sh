@@ -144,6 +144,16 @@ check "report markdown" bash -c "'$bin' report '$tmp/c.lbc.h5' --markdown | grep
 check "report json" bash -c "'$bin' report '$tmp/c.lbc.h5' --json | grep -q '\"triangles\": 3960000'"
 check "report names h5dump-readable layout" bash -c "h5dump -H '$tmp/c.lbc.h5' | grep -q 'DATASET \"positions\"'"
 check "export glb" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/c.glb" --lines
+check "export --lines: the lines carry the tubes' attribute and range, with or without the tubes" bash -c "'$bin' convert 'synth:aneurysm?scale=0.01' -o '$tmp/attr.h5' --derive curvature >/dev/null 2>&1 && '$bin' bake '$tmp/attr.h5' -o '$tmp/attr.lbc.h5' --attribute curvature >/dev/null 2>&1 && '$bin' export '$tmp/attr.lbc.h5' -o '$tmp/attr.glb' --lines >/dev/null 2>&1 && '$bin' export '$tmp/attr.lbc.h5' -o '$tmp/attr-lines.glb' --lines --no-tubes >/dev/null 2>&1 && /usr/bin/python3 -c \"
+import json, struct
+def meshes(path):
+    data = open(path, 'rb').read()
+    return {m['name']: m['extras'] for m in json.loads(data[20:20 + struct.unpack('<I', data[12:16])[0]])['meshes']}
+both, alone = meshes('$tmp/attr.glb'), meshes('$tmp/attr-lines.glb')
+assert both['tubes']['linebake_attribute'] == 'curvature', both
+assert both['lines'] == {k: both['tubes'][k] for k in both['lines']}, both
+assert alone['lines'] == both['lines'], (alone, both)
+\""
 check "export draco" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/cd.glb" --draco --draco-bits 12
 check "draco is smaller" bash -c "[ \$(stat -c %s '$tmp/cd.glb') -lt \$(stat -c %s '$tmp/c.glb') ]"
 check_budget "export --draco in pieces of one vertex (one a line) under a budget just above its estimate: the peak within it" /usr/bin/python3 -c "

@@ -480,6 +480,58 @@ TEST(Gltf, TheLinesAttributeIsNormalisedAndHoldsNoNaN) {
   }
 }
 
+// Beside tubes the lines carry the tubes' attribute over the tubes' range (a line attribute
+// repeated along its line); they had carried the first point attribute over its own range.
+TEST(Gltf, TheLinesCarryTheTubesAttribute) {
+  test::TempDir dir;
+  LineSet lines;
+  lines.attributes = {{"first", {}}, {"chosen", {}}};
+  lines.line_attributes = {{"per_line", {10, 30}}};
+  for (int i = 0; i < 6; ++i) {
+    lines.append_point(float(i), float(i % 2), 0);
+    lines.attributes[0].values.push_back(float(100 + i));
+    lines.attributes[1].values.push_back(float(i));
+    if (i == 3) lines.end_line();
+  }
+  lines.end_line();
+  struct Case {
+    const char* attribute;
+    std::array<float, 2> range;
+    std::vector<uint16_t> expected;  // hand-computed: (v - lo) / (hi - lo) x 65535, rounded
+  };
+  const Case cases[] = {
+      {"chosen", {0, 10}, {0, 6554, 13107, 19661, 26214, 32768}},
+      {"per_line", {0, 40}, {16384, 16384, 16384, 16384, 49151, 49151}},
+  };
+  for (const Case& c : cases) {
+    TubeOptions o;
+    o.attribute = c.attribute;
+    o.attribute_range = c.range;
+    const TubeMesh mesh = build_tubes(lines, o);
+    ASSERT_EQ(mesh.attribute, c.attribute);
+    for (const bool strips : {false, true}) {
+      GltfOptions g;
+      g.line_strips = strips;
+      write_gltf(dir.file("l.glb"), &mesh, &lines, g);
+      const Glb glb = read_glb(dir.file("l.glb"));
+      const json* line_mesh = nullptr;
+      for (const json& m : glb.doc["meshes"])
+        if (m["name"] == "lines") line_mesh = &m;
+      ASSERT_NE(line_mesh, nullptr);
+      EXPECT_EQ((*line_mesh)["extras"]["linebake_attribute"], c.attribute);
+      EXPECT_EQ((*line_mesh)["extras"]["linebake_attribute_range"],
+                json::array({double(c.range[0]), double(c.range[1])}));
+      std::vector<uint16_t> got;
+      for (const json& p : (*line_mesh)["primitives"]) {
+        const std::vector<uint16_t> v =
+            accessor_values<uint16_t>(glb, p["attributes"]["_ATTRIBUTE"], 1);
+        got.insert(got.end(), v.begin(), v.end());
+      }
+      EXPECT_EQ(got, c.expected) << c.attribute << (strips ? " strips" : " lines");
+    }
+  }
+}
+
 TEST(Gltf, ChunksAreReadOneAtATimeInTwoPasses) {
   test::TempDir dir;
   const LineSet lines = spiral_lines(40);

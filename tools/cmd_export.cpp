@@ -235,6 +235,13 @@ Command add_export(CLI::App& app) {
     }
     LineSet lines;
     if (args->lines) lines = load_lines(cache);
+    // Lines without their tubes carry the attribute the cache's tubes were baked with, as they
+    // do beside them.
+    if (args->lines && args->no_tubes && cache.exists("/assets/tubes")) {
+      const TubeMesh description = load_tube_description(cache);
+      args->gltf.lines_attribute = description.attribute;
+      args->gltf.lines_attribute_range = description.attribute_range;
+    }
     write_gltf(args->glb, args->no_tubes ? nullptr : &tubes, args->lines ? &lines : nullptr,
                args->gltf);
   };
