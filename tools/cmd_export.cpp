@@ -260,7 +260,10 @@ Command add_export(CLI::App& app) {
     for (const std::string& out : {args->glb, args->vdb})
       if (!out.empty()) say_wrote(out, seconds);
     if (std::filesystem::path(args->glb).extension() == ".gltf")
-      say_wrote(std::filesystem::path(args->glb).replace_extension(".bin").string(), seconds);
+      // Beside the file the .gltf names (through a symbolic link, the link's target), where it
+      // was written: the link's own name had been said, a file that does not exist.
+      say_wrote(std::filesystem::path(output_target(args->glb)).replace_extension(".bin").string(),
+                seconds);
   };
 }
 

@@ -235,6 +235,47 @@ void validate_pipeline(const Pipeline& p) {
   }
 }
 
+// `directory` and those above it, made where they are not: what stands in the way is an
+// OutputError naming it (std::filesystem's own message had ended the run as exit 4).
+void make_directory(const std::filesystem::path& directory) {
+  std::error_code ec;
+  std::filesystem::create_directories(directory, ec);
+  if (ec || !std::filesystem::is_directory(directory))
+    throw OutputError(directory.string(), "cannot be made a directory for the run's outputs" +
+                                              (ec ? ": " + ec.message() : std::string()));
+}
+
+// Before any step runs: every place the run writes is free to be written, so that nothing in the
+// output directory (a file where a step's directory goes, a directory where a report goes) fails
+// the run after its bakes. A report's directory had been removed when empty and failed the run
+// with std::filesystem's message when not.
+void check_run_places(const Pipeline& p, const std::vector<PipelineStep>& steps) {
+  std::error_code ec;
+  const auto in_the_way = [&](const std::filesystem::path& place, bool want_directory) {
+    const auto status = std::filesystem::symlink_status(place, ec);
+    if (!std::filesystem::exists(status)) return;
+    if (want_directory && !std::filesystem::is_directory(std::filesystem::status(place, ec)))
+      throw OutputError(place.string(), "is in the way: the run writes a directory here; move it");
+    if (!want_directory && std::filesystem::is_directory(status))
+      throw OutputError(place.string(),
+                        "is a directory where the run writes a file (its report); move it");
+  };
+  for (const PipelineStep& s : steps)
+    for (const std::string& o : s.outputs) {
+      in_the_way(o, false);
+      // Each directory on the way, from the output directory down.
+      const std::filesystem::path parent = std::filesystem::path(o).parent_path();
+      std::filesystem::path walked;
+      for (const auto& part : parent) {
+        walked /= part;
+        if (walked.string().size() > p.output.size()) in_the_way(walked, true);
+      }
+    }
+  for (const char* report : {"report.html", "report.md", "report.json"})
+    in_the_way(p.output + "/" + report, false);
+  in_the_way(p.output + "/plots", true);
+}
+
 // The run's output directory, made where missing and held for the run: two runs into one
 // directory at once would each record their steps over the other's (a later run then reused
 // files the other made). An OutputLock on <output>/.linebake-run (its file .linebake-run.lock,
@@ -303,6 +344,7 @@ Command add_run(CLI::App& app) {
                                    !std::filesystem::is_directory(p.output, ec)) {
       throw OutputError(p.output, "cannot be the run's output directory: not a directory");
     }
+    if (!args->dry_run) check_run_places(p, steps);
     const std::string state_path = p.output + "/.linebake-run.json";
     nlohmann::json state = nlohmann::json::object();
     if (std::ifstream in(state_path); in) {
@@ -345,7 +387,9 @@ Command add_run(CLI::App& app) {
       // change those, they go (a failed or interrupted run leaves none, not a stale one).
       if (!reports_removed) {
         for (const char* report : {"report.html", "report.md", "report.json"})
-          std::filesystem::remove(p.output + "/" + report);
+          if (std::error_code ec; !std::filesystem::remove(p.output + "/" + report, ec) && ec)
+            throw OutputError(p.output + "/" + report,
+                              "cannot remove the last run's report: " + ec.message());
         reports_removed = true;
       }
       // The step's record goes before its outputs change: interrupted or failed, it runs again
@@ -354,8 +398,7 @@ Command add_run(CLI::App& app) {
         state.erase(s.id);
         write_file_atomically(state_path, json_text(state, 1) + "\n");
       }
-      for (const std::string& o : s.outputs)
-        std::filesystem::create_directories(std::filesystem::path(o).parent_path());
+      for (const std::string& o : s.outputs) make_directory(std::filesystem::path(o).parent_path());
       std::cerr << "linebake: run: " << s.id << "\n";
       throw_if_interrupted();
       const int code = run_child(s.args, s.stdout_file);
@@ -378,7 +421,7 @@ Command add_run(CLI::App& app) {
     OutputGroup reports;
     write_file_atomically(p.output + "/report.json", json_text(evaluation, 2) + "\n");
     const std::map<std::string, std::string> plots = evaluation_plots(p, evaluation);
-    std::filesystem::create_directories(p.output + "/plots");
+    make_directory(p.output + "/plots");
     for (const auto& [name, svg] : plots) write_file_atomically(p.output + "/plots/" + name, svg);
     write_file_atomically(p.output + "/report.md", evaluation_markdown(p, caches, evaluation));
     write_file_atomically(p.output + "/report.html", evaluation_html(p, caches, evaluation, plots));
