@@ -11,8 +11,10 @@
 #include <fstream>
 #include <thread>
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/output_lock.hpp"
+#include "core/spill_file.hpp"
 #include "test_util.hpp"
 
 namespace linebake {
@@ -235,6 +237,67 @@ TEST(OutputLock, ALockFileThatIsASymbolicLinkIsRefused) {
 TEST(OutputLock, ALockFileThatCannotBeMadeIsAnOutputError) {
   test::TempDir dir;
   EXPECT_THROW({ const OutputLock lock(dir.file("missing/c.lbc.h5")); }, OutputError);
+}
+
+}  // namespace
+}  // namespace linebake
+
+namespace linebake {
+namespace {
+
+// An output's name may take the file system's whole limit (255 bytes): the names made beside it
+// (its temporary, a spill file, its lock) are shortened to fit; they had failed names of 230 to
+// 255 bytes with "File name too long", once the work was done.
+TEST(SideNames, AnOutputNameOfTheWholeLimitIsWrittenLockedAndSpilled) {
+  test::TempDir dir;
+  for (const size_t length : {size_t(200), size_t(255)}) {
+    const std::string name = std::string(length - 4, 'n') + ".vtp";
+    const std::string path = dir.file(name);
+    {
+      const OutputLock lock(path);
+      EXPECT_LE(std::filesystem::path(OutputLock::lock_path(path)).filename().string().size(),
+                255u);
+      EXPECT_TRUE(std::filesystem::exists(OutputLock::lock_path(path)));
+      SpillFile spill(path, "voxels-received");
+      const uint64_t value = 42;
+      spill.append(&value, sizeof value);
+      AtomicFile file(path);
+      EXPECT_LE(std::filesystem::path(file.temp_path()).filename().string().size(), 255u);
+      std::ofstream(file.temp_path()) << "whole";
+      file.commit();
+    }
+    std::ifstream in(path);
+    std::string text;
+    in >> text;
+    EXPECT_EQ(text, "whole") << length;
+  }
+  // A short name is left as it is; a long one is cut to 100 bytes and its hash, the same for
+  // every process (the lock is one file).
+  EXPECT_EQ(side_name(dir.file("c.lbc.h5"), 60), dir.file("c.lbc.h5"));
+  const std::string long_name(250, 'x');
+  EXPECT_EQ(shortened_name(long_name).size(), 117u);
+  EXPECT_EQ(shortened_name(long_name), shortened_name(long_name));
+  EXPECT_NE(shortened_name(long_name), shortened_name(long_name + "y"));
+  EXPECT_EQ(side_name(dir.file(long_name), 10), dir.file(shortened_name(long_name)));
+}
+
+// A temporary of a long name left by a process that is gone is removed by the next writer, as a
+// short name's is.
+TEST(SideNames, AStaleTemporaryOfALongNameIsRemoved) {
+  test::TempDir dir;
+  const std::string path = dir.file(std::string(240, 'n') + ".h5");
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  ::waitpid(child, nullptr, 0);  // a pid that no longer runs
+  // The name the child would have used, with its pid in place of this process's.
+  std::string stale = temporary_name(path);
+  const std::string own = "-" + std::to_string(::getpid()) + "-";
+  stale.replace(stale.rfind(own), own.size(), "-" + std::to_string(child) + "-");
+  std::ofstream(stale) << "left";
+  ASSERT_TRUE(std::filesystem::exists(stale));
+  EXPECT_EQ(remove_stale_temporaries(path), 4u);
+  EXPECT_FALSE(std::filesystem::exists(stale));
 }
 
 }  // namespace

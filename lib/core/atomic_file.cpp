@@ -16,6 +16,7 @@
 #include <mutex>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/memory_budget.hpp"
 
 namespace linebake {
@@ -48,10 +49,25 @@ void set_notify_handler(std::function<void(const std::string&)> handler) {
   notify_handler = std::move(handler);
 }
 
-std::string temporary_name(const std::string& path) {
+std::string shortened_name(const std::string& name) {
+  return name.substr(0, 100) + "~" + Hasher().update(name).hex().substr(0, 16);
+}
+
+std::string side_name(const std::string& path, size_t extra) {
+  const std::filesystem::path p(path);
+  const std::string name = p.filename().string();
+  const std::string dir = p.has_parent_path() ? p.parent_path().string() : ".";
+  const long limit = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  if (name.size() + extra <= (limit > 0 ? size_t(limit) : 255)) return path;
+  return (p.parent_path() / shortened_name(name)).string();
+}
+
+std::string temporary_name(const std::string& path, const std::string& tag) {
   static std::atomic<unsigned> counter{0};
-  return path + ".tmp-" + host_name() + "-" + std::to_string(::getpid()) + "-" +
-         std::to_string(counter++);
+  const std::string suffix = (tag.empty() ? "" : "." + tag) + ".tmp-" + host_name() + "-" +
+                             std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  // A few bytes to spare for what a caller appends (Python's bake input adds ".h5").
+  return side_name(path, suffix.size() + 8) + suffix;
 }
 
 uint64_t remove_stale_temporaries(const std::string& path) {
@@ -64,8 +80,12 @@ uint64_t remove_stale_temporaries(const std::string& path) {
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string file = entry.path().filename().string();
-    if (file.compare(0, name.size() + 1, name + ".") != 0) continue;
-    const size_t at = file.find(marker, name.size());
+    // Named after the output, or after its shortened name (side_name) for a long one.
+    size_t base = 0;
+    for (const std::string& b : {name, shortened_name(name)})
+      if (file.compare(0, b.size() + 1, b + ".") == 0) base = b.size();
+    if (base == 0) continue;
+    const size_t at = file.find(marker, base);
     if (at == std::string::npos) continue;
     // Between the marker and the next '-': the writer's pid.
     const size_t pid_begin = at + marker.size(), pid_end = file.find('-', pid_begin);

@@ -67,9 +67,17 @@ class OutputGroup {
 // Writes `bytes` to `path` through an AtomicFile. Throws OutputError.
 void write_file_atomically(const std::string& path, const std::string& bytes);
 
-// `<path>.tmp-<host>-<pid>-<n>`: a name no other process, here or on another host sharing the
-// file system, uses at the same time.
-std::string temporary_name(const std::string& path);
+// `<path>[.<tag>].tmp-<host>-<pid>-<n>`: a name no other process, here or on another host
+// sharing the file system, uses at the same time. Where that name would pass the file system's
+// limit on a name (255 bytes), `path`'s name is shortened first (side_name).
+std::string temporary_name(const std::string& path, const std::string& tag = "");
+
+// `path`, or where its name and `extra` bytes more would pass the file system's limit on a name,
+// the path of its shortened name: its first 100 bytes, '~' and 16 hex digits of its hash. For
+// the names made beside an output (temporaries, spill files, its lock): an output's own name may
+// take the whole limit (they had failed names of 230-255 bytes once the work was done).
+std::string side_name(const std::string& path, size_t extra);
+std::string shortened_name(const std::string& name);
 
 // Removes files beside `path` named `<name>.tmp-<host>-<pid>-<n>` or `<name>.<tag>.tmp-<host>-
 // <pid>-<n>` (temporaries and spill files of that output) whose process is gone, on this host

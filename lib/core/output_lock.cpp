@@ -140,7 +140,7 @@ int take_file_lock(const std::string& file, const std::string& display, const st
 }  // namespace
 
 std::string OutputLock::lock_path(const std::string& output) {
-  return output_target(output) + ".lock";
+  return side_name(output_target(output), 5) + ".lock";
 }
 
 OutputLock::OutputLock(const std::string& output, Wait wait) {

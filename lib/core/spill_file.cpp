@@ -12,7 +12,7 @@
 namespace linebake {
 
 SpillFile::SpillFile(const std::string& output, const std::string& tag)
-    : path_(temporary_name(output + "." + tag)), output_(output) {
+    : path_(temporary_name(output, tag)), output_(output) {
   fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd_ < 0)
     throw OutputError(output,

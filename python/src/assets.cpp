@@ -306,7 +306,7 @@ class TemporaryInput {
     namespace fs = std::filesystem;
     const fs::path dir =
         dry_run ? fs::temp_directory_path() : fs::absolute(fs::path(cache)).parent_path();
-    path_ = temporary_name((dir / fs::path(cache).filename()).string() + ".input") + ".h5";
+    path_ = temporary_name((dir / fs::path(cache).filename()).string(), "input") + ".h5";
     WriteOptions options;
     options.format = Format::hdf5;
     try {
