@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -729,10 +730,16 @@ Pass run_pass(const TubeChunks* tubes, const LineSet* lines, const GltfOptions& 
 
 }  // namespace
 
+std::string lowercase_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
 void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet* lines,
                 const GltfOptions& options) {
   if (!tubes && !lines) throw Error("glTF export: nothing to export");
-  const bool glb = std::filesystem::path(path).extension() != ".gltf";
+  const bool glb = !is_gltf_json(path);
   const size_t chunks = tubes ? tubes->description.chunks.size() : 0;
   TerminalProgress progress("export " + std::filesystem::path(path).filename().string());
   size_t chunks_done = 0;

@@ -244,9 +244,31 @@ void refuse_unless(const CLI::App* sub, const std::vector<std::string>& names, b
   if (!list.empty()) throw UsageError(list + ": read only " + when);
 }
 
+namespace {
+
+// An empty value of one of `sub`'s own options: a UsageError naming it.
+void refuse_empty_values_of(const CLI::App* sub) {
+  for (const CLI::Option* option : sub->get_options()) {
+    if (option->count() == 0 || option->get_type_size_max() == 0) continue;  // flags
+    const auto& results = option->results();
+    if (std::find(results.begin(), results.end(), std::string()) == results.end()) continue;
+    if (option->get_snames().empty() && option->get_lnames().empty())  // a positional
+      throw UsageError(option->get_name(true) + ": an empty value names no file");
+    const std::string name = !option->get_snames().empty() ? "-" + option->get_snames()[0]
+                                                           : "--" + option->get_lnames()[0];
+    throw UsageError(name + ": an empty value names no file and no setting; give one, or leave " +
+                     name + " out");
+  }
+}
+
+}  // namespace
+
 void check_when_parsed(CLI::App* sub, std::function<void()> check) {
-  sub->parse_complete_callback([check = std::move(check)] {
+  sub->parse_complete_callback([sub, check = std::move(check)] {
     try {
+      // First, as refuse_empty_values would after the parse: convert's check had said "-o OUT
+      // is required" of -o '', export's "export writes .glb ..." of its empty name.
+      refuse_empty_values_of(sub);
       check();
     } catch (const UsageError& e) {
       throw CLI::ValidationError(e.what());
@@ -256,17 +278,7 @@ void check_when_parsed(CLI::App* sub, std::function<void()> check) {
 
 void refuse_empty_values(const CLI::App& app) {
   for (const CLI::App* sub : app.get_subcommands()) {
-    for (const CLI::Option* option : sub->get_options()) {
-      if (option->count() == 0 || option->get_type_size_max() == 0) continue;  // flags
-      const auto& results = option->results();
-      if (std::find(results.begin(), results.end(), std::string()) == results.end()) continue;
-      if (option->get_snames().empty() && option->get_lnames().empty())  // a positional
-        throw UsageError(option->get_name(true) + ": an empty value names no file");
-      const std::string name = !option->get_snames().empty() ? "-" + option->get_snames()[0]
-                                                             : "--" + option->get_lnames()[0];
-      throw UsageError(name + ": an empty value names no file and no setting; give one, or leave " +
-                       name + " out");
-    }
+    refuse_empty_values_of(sub);
     refuse_empty_values(*sub);
   }
 }

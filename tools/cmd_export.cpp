@@ -177,7 +177,7 @@ Command add_export(CLI::App& app) {
   // Outputs by extension, and options that only a glTF output (with Draco) reads.
   check_when_parsed(sub, [sub, args] {
     for (const std::string& out : args->outputs) {
-      const std::string ext = std::filesystem::path(out).extension().string();
+      const std::string ext = lowercase_extension(out);
       std::string& slot = ext == ".glb" || ext == ".gltf" ? args->glb
                           : ext == ".vdb"                 ? args->vdb
                                                           : args->cache;
@@ -191,8 +191,7 @@ Command add_export(CLI::App& app) {
     }
     if (args->glb.empty() && args->vdb.empty())
       throw UsageError("nothing to export: give -o OUT.glb and/or -o OUT.vdb");
-    if (!args->glb.empty() && std::filesystem::path(args->glb).extension() != ".glb" &&
-        std::filesystem::path(args->glb).extension() != ".gltf")
+    if (!args->glb.empty() && lowercase_extension(args->glb) != ".glb" && !is_gltf_json(args->glb))
       throw OutputError(args->glb, "a glTF output ends in .glb or .gltf");
     refuse_unless(sub, {"draco-bits", "draco-normal-bits", "draco-speed", "draco-piece-vertices"},
                   args->gltf.draco, "with --draco");
@@ -208,7 +207,7 @@ Command add_export(CLI::App& app) {
       if (!out.empty()) check_output_location(out);
     // A .gltf's buffer goes beside it, as a .bin (formats/gltf.cpp).
     std::string buffer;
-    if (std::filesystem::path(args->glb).extension() == ".gltf")
+    if (is_gltf_json(args->glb))
       buffer = std::filesystem::path(output_target(args->glb)).replace_extension(".bin").string();
     check_output_location(buffer);  // a FIFO or directory there, before the export is built
     refuse_clashing_outputs({args->glb, buffer, args->vdb}, {args->cache});
@@ -259,7 +258,7 @@ Command add_export(CLI::App& app) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (const std::string& out : {args->glb, args->vdb})
       if (!out.empty()) say_wrote(out, seconds);
-    if (std::filesystem::path(args->glb).extension() == ".gltf")
+    if (is_gltf_json(args->glb))
       // Beside the file the .gltf names (through a symbolic link, the link's target), where it
       // was written: the link's own name had been said, a file that does not exist.
       say_wrote(std::filesystem::path(output_target(args->glb)).replace_extension(".bin").string(),
