@@ -20,6 +20,7 @@
 #include "core/h5.hpp"
 #include "core/h5_probe.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
 
@@ -54,6 +55,7 @@ void write_dataset(const std::string& path, hid_t location, const std::string& n
   // data is an error rather than different lines.
   const std::string hash = BlockHasher().update(data, total * H5Tget_size(memory_type)).hex();
   write_string_attribute(path, dataset, "xxh3_128_blocks", hash);
+  throw_if_interrupted();  // between datasets
 }
 
 }  // namespace

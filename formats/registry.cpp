@@ -624,6 +624,10 @@ void write_line_set(const LineSet& lines, const std::string& path, const WriteOp
         throw Error("unsupported output format");
     }
   });
+  // A signal during a write the format does not check often (an HDF5 dataset is one call): the
+  // file is not renamed into place. It had been, whole, with Python's KeyboardInterrupt after it,
+  // so the caller could not tell whether the file was written.
+  throw_if_interrupted();
   file.commit();
 }
 

@@ -8,6 +8,7 @@
 
 #include "accel/capsule_chain.hpp"
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/measure.hpp"
 #include "core/memory_budget.hpp"
 
@@ -207,6 +208,10 @@ struct EmbreeScene::State {
     rtcSetSceneBuildQuality(scene, o.quality == BuildQuality::Low    ? RTC_BUILD_QUALITY_LOW
                                    : o.quality == BuildQuality::High ? RTC_BUILD_QUALITY_HIGH
                                                                      : RTC_BUILD_QUALITY_MEDIUM);
+    // A large build takes seconds (a Renderer made in Python, a render's first frame): Embree
+    // cancels it when its progress monitor says no, so Ctrl-C stops it there.
+    rtcSetSceneProgressMonitorFunction(
+        scene, [](void*, double) { return interrupt_signal() == 0; }, nullptr);
     return scene;
   }
 
@@ -283,6 +288,7 @@ struct EmbreeScene::State {
     }
     for (size_t s = 0; s < sub_scenes.size(); ++s) {
       rtcCommitScene(sub_scenes[s]);
+      throw_if_interrupted();
       if (over_limit) throw_over_limit(o.max_memory_bytes);
       RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
       rtcSetGeometryInstancedScene(inst, sub_scenes[s]);
@@ -293,6 +299,7 @@ struct EmbreeScene::State {
       rtcReleaseGeometry(inst);
     }
     rtcCommitScene(top);
+    throw_if_interrupted();
     if (over_limit) throw_over_limit(o.max_memory_bytes);
     throw_on_device_error(device, "the BVH build");
     stats.commit_s = seconds_since(start);

@@ -17,6 +17,7 @@
 
 #include "core/error.hpp"
 #include "core/hash.hpp"
+#include "core/interrupt.hpp"
 #include "core/memory_budget.hpp"
 
 namespace linebake {
@@ -288,6 +289,9 @@ void AtomicFile::commit() {
     return;
   }
   sync_file(temp_path_, final_path_);
+  // The last moment a signal can still leave nothing (fsync takes tens of milliseconds on a large
+  // file): past the rename the file is whole, and said to be.
+  if (!open_group) throw_if_interrupted();
   if (open_group) {
     open_group->files_.push_back({temp_path_, final_path_});
     committed_ = true;

@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/measure.hpp"
 
 namespace linebake {
@@ -403,6 +404,8 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
     frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
   };
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
+    // A large frame of a deep scene takes seconds: Ctrl-C between tiles, not frames.
+    if (interrupt_signal() != 0) return;
     Scratch& sc = scratch.local();
     const auto rows = tile.rows(), cols = tile.cols();
     if (!packets) {
@@ -440,6 +443,7 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
           if (valid[i]) shade(sc, sc.raw[i], x0 + i % kPacketWidth, y0 + i / kPacketWidth, dir[i]);
       }
   });
+  throw_if_interrupted();
   FrameStats& st = frame.stats;
   st.width = w, st.height = h;
   st.every_hit = !walk;

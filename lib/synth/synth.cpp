@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.hpp"
+#include "core/interrupt.hpp"
 #include "core/nearest.hpp"
 #include "lines/derived.hpp"
 #include "synth/streamlines.hpp"
@@ -218,8 +219,12 @@ class Generator : public LineReader {
     if (next_index_ > 64 * (target_ + 1)) throw Error("synthetic generation made no progress");
     queue_.resize(kBatch);
     tbb::parallel_for(size_t{0}, kBatch, [&](size_t i) {
-      queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
+      // A batch of long lines takes seconds (aneurysm at scale 1: about one): Ctrl-C between
+      // lines, not batches.
+      if (interrupt_signal() == 0)
+        queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
     });
+    throw_if_interrupted();
     next_index_ += kBatch;
     queued_ = 0;
   }

@@ -287,3 +287,62 @@ def test_bake_into_a_cache_keeps_its_compression_unless_asked(tmp_path):
         ["none"] * 3
     linebake.bake(cache, assets=["tubes"], compression="lz4")
     assert linebake.open_cache(cache).provenance("lines")["compression"] == "lz4"
+
+
+INTERRUPT_SCRIPT = """
+import linebake, os, signal, sys, threading, time
+def timed(call):
+    start = time.monotonic()
+    call()
+    return time.monotonic() - start
+def interrupted(call, after):
+    # Whether the call returned, and how long after the signal it raised KeyboardInterrupt.
+    sent = []
+    timer = threading.Timer(after, lambda: (sent.append(time.monotonic()),
+                                            os.kill(os.getpid(), signal.SIGINT)))
+    timer.start()
+    returned = False
+    try:
+        call()
+        returned = True
+        timer.join()
+        time.sleep(0.1)  # a signal after the call lands here
+    except KeyboardInterrupt:
+        pass
+    return returned, None if returned else time.monotonic() - sent[0]
+what, path = sys.argv[1], sys.argv[2]
+if what == "read":
+    call = lambda: linebake.read("synth:aneurysm?scale=1")
+elif what == "renderer":
+    linebake.bake("synth:aneurysm?scale=0.3", path, assets=["tubes"])
+    cache = linebake.open_cache(path)
+    call = lambda: linebake.Renderer(cache, "reference", (64, 48))
+else:
+    lines = linebake.read("synth:aneurysm?scale=1")
+    call = lambda: linebake.write(lines, path)
+whole = timed(call)
+if what == "write":
+    os.remove(path)
+returned, late = interrupted(call, 0.2 * whole)
+print(whole, returned, late, os.path.exists(path))
+"""
+
+
+@pytest.mark.parametrize("what", ["read", "renderer", "write"])
+def test_ctrl_c_stops_within_a_step(tmp_path, what):
+    """SIGINT a fifth into a call: a synthetic source stops between lines and an Embree build
+    through its progress monitor (each had stopped about when it would have ended), and a write
+    leaves nothing (an HDF5 write had finished, renamed its file into place and then raised
+    KeyboardInterrupt)."""
+    out = tmp_path / ("x.h5" if what == "write" else "x.lbc.h5")
+    done = subprocess.run([sys.executable, "-c", INTERRUPT_SCRIPT, what, str(out)],
+                          capture_output=True, text=True, timeout=300, env=os.environ)
+    assert done.returncode == 0, done.stdout + done.stderr
+    whole, returned, late, exists = done.stdout.split()
+    if what == "write":
+        # Interrupted and nothing there, or (a write faster than the timer) returned and whole.
+        assert exists == returned, done.stdout
+        assert [p.name for p in tmp_path.iterdir()] == ([out.name] if exists == "True" else [])
+    else:
+        assert returned == "False", done.stdout
+        assert float(late) < 0.25 * float(whole), done.stdout
