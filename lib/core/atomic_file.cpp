@@ -280,7 +280,12 @@ void OutputGroup::commit() {
 
 std::vector<std::string> outputs_written() {
   const std::lock_guard<std::mutex> lock(written_mutex);
-  return written;
+  // Those still there: bench bake removes the cache it wrote, which a failure after it had named.
+  std::vector<std::string> there;
+  std::error_code ec;
+  for (const std::string& path : written)
+    if (std::filesystem::exists(path, ec)) there.push_back(path);
+  return there;
 }
 
 void AtomicFile::commit() {

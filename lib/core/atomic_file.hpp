@@ -108,8 +108,9 @@ void sync_file(const std::string& path, const std::string& name);
 // Fixes a directory entry (after a rename) on disk.
 void sync_directory_of(const std::string& path, const std::string& name);
 
-// The outputs this process has renamed to their final names so far, in order: what a failure
-// after them (standard output's, at the end of a command) says was written whole.
+// The outputs this process has renamed to their final names so far, in order, and not removed
+// since: what a failure after them (standard output's, at the end of a command) says was
+// written whole.
 std::vector<std::string> outputs_written();
 
 // Messages the library has for the user that are not errors (stale files removed). The
