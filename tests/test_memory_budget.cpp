@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <utility>
 
 #include "core/memory_budget.hpp"
 #include "test_util.hpp"
@@ -66,18 +67,11 @@ TEST(MemoryBudget, TheDefaultIsHalfOfWhatTheProcessMayHave) {
 // Sizes as users write them, with the bytes worked out by hand; what std::stod had also taken
 // (spaces, signs, hexadecimal: "0x100M" was 256 MiB) and Kubernetes' "Gi" it had refused.
 TEST(MemoryBudget, SizesAreDecimalNumbersWithBinaryUnits) {
-  EXPECT_EQ(parse_size("4096"), 4096u);
-  EXPECT_EQ(parse_size("4096B"), 4096u);
-  EXPECT_EQ(parse_size("64k"), 65536u);
-  EXPECT_EQ(parse_size("512M"), 536870912u);
-  EXPECT_EQ(parse_size("512MB"), 536870912u);
-  EXPECT_EQ(parse_size("1.5GiB"), 1610612736u);
-  EXPECT_EQ(parse_size("2Gi"), 2147483648u);
-  EXPECT_EQ(parse_size("2gib"), 2147483648u);
-  EXPECT_EQ(parse_size("1T"), 1099511627776u);
-  EXPECT_EQ(parse_size(".5K"), 512u);
-  EXPECT_EQ(parse_size("1e9"), 1000000000u);
-  EXPECT_EQ(parse_size("0"), 0u);
+  const std::pair<const char*, uint64_t> sizes[] = {
+      {"4096", 4096},        {"4096B", 4096},        {"64k", 65536},      {"512M", 536870912},
+      {"512MB", 536870912},  {"1.5GiB", 1610612736}, {"2Gi", 2147483648}, {"2gib", 2147483648},
+      {"1T", 1099511627776}, {".5K", 512},           {"1e9", 1000000000}, {"0", 0}};
+  for (const auto& [text, bytes] : sizes) EXPECT_EQ(parse_size(text), bytes) << text;
   for (const char* text : {"", "G", " 2", "2 ", "+2", "-1", "0x10", "0x100M", "1e", "2GG", "2P",
                            "inf", "nan", "1,5G", "2 G", "1e400"}) {
     try {

@@ -77,13 +77,14 @@ uint64_t remove_stale_temporaries(const std::string& path) {
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   const std::string name = target.filename().string();
   const std::string marker = ".tmp-" + host_name() + "-";
+  // Named after the output, or after its shortened name (side_name) for a long one.
+  const std::string bases[] = {name, shortened_name(name)};
   uint64_t bytes = 0, files = 0;
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string file = entry.path().filename().string();
-    // Named after the output, or after its shortened name (side_name) for a long one.
     size_t base = 0;
-    for (const std::string& b : {name, shortened_name(name)})
+    for (const std::string& b : bases)
       if (file.compare(0, b.size() + 1, b + ".") == 0) base = b.size();
     if (base == 0) continue;
     const size_t at = file.find(marker, base);
