@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <map>
 #include <new>
 #include <set>
@@ -597,8 +598,31 @@ LineSet read_line_set(const std::string& source, const ReadOptions& options) {
   return lines;
 }
 
+namespace {
+
+// NaN and infinities, which an ASCII legacy VTK file holds as "nan" and "inf": linebake reads
+// them back, VTK's legacy reader (ParaView) stops at the first and drops the arrays after it.
+uint64_t nonfinite_values(const LineSet& lines) {
+  uint64_t count = 0;
+  const auto add = [&](const std::vector<float>& values) {
+    for (float v : values) count += !std::isfinite(v);
+  };
+  add(lines.positions);
+  for (const auto* list : {&lines.attributes, &lines.line_attributes})
+    for (const Attribute& a : *list) add(a.values);
+  return count;
+}
+
+}  // namespace
+
 void write_line_set(const LineSet& lines, const std::string& path, const WriteOptions& options) {
   const Format format = resolve_output_format(path, options.format);
+  if (format == Format::vtk && options.ascii)
+    if (const uint64_t count = nonfinite_values(lines); count > 0)
+      notify(path + ": " + std::to_string(count) +
+             " NaN or infinite value(s) are written as nan or inf in ASCII, which VTK's legacy "
+             "reader (ParaView) cannot read: it stops at the first and drops the arrays after "
+             "it; leave --ascii out (binary .vtk) or write .vtp (docs/formats.md)");
   AtomicFile file(path);
   file.write_with([&] {
     switch (format) {

@@ -156,6 +156,7 @@ assert both['tubes']['linebake_attribute'] == 'curvature', both
 assert both['lines'] == {k: both['tubes'][k] for k in both['lines']}, both
 assert alone['lines'] == both['lines'], (alone, both)
 \""
+check "convert --ascii to .vtk says when NaN or infinities are written (VTK's legacy reader cannot read them); binary says nothing" bash -c "'$bin' convert 'synth:aneurysm?scale=0.001' -o '$tmp/nanv.csv' 2>/dev/null && sed '3s/,[^,]*\$/,nan/; 5s/,[^,]*\$/,-inf/' '$tmp/nanv.csv' > '$tmp/nanv2.csv' && '$bin' convert '$tmp/nanv2.csv' -o '$tmp/nanv.vtk' --ascii 2> '$tmp/nanv.err' && grep -qF \"$tmp/nanv.vtk: 2 NaN or infinite value(s) are written as nan or inf in ASCII\" '$tmp/nanv.err' && '$bin' convert '$tmp/nanv2.csv' -o '$tmp/nanv-b.vtk' 2> '$tmp/nanv-b.err' && ! grep -q 'NaN or infinite' '$tmp/nanv-b.err'"
 check "export draco" "$bin" export "$tmp/c.lbc.h5" --glb "$tmp/cd.glb" --draco --draco-bits 12
 check "draco is smaller" bash -c "[ \$(stat -c %s '$tmp/cd.glb') -lt \$(stat -c %s '$tmp/c.glb') ]"
 check_budget "export --draco in pieces of one vertex (one a line) under a budget just above its estimate: the peak within it" /usr/bin/python3 -c "
