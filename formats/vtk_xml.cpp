@@ -16,6 +16,7 @@
 #include <sstream>
 #include <string>
 
+#include "core/interrupt.hpp"
 #include "formats/formats.hpp"
 #include "formats/io_util.hpp"
 
@@ -668,6 +669,7 @@ class VtpWriter {
       block.resize(bound);
       put_word(header, bound);
       data += block;
+      if (b % 64 == 63) throw_if_interrupted();  // Ctrl-C every 2 MiB compressed
     }
     // The compression header is encoded separately from the blocks, as VTK does.
     return to_text(header) + to_text(data);
