@@ -68,9 +68,19 @@ TEST(MemoryBudget, TheDefaultIsHalfOfWhatTheProcessMayHave) {
 // (spaces, signs, hexadecimal: "0x100M" was 256 MiB) and Kubernetes' "Gi" it had refused.
 TEST(MemoryBudget, SizesAreDecimalNumbersWithBinaryUnits) {
   const std::pair<const char*, uint64_t> sizes[] = {
-      {"4096", 4096},        {"4096B", 4096},        {"64k", 65536},      {"512M", 536870912},
-      {"512MB", 536870912},  {"1.5GiB", 1610612736}, {"2Gi", 2147483648}, {"2gib", 2147483648},
-      {"1T", 1099511627776}, {".5K", 512},           {"1e9", 1000000000}, {"0", 0}};
+      {"4096", 4096},
+      {"4096B", 4096},
+      {"64k", 65536},
+      {"512M", 536870912},
+      {"512MB", 536870912},
+      {"1.5GiB", 1610612736},
+      {"2Gi", 2147483648},
+      {"2gib", 2147483648},
+      {"1T", 1099511627776},
+      {".5K", 512},
+      {"1e9", 1000000000},
+      {"0", 0},
+      {"1e19", 10000000000000000000u}};  // past 2^63, which llround had not held
   for (const auto& [text, bytes] : sizes) EXPECT_EQ(parse_size(text), bytes) << text;
   for (const char* text : {"", "G", " 2", "2 ", "+2", "-1", "0x10", "0x100M", "1e", "2GG", "2P",
                            "inf", "nan", "1,5G", "2 G", "1e400"}) {

@@ -23,9 +23,11 @@ uint64_t parse_size(const std::string& text) {
   double value = 0;
   const char* const last = text.data() + text.size();
   const char* end = text.data();
+  bool out_of_range = false;
   if (!text.empty() && (std::isdigit(static_cast<unsigned char>(text[0])) || text[0] == '.')) {
     const auto parsed = std::from_chars(text.data(), last, value, std::chars_format::general);
-    if (parsed.ec == std::errc()) end = parsed.ptr;
+    if (parsed.ec == std::errc() || parsed.ec == std::errc::result_out_of_range) end = parsed.ptr;
+    out_of_range = parsed.ec == std::errc::result_out_of_range;
   }
   std::string unit(end, last);
   for (char& c : unit) c = char(std::toupper(static_cast<unsigned char>(c)));
@@ -41,8 +43,10 @@ uint64_t parse_size(const std::string& text) {
                 "' (expected a number of bytes, or one with the binary unit K, M, G or T, "
                 "as 512M, 1.5GiB or 2Gi)");
   const double bytes = value * std::ldexp(1.0, shift);
-  if (bytes > 1.8e19) throw Error("size '" + text + "' is too large");
-  return uint64_t(std::llround(bytes));
+  // Below 2^64 a double rounds to a whole number that uint64_t holds (llround's long long did
+  // not hold 2^63 to 2^64).
+  if (out_of_range || !(bytes < 0x1p64)) throw Error("size '" + text + "' is too large");
+  return uint64_t(std::round(bytes));
 }
 
 std::string format_bytes(uint64_t bytes) {

@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <tuple>
@@ -403,9 +404,16 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
     for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
     frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
   };
+  // A large frame of a deep scene takes seconds: Ctrl-C between tiles, not frames. The signal is
+  // kept once seen (Python's can read as none again when another thread's call starts: the
+  // frame would have come back with tiles missing).
+  std::atomic<int> stop{0};
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
-    // A large frame of a deep scene takes seconds: Ctrl-C between tiles, not frames.
-    if (interrupt_signal() != 0) return;
+    if (stop.load(std::memory_order_relaxed) != 0) return;
+    if (const int signal = interrupt_signal(); signal != 0) {
+      stop = signal;
+      return;
+    }
     Scratch& sc = scratch.local();
     const auto rows = tile.rows(), cols = tile.cols();
     if (!packets) {
@@ -443,7 +451,7 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
           if (valid[i]) shade(sc, sc.raw[i], x0 + i % kPacketWidth, y0 + i / kPacketWidth, dir[i]);
       }
   });
-  throw_if_interrupted();
+  if (stop != 0) throw Interrupted(stop);
   FrameStats& st = frame.stats;
   st.width = w, st.height = h;
   st.every_hit = !walk;

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -218,13 +219,19 @@ class Generator : public LineReader {
     constexpr size_t kBatch = 2048;
     if (next_index_ > 64 * (target_ + 1)) throw Error("synthetic generation made no progress");
     queue_.resize(kBatch);
+    // A batch of long lines takes seconds (aneurysm at scale 1: about one): Ctrl-C between
+    // lines, not batches. The signal is kept once seen: Python's can read as none again when
+    // another thread's call starts, and the lines skipped would be the last batch's.
+    std::atomic<int> stop{0};
     tbb::parallel_for(size_t{0}, kBatch, [&](size_t i) {
-      // A batch of long lines takes seconds (aneurysm at scale 1: about one): Ctrl-C between
-      // lines, not batches.
-      if (interrupt_signal() == 0)
-        queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
+      if (stop.load(std::memory_order_relaxed) != 0) return;
+      if (const int signal = interrupt_signal(); signal != 0) {
+        stop = signal;
+        return;
+      }
+      queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
     });
-    throw_if_interrupted();
+    if (stop != 0) throw Interrupted(stop);
     next_index_ += kBatch;
     queued_ = 0;
   }

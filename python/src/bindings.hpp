@@ -188,17 +188,24 @@ py::array_t<T, py::array::c_style | py::array::forcecast> c_array(const py::arra
   try {
     return py::array_t<T, py::array::c_style | py::array::forcecast>(array);
   } catch (py::error_already_set& e) {
+    // An int past float's range in an object array ([10**400, 0, 0]): the value is wrong.
+    if (e.matches(PyExc_OverflowError))
+      throw py::value_error(what + ": expected " + wanted + " (" + e.what() + ")");
     if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
     throw py::type_error(what + ": expected " + wanted + " (" + e.what() + ")");
   }
 }
 
 // The first finite value of an array of floats wider than float32 that float32 cannot hold
-// (NumPy's cast makes it an infinity with no more than a RuntimeWarning): its index in C order
-// and its text as Python's repr writes it. Nothing for any other array.
+// (NumPy's cast makes it an infinity with no more than a RuntimeWarning), among the first `used`
+// of each `stride` values in C order (an image's colour, not its alpha): its index and its text
+// as Python's repr writes it. Nothing for any other array. Reads a C-order float64 array in
+// place; another is copied as float64 first (wide_copy_bytes).
 std::optional<std::pair<size_t, std::string>> beyond_float32(const py::array& given,
                                                              const std::string& what,
-                                                             const char* wanted);
+                                                             const char* wanted, size_t stride = 1,
+                                                             size_t used = 1);
+uint64_t wide_copy_bytes(const py::array& given);
 // What beyond_float32 found, said after its place.
 inline std::string beyond_float32_text(const std::string& value) {
   return value + " is outside float32's range (magnitude above 3.4028235e38)";

@@ -103,14 +103,21 @@ py::array number_array(const py::handle& value, const std::string& what, const c
   return array;
 }
 
+uint64_t wide_copy_bytes(const py::array& given) {
+  const bool wide = given.dtype().kind() == 'f' && given.dtype().itemsize() > 4;
+  const bool as_is = given.dtype().itemsize() == 8 && (given.flags() & py::array::c_style) != 0;
+  return wide && !as_is ? uint64_t(given.size()) * sizeof(double) : 0;
+}
+
 std::optional<std::pair<size_t, std::string>> beyond_float32(const py::array& given,
                                                              const std::string& what,
-                                                             const char* wanted) {
+                                                             const char* wanted, size_t stride,
+                                                             size_t used) {
   if (given.dtype().kind() != 'f' || given.dtype().itemsize() <= 4) return std::nullopt;
   const auto wide = c_array<double>(given, what, wanted);
   const double* values = wide.data();
   for (size_t i = 0; i < size_t(wide.size()); ++i)
-    if (std::isfinite(values[i]) && !std::isfinite(float(values[i]))) {
+    if (i % stride < used && std::isfinite(values[i]) && !std::isfinite(float(values[i]))) {
       char text[32];  // the shortest text that reads back as the value, as Python's repr
       const auto end = std::to_chars(text, text + sizeof text, values[i]).ptr;
       return std::pair(i, std::string(text, end));

@@ -371,15 +371,6 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
     throw py::value_error(
         "compare: expected an (h, w, 3), (h, w, 4), (h, w) or (h, w, 1) image or a file name");
   const size_t channels = grey ? 1 : 3;
-  // A finite value NumPy's cast would make an infinity, said as such (it had been called "not a
-  // finite value").
-  if (const auto beyond = beyond_float32(given, what, wanted)) {
-    const size_t pixel = beyond->first / size_t(given.ndim() == 2 ? 1 : given.shape(2));
-    const size_t width = size_t(std::max<py::ssize_t>(given.shape(1), 1));
-    throw py::value_error(what + ": pixel (" + std::to_string(pixel % width) + ", " +
-                          std::to_string(pixel / width) +
-                          "): " + beyond_float32_text(beyond->second));
-  }
   // The image's floats, and the array converted to float32 or uint16 (C order) where it is not
   // so already, checked before either is allocated.
   const size_t word = scale != 0 ? sizeof(uint16_t) : sizeof(float);
@@ -387,12 +378,24 @@ Image image_from(const py::object& source, const std::optional<bool>& srgb_encod
                          (scale == 0) != (kind == 'f') || !(given.flags() & py::array::c_style);
   const uint64_t floats = image_bytes(int(given.shape(1)), int(given.shape(0)), int(channels));
   const uint64_t copy = converted ? uint64_t(given.size()) * word : 0;
-  budget.reserve(floats + copy, what + "'s " + std::to_string(given.shape(0)) + "x" +
-                                    std::to_string(given.shape(1)) + " array (" +
-                                    std::to_string(given.size()) + " values)");
+  const uint64_t wide_copy = wide_copy_bytes(given);  // for the range check below
+  budget.reserve(floats + copy + wide_copy, what + "'s " + std::to_string(given.shape(0)) + "x" +
+                                                std::to_string(given.shape(1)) + " array (" +
+                                                std::to_string(given.size()) + " values)");
+  // A finite colour value NumPy's cast would make an infinity, said as such (it had been called
+  // "not a finite value"); alpha is dropped, so not checked.
+  const size_t stride = given.ndim() == 2 ? 1 : size_t(given.shape(2));
+  if (const auto beyond =
+          beyond_float32(given, what, wanted, stride, std::min<size_t>(stride, 3))) {
+    const size_t pixel = beyond->first / stride;
+    const size_t width = size_t(std::max<py::ssize_t>(given.shape(1), 1));
+    throw py::value_error(what + ": pixel (" + std::to_string(pixel % width) + ", " +
+                          std::to_string(pixel / width) +
+                          "): " + beyond_float32_text(beyond->second));
+  }
+  budget.release(wide_copy);
   Image image(int(given.shape(1)), int(given.shape(0)), int(channels));
   image.srgb_encoded = srgb_encoded.value_or(scale != 0);
-  const size_t stride = given.ndim() == 2 ? 1 : size_t(given.shape(2));
   const size_t pixels = size_t(image.width) * size_t(image.height);
   if (scale != 0) {
     // uint8 widened to uint16 exactly; each value as read_png computes it.

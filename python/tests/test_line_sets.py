@@ -559,3 +559,30 @@ def test_compare_names_a_finite_value_past_float32():
     with pytest.raises(ValueError, match=r"^compare: image: pixel \(2, 4\): 1e\+300 is outside "
                                          r"float32's range"):
         linebake.compare(image, np.zeros((6, 5, 3), np.float32))
+
+
+def test_an_int_past_floats_range_is_a_value_error_naming_the_argument():
+    """An object array's int that float cannot hold had been a bare OverflowError."""
+    with pytest.raises(ValueError, match="^points: expected an \\(n, 3\\) array of positions"):
+        linebake.LineSet([[10**400, 0, 0], [1, 0, 0]], [0, 2])
+    with pytest.raises(ValueError, match="^attribute 'a': expected 2 float32 values"):
+        linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": [10**400, 0]})
+
+
+def test_compare_checks_the_range_of_colour_only_and_within_its_budget():
+    """Alpha is dropped, so a value past float32 there is no error; a float64 image out of C order
+    is copied for the range check only within the budget (the copy had been made before it)."""
+    import tracemalloc
+    image = np.full((16, 16, 4), 0.5)
+    image[3, 5, 3] = 1e300
+    assert linebake.compare(image, np.full((16, 16, 3), 0.5, np.float32))["psnr_db"] == 60.0
+    big = np.asfortranarray(np.full((1500, 1500, 3), 0.5))
+    reference = np.zeros((1500, 1500, 3), np.float32)
+    tracemalloc.start()
+    try:
+        with pytest.raises(linebake.BudgetExceeded, match="^compare: image's 1500x1500 array"):
+            linebake.compare(big, reference, memory_budget="1M")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 4 << 20, peak
