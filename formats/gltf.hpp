@@ -79,6 +79,10 @@ struct TubeChunks {
 // meanwhile) is an Error, and nothing is written.
 void write_gltf(const std::string& path, const TubeChunks* tubes, const LineSet* lines,
                 const GltfOptions& options = {});
+// The same for a mesh in memory.
+void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
+                const GltfOptions& options = {});
+
 // `path`'s extension in lower case (".GLB" -> ".glb"): export takes either case, as convert and
 // render do.
 std::string lowercase_extension(const std::string& path);
@@ -86,8 +90,5 @@ std::string lowercase_extension(const std::string& path);
 inline bool is_gltf_json(const std::string& path) {
   return lowercase_extension(path) == ".gltf";
 }
-// The same for a mesh in memory.
-void write_gltf(const std::string& path, const TubeMesh* tubes, const LineSet* lines,
-                const GltfOptions& options = {});
 
 }  // namespace linebake
