@@ -257,8 +257,7 @@ void check_run_places(const Pipeline& p, const std::vector<PipelineStep>& steps)
     if (want_directory && !std::filesystem::is_directory(std::filesystem::status(place, ec)))
       throw OutputError(place.string(), "is in the way: the run writes a directory here; move it");
     if (!want_directory && std::filesystem::is_directory(status))
-      throw OutputError(place.string(),
-                        "is a directory where the run writes a file (its report); move it");
+      throw OutputError(place.string(), "is a directory where the run writes a file; move it");
   };
   for (const PipelineStep& s : steps)
     for (const std::string& o : s.outputs) {

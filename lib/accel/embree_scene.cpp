@@ -78,7 +78,7 @@ struct EmbreeScene::State {
   // past it.
   int64_t limit = 0;
   std::atomic<bool> over_limit{false};
-  std::atomic<int> stopped_by{0};  // the signal that cancelled a build (new_scene), or 0
+  StopLatch stop;  // the signal that cancelled a build (new_scene)
   std::atomic<int64_t> refused_bytes{0}, held_when_refused{0};  // the first allocation refused
   BvhStats stats;
   EmbreeGeometry geometry = EmbreeGeometry::LinearCurve;
@@ -210,16 +210,10 @@ struct EmbreeScene::State {
                                    : o.quality == BuildQuality::High ? RTC_BUILD_QUALITY_HIGH
                                                                      : RTC_BUILD_QUALITY_MEDIUM);
     // A large build takes seconds (a Renderer made in Python, a render's first frame): Embree
-    // cancels it when its progress monitor says no, so Ctrl-C stops it there.
-    // The signal is kept once seen (Python's can read as none again when another thread's call
-    // starts), so a cancelled build is said to be one, not an Embree error.
+    // cancels it when its progress monitor says no, so Ctrl-C stops it there, said as such (not
+    // as an Embree error).
     rtcSetSceneProgressMonitorFunction(
-        scene,
-        [](void* state, double) {
-          auto& stop = static_cast<State*>(state)->stopped_by;
-          if (stop == 0) stop = interrupt_signal();
-          return stop == 0;
-        },
+        scene, [](void* state, double) { return !static_cast<State*>(state)->stop.stopped(); },
         this);
     return scene;
   }
@@ -297,7 +291,7 @@ struct EmbreeScene::State {
     }
     for (size_t s = 0; s < sub_scenes.size(); ++s) {
       rtcCommitScene(sub_scenes[s]);
-      if (stopped_by != 0) throw Interrupted(stopped_by);
+      stop.throw_if_stopped();
       if (over_limit) throw_over_limit(o.max_memory_bytes);
       RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
       rtcSetGeometryInstancedScene(inst, sub_scenes[s]);
@@ -308,7 +302,7 @@ struct EmbreeScene::State {
       rtcReleaseGeometry(inst);
     }
     rtcCommitScene(top);
-    if (stopped_by != 0) throw Interrupted(stopped_by);
+    stop.throw_if_stopped();
     if (over_limit) throw_over_limit(o.max_memory_bytes);
     throw_on_device_error(device, "the BVH build");
     stats.commit_s = seconds_since(start);

@@ -6,6 +6,7 @@
 // copy: the same signal from the same process within a second (coreutils' `timeout` signals the
 // command and then its process group).
 
+#include <atomic>
 #include <string>
 
 #include "core/error.hpp"
@@ -58,5 +59,27 @@ class InterruptScope {
 int interrupt_signal();
 // Throws Interrupted when a signal asked to stop.
 void throw_if_interrupted();
+
+// For the tasks of one parallel loop (or the callbacks of one build): the first signal any of
+// them sees, kept. interrupt_signal() can read as 0 again (an embedded program's SIGINT once
+// another thread's call starts), and a loop that skipped work for a signal must not then go on
+// as if it had done it.
+class StopLatch {
+ public:
+  // Whether to stop: a signal seen now or before.
+  bool stopped() {
+    if (signal_.load(std::memory_order_relaxed) != 0) return true;
+    const int signal = interrupt_signal();
+    if (signal != 0) signal_ = signal;
+    return signal != 0;
+  }
+  // Throws Interrupted when stopped() has seen a signal (after the loop).
+  void throw_if_stopped() const {
+    if (const int signal = signal_.load()) throw Interrupted(signal);
+  }
+
+ private:
+  std::atomic<int> signal_{0};
+};
 
 }  // namespace linebake

@@ -5,7 +5,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <tuple>
@@ -404,16 +403,11 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
     for (int k = 0; k < 3; ++k) frame.image.at(x, y, k) = float(c[k]);
     frame.depth_complexity[size_t(y) * w + x] = uint32_t(sc.hits.size());
   };
-  // A large frame of a deep scene takes seconds: Ctrl-C between tiles, not frames. The signal is
-  // kept once seen (Python's can read as none again when another thread's call starts: the
-  // frame would have come back with tiles missing).
-  std::atomic<int> stop{0};
+  // A large frame of a deep scene takes seconds: Ctrl-C between tiles, not frames (never a frame
+  // with tiles missing).
+  StopLatch stop;
   tbb::parallel_for(tbb::blocked_range2d<int>(0, h, 16, 0, w, 16), [&](const auto& tile) {
-    if (stop.load(std::memory_order_relaxed) != 0) return;
-    if (const int signal = interrupt_signal(); signal != 0) {
-      stop = signal;
-      return;
-    }
+    if (stop.stopped()) return;
     Scratch& sc = scratch.local();
     const auto rows = tile.rows(), cols = tile.cols();
     if (!packets) {
@@ -451,7 +445,7 @@ Frame trace_frame(const EmbreeScene& scene, const Camera& world_camera,
           if (valid[i]) shade(sc, sc.raw[i], x0 + i % kPacketWidth, y0 + i / kPacketWidth, dir[i]);
       }
   });
-  if (stop != 0) throw Interrupted(stop);
+  stop.throw_if_stopped();
   FrameStats& st = frame.stats;
   st.width = w, st.height = h;
   st.every_hit = !walk;

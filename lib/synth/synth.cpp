@@ -3,7 +3,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -220,18 +219,12 @@ class Generator : public LineReader {
     if (next_index_ > 64 * (target_ + 1)) throw Error("synthetic generation made no progress");
     queue_.resize(kBatch);
     // A batch of long lines takes seconds (aneurysm at scale 1: about one): Ctrl-C between
-    // lines, not batches. The signal is kept once seen: Python's can read as none again when
-    // another thread's call starts, and the lines skipped would be the last batch's.
-    std::atomic<int> stop{0};
+    // lines, not batches (the lines skipped would otherwise be the last batch's).
+    StopLatch stop;
     tbb::parallel_for(size_t{0}, kBatch, [&](size_t i) {
-      if (stop.load(std::memory_order_relaxed) != 0) return;
-      if (const int signal = interrupt_signal(); signal != 0) {
-        stop = signal;
-        return;
-      }
-      queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
+      if (!stop.stopped()) queue_[i] = generate_line(recipe_, spec_, params_.seed, next_index_ + i);
     });
-    if (stop != 0) throw Interrupted(stop);
+    stop.throw_if_stopped();
     next_index_ += kBatch;
     queued_ = 0;
   }
