@@ -221,6 +221,36 @@ void apply_deprecated_aliases(const std::string& command, std::vector<std::strin
   args = std::move(out);
 }
 
+CLI::Option* add_list_option(CLI::App* sub, const std::string& name,
+                             std::vector<std::string>& items, const std::string& description) {
+  // The long name the messages use ("-t,--techniques": "--techniques").
+  std::string label = name;
+  for (std::size_t at = 0; at < name.size();) {
+    const std::size_t comma = std::min(name.find(',', at), name.size());
+    if (name.compare(at, 2, "--") == 0) label = name.substr(at, comma - at);
+    at = comma + 1;
+  }
+  return sub->add_option_function<std::vector<std::string>>(
+      name,
+      [&items, label](const std::vector<std::string>& values) {
+        items.clear();
+        for (const std::string& value : values) {
+          if (value.empty()) continue;  // refuse_empty_values names it
+          for (std::size_t at = 0;;) {
+            const std::size_t comma = std::min(value.find(',', at), value.size());
+            if (comma == at)
+              throw CLI::ValidationError(label + ": an empty item in '" + value +
+                                         "'; name one between each two commas, and none "
+                                         "before the first or after the last");
+            items.push_back(value.substr(at, comma - at));
+            if (comma == value.size()) break;
+            at = comma + 1;
+          }
+        }
+      },
+      description);
+}
+
 std::vector<std::string> given_options(const CLI::App* sub) {
   std::vector<std::string> names;
   for (const CLI::Option* option : sub->get_options())

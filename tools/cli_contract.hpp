@@ -48,6 +48,14 @@ const std::vector<DeprecatedAlias>& deprecated_aliases();
 // ones, warning once for each on stderr. `--opt=value` forms are rewritten too.
 void apply_deprecated_aliases(const std::string& command, std::vector<std::string>& args);
 
+// A list option: items separated by commas in one value, or the option given again
+// ("--techniques ll,tiles", "--techniques ll --techniques tiles"), in `items` in that order. An
+// empty item ("ll,", "ll,,tiles", "") is a usage error naming the option: CLI11's own delimiter
+// dropped empty items, and an option whose items were all empty (",") took the next argument
+// ("--frames") as its value.
+CLI::Option* add_list_option(CLI::App* sub, const std::string& name,
+                             std::vector<std::string>& items, const std::string& description);
+
 // Long names (without "--") of the options given on the command line.
 std::vector<std::string> given_options(const CLI::App* sub);
 bool given(const CLI::App* sub, const std::string& name);

@@ -52,9 +52,8 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
   sub->add_option("--on-invalid", args->on_invalid, "reject | repair (default)")
       ->check(one_of({"reject", "repair"}));
   sub->add_option("--origin", o.origin, kOriginHelp)->check(origin_value());
-  sub->add_option("--assets", o.assets,
+  add_list_option(sub, "--assets", o.assets,
                   "Assets to build: tubes, voxels, embree, rtx (default: tubes)")
-      ->delimiter(',')
       ->allow_extra_args(false);
   sub->add_option("--tube-sides", o.tubes.sides, "Ring vertices per point, 3..32 (default 3)")
       ->check(bake_number_check("--tube-sides"));

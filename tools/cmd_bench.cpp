@@ -664,8 +664,7 @@ Command add_bench(CLI::App& app) {
   within_budget(embree, "the lines read whole, both scenes' buffers and BVH, refused past it");
   auto* bake = step("bake", "A whole bake, per stage: wall and CPU time, peak RSS, spill, writes",
                     "prints the run of median wall time in detail");
-  bake->add_option("--assets", args->assets, "Assets to build (default tubes, as bake)")
-      ->delimiter(',');
+  add_list_option(bake, "--assets", args->assets, "Assets to build (default tubes, as bake)");
   bake->add_option("--memory-budget", args->memory_budget,
                    "Resident memory the bake may use, e.g. 2G; unlimited (default: half of "
                    "physical memory, or of the cgroup's or ulimit -v's limit when less)")
@@ -681,24 +680,20 @@ Command add_bench(CLI::App& app) {
       "Every technique of the registry on each cache and transfer function: GPU ms per "
       "pass, wall, memory, PSNR/SSIM against the reference");
   rendering->add_option("caches", render->caches, "Asset caches")->required();
-  rendering
-      ->add_option(
-          "--techniques", render->techniques,
-          "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
-          "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
-          "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
-          "dispatching its tiles in raster order, tiles-strips, tiles with four workgroups "
-          "a tile, tiles-crowded-strips, with four for the crowded tiles and the walks "
-          "again, tiles-pixel-hits and tiles-triangles-pixel-hits, tiles with each "
-          "pixel computing its own hits, and tiles-late-shading, "
-          "tiles-triangles-late-shading and tiles-pixel-hits-late-shading, tiles shading "
-          "each hit when it composites it, when named; those this machine cannot run are "
-          "listed as skipped, with the reason)")
-      ->delimiter(',');
-  rendering
-      ->add_option("--tf", render->transfer_functions,
-                   "Transfer functions (default semi): opaque, semi, transparent, FILE.json")
-      ->delimiter(',');
+  add_list_option(
+      rendering, "--techniques", render->techniques,
+      "Techniques (default: every one, and vrc-gpu for vrc on Vulkan compute; "
+      "tiles-shared and tiles-subgroups, tiles with its sort's shared-memory or subgroup "
+      "path, tiles-triangles, tiles over the tube mesh, tiles-raster-order, tiles "
+      "dispatching its tiles in raster order, tiles-strips, tiles with four workgroups "
+      "a tile, tiles-crowded-strips, with four for the crowded tiles and the walks "
+      "again, tiles-pixel-hits and tiles-triangles-pixel-hits, tiles with each "
+      "pixel computing its own hits, and tiles-late-shading, "
+      "tiles-triangles-late-shading and tiles-pixel-hits-late-shading, tiles shading "
+      "each hit when it composites it, when named; those this machine cannot run are "
+      "listed as skipped, with the reason)");
+  add_list_option(rendering, "--tf", render->transfer_functions,
+                  "Transfer functions (default semi): opaque, semi, transparent, FILE.json");
   rendering->add_option("--frames", render->frames, "Frames of the orbit-zoom flight (default 8)")
       ->check(CLI::Range(1, 100000));
   rendering
@@ -745,16 +740,12 @@ Command add_bench(CLI::App& app) {
       "shaders",
       "The Vulkan driver's compiler statistics of every compute shader (registers, spills, "
       "scratch, occupancy), compiled without rendering");
-  shaders
-      ->add_option("--shaders", shaders_args->shaders,
-                   "Shaders whose names contain one of these (default: every compute shader), "
-                   "e.g. tiles_composite")
-      ->delimiter(',');
-  shaders
-      ->add_option("--statistics", shaders_args->statistics,
-                   "Statistics whose names contain one of these (default: all but hashes), "
-                   "e.g. VGPRs,Scratch")
-      ->delimiter(',');
+  add_list_option(shaders, "--shaders", shaders_args->shaders,
+                  "Shaders whose names contain one of these (default: every compute shader), "
+                  "e.g. tiles_composite");
+  add_list_option(shaders, "--statistics", shaders_args->statistics,
+                  "Statistics whose names contain one of these (default: all but hashes), "
+                  "e.g. VGPRs,Scratch");
   shaders->add_option("--device", shaders_args->device, "Vulkan device, part of its name");
   shaders->add_flag("--json", shaders_args->json, "Print the statistics as JSON");
   return [args, render, tubes, voxels, embree, bake, rendering, isolation, isolation_args, shaders,

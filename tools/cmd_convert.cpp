@@ -75,10 +75,9 @@ Command add_convert(CLI::App& app) {
                   "reject: fail on invalid data; repair: drop/split and report (default)")
       ->check(one_of({"reject", "repair"}));
   sub->add_option("--origin", args->origin, kOriginHelp)->check(origin_value());
-  sub->add_option("--derive", args->derive,
+  add_list_option(sub, "--derive", args->derive,
                   "Add derived attributes: segment_length, arc_length, curvature, "
                   "index_along_line, line_length (one of the input's own names is replaced)")
-      ->delimiter(',')
       ->allow_extra_args(false);
   sub->add_flag("--ascii", args->ascii, "vtk, vtp: write text instead of binary");
   sub->add_option("--binlines-version", args->binlines_version,
