@@ -129,21 +129,23 @@ void write_positions(Out& out, const float* xyz, uint64_t n, const std::optional
 class BinlinesWriter : public LineWriter {
  public:
   BinlinesWriter(const std::string& path, const LineSet& header, const WriteOptions& options)
-      : file_(path),
-        out_(file_.temp_path()),
-        options_(options),
-        origin_(optional_origin(header, path)) {
+      : file_(path), options_(options), origin_(optional_origin(header, path)) {
     if (options.binlines_version != 1 && options.binlines_version != 2)
       throw Error(".binlines version must be 1 or 2");
     attributes_ = header.attributes.size();
-    out_.write_value<uint32_t>(options.binlines_version);
-    out_.write_value<uint32_t>(0);  // the line count, filled in by close()
-    out_.write_value<uint32_t>(static_cast<uint32_t>(attributes_));
-    if (options.binlines_version == 2)
-      for (const Attribute& a : header.attributes) {
-        out_.write_value<uint32_t>(static_cast<uint32_t>(a.name.size()));
-        out_.write(a.name);
-      }
+    // Made and written within write_with, so that an error names the output, not its
+    // temporary (a file system out of inodes had said "x.binlines.tmp-...: cannot create").
+    file_.write_with([&] {
+      io::Writer& out = out_.emplace(file_.temp_path());
+      out.write_value<uint32_t>(options.binlines_version);
+      out.write_value<uint32_t>(0);  // the line count, filled in by close()
+      out.write_value<uint32_t>(static_cast<uint32_t>(attributes_));
+      if (options.binlines_version == 2)
+        for (const Attribute& a : header.attributes) {
+          out.write_value<uint32_t>(static_cast<uint32_t>(a.name.size()));
+          out.write(a.name);
+        }
+    });
   }
 
   void write(const LineSet& batch) override {
@@ -158,9 +160,9 @@ class BinlinesWriter : public LineWriter {
       const uint64_t begin = batch.line_offsets[line], n = batch.line_size(line);
       if (n > UINT32_MAX) throw Error(".binlines lines hold at most 2^32-1 points");
       if (lines_ == UINT32_MAX) throw Error(".binlines holds at most 2^32-1 lines");
-      out_.write_value<uint32_t>(static_cast<uint32_t>(n));
-      write_positions(out_, batch.positions.data() + 3 * begin, n, origin_);
-      for (const Attribute& a : batch.attributes) out_.write(a.values.data() + begin, 4 * n);
+      out_->write_value<uint32_t>(static_cast<uint32_t>(n));
+      write_positions(*out_, batch.positions.data() + 3 * begin, n, origin_);
+      for (const Attribute& a : batch.attributes) out_->write(a.values.data() + begin, 4 * n);
       ++lines_;
     }
   }
@@ -168,8 +170,8 @@ class BinlinesWriter : public LineWriter {
   void close() override {
     file_.write_with([&] {
       const uint32_t count = static_cast<uint32_t>(lines_);
-      out_.patch(4, &count, sizeof count);
-      out_.close();
+      out_->patch(4, &count, sizeof count);
+      out_->close();
     });
     file_.commit();
   }
@@ -177,7 +179,7 @@ class BinlinesWriter : public LineWriter {
 
  private:
   AtomicFile file_;
-  io::Writer out_;
+  std::optional<io::Writer> out_;
   WriteOptions options_;
   std::optional<Origin> origin_;
   size_t attributes_ = 0;

@@ -499,7 +499,7 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG);  // an error path closes everything in the file
   Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl, fapl), H5Fclose);
-  if (!file.valid()) throw OutputError(path, "cannot create HDF5 file");
+  if (!file.valid()) throw OutputError(path, "cannot create HDF5 file (" + h5::last_error() + ")");
   write_string_attribute(path, file, "linebake_version", LINEBAKE_VERSION);
   // The origin (lines/origin.hpp) as 3 float64, what h5py users read as f.attrs['origin']; the
   // points stay float32 relative to it.
@@ -526,7 +526,9 @@ void write_hdf5(const LineSet& lines, const std::string& path, const WriteOption
     H5Pset_link_creation_order(gcpl, H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED);
     H5Pset_obj_track_times(gcpl, false);
     Handle g(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
-    if (!g.valid()) throw OutputError(path, std::string("cannot create group ") + group);
+    if (!g.valid())
+      throw OutputError(
+          path, std::string("cannot create group ") + group + " (" + h5::last_error() + ")");
     for (const Attribute& a : list)
       write_dataset(path, g, h5::encode_link_name(a.name), H5T_IEEE_F32LE, H5T_NATIVE_FLOAT,
                     a.values.data(), {a.values.size()});

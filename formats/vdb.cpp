@@ -1,9 +1,12 @@
 #include "formats/vdb.hpp"
 
 #include <dlfcn.h>
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -277,6 +280,14 @@ void write_vdb(const std::string& path, VoxelPieces& pieces, const VdbPieces& si
       {"linebake_density_scale", nullptr, double(density_scale), 0},
       {"linebake_axes", "data: x, y, z as stored", 0, 0}};
   AtomicFile out(path);
+  // OpenVDB opens its file through std::ofstream, whose failure says no why ("could not open
+  // ... for writing"): the temporary is made here first, so that a file system out of inodes,
+  // a permission or a read-only file system is said as the system says it.
+  const int fd = ::open(out.temp_path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0)
+    throw OutputError(
+        path, std::string("cannot create: ") + std::strerror(errno) + " (" + out.temp_path() + ")");
+  ::close(fd);
   uint64_t expected = 0;
   if (module.write(build.grids, out.temp_path().c_str(), meta.data(), uint32_t(meta.size()),
                    &expected, build.error, sizeof build.error) != 0)

@@ -231,7 +231,8 @@ void CacheWriter::create_group(const std::string& group) {
     const std::string name = group.substr(0, slash);
     if (H5Lexists(h5_, name.c_str(), H5P_DEFAULT) <= 0) {
       Handle g(H5Gcreate2(h5_, name.c_str(), H5P_DEFAULT, gcpl, H5P_DEFAULT), H5Gclose);
-      if (!g.valid()) throw OutputError(path(), "cannot create group " + name);
+      if (!g.valid())
+        throw OutputError(path(), "cannot create group " + name + " (" + h5::last_error() + ")");
     }
     if (slash == std::string::npos) break;
   }

@@ -223,6 +223,26 @@ if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ statvfs =~ $FAULT_MATRIX_FILTER ]]; t
     LINEBAKE_FAULT_FREE=1000000 -- "$bin" bake "$c" -o out/x.lbc.h5 --assets tubes
 fi
 
+echo "== a file system out of inodes"
+# Creating an output's temporary fails with ENOSPC (open with O_CREAT under out/): each writer
+# says the system's reason (OpenVDB's own open had said only "could not open ... for writing").
+# (glTF's std::ofstream opens through glibc's own calls, which the shim does not see.)
+if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ create =~ $FAULT_MATRIX_FILTER ]]; then
+  create_cell() {
+    EXPECT_MESSAGE='No space left on device' cell "$1" "create ENOSPC" "$2" \
+      LINEBAKE_FAULT_CREATE_UNDER=out/ -- "${@:3}"
+  }
+  create_cell "bake --assets tubes" out/x.lbc.h5 "$bin" bake "$c" -o out/x.lbc.h5
+  for ext in vtp vtk binlines h5 obj csv; do
+    create_cell "convert to .$ext" "out/x.$ext" "$bin" convert "$c" -o "out/x.$ext"
+  done
+  create_cell "export --vdb" out/x.vdb "$bin" export "$cache" --vdb out/x.vdb
+  create_cell "render reference -o x.png" out/x.png \
+    "$bin" render "$cache" --technique reference "${small[@]}" -o out/x.png
+  create_cell "render embree -o x.pfm" out/x.pfm \
+    "$bin" render "$cache" --technique embree "${small[@]}" -o out/x.pfm
+fi
+
 echo "== run"
 # A pipeline writes many files: asserted are no signal, a non-zero exit with a message, and no
 # temporary anywhere under its directory. Its steps may run as child processes: each inherits the

@@ -9,6 +9,9 @@
  *   LINEBAKE_FAULT_FSYNC=1    fsync and fdatasync fail with E (EIO if LINEBAKE_FAULT_ERRNO is unset).
  *   LINEBAKE_FAULT_FREE=B     statvfs and friends report B bytes free (f_bavail and f_bfree, in
  *                             f_frsize units; f_frsize becomes 1 where B is not a multiple of it).
+ *   LINEBAKE_FAULT_CREATE_UNDER=DIR  open, openat and creat that would create a file (O_CREAT)
+ *                             whose path, as given, starts with DIR fail with E (ENOSPC if
+ *                             LINEBAKE_FAULT_ERRNO is unset: a file system out of inodes).
  *   LINEBAKE_FAULT_LOG=path   append one line per injected fault: function, fd, bytes (for
  *                             statvfs, the bytes reported free; fd -1 for a path).
  *   LINEBAKE_FAULT_COUNT=path at exit, append "<pid> <bytes>": the bytes this process wrote to
@@ -16,7 +19,8 @@
  *                             clean run measures where "middle" and "late" faults fall.
  *
  * Intercepted: write, pwrite(64), writev, pwritev(64), fwrite, copy_file_range, sendfile,
- * fsync, fdatasync, statvfs(64), fstatvfs(64). glibc's stdio flushes through internal calls
+ * fsync, fdatasync, statvfs(64), fstatvfs(64), open(64), openat(64), creat(64) (fopen and
+ * std::ofstream open through glibc's internal calls, which a preload cannot see). glibc's stdio flushes through internal calls
  * that a preload cannot see, so stdio output is counted at fwrite (fputs, fprintf and putc are
  * not seen). Writes through mmap are not seen either.
  */
@@ -26,6 +30,7 @@
 #include <fcntl.h>
 #include <limits.h>
 #include <pthread.h>
+#include <stdarg.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -52,6 +57,12 @@ static int (*real_statvfs)(const char*, struct statvfs*);
 static int (*real_statvfs64)(const char*, struct statvfs64*);
 static int (*real_fstatvfs)(int, struct statvfs*);
 static int (*real_fstatvfs64)(int, struct statvfs64*);
+static int (*real_open)(const char*, int, ...);
+static int (*real_open64)(const char*, int, ...);
+static int (*real_openat)(int, const char*, int, ...);
+static int (*real_openat64)(int, const char*, int, ...);
+static int (*real_creat)(const char*, mode_t);
+static int (*real_creat64)(const char*, mode_t);
 
 /* Settings. */
 static int limit_set;           /* LINEBAKE_FAULT_AFTER given */
@@ -62,6 +73,7 @@ static int fsync_fails;
 static int free_set;
 static unsigned long long free_bytes;
 static const char* log_path;
+static const char* create_under; /* LINEBAKE_FAULT_CREATE_UNDER */
 static const char* count_path;
 
 static atomic_ullong written; /* bytes written to regular files so far (whole process) */
@@ -73,6 +85,7 @@ static void init(void) {
   REAL(write); REAL(pwrite); REAL(pwrite64); REAL(writev); REAL(pwritev); REAL(pwritev64);
   REAL(fwrite); REAL(copy_file_range); REAL(sendfile); REAL(fsync); REAL(fdatasync);
   REAL(statvfs); REAL(statvfs64); REAL(fstatvfs); REAL(fstatvfs64);
+  REAL(open); REAL(open64); REAL(openat); REAL(openat64); REAL(creat); REAL(creat64);
 
   const char* s = getenv("LINEBAKE_FAULT_AFTER");
   if (s && *s) { limit_set = 1; limit = strtoull(s, NULL, 10); }
@@ -89,6 +102,8 @@ static void init(void) {
   fsync_fails = s && *s && strcmp(s, "0") != 0;
   s = getenv("LINEBAKE_FAULT_FREE");
   if (s && *s) { free_set = 1; free_bytes = strtoull(s, NULL, 10); }
+  create_under = getenv("LINEBAKE_FAULT_CREATE_UNDER");
+  if (create_under && !*create_under) create_under = NULL;
   log_path = getenv("LINEBAKE_FAULT_LOG");
   if (log_path && !*log_path) log_path = NULL;
   count_path = getenv("LINEBAKE_FAULT_COUNT");
@@ -102,7 +117,7 @@ static void setup(void) { pthread_once(&once, init); }
 static void log_fault(const char* fn, int fd, unsigned long long bytes) {
   if (!log_path) return;
   int saved = errno;
-  int lfd = open(log_path, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
+  int lfd = real_open(log_path, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
   if (lfd >= 0) {
     char line[160];
     int n = snprintf(line, sizeof line, "%s fd=%d bytes=%llu total=%llu pid=%d\n", fn, fd, bytes,
@@ -118,7 +133,8 @@ static void log_fault(const char* fn, int fd, unsigned long long bytes) {
 __attribute__((destructor)) static void write_count(void) {
   setup();
   if (!count_path || !*count_path) return;
-  int fd = open(count_path, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
+  if (!real_open) return;
+  int fd = real_open(count_path, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
   if (fd < 0) return;
   char line[64];
   int n = snprintf(line, sizeof line, "%d %llu\n", (int)getpid(),
@@ -250,6 +266,38 @@ int fdatasync(int fd) {
   setup();
   if (fsync_fails) { log_fault("fdatasync", fd, 0); errno = errno_set ? fault_errno : EIO; return -1; }
   return real_fdatasync(fd);
+}
+
+/* Creating a file under LINEBAKE_FAULT_CREATE_UNDER fails, as on a file system out of inodes. */
+static int create_fails(const char* path, int flags) {
+  setup();
+  if (!create_under || !(flags & O_CREAT) || strncmp(path, create_under, strlen(create_under)))
+    return 0;
+  log_fault("create", -1, 0);
+  errno = errno_set ? fault_errno : ENOSPC;
+  return 1;
+}
+static mode_t mode_of(int flags, va_list args) {
+  return (flags & O_CREAT) || (flags & O_TMPFILE) == O_TMPFILE ? va_arg(args, mode_t) : 0;
+}
+#define OPEN(name, ...)                             \
+  do {                                              \
+    va_list args;                                   \
+    va_start(args, flags);                          \
+    const mode_t mode = mode_of(flags, args);       \
+    va_end(args);                                   \
+    if (create_fails(path, flags)) return -1;       \
+    return real_##name(__VA_ARGS__, flags, mode);   \
+  } while (0)
+int open(const char* path, int flags, ...) { OPEN(open, path); }
+int open64(const char* path, int flags, ...) { OPEN(open64, path); }
+int openat(int dir, const char* path, int flags, ...) { OPEN(openat, dir, path); }
+int openat64(int dir, const char* path, int flags, ...) { OPEN(openat64, dir, path); }
+int creat(const char* path, mode_t mode) {
+  return create_fails(path, O_CREAT) ? -1 : real_creat(path, mode);
+}
+int creat64(const char* path, mode_t mode) {
+  return create_fails(path, O_CREAT) ? -1 : real_creat64(path, mode);
 }
 
 /* statvfs: B bytes free and available on every file system. */
