@@ -97,6 +97,31 @@ int main(int argc, char** argv) {
                 << linebake::did_you_mean(*command, names) << " (linebake --help lists them)\n";
       return kUsage;
     }
+    // A command of kinds (bench) names one: CLI11 said "A subcommand is required" of a kind
+    // it did not know, and of none.
+    for (const auto& [sub, run] : commands) {
+      const std::vector<CLI::App*> kinds = sub->get_subcommands({});
+      if (sub->get_name() != *command || kinds.empty()) continue;
+      const auto kind = std::find_if(command + 1, args.end(),
+                                     [](const std::string& a) { return a.empty() || a[0] != '-'; });
+      const bool helped = std::any_of(
+          command + 1, args.end(), [](const std::string& a) { return a == "-h" || a == "--help"; });
+      std::vector<std::string> kind_names;
+      for (const CLI::App* k : kinds) kind_names.push_back(k->get_name());
+      if (kind == args.end() && !helped) {
+        std::cerr << "linebake: error: " << *command
+                  << " needs a kind: " << linebake::name_list(kind_names) << " (linebake "
+                  << *command << " --help lists them)\n";
+        return kUsage;
+      }
+      if (kind != args.end() &&
+          std::find(kind_names.begin(), kind_names.end(), *kind) == kind_names.end()) {
+        std::cerr << "linebake: error: unknown kind '" << *kind << "' of " << *command
+                  << linebake::did_you_mean(*kind, kind_names) << " ("
+                  << linebake::name_list(kind_names) << ")\n";
+        return kUsage;
+      }
+    }
     // `linebake --help CMD` is `linebake CMD --help`; `--version` before a command is itself.
     for (auto a = args.begin(); a != command; ++a) {
       if (*a == "--version") {
