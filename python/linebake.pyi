@@ -33,6 +33,9 @@ class OutputError(Error):
 class BudgetExceeded(Error):
     """Work that does not fit the memory budget, refused before it starts."""
 
+class Note(UserWarning):
+    """What linebake tells besides errors: stale temporaries it removed, a wait for another process writing the same output, values a format's reader cannot read back."""
+
 class LineSet:
     def __init__(
         self,

@@ -38,9 +38,15 @@ std::function<void(const std::string&)> notify_handler;
 }  // namespace
 
 void notify(const std::string& message) {
-  std::lock_guard<std::mutex> lock(notify_mutex);
-  if (notify_handler)
-    notify_handler(message);
+  // Called outside the lock: a handler may wait (Python's, for the GIL) or throw (a warnings
+  // filter that makes an error of it).
+  std::function<void(const std::string&)> handler;
+  {
+    std::lock_guard<std::mutex> lock(notify_mutex);
+    handler = notify_handler;
+  }
+  if (handler)
+    handler(message);
   else
     std::cerr << "linebake: " << message << "\n";
 }

@@ -113,8 +113,10 @@ void sync_directory_of(const std::string& path, const std::string& name);
 // written whole.
 std::vector<std::string> outputs_written();
 
-// Messages the library has for the user that are not errors (stale files removed). The
-// default prints "linebake: MESSAGE" to stderr.
+// Messages the library has for the user that are not errors (stale files removed, a wait for
+// another process's lock, values a format's reader cannot read back). The default prints
+// "linebake: MESSAGE" to stderr; the Python module's makes each a linebake.Note warning. An
+// exception the handler throws reaches notify()'s caller.
 void notify(const std::string& message);
 void set_notify_handler(std::function<void(const std::string&)> handler);
 

@@ -44,13 +44,18 @@ struct PyLineSet {
 // of when the call returns, if no other thread's call is in flight (it would see it too). A
 // Ctrl-C the work did not act on is handed back to Python as the call returns. A handler of the
 // user's, or SIGINT ignored, is left as it is.
+// The library's notes (notify()) on a thread within a LongCall are linebake.Note warnings
+// (bind_errors sets the handler); on other threads they are printed to stderr.
+int& long_calls_on_this_thread();
 class LongCall {
  public:
   LongCall() {
     if (syscall(SYS_gettid) == getpid() && python_handles_sigint()) interrupts_.emplace();
     unlocked_.emplace();
+    ++long_calls_on_this_thread();
   }
   ~LongCall() {
+    --long_calls_on_this_thread();
     unlocked_.reset();                                           // the GIL again
     const int signal = interrupts_ ? interrupts_->finish() : 0;  // Python's handler back first
     if (signal != 0 && std::uncaught_exceptions() == 0) PyErr_SetInterrupt();

@@ -2,13 +2,20 @@
 // kind the CLI tells apart by exit code, with the CLI's messages.
 
 #include <algorithm>
+#include <iostream>
 
 #include "bindings.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/interrupt.hpp"
 #include "core/nearest.hpp"
 
 namespace linebake::python {
+
+int& long_calls_on_this_thread() {
+  static thread_local int calls = 0;
+  return calls;
+}
 
 namespace {
 
@@ -56,6 +63,23 @@ void bind_errors(py::module_& module) {
   input.attr("file") = py::none();
   input.attr("where") = py::none();
   output.attr("file") = py::none();
+  static py::handle note = PyErr_NewException("linebake.Note", PyExc_UserWarning, nullptr);
+  module.add_object("Note", note);
+  note.attr("__doc__") =
+      "What linebake tells besides errors: stale temporaries it removed, a wait for another "
+      "process writing the same output, values a format's reader cannot read back.";
+  // A note on the calling thread of a call (which has released the GIL) is warned at once, so
+  // that a notebook shows it and a warnings filter can make an error of it (raised from the
+  // call: what the call had written is removed as for any error); notes of other threads (none
+  // of linebake's own so far) go to stderr.
+  linebake::set_notify_handler([](const std::string& message) {
+    if (long_calls_on_this_thread() == 0 || !Py_IsInitialized()) {
+      std::cerr << "linebake: " << message << "\n";
+      return;
+    }
+    py::gil_scoped_acquire gil;
+    py::module_::import("warnings").attr("warn")(fs_str(message), note, 1);
+  });
   // Most derived first: a translator sees the C++ exception once.
   py::register_exception_translator([](std::exception_ptr thrown) {
     try {
