@@ -223,5 +223,19 @@ check "np 2 bakes through a symbolic link: the link kept, the file it names a ca
   mpirun -np 2 '$mpi' bake run/part_0.binlines -o link.lbc.h5 > /dev/null 2>&1 &&
   [ -L link.lbc.h5 ] && '$bin' report --json linked/target.lbc.h5 | grep -q '\"ranks\": 2'"
 
+# Rank 0 alone takes the cache's lock: a lock it cannot open (a symbolic link in its place) had
+# ended rank 0 with exit 3 and left rank 1 waiting in the bake for ever.
+ln -s nowhere stuck.lbc.h5.lock
+check "np 2: a lock file rank 0 cannot open stops every rank with exit 3 (rank 1 had waited for ever)" bash -c "
+  timeout 60 mpirun -np 2 '$mpi' bake run/part_0.binlines -o stuck.lbc.h5 < /dev/null > stuck.txt 2>&1
+  [ \$? -eq 3 ] && grep -q 'rank 0: stuck.lbc.h5: cannot open its lock file' stuck.txt && [ ! -e stuck.lbc.h5 ]"
+rm -f stuck.lbc.h5.lock
+# A misnamed attribute is the serial bake's usage error (exit 1), found from the header before any
+# line is read (it had been exit 4 once the tubes began, through MPI_Abort).
+check "np 2: an unknown --attribute is exit 1 naming it, as the serial bake" bash -c "
+  timeout 60 mpirun -np 2 '$mpi' bake run/part_0.binlines -o attr.lbc.h5 --attribute nothere < /dev/null > attr.txt 2>&1
+  [ \$? -eq 1 ] && grep -q \"rank 0: --attribute: no attribute named 'nothere' in these lines\" attr.txt &&
+  ! grep -q MPI_ABORT attr.txt && [ ! -e attr.lbc.h5 ]"
+
 echo "mpi: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

@@ -307,5 +307,22 @@ TEST(EvaluationReport, NoRenderTimeBvhMarkWithoutAnEmbreeRender) {
   EXPECT_EQ(html.find("the BVH the embree technique built"), std::string::npos);
 }
 
+TEST(EvaluationReport, TheSpeedUpNoteSaysWhatTheReferenceIs) {
+  // A pipeline whose reference is ll had been told that its reference ray traces the tube mesh
+  // with Embree on the CPU.
+  const nlohmann::json machine = {{"vulkan", "llvmpipe (LLVM 15.0.6, 256 bits)"}};
+  const std::string cpu = summary_note(machine, "reference", false);
+  EXPECT_NE(cpu.find("The reference ray traces the exact tube mesh with Embree"),
+            std::string::npos);
+  EXPECT_NE(cpu.find("; the Vulkan techniques run on llvmpipe"), std::string::npos);
+  const std::string ll = summary_note(machine, "ll", false);
+  EXPECT_EQ(ll.find("Embree"), std::string::npos) << ll;
+  EXPECT_NE(ll.find("time per frame of `ll` divided"), std::string::npos);
+  EXPECT_NE(ll.find("The reference is `ll` (the pipeline's reference)"), std::string::npos);
+  const std::string html = summary_note({{"vulkan", "NVIDIA H100"}}, "rtx", true);
+  EXPECT_NE(html.find("The reference is <code>rtx</code>"), std::string::npos);
+  EXPECT_EQ(html.find("software renderer"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace linebake

@@ -179,10 +179,12 @@ nlohmann::json bench_one(const BenchRenderArgs& args, const Technique& technique
       }
       if (f == 0 && technique.info.name != "reference")
         first = FirstFrame{camera, display_encoded(frame.image)};
-      if (args.max_seconds > 0 && frames_s > args.max_seconds && f + 1 < args.frames) {
+      // (0 had meant no limit, and the note had rounded 0.04 to "0.0".)
+      if (frames_s > args.max_seconds && f + 1 < args.frames) {
+        char limit[32];
+        std::snprintf(limit, sizeof limit, "%.6g", args.max_seconds);
         row["stopped"] = "after " + std::to_string(f + 1) + " of " + std::to_string(args.frames) +
-                         " frames (--max-seconds " +
-                         fixed(args.max_seconds, args.max_seconds < 10 ? 1 : 0) + ")";
+                         " frames (--max-seconds " + limit + ")";
         break;
       }
     }

@@ -1,6 +1,7 @@
 #pragma once
 // `linebake bench render`: the techniques of the registry timed and compared on caches.
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -13,8 +14,9 @@ struct BenchRenderArgs {
   int frames = 8;
   int warm_up = 1;  // frames rendered before the flight's, not counted
   std::string size = "1920x1080", device;
-  double max_seconds = 0;     // per technique and transfer function: stop after the frame past it
-  std::string memory_budget;  // as render's: "" (half of physical memory), "8G", "unlimited"
+  // Per technique and transfer function: stop after the frame past it (0: after the first).
+  double max_seconds = std::numeric_limits<double>::infinity();
+  std::string memory_budget;       // as render's: "" (half of physical memory), "8G", "unlimited"
   bool early_termination = false;  // as render's: embree, ll, rtx, tiles (never reference)
   bool every_hit = false;          // embree, reference: every hit of every ray, no interval walk
   bool json = false;

@@ -27,8 +27,9 @@ Command add_bake(CLI::App& app) {
       app, [](const BakeOptions& o) { return bake(o); }, true);
 }
 
-Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run,
-                      bool print) {
+Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run, bool print,
+                      Together together) {
+  if (!together) together = [](const std::function<void()>& step) { step(); };
   auto* sub = app.add_subcommand(
       "bake", "Build renderable assets (tubes, voxels, embree, rtx) into an asset cache");
   struct Args {
@@ -162,7 +163,7 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
                   args->compression == "deflate" || args->compression == "blosc-zstd",
                   "with --compression deflate or blosc-zstd (lz4 and none have no levels)");
   });
-  return [args, run, print, sub] {
+  return [args, run, print, sub, together] {
     BakeOptions options = args->options;
     for (const std::string& input : args->inputs)
       if (input.find_first_of("*?[") == std::string::npos) check_input_file(input);
@@ -200,9 +201,11 @@ Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&
     // another bake's cache renamed there in between is not the one reported. linebake-mpi: on
     // the rank that prints, rank 0, which holds it in the bake too.
     std::optional<OutputLock> one_writer;
-    if (print && !options.dry_run)
-      if (const std::string cache = bake_output_path(options); !cache.empty())
-        one_writer.emplace(cache);
+    together([&] {
+      if (print && !options.dry_run)
+        if (const std::string cache = bake_output_path(options); !cache.empty())
+          one_writer.emplace(cache);
+    });
     const BakeResult result = run(options);
     if (!print) return;
     if (options.dry_run) {

@@ -33,8 +33,13 @@ void render_frames(const Args& args, const CacheReader& cache, const TransferFun
   std::unique_ptr<PreparedTechnique> prepared =
       technique.prepare(technique.info, cache, args.cache, options);
   for (const std::string& w : prepared->warnings) warn(args.technique + ": " + w);
-  const FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
-                                      flight_bounds(cache), options.width, options.height);
+  FlightPlan plan = plan_flight(args.flight, args.frame_count, args.frame, args.frames,
+                                flight_bounds(cache), options.width, options.height);
+  // A --radius past the cached one draws past the framed box: the clip planes hold it (embree's
+  // rays had been cut at them, leaving a capsule's near half, or all of it, undrawn).
+  if (options.radius > 0)
+    for (Camera& camera : plan.cameras)
+      hold_in_clip_planes(camera, drawn_bounds(cache, options.radius));
   const bool numbered = plan.frames.size() > 1;
   nlohmann::json stats = prepared->stats();
   stats["technique"] = args.technique;

@@ -27,7 +27,12 @@ Command add_synth(CLI::App& app);
 Command add_bench(CLI::App& app);
 Command add_bake(CLI::App& app);
 // bake with another driver (linebake-mpi's); `print`: this process prints the report.
-Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run, bool print);
+// `together` runs what only the printing process does before `run` (taking the output's lock)
+// so that every process learns of its failure (linebake-mpi: Ranks::agree; the other ranks had
+// waited for rank 0 in the bake for ever); none: runs it.
+using Together = std::function<void(const std::function<void()>&)>;
+Command add_bake_with(CLI::App& app, std::function<BakeResult(const BakeOptions&)> run, bool print,
+                      Together together = {});
 Command add_report(CLI::App& app);
 Command add_export(CLI::App& app);
 Command add_render(CLI::App& app);

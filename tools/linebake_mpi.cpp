@@ -15,6 +15,7 @@
 #include "core/h5.hpp"
 #include "core/interrupt.hpp"
 #include "pipeline/bake_mpi.hpp"
+#include "pipeline/mpi_ranks.hpp"
 
 int main(int argc, char** argv) {
   using namespace linebake::cli;
@@ -37,7 +38,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   Command run = add_bake_with(
       app, [](const linebake::BakeOptions& o) { return linebake::bake_mpi(o, MPI_COMM_WORLD); },
-      rank == 0);
+      rank == 0,
+      [](const std::function<void()>& step) { linebake::Ranks(MPI_COMM_WORLD).agree(step); });
   // Per rank here: the default is shared by the ranks on a node (bake_mpi).
   app.get_subcommand("bake")
       ->get_option("--memory-budget")

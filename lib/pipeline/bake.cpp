@@ -339,8 +339,8 @@ bool contains(const std::vector<std::string>& list, const std::string& item) {
   return std::find(list.begin(), list.end(), item) != list.end();
 }
 
-// The attribute names of the options, checked against the input's header before any of it is
-// read (a mistyped name is a usage error, not a failure an hour into the bake).
+}  // namespace
+
 void check_attribute_options(const BakeOptions& o, const LineSet& header) {
   const auto has = [&](const std::string& name, bool vertex_only) {
     for (const Attribute& a : header.attributes)
@@ -364,6 +364,8 @@ void check_attribute_options(const BakeOptions& o, const LineSet& header) {
   if (contains(o.assets, "voxels") && !voxel.empty() && voxel != "none" && !has(voxel, true))
     throw_unknown_attribute(header, "--voxel-attribute", voxel, true);
 }
+
+namespace {
 
 // Wall and CPU time of a step that runs in pieces inside shared passes, and the peak resident
 // memory of the passes it ran in. Steps that run side by side (tubes and voxels in the build

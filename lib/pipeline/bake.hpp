@@ -85,6 +85,11 @@ struct BakeOptions {
   static constexpr uint64_t kUnlimited = UINT64_MAX;
 };
 
+// The attribute names of `o` (--attribute, --radius-attribute, --voxel-attribute) checked against
+// the input's header before any of it is read: a mistyped name is a UsageError naming the
+// option, not a failure an hour into the bake (the serial and the MPI bake).
+void check_attribute_options(const BakeOptions& o, const LineSet& header);
+
 // What a bake expects to write, from the line set's statistics and the options: each step's
 // datasets as stored, and the temporary spill files beside the cache at their largest.
 struct BakeEstimate {

@@ -232,6 +232,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
     // Every rank finds the same origin (the same first point of the same files).
     read.origin = resolve_origin(options.origin, inputs, read);
     header = header_of(open_line_reader(inputs[0], read)->header());
+    // Before any line is read, as the serial bake (it had failed, exit 4, once the tubes began).
+    check_attribute_options(options, header);
     for (size_t f = size_t(ranks.rank); f < inputs.size(); f += size_t(ranks.size)) {
       // The input's identity is its files' bytes: each file hashed by one rank.
       if (!synth::is_synth_source(inputs[f]))

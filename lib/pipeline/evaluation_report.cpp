@@ -71,13 +71,19 @@ std::string summary_note(const nlohmann::json& machine, const std::string& refer
     return html ? "<code>" + name(s) + "</code>" : "`" + s + "`";
   };
   std::string note = "Speed-up = the time per frame of " + code(reference) +
-                     " divided by the technique's; below 1 = slower. The reference ray traces "
-                     "the exact tube mesh with Embree on every CPU core, its BVH built before the "
-                     "first frame and not counted";
+                     " divided by the technique's; below 1 = slower. ";
+  // What the reference is: the pipeline's "reference" may name another technique (the
+  // sentence had said the CPU ray tracer of any).
+  if (reference == "reference")
+    note +=
+        "The reference ray traces the exact tube mesh with Embree on every CPU core, its BVH "
+        "built before the first frame and not counted";
+  else
+    note += "The reference is " + code(reference) + " (the pipeline's reference)";
   const std::string vulkan = machine.value("vulkan", std::string("none"));
   for (const char* software : {"llvmpipe", "lavapipe", "SwiftShader"})
     if (vulkan.find(software) != std::string::npos) {
-      note += ", while the Vulkan techniques run on " + name(vulkan) +
+      note += "; the Vulkan techniques run on " + name(vulkan) +
               ", a software renderer on the same CPU";
       break;
     }

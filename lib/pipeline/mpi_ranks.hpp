@@ -128,7 +128,8 @@ struct Ranks {
   }
 
   // Runs a step that involves no other rank and agrees on its outcome: an error on any rank is
-  // thrown on every rank, naming the lowest failing rank, with its kind (input, output, other).
+  // thrown on every rank, naming the lowest failing rank, with its kind (input, output, usage,
+  // budget, an interruption, other).
   void agree(const std::function<void()>& step) const {
     char kind = 0;
     std::string message;
@@ -143,6 +144,10 @@ struct Ranks {
       kind = 'o', message = e.file() + '\x1f' + e.detail();
     } catch (const Interrupted& e) {
       kind = 's', message = std::to_string(e.signal());
+    } catch (const UsageError& e) {  // exit 1 as in linebake bake (it had been 4, a plain Error)
+      kind = 'u', message = e.what();
+    } catch (const BudgetExceeded& e) {
+      kind = 'b', message = e.what();
     } catch (const std::exception& e) {
       kind = 'e', message = e.what();
     }
@@ -164,6 +169,10 @@ struct Ranks {
           throw OutputError(rank_name + field(0), field(1));
         case 's':
           throw Interrupted(std::stoi(m.substr(1)));
+        case 'u':
+          throw UsageError(text);
+        case 'b':
+          throw BudgetExceeded(text);
         default:
           throw Error(text);
       }

@@ -150,6 +150,14 @@ double orbit_fit_distance(const Bounds& b, double aspect, double elevation, doub
 
 }  // namespace
 
+void hold_in_clip_planes(Camera& c, const Bounds& b) {
+  if (b.empty) return;
+  Camera wide = c;
+  fit_clip_planes(wide, bounding_sphere(b));
+  c.near = std::min(c.near, wide.near);
+  c.far = std::max(c.far, wide.far);
+}
+
 Camera frame_bounds(const Bounds& bounds, double aspect, double azimuth_degrees,
                     double elevation_degrees, double distance_scale, double fov_y_degrees) {
   const Sphere s = bounding_sphere(bounds);

@@ -34,6 +34,11 @@ struct Camera {
 // cameras without one (Embree asserts on the NaN rays the others would make).
 std::string camera_problem(const Camera& camera);
 
+// Widens c's near and far planes (never narrows them) so that they hold the bounding sphere of
+// `b`: geometry drawn past the box a flight was framed on (render --radius larger than the
+// cached tubes') is not cut off by them (embree's rays are clipped to them, rasterisation too).
+void hold_in_clip_planes(Camera& c, const Bounds& b);
+
 // The camera that looks at the centre of `bounds` from direction (azimuth, elevation), at the
 // nearest distance where the whole box fits the view from every azimuth at this elevation (plus
 // 5%), times `distance_scale`: an orbit keeps one distance and elongated data fills the frame.

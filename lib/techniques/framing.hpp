@@ -15,5 +15,8 @@ namespace linebake {
 // curves', else the radius a bake would give them: 0.001 x the diagonal). That is the capsules'
 // exact box, and the tube mesh, whose rings lie within the radius, lies inside it.
 Bounds flight_bounds(const CacheReader& cache);
+// The lines' bounds grown by `radius` where it passes the radius flight_bounds grows them by:
+// what a technique draws with render --radius (the camera stays framed on flight_bounds).
+Bounds drawn_bounds(const CacheReader& cache, float radius);
 
 }  // namespace linebake
