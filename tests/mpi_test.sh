@@ -237,5 +237,27 @@ check "np 2: an unknown --attribute is exit 1 naming it, as the serial bake" bas
   [ \$? -eq 1 ] && grep -q \"rank 0: --attribute: no attribute named 'nothere' in these lines\" attr.txt &&
   ! grep -q MPI_ABORT attr.txt && [ ! -e attr.lbc.h5 ]"
 
+# Each rank's budget is checked as the serial bake checks its own: the least to work in, before
+# any line is read (30M had run 30 times as long, over it), and a line longer than a batch (a
+# line of 400,000 points had passed 169 MiB under 100M).
+check_budget "np 2: a budget under the least a bake works in is refused up front (exit 4)" bash -c "
+  timeout 60 mpirun -np 2 '$mpi' bake run/part_0.binlines -o least.lbc.h5 --memory-budget 30M < /dev/null > least.txt 2>&1
+  [ \$? -eq 4 ] && grep -q 'is less than the process already holds .* plus 32 MiB to work in' least.txt &&
+  [ ! -e least.lbc.h5 ]"
+awk 'BEGIN { print "line_id,x,y,z"; for (i = 0; i < 400000; ++i) printf "0,%.6f,%.6f,%.6f\n", cos(i / 4000), sin(i / 4000), i / 400000 }' > long.csv
+"$bin" convert long.csv -o long.binlines > /dev/null 2>&1
+check_budget "np 2: a line longer than a batch leaves is refused as the serial bake refuses it (exit 4)" bash -c "
+  '$bin' bake long.binlines -o long-serial.lbc.h5 --memory-budget 100M 2> long-serial.txt
+  [ \$? -eq 4 ] && grep -q 'line 0 has 400000 points; baking it needs about' long-serial.txt &&
+  timeout 60 mpirun -np 2 '$mpi' bake long.binlines -o long-mpi.lbc.h5 --memory-budget 100M < /dev/null > long-mpi.txt 2>&1
+  [ \$? -eq 4 ] && grep -q 'line 0 has 400000 points; baking it needs about' long-mpi.txt && [ ! -e long-mpi.lbc.h5 ]"
+
+# A rank's stderr is a pipe whatever mpirun's is: rank 0 draws its bars when asked.
+check "np 2: mpirun -x LINEBAKE_PROGRESS=always draws rank 0's progress bars, none otherwise" bash -c "
+  mpirun -x LINEBAKE_PROGRESS=always -np 2 '$mpi' bake run/part_0.binlines -o bars.lbc.h5 < /dev/null > bars.txt 2>&1 &&
+  grep -qa 'reading run/part_0.binlines .*100.0%' bars.txt && [ \$(tr -cd '\\033' < bars.txt | wc -c) -gt 0 ] &&
+  rm bars.lbc.h5 && mpirun -np 2 '$mpi' bake run/part_0.binlines -o bars.lbc.h5 < /dev/null > bars.txt 2>&1 &&
+  [ \$(tr -cd '\\033\\r' < bars.txt | wc -c) -eq 0 ]"
+
 echo "mpi: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

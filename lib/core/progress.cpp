@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 namespace linebake {
 
@@ -19,7 +21,15 @@ void TerminalProgress::finish() {
   active_ = false;
 }
 
+// LINEBAKE_PROGRESS=always draws on stderr whatever it is, =never never; otherwise when stderr is
+// a terminal. Under mpirun a rank's stderr is a pipe whatever mpirun's is (and its stdout a pty
+// even when mpirun's is a file), so a rank cannot tell: `mpirun -x LINEBAKE_PROGRESS=always`
+// asks for rank 0's bars.
 bool TerminalProgress::enabled() {
+  if (const char* setting = std::getenv("LINEBAKE_PROGRESS")) {
+    if (std::strcmp(setting, "always") == 0) return true;
+    if (std::strcmp(setting, "never") == 0) return false;
+  }
   return ::isatty(STDERR_FILENO) == 1;
 }
 

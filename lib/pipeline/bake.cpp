@@ -25,6 +25,7 @@
 #include "core/memory_budget.hpp"
 #include "core/output_lock.hpp"
 #include "lines/line_spool.hpp"
+#include "pipeline/bake_budget.hpp"
 #include "render/vulkan/rt_scene.hpp"
 #include "synth/synth.hpp"
 
@@ -694,17 +695,7 @@ BakeResult bake(const BakeOptions& options_in) {
   LineSetStats stats;
   std::string lines_hash;
   StepClock lines_clock{"lines"};
-  // HDF5's caches, TBB, the allocator's slack, the datasets' pending chunks.
-  if (!budget.unlimited()) {
-    if (budget.available() < (uint64_t{32} << 20))
-      throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
-                           " is less than the process already holds (" +
-                           format_bytes(budget.baseline()) + ") plus 32 MiB to work in");
-    // Measured: about 20 MiB at the least (encoded chunks in flight, HDF5's own structures).
-    budget.reserve(
-        std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
-        "the bake's fixed buffers");
-  }
+  reserve_bake_fixed_buffers(budget);
   std::unique_ptr<LineReader> input;
   uint64_t batch_points = uint64_t{1} << 21;
   const auto plan_batches = [&](const LineSet& h) {
@@ -772,13 +763,7 @@ BakeResult bake(const BakeOptions& options_in) {
         }
         line_base += batch.line_count();
         for (size_t l = 0; l < batch.line_count(); ++l)
-          if (!budget.unlimited() && batch.line_size(l) * per_point > budget.available() / 2)
-            throw BudgetExceeded(
-                batch_source + ": line " + std::to_string(first + l) + " has " +
-                std::to_string(batch.line_size(l)) + " points; baking it needs about " +
-                format_bytes(batch.line_size(l) * per_point) + ", more than the memory budget of " +
-                format_bytes(budget.total()) + " leaves for one batch (" +
-                format_bytes(budget.available() / 2) + "); raise --memory-budget");
+          check_line_fits_batch(budget, batch.line_size(l), per_point, batch_source, first + l);
         builder.add(batch);
         hash.add(batch);
         if (spool) spool->append(batch);

@@ -28,6 +28,7 @@
 #include "core/progress.hpp"
 #include "lines/line_spool.hpp"
 #include "lines/validate.hpp"
+#include "pipeline/bake_budget.hpp"
 #include "pipeline/bake_mpi_voxels.hpp"
 #include "pipeline/mpi_ranks.hpp"
 #include "synth/synth.hpp"
@@ -286,6 +287,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const double cpu_start = process_cpu_seconds();
   const uint64_t rss_before = current_rss_bytes();
   MemoryBudget budget(budget_bytes);
+  // The least to work in and the fixed buffers, as the serial bake: each rank's own budget (its
+  // resident memory differs), refused on every rank if on one.
+  ranks.agree([&] { reserve_bake_fixed_buffers(budget); });
   // As the serial bake sizes its batches: a quarter of the budget through the builders.
   const uint64_t per_point =
       cost_per_point(options, header, build_tubes, build_voxels, build_embree);
@@ -294,6 +298,11 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
           ? uint64_t{1} << 21
           : std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
   result.batch_points = batch_points;
+  ranks.agree([&] {
+    if (!budget.unlimited())
+      budget.reserve(batch_points * per_point,
+                     "one batch of " + std::to_string(batch_points) + " points through every step");
+  });
   std::optional<LineSpool> spool;
   LineStatsBuilder local_stats(header);
   ValidationReport total;
@@ -312,6 +321,9 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       throw_if_interrupted();
       lines_done += batch.line_count();
       total.add(validate(batch, options.on_invalid, where, reader.first_line()));
+      for (size_t l = 0; l < batch.line_count(); ++l)
+        check_line_fits_batch(budget, batch.line_size(l), per_point, where,
+                              reader.first_line() + l);
       local_stats.add(batch);
       spool->append(batch);
       if (show) progress.update(lines_done * uint64_t(ranks.size), lines_total);

@@ -1,0 +1,44 @@
+#pragma once
+// What a bake takes from its memory budget before its batches, and the one check a line makes
+// against it: the serial bake (bake.cpp) and each rank of the MPI bake (bake_mpi.cpp) alike.
+// (The MPI bake had neither: a budget the serial bake refuses at once ran 30 times as long and
+// over it, and a line longer than a batch passed 169 MiB under a 100 MiB budget.)
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+
+#include "core/error.hpp"
+#include "core/memory_budget.hpp"
+
+namespace linebake {
+
+// Refuses a budget that leaves less than 32 MiB to work in beside what the process holds (HDF5's
+// caches, TBB, the allocator's slack, the datasets' pending chunks), and reserves the bake's
+// fixed buffers: an eighth of what is left, 24 to 96 MiB (measured: about 20 MiB at the least,
+// encoded chunks in flight and HDF5's own structures). Nothing for an unlimited budget.
+inline void reserve_bake_fixed_buffers(MemoryBudget& budget) {
+  if (budget.unlimited()) return;
+  if (budget.available() < (uint64_t{32} << 20))
+    throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
+                         " is less than the process already holds (" +
+                         format_bytes(budget.baseline()) + ") plus 32 MiB to work in");
+  budget.reserve(
+      std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
+      "the bake's fixed buffers");
+}
+
+// Refuses line `line` of `source` when its `points` points, at `per_point` bytes each through
+// every step, need more than half of what the budget leaves for a batch: a batch holds whole
+// lines, so one longer than a batch is held whole.
+inline void check_line_fits_batch(const MemoryBudget& budget, uint64_t points, uint64_t per_point,
+                                  const std::string& source, uint64_t line) {
+  if (budget.unlimited() || points * per_point <= budget.available() / 2) return;
+  throw BudgetExceeded(source + ": line " + std::to_string(line) + " has " +
+                       std::to_string(points) + " points; baking it needs about " +
+                       format_bytes(points * per_point) + ", more than the memory budget of " +
+                       format_bytes(budget.total()) + " leaves for one batch (" +
+                       format_bytes(budget.available() / 2) + "); raise --memory-budget");
+}
+
+}  // namespace linebake
