@@ -259,5 +259,10 @@ check "np 2: mpirun -x LINEBAKE_PROGRESS=always draws rank 0's progress bars, no
   rm bars.lbc.h5 && mpirun -np 2 '$mpi' bake run/part_0.binlines -o bars.lbc.h5 < /dev/null > bars.txt 2>&1 &&
   [ \$(tr -cd '\\033\\r' < bars.txt | wc -c) -eq 0 ]"
 
+check "np 2: a command-line error says 'linebake-mpi: error:' and where the options are listed, exit 1" bash -c "
+  mpirun -np 2 '$mpi' bake run/part_0.binlines -o grid.lbc.h5 --assets voxels --grid 5000 < /dev/null > grid.txt 2>&1
+  [ \$? -eq 1 ] && grep -q '^linebake-mpi: error: --grid: 5000 is outside 1..4096' grid.txt &&
+  grep -q '(linebake-mpi bake --help lists the options)' grid.txt && ! grep -q 'Run with --help' grid.txt"
+
 echo "mpi: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

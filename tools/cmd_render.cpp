@@ -4,6 +4,8 @@
 // voxel ray casting (vrc, CPU or Vulkan compute) or Vulkan ray tracing (rtx).
 
 #include <algorithm>
+#include <cctype>
+#include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -277,6 +279,10 @@ Command add_render(CLI::App& app) {
                        std::to_string(args->frame_count - 1) + " (--frame-count)");
     // Every output before any work: an image format, directories that exist and take files.
     check_image_output(args->output);
+    // A PFM holds floats: --png-bits with it would be read by nothing (it had been taken).
+    std::string extension = std::filesystem::path(args->output).extension().string();
+    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+    refuse_unless(sub, {"png-bits"}, extension == ".png", "with a .png image (-o)");
     check_output_location(args->stats);
     check_depth_image_output(args->depth_image);
     check_frame_outputs({args->output, args->depth_image}, {args->stats},

@@ -30,8 +30,9 @@ CapsuleSegments build_capsule_segments(const LineSet& lines, float radius,
   if (!(radius > 0)) throw Error("capsules: the radius must be positive");
   if (max_segments_per_chunk < 1) throw Error("capsules: at least one segment per chunk");
   const Attribute* values = nullptr;
+  // A usage error listing the names, as embree's (it had been exit 4 naming none).
   if (!attribute.empty() && !(values = lines.find_attribute(attribute)))
-    throw Error("capsules: no vertex attribute '" + attribute + "'");
+    throw_unknown_attribute(lines, "--attribute", attribute, true);
   CapsuleSegments out;
   out.radius = radius;
   out.attribute = attribute;

@@ -339,7 +339,10 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         return json_text(stats_json(merge(stats_from(a), stats_from(b))));
       },
       [](const std::string& whole) { return whole; }));
-  if (stats.lines == 0) throw InputError(options.input, "", "no lines in the input");
+  if (stats.lines == 0)  // in the serial bake's words (the ranks' repairs are not gathered here)
+    throw InputError(options.input, "",
+                     "has no lines, or none left once repaired: nothing to bake (an empty line "
+                     "set reads and converts, but a cache holds lines); no cache written");
   check_geometry_span(stats, options);  // the stats are every rank's: so is the outcome
   if (const std::string note = far_from_origin_note(stats); !note.empty())
     result.notes.push_back(options.input + ": " + note);
