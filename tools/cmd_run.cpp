@@ -385,10 +385,16 @@ Command add_run(CLI::App& app) {
       // The reports describe the outputs as the last whole run left them: once a step is to
       // change those, they go (a failed or interrupted run leaves none, not a stale one).
       if (!reports_removed) {
+        std::vector<std::string> reports;
         for (const char* report : {"report.html", "report.md", "report.json"})
-          if (std::error_code ec; !std::filesystem::remove(p.output + "/" + report, ec) && ec)
-            throw OutputError(p.output + "/" + report,
-                              "cannot remove the last run's report: " + ec.message());
+          reports.push_back(p.output + "/" + report);
+        // And their plots (an interrupted run had left the last run's beside no report).
+        std::error_code listed;
+        for (const auto& entry : std::filesystem::directory_iterator(p.output + "/plots", listed))
+          if (entry.path().extension() == ".svg") reports.push_back(entry.path().string());
+        for (const std::string& report : reports)
+          if (std::error_code ec; !std::filesystem::remove(report, ec) && ec)
+            throw OutputError(report, "cannot remove the last run's report: " + ec.message());
         reports_removed = true;
       }
       // The step's record goes before its outputs change: interrupted or failed, it runs again
