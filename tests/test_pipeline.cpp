@@ -107,11 +107,11 @@ TEST(Pipeline, ARenderStepsOutputsAreEveryFileItsArgumentsName) {
     ++renders;
     const auto value_of = [&](const std::string& option) {
       const auto at = std::find(s.args.begin(), s.args.end(), option);
-      return at + 1 < s.args.end() ? *(at + 1) : std::string();
+      return at != s.args.end() && at + 1 != s.args.end() ? *(at + 1) : std::string();
     };
     const std::string image = value_of("-o"), dc = value_of("--depth-complexity");
-    ASSERT_EQ(image.substr(image.size() - 4), ".png") << s.id;
-    ASSERT_EQ(dc.substr(dc.size() - 4), ".png") << s.id;
+    ASSERT_TRUE(image.size() > 4 && image.ends_with(".png")) << s.id;
+    ASSERT_TRUE(dc.size() > 4 && dc.ends_with(".png")) << s.id;
     std::set<std::string> expected = {value_of("--stats")};
     for (int f = 0; f < p.frame_count; ++f) {
       char number[16];

@@ -87,8 +87,8 @@ int main(int argc, char** argv) {
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   }
   std::vector<std::string> args(argv + 1, argv + argc);
-  const auto command = std::find_if(args.begin(), args.end(),
-                                    [](const std::string& a) { return a.empty() || a[0] != '-'; });
+  auto command = std::find_if(args.begin(), args.end(),
+                              [](const std::string& a) { return a.empty() || a[0] != '-'; });
   if (command != args.end()) {
     std::vector<std::string> names;
     for (const auto& [sub, run] : commands) names.push_back(sub->get_name());
@@ -97,8 +97,28 @@ int main(int argc, char** argv) {
                 << linebake::did_you_mean(*command, names) << " (linebake --help lists them)\n";
       return kUsage;
     }
+    // `linebake --help CMD` is `linebake CMD --help`; `--version` before a command is itself.
+    for (auto a = args.begin(); a != command; ++a) {
+      if (*a == "--version") {
+        std::cout << LINEBAKE_VERSION << "\n";
+        return standard_output_written();
+      }
+      if (*a == "-h" || *a == "--help")
+        for (const auto& [sub, run] : commands)
+          if (sub->get_name() == *command) {
+            std::cout << sub->help("linebake");
+            return standard_output_written();
+          }
+    }
+    const auto at = command - args.begin();
+    std::vector<std::string> rest(command + 1, args.end());
+    apply_deprecated_aliases(*command, rest);
+    args.erase(command + 1, args.end());
+    args.insert(args.end(), rest.begin(), rest.end());
+    command = args.begin() + at;
     // A command of kinds (bench) names one: CLI11 said "A subcommand is required" of a kind
-    // it did not know, and of none.
+    // it did not know, and of none. After the old spellings are rewritten (bench's options
+    // before its kind move behind it).
     for (const auto& [sub, run] : commands) {
       const std::vector<CLI::App*> kinds = sub->get_subcommands({});
       if (sub->get_name() != *command || kinds.empty()) continue;
@@ -122,23 +142,6 @@ int main(int argc, char** argv) {
         return kUsage;
       }
     }
-    // `linebake --help CMD` is `linebake CMD --help`; `--version` before a command is itself.
-    for (auto a = args.begin(); a != command; ++a) {
-      if (*a == "--version") {
-        std::cout << LINEBAKE_VERSION << "\n";
-        return standard_output_written();
-      }
-      if (*a == "-h" || *a == "--help")
-        for (const auto& [sub, run] : commands)
-          if (sub->get_name() == *command) {
-            std::cout << sub->help("linebake");
-            return standard_output_written();
-          }
-    }
-    std::vector<std::string> rest(command + 1, args.end());
-    apply_deprecated_aliases(*command, rest);
-    args.erase(command + 1, args.end());
-    args.insert(args.end(), rest.begin(), rest.end());
   }
   std::reverse(args.begin(), args.end());  // CLI11 takes a vector last argument first
   // Every failure, whether the command line's (found while parsing) or the work's, maps to the

@@ -227,7 +227,11 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   ReadOptions read;
   read.format = options.format;
   // A file read whole (OBJ, VTK, VTP) is held within this rank's budget while it is read.
-  if (budget_bytes != 0) read.memory_limit = MemoryBudget(budget_bytes).available();
+  // Started before anything is read, as the serial bake's: a file read whole for its count
+  // leaves its freed heap resident (M_TRIM_THRESHOLD, linebake_mpi.cpp), which a later start
+  // would count against the least to work in.
+  MemoryBudget budget(budget_bytes);
+  if (budget_bytes != 0) read.memory_limit = budget.available();
   LineSet header;
   ranks.agree([&] {
     // Every rank finds the same origin (the same first point of the same files).
@@ -286,7 +290,6 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const auto read_start = std::chrono::steady_clock::now();
   const double cpu_start = process_cpu_seconds();
   const uint64_t rss_before = current_rss_bytes();
-  MemoryBudget budget(budget_bytes);
   // The least to work in and the fixed buffers, as the serial bake: each rank's own budget (its
   // resident memory differs), refused on every rank if on one.
   ranks.agree([&] { reserve_bake_fixed_buffers(budget); });
@@ -376,10 +379,10 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         budget.reserve(placement.fixed_bytes(),
                        "the voxel grid's chord counts and density mip levels (" +
                            std::to_string(placement.description().voxel_count()) + " voxels)");
-        // Of what the batches (a quarter) leave: a third for the records walked here, a third
-        // for those received, a sixth for the exchange's buffers and the rest for the merge
-        // (which follows the exchange).
-        const uint64_t left = budget.available() / 4 * 3;
+        // Of what the batches (reserved above, a quarter) and the fixed buffers leave: a third
+        // for the records walked here, a third for those received, a sixth for the exchange's
+        // buffers and the rest for the merge (which follows the exchange).
+        const uint64_t left = budget.available();
         voxel_merge_bytes = std::min<uint64_t>(left / 6, uint64_t{256} << 20);
         voxel_exchange_bytes = left / 6;
         memory.records_bytes = left / 3;

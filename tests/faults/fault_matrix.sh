@@ -232,6 +232,7 @@ if [ -z "${FAULT_MATRIX_FILTER:-}" ] || [[ create =~ $FAULT_MATRIX_FILTER ]]; th
     EXPECT_MESSAGE='No space left on device' cell "$1" "create ENOSPC" "$2" \
       LINEBAKE_FAULT_CREATE_UNDER=out/ -- "${@:3}"
   }
+  # (The bake's first file is its lock, <cache>.lock: it fails there, before its HDF5 file.)
   create_cell "bake --assets tubes" out/x.lbc.h5 "$bin" bake "$c" -o out/x.lbc.h5
   for ext in vtp vtk binlines h5 obj csv; do
     create_cell "convert to .$ext" "out/x.$ext" "$bin" convert "$c" -o "out/x.$ext"

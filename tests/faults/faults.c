@@ -9,9 +9,10 @@
  *   LINEBAKE_FAULT_FSYNC=1    fsync and fdatasync fail with E (EIO if LINEBAKE_FAULT_ERRNO is unset).
  *   LINEBAKE_FAULT_FREE=B     statvfs and friends report B bytes free (f_bavail and f_bfree, in
  *                             f_frsize units; f_frsize becomes 1 where B is not a multiple of it).
- *   LINEBAKE_FAULT_CREATE_UNDER=DIR  open, openat and creat that would create a file (O_CREAT)
- *                             whose path, as given, starts with DIR fail with E (ENOSPC if
- *                             LINEBAKE_FAULT_ERRNO is unset: a file system out of inodes).
+ *   LINEBAKE_FAULT_CREATE_UNDER=DIR  open, openat and creat that would create a file (O_CREAT
+ *                             of a path that does not exist, or with O_EXCL) whose path, as
+ *                             given, starts with DIR fail with E (ENOSPC if LINEBAKE_FAULT_ERRNO
+ *                             is unset: a file system out of inodes).
  *   LINEBAKE_FAULT_LOG=path   append one line per injected fault: function, fd, bytes (for
  *                             statvfs, the bytes reported free; fd -1 for a path).
  *   LINEBAKE_FAULT_COUNT=path at exit, append "<pid> <bytes>": the bytes this process wrote to
@@ -269,10 +270,12 @@ int fdatasync(int fd) {
 }
 
 /* Creating a file under LINEBAKE_FAULT_CREATE_UNDER fails, as on a file system out of inodes. */
-static int create_fails(const char* path, int flags) {
+static int create_fails(int dir, const char* path, int flags) {
   setup();
   if (!create_under || !(flags & O_CREAT) || strncmp(path, create_under, strlen(create_under)))
     return 0;
+  /* An existing file opened with O_CREAT (and no O_EXCL) is not created: it opens. */
+  if (!(flags & O_EXCL) && faccessat(dir, path, F_OK, 0) == 0) return 0;
   log_fault("create", -1, 0);
   errno = errno_set ? fault_errno : ENOSPC;
   return 1;
@@ -280,24 +283,24 @@ static int create_fails(const char* path, int flags) {
 static mode_t mode_of(int flags, va_list args) {
   return (flags & O_CREAT) || (flags & O_TMPFILE) == O_TMPFILE ? va_arg(args, mode_t) : 0;
 }
-#define OPEN(name, ...)                             \
+#define OPEN(name, DIR, ...)                        \
   do {                                              \
     va_list args;                                   \
     va_start(args, flags);                          \
     const mode_t mode = mode_of(flags, args);       \
     va_end(args);                                   \
-    if (create_fails(path, flags)) return -1;       \
+    if (create_fails(DIR, path, flags)) return -1;  \
     return real_##name(__VA_ARGS__, flags, mode);   \
   } while (0)
-int open(const char* path, int flags, ...) { OPEN(open, path); }
-int open64(const char* path, int flags, ...) { OPEN(open64, path); }
-int openat(int dir, const char* path, int flags, ...) { OPEN(openat, dir, path); }
-int openat64(int dir, const char* path, int flags, ...) { OPEN(openat64, dir, path); }
+int open(const char* path, int flags, ...) { OPEN(open, AT_FDCWD, path); }
+int open64(const char* path, int flags, ...) { OPEN(open64, AT_FDCWD, path); }
+int openat(int dir, const char* path, int flags, ...) { OPEN(openat, dir, dir, path); }
+int openat64(int dir, const char* path, int flags, ...) { OPEN(openat64, dir, dir, path); }
 int creat(const char* path, mode_t mode) {
-  return create_fails(path, O_CREAT) ? -1 : real_creat(path, mode);
+  return create_fails(AT_FDCWD, path, O_CREAT) ? -1 : real_creat(path, mode);
 }
 int creat64(const char* path, mode_t mode) {
-  return create_fails(path, O_CREAT) ? -1 : real_creat64(path, mode);
+  return create_fails(AT_FDCWD, path, O_CREAT) ? -1 : real_creat64(path, mode);
 }
 
 /* statvfs: B bytes free and available on every file system. */
