@@ -95,35 +95,6 @@ TEST(Pipeline, PlanOrdersStepsAndSkipsWhatTheMachineCannotRun) {
   for (const PipelineStep& s : plan_pipeline(p, context)) EXPECT_TRUE(s.skip_reason.empty());
 }
 
-TEST(Pipeline, ARenderStepsOutputsAreEveryFileItsArgumentsName) {
-  // Each frame's image and depth-complexity image (numbered "_NNN" with several frames) and the
-  // stats: a depth-complexity image deleted had left the step reused and the report without it.
-  const Pipeline p = parse_pipeline(small(), "t.json");
-  PlanContext context;
-  context.file_hash = &fake_hash;
-  size_t renders = 0;
-  for (const PipelineStep& s : plan_pipeline(p, context)) {
-    if (s.kind != "render") continue;
-    ++renders;
-    const auto value_of = [&](const std::string& option) {
-      const auto at = std::find(s.args.begin(), s.args.end(), option);
-      return at != s.args.end() && at + 1 != s.args.end() ? *(at + 1) : std::string();
-    };
-    const std::string image = value_of("-o"), dc = value_of("--depth-complexity");
-    ASSERT_TRUE(image.size() > 4 && image.ends_with(".png")) << s.id;
-    ASSERT_TRUE(dc.size() > 4 && dc.ends_with(".png")) << s.id;
-    std::set<std::string> expected = {value_of("--stats")};
-    for (int f = 0; f < p.frame_count; ++f) {
-      char number[16];
-      std::snprintf(number, sizeof number, "_%03d", f);
-      expected.insert(image.substr(0, image.size() - 4) + number + ".png");
-      expected.insert(dc.substr(0, dc.size() - 4) + number + ".png");
-    }
-    EXPECT_EQ(std::set<std::string>(s.outputs.begin(), s.outputs.end()), expected) << s.id;
-  }
-  EXPECT_EQ(renders, 12u);
-}
-
 TEST(Pipeline, KeysChangeWithTheirInputsOnly) {
   PlanContext context;
   context.file_hash = &fake_hash;

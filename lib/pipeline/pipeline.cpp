@@ -523,10 +523,6 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
         render.args.insert(render.args.end(), t.options.begin(), t.options.end());
         render.outputs = {stem + ".json"};
         for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));
-        // Its depth-complexity images too: the report shows them, and a missing one had left the
-        // step reused and the report without it.
-        for (int f = 0; f < p.frame_count; ++f)
-          render.outputs.push_back(frame_png(stem + "-dc", f));
         std::vector<std::string> rparts = render.args;
         rparts.push_back(bake_key);
         // An edited transfer-function or key-frame file renders again, as an edited input file
