@@ -359,6 +359,21 @@ void check_cache_input(const std::string& path) {
                          "), not a linebake cache; bake it first: linebake bake " + path);
 }
 
+void speak_with_one_voice(CLI::App& app, const std::string& program) {
+  app.failure_message([program](const CLI::App* failed, const CLI::Error& e) {
+    std::string command = failed->get_name();
+    for (const CLI::App* sub = failed; sub;) {
+      const CLI::App* next = nullptr;
+      for (const CLI::App* s : sub->get_subcommands())
+        if (s->parsed()) next = s;
+      if (next) command += " " + next->get_name();
+      sub = next;
+    }
+    return program + ": error: " + std::string(e.what()) + "\n(" + command +
+           " --help lists the options)\n";
+  });
+}
+
 void say(const std::string& message) {
   std::cerr << "linebake: " << message << "\n";
 }

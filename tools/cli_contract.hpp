@@ -81,6 +81,10 @@ void check_input_file(const std::string& path);
 // ("a line file (binlines): bake it first: linebake bake c.binlines").
 void check_cache_input(const std::string& path);
 
+// CLI11's parse errors in the voice of every other error: "PROGRAM: error: MESSAGE" and the
+// command whose --help lists the options (linebake, linebake-mpi).
+void speak_with_one_voice(CLI::App& app, const std::string& program);
+
 // One voice on stderr.
 void say(const std::string& message);   // "linebake: MESSAGE"
 void warn(const std::string& message);  // "linebake: warning: MESSAGE"

@@ -4,8 +4,6 @@
 // voxel ray casting (vrc, CPU or Vulkan compute) or Vulkan ray tracing (rtx).
 
 #include <algorithm>
-#include <cctype>
-#include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -280,9 +278,7 @@ Command add_render(CLI::App& app) {
     // Every output before any work: an image format, directories that exist and take files.
     check_image_output(args->output);
     // A PFM holds floats: --png-bits with it would be read by nothing (it had been taken).
-    std::string extension = std::filesystem::path(args->output).extension().string();
-    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-    refuse_unless(sub, {"png-bits"}, extension == ".png", "with a .png image (-o)");
+    refuse_unless(sub, {"png-bits"}, is_png_path(args->output), "with a .png image (-o)");
     check_output_location(args->stats);
     check_depth_image_output(args->depth_image);
     check_frame_outputs({args->output, args->depth_image}, {args->stats},

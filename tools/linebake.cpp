@@ -66,18 +66,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", LINEBAKE_VERSION);
   app.require_subcommand(1);
   // One voice: CLI11's parse errors get the prefix every other error has.
-  app.failure_message([](const CLI::App* failed, const CLI::Error& e) {
-    std::string command = failed->get_name();
-    for (const CLI::App* sub = failed; sub;) {
-      const CLI::App* next = nullptr;
-      for (const CLI::App* s : sub->get_subcommands())
-        if (s->parsed()) next = s;
-      if (next) command += " " + next->get_name();
-      sub = next;
-    }
-    return "linebake: error: " + std::string(e.what()) + "\n" + "(" + command +
-           " --help lists the options)\n";
-  });
+  speak_with_one_voice(app, "linebake");
   std::vector<std::pair<CLI::App*, Command>> commands;
   for (auto add : {add_info, add_convert, add_synth, add_bake, add_report, add_export, add_render,
                    add_depth_complexity, add_compare, add_bench, add_run, add_view, add_techniques,

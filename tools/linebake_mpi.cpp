@@ -48,15 +48,7 @@ int main(int argc, char** argv) {
           "Resident memory each rank may use, e.g. 2G; unlimited (default: half of the node's "
           "physical memory, or of the cgroup's or ulimit -v's limit when less, shared by the "
           "ranks on the node)");
-  // One voice with linebake's: the prefix and where the options are listed (CLI11's own
-  // "Run with --help for more information." had followed a bare message).
-  app.failure_message([](const CLI::App* failed, const CLI::Error& e) {
-    std::string command = failed->get_name();
-    for (const CLI::App* sub : failed->get_subcommands())
-      if (sub->parsed()) command += " " + sub->get_name();
-    return "linebake-mpi: error: " + std::string(e.what()) + "\n(" + command +
-           " --help lists the options)\n";
-  });
+  speak_with_one_voice(app, "linebake-mpi");  // CLI11's "Run with --help ..." had followed
   int code = kOk;
   try {
     app.parse(argc, argv);

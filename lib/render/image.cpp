@@ -302,6 +302,10 @@ void check_image_output(const std::string& path) {
   check_output_location(path);
 }
 
+bool is_png_path(const std::string& path) {
+  return ends_with(path, ".png");
+}
+
 void write_image(const Image& image, const std::string& path, int png_bits) {
   if (ends_with(path, ".pfm")) return write_pfm(image, path);
   if (ends_with(path, ".png")) return write_png(image, path, png_bits);

@@ -50,6 +50,8 @@ void write_image(const Image& image, const std::string& path, int png_bits = 8);
 // Before any work: what write_image would refuse (an extension other than .png or .pfm, a missing
 // or read-only directory), as OutputError naming the path.
 void check_image_output(const std::string& path);
+// Whether write_image writes `path` as a PNG (its extension, in any case).
+bool is_png_path(const std::string& path);
 Image read_image(const std::string& path, uint64_t max_bytes = UINT64_MAX);
 // read_image within what `budget` leaves, its floats then reserved from it (named by the path).
 Image read_image(const std::string& path, MemoryBudget& budget);
