@@ -314,6 +314,43 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
 // A damaged pipeline (a fuzzer's; tests/fuzz/known/pipeline_yaml/) on which yaml-cpp 0.7's
 // YAML::LoadAll produced documents without end, past 2 GiB: read as one document, refused as
 // not a mapping, at once.
+// YAML 1.2's core schema, as the documentation promises: 0x and 0o integers, .inf; a plain
+// yes/no/on/off (YAML 1.1's booleans, 1.2's strings) is refused naming its line and column,
+// since `early-termination: yes` reached the flag as a value.
+TEST(Pipeline, YamlReadsCoreIntegersAndRefusesYaml11Booleans) {
+  const Pipeline p = load_pipeline(write_temp("core.yaml", R"(name: 0x1p3
+datasets: [{name: a, source: s.binlines}]
+assets: {grid: 0x20, radius: 0o17, samples: 012}
+techniques:
+  - {technique: ll, options: {max: .inf, min: -.Inf, early-termination: "yes"}}
+reference: ll
+frames: 0o7
+)"));
+  EXPECT_EQ(p.name, "0x1p3");  // C's hexadecimal float, a string in YAML
+  EXPECT_EQ(p.frame_count, 7);
+  EXPECT_EQ(p.bake_options,
+            (std::vector<std::string>{"--grid", "32", "--radius", "15", "--samples", "12"}));
+  ASSERT_EQ(p.techniques.size(), 1u);
+  EXPECT_EQ(p.techniques[0].options, (std::vector<std::string>{"--early-termination", "yes",
+                                                               "--max", "inf", "--min", "-inf"}));
+  for (const char* plain : {"yes", "No", "ON", "off", "y"}) {
+    try {
+      load_pipeline(write_temp("truthy.yaml", std::string("datasets: [{name: a, source: "
+                                                          "s.binlines}]\ntechniques:\n  - "
+                                                          "technique: ll\n    options:\n"
+                                                          "      early-termination: ") +
+                                                  plain + "\nreference: ll\n"));
+      ADD_FAILURE() << plain << " was taken";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.where(), "line 5, column 26") << e.what();
+      EXPECT_NE(
+          std::string(e.what()).find("plain '" + std::string(plain) + "' is a boolean in YAML 1.1"),
+          std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(Pipeline, ADamagedFileThatLoadAllReadForEverIsRead) {
   const std::string damaged = write_temp(
       "damaged.yaml",

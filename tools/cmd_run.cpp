@@ -260,16 +260,17 @@ void check_run_places(const Pipeline& p, const std::vector<PipelineStep>& steps)
       throw OutputError(place.string(), "is a directory where the run writes a file; move it");
   };
   for (const PipelineStep& s : steps)
-    for (const std::string& o : s.outputs) {
-      in_the_way(o, false);
-      // Each directory on the way, from the output directory down.
-      const std::filesystem::path parent = std::filesystem::path(o).parent_path();
-      std::filesystem::path walked;
-      for (const auto& part : parent) {
-        walked /= part;
-        if (walked.string().size() > p.output.size()) in_the_way(walked, true);
+    for (const std::vector<std::string>* files : {&s.outputs, &s.optional_outputs})
+      for (const std::string& o : *files) {
+        in_the_way(o, false);
+        // Each directory on the way, from the output directory down.
+        const std::filesystem::path parent = std::filesystem::path(o).parent_path();
+        std::filesystem::path walked;
+        for (const auto& part : parent) {
+          walked /= part;
+          if (walked.string().size() > p.output.size()) in_the_way(walked, true);
+        }
       }
-    }
   for (const char* report : {"report.html", "report.md", "report.json"})
     in_the_way(p.output + "/" + report, false);
   in_the_way(p.output + "/plots", true);
@@ -354,9 +355,19 @@ Command add_run(CLI::App& app) {
         std::cerr << "linebake: run: " << state_path << " is unreadable: every step runs again\n";
       }
     }
+    // A finished step's record: {"key": its key, "made": the optional outputs it made} (a bare
+    // key in the state of earlier versions, which recorded no optional outputs).
     const auto reusable = [&](const PipelineStep& s) {
-      if (args->force || !state.contains(s.id) || state[s.id] != s.key) return false;
-      for (const std::string& o : s.outputs)
+      if (args->force || !state.contains(s.id)) return false;
+      const nlohmann::json& record = state[s.id];
+      const nlohmann::json key =
+          record.is_object() ? record.value("key", nlohmann::json()) : record;
+      if (key != s.key) return false;
+      std::vector<std::string> made = s.outputs;
+      if (record.is_object() && record.contains("made") && record["made"].is_array())
+        for (const nlohmann::json& o : record["made"])
+          if (o.is_string()) made.push_back(o.get<std::string>());
+      for (const std::string& o : made)
         if (!std::filesystem::exists(o)) return false;
       return true;
     };
@@ -404,6 +415,10 @@ Command add_run(CLI::App& app) {
         write_file_atomically(state_path, json_text(state, 1) + "\n");
       }
       for (const std::string& o : s.outputs) make_directory(std::filesystem::path(o).parent_path());
+      // What it may make is known once it ran: none of an earlier run's may be taken for its own.
+      for (const std::string& o : s.optional_outputs)
+        if (std::error_code ec; !std::filesystem::remove(o, ec) && ec)
+          throw OutputError(o, "cannot remove the last run's output: " + ec.message());
       std::cerr << "linebake: run: " << s.id << "\n";
       throw_if_interrupted();
       const int code = run_child(s.args, s.stdout_file);
@@ -414,7 +429,10 @@ Command add_run(CLI::App& app) {
       if (code != 0)
         throw Error("run: step " + s.id + " failed (exit " + std::to_string(code) +
                     "): " + quoted(s.args) + "; finished outputs are kept in " + p.output);
-      state[s.id] = s.key;
+      nlohmann::json made = nlohmann::json::array();
+      for (const std::string& o : s.optional_outputs)
+        if (std::filesystem::exists(o)) made.push_back(o);
+      state[s.id] = {{"key", s.key}, {"made", made}};
       write_file_atomically(state_path, json_text(state, 1) + "\n");
       ++ran;
     }

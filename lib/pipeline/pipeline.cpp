@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -316,15 +317,43 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
   if (text == "true" || text == "True" || text == "TRUE") return true;
   if (text == "false" || text == "False" || text == "FALSE") return false;
   if (text == "null" || text == "~" || text.empty()) return nullptr;
+  // YAML 1.1 (PyYAML) reads these as booleans, YAML 1.2 as strings: `early-termination: yes`
+  // meant true and would reach the flag as a value. Neither reading is safe to guess.
+  static const std::set<std::string> yaml11_booleans = {"y",  "Y",   "yes", "Yes", "YES", "n",
+                                                        "N",  "no",  "No",  "NO",  "on",  "On",
+                                                        "ON", "off", "Off", "OFF"};
+  if (yaml11_booleans.count(text))
+    throw InputError(file,
+                     "line " + std::to_string(node.Mark().line + 1) + ", column " +
+                         std::to_string(node.Mark().column + 1),
+                     "plain '" + text +
+                         "' is a boolean in YAML 1.1 and a string in YAML 1.2 (which pipelines "
+                         "read): write true or false, or quote it for the string");
   const char* begin = text.c_str();
   char* end = nullptr;
+  // YAML 1.2's core integers: decimal, 0o octal, 0x hexadecimal.
+  const auto prefixed = [&](const char* prefix, const char* digits) {
+    return text.size() > 2 && text.compare(0, 2, prefix) == 0 &&
+           text.find_first_not_of(digits, 2) == std::string::npos;
+  };
+  const int base = prefixed("0o", "01234567")                 ? 8
+                   : prefixed("0x", "0123456789abcdefABCDEF") ? 16
+                                                              : 10;
+  const char* digits = base == 10 ? begin : begin + 2;
   errno = 0;
-  const long long integer = std::strtoll(begin, &end, 10);
+  const long long integer = std::strtoll(digits, &end, base);
   if (errno == 0 && end == begin + text.size()) return integer;
+  // and its infinities (strtod's own spelling, inf, is a string there)
+  for (const char* spelling : {".inf", ".Inf", ".INF"}) {
+    const std::string infinity = spelling;
+    if (text == infinity || text == "+" + infinity) return std::numeric_limits<double>::infinity();
+    if (text == "-" + infinity) return -std::numeric_limits<double>::infinity();
+  }
   errno = 0;
   const double real = std::strtod(begin, &end);
   if (errno == 0 && end == begin + text.size() &&
-      text.find_first_of("0123456789") != std::string::npos)
+      text.find_first_of("0123456789") != std::string::npos &&
+      text.find_first_of("xX") == std::string::npos)  // C's hexadecimal floats are strings
     return real;
   return text;
 }
@@ -522,7 +551,10 @@ std::vector<PipelineStep> plan_pipeline(const Pipeline& p, const PlanContext& co
           render.args.insert(render.args.end(), {"--warm-up", std::to_string(p.warm_up)});
         render.args.insert(render.args.end(), t.options.begin(), t.options.end());
         render.outputs = {stem + ".json"};
-        for (int f = 0; f < p.frame_count; ++f) render.outputs.push_back(frame_png(stem, f));
+        for (int f = 0; f < p.frame_count; ++f) {
+          render.outputs.push_back(frame_png(stem, f));
+          render.optional_outputs.push_back(frame_output(p, stem + "-dc", f, ".png"));
+        }
         std::vector<std::string> rparts = render.args;
         rparts.push_back(bake_key);
         // An edited transfer-function or key-frame file renders again, as an edited input file

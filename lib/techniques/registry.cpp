@@ -67,8 +67,10 @@ const std::vector<Technique>& techniques() {
         false, A{"device", "validation"}},
        prepare_raster,
        raster_frame_bytes},
-      {{"dp", "Vulkan: depth peeling, one pass per layer (exact up to --max-layers)", A{"tubes"},
-        true, false, true, A{"device", "validation", "max-layers"}},
+      {{"dp",
+        "Vulkan: depth peeling, one pass per layer (exact up to --max-layers; fragments of equal "
+        "depth, as coincident tubes give, peel once)",
+        A{"tubes"}, true, false, true, A{"device", "validation", "max-layers"}},
        prepare_raster,
        raster_frame_bytes},
       {{"ll", "Vulkan: per-pixel linked lists, sorted and blended (exact)", A{"tubes"}, true, false,
