@@ -134,7 +134,8 @@ std::shared_ptr<PyLineSet> make_line_set(const py::object& points_like,
                                          const py::object& memory_budget) {
   auto result = std::make_shared<PyLineSet>();
   LineSet& lines = result->lines;
-  const py::array points = number_array(points_like, "points", kPositions);
+  // Booleans are no positions (an attribute of them reads as 0 and 1).
+  const py::array points = number_array(points_like, "points", kPositions, "iufO");
   const py::array offsets = number_array(offsets_like, "offsets", "a 1-D integer array (uint64)");
   // Each mapping taken once: an iterator of pairs (zip(names, arrays)) is spent by the first
   // look (its attributes had been counted for the budget and then found empty).

@@ -100,6 +100,18 @@ py::array number_array(const py::handle& value, const std::string& what, const c
   if (kinds && std::string_view(kinds).find(array.dtype().kind()) == std::string_view::npos)
     throw py::type_error(what + ": expected " + wanted + ", got an array of " +
                          std::string(py::str(array.dtype())));
+  // NumPy casts an object array's None to NaN: a missing value nobody marked as one ([1.0, None]
+  // is an object array). NaN given as such is kept.
+  if (array.dtype().kind() == 'O') {
+    py::ssize_t at = 0;
+    for (const py::handle item : array.attr("ravel")()) {
+      if (item.is_none())
+        throw py::type_error(what + ": expected " + wanted + ", got None at item " +
+                             std::to_string(at) +
+                             " (in C order); give numpy.nan for a missing value");
+      ++at;
+    }
+  }
   return array;
 }
 

@@ -573,6 +573,20 @@ def test_values_that_are_no_numbers_are_refused(values, message):
         linebake.LineSet(values, [0, 2])
 
 
+def test_booleans_are_no_positions_and_none_is_no_number():
+    """A bool array had been taken as points at 0 and 1, an object array's None as NaN."""
+    with pytest.raises(TypeError, match="^points: expected an \\(n, 3\\) array of positions, got an array of bool"):
+        linebake.LineSet(np.ones((2, 3), bool), [0, 2])
+    with pytest.raises(TypeError, match="^points: expected .*, got None at item 4 \\(in C order\\); give numpy.nan"):
+        linebake.LineSet(np.array([[0, 0, 0], [1, None, 1]], dtype=object), [0, 2])
+    with pytest.raises(TypeError, match="^attribute 'a': expected 2 float32 values, one per point, got None at item 1"):
+        linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": [1.0, None]})
+    # NaN given as such is kept, and an attribute of booleans reads as 0 and 1.
+    kept = linebake.LineSet([[0, 0, 0], [1, np.nan, 1]], [0, 2], {"a": np.array([True, False])})
+    assert np.isnan(kept.points[1, 1])
+    np.testing.assert_array_equal(kept.attributes["a"], np.array([1, 0], np.float32))
+
+
 def test_a_masked_array_with_masked_values_is_refused():
     points = np.ma.masked_invalid(np.array([[0, 0, 0], [1, np.nan, 1]]))
     with pytest.raises(ValueError, match="^points: a masked array with masked values"):
