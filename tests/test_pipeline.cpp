@@ -311,46 +311,60 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
       "datasets: [{name: a, source: s.binlines}]\ntechniques: [ll]\nreference: ll\n---\n")));
 }
 
-// A damaged pipeline (a fuzzer's; tests/fuzz/known/pipeline_yaml/) on which yaml-cpp 0.7's
-// YAML::LoadAll produced documents without end, past 2 GiB: read as one document, refused as
-// not a mapping, at once.
-// YAML 1.2's core schema, as the documentation promises: 0x and 0o integers, .inf; a plain
-// yes/no/on/off (YAML 1.1's booleans, 1.2's strings) is refused naming its line and column,
-// since `early-termination: yes` reached the flag as a value.
-TEST(Pipeline, YamlReadsCoreIntegersAndRefusesYaml11Booleans) {
+// YAML 1.2's core schema, as the documentation promises: 0x and 0o integers (to 64 bits), .inf;
+// what YAML 1.1 (PyYAML) reads otherwise is refused naming its line and column: a plain
+// yes/no/on/off (`early-termination: yes` had reached the flag as a value) and a leading zero.
+TEST(Pipeline, YamlReadsCoreIntegersAndRefusesWhatYaml11ReadsOtherwise) {
   const Pipeline p = load_pipeline(write_temp("core.yaml", R"(name: 0x1p3
 datasets: [{name: a, source: s.binlines}]
-assets: {grid: 0x20, radius: 0o17, samples: 012}
+assets: {grid: 0x20, radius: 0o17, seed: 0xFFFFFFFFFFFFFFFF}
 techniques:
-  - {technique: ll, options: {max: .inf, min: -.Inf, early-termination: "yes"}}
+  - {technique: ll, options: {capacity: [1, .inf, -.Inf], early: n, early-termination: "yes",
+                              max: +.inf, sort: y}}
 reference: ll
 frames: 0o7
 )"));
   EXPECT_EQ(p.name, "0x1p3");  // C's hexadecimal float, a string in YAML
   EXPECT_EQ(p.frame_count, 7);
-  EXPECT_EQ(p.bake_options,
-            (std::vector<std::string>{"--grid", "32", "--radius", "15", "--samples", "12"}));
+  EXPECT_EQ(p.bake_options, (std::vector<std::string>{"--grid", "32", "--radius", "15", "--seed",
+                                                      "18446744073709551615"}));
   ASSERT_EQ(p.techniques.size(), 1u);
-  EXPECT_EQ(p.techniques[0].options, (std::vector<std::string>{"--early-termination", "yes",
-                                                               "--max", "inf", "--min", "-inf"}));
-  for (const char* plain : {"yes", "No", "ON", "off", "y"}) {
+  // y and n are strings in both (PyYAML's booleans are yes, no, on, off).
+  EXPECT_EQ(
+      p.techniques[0].options,
+      (std::vector<std::string>{"--capacity", "1,inf,-inf", "--early", "n", "--early-termination",
+                                "yes", "--max", "inf", "--sort", "y"}));
+  const auto error_of = [](const std::string& value) -> std::pair<std::string, std::string> {
     try {
-      load_pipeline(write_temp("truthy.yaml", std::string("datasets: [{name: a, source: "
-                                                          "s.binlines}]\ntechniques:\n  - "
-                                                          "technique: ll\n    options:\n"
-                                                          "      early-termination: ") +
-                                                  plain + "\nreference: ll\n"));
-      ADD_FAILURE() << plain << " was taken";
+      load_pipeline(write_temp("yaml11.yaml",
+                               "datasets: [{name: a, source: s.binlines}]\n"
+                               "techniques:\n  - technique: ll\n    options:\n"
+                               "      early-termination: " +
+                                   value + "\nreference: ll\n"));
     } catch (const InputError& e) {
-      EXPECT_EQ(e.where(), "line 5, column 26") << e.what();
-      EXPECT_NE(
-          std::string(e.what()).find("plain '" + std::string(plain) + "' is a boolean in YAML 1.1"),
-          std::string::npos)
-          << e.what();
+      return {e.where(), e.what()};
     }
+    return {"", "taken"};
+  };
+  for (const char* plain : {"yes", "No", "ON", "off"}) {
+    const auto [where, what] = error_of(plain);
+    EXPECT_EQ(where, "line 5, column 26") << what;
+    EXPECT_NE(what.find("plain '" + std::string(plain) + "' is a boolean in YAML 1.1"),
+              std::string::npos)
+        << what;
   }
+  for (const char* leading_zero : {"012", "-07", "00"}) {
+    const auto [where, what] = error_of(leading_zero);
+    EXPECT_EQ(where, "line 5, column 26") << what;
+    EXPECT_NE(what.find("has a leading zero: octal in YAML 1.1"), std::string::npos) << what;
+  }
+  const auto [where, what] = error_of("0x10000000000000000");
+  EXPECT_NE(what.find("needs more than 64 bits"), std::string::npos) << what;
 }
 
+// A damaged pipeline (a fuzzer's; tests/fuzz/known/pipeline_yaml/) on which yaml-cpp 0.7's
+// YAML::LoadAll produced documents without end, past 2 GiB: read as one document, refused as
+// not a mapping, at once.
 TEST(Pipeline, ADamagedFileThatLoadAllReadForEverIsRead) {
   const std::string damaged = write_temp(
       "damaged.yaml",

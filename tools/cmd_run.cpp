@@ -350,6 +350,7 @@ Command add_run(CLI::App& app) {
     if (std::ifstream in(state_path); in) {
       try {
         state = nlohmann::json::parse(in);
+        if (!state.is_object()) throw std::runtime_error("not an object");
       } catch (const std::exception&) {
         state = nlohmann::json::object();  // unreadable state: run everything again
         std::cerr << "linebake: run: " << state_path << " is unreadable: every step runs again\n";

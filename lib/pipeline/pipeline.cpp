@@ -25,6 +25,16 @@
 namespace linebake {
 namespace {
 
+// A number as a command-line value: integers whole (signed or not), others to the last bit
+// (%.17g; infinities as inf, which the options' parsers read).
+std::string number_argument(const nlohmann::json& value) {
+  if (value.is_number_unsigned()) return std::to_string(value.get<uint64_t>());
+  if (value.is_number_integer()) return std::to_string(value.get<int64_t>());
+  char text[64];
+  std::snprintf(text, sizeof text, "%.17g", value.get<double>());
+  return text;
+}
+
 // {"grid": 32, "early-termination": true, "assets": ["tubes", "voxels"]} -> --grid 32
 // --early-termination --assets tubes,voxels: a pipeline's options are the CLI's long options.
 std::vector<std::string> options_to_args(const nlohmann::json& options, const std::string& file,
@@ -38,19 +48,15 @@ std::vector<std::string> options_to_args(const nlohmann::json& options, const st
       if (value.get<bool>()) args.push_back(flag);
     } else if (value.is_string()) {
       args.insert(args.end(), {flag, value.get<std::string>()});
-    } else if (value.is_number_integer()) {
-      args.insert(args.end(), {flag, std::to_string(value.get<int64_t>())});
     } else if (value.is_number()) {
-      char text[64];
-      std::snprintf(text, sizeof text, "%.17g", value.get<double>());
-      args.insert(args.end(), {flag, text});
+      args.insert(args.end(), {flag, number_argument(value)});
     } else if (value.is_array()) {
       std::string joined;
       for (const auto& v : value) {
         if (!v.is_string() && !v.is_number())
           throw InputError(file, where + "." + name, "list items must be strings or numbers");
-        joined +=
-            (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>() : json_text(v));
+        joined += (joined.empty() ? "" : ",") +
+                  (v.is_string() ? v.get<std::string>() : number_argument(v));
       }
       args.insert(args.end(), {flag, joined});
     } else {
@@ -317,21 +323,28 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
   if (text == "true" || text == "True" || text == "TRUE") return true;
   if (text == "false" || text == "False" || text == "FALSE") return false;
   if (text == "null" || text == "~" || text.empty()) return nullptr;
-  // YAML 1.1 (PyYAML) reads these as booleans, YAML 1.2 as strings: `early-termination: yes`
-  // meant true and would reach the flag as a value. Neither reading is safe to guess.
-  static const std::set<std::string> yaml11_booleans = {"y",  "Y",   "yes", "Yes", "YES", "n",
-                                                        "N",  "no",  "No",  "NO",  "on",  "On",
-                                                        "ON", "off", "Off", "OFF"};
+  const std::string where = "line " + std::to_string(node.Mark().line + 1) + ", column " +
+                            std::to_string(node.Mark().column + 1);
+  // What YAML 1.1 (PyYAML) reads otherwise than YAML 1.2 is refused, not guessed: its booleans
+  // (`early-termination: yes` meant true and reached the flag as a value) and its octal
+  // integers with a leading zero (012: 10 there, 12 here).
+  static const std::set<std::string> yaml11_booleans = {"yes", "Yes", "YES", "no",  "No",  "NO",
+                                                        "on",  "On",  "ON",  "off", "Off", "OFF"};
   if (yaml11_booleans.count(text))
-    throw InputError(file,
-                     "line " + std::to_string(node.Mark().line + 1) + ", column " +
-                         std::to_string(node.Mark().column + 1),
+    throw InputError(file, where,
                      "plain '" + text +
                          "' is a boolean in YAML 1.1 and a string in YAML 1.2 (which pipelines "
                          "read): write true or false, or quote it for the string");
+  const size_t sign = text[0] == '-' || text[0] == '+' ? 1 : 0;
+  if (text.size() > sign + 1 && text[sign] == '0' &&
+      text.find_first_not_of("0123456789", sign) == std::string::npos)
+    throw InputError(file, where,
+                     "plain '" + text +
+                         "' has a leading zero: octal in YAML 1.1, decimal in YAML 1.2 (which "
+                         "pipelines read); write it without the zero, or with 0o for octal");
   const char* begin = text.c_str();
   char* end = nullptr;
-  // YAML 1.2's core integers: decimal, 0o octal, 0x hexadecimal.
+  // YAML 1.2's core integers: 0o octal and 0x hexadecimal (to 64 bits, unsigned), decimal.
   const auto prefixed = [&](const char* prefix, const char* digits) {
     return text.size() > 2 && text.compare(0, 2, prefix) == 0 &&
            text.find_first_not_of(digits, 2) == std::string::npos;
@@ -339,9 +352,16 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
   const int base = prefixed("0o", "01234567")                 ? 8
                    : prefixed("0x", "0123456789abcdefABCDEF") ? 16
                                                               : 10;
-  const char* digits = base == 10 ? begin : begin + 2;
+  if (base != 10) {
+    errno = 0;
+    const unsigned long long value = std::strtoull(begin + 2, &end, base);
+    if (errno == ERANGE)
+      throw InputError(file, where, "plain '" + text + "' needs more than 64 bits");
+    if (value <= uint64_t(std::numeric_limits<int64_t>::max())) return int64_t(value);
+    return uint64_t(value);
+  }
   errno = 0;
-  const long long integer = std::strtoll(digits, &end, base);
+  const long long integer = std::strtoll(begin, &end, 10);
   if (errno == 0 && end == begin + text.size()) return integer;
   // and its infinities (strtod's own spelling, inf, is a string there)
   for (const char* spelling : {".inf", ".Inf", ".INF"}) {

@@ -70,7 +70,8 @@ struct PipelineStep {
   std::string stdout_file;           // where the step's standard output goes ("" = inherit)
   std::vector<std::string> outputs;  // files the step makes (all must exist to reuse it)
   // Files the step may make, which only its run can tell (a render's depth-complexity images:
-  // the approximate techniques write none). The run records those it made; they must exist too.
+  // techniques that count no fragments or hits write none). The run records those it made; they
+  // must exist too.
   std::vector<std::string> optional_outputs;
   std::string key;          // hash of the arguments and the dependencies' keys
   std::string skip_reason;  // non-empty: not run, and why (a missing device feature)

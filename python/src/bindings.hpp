@@ -176,8 +176,9 @@ std::optional<T> keyword(const std::string& function, const py::kwargs& options,
 // TypeError naming `what` for what is none (NumPy's own TypeError or ValueError, as for a
 // ragged list; an array of text, dates, complex numbers or records, which NumPy would convert
 // with a warning at most), and a ValueError for a masked array holding masked values (the
-// values under the mask would be read). Anything else the conversion raises (MemoryError; an
-// OSError or KeyboardInterrupt from a lazy array's __array__) is raised as it is:
+// values under the mask would be read), and a TypeError naming the place of a None in an object
+// array where `kinds` takes them (NumPy's cast makes it NaN). Anything else the conversion raises
+// (MemoryError; an OSError or KeyboardInterrupt from a lazy array's __array__) is raised as it is:
 // py::array::ensure had put every failure down to the argument's kind. `kinds`: the NumPy kinds
 // taken, nullptr for any (the caller checks them itself).
 py::array number_array(const py::handle& value, const std::string& what, const char* wanted,

@@ -102,13 +102,17 @@ py::array number_array(const py::handle& value, const std::string& what, const c
                          std::string(py::str(array.dtype())));
   // NumPy casts an object array's None to NaN: a missing value nobody marked as one ([1.0, None]
   // is an object array). NaN given as such is kept.
-  if (array.dtype().kind() == 'O') {
+  if (kinds && std::string_view(kinds).find('O') != std::string_view::npos &&
+      array.dtype().kind() == 'O') {
+    const py::ssize_t columns = array.ndim() == 2 ? array.shape(1) : 0;
     py::ssize_t at = 0;
     for (const py::handle item : array.attr("ravel")()) {
       if (item.is_none())
-        throw py::type_error(what + ": expected " + wanted + ", got None at item " +
-                             std::to_string(at) +
-                             " (in C order); give numpy.nan for a missing value");
+        throw py::type_error(what + ": expected " + wanted + ", got None at " +
+                             (columns > 0 ? "row " + std::to_string(at / columns) + ", column " +
+                                                std::to_string(at % columns)
+                                          : "item " + std::to_string(at)) +
+                             "; give numpy.nan for a missing value");
       ++at;
     }
   }

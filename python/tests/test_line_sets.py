@@ -577,7 +577,7 @@ def test_booleans_are_no_positions_and_none_is_no_number():
     """A bool array had been taken as points at 0 and 1, an object array's None as NaN."""
     with pytest.raises(TypeError, match="^points: expected an \\(n, 3\\) array of positions, got an array of bool"):
         linebake.LineSet(np.ones((2, 3), bool), [0, 2])
-    with pytest.raises(TypeError, match="^points: expected .*, got None at item 4 \\(in C order\\); give numpy.nan"):
+    with pytest.raises(TypeError, match="^points: expected .*, got None at row 1, column 1; give numpy.nan"):
         linebake.LineSet(np.array([[0, 0, 0], [1, None, 1]], dtype=object), [0, 2])
     with pytest.raises(TypeError, match="^attribute 'a': expected 2 float32 values, one per point, got None at item 1"):
         linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": [1.0, None]})
