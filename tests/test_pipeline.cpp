@@ -317,7 +317,8 @@ TEST(Pipeline, TwiceGivenKeysSecondDocumentsAndAliasBombsAreRefused) {
 TEST(Pipeline, YamlReadsCoreIntegersAndRefusesWhatYaml11ReadsOtherwise) {
   const Pipeline p = load_pipeline(write_temp("core.yaml", R"(name: 0x1p3
 datasets: [{name: a, source: s.binlines}]
-assets: {grid: 0x20, radius: 0o17, seed: 0xFFFFFFFFFFFFFFFF}
+assets: {attribute-range: [0.1, 2.5], grid: 0x20, radius: 0o17, seed: 0xFFFFFFFFFFFFFFFF,
+         seeds: 18446744073709551615}
 techniques:
   - {technique: ll, options: {capacity: [1, .inf, -.Inf], early: n, early-termination: "yes",
                               max: +.inf, sort: y}}
@@ -326,8 +327,11 @@ frames: 0o7
 )"));
   EXPECT_EQ(p.name, "0x1p3");  // C's hexadecimal float, a string in YAML
   EXPECT_EQ(p.frame_count, 7);
-  EXPECT_EQ(p.bake_options, (std::vector<std::string>{"--grid", "32", "--radius", "15", "--seed",
-                                                      "18446744073709551615"}));
+  // A list's finite floats as JSON writes them (as before: the steps' keys hold them).
+  EXPECT_EQ(p.bake_options,
+            (std::vector<std::string>{"--attribute-range", "0.1,2.5", "--grid", "32", "--radius",
+                                      "15", "--seed", "18446744073709551615", "--seeds",
+                                      "18446744073709551615"}));
   ASSERT_EQ(p.techniques.size(), 1u);
   // y and n are strings in both (PyYAML's booleans are yes, no, on, off).
   EXPECT_EQ(

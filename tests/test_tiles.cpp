@@ -316,7 +316,7 @@ TEST(Tiles, SlicesGiveTheSameBytes) {
   vk::TileOptions o;
   o.width = 64, o.height = 48;
   // (Not one pass: lavapipe stops an invocation after 65535 loop iterations, which a tile of
-  // this set can pass; the default there is 512 keys a slice.)
+  // this set can pass; the default there is 8,192 keys a slice.)
   vk::TileRenderer coarse(ctx, capsules, 0, 700), fine(ctx, capsules, 0, 32);
   const vk::TileFrame a = coarse.render(camera, tf, o), b = fine.render(camera, tf, o);
   EXPECT_LT(a.stats.slices, b.stats.slices);

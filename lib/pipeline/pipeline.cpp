@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -26,7 +27,8 @@ namespace linebake {
 namespace {
 
 // A number as a command-line value: integers whole (signed or not), others to the last bit
-// (%.17g; infinities as inf, which the options' parsers read).
+// (%.17g; infinities as inf, which the options' parsers read). List items are written otherwise
+// (options_to_args), as they always were: the steps' keys hold the command lines.
 std::string number_argument(const nlohmann::json& value) {
   if (value.is_number_unsigned()) return std::to_string(value.get<uint64_t>());
   if (value.is_number_integer()) return std::to_string(value.get<int64_t>());
@@ -55,8 +57,12 @@ std::vector<std::string> options_to_args(const nlohmann::json& options, const st
       for (const auto& v : value) {
         if (!v.is_string() && !v.is_number())
           throw InputError(file, where + "." + name, "list items must be strings or numbers");
-        joined += (joined.empty() ? "" : ",") +
-                  (v.is_string() ? v.get<std::string>() : number_argument(v));
+        // Finite numbers as JSON writes them (the shortest that reads back; the steps' keys
+        // hold these command lines), infinities as the options' parsers read them.
+        const bool finite = !v.is_number_float() || std::isfinite(v.get<double>());
+        joined += (joined.empty() ? "" : ",") + (v.is_string() ? v.get<std::string>()
+                                                 : finite      ? json_text(v)
+                                                               : number_argument(v));
       }
       args.insert(args.end(), {flag, joined});
     } else {
@@ -363,6 +369,11 @@ nlohmann::json yaml_to_json(const YAML::Node& node, const std::string& file, uin
   errno = 0;
   const long long integer = std::strtoll(begin, &end, 10);
   if (errno == 0 && end == begin + text.size()) return integer;
+  if (errno == ERANGE && end == begin + text.size() && text[0] != '-') {
+    errno = 0;  // past int64 and within uint64: an integer still, as 0x writes it
+    const unsigned long long large = std::strtoull(begin, &end, 10);
+    if (errno == 0) return uint64_t(large);
+  }
   // and its infinities (strtod's own spelling, inf, is a string there)
   for (const char* spelling : {".inf", ".Inf", ".INF"}) {
     const std::string infinity = spelling;

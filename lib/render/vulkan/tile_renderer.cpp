@@ -85,13 +85,14 @@ void check_state_layout(const std::string& shader, uint32_t state_window, bool l
   throw Error("tiles: shader " + shader + " has no pixel states at binding 11");
 }
 // Keys per tile per dispatch to start with where the driver caps an invocation's loop iterations
-// (lavapipe's gallivm: 65535 in all): 8 trips a key. A key's entry, pair and hit take a few
-// each where the key is near the pixel, and the window's loops one per hit composited; a
-// dispatch that runs out is composited again in slices a quarter the size, which the renderer
-// then keeps. Each slice reloads and stores its pixels' states, and the later slices of a frame
-// dispatch only its crowded tiles, leaving lavapipe's threads idle: paper-small's four sets
-// (tiles of up to 27,857 keys) ran out at none of 2,048 to 32,768 keys, and 8,192 took
-// convection's composite 13 to 16 % less time than 2,048 (docs/tiles.md).
+// (lavapipe's gallivm: 65535 in all): 8 trips a key, which holds in practice, not in the worst
+// case (a key's entry, pair and hit take a few trips each where the key is near the pixel, the
+// window's loops one per hit composited). A dispatch that runs out costs its group composited
+// again in slices a quarter the size, which the renderer then keeps. Each slice reloads and stores
+// its pixels' states, and the later slices of a frame dispatch only its crowded tiles, leaving
+// lavapipe's threads idle: paper-small's four sets (tiles of up to 27,857 keys) ran out at none of
+// 2,048 to 32,768 keys, and 8,192 took convection's composite 13 to 16 % less time than 2,048
+// (docs/tiles.md).
 constexpr uint32_t kCappedSliceKeys = 8192;
 
 struct TileUniforms {
