@@ -12,7 +12,9 @@
 #include "core/error.hpp"
 #include "core/measure.hpp"
 #include "formats/registry.hpp"
+#include "lines/line_reader.hpp"
 #include "pipeline/bake.hpp"
+#include "pipeline/bake_budget.hpp"
 #include "synth/synth.hpp"
 #include "test_util.hpp"
 
@@ -57,6 +59,36 @@ BakeOptions streamed_options(const std::string& input, const std::string& cache,
   o.memory_budget = budget;
   o.progress = false;
   return o;
+}
+
+// The bound the bake reserves every batch's voxel run index by (16 KiB a batch, kept to the
+// merge; uncounted, it took turbulence at scale 1.0 under 60M to 84 MiB): at least the batches a
+// reader makes, whatever the batch size, and the figure of that bake's refusal by hand
+// (17,600,188 points, 100,188 lines of at most 350 points, batches of 11,094: each but the last
+// holds at least 10,745 points, so at most 1,638).
+TEST(BakeStream, TheBatchBoundHoldsEveryBatchTheReaderMakes) {
+  EXPECT_EQ(most_batches(17600188, 100188, 11094, 350), 17600188u / 10745 + 1);
+  EXPECT_EQ(most_batches(17600188, 100188, 11094, 350), 1638u);
+  EXPECT_EQ(most_batches(1000, 10, 50, 300), 10u);  // lines longer than a batch come alone
+  TempDir dir;
+  const std::string input = dir.file("b.binlines");
+  const LineSet lines = synth::generate({"turbulence", 0.002, 5, false});
+  write_line_set(lines, input);
+  uint64_t longest = 0;
+  for (size_t l = 0; l < lines.line_count(); ++l)
+    longest = std::max<uint64_t>(longest, lines.line_size(l));
+  for (const uint64_t batch_points :
+       {uint64_t{1}, longest / 2, longest, longest + 1, 2 * longest, uint64_t{5000}}) {
+    const std::unique_ptr<LineReader> reader = open_line_reader(input);
+    LineSet batch;
+    uint64_t batches = 0;
+    while (reader->next(batch, batch_points)) ++batches;
+    const uint64_t bound =
+        most_batches(lines.point_count(), lines.line_count(), batch_points, longest);
+    EXPECT_GE(bound, batches) << batch_points;
+    EXPECT_LE(bound, batches + lines.point_count() / std::max<uint64_t>(batch_points, 1) + 1)
+        << batch_points;  // not wildly above it
+  }
 }
 
 TEST(BakeStream, SameDatasetsForEveryBudgetAndThreadCount) {

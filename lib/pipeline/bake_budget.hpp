@@ -41,4 +41,13 @@ inline void check_line_fits_batch(const MemoryBudget& budget, uint64_t points, u
                        format_bytes(budget.available() / 2) + "); raise --memory-budget");
 }
 
+// The most batches a reader makes of `points` points in `lines` lines when each holds whole lines
+// of at most `batch_points` points (a longer line alone): each but the last holds more than
+// `batch_points` less the longest line's points (LineReader::next).
+inline uint64_t most_batches(uint64_t points, uint64_t lines, uint64_t batch_points,
+                             uint64_t largest_line) {
+  const uint64_t least = batch_points > largest_line ? batch_points - largest_line : 0;
+  return std::min<uint64_t>(lines, points / (least + 1) + 1);
+}
+
 }  // namespace linebake

@@ -502,6 +502,9 @@ uint64_t VoxelStreamBuilder::fixed_bytes() const {
   return voxels * (state_->grid.max_chords_per_voxel > 255 ? 2 : 1) + voxels / 8 * 4 * 8 / 7 +
          (uint64_t{2} << 20);
 }
+uint64_t VoxelStreamBuilder::run_index_bytes() const {
+  return (state_->units + 1) * sizeof(uint32_t) + sizeof(Run);
+}
 uint64_t VoxelStreamBuilder::spilled_bytes() const {
   return state_->spilled_bytes + (state_->spill ? state_->spill->size() : 0);
 }
