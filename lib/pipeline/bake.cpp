@@ -961,12 +961,15 @@ BakeResult bake(const BakeOptions& options_in) {
       budget.reserve(placement.fixed_bytes(),
                      "the voxel grid's chord counts and density mip levels (" +
                          std::to_string(voxel_placement->voxel_count()) + " voxels)");
-    // And every batch's run index, kept to the merge: 16 KiB a batch at most, which small
-    // budgets' small batches multiply (turbulence at scale 1.0 under 60M: 1,638 batches, 26 MB,
-    // which took the bake to 84 MiB before it was counted).
+    // And every batch's run index, kept to the merge: about 16 KiB a batch, which small
+    // budgets' small batches multiply (turbulence at scale 1.0 under 60M: about 1,630 batches,
+    // 26 MB, which took the bake to 84 MiB before it was counted). The spool replays the read's
+    // batches as they were cut (one file's last batch is never joined to the next file's, and
+    // repair drops points after the cut): their count; a cache's /lines fills every batch.
     if (!budget.unlimited()) {
       const uint64_t batches =
-          most_batches(stats.points, stats.lines, result.batch_points, stats.largest_line);
+          spool ? spool->batches()
+                : most_batches(stats.points, stats.lines, result.batch_points, stats.largest_line);
       budget.reserve(batches * placement.run_index_bytes(),
                      "the voxel walk's index of " + std::to_string(batches) + " batches of " +
                          std::to_string(result.batch_points) + " points");

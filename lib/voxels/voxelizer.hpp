@@ -122,8 +122,8 @@ class VoxelStreamBuilder {
   // above 255) and density level 1's sums, with the levels below it.
   uint64_t fixed_bytes() const;
   // Memory each add() keeps until the merge whatever its budget: its run's index of where each
-  // unit of voxels starts (4 bytes a unit, at most 4,097 units), in memory whether its records
-  // are or were spilled.
+  // unit of voxels starts (4 bytes a unit and one more, at most 4,096 units), in memory whether its
+  // records are or were spilled.
   uint64_t run_index_bytes() const;
   // Bytes of records written to the spill file (0: everything stayed in memory).
   uint64_t spilled_bytes() const;
