@@ -42,6 +42,7 @@
 #include "formats/registry.hpp"
 #include "lines/line_reader.hpp"
 #include "pipeline/bake.hpp"
+#include "pipeline/bake_budget.hpp"
 #include "synth/synth.hpp"
 #include "tubes/tube_builder.hpp"
 #include "voxels/voxelizer.hpp"
@@ -163,10 +164,10 @@ void bench_voxels(const BenchArgs& args) {
         std::clamp<uint64_t>(budget.available() / 4 / per_point, 1024, uint64_t{1} << 21);
     budget.reserve(batch_points * per_point,
                    "one batch of " + std::to_string(batch_points) + " points");
-    // Each batch's run of records keeps an index of a word per unit of voxels and one; batches
-    // end at lines, so there may be up to about twice as many as the points make.
-    const uint64_t runs = 2 * ((lines.point_count() + batch_points - 1) / batch_points) + 1;
-    budget.reserve(runs * (placement.unit_records().size() + 1) * 4,
+    // Each batch's run of records keeps its index to the merge, as bake's (which counts it the
+    // same way): the reader below fills every batch.
+    const uint64_t runs = most_batches(stats.points, stats.lines, batch_points, stats.largest_line);
+    budget.reserve(runs * placement.run_index_bytes(),
                    "the indexes of up to " + std::to_string(runs) + " runs of voxel records");
     memory = voxel_memory_within(budget.available());
     // Beside the working directory's absolute path where it has one, so that an error names it.
