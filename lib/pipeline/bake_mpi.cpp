@@ -379,6 +379,14 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         budget.reserve(placement.fixed_bytes(),
                        "the voxel grid's chord counts and density mip levels (" +
                            std::to_string(placement.description().voxel_count()) + " voxels)");
+        // Every batch's run index, kept to the merge (as the serial bake counts it), and those
+        // of the runs the exchange brings, each a wave's units.
+        budget.reserve(spool->batches() * placement.run_index_bytes() +
+                           placement.received_index_bytes(ranks.size),
+                       "the voxel walk's index of " + std::to_string(spool->batches()) +
+                           " batches of " + std::to_string(batch_points) +
+                           " points and of the runs received from " + std::to_string(ranks.size) +
+                           " ranks");
         // Of what the batches (reserved above, a quarter) and the fixed buffers leave: a third
         // for the records walked here, a third for those received, a sixth for the exchange's
         // buffers and the rest for the merge (which follows the exchange).

@@ -156,10 +156,12 @@ struct Block {
 };
 
 // One batch's records, sorted (stably) by unit: a unit is a range of 2^unit_shift voxels.
-// `start[u]` is where unit u begins among the run's records; the records sit in memory or in
-// the spill file from `file_offset`.
+// `at(u)` is where unit u begins among the run's records; the records sit in memory or in
+// the spill file from `file_offset`. The index covers units from `first_unit` on (a received
+// run holds one wave's units, so the ranks' many runs do not each keep all 4,096 and one).
 struct Run {
-  std::vector<uint32_t> start;
+  std::vector<uint32_t> start;  // units first_unit .. first_unit + start.size() - 1
+  uint64_t first_unit = 0;
   Array<Record> records;  // uninitialised, huge pages: a run is written once, in full
   bool spilled = false;
   uint64_t file_offset = 0;
@@ -168,6 +170,10 @@ struct Run {
   uint64_t received_first = 0;
   const Record* in_memory() const {
     return received ? received->data() + received_first : records.data();
+  }
+  uint64_t at(uint64_t unit) const {
+    if (unit <= first_unit || start.empty()) return 0;
+    return start[std::min<uint64_t>(unit - first_unit, start.size() - 1)];
   }
 };
 
@@ -424,13 +430,13 @@ void VoxelStreamBuilder::State::gather(uint64_t u0, uint64_t u1, std::vector<Rec
                                        std::vector<const Record*>& first) {
   uint64_t spilled = 0;
   for (const Run& run : runs)
-    if (run.spilled) spilled += run.start[u1] - run.start[u0];
+    if (run.spilled) spilled += run.at(u1) - run.at(u0);
   buffer.resize(spilled);
   first.resize(runs.size());
   uint64_t at = 0;
   for (size_t r = 0; r < runs.size(); ++r) {
     const Run& run = runs[r];
-    const uint64_t begin = run.start[u0], count = run.start[u1] - begin;
+    const uint64_t begin = run.at(u0), count = run.at(u1) - begin;
     if (!run.spilled) {
       first[r] = run.in_memory() + begin;
       continue;
@@ -504,6 +510,13 @@ uint64_t VoxelStreamBuilder::fixed_bytes() const {
 }
 uint64_t VoxelStreamBuilder::run_index_bytes() const {
   return (state_->units + 1) * sizeof(uint32_t) + sizeof(Run);
+}
+uint64_t VoxelStreamBuilder::received_index_bytes(int ranks) const {
+  // A wave per unit at the most, each rank's piece of it a run spanning the wave's units and one
+  // more entry: over the waves, every unit once and a run's struct and entry per wave.
+  const uint64_t units = state_->units;
+  return uint64_t(std::max(ranks, 1)) *
+         (units * sizeof(uint32_t) + units * (sizeof(Run) + 2 * sizeof(uint32_t)));
 }
 uint64_t VoxelStreamBuilder::spilled_bytes() const {
   return state_->spilled_bytes + (state_->spill ? state_->spill->size() : 0);
@@ -684,8 +697,8 @@ uint64_t VoxelStreamBuilder::merge(VoxelSink& sink, uint64_t first, uint64_t end
       const uint64_t a = lo(u), b = hi(u);
       for (size_t r = 0; r < s.runs.size(); ++r) {
         const Run& run = s.runs[r];
-        const Record* p = first_record[r] + (run.start[u] - run.start[u0]);
-        const Record* last = p + (run.start[u + 1] - run.start[u]);
+        const Record* p = first_record[r] + (run.at(u) - run.at(u0));
+        const Record* last = p + (run.at(u + 1) - run.at(u));
         for (; p != last; ++p)
           if (p->voxel >= a && p->voxel < b) body(*p);
       }
@@ -885,8 +898,8 @@ void VoxelStreamBuilder::append_records(uint64_t v0, uint64_t v1, std::vector<Vo
     for (uint64_t u = u0; u < u1; ++u)
       for (size_t r = 0; r < s.runs.size(); ++r) {
         const Run& run = s.runs[r];
-        const Record* p = first[r] + (run.start[u] - run.start[u0]);
-        const Record* last = p + (run.start[u + 1] - run.start[u]);
+        const Record* p = first[r] + (run.at(u) - run.at(u0));
+        const Record* last = p + (run.at(u + 1) - run.at(u));
         for (; p != last; ++p)
           if (p->voxel >= v0 && p->voxel < v1) out.push_back(*p);
       }
@@ -921,24 +934,32 @@ void VoxelStreamBuilder::receive_records(Array<VoxelRecord> buffer,
     if (count > 0xFFFFFFFFull) throw Error("voxels: more than 2^32 records from one rank");
     if (count == 0) continue;
     const Record* records = shared->data() + at;
+    // The run's index spans the units from its first record's to its last's (records arrive
+    // sorted by unit), not the grid's every unit.
     Run run;
-    run.start.assign(s.units + 1, 0);
-    uint64_t previous_unit = 0;
+    const uint64_t first_voxel = records[0].voxel, last_voxel = records[count - 1].voxel;
+    if (first_voxel >= s.grid.voxel_count() || last_voxel >= s.grid.voxel_count() ||
+        last_voxel < first_voxel)
+      throw Error("voxels: received records out of order or outside the grid");
+    run.first_unit = first_voxel >> s.unit_shift;
+    const uint64_t span = (last_voxel >> s.unit_shift) - run.first_unit + 1;
+    run.start.assign(span + 1, 0);
+    uint64_t previous_unit = run.first_unit;
     for (uint64_t i = 0; i < count; ++i) {
       const uint32_t v = records[i].voxel;
       const uint64_t unit = v >> s.unit_shift;
-      if (v >= s.grid.voxel_count() || unit < previous_unit)
+      if (v >= s.grid.voxel_count() || unit < previous_unit || unit - run.first_unit >= span)
         throw Error("voxels: received records out of order or outside the grid");
       previous_unit = unit;
-      ++run.start[unit + 1];
+      ++run.start[unit - run.first_unit + 1];
       if (!s.counts16.empty()) {
         if (s.counts16[v] < cap) ++s.counts16[v];
       } else if (s.counts8[v] < cap) {
         ++s.counts8[v];
       }
     }
-    for (uint64_t u = 0; u < s.units; ++u) {
-      in.unit_records[u] += run.start[u + 1];
+    for (uint64_t u = 0; u < span; ++u) {
+      in.unit_records[run.first_unit + u] += run.start[u + 1];
       run.start[u + 1] += run.start[u];
     }
     if (spill) {

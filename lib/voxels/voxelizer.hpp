@@ -125,6 +125,9 @@ class VoxelStreamBuilder {
   // unit of voxels starts (4 bytes a unit and one more, at most 4,096 units), in memory whether its
   // records are or were spilled.
   uint64_t run_index_bytes() const;
+  // Memory the runs received from `ranks` ranks (distributed builds) keep for their indexes until
+  // the merge, at the most: each covers one wave's units, and the waves cover each unit once.
+  uint64_t received_index_bytes(int ranks) const;
   // Bytes of records written to the spill file (0: everything stayed in memory).
   uint64_t spilled_bytes() const;
   // Bytes of records held in memory at the most.
