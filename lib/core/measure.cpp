@@ -29,10 +29,13 @@ uint64_t current_rss_bytes() {
 uint64_t address_space_bytes() {
   return status_field("VmSize");
 }
-uint64_t trimmed_rss_bytes() {
+void trim_free_heap() {
 #ifdef __GLIBC__
   malloc_trim(0);
 #endif
+}
+uint64_t trimmed_rss_bytes() {
+  trim_free_heap();
   return current_rss_bytes();
 }
 uint64_t peak_rss_bytes() {

@@ -43,9 +43,12 @@ inline double seconds_since(std::chrono::steady_clock::time_point start) {
 uint64_t current_rss_bytes();
 // The process's address space (VmSize): what an address-space limit (ulimit -v) counts.
 uint64_t address_space_bytes();
-// Gives the C library's free heap memory back to the system (malloc_trim) and returns the
-// resident size then: memory freed by the process (lavapipe's device memory comes from malloc)
-// can stay resident in the heap, which a budget of resident memory must not count as held.
+// Gives the C library's free heap memory back to the system (malloc_trim): freed memory the
+// allocator keeps (above all under a high M_TRIM_THRESHOLD, as linebake-mpi sets) stays resident.
+void trim_free_heap();
+// trim_free_heap(), and the resident size then: memory freed by the process (lavapipe's device
+// memory comes from malloc) can stay resident in the heap, which a budget of resident memory must
+// not count as held.
 uint64_t trimmed_rss_bytes();
 uint64_t peak_rss_bytes();
 double process_cpu_seconds();
