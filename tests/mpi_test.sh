@@ -115,6 +115,20 @@ check_budget "np 2 within a small budget: the serial bake's voxels, exchanged in
   diff <(hashes big-serial.lbc.h5) <(hashes big-mpi.lbc.h5) &&
   '$bin' report --json big-mpi.lbc.h5 | grep -Eq '\"exchange_waves\": ([2-9]|[1-9][0-9])'"
 
+# Every rank within its budget with tubes and voxels: the heap the tubes freed is given back
+# before the voxel exchange (it had stayed resident: 132 MiB a rank under 128M, 2026-12-01).
+"$bin" synth turbulence --scale 0.2 --seed 3 -o turb.binlines >/dev/null 2>&1
+check_budget "np 2, tubes and voxels: every rank's peak within its budget" bash -c "
+  mpirun -np 2 '$mpi' bake turb.binlines -o turb-mpi.lbc.h5 --assets tubes,voxels --grid 256 \
+    --memory-budget 128M > /dev/null &&
+  '$bin' report --json turb-mpi.lbc.h5 | python3 -c '
+import json, sys
+voxels = json.load(sys.stdin)[0][\"assets\"][\"voxels\"]
+ranks = voxels[\"stats\"][\"rank_figures\"]
+peaks = [r[\"peak_rss_bytes\"] for r in ranks]
+assert len(peaks) == 2 and all(0 < p <= 128 << 20 for p in peaks), peaks
+'"
+
 # A VTP (read whole) past what each rank's budget leaves is refused while it is read, naming it.
 "$bin" convert big.binlines -o big.vtp >/dev/null 2>&1
 check "np 2: a VTP past the budget is refused while it is read (exit 4), no cache" bash -c "

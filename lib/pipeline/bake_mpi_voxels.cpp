@@ -171,10 +171,15 @@ void merge_voxels_mpi(const Ranks& ranks, VoxelStreamBuilder& builder, CacheWrit
   if (ranks.rank == 0) levels = density_levels(builder.description(), std::move(level1));
   sink.end(builder.description(), uint32_t(total), std::move(levels));
   const nlohmann::json mine_figures = {
-      {"rank", ranks.rank},       {"voxels", end - first},
-      {"records_walked", walked}, {"records_merged", received},
-      {"chords", kept},           {"exchange_waves", waves.size() - 1},
-      {"exchange_s", exchange_s}, {"merge_s", seconds_since(merge_start)}};
+      {"rank", ranks.rank},
+      {"voxels", end - first},
+      {"records_walked", walked},
+      {"records_merged", received},
+      {"chords", kept},
+      {"exchange_waves", waves.size() - 1},
+      {"exchange_s", exchange_s},
+      {"merge_s", seconds_since(merge_start)},
+      {"peak_rss_bytes", peak_rss_bytes()}};  // the rank's since it started: its job's, mostly
   sink.close(provenance(mine_figures, total, sink.memory_with_density()));
 }
 
