@@ -224,6 +224,9 @@ timeout 120 mpirun -np 2 --mca btl self,tcp bash -c \
 code=$?
 check "a failed collective write on rank 1 ends the job with exit 3, not a hang" test "$code" -eq 3
 check "it names the rank and the dataset" grep -q "rank 1: full.lbc.h5: dataset /" full/out.txt
+# MPI-IO passes no errno up ("file write failed"): the bake looks at the file size limit and
+# the free space itself.
+check "it names the cause: the file size limit" grep -q "rank 1: full.lbc.h5: dataset /.*file write failed: the file size limit (ulimit -f) of 1.95 MiB is reached" full/out.txt
 check "no cache, temporary or spill file is left" bash -c "! ls -a | grep -E '^full\.lbc\.h5' | grep -v '^full\.lbc\.h5\.lock$'"
 # The abort killed rank 0 holding the cache's lock: its file may be left, the lock is not, and
 # the next bake into the path takes it and removes it.

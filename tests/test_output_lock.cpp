@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -298,6 +299,32 @@ TEST(SideNames, AStaleTemporaryOfALongNameIsRemoved) {
   ASSERT_TRUE(std::filesystem::exists(stale));
   EXPECT_EQ(remove_stale_temporaries(path), 4u);
   EXPECT_FALSE(std::filesystem::exists(stale));
+}
+
+// MPI-IO reports a failed write without errno; the writer asks the file system. A file within
+// a write of the file size limit is named so, and one far below it with room left is not.
+TEST(WriteFailureCause, NamesTheFileSizeLimitWhereTheFileHasReachedIt) {
+  test::TempDir dir;
+  const std::string file = dir.file("c.h5");
+  std::ofstream(file) << std::string(3 << 20, 'x');
+  rlimit before{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &before), 0);
+  if (before.rlim_max != RLIM_INFINITY && before.rlim_max < (rlim_t{8} << 20))
+    GTEST_SKIP() << "the hard file size limit is below the test's";
+  const auto cause_under = [&](rlim_t limit_bytes, uint64_t attempted) {
+    rlimit limit = before;
+    limit.rlim_cur = limit_bytes;
+    EXPECT_EQ(::setrlimit(RLIMIT_FSIZE, &limit), 0);
+    const std::string cause = write_failure_cause(file, attempted);
+    EXPECT_EQ(::setrlimit(RLIMIT_FSIZE, &before), 0);
+    return cause;
+  };
+  // 3 MiB written: a write of 2 MiB does not fit under 4 MiB, and does under 8.
+  EXPECT_EQ(cause_under(rlim_t{4} << 20, 2 << 20),
+            "the file size limit (ulimit -f) of 4.00 MiB is reached");
+  if (free_bytes_for(file) > (uint64_t{8} << 20)) {
+    EXPECT_EQ(cause_under(rlim_t{8} << 20, 2 << 20), "");
+  }
 }
 
 }  // namespace

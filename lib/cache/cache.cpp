@@ -618,20 +618,32 @@ void CacheWriter::write_round() {
     if (H5Dwrite(s.dataset, s.type, memory_space, file_space, parallel_->dxpl,
                  rows ? s.buffered.data() : &nothing) < 0)
       s.fail("cannot write rows " + std::to_string(start[0]) + ".." +
-             std::to_string(start[0] + rows) + " (" + h5::last_error() + ")");
+             std::to_string(start[0] + rows) + " (" + parallel_write_error(rows * s.row_bytes) +
+             ")");
     s.flushed += rows;
     add_progress(rows * s.row_bytes);
     s.buffered.clear();
   }
 }
 
+std::string CacheWriter::parallel_write_error(uint64_t attempted) const {
+  std::string message = h5::last_error();
+  // MPI-IO says "file write failed" and no more (Open MPI prints errno itself, to stderr).
+  if (parallel_)
+    if (const std::string cause = write_failure_cause(temp_path(), attempted); !cause.empty())
+      message += ": " + cause;
+  return message;
+}
+
 void CacheWriter::commit() {
   if (H5Fflush(h5_, H5F_SCOPE_GLOBAL) < 0)
-    throw OutputError(path(), "cannot write: " + h5::last_error() + " (" + temp_path() + ")");
+    throw OutputError(path(),
+                      "cannot write: " + parallel_write_error(0) + " (" + temp_path() + ")");
   // Closing writes what HDF5 still holds; a failure here is a failed write, not a cache.
   const hid_t id = h5_.release();
   if (H5Fclose(id) < 0)
-    throw OutputError(path(), "cannot write: " + h5::last_error() + " (" + temp_path() + ")");
+    throw OutputError(path(),
+                      "cannot write: " + parallel_write_error(0) + " (" + temp_path() + ")");
   file_.commit();
 }
 

@@ -148,6 +148,9 @@ class CacheWriter {
 
   const std::string& path() const { return file_.final_path(); }
   const std::string& temp_path() const { return file_.temp_path(); }
+  // HDF5's last error, and under MPI what the file system says of a failed write of `attempted`
+  // bytes (write_failure_cause): MPI-IO passes no errno up.
+  std::string parallel_write_error(uint64_t attempted) const;
   Compression compression() const { return compression_; }
   // Total bytes the caller is going to write, for progress; 0: unknown.
   void set_progress(ProgressFn progress, uint64_t total_bytes);

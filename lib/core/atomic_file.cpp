@@ -2,10 +2,12 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -181,6 +183,19 @@ uint64_t free_bytes_for(const std::string& path) {
   struct statvfs fs {};
   if (::statvfs(dir.c_str(), &fs) != 0) return UINT64_MAX;  // unknown: do not refuse
   return uint64_t(fs.f_bavail) * uint64_t(fs.f_frsize);
+}
+
+std::string write_failure_cause(const std::string& file, uint64_t attempted) {
+  const uint64_t margin = std::max<uint64_t>(attempted, uint64_t{1} << 20);
+  const uint64_t free = free_bytes_for(file);
+  if (free < margin) return "no space left on the file system (" + format_bytes(free) + " free)";
+  struct rlimit limit {};
+  struct stat st {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
+      ::stat(file.c_str(), &st) == 0 && uint64_t(st.st_size) + margin > uint64_t(limit.rlim_cur))
+    return "the file size limit (ulimit -f) of " + format_bytes(uint64_t(limit.rlim_cur)) +
+           " is reached";
+  return "";
 }
 
 void sync_file(const std::string& path, const std::string& name) {
