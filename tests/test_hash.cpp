@@ -87,6 +87,43 @@ TEST(BlockHasher, PiecesCombineToTheWholeStreamsHash) {
   EXPECT_THROW(combine_block_hashes({a.piece(), b.piece()}), Error);
 }
 
+// Pieces told the stream's length hash its short last block at once: the same hash, and the
+// piece that ends the stream keeps none of its bytes raw (MPI ranks keep thousands of pieces).
+TEST(BlockHasher, APieceThatEndsTheStreamKeepsNoRawBytes) {
+  const size_t MiB = size_t{1} << 20;
+  for (const size_t length : {size_t{1000}, 3 * MiB + 777, 2 * MiB}) {
+    const std::string bytes = random_bytes(length, 9);
+    const std::string expected = expected_block_hash(bytes);
+    for (const std::vector<size_t>& cuts : std::vector<std::vector<size_t>>{
+             {0, length}, {0, length / 3, length}, {0, length - 1, length}, {0, 7, length}}) {
+      std::vector<std::string> pieces;
+      size_t raw_in_last = 0;
+      for (size_t i = 0; i + 1 < cuts.size(); ++i) {
+        BlockHasher piece(BlockHasher::Piece{cuts[i], length});
+        // In two updates: the stream's end is seen on the second.
+        const size_t half = (cuts[i + 1] - cuts[i]) / 2;
+        piece.update(bytes.data() + cuts[i], half);
+        piece.update(bytes.data() + cuts[i] + half, cuts[i + 1] - cuts[i] - half);
+        pieces.push_back(piece.piece());
+        if (i + 2 == cuts.size() && cuts[i] % MiB == 0) raw_in_last = pieces.back().size();
+      }
+      EXPECT_EQ(combine_block_hashes(pieces), expected) << length << " " << cuts.size();
+      std::reverse(pieces.begin(), pieces.end());
+      EXPECT_EQ(combine_block_hashes(pieces), expected) << length << " " << cuts.size();
+      // A last piece from a block boundary: its offsets, digests and no raw bytes.
+      if (raw_in_last) {
+        EXPECT_LT(raw_in_last, 64 + 16 * (length / MiB + 1)) << length;
+      }
+    }
+  }
+  // Nothing may follow a piece that ended the stream.
+  BlockHasher whole(BlockHasher::Piece{0, 100}), more(BlockHasher::Piece{100});
+  const std::string bytes = random_bytes(110, 2);
+  whole.update(bytes.data(), 100);
+  more.update(bytes.data() + 100, 10);
+  EXPECT_THROW(combine_block_hashes({whole.piece(), more.piece()}), Error);
+}
+
 }  // namespace
 }  // namespace linebake
 

@@ -450,7 +450,8 @@ void append_together(std::span<const StreamAppend> appends) {
     if (a.rows == 0) continue;
     const char* p = static_cast<const char*>(a.data);
     if (s.parallel) {
-      if (!s.piece) s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{0});
+      if (!s.piece)
+        s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{0, s.rows * s.row_bytes});
       s.piece->update(p, a.rows * s.row_bytes);
       s.buffered.insert(s.buffered.end(), p, p + a.rows * s.row_bytes);
       s.written += a.rows;
@@ -476,7 +477,8 @@ void DatasetStream::start_at(uint64_t row) {
   if (s.written || s.piece) s.fail("start_at after the first append");
   if (row > s.rows) s.fail("starts past its " + std::to_string(s.rows) + " rows");
   s.first_row = row;
-  s.piece = std::make_unique<BlockHasher>(BlockHasher::Piece{row * s.row_bytes});
+  s.piece =
+      std::make_unique<BlockHasher>(BlockHasher::Piece{row * s.row_bytes, s.rows * s.row_bytes});
 }
 
 uint64_t DatasetStream::close() {

@@ -46,6 +46,9 @@ class BlockHasher {
   // A piece of a stream that starts at `first_byte`, to be combined with the others.
   struct Piece {
     uint64_t first_byte = 0;
+    // The whole stream's length where known: a piece that reaches it hashes its last block
+    // (shared with no later piece) at once instead of keeping its bytes raw until piece().
+    uint64_t stream_bytes = UINT64_MAX;
   };
   explicit BlockHasher(Piece piece);
   ~BlockHasher();
@@ -62,9 +65,11 @@ class BlockHasher {
   void finish_block();
   uint64_t first_ = 0, next_ = 0;  // stream offsets of the first byte and the next one
   bool piece_ = false;
-  std::string head_;     // bytes before the piece's first block boundary
-  std::string digests_;  // 16 bytes per whole block after that boundary
-  std::string tail_;     // bytes of the block in progress (not yet whole)
+  std::string head_;           // bytes before the piece's first block boundary
+  std::string digests_;        // 16 bytes per whole block after that boundary
+  std::string tail_;           // bytes of the block in progress (not yet whole)
+  uint64_t end_ = UINT64_MAX;  // the stream's length, where known
+  std::string last_;           // the digest of the stream's last block, short of a whole one
   struct State;
   std::unique_ptr<State> block_;  // the block in progress, hashed as it arrives
 };

@@ -581,7 +581,8 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
                         {"points", mine.points},
                         {"read_s", mine.read_s},
                         {"build_s", mine.build_s},
-                        {"bytes", mine.bytes}},
+                        {"bytes", mine.bytes},
+                        {"peak_rss_bytes", peak_rss_bytes()}},
                        "read_s", "build_s", p.stats);
       p = provenance_from_json(nlohmann::json::parse(ranks.broadcast(json_text(to_json(p)))));
       sink.close(mesh, p);
