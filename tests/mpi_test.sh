@@ -129,6 +129,22 @@ peaks = [r[\"peak_rss_bytes\"] for r in ranks]
 assert len(peaks) == 2 and all(0 < p <= 128 << 20 for p in peaks), peaks
 '"
 
+# Hundreds of small tube chunks: a rank makes a chunk's datasets when a rank reaches it and
+# closes them once no rank will write to it again (all were made up front and held to the end,
+# each small one's bytes kept raw by its hash piece: 147 MiB a rank under 64M, 2026-12-01).
+"$bin" bake big.binlines -o chunks-serial.lbc.h5 --assets tubes --chunk-bytes 500000 >/dev/null 2>&1
+check_budget "np 3, 304 small tube chunks under 64M: the serial bake's tubes, every rank within its budget" bash -c "
+  [ \$(h5ls chunks-serial.lbc.h5/assets/tubes | grep -c chunk_) -gt 300 ] &&
+  mpirun -np 3 '$mpi' bake big.binlines -o chunks-mpi.lbc.h5 --assets tubes --chunk-bytes 500000 \
+    --memory-budget 64M > /dev/null &&
+  diff <(hashes chunks-serial.lbc.h5) <(hashes chunks-mpi.lbc.h5) &&
+  '$bin' report --json chunks-mpi.lbc.h5 | python3 -c '
+import json, sys
+ranks = json.load(sys.stdin)[0][\"assets\"][\"tubes\"][\"stats\"][\"rank_figures\"]
+peaks = [r[\"peak_rss_bytes\"] for r in ranks]
+assert len(peaks) == 3 and all(0 < p <= 64 << 20 for p in peaks), peaks
+'"
+
 # A VTP (read whole) past what each rank's budget leaves is refused while it is read, naming it.
 "$bin" convert big.binlines -o big.vtp >/dev/null 2>&1
 check "np 2: a VTP past the budget is refused while it is read (exit 4), no cache" bash -c "

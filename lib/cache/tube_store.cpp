@@ -1,7 +1,9 @@
 #include "cache/tube_store.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <optional>
+#include <set>
 
 #include "cache/line_store.hpp"
 #include "core/error.hpp"
@@ -33,13 +35,23 @@ struct TubeStoreSink::State {
   // The open chunk's datasets.
   std::optional<DatasetStream> positions, normals, attribute_values, indices;
   TubeChunkPlan plan;
-  // Parallel writes: every chunk's datasets and plan, open until close().
+  // Parallel writes: every chunk's datasets (made by open_chunks) and plan, and where this rank's
+  // rows are.
   struct Chunk {
     std::optional<DatasetStream> positions, normals, attribute_values, indices;
     TubeChunkPlan plan;
+    bool made = false;
   };
+  bool parallel = false;
   std::vector<Chunk> all;
+  size_t first_chunk = 0, last_chunk = 0;
+  uint64_t first_vertices = 0, first_indices = 0;
+  size_t frontier = 0;     // the lowest chunk this rank may still write to
+  std::set<size_t> open;   // chunks made and not yet closed
+  std::vector<bool> done;  // chunks closed
   void open_chunk(size_t c, const TubeChunkPlan& plan);
+  void make_parallel_chunk(size_t c);
+  void close_parallel_chunk(size_t c);
   void close_chunk(size_t c);
   size_t chunks = 0;
   uint64_t disk = 0, memory = 0;
@@ -78,29 +90,64 @@ TubeStoreSink::TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh,
                              uint64_t first_vertices, uint64_t first_indices, size_t last_chunk)
     : TubeStoreSink(cache, mesh) {
   State& s = *state_;
-  for (size_t c = 0; c < plan.size(); ++c) {
-    s.open_chunk(c, plan[c]);
-    State::Chunk chunk{std::move(s.positions), std::move(s.normals), std::move(s.attribute_values),
-                       std::move(s.indices), plan[c]};
-    if (c >= first_chunk && c <= last_chunk) {
-      const uint64_t v = c == first_chunk ? first_vertices : 0;
-      const uint64_t i = c == first_chunk ? first_indices : 0;
-      chunk.positions->start_at(v);
-      chunk.normals->start_at(v);
-      if (chunk.attribute_values) chunk.attribute_values->start_at(v);
-      chunk.indices->start_at(i / 3);
-    }
-    s.all.push_back(std::move(chunk));
-    s.positions.reset();
-    s.normals.reset();
-    s.attribute_values.reset();
-    s.indices.reset();
+  s.parallel = true;
+  s.all.resize(plan.size());
+  s.done.assign(plan.size(), false);
+  for (size_t c = 0; c < plan.size(); ++c) s.all[c].plan = plan[c];
+  s.first_chunk = s.frontier = first_chunk;
+  s.last_chunk = last_chunk;
+  s.first_vertices = first_vertices;
+  s.first_indices = first_indices;
+}
+
+void TubeStoreSink::State::make_parallel_chunk(size_t c) {
+  Chunk& chunk = all[c];
+  if (chunk.made || done[c]) return;
+  open.insert(c);
+  open_chunk(c, chunk.plan);
+  chunk.positions = std::move(positions);
+  chunk.normals = std::move(normals);
+  chunk.attribute_values = std::move(attribute_values);
+  chunk.indices = std::move(indices);
+  positions.reset();
+  normals.reset();
+  attribute_values.reset();
+  indices.reset();
+  chunk.made = true;
+  if (c >= first_chunk && c <= last_chunk) {
+    const uint64_t v = c == first_chunk ? first_vertices : 0;
+    const uint64_t i = c == first_chunk ? first_indices : 0;
+    chunk.positions->start_at(v);
+    chunk.normals->start_at(v);
+    if (chunk.attribute_values) chunk.attribute_values->start_at(v);
+    chunk.indices->start_at(i / 3);
   }
+}
+
+size_t TubeStoreSink::chunk_of_line(uint64_t line) const {
+  const auto& all = state_->all;
+  const auto after = std::upper_bound(
+      all.begin(), all.end(), line,
+      [](uint64_t l, const State::Chunk& chunk) { return l < chunk.plan.first_line; });
+  return after == all.begin() ? 0 : size_t(after - all.begin()) - 1;
+}
+
+void TubeStoreSink::open_chunks(const std::vector<uint64_t>& ranges) {
+  State& s = *state_;
+  std::vector<size_t> wanted;
+  for (size_t r = 0; r + 1 < ranges.size(); r += 2)
+    for (uint64_t c = ranges[r]; c <= ranges[r + 1] && c < s.all.size(); ++c)
+      wanted.push_back(size_t(c));
+  std::sort(wanted.begin(), wanted.end());
+  for (const size_t c : wanted) s.make_parallel_chunk(c);
 }
 
 void TubeStoreSink::begin_chunk(size_t c, const TubeChunkPlan& plan) {
   State& s = *state_;
-  if (!s.all.empty()) return;  // parallel: created up front
+  if (s.parallel) {  // made by open_chunks
+    s.frontier = c;
+    return;
+  }
   s.open_chunk(c, plan);
 }
 
@@ -133,10 +180,12 @@ TubeOutput TubeStoreSink::reserve(size_t c, uint64_t vertices, uint64_t indices)
 
 void TubeStoreSink::written(size_t c) {
   State& s = *state_;
-  auto& positions = s.all.empty() ? s.positions : s.all[c].positions;
-  auto& normals = s.all.empty() ? s.normals : s.all[c].normals;
-  auto& attribute_values = s.all.empty() ? s.attribute_values : s.all[c].attribute_values;
-  auto& indices = s.all.empty() ? s.indices : s.all[c].indices;
+  if (s.parallel && !s.all[c].made)
+    throw Error("tubes: rows for chunk " + std::to_string(c) + " before open_chunks made it");
+  auto& positions = s.parallel ? s.all[c].positions : s.positions;
+  auto& normals = s.parallel ? s.all[c].normals : s.normals;
+  auto& attribute_values = s.parallel ? s.all[c].attribute_values : s.attribute_values;
+  auto& indices = s.parallel ? s.all[c].indices : s.indices;
   if (s.attribute)
     append_together({rows_of(*positions, s.positions_buffer.data(), s.piece_vertices),
                      s.float_normals ? rows_of(*normals, s.normals_buffer.data(), s.piece_vertices)
@@ -152,7 +201,7 @@ void TubeStoreSink::written(size_t c) {
 
 void TubeStoreSink::end_chunk(size_t c) {
   State& s = *state_;
-  if (!s.all.empty()) return;  // parallel: closed together by close()
+  if (s.parallel) return;  // closed by close_finished() or close()
   s.close_chunk(c);
 }
 
@@ -171,16 +220,41 @@ void TubeStoreSink::State::close_chunk(size_t c) {
                            json_text(nlohmann::json{s.plan.first_line, s.plan.line_count}));
 }
 
+void TubeStoreSink::State::close_parallel_chunk(size_t c) {
+  make_parallel_chunk(c);  // a chunk no rank reached (none has rows): made to be closed
+  positions = std::move(all[c].positions);
+  normals = std::move(all[c].normals);
+  attribute_values = std::move(all[c].attribute_values);
+  indices = std::move(all[c].indices);
+  plan = all[c].plan;
+  close_chunk(c);
+  open.erase(c);
+  done[c] = true;
+}
+
+size_t TubeStoreSink::frontier() const {
+  return state_->frontier;
+}
+size_t TubeStoreSink::last_chunk() const {
+  return state_->last_chunk;
+}
+
+void TubeStoreSink::close_finished(const std::vector<uint64_t>& ranks) {
+  State& s = *state_;
+  std::vector<size_t> finished;
+  for (const size_t c : s.open) {
+    bool written = true;  // every rank has passed the chunk or never writes to it
+    for (size_t r = 0; r + 1 < ranks.size(); r += 2)
+      written = written && (c < ranks[r] || c > ranks[r + 1]);
+    if (written) finished.push_back(c);
+  }
+  for (const size_t c : finished) s.close_parallel_chunk(c);
+}
+
 void TubeStoreSink::close(const TubeMesh& mesh, Provenance provenance) {
   State& s = *state_;
-  for (size_t c = 0; c < s.all.size(); ++c) {
-    s.positions = std::move(s.all[c].positions);
-    s.normals = std::move(s.all[c].normals);
-    s.attribute_values = std::move(s.all[c].attribute_values);
-    s.indices = std::move(s.all[c].indices);
-    s.plan = s.all[c].plan;
-    s.close_chunk(c);
-  }
+  for (size_t c = 0; c < s.all.size(); ++c)
+    if (!s.done[c]) s.close_parallel_chunk(c);
   s.all.clear();
   s.cache->write_attribute(kTubesGroup, "mesh", json_text(describe(mesh, s.chunks)));
   provenance.disk_bytes = s.disk;

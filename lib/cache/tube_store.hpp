@@ -20,10 +20,11 @@ class TubeStoreSink : public TubeSink {
  public:
   // `mesh`: the builder's description (which arrays the chunks have).
   TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh);
-  // Parallel writes (ParallelWrite): every chunk's datasets are created up front from the plan,
-  // on every rank alike, and this rank's rows begin in chunk `first_chunk` after the
-  // `first_vertices` and `first_indices` of the lines before its own (the lower ranks').
-  // `last_chunk`: the chunk of its last line.
+  // Parallel writes (ParallelWrite): the chunks' datasets are made collectively as the ranks reach
+  // them (open_chunks) and closed once no rank will write to them (close_finished), on every rank
+  // alike; this rank's rows begin in chunk `first_chunk` after the `first_vertices` and
+  // `first_indices` of the lines before its own (the lower ranks'). `last_chunk`: the chunk of its
+  // last line.
   TubeStoreSink(CacheWriter& cache, const TubeMesh& mesh, const std::vector<TubeChunkPlan>& plan,
                 size_t first_chunk, uint64_t first_vertices, uint64_t first_indices,
                 size_t last_chunk);
@@ -32,6 +33,20 @@ class TubeStoreSink : public TubeSink {
   TubeOutput reserve(size_t chunk, uint64_t vertices, uint64_t indices) override;
   void written(size_t chunk) override;
   void end_chunk(size_t chunk) override;
+  // Parallel writes: the chunk that holds line `line` (of the whole set).
+  size_t chunk_of_line(uint64_t line) const;
+  // Parallel writes, collective: makes every chunk in the ranks' ranges that is not made yet, in
+  // chunk order. `ranges`: each rank's first and last chunk of its next batch (first > last: none).
+  void open_chunks(const std::vector<uint64_t>& ranges);
+  // Parallel writes: the lowest chunk this rank may still write rows to (it writes its chunks in
+  // order: those before it are done here), and the chunk of its last line.
+  size_t frontier() const;
+  size_t last_chunk() const;
+  // Parallel writes, collective, after write_round: closes the open chunks no rank will write to
+  // again. `ranks`: each rank's frontier (UINT64_MAX once it has built all its lines) and last
+  // chunk. Thousands of small chunks' datasets had all been open at once (6,263 chunks: 457 MiB
+  // a rank before a row was written).
+  void close_finished(const std::vector<uint64_t>& ranks);
   // After the last chunk: the mesh description and the provenance (disk and memory bytes filled
   // in from what was written).
   void close(const TubeMesh& description, Provenance provenance);
