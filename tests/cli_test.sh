@@ -585,7 +585,7 @@ check "LINEBAKE_PROGRESS=always draws the progress bar on a stderr that is no te
 check "render --png-bits with a .pfm is exit 1 (it had been taken); tiles' unknown --attribute is exit 1 listing the names, as embree's (it had been exit 4 naming none); bench's tiles-triangles on a cache without tubes is skipped like ll (it had failed)" bash -c "'$bin' render '$tmp/c.lbc.h5' --size 16x16 -o '$tmp/bits.pfm' --png-bits 16 2> '$tmp/bits.err'; [ \$? -eq 1 ] && grep -q -- '--png-bits: read only with a .png image' '$tmp/bits.err' && [ ! -e '$tmp/bits.pfm' ] && { '$bin' render '$tmp/c.lbc.h5' --technique tiles --attribute nothere --size 16x16 -o '$tmp/attr.png' 2> '$tmp/attr.err'; [ \$? -eq 1 ]; } && grep -q -- \"--attribute: no vertex attribute named 'nothere' in these lines (\" '$tmp/attr.err' && '$bin' bake '$tmp/c.binlines' -o '$tmp/novox.lbc.h5' --assets voxels > /dev/null 2>&1 && '$bin' bench render '$tmp/novox.lbc.h5' --techniques tiles-triangles --size 16x16 --frames 1 --json 2> /dev/null | python3 -c 'import json,sys; rows=[r for run in json.load(sys.stdin)[\"runs\"] for r in run[\"rows\"] if r[\"technique\"]==\"tiles-triangles\"]; sys.exit(0 if rows and \"the cache has no tubes\" in rows[0].get(\"skipped\",\"\") else 1)'"
 check "bench bake refuses an -o that exists (exit 3, the file kept, even when the options are refused too); a run's cache is removed after it, and after an interrupted run" bash -c "mkdir -p '$tmp/bbo' && cd '$tmp/bbo' && echo notes > notes.txt && for extra in '--assets nope' '--repeat 1'; do '$bin' bench bake '$tmp/c.binlines' \$extra -o notes.txt 2> o.err; [ \$? -eq 3 ] && grep -q 'notes.txt: exists: bench bake bakes a new cache there on every run' o.err && [ \"\$(cat notes.txt)\" = notes ] || exit 1; done && '$bin' bench bake '$tmp/c.binlines' --repeat 1 -o fresh.lbc.h5 > /dev/null && [ ! -e fresh.lbc.h5 ] && { timeout -s INT 1 '$bin' bench bake '$tmp/c.binlines' --repeat 50 -o int.lbc.h5 > /dev/null 2>&1; [ ! -e int.lbc.h5 ] && [ \"\$(ls)\" = \"notes.txt
 o.err\" ]; }"
-check "compare: an ancillary PNG chunk declaring 2 GiB is skipped unread (libpng had allocated it: 2 GB resident for a 43-byte file); palette and 1-bit PNGs compare (they were refused against their expanded rows)" /usr/bin/python3 -c "
+check "compare: an ancillary PNG chunk declaring 2 GiB is skipped unread (libpng had allocated it: 2 GB resident for a 43-byte file); palette and 1-bit PNGs compare (they were refused against their expanded rows); an RGBA PNG compares by its colours with a warning (it had been silent)" /usr/bin/python3 -c "
 import resource, struct, subprocess, zlib
 def chunk(kind, data):
     return struct.pack('>I', len(data)) + kind + data + struct.pack('>I', zlib.crc32(kind + data))
@@ -601,7 +601,11 @@ png('palette.png', 1000, 1000, 8, 3, b''.join(b'\0' + bytes(1000) for _ in range
 png('bits.png', 1000, 1000, 1, 0, b''.join(b'\0' + bytes(125) for _ in range(1000)))
 for name in ('palette.png', 'bits.png'):
     r = subprocess.run(['$bin', 'compare', '$tmp/' + name, '$tmp/' + name], capture_output=True, text=True)
-    assert r.returncode == 0 and '60.0000 dB' in r.stdout, r
+    assert r.returncode == 0 and '60.0000 dB' in r.stdout and 'alpha' not in r.stderr, r
+# An RGBA image compares by its colours, and says so (it had been silent).
+png('rgba.png', 16, 12, 8, 6, b''.join(b'\0' + bytes(64) for _ in range(12)))
+r = subprocess.run(['$bin', 'compare', '$tmp/rgba.png', '$tmp/small.png'], capture_output=True, text=True)
+assert r.returncode == 0 and '60.0000 dB' in r.stdout and r.stderr.count('alpha channel') == 1 and 'rgba.png: its alpha channel (or tRNS transparency) is dropped' in r.stderr, r
 "
 check "compare: a PFM header ending in CRLF reads the pixels where they are (they were read a byte off: 2.7 dB against the same pixels); bytes after the pixels, or 'PF4', are exit 2" /usr/bin/python3 -c "
 import struct, subprocess

@@ -57,6 +57,10 @@ Command add_compare(CLI::App& app) {
     MemoryBudget budget(memory_budget_bytes(args->memory_budget));
     const auto read = [&budget](const std::string& path) {
       Image image = read_image(path, budget);
+      if (image.alpha_dropped)
+        warn(path +
+             ": its alpha channel (or tRNS transparency) is dropped: compared by its "
+             "colour channels as stored, not composited over a background");
       if (const std::string place = first_nonfinite_pixel(image); !place.empty())
         throw InputError(path, place,
                          "not a finite value (NaN or infinity): PSNR and SSIM need finite values");

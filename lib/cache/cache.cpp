@@ -12,6 +12,8 @@
 #include <algorithm>
 #include <cstring>
 #include <ctime>
+#include <memory>
+#include <mutex>
 
 #include "cache/chunk_reader.hpp"
 #include "cache/group_copy.hpp"
@@ -305,20 +307,69 @@ namespace {
 // Encodes the chunks on the TBB workers and stores them in order from one thread at a time
 // (HDF5 is not thread-safe): a pipeline whose ordered last stage hashes and writes each chunk
 // while the chunks behind it are encoded. Chunks of several datasets share one pipeline.
+// The encoded chunks in flight, kept between calls so that chunks do not touch fresh pages, and
+// shared by every writing thread: a call takes its slots and gives them back, so the slots held
+// are those of the calls running at once (a bake's tubes and voxels: two), not of every TBB
+// thread that ever wrote (thread-local slots had made a bake's peak vary by a few MiB on 2
+// cores, and could reach a thread count times as much on many).
+class ChunkSlots {
+ public:
+  using Slot = std::unique_ptr<std::vector<char>>;
+  std::vector<Slot> take(size_t count) {
+    std::vector<Slot> out;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      while (out.size() < count && !free_.empty()) {
+        out.push_back(std::move(free_.back()));
+        free_.pop_back();
+      }
+    }
+    while (out.size() < count) out.push_back(std::make_unique<std::vector<char>>());
+    return out;
+  }
+  void give(std::vector<Slot>& slots) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (Slot& slot : slots) free_.push_back(std::move(slot));
+    slots.clear();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<Slot> free_;
+};
+
+size_t chunk_pipeline_tokens() {
+  return 2 * size_t(tbb::this_task_arena::max_concurrency()) + 1;
+}
+
+}  // namespace
+
+uint64_t chunks_in_flight_bytes() {
+  // An encoded chunk is at most a raw one (1 MiB) and the codec's bound over it.
+  const uint64_t slot = (uint64_t{1} << 20) + (uint64_t{64} << 10);
+  return chunk_pipeline_tokens() * slot +
+         uint64_t(tbb::this_task_arena::max_concurrency()) * (uint64_t{1} << 20);
+}
+
+namespace {
+
 void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
   if (jobs.empty()) return;
-  const size_t tokens = 2 * size_t(tbb::this_task_arena::max_concurrency()) + 1;
-  // Kept between calls, so chunks do not touch fresh pages: the encoded chunks in flight (one
-  // per pipeline token) and each thread's shuffle buffer.
-  thread_local std::vector<std::vector<char>> slots;
+  const size_t tokens = chunk_pipeline_tokens();
+  static ChunkSlots pool;
+  // Each thread's shuffle buffer, kept between calls.
   static tbb::enumerable_thread_specific<std::vector<char>> scratch;
-  if (slots.size() < tokens) slots.resize(tokens);
+  struct Taken {
+    std::vector<ChunkSlots::Slot> slots;
+    ~Taken() { pool.give(slots); }
+  } taken{pool.take(tokens)};
+  std::vector<std::vector<char>*> slot_base(tokens);
+  for (size_t t = 0; t < tokens; ++t) slot_base[t] = taken.slots[t].get();
   struct Item {
     size_t job;
     std::vector<char>* slot;
   };
   size_t next = 0;
-  std::vector<char>* const slot_base = slots.data();
   tbb::parallel_pipeline(
       tokens,
       tbb::make_filter<
@@ -328,7 +379,7 @@ void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
           return {};
         }
         const size_t job = next++;
-        return {job, slot_base + job % tokens};
+        return {job, slot_base[job % tokens]};
       }) & tbb::make_filter<Item, Item>(tbb::filter_mode::parallel, [&](Item item) {
         const auto& j = jobs[item.job];
         encode_chunk(j.stream->codec, j.data, j.stream->chunk_bytes(), *item.slot, scratch.local());

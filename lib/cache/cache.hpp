@@ -90,6 +90,10 @@ struct StreamAppend {
 // Appends to several datasets at once: their chunks are encoded in one pipeline, so the writes
 // of one dataset overlap the encoding of the next (a tube chunk's four arrays, for one).
 void append_together(std::span<const StreamAppend> appends);
+// Memory the compressed chunks of one append_together in flight take at the most, whatever the
+// data: an encoded chunk of up to 1 MiB per pipeline token (twice the TBB threads and one) and
+// each thread's shuffle buffer. A bake writes from one step at a time.
+uint64_t chunks_in_flight_bytes();
 inline void append_together(std::initializer_list<StreamAppend> appends) {
   append_together(std::span<const StreamAppend>(appends.begin(), appends.size()));
 }

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <string>
 
+#include "cache/cache.hpp"
 #include "core/error.hpp"
 #include "core/memory_budget.hpp"
 
@@ -23,8 +24,11 @@ inline void reserve_bake_fixed_buffers(MemoryBudget& budget) {
     throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
                          " is less than the process already holds (" +
                          format_bytes(budget.baseline()) + ") plus 32 MiB to work in");
+  // An eighth of the budget, and at least the compressed chunks in flight (which grow with the
+  // thread count: about 7 MiB on 2 threads, 51 on 16) and 16 MiB for HDF5's own structures.
   budget.reserve(
-      std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
+      std::max(std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
+               chunks_in_flight_bytes() + (uint64_t{16} << 20)),
       "the bake's fixed buffers");
 }
 

@@ -197,6 +197,8 @@ Image read_png(const std::string& path, uint64_t max_bytes) {
   // what the file's deflate stream holds (a valid 1000x1000 palette image of 1.8 KB had been
   // refused against its expanded RGB rows).
   const size_t stored_row_bytes = png_get_rowbytes(png, info);
+  const bool alpha = (png_get_color_type(png, info) & PNG_COLOR_MASK_ALPHA) != 0 ||
+                     png_get_valid(png, info, PNG_INFO_tRNS) != 0;
   png_set_expand(png);  // palette -> RGB, low-bit grey -> 8 bits, tRNS -> alpha
   png_set_strip_alpha(png);
   png_read_update_info(png, info);
@@ -230,6 +232,7 @@ Image read_png(const std::string& path, uint64_t max_bytes) {
   if (channels != 1 && channels != 3) throw InputError(path, "", "unsupported PNG channel layout");
   image = Image(width, height, channels);
   image.srgb_encoded = true;
+  image.alpha_dropped = alpha;
   const double scale = bits == 16 ? 65535.0 : 255.0;
   for (size_t i = 0; i < image.pixels.size(); ++i)
     image.pixels[i] = float((bits == 16 ? (data[2 * i] << 8 | data[2 * i + 1]) : data[i]) / scale);

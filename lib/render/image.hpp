@@ -14,6 +14,8 @@ struct Image {
   int width = 0, height = 0, channels = 3;  // 1 (grey) or 3 (RGB)
   // What the values mean: linear light (renderers) or already sRGB-encoded (a PNG read back).
   bool srgb_encoded = false;
+  // Read from a PNG with an alpha channel or tRNS transparency, which read_png drops.
+  bool alpha_dropped = false;
   std::vector<float> pixels;  // width * height * channels
 
   Image() = default;
@@ -35,8 +37,8 @@ std::string encode_png(const Image& image, int bits = 8);
 // 16-bit grey PNG of raw counts (saturating at 65535), e.g. a depth-complexity image.
 void write_png_counts(const std::vector<uint32_t>& counts, int width, int height,
                       const std::string& path);
-// 8/16-bit grey, grey+alpha, RGB or RGBA; alpha dropped, grey kept as one channel. Values are
-// the stored ones in [0, 1] (srgb_encoded = true).
+// 8/16-bit grey, grey+alpha, RGB or RGBA; alpha dropped (alpha_dropped says so), grey kept as
+// one channel. Values are the stored ones in [0, 1] (srgb_encoded = true).
 // `max_bytes`: refuse (BudgetExceeded naming the file, its size and the bytes) an image whose
 // floats and decoding buffers would take more, before allocating them (read_image too).
 Image read_png(const std::string& path, uint64_t max_bytes = UINT64_MAX);
