@@ -88,6 +88,25 @@ py::array number_array(const py::handle& value, const std::string& what, const c
     throw py::value_error(what +
                           ": a masked array with masked values, whose values under the "
                           "mask would be read; fill them first (a.filled(numpy.nan))");
+  // A list that mixes booleans with numbers becomes an integer array to NumPy ([[True, 0, 1]]:
+  // positions 1, 0, 1): where booleans are refused, a nested list's bool is named instead.
+  if (kinds && std::string_view(kinds).find('b') == std::string_view::npos &&
+      (PyList_Check(value.ptr()) || PyTuple_Check(value.ptr()))) {
+    const py::sequence rows = py::reinterpret_borrow<py::sequence>(value);
+    for (size_t r = 0; r < rows.size(); ++r) {
+      const py::handle row = rows[r];
+      const auto bool_at = [&](const py::handle& item, const std::string& place) {
+        throw py::type_error(what + ": expected " + wanted + ", got " + repr_of(item) + " at " +
+                             place + "; booleans are no numbers here");
+      };
+      if (is_bool(row)) bool_at(row, "item " + std::to_string(r));
+      if (!PyList_Check(row.ptr()) && !PyTuple_Check(row.ptr())) continue;
+      const py::sequence items = py::reinterpret_borrow<py::sequence>(row);
+      for (size_t c = 0; c < items.size(); ++c)
+        if (is_bool(items[c]))
+          bool_at(items[c], "row " + std::to_string(r) + ", column " + std::to_string(c));
+    }
+  }
   py::array array;
   try {
     array = py::array(py::reinterpret_borrow<py::object>(value));

@@ -581,6 +581,9 @@ def test_booleans_are_no_positions_and_none_is_no_number():
         linebake.LineSet(np.array([[0, 0, 0], [1, None, 1]], dtype=object), [0, 2])
     with pytest.raises(TypeError, match="^attribute 'a': expected 2 float32 values, one per point, got None at item 1"):
         linebake.LineSet(np.zeros((2, 3)), [0, 2], {"a": [1.0, None]})
+    # A list mixing booleans with numbers is an integer array to NumPy: its bool is named.
+    with pytest.raises(TypeError, match="^points: expected .*, got True at row 0, column 0; booleans are no numbers here"):
+        linebake.LineSet([[True, 0, 1], [1, 2, 3]], [0, 2])
     # NaN given as such is kept, and an attribute of booleans reads as 0 and 1.
     kept = linebake.LineSet([[0, 0, 0], [1, np.nan, 1]], [0, 2], {"a": np.array([True, False])})
     assert np.isnan(kept.points[1, 1])
