@@ -29,7 +29,7 @@ options=("${common[@]}" --grid 40)
 
 # Every dataset's name and stored hash, and the voxel grid's and Embree curves' descriptions
 # (their statistics), in file order.
-hashes() { h5dump -A "$1" | grep -E '^ *DATASET|ATTRIBUTE "(xxh3_128_blocks|grid|curves)"' -A12 |
+hashes() { h5dump -A "$1" | grep -E '^ *DATASET|ATTRIBUTE "(xxh3_128_blocks|grid|curves|mesh|lines)"' -A12 |
   grep -E 'DATASET|\(0\):' | tr -s ' '; }
 export -f hashes
 check "serial cache has several tube chunks" bash -c "h5ls -r serial.lbc.h5 | grep -c chunk_000002"
@@ -242,7 +242,7 @@ check "a failed collective write on rank 1 ends the job with exit 3, not a hang"
 check "it names the rank and the dataset" grep -q "rank 1: full.lbc.h5: dataset /" full/out.txt
 # MPI-IO passes no errno up ("file write failed"): the bake looks at the file size limit and
 # the free space itself.
-check "it names the cause: the file size limit" grep -q "rank 1: full.lbc.h5: dataset /.*file write failed: the file size limit (ulimit -f) of 1.95 MiB is reached" full/out.txt
+check "it names the cause: the file size limit" grep -q "rank 1: full.lbc.h5: dataset /.*file write failed: the file is at the file size limit (ulimit -f) of 1.95 MiB" full/out.txt
 check "no cache, temporary or spill file is left" bash -c "! ls -a | grep -E '^full\.lbc\.h5' | grep -v '^full\.lbc\.h5\.lock$'"
 # The abort killed rank 0 holding the cache's lock: its file may be left, the lock is not, and
 # the next bake into the path takes it and removes it.

@@ -301,6 +301,34 @@ class CollectingSink : public VoxelSink {
   void end(const VoxelGrid&, uint32_t, std::vector<Array<float>>) override {}
 };
 
+// A rank's piece of a wave comes sorted by unit, not by voxel within a unit (each unit's records
+// run by run, in line order): a piece inside one unit whose last voxel is the lower is taken
+// (it had been refused as out of order), one whose units go down is not.
+TEST(Voxels, AReceivedPieceInOneUnitNeedNotBeSortedByVoxel) {
+  LineSet lines;
+  for (int i = 0; i < 50; ++i) lines.append_point(float(i), float(i * 7 % 50), float(i * 13 % 50));
+  lines.end_line();
+  VoxelOptions o;
+  o.grid = 40;
+  VoxelStreamBuilder b(lines, compute_stats(lines), o);
+  const uint64_t unit = b.unit_voxels();
+  ASSERT_GE(unit, 4u);
+  ASSERT_GT(b.description().voxel_count(), 5 * unit);
+  const auto piece = [](std::initializer_list<uint32_t> voxels) {
+    Array<VoxelRecord> buffer(voxels.size());
+    size_t i = 0;
+    for (const uint32_t v : voxels) buffer[i++] = VoxelRecord{v, 0, 0, 1.0f};
+    return buffer;
+  };
+  const uint32_t u3 = uint32_t(3 * unit), u4 = uint32_t(4 * unit);
+  b.receive_records(piece({u3 + 3, u3 + 1}), {2});
+  b.receive_records(piece({u3 + 2, u4 + 1, u4}), {1, 2});
+  EXPECT_THROW(b.receive_records(piece({u4 + 1, u3 + 2}), {2}), Error);
+  b.adopt_received();
+  EXPECT_EQ(b.unit_records()[3], 3u);
+  EXPECT_EQ(b.unit_records()[4], 2u);
+}
+
 // What linebake-mpi does with three ranks, in one process: each "rank" walks a third of the
 // lines, the records go to the owners of z slabs in two waves, each owner merges its slab in two
 // pieces, and the tallies and level 1 sums are combined. The grid must equal voxelize()'s bit for

@@ -91,9 +91,13 @@ struct StreamAppend {
 // of one dataset overlap the encoding of the next (a tube chunk's four arrays, for one).
 void append_together(std::span<const StreamAppend> appends);
 // Memory the compressed chunks of one append_together in flight take at the most, whatever the
-// data: an encoded chunk of up to 1 MiB per pipeline token (twice the TBB threads and one) and
-// each thread's shuffle buffer. A bake writes from one step at a time.
+// data: an encoded chunk (up to 1 MiB and the codec's bound) per pipeline token, and each TBB
+// thread's shuffle buffer (1 MiB). A bake writes from one step at a time. The tokens are twice the
+// TBB threads and one (chunks_in_flight_wanted_bytes), or fewer, at least 2, where
+// limit_chunks_in_flight sets a limit (a memory budget: process-wide).
 uint64_t chunks_in_flight_bytes();
+uint64_t chunks_in_flight_wanted_bytes();
+void limit_chunks_in_flight(uint64_t bytes);
 inline void append_together(std::initializer_list<StreamAppend> appends) {
   append_together(std::span<const StreamAppend>(appends.begin(), appends.size()));
 }

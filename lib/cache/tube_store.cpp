@@ -77,7 +77,7 @@ void TubeStoreSink::State::open_chunk(size_t c, const TubeChunkPlan& chunk_plan)
   const std::string g = chunk_group(c);
   cache->create_group(g);
   plan = chunk_plan;
-  chunks = c + 1;
+  chunks = std::max(chunks, c + 1);  // the ranks make parallel chunks out of order
   positions.emplace(cache->stream<float>(g + "/positions", plan.vertices, 3));
   normals.emplace(float_normals ? cache->stream<float>(g + "/normals", plan.vertices, 3)
                                 : cache->stream<int16_t>(g + "/normals_oct", plan.vertices, 2));

@@ -188,13 +188,13 @@ uint64_t free_bytes_for(const std::string& path) {
 std::string write_failure_cause(const std::string& file, uint64_t attempted) {
   const uint64_t margin = std::max<uint64_t>(attempted, uint64_t{1} << 20);
   const uint64_t free = free_bytes_for(file);
-  if (free < margin) return "no space left on the file system (" + format_bytes(free) + " free)";
+  if (free < margin) return "the file system has only " + format_bytes(free) + " free";
   struct rlimit limit {};
   struct stat st {};
   if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
       ::stat(file.c_str(), &st) == 0 && uint64_t(st.st_size) + margin > uint64_t(limit.rlim_cur))
-    return "the file size limit (ulimit -f) of " + format_bytes(uint64_t(limit.rlim_cur)) +
-           " is reached";
+    return "the file is at the file size limit (ulimit -f) of " +
+           format_bytes(uint64_t(limit.rlim_cur));
   return "";
 }
 

@@ -103,9 +103,9 @@ void check_output_location(const std::string& path);
 // Bytes free for this user on the file system that holds `path` (or would: its directory).
 uint64_t free_bytes_for(const std::string& path);
 // Why a write to `file` (being written) may have failed, where the writer was not told (MPI-IO
-// reports "file write failed" without errno): "no space left on the file system (N free)" when
-// less than `attempted` bytes are free, "the file size limit (ulimit -f) of N bytes is reached"
-// when the file is within `attempted` of it; "" when neither is seen.
+// reports "file write failed" without errno), as what is seen, not as a certainty: "the file
+// system has only N free" when less than `attempted` bytes (1 MiB at least) are free, "the file
+// is at the file size limit (ulimit -f) of N" when it is within `attempted` of it; "" otherwise.
 std::string write_failure_cause(const std::string& file, uint64_t attempted);
 
 // Fixes a file's bytes on disk (fsync); throws OutputError naming `name` on failure.

@@ -18,18 +18,30 @@ namespace linebake {
 // caches, TBB, the allocator's slack, the datasets' pending chunks), and reserves the bake's
 // fixed buffers: an eighth of what is left, 24 to 96 MiB (measured: about 20 MiB at the least,
 // encoded chunks in flight and HDF5's own structures). Nothing for an unlimited budget.
-inline void reserve_bake_fixed_buffers(MemoryBudget& budget) {
-  if (budget.unlimited()) return;
+// `writes_chunks`: whether the bake writes compressed chunks itself (append_together; the MPI
+// bake's ranks write through HDF5's collective writes instead).
+inline void reserve_bake_fixed_buffers(MemoryBudget& budget, bool writes_chunks = true) {
+  if (budget.unlimited()) {
+    if (writes_chunks) limit_chunks_in_flight(UINT64_MAX);
+    return;
+  }
   if (budget.available() < (uint64_t{32} << 20))
     throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
                          " is less than the process already holds (" +
                          format_bytes(budget.baseline()) + ") plus 32 MiB to work in");
-  // An eighth of the budget, and at least the compressed chunks in flight (which grow with the
-  // thread count: about 7 MiB on 2 threads, 51 on 16) and 16 MiB for HDF5's own structures.
-  budget.reserve(
-      std::max(std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20),
-               chunks_in_flight_bytes() + (uint64_t{16} << 20)),
-      "the bake's fixed buffers");
+  // An eighth of the budget (24 to 96 MiB): HDF5's own structures (12 MiB of it) and the
+  // compressed chunks in flight. Those want 1.06 MiB for each of twice the threads and one, and
+  // 1 MiB a thread (7.3 MiB on 2 threads, 51 on 16): they get up to a quarter of the budget, and
+  // the pipeline takes as many as fit (at least 2).
+  const uint64_t hdf5 = uint64_t{12} << 20;
+  const uint64_t eighth =
+      std::clamp<uint64_t>(budget.available() / 8, uint64_t{24} << 20, uint64_t{96} << 20);
+  const uint64_t fixed = writes_chunks
+                             ? std::max(eighth, std::min(chunks_in_flight_wanted_bytes() + hdf5,
+                                                         budget.available() / 4))
+                             : eighth;
+  budget.reserve(fixed, "the bake's fixed buffers");
+  if (writes_chunks) limit_chunks_in_flight(fixed - hdf5);
 }
 
 // Refuses line `line` of `source` when its `points` points, at `per_point` bytes each through

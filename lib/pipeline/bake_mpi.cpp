@@ -292,7 +292,7 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
   const uint64_t rss_before = current_rss_bytes();
   // The least to work in and the fixed buffers, as the serial bake: each rank's own budget (its
   // resident memory differs), refused on every rank if on one.
-  ranks.agree([&] { reserve_bake_fixed_buffers(budget); });
+  ranks.agree([&] { reserve_bake_fixed_buffers(budget, false); });
   // As the serial bake sizes its batches: a quarter of the budget through the builders.
   const uint64_t per_point =
       cost_per_point(options, header, build_tubes, build_voxels, build_embree);

@@ -937,9 +937,11 @@ void VoxelStreamBuilder::receive_records(Array<VoxelRecord> buffer,
     // The run's index spans the units from its first record's to its last's (records arrive
     // sorted by unit), not the grid's every unit.
     Run run;
+    // Sorted by unit, not by voxel within a unit (a unit's records come run by run, in line
+    // order): the first and last records' units bound the run.
     const uint64_t first_voxel = records[0].voxel, last_voxel = records[count - 1].voxel;
     if (first_voxel >= s.grid.voxel_count() || last_voxel >= s.grid.voxel_count() ||
-        last_voxel < first_voxel)
+        (last_voxel >> s.unit_shift) < (first_voxel >> s.unit_shift))
       throw Error("voxels: received records out of order or outside the grid");
     run.first_unit = first_voxel >> s.unit_shift;
     const uint64_t span = (last_voxel >> s.unit_shift) - run.first_unit + 1;
