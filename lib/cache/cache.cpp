@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstring>
 #include <ctime>
 #include <memory>
@@ -305,69 +304,57 @@ struct DatasetStream::State {
 
 namespace {
 
-// The encoded chunks in flight, kept between calls so that chunks do not touch fresh pages, and
-// shared by every writing thread: a call takes its slots
-// and gives them back, so the slots held are those of the calls running at once (a bake writes
-// from one step at a time), not of every TBB thread that ever wrote (thread-local slots had
+// Buffers of the chunks in flight, kept between calls so that chunks do not touch fresh pages,
+// and shared by every writing thread: a call takes what it uses and gives it back, keeping at
+// most its own count, so the buffers held are those of the calls running at once (a bake writes
+// from one step at a time), not of every TBB thread that ever wrote (thread-local buffers had
 // made a bake's peak vary by a few MiB on 2 cores, and could reach a thread count times as much
 // on many).
-struct ChunkSlot {
-  std::vector<char> encoded;
-};
-class ChunkSlots {
+class BufferPool {
  public:
-  using Slot = std::unique_ptr<ChunkSlot>;
-  std::vector<Slot> take(size_t count) {
-    std::vector<Slot> out;
+  using Buffer = std::unique_ptr<std::vector<char>>;
+  Buffer take() {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
-      while (out.size() < count && !free_.empty()) {
-        out.push_back(std::move(free_.back()));
+      if (!free_.empty()) {
+        Buffer buffer = std::move(free_.back());
         free_.pop_back();
+        return buffer;
       }
     }
-    while (out.size() < count) out.push_back(std::make_unique<ChunkSlot>());
-    return out;
+    return std::make_unique<std::vector<char>>();
   }
-  void give(std::vector<Slot>& slots) {
+  void give(Buffer buffer, size_t keep) {
     const std::lock_guard<std::mutex> lock(mutex_);
-    for (Slot& slot : slots) free_.push_back(std::move(slot));
-    slots.clear();
+    if (free_.size() < keep) free_.push_back(std::move(buffer));
   }
 
  private:
   std::mutex mutex_;
-  std::vector<Slot> free_;
+  std::vector<Buffer> free_;
 };
 
-// An encoded chunk at its largest (a raw chunk, 1 MiB, and the codec's bound over it), and each
-// thread's shuffle buffer (a raw chunk).
+// An encoded chunk at its largest (a raw chunk, 1 MiB, and the codec's bound over it), and an
+// encoding's shuffle buffer (a raw chunk): one of each per pipeline token at the most.
 constexpr uint64_t kSlotBytes = (uint64_t{1} << 20) + (uint64_t{64} << 10);
 constexpr uint64_t kScratchBytes = uint64_t{1} << 20;
-std::atomic<uint64_t> chunks_limit{UINT64_MAX};
 
 uint64_t writer_threads() {
   return uint64_t(tbb::this_task_arena::max_concurrency());
 }
 
-size_t chunk_pipeline_tokens() {
+// Twice the threads and one, or as many as `limit` bytes hold (at least 2).
+size_t chunk_pipeline_tokens(uint64_t limit) {
   const size_t most = 2 * size_t(writer_threads()) + 1;
-  const uint64_t limit = chunks_limit.load(), scratch = writer_threads() * kScratchBytes;
-  if (limit == UINT64_MAX) return most;
-  return std::clamp<size_t>(size_t(limit > scratch ? (limit - scratch) / kSlotBytes : 0), size_t{2},
-                            most);
+  if (limit >= chunks_in_flight_wanted_bytes()) return most;
+  return std::clamp<size_t>(size_t(limit / (kSlotBytes + kScratchBytes)), size_t{2}, most);
 }
 
 }  // namespace
 
-uint64_t chunks_in_flight_bytes() {
-  return chunk_pipeline_tokens() * kSlotBytes + writer_threads() * kScratchBytes;
-}
 uint64_t chunks_in_flight_wanted_bytes() {
+  // The encodings run on the threads: no more shuffle buffers than threads.
   return (2 * writer_threads() + 1) * kSlotBytes + writer_threads() * kScratchBytes;
-}
-void limit_chunks_in_flight(uint64_t bytes) {
-  chunks_limit = bytes;
 }
 
 namespace {
@@ -377,54 +364,53 @@ namespace {
 // while the chunks behind it are encoded. Chunks of several datasets share one pipeline.
 void write_chunks(const std::vector<DatasetStream::State::Job>& jobs) {
   if (jobs.empty()) return;
-  const size_t tokens = chunk_pipeline_tokens();
-  static ChunkSlots pool;
-  // Each thread's shuffle buffer, kept between calls.
-  static tbb::enumerable_thread_specific<std::vector<char>> scratch;
+  uint64_t limit = UINT64_MAX;
+  for (const auto& j : jobs) limit = std::min(limit, j.stream->writer->chunks_in_flight_limit());
+  const size_t tokens = chunk_pipeline_tokens(limit);
+  static BufferPool encoded, shuffles;
   struct Taken {
-    std::vector<ChunkSlots::Slot> slots;
-    ~Taken() { pool.give(slots); }
-  } taken{pool.take(tokens)};
-  std::vector<ChunkSlot*> slot_base(tokens);
+    std::vector<BufferPool::Buffer> slots;
+    ~Taken() {
+      for (auto& slot : slots) encoded.give(std::move(slot), slots.size());
+    }
+  } taken;
+  for (size_t t = 0; t < tokens; ++t) taken.slots.push_back(encoded.take());
+  std::vector<std::vector<char>*> slot_base(tokens);
   for (size_t t = 0; t < tokens; ++t) slot_base[t] = taken.slots[t].get();
   struct Item {
     size_t job;
-    ChunkSlot* slot;
+    std::vector<char>* slot;
   };
   size_t next = 0;
   tbb::parallel_pipeline(
       tokens,
-      tbb::make_filter<void, Item>(tbb::filter_mode::serial_in_order,
-                                   [&](tbb::flow_control& control) -> Item {
-                                     if (next == jobs.size()) {
-                                       control.stop();
-                                       return {};
-                                     }
-                                     const size_t job = next++;
-                                     return {job, slot_base[job % tokens]};
-                                   }) &
-          tbb::make_filter<Item, Item>(tbb::filter_mode::parallel,
-                                       [&](Item item) {
-                                         const auto& j = jobs[item.job];
-                                         encode_chunk(j.stream->codec, j.data,
-                                                      j.stream->chunk_bytes(), item.slot->encoded,
-                                                      scratch.local());
-                                         return item;
-                                       }) &
-          tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
-            const auto& j = jobs[item.job];
-            DatasetStream::State& s = *j.stream;
-            // The hash covers the rows, not the zeros that pad the dataset's last chunk.
-            const uint64_t first_row = j.chunk * s.chunk_rows;
-            s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
-            const hsize_t offset[2] = {first_row, 0};
-            const std::vector<char>& out = item.slot->encoded;
-            h5::init();  // this stage runs on TBB's threads: HDF5's printing off on each
-            if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
-              s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() +
-                     ")");
-            s.writer->add_progress(s.chunk_bytes());
-          }));
+      tbb::make_filter<
+          void, Item>(tbb::filter_mode::serial_in_order, [&](tbb::flow_control& control) -> Item {
+        if (next == jobs.size()) {
+          control.stop();
+          return {};
+        }
+        const size_t job = next++;
+        return {job, slot_base[job % tokens]};
+      }) & tbb::make_filter<Item, Item>(tbb::filter_mode::parallel, [&](Item item) {
+        const auto& j = jobs[item.job];
+        BufferPool::Buffer shuffle = shuffles.take();
+        encode_chunk(j.stream->codec, j.data, j.stream->chunk_bytes(), *item.slot, *shuffle);
+        shuffles.give(std::move(shuffle), tokens);
+        return item;
+      }) & tbb::make_filter<Item, void>(tbb::filter_mode::serial_in_order, [&](Item item) {
+        const auto& j = jobs[item.job];
+        DatasetStream::State& s = *j.stream;
+        // The hash covers the rows, not the zeros that pad the dataset's last chunk.
+        const uint64_t first_row = j.chunk * s.chunk_rows;
+        s.hash.update(j.data, std::min(s.chunk_rows, s.rows - first_row) * s.row_bytes);
+        const hsize_t offset[2] = {first_row, 0};
+        const std::vector<char>& out = *item.slot;
+        h5::init();  // this stage runs on TBB's threads: HDF5's printing off on each
+        if (H5Dwrite_chunk(s.dataset, H5P_DEFAULT, 0, offset, out.size(), out.data()) < 0)
+          s.fail("cannot write chunk " + std::to_string(j.chunk) + " (" + h5::last_error() + ")");
+        s.writer->add_progress(s.chunk_bytes());
+      }));
 }
 
 }  // namespace

@@ -91,13 +91,10 @@ struct StreamAppend {
 // of one dataset overlap the encoding of the next (a tube chunk's four arrays, for one).
 void append_together(std::span<const StreamAppend> appends);
 // Memory the compressed chunks of one append_together in flight take at the most, whatever the
-// data: an encoded chunk (up to 1 MiB and the codec's bound) per pipeline token, and each TBB
-// thread's shuffle buffer (1 MiB). A bake writes from one step at a time. The tokens are twice the
-// TBB threads and one (chunks_in_flight_wanted_bytes), or fewer, at least 2, where
-// limit_chunks_in_flight sets a limit (a memory budget: process-wide).
-uint64_t chunks_in_flight_bytes();
+// data, with as many pipeline tokens as the threads use (twice the TBB threads and one): per
+// token an encoded chunk (up to 1 MiB and the codec's bound), and a shuffle buffer (1 MiB) per
+// thread. A writer's chunks_in_flight_limit may hold fewer tokens (at least 2).
 uint64_t chunks_in_flight_wanted_bytes();
-void limit_chunks_in_flight(uint64_t bytes);
 inline void append_together(std::initializer_list<StreamAppend> appends) {
   append_together(std::span<const StreamAppend>(appends.begin(), appends.size()));
 }
@@ -156,6 +153,10 @@ class CacheWriter {
 
   const std::string& path() const { return file_.final_path(); }
   const std::string& temp_path() const { return file_.temp_path(); }
+  // Bytes the compressed chunks in flight of this writer's appends may take (a memory budget's
+  // share; unlimited by default): the encoding pipeline takes as many tokens as fit.
+  void limit_chunks_in_flight(uint64_t bytes) { chunks_limit_ = bytes; }
+  uint64_t chunks_in_flight_limit() const { return chunks_limit_; }
   // HDF5's last error, and under MPI what the file system says of a failed write of `attempted`
   // bytes (write_failure_cause): MPI-IO passes no errno up.
   std::string parallel_write_error(uint64_t attempted) const;
@@ -196,6 +197,7 @@ class CacheWriter {
   DatasetStream open_stream(const std::string& dataset, hid_t type, size_t element, uint64_t rows,
                             uint64_t columns);
   void open(hid_t fapl);
+  uint64_t chunks_limit_ = UINT64_MAX;
   AtomicFile file_;
   std::optional<ParallelWrite> parallel_;
   std::vector<DatasetStream::State*> open_;  // parallel: datasets not yet closed, in order

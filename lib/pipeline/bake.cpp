@@ -695,7 +695,7 @@ BakeResult bake(const BakeOptions& options_in) {
   LineSetStats stats;
   std::string lines_hash;
   StepClock lines_clock{"lines"};
-  reserve_bake_fixed_buffers(budget);
+  const uint64_t chunks_in_flight = reserve_bake_fixed_buffers(budget);
   std::unique_ptr<LineReader> input;
   uint64_t batch_points = uint64_t{1} << 21;
   const auto plan_batches = [&](const LineSet& h) {
@@ -886,6 +886,7 @@ BakeResult bake(const BakeOptions& options_in) {
   };
 
   CacheWriter writer(result.cache, options.compression, options.compression_level);
+  writer.limit_chunks_in_flight(chunks_in_flight);
   // Tubes and Embree parts need the whole set's line sizes before their datasets exist: a
   // first pass writes /lines and makes those plans.
   std::optional<TubeStreamBuilder> tubes;

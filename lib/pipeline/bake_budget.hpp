@@ -17,14 +17,13 @@ namespace linebake {
 // Refuses a budget that leaves less than 32 MiB to work in beside what the process holds (HDF5's
 // caches, TBB, the allocator's slack, the datasets' pending chunks), and reserves the bake's
 // fixed buffers: an eighth of what is left, 24 to 96 MiB (measured: about 20 MiB at the least,
-// encoded chunks in flight and HDF5's own structures). Nothing for an unlimited budget.
+// encoded chunks in flight and HDF5's own structures), or up to a quarter where the chunks in
+// flight of many threads want more. Nothing for an unlimited budget.
 // `writes_chunks`: whether the bake writes compressed chunks itself (append_together; the MPI
-// bake's ranks write through HDF5's collective writes instead).
-inline void reserve_bake_fixed_buffers(MemoryBudget& budget, bool writes_chunks = true) {
-  if (budget.unlimited()) {
-    if (writes_chunks) limit_chunks_in_flight(UINT64_MAX);
-    return;
-  }
+// bake's ranks write through HDF5's collective writes instead). Returns the bytes its writer's
+// chunks in flight may take (CacheWriter::limit_chunks_in_flight; UINT64_MAX: any).
+inline uint64_t reserve_bake_fixed_buffers(MemoryBudget& budget, bool writes_chunks = true) {
+  if (budget.unlimited()) return UINT64_MAX;
   if (budget.available() < (uint64_t{32} << 20))
     throw BudgetExceeded("the memory budget of " + format_bytes(budget.total()) +
                          " is less than the process already holds (" +
@@ -41,7 +40,7 @@ inline void reserve_bake_fixed_buffers(MemoryBudget& budget, bool writes_chunks 
                                                          budget.available() / 4))
                              : eighth;
   budget.reserve(fixed, "the bake's fixed buffers");
-  if (writes_chunks) limit_chunks_in_flight(fixed - hdf5);
+  return writes_chunks ? fixed - hdf5 : UINT64_MAX;
 }
 
 // Refuses line `line` of `source` when its `points` points, at `per_point` bytes each through
