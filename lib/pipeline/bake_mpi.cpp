@@ -561,15 +561,6 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
       LineSet batch;
       bool done = my_lines == 0;
       uint64_t next_line = piece.first_line;
-      const auto allgather = [&](uint64_t a, uint64_t b) {
-        const uint64_t pair[2] = {a, b};
-        const std::vector<std::string> all =
-            ranks.allgather(std::string(reinterpret_cast<const char*>(pair), sizeof pair));
-        std::vector<uint64_t> out(2 * all.size());
-        for (size_t r = 0; r < all.size(); ++r)
-          std::memcpy(&out[2 * r], all[r].data(), sizeof pair);
-        return out;
-      };
       for (uint64_t round = 0; round < rounds; ++round) {
         throw_if_interrupted();
         // Only the chunks in use are open: those this round's batches reach are made on every
@@ -583,13 +574,14 @@ BakeResult bake_mpi(const BakeOptions& options_in, MPI_Comm comm) {
         } else {
           done = true;
         }
-        sink.open_chunks(allgather(first, last));
+        sink.open_chunks(ranks.allgather(std::vector<uint64_t>{first, last}));
         if (!done) {
           tubes->build(batch, sink);
           next_line += batch.line_count();
         }
         writer.write_round();
-        sink.close_finished(allgather(done ? UINT64_MAX : sink.frontier(), sink.last_chunk()));
+        sink.close_finished(ranks.allgather(
+            std::vector<uint64_t>{done ? UINT64_MAX : sink.frontier(), sink.last_chunk()}));
         if (show) progress.update(round + 1, rounds);
       }
       Provenance p;

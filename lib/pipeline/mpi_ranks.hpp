@@ -82,6 +82,13 @@ struct Ranks {
     if (result.empty() || result[0] != '+') throw Error(result.empty() ? "" : result.substr(1));
     return result.substr(1);
   }
+  // Every rank's `mine` (the same count on every rank), in rank order, on every rank.
+  std::vector<uint64_t> allgather(const std::vector<uint64_t>& mine) const {
+    std::vector<uint64_t> all(mine.size() * size_t(size));
+    MPI_Allgather(mine.data(), int(mine.size()), MPI_UINT64_T, all.data(), int(mine.size()),
+                  MPI_UINT64_T, comm);
+    return all;
+  }
   // Every rank's values, in rank order, on rank 0 (empty elsewhere).
   std::vector<uint64_t> gather(const std::vector<uint64_t>& mine) const {
     const int n = int(mine.size());
