@@ -350,3 +350,63 @@ TEST(H5Probe, ACompactDatasetMustStoreItsShape) {
   }
   unsetenv("LINEBAKE_ISOLATION");
 }
+
+// HDF5's scale-offset decoder sizes its output from the filter's parameters (the chunk's element
+// count and the element size), not from the chunk: a fuzzed file whose count said 1,052,770,309
+// made the reader ask for 4 GB, in-process, to decode a 20-byte chunk, and a decoder that gets
+// it fills it. The walk and the reader refuse parameters that disagree with the chunk layout.
+TEST(H5Probe, AScaleOffsetFilterMustDescribeItsChunk) {
+  TempDir dir;
+  const std::string path = dir.file("scaleoffset.h5");
+  {
+    h5::init();
+    h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    const hsize_t dims[2] = {4, 3}, chunk[2] = {2, 3};
+    h5::Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+    h5::Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    H5Pset_chunk(dcpl, 2, chunk);
+    H5Pset_scaleoffset(dcpl, H5Z_SO_FLOAT_DSCALE, 2);  // two decimal digits kept
+    h5::Handle d(H5Dcreate2(file, "points", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+                 H5Dclose);
+    const float values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12.5f};
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
+    const uint64_t offsets[2] = {0, 4};
+    const hsize_t two = 2;
+    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
+    h5::Handle o(
+        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+  }
+  const LineSet sound = read_line_set(path);
+  ASSERT_EQ(sound.point_count(), 4u);
+  EXPECT_EQ(sound.positions[11], 12.5f);
+  // The filter's parameters 2 to 4 (H5Zscaleoffset.c): 6 values a chunk, class 1 (float), 4 bytes
+  // each; stored once, in the dataset's pipeline message. Say 2^30 values instead.
+  std::string bytes = read_text(path);
+  const uint32_t parameters[3] = {6, 1, 4};
+  const std::string pattern(reinterpret_cast<const char*>(parameters), sizeof parameters);
+  const size_t at = bytes.find(pattern);
+  ASSERT_NE(at, std::string::npos);
+  ASSERT_EQ(bytes.find(pattern, at + 1), std::string::npos);
+  const uint32_t damaged = uint32_t{1} << 30;
+  bytes.replace(at, 4, std::string(reinterpret_cast<const char*>(&damaged), 4));
+  write_text(path, bytes);
+  for (const char* isolation : {"on", "off"}) {
+    SCOPED_TRACE(isolation);
+    setenv("LINEBAKE_ISOLATION", isolation, 1);
+    try {
+      (void)read_line_set(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      EXPECT_NE(std::string(e.what()).find("/points"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("scale-offset filter's parameters say a chunk holds "
+                                           "1073741824 values of 4 bytes, but its layout and "
+                                           "type say 6 of 4"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  unsetenv("LINEBAKE_ISOLATION");
+}

@@ -140,20 +140,60 @@ uint64_t shape_bytes(hid_t dataset) {
   return bytes;
 }
 
-}  // namespace
-
-std::string damaged_compact_storage(hid_t dataset) {
-  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
-  if (!dcpl.valid() || H5Pget_layout(dcpl) != H5D_COMPACT) return "";
+std::string damaged_compact_storage(hid_t dataset, hid_t dcpl) {
+  if (H5Pget_layout(dcpl) != H5D_COMPACT) return "";
   const uint64_t bytes = shape_bytes(dataset), stored = H5Dget_storage_size(dataset);
   if (stored == bytes) return "";
   return "compact dataset whose shape claims " + std::to_string(bytes) + " bytes, but it stores " +
          std::to_string(stored) + ": the header is damaged";
 }
 
+// HDF5's scale-offset and N-bit filters (H5Zscaleoffset.c, H5Znbit.c) keep the chunk's element
+// count in parameter 2 and the element size in parameter 4, set from the layout and the type
+// when the dataset is made; decoding allocates and fills count x size bytes.
+std::string damaged_filter_parameters(hid_t dataset, hid_t dcpl) {
+  const int filters = H5Pget_nfilters(dcpl);
+  for (int f = 0; f < filters; ++f) {
+    unsigned flags = 0, config = 0, values[32] = {};
+    size_t count = sizeof values / sizeof values[0];
+    const H5Z_filter_t id =
+        H5Pget_filter2(dcpl, static_cast<unsigned>(f), &flags, &count, values, 0, nullptr, &config);
+    if (id != H5Z_FILTER_SCALEOFFSET && id != H5Z_FILTER_NBIT) continue;
+    const std::string filter = id == H5Z_FILTER_NBIT ? "N-bit" : "scale-offset";
+    if (count < 5)
+      return "its " + filter + " filter has " + std::to_string(count) +
+             " parameters, fewer than HDF5 writes: the header is damaged";
+    hsize_t chunk[H5S_MAX_RANK] = {};
+    const int rank =
+        H5Pget_layout(dcpl) == H5D_CHUNKED ? H5Pget_chunk(dcpl, H5S_MAX_RANK, chunk) : -1;
+    if (rank < 1) return "its " + filter + " filter has no chunk layout: the header is damaged";
+    uint64_t elements = 1;
+    for (int i = 0; i < rank; ++i)
+      elements =
+          chunk[i] != 0 && elements > UINT64_MAX / chunk[i] ? UINT64_MAX : elements * chunk[i];
+    Handle type(H5Dget_type(dataset), H5Tclose);
+    const uint64_t size = type.valid() ? H5Tget_size(type) : 0;
+    if (values[2] != elements || values[4] != size)
+      return "its " + filter + " filter's parameters say a chunk holds " +
+             std::to_string(values[2]) + " values of " + std::to_string(values[4]) +
+             " bytes, but its layout and type say " + std::to_string(elements) + " of " +
+             std::to_string(size) + ": the header is damaged";
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string damaged_storage(hid_t dataset) {
+  Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
+  if (!dcpl.valid()) return "";
+  const std::string compact = damaged_compact_storage(dataset, dcpl);
+  return compact.empty() ? damaged_filter_parameters(dataset, dcpl) : compact;
+}
+
 void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name) {
-  const std::string compact = damaged_compact_storage(dataset);
-  if (!compact.empty()) throw InputError(path, "dataset " + name, compact);
+  const std::string damaged = damaged_storage(dataset);
+  if (!damaged.empty()) throw InputError(path, "dataset " + name, damaged);
   // Nothing stored to compare with: data never written (all fill value), a virtual dataset or
   // one in external files. Their readers size batches, not the whole shape.
   Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);

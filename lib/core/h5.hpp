@@ -85,13 +85,17 @@ bool path_exists(hid_t location, const std::string& path);
 // index) times the best ratio of its filter pipeline (deflate 1032:1, LZ4 255:1, Blosc and any
 // filter we do not know 2^17:1; none: 1:1), plus 1 MiB for chunks left to the fill value.
 uint64_t max_decoded_bytes(hid_t dataset);
-// What is wrong with a compact dataset whose header stores other than its shape's bytes (HDF5
-// 1.10.8 trusts the stored size: a read copies the shape's bytes from a null buffer when it says
-// 0; found by fuzz_hdf5, tests/fuzz/known/hdf5/); empty for any other dataset.
-std::string damaged_compact_storage(hid_t dataset);
+// What is wrong with a dataset's header where HDF5 1.10.8 trusts it on a read (both found by
+// fuzz_hdf5, tests/fuzz/known/hdf5/); empty when nothing is:
+// - a compact dataset that stores other than its shape's bytes (a read copies the shape's bytes
+//   from a null buffer when it says 0);
+// - a scale-offset or N-bit filter whose parameters disagree with the chunk layout: their
+//   decoders size their output from the parameters' element count and element size, not from
+//   the chunk (a damaged count asked for 4 GB to decode a 20-byte chunk, and would fill it).
+std::string damaged_storage(hid_t dataset);
 // Throws InputError naming `path` and `name` when the dataset's shape claims more bytes than
-// max_decoded_bytes(), or a compact dataset's header is damaged (above): refused before anything
-// is sized or read from it.
+// max_decoded_bytes(), or its header is damaged (damaged_storage): refused before anything is
+// sized or read from it.
 void check_claimed_size(const std::string& path, hid_t dataset, const std::string& name);
 
 // Maps any attribute name to an HDF5 link name: '/' and '%' (and a leading '.') become %XX;

@@ -62,8 +62,8 @@ void walk_dataset(hid_t dataset, const std::string& where, hsize_t file_size) {
   const int rank = H5Sget_simple_extent_ndims(space);
   if (rank < 0 || rank > H5S_MAX_RANK) fail(where, "unreadable shape");
   H5Dget_storage_size(dataset);
-  const std::string compact = damaged_compact_storage(dataset);
-  if (!compact.empty()) fail(where, compact);
+  const std::string damaged = damaged_storage(dataset);
+  if (!damaged.empty()) fail(where, damaged);
   const int filters = H5Pget_nfilters(dcpl);
   for (int f = 0; f < filters; ++f) {
     unsigned flags = 0, config = 0;
