@@ -319,14 +319,19 @@ class Hdf5Reader : public LineReader {
     if (d.flat_hash) d.flat_hash->update(out, count * columns * sizeof(float));
   }
 
-  // A cache's chunks (a cache read as lines) go through linebake's own decoder, as the cache
-  // reader's do (cache/chunk_reader.hpp); false for any other dataset.
+  // Chunks go through linebake's own decoder (cache/chunk_reader.hpp): a cache's (a cache read as
+  // lines) as the cache reader's do, and those of other programs' line files where linebake
+  // decodes their filters. False where HDF5 reads the dataset: a contiguous or compact one, or a
+  // line file's with another filter.
   bool read_direct(hid_t dataset, hid_t type, uint64_t first, uint64_t count, void* out,
                    const std::string& name) const {
-    // Line files from other tools keep HDF5's own read: their unwritten chunks are fill values.
-    if (prefix_.empty()) return count == 0;
     try {
+      if (prefix_.empty()) return read_rows_checked(dataset, type, first, count, out);
       return read_cache_rows_strict(dataset, type, first, count, out);
+    } catch (const std::bad_alloc&) {
+      throw BudgetExceeded(path_ + ": dataset " + name +
+                           ": a chunk needs more memory than this process could allocate "
+                           "(ulimit -v, the cgroup's limit, or the machine's memory)");
     } catch (const BudgetExceeded& e) {
       throw BudgetExceeded(path_ + ": dataset " + name + ": " + e.what());
     } catch (const Error& e) {

@@ -204,8 +204,11 @@ uint64_t most_raw_bytes(Compression compression, size_t stored) {
   return ratio * uint64_t(stored) + 1024;
 }
 
-void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t raw_bytes,
+}  // namespace
+
+void decode_codec(const ChunkCodec& codec, const void* stored_bytes, size_t bytes, size_t raw_bytes,
                   std::vector<char>& out) {
+  const char* in = static_cast<const char*>(stored_bytes);
   if (raw_bytes > most_raw_bytes(codec.compression, bytes))
     throw Error(std::string(to_string(codec.compression)) + ": a stored chunk of " +
                 std::to_string(bytes) + " bytes cannot hold " + std::to_string(raw_bytes) +
@@ -262,8 +265,6 @@ void decode_codec(const ChunkCodec& codec, const char* in, size_t bytes, size_t 
       return;
   }
 }
-
-}  // namespace
 
 void shuffle_bytes(const void* in_bytes, size_t bytes, size_t size, void* out_bytes) {
   const auto* in = static_cast<const uint8_t*>(in_bytes);
@@ -347,6 +348,21 @@ void encode_chunk(const ChunkCodec& codec, const void* raw, size_t bytes, std::v
   for (int i = 0; i < 4; ++i) out[at + size_t(i)] = char(sum >> (8 * i));  // little endian
 }
 
+size_t check_fletcher32(const void* stored_bytes, size_t bytes) {
+  const char* stored = static_cast<const char*>(stored_bytes);
+  if (bytes < 4) throw Error("stored chunk shorter than its checksum");
+  const size_t payload = bytes - 4;
+  uint32_t expected = 0;
+  for (int i = 0; i < 4; ++i) expected |= uint32_t(uint8_t(stored[payload + size_t(i)])) << (8 * i);
+  const uint32_t sum = fletcher32(stored, payload);
+  // HDF5 before 1.6.3 stored the checksum byte-reversed; HDF5 accepts both, so do we.
+  const uint32_t reversed =
+      (sum & 0xff) << 24 | (sum & 0xff00) << 8 | (sum >> 8 & 0xff00) | sum >> 24;
+  if (expected != sum && expected != reversed)
+    throw Error("Fletcher-32 checksum mismatch: the stored chunk is corrupt");
+  return payload;
+}
+
 void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* stored_bytes,
                   size_t bytes, size_t raw_bytes, std::vector<char>& out,
                   std::vector<char>& scratch) {
@@ -355,20 +371,7 @@ void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* sto
     decode_codec(codec, stored, bytes, raw_bytes, out);
     return;
   }
-  size_t payload = bytes;
-  if (!(filter_mask & kFletcherBit)) {
-    if (bytes < 4) throw Error("stored chunk shorter than its checksum");
-    payload = bytes - 4;
-    uint32_t expected = 0;
-    for (int i = 0; i < 4; ++i)
-      expected |= uint32_t(uint8_t(stored[payload + size_t(i)])) << (8 * i);
-    const uint32_t sum = fletcher32(stored, payload);
-    // HDF5 before 1.6.3 stored the checksum byte-reversed; HDF5 accepts both, so do we.
-    const uint32_t reversed =
-        (sum & 0xff) << 24 | (sum & 0xff00) << 8 | (sum >> 8 & 0xff00) | sum >> 24;
-    if (expected != sum && expected != reversed)
-      throw Error("Fletcher-32 checksum mismatch: the stored chunk is corrupt");
-  }
+  const size_t payload = filter_mask & kFletcherBit ? bytes : check_fletcher32(stored, bytes);
   const char* data = stored;
   if (!(filter_mask & kCodecBit)) {
     decode_codec(codec, stored, payload, raw_bytes, scratch);

@@ -49,7 +49,16 @@ void encode_chunk(const ChunkCodec& codec, const void* raw, size_t bytes, std::v
 void decode_chunk(const ChunkCodec& codec, unsigned filter_mask, const void* stored, size_t bytes,
                   size_t raw_bytes, std::vector<char>& out, std::vector<char>& scratch);
 
-// The building blocks, exposed for tests.
+// The building blocks, exposed for tests and for chunks of other programs' pipelines
+// (cache/chunk_reader.hpp).
+// One codec's stored bytes -> exactly `raw_bytes` (`out` resized); an Error for anything else,
+// and before anything is sized when `bytes` cannot hold that many (most_raw_bytes).
+void decode_codec(const ChunkCodec& codec, const void* stored, size_t bytes, size_t raw_bytes,
+                  std::vector<char>& out);
+// Checks the Fletcher-32 sum HDF5 appended to a stored chunk (either byte order, as HDF5
+// accepts) and returns the size without it; an Error on a mismatch or a chunk under 4 bytes.
+size_t check_fletcher32(const void* stored, size_t bytes);
+// Shuffle and the sum:
 void shuffle_bytes(const void* in, size_t bytes, size_t element_size, void* out);
 void unshuffle_bytes(const void* in, size_t bytes, size_t element_size, void* out);
 // HDF5's H5_checksum_fletcher32: 16-bit big-endian words, sums folded to 16 bits.

@@ -24,4 +24,15 @@ bool read_cache_rows(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t 
 bool read_cache_rows_strict(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t count,
                             void* out);
 
+// Rows [first, first + count) of a chunked dataset of any program, each chunk read raw with
+// H5Dread_chunk, decoded by linebake (its filters, in any order, among shuffle, Fletcher-32 and at
+// most one of deflate, LZ4 and Blosc; or none), its size checked against the chunk's at every
+// step, and converted to `memory_type` by H5Tconvert, as H5Dread converts. A chunk never written
+// reads as the dataset's fill value. HDF5 1.10.8's own filtered read copies a chunk's nominal
+// size out of a shorter filter output (found by fuzz_hdf5 in a line file, as by the cache fuzzer
+// in a cache). Returns false, having read nothing, for a contiguous or compact dataset, one of
+// rank above 2, or one with a filter linebake does not decode (scale-offset, N-bit, szip, ...):
+// the caller reads it with H5Dread. Throws Error naming the chunk on a damaged one.
+bool read_rows_checked(hid_t dataset, hid_t memory_type, uint64_t first, uint64_t count, void* out);
+
 }  // namespace linebake
