@@ -410,3 +410,54 @@ TEST(H5Probe, AScaleOffsetFilterMustDescribeItsChunk) {
   }
   unsetenv("LINEBAKE_ISOLATION");
 }
+
+// A float type's bit fields come from the file, and HDF5's conversion copies them bit by bit: a
+// fuzzed double whose exponent was said to sit at bits 54 to 64 made every read run one bit past
+// its element (a SEGV past the last one, in-process). The walk and the reader refuse a number
+// type whose fields leave its bytes.
+TEST(H5Probe, ANumberTypeMustKeepItsBitsInsideItsBytes) {
+  TempDir dir;
+  const std::string path = dir.file("float.h5");
+  {
+    h5::init();
+    h5::Handle file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+    const hsize_t dims[2] = {4, 3};
+    h5::Handle space(H5Screate_simple(2, dims, nullptr), H5Sclose);
+    h5::Handle d(
+        H5Dcreate2(file, "points", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    const double values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
+    const uint64_t offsets[2] = {0, 4};
+    const hsize_t two = 2;
+    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
+    h5::Handle o(
+        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+        H5Dclose);
+    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+  }
+  ASSERT_EQ(read_line_set(path).positions[11], 12.0f);
+  // The datatype message's float properties (HDF5 file format, section IV.A.2.d): bit offset 0,
+  // precision 64, exponent at bit 52 of 11 bits, mantissa at bit 0 of 52, bias 1023.
+  std::string bytes = read_text(path);
+  const std::string properties("\x00\x00\x40\x00\x34\x0b\x00\x34\xff\x03\x00\x00", 12);
+  const size_t at = bytes.find(properties);
+  ASSERT_NE(at, std::string::npos);
+  ASSERT_EQ(bytes.find(properties, at + 1), std::string::npos);
+  bytes[at + 4] = 54;  // the exponent at bits 54 to 64
+  write_text(path, bytes);
+  for (const char* isolation : {"on", "off"}) {
+    SCOPED_TRACE(isolation);
+    setenv("LINEBAKE_ISOLATION", isolation, 1);
+    try {
+      (void)read_line_set(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      EXPECT_NE(std::string(e.what()).find("/points"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("11 exponent bits at bit 54"), std::string::npos)
+          << e.what();
+    }
+  }
+  unsetenv("LINEBAKE_ISOLATION");
+}

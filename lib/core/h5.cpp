@@ -182,9 +182,39 @@ std::string damaged_filter_parameters(hid_t dataset, hid_t dcpl) {
   return "";
 }
 
+// A number type's bit fields must lie inside its bytes: HDF5's soft conversions (H5T__conv_f_f,
+// H5T__conv_i_i) copy the fields bit by bit as the type describes them, so an exponent said to
+// reach past the element read past the buffer at its last element (found by fuzz_hdf5).
+std::string damaged_number_type(hid_t dataset) {
+  Handle type(H5Dget_type(dataset), H5Tclose);
+  if (!type.valid()) return "";
+  const H5T_class_t type_class = H5Tget_class(type);
+  if (type_class != H5T_FLOAT && type_class != H5T_INTEGER) return "";
+  const size_t bits = 8 * H5Tget_size(type), precision = H5Tget_precision(type);
+  const int offset = H5Tget_offset(type);
+  std::string wrong;
+  if (bits == 0 || precision == 0 || offset < 0 || size_t(offset) + precision > bits)
+    wrong = std::to_string(precision) + " bits of precision at bit " + std::to_string(offset);
+  if (wrong.empty() && type_class == H5T_FLOAT) {
+    size_t sign = 0, exponent = 0, exponent_bits = 0, mantissa = 0, mantissa_bits = 0;
+    if (H5Tget_fields(type, &sign, &exponent, &exponent_bits, &mantissa, &mantissa_bits) < 0 ||
+        sign >= bits || exponent_bits == 0 || exponent + exponent_bits > bits ||
+        mantissa_bits == 0 || mantissa + mantissa_bits > bits)
+      wrong = "a sign at bit " + std::to_string(sign) + ", " + std::to_string(exponent_bits) +
+              " exponent bits at bit " + std::to_string(exponent) + " and " +
+              std::to_string(mantissa_bits) + " mantissa bits at bit " + std::to_string(mantissa);
+  }
+  if (wrong.empty()) return "";
+  return "its " + std::string(type_class == H5T_FLOAT ? "floating-point" : "integer") +
+         " type of " + std::to_string(bits / 8) + " bytes says " + wrong +
+         ", outside its bytes: the header is damaged";
+}
+
 }  // namespace
 
 std::string damaged_storage(hid_t dataset) {
+  const std::string type = damaged_number_type(dataset);
+  if (!type.empty()) return type;
   Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
   if (!dcpl.valid()) return "";
   const std::string compact = damaged_compact_storage(dataset, dcpl);

@@ -91,7 +91,10 @@ uint64_t max_decoded_bytes(hid_t dataset);
 //   from a null buffer when it says 0);
 // - a scale-offset or N-bit filter whose parameters disagree with the chunk layout: their
 //   decoders size their output from the parameters' element count and element size, not from
-//   the chunk (a damaged count asked for 4 GB to decode a 20-byte chunk, and would fill it).
+//   the chunk (a damaged count asked for 4 GB to decode a 20-byte chunk, and would fill it);
+// - a number type whose precision, or a float's sign, exponent or mantissa, lies partly outside
+//   its bytes: conversions copy those bits (an exponent at bits 54 to 64 of a double read past
+//   the last element).
 std::string damaged_storage(hid_t dataset);
 // Throws InputError naming `path` and `name` when the dataset's shape claims more bytes than
 // max_decoded_bytes(), or its header is damaged (damaged_storage): refused before anything is
