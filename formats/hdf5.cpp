@@ -71,6 +71,7 @@ bool numeric_attribute_text(hid_t file, const std::string& name, std::string& te
   const H5T_class_t kind = H5Tget_class(type);
   const hssize_t count = H5Sget_simple_extent_npoints(space);
   if ((kind != H5T_INTEGER && kind != H5T_FLOAT) || count < 1 || count > 16) return false;
+  if (!h5::damaged_number_type(type).empty()) return false;  // converting it reads past it
   std::vector<char> values(size_t(count) * 8);
   const bool is_signed = kind == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_2;
   const hid_t memory = kind == H5T_FLOAT ? H5T_NATIVE_DOUBLE

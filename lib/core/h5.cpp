@@ -182,12 +182,9 @@ std::string damaged_filter_parameters(hid_t dataset, hid_t dcpl) {
   return "";
 }
 
-// A number type's bit fields must lie inside its bytes: HDF5's soft conversions (H5T__conv_f_f,
-// H5T__conv_i_i) copy the fields bit by bit as the type describes them, so an exponent said to
-// reach past the element read past the buffer at its last element (found by fuzz_hdf5).
-std::string damaged_number_type(hid_t dataset) {
-  Handle type(H5Dget_type(dataset), H5Tclose);
-  if (!type.valid()) return "";
+}  // namespace
+
+std::string damaged_number_type(hid_t type) {
   const H5T_class_t type_class = H5Tget_class(type);
   if (type_class != H5T_FLOAT && type_class != H5T_INTEGER) return "";
   const size_t bits = 8 * H5Tget_size(type), precision = H5Tget_precision(type);
@@ -210,10 +207,9 @@ std::string damaged_number_type(hid_t dataset) {
          ", outside its bytes: the header is damaged";
 }
 
-}  // namespace
-
 std::string damaged_storage(hid_t dataset) {
-  const std::string type = damaged_number_type(dataset);
+  Handle number(H5Dget_type(dataset), H5Tclose);
+  const std::string type = number.valid() ? damaged_number_type(number) : "";
   if (!type.empty()) return type;
   Handle dcpl(H5Dget_create_plist(dataset), H5Pclose);
   if (!dcpl.valid()) return "";

@@ -96,6 +96,11 @@ uint64_t max_decoded_bytes(hid_t dataset);
 //   its bytes: conversions copy those bits (an exponent at bits 54 to 64 of a double read past
 //   the last element).
 std::string damaged_storage(hid_t dataset);
+// What is wrong with an integer or float type whose precision, or a float's sign, exponent or
+// mantissa, lies partly outside its bytes (empty when nothing is, or for another class): HDF5's
+// soft conversions (H5T__conv_f_f, H5T__conv_i_i) copy those bits as the type says, past the
+// element. For datasets through damaged_storage; attributes with such a type are not read.
+std::string damaged_number_type(hid_t type);
 // Throws InputError naming `path` and `name` when the dataset's shape claims more bytes than
 // max_decoded_bytes(), or its header is damaged (damaged_storage): refused before anything is
 // sized or read from it.
