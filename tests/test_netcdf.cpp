@@ -156,6 +156,54 @@ TEST(NetCdf, CfMultidimensionalWithAxisAttributes) {
   EXPECT_EQ(l.metadata.at("netcdf.layout"), "cf-multidimensional");
 }
 
+// fuzz_netcdf (CI's 10 s step, 2026-12-01): a classic header claiming 738,197,514 characters for
+// featureType in a 612-byte file; libnetcdf opens it, and the reader copied the claim and trimmed
+// it a character at a time (42 s under the sanitizers). An attribute longer than the file is
+// refused, naming it.
+TEST(NetCdf, ATextAttributeLongerThanTheFileIsRefused) {
+  TempDir dir;
+  const std::string path = dir.file("classic.nc");
+  int nc, d[2];
+  ok(nc_create(path.c_str(), NC_CLOBBER, &nc));
+  ok(nc_put_att_text(nc, NC_GLOBAL, "featureType", 10, "trajectory"));
+  ok(nc_def_dim(nc, "trajectory", 2, &d[0]));
+  ok(nc_def_dim(nc, "obs", 2, &d[1]));
+  const int x = axis_variable(nc, "x", d, "X");
+  const int y = axis_variable(nc, "y", d, "Y");
+  const int z = axis_variable(nc, "z", d, "Z");
+  ok(nc_enddef(nc));
+  const double xs[] = {1, 2, 3, 4}, ys[] = {4, 5, 6, 7}, zs[] = {7, 8, 9, 10};
+  ok(nc_put_var_double(nc, x, xs));
+  ok(nc_put_var_double(nc, y, ys));
+  ok(nc_put_var_double(nc, z, zs));
+  ok(nc_close(nc));
+  ASSERT_EQ(read_line_set(path).point_count(), 4u);
+  // The classic header (NetCDF's file format spec): the name, its padding, the type NC_CHAR (2),
+  // the length (10), big-endian, then the characters. Say 100,000.
+  std::string bytes = linebake::test::read_text(path);
+  const std::string attribute =
+      std::string("featureType\0", 12) + std::string("\0\0\0\x02\0\0\0\x0a", 8) + "trajectory";
+  const size_t at = bytes.find(attribute);
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at + 16, 4, std::string("\0\x01\x86\xa0", 4));
+  linebake::test::write_text(path, bytes);
+  for (const char* isolation : {"on", "off"}) {
+    SCOPED_TRACE(isolation);
+    setenv("LINEBAKE_ISOLATION", isolation, 1);
+    try {
+      (void)read_line_set(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      EXPECT_NE(std::string(e.what()).find("attribute featureType: 100000 characters claimed, "
+                                           "more than the file's"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  unsetenv("LINEBAKE_ISOLATION");
+}
+
 // Earth-centred coordinates (6.4e6 m) read at an origin: unpacked and moved in double, rounded
 // once, so the centimetres float32 cannot hold at 6.4e6 (steps of 0.5 m) are kept.
 TEST(NetCdf, PositionsAreMovedToTheOriginBeforeFloat32) {
