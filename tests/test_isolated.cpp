@@ -253,6 +253,17 @@ TEST(Isolated, TheLimitComesFromTheEnvironment) {
   EXPECT_EQ(isolation_seconds(), 120.0);
 }
 
+// The /line_offsets of a hand-built line file of one line of `points` points.
+static bool write_one_line(hid_t file, uint64_t points) {
+  const uint64_t offsets[2] = {0, points};
+  const hsize_t two = 2;
+  h5::Handle space(H5Screate_simple(1, &two, nullptr), H5Sclose);
+  h5::Handle o(
+      H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+      H5Dclose);
+  return H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets) >= 0;
+}
+
 // The walk visits what the reader reads: a dataset whose chunk index is damaged fails the walk
 // (in the child), and the reader's error names the file and the dataset.
 TEST(H5Probe, AWalkFailureNamesTheDataset) {
@@ -269,13 +280,7 @@ TEST(H5Probe, AWalkFailureNamesTheDataset) {
                  H5Dclose);
     std::vector<float> values(4096 * 3, 1.0f);
     ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
-    const uint64_t offsets[2] = {0, 4096};
-    const hsize_t two = 2;
-    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
-    h5::Handle o(
-        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-        H5Dclose);
-    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+    ASSERT_TRUE(write_one_line(file, 4096));
   }
   EXPECT_NO_THROW(h5::probe(path, {"/points", "/line_offsets"}));
   EXPECT_EQ(read_line_set(path).point_count(), 4096u);
@@ -313,13 +318,7 @@ TEST(H5Probe, ACompactDatasetMustStoreItsShape) {
                  H5Dclose);
     const float values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
     ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
-    const uint64_t offsets[2] = {0, 4};
-    const hsize_t two = 2;
-    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
-    h5::Handle o(
-        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-        H5Dclose);
-    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+    ASSERT_TRUE(write_one_line(file, 4));
   }
   const LineSet sound = read_line_set(path);
   ASSERT_EQ(sound.point_count(), 4u);
@@ -370,13 +369,7 @@ TEST(H5Probe, AScaleOffsetFilterMustDescribeItsChunk) {
                  H5Dclose);
     const float values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12.5f};
     ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
-    const uint64_t offsets[2] = {0, 4};
-    const hsize_t two = 2;
-    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
-    h5::Handle o(
-        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-        H5Dclose);
-    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+    ASSERT_TRUE(write_one_line(file, 4));
   }
   const LineSet sound = read_line_set(path);
   ASSERT_EQ(sound.point_count(), 4u);
@@ -428,13 +421,7 @@ TEST(H5Probe, ANumberTypeMustKeepItsBitsInsideItsBytes) {
         H5Dclose);
     const double values[12] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
     ASSERT_GE(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
-    const uint64_t offsets[2] = {0, 4};
-    const hsize_t two = 2;
-    h5::Handle s2(H5Screate_simple(1, &two, nullptr), H5Sclose);
-    h5::Handle o(
-        H5Dcreate2(file, "line_offsets", H5T_STD_U64LE, s2, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-        H5Dclose);
-    ASSERT_GE(H5Dwrite(o, H5T_NATIVE_UINT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, offsets), 0);
+    ASSERT_TRUE(write_one_line(file, 4));
   }
   ASSERT_EQ(read_line_set(path).positions[11], 12.0f);
   // The datatype message's float properties (HDF5 file format, section IV.A.2.d): bit offset 0,

@@ -58,7 +58,7 @@ void decode_codec(const ChunkCodec& codec, const void* stored, size_t bytes, siz
 // Checks the Fletcher-32 sum HDF5 appended to a stored chunk (either byte order, as HDF5
 // accepts) and returns the size without it; an Error on a mismatch or a chunk under 4 bytes.
 size_t check_fletcher32(const void* stored, size_t bytes);
-// Shuffle and the sum:
+// HDF5's shuffle and its Fletcher-32:
 void shuffle_bytes(const void* in, size_t bytes, size_t element_size, void* out);
 void unshuffle_bytes(const void* in, size_t bytes, size_t element_size, void* out);
 // HDF5's H5_checksum_fletcher32: 16-bit big-endian words, sums folded to 16 bits.

@@ -37,11 +37,10 @@ bool cache_codec(hid_t dcpl, size_t element, ChunkCodec& codec) {
   return true;
 }
 
-// A dataset's pipeline as linebake decodes it: the filters in write order, the one codec's
-// position (or -1), false for a filter it does not decode.
+// A dataset's pipeline as linebake decodes it: the filters in write order and the one codec's
+// settings.
 struct Pipeline {
   std::vector<H5Z_filter_t> ids;
-  int codec = -1;
   ChunkCodec codec_of;
 };
 
@@ -49,6 +48,7 @@ bool decodable_pipeline(hid_t dcpl, size_t element, Pipeline& pipeline) {
   const int filters = H5Pget_nfilters(dcpl);
   if (filters < 0) return false;
   pipeline.codec_of.element_size = element;
+  bool has_codec = false;
   for (int f = 0; f < filters; ++f) {
     unsigned flags = 0, config = 0;
     size_t values = 0;
@@ -58,8 +58,8 @@ bool decodable_pipeline(hid_t dcpl, size_t element, Pipeline& pipeline) {
                        id == H5Z_filter_t(kBloscFilter);
     if (!codec && id != H5Z_FILTER_SHUFFLE && id != H5Z_FILTER_FLETCHER32) return false;
     if (codec) {
-      if (pipeline.codec >= 0) return false;  // two codecs: the size between them is unknown
-      pipeline.codec = f;
+      if (has_codec) return false;  // two codecs: the size between them is unknown
+      has_codec = true;
       pipeline.codec_of.compression = id == H5Z_FILTER_DEFLATE         ? Compression::Deflate
                                       : id == H5Z_filter_t(kLz4Filter) ? Compression::Lz4
                                                                        : Compression::BloscZstd;
@@ -130,14 +130,16 @@ bool read_rows_checked(hid_t dataset, hid_t memory_type, uint64_t first, uint64_
       H5Pget_fill_value(dcpl, memory_type, fill.data()) < 0)
     std::fill(fill.begin(), fill.end(), 0);
 
-  std::vector<char> data, scratch, background;
+  std::vector<char> data, scratch;
   char* dst = static_cast<char*>(out);
   const uint64_t last = first + count;
   for (uint64_t r0 = first / chunk[0] * chunk[0]; r0 < last; r0 += chunk[0]) {
     for (uint64_t c0 = 0; c0 < columns; c0 += chunk_columns) {
       const hsize_t offset[2] = {r0, c0};
-      const std::string where = "the chunk at row " + std::to_string(r0) +
-                                (rank == 2 ? ", column " + std::to_string(c0) : std::string());
+      const auto where = [&] {
+        return "the chunk at row " + std::to_string(r0) +
+               (rank == 2 ? ", column " + std::to_string(c0) : std::string());
+      };
       const uint64_t from = std::max(first, r0), to = std::min<uint64_t>(last, r0 + chunk[0]);
       const uint64_t c1 = std::min<uint64_t>(columns, c0 + chunk_columns);
       // The chunk's place in the index: none for a chunk never written.
@@ -145,7 +147,7 @@ bool read_rows_checked(hid_t dataset, hid_t memory_type, uint64_t first, uint64_
       haddr_t address = HADDR_UNDEF;
       hsize_t stored = 0;
       if (H5Dget_chunk_info_by_coord(dataset, offset, &index_mask, &address, &stored) < 0)
-        throw Error(where + ": unreadable chunk index (" + h5::last_error() + ")");
+        throw Error(where() + ": unreadable chunk index (" + h5::last_error() + ")");
       if (address == HADDR_UNDEF) stored = 0;
       if (stored == 0) {  // never written
         for (uint64_t r = from; r < to; ++r)
@@ -157,22 +159,22 @@ bool read_rows_checked(hid_t dataset, hid_t memory_type, uint64_t first, uint64_
       // A stored chunk is at most its raw size, a codec's framing and checksums, unless the
       // codec expanded it (HDF5 keeps such a chunk unfiltered instead).
       if (stored > raw_bytes + raw_bytes / 16 + 1024)
-        throw Error(where + ": " + std::to_string(stored) + " bytes stored for " +
+        throw Error(where() + ": " + std::to_string(stored) + " bytes stored for " +
                     std::to_string(raw_bytes) + " raw");
       data.resize(stored);
       uint32_t mask = 0;
       if (H5Dread_chunk(dataset, H5P_DEFAULT, offset, &mask, data.data()) < 0)
-        throw Error(where + ": cannot read (" + h5::last_error() + ")");
+        throw Error(where() + ": cannot read (" + h5::last_error() + ")");
       try {
         decode_pipeline(pipeline, mask, data, raw_bytes, scratch);
       } catch (const Error& e) {
-        throw Error(where + ": " + e.what());
+        throw Error(where() + ": " + e.what());
       }
-      // HDF5's conversion, in place in a buffer wide enough for either type.
+      // HDF5's conversion, in place in a buffer wide enough for either type (numbers need no
+      // background buffer).
       data.resize(elements * wide);
-      background.resize(elements * wide);
-      if (H5Tconvert(type, memory_type, elements, data.data(), background.data(), H5P_DEFAULT) < 0)
-        throw Error(where + ": cannot convert its values (" + h5::last_error() + ")");
+      if (H5Tconvert(type, memory_type, elements, data.data(), nullptr, H5P_DEFAULT) < 0)
+        throw Error(where() + ": cannot convert its values (" + h5::last_error() + ")");
       for (uint64_t r = from; r < to; ++r)
         std::memcpy(dst + ((r - first) * columns + c0) * memory_element,
                     data.data() + ((r - r0) * chunk_columns) * memory_element,
