@@ -167,4 +167,24 @@ inline std::string read_error(const std::string& path) {
   return "";
 }
 
+// Reads `path` with the metadata walk in a child process and again in-process
+// (LINEBAKE_ISOLATION on, then off) and expects each read to throw an InputError naming the file
+// whose message holds every one of `phrases`: the reader's own checks, not just the walk's.
+inline void expect_refused_either_way(const std::string& path,
+                                      std::initializer_list<std::string> phrases) {
+  for (const char* isolation : {"on", "off"}) {
+    SCOPED_TRACE(std::string("LINEBAKE_ISOLATION=") + isolation);
+    setenv("LINEBAKE_ISOLATION", isolation, 1);
+    try {
+      (void)read_line_set(path);
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), path);
+      for (const std::string& phrase : phrases)
+        EXPECT_NE(std::string(e.what()).find(phrase), std::string::npos) << e.what();
+    }
+  }
+  unsetenv("LINEBAKE_ISOLATION");
+}
+
 }  // namespace linebake::test
